@@ -1,0 +1,551 @@
+//! The `vibroscope` command line. Exit status: 0 success, 1 runtime error,
+//! 2 usage or configuration error, 130 interrupted (outputs finalised).
+
+use crate::engine::config::{self, apply_set, set_param, ConfigError, Origin, PipelineDecl};
+use crate::engine::{self, Control, Params};
+use crate::stages::sources::synthetic::SyntheticParams;
+use crate::stages::{self, REGISTRY};
+use crate::{io, pipelines};
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+
+#[derive(Parser)]
+#[command(
+    name = "vibroscope",
+    version,
+    about = "Hear and measure vibration through a camera: a streaming visual-vibration engine",
+    long_about = "Hear and measure vibration through a camera.\n\n\
+        vibroscope runs pipelines of stages (sources, analysis, sinks) joined by bounded \
+        ring buffers, on live cameras or on recordings (Y4M, Phantom .cine, Photron \
+        .mraw/.cih, anything ffmpeg reads). Pipelines are TOML files; the shipped ones \
+        run by name.\n\n\
+        Start with `vibroscope demo` (no camera or file needed), then \
+        `vibroscope pipelines` and `vibroscope probe FILE`."
+)]
+pub struct Cli {
+    /// More log output (-v info, -vv debug); RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run a pipeline: a TOML file, or the name of a shipped pipeline.
+    #[command(after_help = "Examples:\n  vibroscope run demo --stats\n  \
+        vibroscope run pipelines/motion.toml --replay clip.cine --set motion.direction_deg=90\n  \
+        vibroscope run motion --replay guitar.mp4 --fps 600 --set out.path=guitar.wav")]
+    Run {
+        /// Pipeline file, or a shipped pipeline's name (see `vibroscope pipelines`).
+        pipeline: String,
+        /// Override a stage parameter: STAGE.KEY=VALUE (VALUE is TOML: 600, true, "x", [1,2]).
+        #[arg(long = "set", value_name = "STAGE.KEY=VALUE")]
+        set: Vec<String>,
+        /// Replace the pipeline's source with this recording (never drops frames).
+        #[arg(long, value_name = "FILE")]
+        replay: Option<PathBuf>,
+        /// Capture frame rate in Hz for the source (overrides the file's stated rate).
+        #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+        fps: Option<f64>,
+        /// Print a per-stage summary (items, drops, queue use, time per item) at exit.
+        #[arg(long)]
+        stats: bool,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// List the shipped pipelines.
+    Pipelines,
+    /// List the stage kinds a pipeline can use.
+    Kinds,
+    /// Describe a video file: format, size, bit depth, frames, frame rate, timestamps.
+    Probe {
+        file: PathBuf,
+        /// Capture rate in Hz, when the file states the wrong one.
+        #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+        fps: Option<f64>,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Score a recovered signal against the reference sound: SNR, segmental
+    /// SNR (Hansen & Pellom), LLR and STOI (Taal et al. 2011), as JSON, after
+    /// finding the best lag and gain (a recovery's scale and sign are arbitrary).
+    /// The test is resampled to the reference's rate when they differ.
+    Score {
+        reference: PathBuf,
+        test: PathBuf,
+        /// Largest lag searched, in seconds.
+        #[arg(long, default_value_t = 0.5, value_name = "S")]
+        max_lag_s: f64,
+    },
+    /// Render the built-in synthetic scene, recover its motion, write a WAV
+    /// and print the SNR against the known signal.
+    Demo {
+        /// Output WAV.
+        #[arg(short, long, default_value = "demo.wav")]
+        output: PathBuf,
+        /// Override a parameter of the demo pipeline (e.g. cam.amplitude_px=0.02).
+        #[arg(long = "set", value_name = "STAGE.KEY=VALUE")]
+        set: Vec<String>,
+    },
+}
+
+/// Entry point of the binary.
+pub fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    init_tracing(cli.verbose);
+    match dispatch(cli.command) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            match e.downcast_ref::<ConfigError>() {
+                Some(_) => ExitCode::from(2),
+                None => ExitCode::from(1),
+            }
+        }
+    }
+}
+
+fn init_tracing(verbose: u8) {
+    let default = match verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
+    match cmd {
+        Command::Run {
+            pipeline,
+            set,
+            replay,
+            fps,
+            stats,
+            quiet,
+        } => {
+            let decl = prepare(&pipeline, &set, replay.as_deref(), fps)?;
+            run_decl(&decl, stats, !quiet).map(|(code, _)| code)
+        }
+        Command::Pipelines => {
+            for s in pipelines::SHIPPED {
+                println!("{:<12} {}", s.name, pipelines::description(s));
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Kinds => {
+            for k in REGISTRY {
+                let role = if k.is_source() {
+                    "source"
+                } else if k.output == engine::Output::None {
+                    "sink"
+                } else {
+                    "stage"
+                };
+                println!("{:<16} {:<7} {}", k.name, role, k.summary);
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Probe { file, fps, json } => probe(&file, fps, json),
+        Command::Demo { output, set } => demo(&output, &set),
+        Command::Score {
+            reference,
+            test,
+            max_lag_s,
+        } => score(&reference, &test, max_lag_s),
+    }
+}
+
+/// Loads a pipeline by path or shipped name and applies command-line changes.
+pub fn prepare(
+    pipeline: &str,
+    set: &[String],
+    replay: Option<&Path>,
+    fps: Option<f64>,
+) -> anyhow::Result<PipelineDecl> {
+    let mut decl = load(pipeline)?;
+    for s in set {
+        apply_set(&mut decl, s)?;
+    }
+    if let Some(path) = replay {
+        apply_replay(&mut decl, path)?;
+    }
+    if let Some(f) = fps {
+        apply_fps(&mut decl, f)?;
+    }
+    Ok(decl)
+}
+
+fn cfg_error(file: &str, msg: String) -> ConfigError {
+    ConfigError {
+        file: file.to_string(),
+        origin: None,
+        stage: None,
+        field: None,
+        message: msg,
+    }
+}
+
+/// A pipeline file, or a shipped pipeline by name.
+pub fn load(pipeline: &str) -> Result<PipelineDecl, ConfigError> {
+    let path = Path::new(pipeline);
+    if path.exists() {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| cfg_error(pipeline, format!("cannot read: {e}")))?;
+        return config::parse(pipeline, &text);
+    }
+    if let Some(s) = pipelines::find(pipeline) {
+        return config::parse(&format!("pipelines/{}.toml (shipped)", s.name), s.text);
+    }
+    let names: Vec<&str> = pipelines::SHIPPED.iter().map(|s| s.name).collect();
+    Err(cfg_error(
+        pipeline,
+        format!(
+            "no such file, and no shipped pipeline of that name (shipped: {})",
+            names.join(", ")
+        ),
+    ))
+}
+
+fn source_indices(decl: &PipelineDecl) -> Vec<usize> {
+    decl.stages
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| stages::kind(&s.kind).is_some_and(|k| k.is_source()))
+        .map(|(i, _)| i)
+        .collect()
+}
+
+fn one_source(decl: &PipelineDecl, what: &str) -> Result<usize, ConfigError> {
+    let src = source_indices(decl);
+    match src.as_slice() {
+        [i] => Ok(*i),
+        [] => Err(cfg_error(
+            &decl.file,
+            format!("{what}: the pipeline has no source stage"),
+        )),
+        many => {
+            let ids: Vec<&str> = many.iter().map(|&i| decl.stages[i].id.as_str()).collect();
+            Err(cfg_error(
+                &decl.file,
+                format!(
+                    "{what}: the pipeline has several sources ({}); use --set ID.path=... instead",
+                    ids.join(", ")
+                ),
+            ))
+        }
+    }
+}
+
+/// `--replay FILE`: the source becomes a file source of the same id, feeding
+/// the same stages; every edge blocks (a replay never drops).
+pub fn apply_replay(decl: &mut PipelineDecl, path: &Path) -> Result<(), ConfigError> {
+    let i = one_source(decl, "--replay")?;
+    let origin = Origin::Builtin(format!("--replay {}", path.display()));
+    let st = &mut decl.stages[i];
+    st.kind = "file".into();
+    st.kind_origin = origin.clone();
+    st.params.clear();
+    set_param(
+        st,
+        "path",
+        toml::Value::String(path.display().to_string()),
+        origin,
+    );
+    for s in &mut decl.stages {
+        s.policy = None;
+        for inp in &mut s.inputs {
+            inp.policy = None;
+        }
+    }
+    Ok(())
+}
+
+/// `--fps HZ`: sets the source's capture rate.
+pub fn apply_fps(decl: &mut PipelineDecl, fps: f64) -> Result<(), ConfigError> {
+    let i = one_source(decl, "--fps")?;
+    let st = &mut decl.stages[i];
+    set_param(
+        st,
+        "fps",
+        toml::Value::Float(fps),
+        Origin::Set(format!("--fps {fps}")),
+    );
+    Ok(())
+}
+
+/// Validates and runs; returns the exit code and the report.
+pub fn run_decl(
+    decl: &PipelineDecl,
+    stats: bool,
+    progress: bool,
+) -> anyhow::Result<(ExitCode, engine::RunReport)> {
+    let graph = engine::graph::validate(decl, REGISTRY)?;
+    let control = Control::new();
+    install_ctrlc(&control);
+    let report = engine::run(
+        graph,
+        Arc::clone(&control),
+        &engine::RunOptions { progress },
+    )
+    .context(format!("{}: cannot start the pipeline", decl.file))?;
+    if stats {
+        eprint!("{}", report.table());
+    }
+    for e in &report.errors {
+        eprintln!("error: {e:#}");
+        let mut src = std::error::Error::source(&e.source);
+        while let Some(s) = src {
+            eprintln!("  caused by: {s}");
+            src = s.source();
+        }
+    }
+    let code = if !report.errors.is_empty() {
+        ExitCode::from(1)
+    } else if report.interrupted {
+        eprintln!("interrupted: outputs were finalised with what was processed");
+        ExitCode::from(130)
+    } else {
+        ExitCode::SUCCESS
+    };
+    Ok((code, report))
+}
+
+static CTRLC: std::sync::OnceLock<std::sync::Mutex<Option<Arc<Control>>>> =
+    std::sync::OnceLock::new();
+static PRESSES: AtomicUsize = AtomicUsize::new(0);
+
+/// First Ctrl-C: stop the sources and drain; second: stop at once (sinks
+/// still finalise); third: exit.
+fn install_ctrlc(control: &Arc<Control>) {
+    let slot = CTRLC.get_or_init(|| {
+        let _ = ctrlc::set_handler(|| {
+            let n = PRESSES.fetch_add(1, Ordering::SeqCst);
+            let c = CTRLC.get().and_then(|m| m.lock().ok().and_then(|g| g.clone()));
+            match (n, c) {
+                (0, Some(c)) => {
+                    eprintln!("\nstopping: draining queues and finalising outputs (Ctrl-C again to stop at once)");
+                    c.stop();
+                }
+                (1, Some(c)) => c.abort(),
+                _ => std::process::exit(130),
+            }
+        });
+        std::sync::Mutex::new(None)
+    });
+    if let Ok(mut g) = slot.lock() {
+        *g = Some(Arc::clone(control));
+    }
+}
+
+fn probe(file: &Path, fps: Option<f64>, json: bool) -> anyhow::Result<ExitCode> {
+    if let Some(f) = fps {
+        stages::sources::check_fps(f).map_err(|m| cfg_error("--fps", m))?;
+    }
+    let reader = io::open(file, io::Format::Auto)?;
+    let info = reader.info();
+    let rate = fps.or(info.fps);
+    if json {
+        let v = serde_json::json!({
+            "file": file.display().to_string(),
+            "format": info.format_name,
+            "width": info.width,
+            "height": info.height,
+            "bits": info.bits,
+            "frames": info.frame_count,
+            "fps": rate,
+            "fps_stated": info.fps,
+            "timestamps": info.has_timestamps,
+            "exposure_s": info.exposure_s,
+            "notes": info.notes,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        println!("file:        {}", file.display());
+        println!("format:      {}", info.format_name);
+        println!("size:        {}x{}", info.width, info.height);
+        println!("bit depth:   {} bits", info.bits);
+        match info.frame_count {
+            Some(n) => println!("frames:      {n}"),
+            None => println!("frames:      unknown (stream)"),
+        }
+        match (fps, info.fps) {
+            (Some(f), Some(s)) => println!("frame rate:  {f} Hz (given; the file states {s} Hz)"),
+            (Some(f), None) => println!("frame rate:  {f} Hz (given)"),
+            (None, Some(s)) => println!("frame rate:  {s} Hz"),
+            (None, None) => println!("frame rate:  not stated (pass --fps)"),
+        }
+        if let (Some(n), Some(r)) = (info.frame_count, rate) {
+            println!("duration:    {:.3} s", n as f64 / r);
+        }
+        println!(
+            "timestamps:  {}",
+            if info.has_timestamps {
+                "present"
+            } else {
+                "absent"
+            }
+        );
+        if let Some(e) = info.exposure_s {
+            println!("exposure:    {:.3} us", e * 1e6);
+        }
+        for n in &info.notes {
+            println!("note:        {n}");
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Runs the demo pipeline, then scores the WAV against the known motion.
+fn demo(output: &Path, set: &[String]) -> anyhow::Result<ExitCode> {
+    let mut decl = load("demo")?;
+    set_param(
+        decl.stages
+            .iter_mut()
+            .find(|s| s.id == "out")
+            .context("the demo pipeline has no `out` stage")?,
+        "path",
+        toml::Value::String(output.display().to_string()),
+        Origin::Set(format!("-o {}", output.display())),
+    );
+    for s in set {
+        apply_set(&mut decl, s)?;
+    }
+    let cam = decl
+        .stages
+        .iter()
+        .find(|s| s.id == "cam")
+        .context("the demo pipeline has no `cam` stage")?;
+    let truth_params: SyntheticParams = Params {
+        file: &decl.file,
+        stage: cam,
+    }
+    .parse()?;
+    eprintln!(
+        "rendering {} frames of {}x{} at {} fps: object moving {} px with {:?}",
+        truth_params.frame_count(),
+        truth_params.width,
+        truth_params.height,
+        truth_params.fps,
+        truth_params.amplitude_px,
+        truth_params.signal
+    );
+    let (code, report) = run_decl(&decl, false, true)?;
+    if code != ExitCode::SUCCESS {
+        return Ok(code);
+    }
+    let mut reader = hound::WavReader::open(output)
+        .with_context(|| format!("cannot read back {}", output.display()))?;
+    let rate = reader.spec().sample_rate;
+    let est: Vec<f64> = reader
+        .samples::<f32>()
+        .map(|s| s.map(f64::from))
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("{}: bad samples", output.display()))?;
+    let scene = truth_params.scene().map_err(|m| anyhow::anyhow!(m))?;
+    let truth: Vec<f64> = (0..est.len())
+        .map(|n| scene.displacement_px(n as f64 / truth_params.fps))
+        .collect();
+    let snr = crate::dsp::truth::snr_db_fit(&truth, &est);
+    let secs = report.elapsed.as_secs_f64();
+    let mpix =
+        truth_params.frame_count() as f64 * (truth_params.width * truth_params.height) as f64 / 1e6;
+    println!(
+        "wrote {} ({} samples at {} Hz); SNR against the true motion: {:.1} dB; {:.1} Mpix/s",
+        output.display(),
+        est.len(),
+        rate,
+        snr,
+        mpix / secs
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Reads the first channel of a WAV file as f64 in [-1, 1] (integers) or as stored (floats).
+pub fn read_wav_mono(path: &Path) -> anyhow::Result<(u32, Vec<f64>)> {
+    let mut r = hound::WavReader::open(path)
+        .with_context(|| format!("{}: not a readable WAV file", path.display()))?;
+    let spec = r.spec();
+    let ch = spec.channels.max(1) as usize;
+    let all: Vec<f64> = match spec.sample_format {
+        hound::SampleFormat::Float => r
+            .samples::<f32>()
+            .map(|s| s.map(f64::from))
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("{}: bad samples", path.display()))?,
+        hound::SampleFormat::Int => {
+            let scale = 1.0 / (1u64 << (spec.bits_per_sample.clamp(1, 32) - 1)) as f64;
+            r.samples::<i32>()
+                .map(|s| s.map(|v| v as f64 * scale))
+                .collect::<Result<_, _>>()
+                .with_context(|| format!("{}: bad samples", path.display()))?
+        }
+    };
+    Ok((spec.sample_rate, all.into_iter().step_by(ch).collect()))
+}
+
+fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
+}
+
+fn score(reference: &Path, test: &Path, max_lag_s: f64) -> anyhow::Result<ExitCode> {
+    if !(max_lag_s.is_finite() && max_lag_s >= 0.0) {
+        return Err(cfg_error(
+            "--max-lag-s",
+            format!("must be >= 0 seconds, got {max_lag_s}"),
+        )
+        .into());
+    }
+    let (fr, r) = read_wav_mono(reference)?;
+    let (ft, mut t) = read_wav_mono(test)?;
+    if fr != ft {
+        let g = gcd(fr as u64, ft as u64).max(1);
+        t = crate::dsp::metrics::resample(&t, fr as u64 / g, ft as u64 / g).with_context(|| {
+            format!("cannot resample {} from {ft} Hz to {fr} Hz", test.display())
+        })?;
+    }
+    let max_lag = (max_lag_s * fr as f64).round() as usize;
+    let (lag, gain) = crate::dsp::metrics::best_lag_gain(&r, &t, max_lag);
+    let s = crate::dsp::metrics::score(&r, &t, fr as f64, max_lag);
+    let num = |v: f64| {
+        if v.is_finite() {
+            serde_json::json!(v)
+        } else {
+            serde_json::Value::Null
+        }
+    };
+    let v = serde_json::json!({
+        "snr_db": num(s.snr_db),
+        "ssnr_db": num(s.ssnr_db),
+        "llr": num(s.llr),
+        "stoi": num(s.stoi),
+        "lag_samples": lag,
+        "gain": num(gain),
+        "sample_rate_hz": fr,
+    });
+    println!("{}", serde_json::to_string_pretty(&v)?);
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,353 @@
+//! The runner: one thread per stage, one ring per edge.
+//!
+//! End of stream travels downstream as edges closing: a source returns
+//! `None`, its edges close, each stage drains what is queued, calls
+//! `finish`, and closes its own outputs. An error in a stage raises the
+//! graceful stop (sources end, queues drain) and is reported with the stage
+//! id; sinks still finalise what reached them.
+
+use super::edge::{edge, EdgeRx, EdgeStats, Recv};
+use super::graph::{BuildCtx, Graph};
+use super::item::PortType;
+use super::stage::{Control, EmitError, Emitter, Node, SourceCtx, StageError};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// Options of one run.
+#[derive(Clone, Debug, Default)]
+pub struct RunOptions {
+    /// Show a progress bar for sources of known length (on a terminal).
+    pub progress: bool,
+}
+
+/// What one stage did.
+#[derive(Clone, Debug)]
+pub struct StageReport {
+    pub id: String,
+    pub kind: &'static str,
+    pub items_in: u64,
+    pub items_out: u64,
+    /// Items evicted from this stage's input rings (drop-oldest).
+    pub dropped: u64,
+    /// Highest occupancy seen on any input ring, and that ring's capacity.
+    pub max_queue: u64,
+    pub queue_capacity: u64,
+    /// Time spent inside `process`/`next` (not waiting).
+    pub busy: Duration,
+}
+
+impl StageReport {
+    pub fn us_per_item(&self) -> f64 {
+        let n = self.items_in.max(self.items_out).max(1);
+        self.busy.as_secs_f64() * 1e6 / n as f64
+    }
+}
+
+/// A stage failure, with the stage that reported it.
+#[derive(Debug, thiserror::Error)]
+#[error("stage `{stage}`: {source}")]
+pub struct RunError {
+    pub stage: String,
+    #[source]
+    pub source: StageError,
+}
+
+/// The outcome of a run. Sinks have finalised whatever reached them, even
+/// when `errors` is not empty or the run was interrupted.
+#[derive(Debug)]
+pub struct RunReport {
+    pub stages: Vec<StageReport>,
+    pub errors: Vec<RunError>,
+    pub interrupted: bool,
+    pub elapsed: Duration,
+}
+
+impl RunReport {
+    /// A fixed-width summary table (for `--stats`).
+    pub fn table(&self) -> String {
+        let mut s = format!(
+            "{:<16} {:<14} {:>10} {:>10} {:>9} {:>11} {:>12}\n",
+            "stage", "kind", "in", "out", "dropped", "queue max", "us/item"
+        );
+        for r in &self.stages {
+            let q = if r.queue_capacity > 0 {
+                format!("{}/{}", r.max_queue, r.queue_capacity)
+            } else {
+                "-".into()
+            };
+            s += &format!(
+                "{:<16} {:<14} {:>10} {:>10} {:>9} {:>11} {:>12.2}\n",
+                r.id,
+                r.kind,
+                r.items_in,
+                r.items_out,
+                r.dropped,
+                q,
+                r.us_per_item()
+            );
+        }
+        s += &format!("elapsed {:.3} s", self.elapsed.as_secs_f64());
+        if let Some(rss) = peak_rss_bytes() {
+            s += &format!(", peak RSS {:.1} MiB", rss as f64 / (1024.0 * 1024.0));
+        }
+        s.push('\n');
+        s
+    }
+}
+
+/// Peak resident memory of this process in bytes (Linux `VmHWM`), if known.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+struct Counters {
+    items_in: AtomicU64,
+    items_out: Arc<AtomicU64>,
+    busy_ns: AtomicU64,
+    inputs: Vec<Arc<EdgeStats>>,
+    capacity: u64,
+}
+
+/// Builds every stage (opening files and devices), then runs the graph to
+/// completion. Errors while building are returned before any thread starts.
+pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<RunReport, RunError> {
+    let start = Instant::now();
+    let n = graph.nodes.len();
+    // A source's pool covers every ring frames can sit in, plus what each
+    // stage holds while working, plus slack.
+    let mut frame_slots = 8usize;
+    for node in &graph.nodes {
+        let mut takes_frames = false;
+        for inp in &node.inputs {
+            if inp.port_type == PortType::Frames {
+                frame_slots += inp.capacity;
+                takes_frames = true;
+            }
+        }
+        if takes_frames {
+            frame_slots += 2 + node.plan.frames_held();
+        }
+    }
+    // Edges, in node order then input order, so fan-out order is stable.
+    let mut outs: Vec<Vec<_>> = (0..n).map(|_| Vec::new()).collect();
+    let mut ins: Vec<Vec<EdgeRx>> = (0..n).map(|_| Vec::new()).collect();
+    let mut counters = Vec::with_capacity(n);
+    for (i, node) in graph.nodes.iter().enumerate() {
+        let mut stats = Vec::new();
+        let mut cap = 0;
+        for inp in &node.inputs {
+            let (tx, rx, st) = edge(inp.capacity, inp.policy);
+            outs[inp.from].push(tx);
+            ins[i].push(rx);
+            stats.push(st);
+            cap = cap.max(inp.capacity as u64);
+        }
+        counters.push(Arc::new(Counters {
+            items_in: AtomicU64::new(0),
+            items_out: Arc::new(AtomicU64::new(0)),
+            busy_ns: AtomicU64::new(0),
+            inputs: stats,
+            capacity: cap,
+        }));
+    }
+    // Build (opens files); nothing runs yet.
+    let mut built = Vec::with_capacity(n);
+    let mut ids = Vec::with_capacity(n);
+    let mut kinds = Vec::with_capacity(n);
+    for node in graph.nodes {
+        let ctx = BuildCtx {
+            pool_frames: frame_slots,
+            input_types: node.inputs.iter().map(|i| i.port_type).collect(),
+        };
+        let built_node = node.plan.build(&ctx).map_err(|e| RunError {
+            stage: node.id.clone(),
+            source: e,
+        })?;
+        built.push(built_node);
+        ids.push(node.id);
+        kinds.push(node.kind.name);
+    }
+    let errors: Arc<Mutex<Vec<RunError>>> = Arc::new(Mutex::new(Vec::new()));
+    let mut handles = Vec::with_capacity(n);
+    for (i, ((node, outs), ins)) in built.into_iter().zip(outs).zip(ins).enumerate() {
+        let ctl = Arc::clone(&control);
+        let errors = Arc::clone(&errors);
+        let counters = Arc::clone(&counters[i]);
+        let id = ids[i].clone();
+        let progress = opts.progress;
+        let h = std::thread::Builder::new()
+            .name(format!("stage-{id}"))
+            .spawn(move || {
+                let emitter = Emitter::new(outs, Arc::clone(&ctl), Arc::clone(&counters.items_out));
+                let res = match node {
+                    Node::Source(src) => run_source(src, emitter, &ctl, &counters, progress),
+                    Node::Stage(st) => run_stage(st, emitter, ins, &ctl, &counters),
+                };
+                if let Err(e) = res {
+                    tracing::error!(stage = %id, error = %e, "stage failed");
+                    ctl.stop();
+                    errors
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .push(RunError {
+                            stage: id,
+                            source: e,
+                        });
+                }
+            });
+        match h {
+            Ok(h) => handles.push(h),
+            Err(e) => {
+                control.abort();
+                for h in handles {
+                    let _ = h.join();
+                }
+                return Err(RunError {
+                    stage: ids[i].clone(),
+                    source: StageError::msg(format!("cannot start thread: {e}")),
+                });
+            }
+        }
+    }
+    for (h, id) in handles.into_iter().zip(&ids) {
+        if h.join().is_err() {
+            errors
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .push(RunError {
+                    stage: id.clone(),
+                    source: StageError::msg("the stage thread panicked"),
+                });
+        }
+    }
+    let stages = ids
+        .into_iter()
+        .zip(kinds)
+        .zip(&counters)
+        .map(|((id, kind), c)| StageReport {
+            id,
+            kind,
+            items_in: c.items_in.load(Ordering::Relaxed),
+            items_out: c.items_out.load(Ordering::Relaxed),
+            dropped: c
+                .inputs
+                .iter()
+                .map(|s| s.dropped.load(Ordering::Relaxed))
+                .sum(),
+            max_queue: c
+                .inputs
+                .iter()
+                .map(|s| s.max_occupancy.load(Ordering::Relaxed))
+                .max()
+                .unwrap_or(0),
+            queue_capacity: c.capacity,
+            busy: Duration::from_nanos(c.busy_ns.load(Ordering::Relaxed)),
+        })
+        .collect::<Vec<_>>();
+    for r in &stages {
+        tracing::info!(stage = %r.id, kind = r.kind, items_in = r.items_in, items_out = r.items_out, dropped = r.dropped, max_queue = r.max_queue, us_per_item = r.us_per_item(), "stage finished");
+    }
+    let errors = std::mem::take(&mut *errors.lock().unwrap_or_else(|e| e.into_inner()));
+    let interrupted = control.sources_should_stop() && errors.is_empty();
+    Ok(RunReport {
+        stages,
+        errors,
+        interrupted,
+        elapsed: start.elapsed(),
+    })
+}
+
+fn run_source(
+    mut src: Box<dyn super::stage::Source>,
+    mut out: Emitter,
+    control: &Control,
+    c: &Counters,
+    progress: bool,
+) -> Result<(), StageError> {
+    let bar = match (progress, src.total_hint()) {
+        (true, Some(total)) => {
+            let bar = indicatif::ProgressBar::new(total);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{bar:40} {pos}/{len} frames  {per_sec}  eta {eta}",
+                )
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+            );
+            Some(bar)
+        }
+        _ => None,
+    };
+    let ctx = SourceCtx { control };
+    let result = loop {
+        if control.sources_should_stop() {
+            break Ok(());
+        }
+        let t = Instant::now();
+        let item = src.next(&ctx);
+        c.busy_ns
+            .fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        match item {
+            Ok(Some(item)) => match out.emit(item) {
+                Ok(()) => {
+                    if let Some(b) = &bar {
+                        b.inc(1);
+                    }
+                }
+                Err(EmitError::Disconnected) | Err(EmitError::Stopped) => break Ok(()),
+            },
+            Ok(None) => break Ok(()),
+            Err(e) => break Err(e),
+        }
+    };
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    result
+}
+
+fn run_stage(
+    mut st: Box<dyn super::stage::Stage>,
+    mut out: Emitter,
+    mut ins: Vec<EdgeRx>,
+    control: &Control,
+    c: &Counters,
+) -> Result<(), StageError> {
+    // Round-robin over open inputs, one item each in port order: the merge
+    // order depends only on the data, never on thread timing.
+    let mut open: Vec<bool> = vec![true; ins.len()];
+    let mut port = 0usize;
+    let mut result = Ok(());
+    'outer: while open.iter().any(|&o| o) {
+        if !open[port] {
+            port = (port + 1) % ins.len();
+            continue;
+        }
+        match ins[port].recv(&control.hard_stop) {
+            Recv::Item(item) => {
+                c.items_in.fetch_add(1, Ordering::Relaxed);
+                let t = Instant::now();
+                let r = st.process(port, item, &mut out);
+                c.busy_ns
+                    .fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
+                if let Err(e) = r {
+                    result = Err(e);
+                    break 'outer;
+                }
+            }
+            Recv::Closed => open[port] = false,
+            Recv::Stopped => break 'outer,
+        }
+        port = (port + 1) % ins.len();
+    }
+    // Stop listening before finishing so upstream is not held up by us.
+    drop(std::mem::take(&mut ins));
+    let t = Instant::now();
+    let fin = st.finish(&mut out);
+    c.busy_ns
+        .fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
+    result.and(fin)
+}

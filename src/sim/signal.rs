@@ -1,0 +1,587 @@
+//! The excitation: a unit-peak waveform of continuous time that drives the
+//! object's displacement.
+
+use super::detmath::sin_turns;
+use super::SimError;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// What the object's motion follows (the `signal` table of a pipeline).
+#[derive(Clone, Debug, serde::Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SignalSpec {
+    /// `sin(2π f t + phase)`.
+    Tone {
+        freq_hz: f64,
+        #[serde(default)]
+        phase_rad: f64,
+    },
+    /// `Σ w_i sin(2π f_i t) / Σ |w_i|` (peak <= 1); weights default to 1.
+    Tones {
+        freqs_hz: Vec<f64>,
+        #[serde(default)]
+        weights: Vec<f64>,
+    },
+    /// Linear sweep from `f0_hz` to `f1_hz` over `duration_s`, then repeats
+    /// (the phase restarts at zero each period).
+    Chirp {
+        f0_hz: f64,
+        f1_hz: f64,
+        duration_s: f64,
+    },
+    /// A WAV file: first channel, normalised to peak 1, linear
+    /// interpolation between samples, zero before 0 and after its end.
+    Wav { path: PathBuf },
+}
+
+#[derive(Clone, Debug)]
+enum Kind {
+    Tone { freq: f64, phase_turns: f64 },
+    Tones { freqs: Vec<f64>, weights: Vec<f64> },
+    Chirp { f0: f64, f1: f64, period: f64 },
+    Wav { rate: f64, samples: Arc<[f32]> },
+}
+
+/// A validated, ready-to-evaluate [`SignalSpec`]. Cheap to clone (a WAV's
+/// samples are shared).
+#[derive(Clone, Debug)]
+pub struct Signal {
+    spec: SignalSpec,
+    kind: Kind,
+}
+
+fn invalid(field: impl Into<String>, msg: impl Into<String>) -> SimError {
+    SimError::Invalid {
+        field: field.into(),
+        msg: msg.into(),
+    }
+}
+
+fn positive_freq(field: String, v: f64) -> Result<f64, SimError> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(invalid(
+            field,
+            format!("must be a finite frequency > 0 Hz, got {v}"),
+        ))
+    }
+}
+
+impl Signal {
+    /// Validates `spec` (and loads a WAV file once).
+    pub fn new(spec: &SignalSpec) -> Result<Signal, SimError> {
+        let kind = match spec {
+            SignalSpec::Tone { freq_hz, phase_rad } => {
+                let freq = positive_freq("freq_hz".into(), *freq_hz)?;
+                if !phase_rad.is_finite() {
+                    return Err(invalid(
+                        "phase_rad",
+                        format!("must be finite, got {phase_rad}"),
+                    ));
+                }
+                Kind::Tone {
+                    freq,
+                    phase_turns: phase_rad / std::f64::consts::TAU,
+                }
+            }
+            SignalSpec::Tones { freqs_hz, weights } => {
+                if freqs_hz.is_empty() {
+                    return Err(invalid("freqs_hz", "must list at least one frequency"));
+                }
+                let freqs = freqs_hz
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &f)| positive_freq(format!("freqs_hz[{i}]"), f))
+                    .collect::<Result<Vec<_>, _>>()?;
+                let weights = if weights.is_empty() {
+                    vec![1.0; freqs.len()]
+                } else if weights.len() != freqs.len() {
+                    return Err(invalid(
+                        "weights",
+                        format!(
+                            "has {} entries but freqs_hz has {} (give one weight per frequency, or none)",
+                            weights.len(),
+                            freqs.len()
+                        ),
+                    ));
+                } else {
+                    for (i, w) in weights.iter().enumerate() {
+                        if !w.is_finite() {
+                            return Err(invalid(
+                                format!("weights[{i}]"),
+                                format!("must be finite, got {w}"),
+                            ));
+                        }
+                    }
+                    weights.clone()
+                };
+                let norm: f64 = weights.iter().map(|w| w.abs()).sum();
+                if norm <= 0.0 || !norm.is_finite() {
+                    return Err(invalid("weights", "must not all be zero"));
+                }
+                Kind::Tones {
+                    freqs,
+                    weights: weights.iter().map(|w| w / norm).collect(),
+                }
+            }
+            SignalSpec::Chirp {
+                f0_hz,
+                f1_hz,
+                duration_s,
+            } => {
+                for (name, v) in [("f0_hz", f0_hz), ("f1_hz", f1_hz)] {
+                    if !(v.is_finite() && *v >= 0.0) {
+                        return Err(invalid(
+                            name,
+                            format!("must be a finite frequency >= 0 Hz, got {v}"),
+                        ));
+                    }
+                }
+                if *f0_hz == 0.0 && *f1_hz == 0.0 {
+                    return Err(invalid("f1_hz", "f0_hz and f1_hz cannot both be 0"));
+                }
+                if !(duration_s.is_finite() && *duration_s > 0.0) {
+                    return Err(invalid(
+                        "duration_s",
+                        format!("must be > 0 seconds, got {duration_s}"),
+                    ));
+                }
+                Kind::Chirp {
+                    f0: *f0_hz,
+                    f1: *f1_hz,
+                    period: *duration_s,
+                }
+            }
+            SignalSpec::Wav { path } => load_wav(path)?,
+        };
+        Ok(Signal {
+            spec: spec.clone(),
+            kind,
+        })
+    }
+
+    pub fn spec(&self) -> &SignalSpec {
+        &self.spec
+    }
+
+    /// Length of a WAV signal in seconds (`None` for periodic signals).
+    pub fn duration_s(&self) -> Option<f64> {
+        match &self.kind {
+            Kind::Wav { rate, samples } => Some(samples.len() as f64 / rate),
+            _ => None,
+        }
+    }
+
+    /// Instantaneous frequency at `t_s` (Hz) for tones and chirps; `None`
+    /// for multi-tone and WAV signals.
+    pub fn instantaneous_freq_hz(&self, t_s: f64) -> Option<f64> {
+        match &self.kind {
+            Kind::Tone { freq, .. } => Some(*freq),
+            Kind::Chirp { f0, f1, period } => {
+                let tau = t_s - period * (t_s / period).floor();
+                Some(f0 + (f1 - f0) * tau / period)
+            }
+            _ => None,
+        }
+    }
+
+    /// Unit-peak waveform value at time `t_s` seconds.
+    pub fn value(&self, t_s: f64) -> f64 {
+        match &self.kind {
+            Kind::Tone { freq, phase_turns } => sin_turns(turns(*freq, t_s) + phase_turns),
+            Kind::Tones { freqs, weights } => freqs
+                .iter()
+                .zip(weights)
+                .map(|(f, w)| w * sin_turns(turns(*f, t_s)))
+                .sum(),
+            Kind::Chirp { f0, f1, period } => {
+                let tau = (t_s - period * (t_s / period).floor()).clamp(0.0, *period);
+                // ∫ f(τ) dτ with f(τ) = f0 + (f1 - f0) τ / T.
+                let phase = f0 * tau + (f1 - f0) * tau * tau / (2.0 * period);
+                sin_turns(phase)
+            }
+            Kind::Wav { rate, samples } => {
+                let p = t_s * rate;
+                if !(p > -1.0 && p < samples.len() as f64) {
+                    return 0.0;
+                }
+                let i = p.floor();
+                let a = p - i;
+                let i = i as i64;
+                let at = |k: i64| -> f64 {
+                    if k < 0 {
+                        0.0
+                    } else {
+                        samples.get(k as usize).map_or(0.0, |&s| s as f64)
+                    }
+                };
+                at(i) * (1.0 - a) + at(i + 1) * a
+            }
+        }
+    }
+}
+
+/// Phase `f·t` in turns, reduced to [0, 1) before adding anything to it.
+fn turns(f: f64, t: f64) -> f64 {
+    let p = f * t;
+    p - p.floor()
+}
+
+fn load_wav(path: &Path) -> Result<Kind, SimError> {
+    let err = |source| SimError::Wav {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut reader = hound::WavReader::open(path).map_err(err)?;
+    let spec = reader.spec();
+    let channels = spec.channels.max(1) as usize;
+    if spec.sample_rate == 0 {
+        return Err(invalid(
+            "path",
+            format!("{}: sample rate is 0", path.display()),
+        ));
+    }
+    let mut samples: Vec<f32> = Vec::with_capacity(reader.len() as usize / channels);
+    match spec.sample_format {
+        hound::SampleFormat::Float => {
+            for (i, s) in reader.samples::<f32>().enumerate() {
+                let s = s.map_err(err)?;
+                if i % channels == 0 {
+                    samples.push(if s.is_finite() { s } else { 0.0 });
+                }
+            }
+        }
+        hound::SampleFormat::Int => {
+            for (i, s) in reader.samples::<i32>().enumerate() {
+                let s = s.map_err(err)?;
+                if i % channels == 0 {
+                    samples.push(s as f32);
+                }
+            }
+        }
+    }
+    if samples.is_empty() {
+        return Err(invalid(
+            "path",
+            format!("{}: the WAV file has no samples", path.display()),
+        ));
+    }
+    let peak = samples.iter().fold(0.0f32, |m, s| m.max(s.abs()));
+    if peak > 0.0 {
+        let inv = 1.0 / peak as f64;
+        for s in &mut samples {
+            *s = (*s as f64 * inv) as f32;
+        }
+    }
+    Ok(Kind::Wav {
+        rate: spec.sample_rate as f64,
+        samples: samples.into(),
+    })
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    fn tone(f: f64, ph: f64) -> Signal {
+        Signal::new(&SignalSpec::Tone {
+            freq_hz: f,
+            phase_rad: ph,
+        })
+        .unwrap()
+    }
+
+    #[test]
+    fn tone_values_period_and_phase() {
+        let s = tone(440.0, 0.0);
+        assert_eq!(s.value(0.0), 0.0);
+        assert!((s.value(1.0 / 1760.0) - 1.0).abs() < 1e-12);
+        for k in 0..200 {
+            let t = k as f64 * 1.37e-4;
+            let v = s.value(t);
+            assert!((v - (std::f64::consts::TAU * 440.0 * t).sin()).abs() < 1e-11);
+            assert!(
+                (v - s.value(t + 1.0 / 440.0)).abs() < 1e-9,
+                "not periodic at {t}"
+            );
+        }
+        let c = tone(10.0, std::f64::consts::FRAC_PI_2);
+        assert!((c.value(0.0) - 1.0).abs() < 1e-15);
+        assert!((c.value(0.05) + 1.0).abs() < 1e-12);
+        // Long times keep their precision.
+        let t = 3600.0 + 0.25 / 440.0;
+        assert!((s.value(t) - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn tones_are_normalised_to_unit_peak() {
+        let s = Signal::new(&SignalSpec::Tones {
+            freqs_hz: vec![100.0, 300.0, 500.0],
+            weights: vec![],
+        })
+        .unwrap();
+        let mut peak = 0.0f64;
+        for k in 0..20_000 {
+            let t = k as f64 * 1e-6 * 7.0;
+            let v = s.value(t);
+            peak = peak.max(v.abs());
+            let want = [100.0f64, 300.0, 500.0]
+                .iter()
+                .map(|f| (std::f64::consts::TAU * f * t).sin())
+                .sum::<f64>()
+                / 3.0;
+            assert!((v - want).abs() < 1e-12);
+        }
+        assert!(peak <= 1.0 && peak > 0.5, "peak {peak}");
+        // Weights: a single non-zero weight gives exactly that tone.
+        let w = Signal::new(&SignalSpec::Tones {
+            freqs_hz: vec![50.0, 80.0],
+            weights: vec![0.0, -2.0],
+        })
+        .unwrap();
+        assert!((w.value(1.0 / 320.0) + 1.0).abs() < 1e-12);
+        let e = Signal::new(&SignalSpec::Tones {
+            freqs_hz: vec![50.0, 80.0],
+            weights: vec![1.0],
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("weights"), "{e}");
+    }
+
+    /// Local frequency from the spacing of zero crossings around `t`.
+    fn local_freq(s: &Signal, t: f64, half_window: f64) -> f64 {
+        let n = 200_000;
+        let dt = 2.0 * half_window / n as f64;
+        let mut crossings = Vec::new();
+        let mut prev = s.value(t - half_window);
+        for k in 1..=n {
+            let tk = t - half_window + k as f64 * dt;
+            let v = s.value(tk);
+            if (prev < 0.0) != (v < 0.0) {
+                // Linear refinement.
+                crossings.push(tk - dt * v / (v - prev));
+            }
+            prev = v;
+        }
+        assert!(crossings.len() >= 3, "too few crossings near {t}");
+        let span = crossings[crossings.len() - 1] - crossings[0];
+        (crossings.len() - 1) as f64 / (2.0 * span)
+    }
+
+    #[test]
+    fn chirp_instantaneous_frequency_and_repeat() {
+        let s = Signal::new(&SignalSpec::Chirp {
+            f0_hz: 100.0,
+            f1_hz: 1100.0,
+            duration_s: 1.0,
+        })
+        .unwrap();
+        for t in [0.1, 0.3, 0.5, 0.9] {
+            let want = 100.0 + 1000.0 * t;
+            let got = local_freq(&s, t, 0.01);
+            assert!(
+                (got - want).abs() / want < 0.01,
+                "f({t}) = {got}, want {want}"
+            );
+            assert_eq!(s.instantaneous_freq_hz(t), Some(want));
+        }
+        // Repeats every duration_s.
+        for t in [0.0123, 0.4567, 0.999] {
+            assert!((s.value(t) - s.value(t + 1.0)).abs() < 1e-9);
+            assert!((s.value(t) - s.value(t + 5.0)).abs() < 1e-8);
+        }
+        // Downward sweeps work too.
+        let d = Signal::new(&SignalSpec::Chirp {
+            f0_hz: 2000.0,
+            f1_hz: 500.0,
+            duration_s: 0.5,
+        })
+        .unwrap();
+        let got = local_freq(&d, 0.25, 0.005);
+        assert!((got - 1250.0).abs() < 12.0, "{got}");
+    }
+
+    fn temp_path(name: &str) -> PathBuf {
+        std::env::temp_dir().join(format!("vibroscope-sim-{}-{name}", std::process::id()))
+    }
+
+    #[test]
+    fn wav_is_loaded_normalised_and_interpolated() {
+        let path = temp_path("mono.wav");
+        let spec = hound::WavSpec {
+            channels: 2,
+            sample_rate: 8000,
+            bits_per_sample: 16,
+            sample_format: hound::SampleFormat::Int,
+        };
+        let data: Vec<i16> = (0..800)
+            .map(|i| ((i as f64 * 0.05).sin() * 8000.0).round() as i16)
+            .collect();
+        {
+            let mut w = hound::WavWriter::create(&path, spec).unwrap();
+            for &s in &data {
+                w.write_sample(s).unwrap();
+                w.write_sample(-20000i16).unwrap(); // 2nd channel: ignored
+            }
+            w.finalize().unwrap();
+        }
+        let s = Signal::new(&SignalSpec::Wav { path: path.clone() }).unwrap();
+        std::fs::remove_file(&path).ok();
+        let peak = data.iter().map(|v| v.unsigned_abs()).max().unwrap() as f64;
+        assert!((s.duration_s().unwrap() - 0.1).abs() < 1e-12);
+        for i in [0usize, 1, 17, 400, 799] {
+            let t = i as f64 / 8000.0;
+            assert!(
+                (s.value(t) - data[i] as f64 / peak).abs() < 1e-6,
+                "sample {i}"
+            );
+        }
+        // Halfway between samples: the mean of the two.
+        let mid = s.value(10.5 / 8000.0);
+        let want = (data[10] as f64 + data[11] as f64) / (2.0 * peak);
+        assert!((mid - want).abs() < 1e-6);
+        let max = (0..8000)
+            .map(|k| s.value(k as f64 / 80_000.0).abs())
+            .fold(0.0, f64::max);
+        assert!((max - 1.0).abs() < 1e-6, "peak {max}");
+        assert_eq!(s.value(0.2), 0.0);
+        assert_eq!(s.value(-0.01), 0.0);
+        assert_eq!(s.value(f64::NAN), 0.0);
+
+        // 24-bit and float files too.
+        let path = temp_path("f32.wav");
+        {
+            let spec = hound::WavSpec {
+                channels: 1,
+                sample_rate: 1000,
+                bits_per_sample: 32,
+                sample_format: hound::SampleFormat::Float,
+            };
+            let mut w = hound::WavWriter::create(&path, spec).unwrap();
+            for v in [0.0f32, 0.25, -0.5, 0.1] {
+                w.write_sample(v).unwrap();
+            }
+            w.finalize().unwrap();
+        }
+        let s = Signal::new(&SignalSpec::Wav { path: path.clone() }).unwrap();
+        std::fs::remove_file(&path).ok();
+        assert!((s.value(0.002) + 1.0).abs() < 1e-9);
+        assert!((s.value(0.001) - 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn missing_wav_names_the_path() {
+        let p = PathBuf::from("/nonexistent/dir/x.wav");
+        let e = Signal::new(&SignalSpec::Wav { path: p })
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("/nonexistent/dir/x.wav"), "{e}");
+    }
+
+    #[test]
+    fn invalid_specs_are_errors_naming_the_field() {
+        let cases: Vec<(SignalSpec, &str)> = vec![
+            (
+                SignalSpec::Tone {
+                    freq_hz: 0.0,
+                    phase_rad: 0.0,
+                },
+                "freq_hz",
+            ),
+            (
+                SignalSpec::Tone {
+                    freq_hz: -5.0,
+                    phase_rad: 0.0,
+                },
+                "freq_hz",
+            ),
+            (
+                SignalSpec::Tone {
+                    freq_hz: f64::NAN,
+                    phase_rad: 0.0,
+                },
+                "freq_hz",
+            ),
+            (
+                SignalSpec::Tone {
+                    freq_hz: 5.0,
+                    phase_rad: f64::INFINITY,
+                },
+                "phase_rad",
+            ),
+            (
+                SignalSpec::Tones {
+                    freqs_hz: vec![],
+                    weights: vec![],
+                },
+                "freqs_hz",
+            ),
+            (
+                SignalSpec::Tones {
+                    freqs_hz: vec![1.0, -1.0],
+                    weights: vec![],
+                },
+                "freqs_hz[1]",
+            ),
+            (
+                SignalSpec::Tones {
+                    freqs_hz: vec![1.0],
+                    weights: vec![0.0],
+                },
+                "weights",
+            ),
+            (
+                SignalSpec::Chirp {
+                    f0_hz: 10.0,
+                    f1_hz: 20.0,
+                    duration_s: 0.0,
+                },
+                "duration_s",
+            ),
+            (
+                SignalSpec::Chirp {
+                    f0_hz: -1.0,
+                    f1_hz: 20.0,
+                    duration_s: 1.0,
+                },
+                "f0_hz",
+            ),
+        ];
+        for (spec, field) in cases {
+            let e = Signal::new(&spec).unwrap_err().to_string();
+            assert!(e.contains(field), "{spec:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn spec_deserialises_with_defaults_and_rejects_unknown_fields() {
+        let s: SignalSpec = serde_json::from_str(r#"{"type":"tone","freq_hz":440}"#).unwrap();
+        assert_eq!(
+            s,
+            SignalSpec::Tone {
+                freq_hz: 440.0,
+                phase_rad: 0.0
+            }
+        );
+        let s: SignalSpec = serde_json::from_str(r#"{"type":"tones","freqs_hz":[1,2]}"#).unwrap();
+        assert_eq!(
+            s,
+            SignalSpec::Tones {
+                freqs_hz: vec![1.0, 2.0],
+                weights: vec![]
+            }
+        );
+        let s: SignalSpec =
+            serde_json::from_str(r#"{"type":"chirp","f0_hz":1,"f1_hz":2,"duration_s":3}"#).unwrap();
+        assert!(matches!(s, SignalSpec::Chirp { .. }));
+        let s: SignalSpec = serde_json::from_str(r#"{"type":"wav","path":"a.wav"}"#).unwrap();
+        assert!(matches!(s, SignalSpec::Wav { .. }));
+        assert!(
+            serde_json::from_str::<SignalSpec>(r#"{"type":"tone","freq_hz":1,"fraq":2}"#).is_err()
+        );
+        assert!(serde_json::from_str::<SignalSpec>(r#"{"type":"noise"}"#).is_err());
+    }
+}

@@ -1,0 +1,28 @@
+//! Stage kinds, grouped by role, and the registry that maps a TOML `kind`
+//! to its parameters and constructor.
+
+pub mod sinks;
+pub mod sources;
+pub mod transform;
+
+use crate::engine::KindSpec;
+
+/// Every stage kind the engine knows, in the order `vibroscope kinds` lists them.
+pub static REGISTRY: &[KindSpec] = &[
+    sources::file::KIND,
+    sources::synthetic::KIND,
+    sources::pattern::KIND,
+    transform::passthrough::KIND,
+    transform::mean::KIND,
+    transform::gradient_motion::KIND,
+    sinks::wav::KIND,
+    sinks::csv::KIND,
+    sinks::json::KIND,
+    sinks::y4m::KIND,
+    sinks::null::KIND,
+];
+
+/// Looks a kind up by name.
+pub fn kind(name: &str) -> Option<&'static KindSpec> {
+    REGISTRY.iter().find(|k| k.name == name)
+}

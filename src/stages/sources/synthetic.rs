@@ -1,0 +1,245 @@
+//! `synthetic`: the built-in scene — a textured object moving sub-pixel with
+//! a known signal over a still background, with sensor noise and 8/16-bit
+//! quantisation — rendered by the forward model in [`crate::sim`], which the
+//! tests use as ground truth. Deterministic from `seed`. With
+//! `realtime = true` it behaves like a live camera: paced by the wall clock,
+//! and its edges drop the oldest frame when downstream lags.
+
+use super::{check_fps, nominal_frame, Pacer};
+use crate::engine::*;
+use crate::sim::{self, Scene, SceneSpec, Signal, SignalSpec};
+use serde::Deserialize;
+
+/// Parameters of the synthetic scene (also used by `vibroscope demo` and tests).
+#[derive(Deserialize, Clone, Debug, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SyntheticParams {
+    #[serde(default = "d_size")]
+    pub width: u32,
+    #[serde(default = "d_size")]
+    pub height: u32,
+    #[serde(default = "d_fps")]
+    pub fps: f64,
+    /// Length in seconds (`frames` wins when both are given).
+    #[serde(default = "d_duration")]
+    pub duration_s: f64,
+    pub frames: Option<u64>,
+    /// Moving object `[x, y, w, h]`; default: the central half of the frame.
+    pub object: Option<[u32; 4]>,
+    #[serde(default = "d_amp")]
+    pub amplitude_px: f64,
+    #[serde(default)]
+    pub direction_deg: f64,
+    #[serde(default = "d_noise")]
+    pub noise_std: f64,
+    #[serde(default = "d_bits")]
+    pub bits: u8,
+    /// Texture contrast (std, in DN); default 15% of full scale.
+    pub contrast: Option<f64>,
+    #[serde(default = "d_seed")]
+    pub seed: u64,
+    #[serde(default = "d_signal")]
+    pub signal: SignalSpec,
+    /// Pace frames by the wall clock like a live camera.
+    #[serde(default)]
+    pub realtime: bool,
+}
+fn d_size() -> u32 {
+    256
+}
+fn d_fps() -> f64 {
+    2200.0
+}
+fn d_duration() -> f64 {
+    1.0
+}
+fn d_amp() -> f64 {
+    0.05
+}
+fn d_noise() -> f64 {
+    2.0
+}
+fn d_bits() -> u8 {
+    8
+}
+fn d_seed() -> u64 {
+    1
+}
+fn d_signal() -> SignalSpec {
+    SignalSpec::Tone {
+        freq_hz: 440.0,
+        phase_rad: 0.0,
+    }
+}
+
+impl Default for SyntheticParams {
+    fn default() -> Self {
+        Self {
+            width: d_size(),
+            height: d_size(),
+            fps: d_fps(),
+            duration_s: d_duration(),
+            frames: None,
+            object: None,
+            amplitude_px: d_amp(),
+            direction_deg: 0.0,
+            noise_std: d_noise(),
+            bits: d_bits(),
+            contrast: None,
+            seed: d_seed(),
+            signal: d_signal(),
+            realtime: false,
+        }
+    }
+}
+
+impl SyntheticParams {
+    pub fn frame_count(&self) -> u64 {
+        self.frames
+            .unwrap_or((self.duration_s * self.fps).round().max(0.0) as u64)
+    }
+
+    pub fn depth(&self) -> crate::io::Depth {
+        if self.bits > 8 {
+            crate::io::Depth::U16
+        } else {
+            crate::io::Depth::U8
+        }
+    }
+
+    /// The forward model for these parameters.
+    pub fn scene(&self) -> Result<Scene, String> {
+        let signal = Signal::new(&self.signal).map_err(|e| e.to_string())?;
+        let (w, h) = (self.width, self.height);
+        let object = self
+            .object
+            .unwrap_or([w / 4, h / 4, (w / 2).max(1), (h / 2).max(1)]);
+        let full = ((1u32 << self.bits.clamp(1, 16)) - 1) as f64;
+        let spec = SceneSpec {
+            width: w,
+            height: h,
+            object,
+            amplitude_px: self.amplitude_px,
+            direction_deg: self.direction_deg,
+            noise_std: self.noise_std,
+            depth: match self.depth() {
+                crate::io::Depth::U8 => sim::Depth::U8,
+                crate::io::Depth::U16 => sim::Depth::U16,
+            },
+            bits: self.bits,
+            contrast: self.contrast.unwrap_or(0.15 * full),
+            seed: self.seed,
+        };
+        Scene::new(spec, signal).map_err(|e| e.to_string())
+    }
+
+    /// Checks every field; the message names the field.
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
+        check_fps(self.fps).map_err(|m| ("fps", m))?;
+        if !(self.duration_s.is_finite() && self.duration_s >= 0.0) {
+            return Err((
+                "duration_s",
+                format!("must be >= 0 seconds, got {}", self.duration_s),
+            ));
+        }
+        if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
+            return Err((
+                "width",
+                format!(
+                    "frame size must be 1..=16384 each, got {}x{}",
+                    self.width, self.height
+                ),
+            ));
+        }
+        if !(1..=16).contains(&self.bits) {
+            return Err(("bits", format!("must be 1..=16, got {}", self.bits)));
+        }
+        if !(self.noise_std.is_finite() && self.noise_std >= 0.0) {
+            return Err(("noise_std", format!("must be >= 0, got {}", self.noise_std)));
+        }
+        if !self.amplitude_px.is_finite() {
+            return Err(("amplitude_px", "must be a finite number".into()));
+        }
+        self.scene().map(|_| ()).map_err(|m| ("signal", m))
+    }
+}
+
+pub const KIND: KindSpec = KindSpec {
+    name: "synthetic",
+    summary:
+        "built-in scene: a textured object moving sub-pixel with a known signal (ground truth)",
+    accepts: &[],
+    max_inputs: 0,
+    output: Output::Fixed(PortType::Frames),
+    plan: |p| {
+        let v: SyntheticParams = p.parse()?;
+        v.check().map_err(|(field, m)| p.error(field, m))?;
+        Ok(Box::new(v))
+    },
+};
+
+impl Plan for SyntheticParams {
+    fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
+        let scene = self.scene().map_err(StageError::msg)?;
+        let format = FrameFormat {
+            width: self.width,
+            height: self.height,
+            depth: self.depth(),
+            bits: self.bits,
+            fps: self.fps,
+            row_timing: None,
+        };
+        Ok(Node::Source(Box::new(Synthetic {
+            pool: FramePool::new(format, ctx.pool_frames),
+            scene,
+            seq: 0,
+            total: self.frame_count(),
+            fps: self.fps,
+            pacer: self.realtime.then(|| Pacer::new(self.fps)),
+        })))
+    }
+
+    fn is_live(&self) -> bool {
+        self.realtime
+    }
+}
+
+struct Synthetic {
+    pool: FramePool,
+    scene: Scene,
+    seq: u64,
+    total: u64,
+    fps: f64,
+    pacer: Option<Pacer>,
+}
+
+impl Source for Synthetic {
+    fn next(&mut self, ctx: &SourceCtx<'_>) -> Result<Option<Item>, StageError> {
+        if self.seq >= self.total {
+            return Ok(None);
+        }
+        let t_s = self.seq as f64 / self.fps;
+        if let Some(p) = &mut self.pacer {
+            p.wait(self.seq);
+        }
+        let Some(mut f) = ctx.acquire(&self.pool) else {
+            return Ok(None);
+        };
+        let dst = match f.pixels_mut() {
+            PixelsMut::U8(p) => sim::Dest::U8(p),
+            PixelsMut::U16(p) => sim::Dest::U16(p),
+        };
+        self.scene.render(self.seq, t_s, dst);
+        let item = nominal_frame(f, self.seq, self.fps);
+        self.seq += 1;
+        Ok(Some(item))
+    }
+
+    fn total_hint(&self) -> Option<u64> {
+        Some(self.total)
+    }
+
+    fn is_live(&self) -> bool {
+        self.pacer.is_some()
+    }
+}

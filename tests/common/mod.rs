@@ -1,0 +1,69 @@
+//! Shared helpers for the integration tests.
+#![allow(dead_code)]
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+pub fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_vibroscope"))
+}
+
+/// Runs the binary in `dir` with `args`.
+pub fn run_in(dir: &Path, args: &[&str]) -> Output {
+    bin()
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("spawn vibroscope")
+}
+
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+pub fn code(o: &Output) -> i32 {
+    o.status.code().unwrap_or(-1)
+}
+
+/// `../shared/data` next to the checkout, or None (with a printed reason).
+pub fn shared_data(file: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(file);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!(
+            "skipping: {} not found (real recordings live in ../shared/data)",
+            p.display()
+        );
+        None
+    }
+}
+
+/// Reads a mono f32 WAV; panics with the path on failure (tests only).
+pub fn read_wav(p: &Path) -> (u32, Vec<f32>) {
+    let mut r = hound::WavReader::open(p)
+        .unwrap_or_else(|e| panic!("{}: not a valid WAV: {e}", p.display()));
+    let rate = r.spec().sample_rate;
+    let s = r
+        .samples::<f32>()
+        .collect::<Result<Vec<_>, _>>()
+        .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    (rate, s)
+}
+
+/// Renders the synthetic scene to `path` as Y4M through the engine itself.
+pub fn render_y4m(dir: &Path, path: &str, extra: &[&str]) {
+    let mut args = vec!["run", "render", "--quiet", "--set"];
+    let out = format!("out.path={path}");
+    args.push(&out);
+    args.extend_from_slice(extra);
+    let o = run_in(dir, &args);
+    assert_eq!(code(&o), 0, "render failed: {}", stderr(&o));
+}
