@@ -13,6 +13,10 @@ pub static SHIPPED: &[Shipped] = &[
         text: include_str!("../pipelines/demo.toml"),
     },
     Shipped {
+        name: "visual-microphone",
+        text: include_str!("../pipelines/visual-microphone.toml"),
+    },
+    Shipped {
         name: "motion",
         text: include_str!("../pipelines/motion.toml"),
     },

@@ -1,6 +1,9 @@
+pub mod align;
 pub mod audio_out;
 pub mod gradient_motion;
+pub mod highpass;
 pub mod mean;
 pub mod passthrough;
+pub mod phase;
 pub mod reduce;
 pub mod roi;

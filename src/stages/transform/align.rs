@@ -1,0 +1,288 @@
+//! `align`: one global motion signal from per-band signals (thesis
+//! Eq. 3.5-3.6): each band is shifted by the lag that best matches a
+//! reference band, then all are summed.
+//!
+//! Streaming: the lags are estimated once, on the first `window` samples
+//! (high-passed copies, so drift does not decide the lag; ch. 4 footnote
+//! 1), then held. Output waits only for the largest negative lag, plus the
+//! block being assembled. Unlike Eq. 3.5, the lag maximises |correlation|
+//! and the band is multiplied by the correlation's sign, so a band that
+//! sees the motion inverted (diagonal motion, the thesis' y = -x corner
+//! case) adds constructively instead of being shifted half a period.
+
+use crate::dsp::iir::Sos;
+use crate::engine::*;
+use serde::Deserialize;
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct P {
+    /// Band the others are aligned to.
+    #[serde(default)]
+    reference_band: usize,
+    /// Largest lag searched, in samples.
+    #[serde(default = "d_lag")]
+    max_lag: usize,
+    /// Samples used to estimate the lags.
+    #[serde(default = "d_window")]
+    window: usize,
+}
+fn d_lag() -> usize {
+    8
+}
+fn d_window() -> usize {
+    2048
+}
+
+pub const KIND: KindSpec = KindSpec {
+    name: "align",
+    summary: "aligns per-band signals to a reference band by cross-correlation lag and sums them (Eq. 3.5-3.6)",
+    accepts: &[PortType::Samples],
+    max_inputs: 1,
+    output: Output::Fixed(PortType::Audio),
+    plan: |p| {
+        let v: P = p.parse()?;
+        if v.max_lag > 4096 {
+            return Err(p.error("max_lag", format!("must be at most 4096 samples, got {}", v.max_lag)));
+        }
+        if !(1..=1 << 22).contains(&v.window) {
+            return Err(p.error("window", format!("must be 1..=4194304 samples, got {}", v.window)));
+        }
+        Ok(Box::new(AlignPlan(v)))
+    },
+};
+
+struct AlignPlan(P);
+
+impl Plan for AlignPlan {
+    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+        Ok(Node::Stage(Box::new(Align {
+            p: self.0,
+            channels: 0,
+            hist: Vec::new(),
+            hist_start: 0,
+            total: 0,
+            blocks: VecDeque::new(),
+            shifts: None,
+            buf: Vec::new(),
+        })))
+    }
+}
+
+/// Lag and sign per band.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Shift {
+    lag: isize,
+    sign: f32,
+}
+
+struct Align {
+    p: P,
+    channels: usize,
+    /// Interleaved samples from absolute index `hist_start` on.
+    hist: Vec<f32>,
+    hist_start: usize,
+    /// Samples received so far.
+    total: usize,
+    /// Input blocks not yet emitted: (t0_ns, rate, first sample, length).
+    blocks: VecDeque<(i64, f64, usize, usize)>,
+    shifts: Option<Vec<Shift>>,
+    buf: Vec<f32>,
+}
+
+impl Align {
+    fn get(&self, n: isize, ch: usize) -> f32 {
+        if n < self.hist_start as isize || n >= self.total as isize {
+            return 0.0;
+        }
+        self.hist[(n as usize - self.hist_start) * self.channels + ch]
+    }
+
+    /// Eq. 3.5 on the buffered window.
+    fn estimate(&mut self, rate: f64) -> Result<(), StageError> {
+        let (c, n) = (self.channels, self.total - self.hist_start);
+        let r = self.p.reference_band;
+        if r >= c {
+            return Err(StageError::msg(format!(
+                "reference_band {r} does not exist ({c} bands)"
+            )));
+        }
+        let cutoff = super::highpass::default_cutoff_hz(rate);
+        let filtered: Vec<Vec<f64>> = (0..c)
+            .map(|ch| {
+                let mut hp = Sos::butterworth_highpass(2, cutoff, rate).ok();
+                (0..n)
+                    .map(|i| {
+                        let x = self.hist[i * c + ch] as f64;
+                        hp.as_mut().map_or(x, |h| h.step(x))
+                    })
+                    .collect()
+            })
+            .collect();
+        let max_lag = self.p.max_lag as isize;
+        let reference = &filtered[r];
+        let shifts: Vec<Shift> = filtered
+            .iter()
+            .enumerate()
+            .map(|(ch, sig)| {
+                if ch == r {
+                    return Shift { lag: 0, sign: 1.0 };
+                }
+                let mut best = (0isize, 0.0f64);
+                for lag in -max_lag..=max_lag {
+                    // a_0(t) . a_l(t - lag)
+                    let mut acc = 0.0;
+                    for (t, &a0) in reference.iter().enumerate() {
+                        let j = t as isize - lag;
+                        if j >= 0 && (j as usize) < sig.len() {
+                            acc += a0 * sig[j as usize];
+                        }
+                    }
+                    if acc.abs() > best.1.abs() {
+                        best = (lag, acc);
+                    }
+                }
+                Shift {
+                    lag: best.0,
+                    sign: if best.1 < 0.0 { -1.0 } else { 1.0 },
+                }
+            })
+            .collect();
+        tracing::info!(?shifts, window = n, "band alignment");
+        self.shifts = Some(shifts);
+        Ok(())
+    }
+
+    /// Emits every queued block whose samples (and lagged neighbours) are in.
+    fn emit_ready(&mut self, out: &mut Emitter, at_end: bool) {
+        let Some(shifts) = self.shifts.clone() else {
+            return;
+        };
+        let lookahead = shifts
+            .iter()
+            .map(|s| (-s.lag).max(0) as usize)
+            .max()
+            .unwrap_or(0);
+        while let Some(&(t0, rate, start, len)) = self.blocks.front() {
+            if !at_end && start + len + lookahead > self.total {
+                break;
+            }
+            self.buf.clear();
+            for i in 0..len {
+                let n = (start + i) as isize;
+                let s: f32 = shifts
+                    .iter()
+                    .enumerate()
+                    .map(|(ch, sh)| sh.sign * self.get(n - sh.lag, ch))
+                    .sum();
+                self.buf.push(s);
+            }
+            self.blocks.pop_front();
+            let _ = out.emit(Item::Audio(AudioBlock {
+                t0_ns: t0,
+                rate_hz: rate,
+                samples: Arc::from(&self.buf[..]),
+            }));
+        }
+        // Keep only what lagged reads can still need.
+        let keep_from = self
+            .blocks
+            .front()
+            .map_or(self.total, |b| b.2)
+            .saturating_sub(self.p.max_lag);
+        if keep_from > self.hist_start {
+            let drop = (keep_from - self.hist_start) * self.channels;
+            self.hist.drain(..drop.min(self.hist.len()));
+            self.hist_start = keep_from;
+        }
+    }
+}
+
+impl Stage for Align {
+    fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
+        let Item::Samples(b) = item else {
+            return Err(StageError::msg("expected per-band samples"));
+        };
+        if self.channels == 0 {
+            self.channels = b.channels.max(1);
+        } else if b.channels != self.channels {
+            return Err(StageError::msg("the number of bands changed mid-stream"));
+        }
+        let len = b.data.len() / self.channels;
+        self.hist.extend_from_slice(&b.data[..len * self.channels]);
+        self.blocks.push_back((b.t0_ns, b.rate_hz, self.total, len));
+        self.total += len;
+        if self.shifts.is_none() && self.total >= self.p.window {
+            self.estimate(b.rate_hz)?;
+        }
+        self.emit_ready(out, false);
+        Ok(())
+    }
+
+    fn finish(&mut self, out: &mut Emitter) -> Result<(), StageError> {
+        if self.shifts.is_none() && self.total > 0 {
+            let rate = self.blocks.front().map_or(1.0, |b| b.1);
+            self.estimate(rate)?;
+        }
+        self.emit_ready(out, true);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn align_with(hist: Vec<f32>, channels: usize) -> Align {
+        let total = hist.len() / channels;
+        Align {
+            p: P {
+                reference_band: 0,
+                max_lag: 8,
+                window: 4096,
+            },
+            channels,
+            hist,
+            hist_start: 0,
+            total,
+            blocks: VecDeque::new(),
+            shifts: None,
+            buf: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn finds_lag_and_sign_of_each_band() {
+        // Band 1 is band 0 delayed by 3 samples and inverted; band 2 leads by 2.
+        let n = 2000;
+        let s = |t: isize| {
+            let t = t as f64 / 2200.0;
+            ((2.0 * std::f64::consts::PI * 310.0 * t).sin()
+                + 0.5 * (2.0 * std::f64::consts::PI * 730.0 * t).sin()) as f32
+        };
+        let mut hist = Vec::with_capacity(3 * n);
+        for i in 0..n as isize {
+            hist.extend_from_slice(&[s(i), -s(i - 3), s(i + 2)]);
+        }
+        let mut a = align_with(hist, 3);
+        a.estimate(2200.0).unwrap();
+        let sh = a.shifts.unwrap();
+        assert_eq!(
+            sh[1],
+            Shift {
+                lag: -3,
+                sign: -1.0
+            }
+        );
+        assert_eq!(sh[2], Shift { lag: 2, sign: 1.0 });
+    }
+
+    #[test]
+    fn missing_reference_band_is_an_error() {
+        let mut a = align_with(vec![0.0; 20], 2);
+        a.p.reference_band = 5;
+        assert!(a.estimate(100.0).is_err());
+    }
+}

@@ -1,0 +1,181 @@
+//! The phase-based visual microphone (thesis ch. 3-4) against ground truth:
+//! the forward model's known motion, and a real recording with known
+//! physics (guitar strings E2 82.4 Hz and A2 110 Hz, filmed at 600 fps).
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+use common::*;
+use rustfft::{num_complex::Complex, FftPlanner};
+
+/// Power spectrum (Hann window, zero-padded to `n`) and bin spacing.
+fn spectrum(x: &[f32], rate: f64, n: usize) -> (Vec<f64>, f64) {
+    let mean = x.iter().map(|&v| v as f64).sum::<f64>() / x.len() as f64;
+    let mut buf: Vec<Complex<f64>> = (0..n)
+        .map(|i| {
+            if i < x.len() {
+                let w = 0.5
+                    - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (x.len() - 1) as f64).cos();
+                Complex::new((x[i] as f64 - mean) * w, 0.0)
+            } else {
+                Complex::new(0.0, 0.0)
+            }
+        })
+        .collect();
+    FftPlanner::new().plan_fft_forward(n).process(&mut buf);
+    (
+        buf[..n / 2].iter().map(|c| c.norm_sqr()).collect(),
+        rate / n as f64,
+    )
+}
+
+/// Frequencies of the `k` strongest local maxima within [lo, hi] Hz.
+fn top_peaks(p: &[f64], df: f64, lo: f64, hi: f64, k: usize) -> Vec<f64> {
+    let mut peaks: Vec<(f64, f64)> = (1..p.len() - 1)
+        .filter(|&i| p[i] > p[i - 1] && p[i] >= p[i + 1])
+        .map(|i| (i as f64 * df, p[i]))
+        .filter(|&(f, _)| f >= lo && f <= hi)
+        .collect();
+    peaks.sort_by(|a, b| b.1.total_cmp(&a.1));
+    peaks.into_iter().take(k).map(|p| p.0).collect()
+}
+
+#[test]
+fn guitar_strings_are_heard_at_their_pitches() {
+    let Some(video) = shared_data("guitar.mp4") else {
+        return;
+    };
+    if std::process::Command::new("ffmpeg")
+        .arg("-version")
+        .output()
+        .is_err()
+    {
+        eprintln!("skipping: ffmpeg is not installed");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            "visual-microphone",
+            "--replay",
+            video.to_str().unwrap(),
+            "--fps",
+            "600",
+            "--set",
+            "out.path=g.wav",
+            "--quiet",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let (rate, x) = read_wav(&dir.path().join("g.wav"));
+    assert_eq!((rate, x.len()), (600, 300));
+    let (p, df) = spectrum(&x, rate as f64, 4096);
+    let peaks = top_peaks(&p, df, 40.0, 290.0, 3);
+    eprintln!("strongest peaks: {peaks:?} Hz");
+    for want in [82.4, 110.0] {
+        assert!(
+            peaks.iter().any(|f| (f - want).abs() <= 3.0),
+            "no peak within 3 Hz of {want} Hz among {peaks:?}"
+        );
+    }
+}
+
+#[test]
+fn synthetic_chirp_is_recovered() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "--set",
+        "src.width=128",
+        "--set",
+        "src.height=128",
+        "--set",
+        "src.duration_s=0.5",
+        "--set",
+        "src.signal={ type = \"tone\", freq_hz = 440.0 }",
+        "--set",
+        "out.path=s.wav",
+        "--quiet",
+    ];
+    let mut all = vec!["run", "visual-microphone"];
+    all.extend_from_slice(&args);
+    let o = run_in(dir.path(), &all);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let (rate, x) = read_wav(&dir.path().join("s.wav"));
+    assert_eq!((rate, x.len()), (2200, 1100));
+    let (p, df) = spectrum(&x, rate as f64, 8192);
+    let peaks = top_peaks(&p, df, 50.0, 1100.0, 1);
+    assert!((peaks[0] - 440.0).abs() < 2.0, "{peaks:?}");
+}
+
+/// Output SNR (dB) of the phase pipeline against the forward model's true
+/// motion, for a scene given as `--set` overrides of the synthetic source.
+fn snr_of(dir: &std::path::Path, sets: &[String]) -> f64 {
+    use vibroscope::engine::Params;
+    use vibroscope::stages::sources::synthetic::SyntheticParams;
+    let text = "[[stage]]\nid = \"src\"\nkind = \"synthetic\"\nwidth = 192\nheight = 192\nfps = 2200.0\nduration_s = 0.5\n\
+                signal = { type = \"tones\", freqs_hz = [310.0, 470.0, 730.0] }\n\n\
+                [[stage]]\nid = \"phase\"\nkind = \"phase\"\ninput = \"src\"\n\n\
+                [[stage]]\nid = \"align\"\nkind = \"align\"\ninput = \"phase\"\n\n\
+                [[stage]]\nid = \"out\"\nkind = \"wav\"\ninput = \"align\"\npath = \"law.wav\"\n";
+    std::fs::write(dir.join("law.toml"), text).unwrap();
+    let mut args: Vec<String> = vec!["run".into(), "law.toml".into(), "--quiet".into()];
+    for s in sets {
+        args.push("--set".into());
+        args.push(s.clone());
+    }
+    let argv: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = run_in(dir, &argv);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let (_, est) = read_wav(&dir.join("law.wav"));
+    // Ground truth from the same forward model and parameters.
+    let mut decl = vibroscope::engine::config::parse("law.toml", text).unwrap();
+    for s in sets {
+        vibroscope::engine::config::apply_set(&mut decl, s).unwrap();
+    }
+    let p: SyntheticParams = Params {
+        file: "law.toml",
+        stage: &decl.stages[0],
+    }
+    .parse()
+    .unwrap();
+    let scene = p.scene().unwrap();
+    let truth: Vec<f64> = (0..est.len())
+        .map(|n| scene.displacement_px(n as f64 / p.fps))
+        .collect();
+    let est: Vec<f64> = est.iter().map(|&v| v as f64).collect();
+    vibroscope::dsp::truth::snr_db_fit(&truth, &est)
+}
+
+/// Thesis Eq. 4.3 in the noise-limited regime: SNR grows 6 dB when the
+/// motion doubles or the object has four times the pixels, and drops 6 dB
+/// when the sensor noise doubles.
+///
+/// Not met yet (issue 3). Measured on this scene: base -5.1 dB, 2x amplitude
+/// +5.8 dB, 4x pixels +8.0 dB, 2x noise -11.4 dB. The finest-scale bands see
+/// almost no texture (sigma 2 px blur) and carry phase noise that the
+/// alignment sums in; band selection or SNR weighting is the open work.
+/// Run with `cargo test --release --test microphone -- --ignored`.
+#[test]
+#[ignore = "issue 3: the noise law does not hold yet (finest bands are noise-only); see the doc comment"]
+fn snr_follows_the_noise_law() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = |amp: f64, noise: f64, obj: u32| {
+        let off = (192 - obj) / 2;
+        vec![
+            format!("src.amplitude_px={amp}"),
+            format!("src.noise_std={noise}"),
+            format!("src.object=[{off}, {off}, {obj}, {obj}]"),
+            format!("phase.roi=[{off}, {off}, {obj}, {obj}]"),
+        ]
+    };
+    let s0 = snr_of(dir.path(), &base(0.01, 3.0, 64));
+    let amp2 = snr_of(dir.path(), &base(0.02, 3.0, 64)) - s0;
+    let pix4 = snr_of(dir.path(), &base(0.01, 3.0, 128)) - s0;
+    let noise2 = snr_of(dir.path(), &base(0.01, 6.0, 64)) - s0;
+    eprintln!("base SNR {s0:.1} dB; 2x amplitude {amp2:+.2} dB; 4x pixels {pix4:+.2} dB; 2x noise {noise2:+.2} dB");
+    assert!((amp2 - 6.0).abs() <= 1.5, "2x amplitude: {amp2:+.2} dB");
+    assert!((pix4 - 6.0).abs() <= 1.5, "4x pixels: {pix4:+.2} dB");
+    assert!((noise2 + 6.0).abs() <= 1.5, "2x noise: {noise2:+.2} dB");
+}
