@@ -212,17 +212,9 @@ fn real_recordings_replay_every_frame() {
 
 #[test]
 fn ffmpeg_source_with_fps_override() {
-    let Some(p) = shared_data("guitar.mp4") else {
+    let Some(p) = guitar_with_ffmpeg() else {
         return;
     };
-    if std::process::Command::new("ffmpeg")
-        .arg("-version")
-        .output()
-        .is_err()
-    {
-        eprintln!("skipping: ffmpeg is not installed");
-        return;
-    }
     let dir = tempfile::tempdir().unwrap();
     let o = run_in(
         dir.path(),

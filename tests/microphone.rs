@@ -42,17 +42,9 @@ fn top_peaks(p: &[f64], df: f64, lo: f64, hi: f64, k: usize) -> Vec<f64> {
 
 #[test]
 fn guitar_strings_are_heard_at_their_pitches() {
-    let Some(video) = shared_data("guitar.mp4") else {
+    let Some(video) = guitar_with_ffmpeg() else {
         return;
     };
-    if std::process::Command::new("ffmpeg")
-        .arg("-version")
-        .output()
-        .is_err()
-    {
-        eprintln!("skipping: ffmpeg is not installed");
-        return;
-    }
     let dir = tempfile::tempdir().unwrap();
     let o = run_in(
         dir.path(),
@@ -112,8 +104,6 @@ fn synthetic_chirp_is_recovered() {
 /// Output SNR (dB) of the phase pipeline against the forward model's true
 /// motion, for a scene given as `--set` overrides of the synthetic source.
 fn snr_of(dir: &std::path::Path, sets: &[String]) -> f64 {
-    use vibroscope::engine::Params;
-    use vibroscope::stages::sources::synthetic::SyntheticParams;
     let text = "[[stage]]\nid = \"src\"\nkind = \"synthetic\"\nwidth = 192\nheight = 192\nfps = 2200.0\nduration_s = 0.5\n\
                 signal = { type = \"tones\", freqs_hz = [310.0, 470.0, 730.0] }\n\n\
                 [[stage]]\nid = \"phase\"\nkind = \"phase\"\ninput = \"src\"\n\n\
@@ -134,16 +124,7 @@ fn snr_of(dir: &std::path::Path, sets: &[String]) -> f64 {
     for s in sets {
         vibroscope::engine::config::apply_set(&mut decl, s).unwrap();
     }
-    let p: SyntheticParams = Params {
-        file: "law.toml",
-        stage: &decl.stages[0],
-    }
-    .parse()
-    .unwrap();
-    let scene = p.scene().unwrap();
-    let truth: Vec<f64> = (0..est.len())
-        .map(|n| scene.displacement_px(n as f64 / p.fps))
-        .collect();
+    let truth = true_motion(&decl, "src", est.len());
     let est: Vec<f64> = est.iter().map(|&v| v as f64).collect();
     vibroscope::dsp::truth::snr_db_fit(&truth, &est)
 }

@@ -7,8 +7,6 @@
 mod common;
 use common::*;
 use vibroscope::dsp::truth::snr_db_fit;
-use vibroscope::engine::Params;
-use vibroscope::stages::sources::synthetic::SyntheticParams;
 
 const SCENE: &[&str] = &[
     "--set",
@@ -50,17 +48,7 @@ fn replay_recovers_the_rendered_motion() {
     for pair in SCENE.chunks(2) {
         vibroscope::engine::config::apply_set(&mut decl, pair[1]).unwrap();
     }
-    let cam = decl.stages.iter().find(|s| s.id == "cam").unwrap();
-    let p: SyntheticParams = Params {
-        file: "render",
-        stage: cam,
-    }
-    .parse()
-    .unwrap();
-    let scene = p.scene().unwrap();
-    let truth: Vec<f64> = (0..est.len())
-        .map(|n| scene.displacement_px(n as f64 / p.fps))
-        .collect();
+    let truth = true_motion(&decl, "cam", est.len());
     let est: Vec<f64> = est.iter().map(|&v| v as f64).collect();
     let snr = snr_db_fit(&truth, &est);
     eprintln!("replayed motion SNR {snr:.1} dB");

@@ -67,3 +67,34 @@ pub fn render_y4m(dir: &Path, path: &str, extra: &[&str]) {
     let o = run_in(dir, &args);
     assert_eq!(code(&o), 0, "render failed: {}", stderr(&o));
 }
+
+/// The guitar clip, when it and ffmpeg are both present (else None, with a reason).
+pub fn guitar_with_ffmpeg() -> Option<PathBuf> {
+    let p = shared_data("guitar.mp4")?;
+    if Command::new("ffmpeg").arg("-version").output().is_err() {
+        eprintln!("skipping: ffmpeg is not installed");
+        return None;
+    }
+    Some(p)
+}
+
+/// Ground truth: the displacement (px) the forward model gave the object in
+/// the first `n` frames of synthetic stage `stage_id` of `decl`.
+pub fn true_motion(decl: &vibroscope::engine::PipelineDecl, stage_id: &str, n: usize) -> Vec<f64> {
+    use vibroscope::stages::sources::synthetic::SyntheticParams;
+    let st = decl
+        .stages
+        .iter()
+        .find(|s| s.id == stage_id)
+        .expect("synthetic stage");
+    let p: SyntheticParams = vibroscope::engine::Params {
+        file: &decl.file,
+        stage: st,
+    }
+    .parse()
+    .expect("valid synthetic parameters");
+    let scene = p.scene().expect("scene");
+    (0..n)
+        .map(|k| scene.displacement_px(k as f64 / p.fps))
+        .collect()
+}

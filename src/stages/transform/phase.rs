@@ -259,6 +259,28 @@ fn band_signal<C: PhaseBands>(
     Ok((sum, weight))
 }
 
+/// Eq. 3.2-3.4 for every band of one frame: fills `sums` and returns the
+/// total A². Coefficient set 0 is the reference frame, set 1 the current
+/// one (on the first frame the reference is the current frame).
+fn frame_signals<C: PhaseBands>(
+    c: &[C; 2],
+    first: bool,
+    bands: &[BandState],
+    amp: &mut [f32],
+    dphi: &mut [f32],
+    sums: &mut [f64],
+) -> Result<f64, StageError> {
+    let [reference, now] = c;
+    let now = if first { reference } else { now };
+    let mut weight = 0.0;
+    for (i, band) in bands.iter().enumerate() {
+        let (s, w) = band_signal(now, reference, i, band, amp, dphi)?;
+        sums[i] = s;
+        weight += w;
+    }
+    Ok(weight)
+}
+
 impl Stage for Phase {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
@@ -283,31 +305,24 @@ impl Stage for Phase {
             self.t0_ns = f.meta().t_ns;
             self.rate = f.format().fps;
         }
-        match &mut st.pyr {
+        let (bands, amp, dphi, sums) = (
+            &st.bands[..],
+            &mut st.amp[..],
+            &mut st.dphi[..],
+            &mut st.sums[..],
+        );
+        let weight = match &mut st.pyr {
             Pyr::Csp(p, c) => {
                 p.analyze(&st.input, &mut c[slot]).map_err(err)?;
-                let [reference, now] = &**c;
-                let now = if first { reference } else { now };
-                for (i, band) in st.bands.iter().enumerate() {
-                    let (s, w) = band_signal(now, reference, i, band, &mut st.amp, &mut st.dphi)?;
-                    st.sums[i] = s;
-                    if first {
-                        st.norm += w;
-                    }
-                }
+                frame_signals(c, first, bands, amp, dphi, sums)?
             }
             Pyr::Riesz(p, c) => {
                 p.analyze(&st.input, &mut c[slot]).map_err(err)?;
-                let [reference, now] = &**c;
-                let now = if first { reference } else { now };
-                for (i, band) in st.bands.iter().enumerate() {
-                    let (s, w) = band_signal(now, reference, i, band, &mut st.amp, &mut st.dphi)?;
-                    st.sums[i] = s;
-                    if first {
-                        st.norm += w;
-                    }
-                }
+                frame_signals(c, first, bands, amp, dphi, sums)?
             }
+        };
+        if first {
+            st.norm = weight;
         }
         if first && st.norm <= 0.0 {
             return Err(StageError::msg(
