@@ -34,6 +34,19 @@ pub struct Cli {
     command: Command,
 }
 
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum DenoiseArg {
+    None,
+    Subtract,
+    Enhance,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum PyramidArg {
+    Csp,
+    Riesz,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Run a pipeline: a TOML file, or the name of a shipped pipeline.
@@ -72,6 +85,35 @@ enum Command {
         /// Print JSON instead of text.
         #[arg(long)]
         json: bool,
+    },
+    /// Recover sound from a video: the shipped visual-microphone pipeline
+    /// (pyramid local phase, band alignment, high-pass, optional denoising)
+    /// replayed on VIDEO, written to a WAV at the camera's frame rate.
+    #[command(
+        after_help = "Examples:\n  vibroscope listen ../shared/data/guitar.mp4 --fps 600 -o guitar.wav\n  \
+        vibroscope listen chips.cine --roi 100,40,200,160 --denoise enhance -o chips.wav"
+    )]
+    Listen {
+        /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
+        video: PathBuf,
+        /// Output WAV.
+        #[arg(short, long, default_value = "sound.wav")]
+        output: PathBuf,
+        /// Capture frame rate in Hz (containers often state the playback rate).
+        #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+        fps: Option<f64>,
+        /// Region of the object: X,Y,W,H in pixels (default: the whole frame).
+        #[arg(long, value_name = "X,Y,W,H")]
+        roi: Option<String>,
+        /// Denoising after the high-pass.
+        #[arg(long, value_enum, default_value = "none")]
+        denoise: DenoiseArg,
+        /// Pyramid: complex steerable (quality) or Riesz (speed).
+        #[arg(long, value_enum, default_value = "csp")]
+        pyramid: PyramidArg,
+        /// Print the per-stage summary at exit.
+        #[arg(long)]
+        stats: bool,
     },
     /// Score a recovered signal against the reference sound: SNR, segmental
     /// SNR (Hansen & Pellom), LLR and STOI (Taal et al. 2011), as JSON, after
@@ -167,6 +209,22 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
         }
         Command::Probe { file, fps, json } => probe(&file, fps, json),
         Command::Demo { output, set } => demo(&output, &set),
+        Command::Listen {
+            video,
+            output,
+            fps,
+            roi,
+            denoise,
+            pyramid,
+            stats,
+        } => {
+            let decl = listen_pipeline(&video, &output, fps, roi.as_deref(), denoise, pyramid)?;
+            let (code, _) = run_decl(&decl, stats, true)?;
+            if code == ExitCode::SUCCESS {
+                eprintln!("wrote {}", output.display());
+            }
+            Ok(code)
+        }
         Command::Score {
             reference,
             test,
@@ -548,4 +606,88 @@ fn score(reference: &Path, test: &Path, max_lag_s: f64) -> anyhow::Result<ExitCo
     });
     println!("{}", serde_json::to_string_pretty(&v)?);
     Ok(ExitCode::SUCCESS)
+}
+
+/// The visual-microphone pipeline set up for `listen`.
+fn listen_pipeline(
+    video: &Path,
+    output: &Path,
+    fps: Option<f64>,
+    roi: Option<&str>,
+    denoise: DenoiseArg,
+    pyramid: PyramidArg,
+) -> anyhow::Result<PipelineDecl> {
+    let mut decl = prepare("visual-microphone", &[], Some(video), fps)?;
+    let origin = |what: &str| Origin::Set(what.to_string());
+    let find = |decl: &mut PipelineDecl, id: &str| decl.stages.iter().position(|s| s.id == id);
+    let (Some(out), Some(phase), Some(hp)) = (
+        find(&mut decl, "out"),
+        find(&mut decl, "phase"),
+        find(&mut decl, "highpass"),
+    ) else {
+        anyhow::bail!(
+            "the shipped visual-microphone pipeline lacks a stage `out`, `phase` or `highpass`"
+        );
+    };
+    set_param(
+        &mut decl.stages[out],
+        "path",
+        toml::Value::String(output.display().to_string()),
+        origin("-o"),
+    );
+    let pyr = match pyramid {
+        PyramidArg::Csp => "csp",
+        PyramidArg::Riesz => "riesz",
+    };
+    set_param(
+        &mut decl.stages[phase],
+        "pyramid",
+        toml::Value::String(pyr.into()),
+        origin("--pyramid"),
+    );
+    if let Some(r) = roi {
+        let parts: Vec<Result<i64, _>> = r.split(',').map(|v| v.trim().parse::<i64>()).collect();
+        let vals: Vec<i64> = match parts.into_iter().collect::<Result<Vec<_>, _>>() {
+            Ok(v) if v.len() == 4 && v.iter().all(|&x| x >= 0) => v,
+            _ => {
+                return Err(cfg_error(
+                    "--roi",
+                    format!("expected X,Y,W,H (four whole numbers >= 0), got `{r}`"),
+                )
+                .into())
+            }
+        };
+        let arr = toml::Value::Array(vals.into_iter().map(toml::Value::Integer).collect());
+        set_param(
+            &mut decl.stages[phase],
+            "roi",
+            arr,
+            origin(&format!("--roi {r}")),
+        );
+    }
+    let kind = match denoise {
+        DenoiseArg::None => None,
+        DenoiseArg::Subtract => Some("spectral_subtraction"),
+        DenoiseArg::Enhance => Some("speech_enhance"),
+    };
+    if let Some(kind) = kind {
+        let mut st = decl.stages[hp].clone();
+        st.id = "denoise".into();
+        st.kind = kind.into();
+        st.kind_origin = origin("--denoise");
+        st.params.clear();
+        st.inputs = vec![config::InputDecl {
+            from: "highpass".into(),
+            capacity: None,
+            policy: None,
+            origin: origin("--denoise"),
+        }];
+        decl.stages.insert(hp + 1, st);
+        if let Some(o) = find(&mut decl, "out") {
+            for inp in &mut decl.stages[o].inputs {
+                inp.from = "denoise".into();
+            }
+        }
+    }
+    Ok(decl)
 }

@@ -1,5 +1,7 @@
 //! Signal processing shared by stages and commands.
 
+pub mod denoise;
+pub mod fastmath;
 pub mod iir;
 pub mod metrics;
 pub mod pyramid;

@@ -172,6 +172,37 @@ pub trait PhaseBands {
         i: usize,
         out: &mut [f32],
     ) -> Result<(), PyramidError>;
+    /// Σ weights[y·width + x] · Δφ(x, y) over `rows` × `cols` of band `i`,
+    /// Δφ as in [`PhaseBands::phase_delta_into`], fused (no scratch buffer),
+    /// for Eq. 3.3-3.4 on a region. Summed row by row in f32, rows in f64.
+    fn weighted_phase_delta_sum(
+        &self,
+        reference: &Self,
+        i: usize,
+        weights: &[f32],
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+    ) -> Result<f64, PyramidError>;
+}
+
+/// Checks a region against a band's shape and a weight buffer.
+pub(crate) fn check_region(
+    info: &BandInfo,
+    weights: &[f32],
+    rows: &std::ops::Range<usize>,
+    cols: &std::ops::Range<usize>,
+) -> Result<(), PyramidError> {
+    if rows.end > info.height
+        || cols.end > info.width
+        || rows.start > rows.end
+        || cols.start > cols.end
+    {
+        return Err(PyramidError::LengthMismatch {
+            expected: info.len(),
+            got: rows.end.max(1) * info.width,
+        });
+    }
+    check_len(info.len(), weights.len())
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -332,9 +363,41 @@ impl PhaseBands for PyramidCoeffs {
         check_len(b.data.len(), out.len())?;
         for ((o, c), c0) in out.iter_mut().zip(&b.data).zip(&r.data) {
             let p = c * c0.conj();
-            *o = p.im.atan2(p.re);
+            *o = super::fastmath::atan2(p.im, p.re);
         }
         Ok(())
+    }
+
+    fn weighted_phase_delta_sum(
+        &self,
+        reference: &Self,
+        i: usize,
+        weights: &[f32],
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+    ) -> Result<f64, PyramidError> {
+        if reference.key != self.key {
+            return Err(PyramidError::LayoutMismatch);
+        }
+        let b = self.band_checked(i)?;
+        let r = reference.band_checked(i)?;
+        check_region(&b.info, weights, &rows, &cols)?;
+        let w = b.info.width;
+        let mut sum = 0.0f64;
+        for y in rows {
+            let span = y * w + cols.start..y * w + cols.end;
+            let mut acc = 0.0f32;
+            for ((c, c0), &wt) in b.data[span.clone()]
+                .iter()
+                .zip(&r.data[span.clone()])
+                .zip(&weights[span])
+            {
+                let p = c * c0.conj();
+                acc += wt * super::fastmath::atan2(p.im, p.re);
+            }
+            sum += acc as f64;
+        }
+        Ok(sum)
     }
 }
 

@@ -186,6 +186,47 @@ impl PhaseBands for RieszCoeffs {
         }
         Ok(())
     }
+
+    fn weighted_phase_delta_sum(
+        &self,
+        reference: &Self,
+        i: usize,
+        weights: &[f32],
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+    ) -> Result<f64, PyramidError> {
+        if reference.key != self.key {
+            return Err(PyramidError::LayoutMismatch);
+        }
+        let (cur, k) = self.split(i)?;
+        let (prev, _) = reference.split(i)?;
+        let info = self.infos.get(i).ok_or(PyramidError::LayoutMismatch)?;
+        crate::dsp::pyramid::check_region(info, weights, &rows, &cols)?;
+        let (ck, sk) = self
+            .dirs
+            .get(k)
+            .copied()
+            .ok_or(PyramidError::LayoutMismatch)?;
+        let w = cur.width;
+        let mut sum = 0.0f64;
+        for y in rows {
+            let span = y * w + cols.start..y * w + cols.end;
+            let cur_q = cur.band[span.clone()]
+                .iter()
+                .zip(&cur.r1[span.clone()])
+                .zip(&cur.r2[span.clone()]);
+            let prev_q = prev.band[span.clone()]
+                .iter()
+                .zip(&prev.r1[span.clone()])
+                .zip(&prev.r2[span.clone()]);
+            let mut acc = 0.0f32;
+            for ((((&a, &b), &c), ((&d, &e), &f)), &wt) in cur_q.zip(prev_q).zip(&weights[span]) {
+                acc += wt * quat_phase_delta([a, b, c], [d, e, f], ck, sk);
+            }
+            sum += acc as f64;
+        }
+        Ok(sum)
+    }
 }
 
 /// Phase change from `q0 = (I, R1, R2)` to `q1`, projected on the
@@ -201,7 +242,7 @@ pub(crate) fn quat_phase_delta(q1: [f32; 3], q0: [f32; 3], ck: f32, sk: f32) -> 
     let vj = c * d - a * f;
     let vk = c * e - b * f;
     let vn = (vi * vi + vj * vj + vk * vk).sqrt();
-    let dphi = vn.atan2(re);
+    let dphi = super::fastmath::atan2(vn, re);
     let ij = (vi * vi + vj * vj).sqrt();
     if ij > 0.0 {
         dphi * (vi * ck + vj * sk) / ij

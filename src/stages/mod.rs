@@ -18,6 +18,8 @@ pub static REGISTRY: &[KindSpec] = &[
     transform::highpass::KIND,
     transform::phase::KIND,
     transform::align::KIND,
+    transform::denoise::SUBTRACT_KIND,
+    transform::denoise::ENHANCE_KIND,
     sinks::wav::KIND,
     sinks::csv::KIND,
     sinks::json::KIND,

@@ -1,5 +1,6 @@
 pub mod align;
 pub mod audio_out;
+pub mod denoise;
 pub mod gradient_motion;
 pub mod highpass;
 pub mod mean;

@@ -50,6 +50,11 @@ struct P {
     /// Frames per emitted block.
     #[serde(default = "d_block")]
     block: usize,
+    /// Worker threads for the per-pixel phase sums (0 = one per core, at
+    /// most 8). The output is bit-identical for any value: rows are summed
+    /// in fixed chunks and the chunks added in order.
+    #[serde(default)]
+    threads: usize,
 }
 fn d_pyr() -> PyramidKind {
     PyramidKind::Csp
@@ -84,6 +89,9 @@ pub const KIND: KindSpec = KindSpec {
         if let Some(r) = &v.roi {
             r.check().map_err(|m| p.error("roi", m))?;
         }
+        if v.threads > 256 {
+            return Err(p.error("threads", format!("must be 0..=256, got {}", v.threads)));
+        }
         Ok(Box::new(PhasePlan(v)))
     },
 };
@@ -93,7 +101,24 @@ struct PhasePlan(P);
 impl Plan for PhasePlan {
     fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
         let v = self.0;
+        let threads = match v.threads {
+            0 => std::thread::available_parallelism()
+                .map_or(1, |n| n.get())
+                .min(8),
+            n => n,
+        };
+        let pool = if threads > 1 {
+            Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .map_err(|e| StageError::msg(format!("cannot start {threads} threads: {e}")))?,
+            )
+        } else {
+            None
+        };
         Ok(Node::Stage(Box::new(Phase {
+            pool,
             kind: v.pyramid,
             scales: v.scales,
             orientations: v.orientations,
@@ -133,15 +158,18 @@ struct State {
     input: Vec<f32>,
     bands: Vec<BandState>,
     amp: Vec<f32>,
-    dphi: Vec<f32>,
     width: usize,
     height: usize,
     /// Σ A² over every band's region in the first frame (output scale).
     norm: f64,
     sums: Vec<f64>,
+    /// Fixed work items (band, first row, end row) and their partial sums.
+    items: Vec<(usize, usize, usize)>,
+    partial: Vec<f64>,
 }
 
 struct Phase {
+    pool: Option<rayon::ThreadPool>,
     kind: PyramidKind,
     scales: usize,
     orientations: usize,
@@ -183,7 +211,7 @@ impl Phase {
                 .filter_map(|i| c[0].band_info(i).cloned())
                 .collect(),
         };
-        let mut bands = Vec::with_capacity(infos.len());
+        let mut bands: Vec<BandState> = Vec::with_capacity(infos.len());
         let mut largest = 0;
         for b in &infos {
             // Band pixel x' sits at input x = x' * step.
@@ -204,13 +232,23 @@ impl Phase {
                 weight: vec![0.0; b.len()],
             });
         }
+        let items: Vec<(usize, usize, usize)> = bands
+            .iter()
+            .enumerate()
+            .flat_map(|(i, b)| {
+                (b.y0..b.y1)
+                    .step_by(ROWS_PER_ITEM)
+                    .map(move |y| (i, y, (y + ROWS_PER_ITEM).min(b.y1)))
+            })
+            .collect();
         self.state = Some(State {
             pyr,
             frames: 0,
             input: vec![0.0; w * h],
             amp: vec![0.0; largest],
-            dphi: vec![0.0; largest],
             sums: vec![0.0; bands.len()],
+            partial: vec![0.0; items.len()],
+            items,
             bands,
             width: w,
             height: h,
@@ -238,65 +276,66 @@ impl Phase {
     }
 }
 
-/// Eq. 3.2-3.4 for one band: returns (Σ A(t0)² u, Σ A(t0)²) over the
-/// band's region, u the phase change from `reference` to `cur`. On the
-/// first frame (`cur` is the reference) it records the weights.
-fn band_signal<C: PhaseBands>(
-    cur: &C,
-    reference: &C,
-    first: bool,
-    i: usize,
-    b: &mut BandState,
-    amp: &mut [f32],
-    dphi: &mut [f32],
-) -> Result<(f64, f64), StageError> {
-    let n = b.len;
-    let dphi = &mut dphi[..n];
-    if first {
-        let amp = &mut amp[..n];
-        reference.amplitude_into(i, amp).map_err(err)?;
-        b.weight
-            .iter_mut()
-            .zip(amp.iter())
-            .for_each(|(w, a)| *w = a * a);
-        dphi.fill(0.0);
-    } else {
-        cur.phase_delta_into(reference, i, dphi).map_err(err)?;
-    }
-    let (mut sum, mut weight) = (0.0f64, 0.0f64);
-    for y in b.y0..b.y1 {
-        let row = y * b.width;
-        let (mut acc, mut wacc) = (0.0f32, 0.0f32);
-        for x in b.x0..b.x1 {
-            let a2 = b.weight[row + x];
-            acc += a2 * dphi[row + x];
-            wacc += a2;
-        }
-        sum += acc as f64;
-        weight += wacc as f64;
-    }
-    Ok((sum, weight))
-}
+/// Rows of one band per parallel work item.
+const ROWS_PER_ITEM: usize = 8;
 
-/// Eq. 3.2-3.4 for every band of one frame: fills `sums` and returns the
-/// total A². Coefficient set 0 is the reference frame, set 1 the current
-/// one (on the first frame the reference is the current frame).
-fn frame_signals<C: PhaseBands>(
+/// Eq. 3.2-3.4 for every band of one frame: fills `sums` with
+/// Σ A(t0)² (φ(t) - φ(t0)) per band and returns the total A(t0)². Set 0 of
+/// `c` is the reference frame, set 1 the current one; on the first frame
+/// the weights are recorded and the sums are zero.
+#[allow(clippy::too_many_arguments)]
+fn frame_signals<C: PhaseBands + Sync>(
     c: &[C; 2],
     first: bool,
     bands: &mut [BandState],
     amp: &mut [f32],
-    dphi: &mut [f32],
+    items: &[(usize, usize, usize)],
+    partial: &mut [f64],
+    pool: Option<&rayon::ThreadPool>,
     sums: &mut [f64],
 ) -> Result<f64, StageError> {
+    use rayon::prelude::*;
     let [reference, now] = c;
-    let mut weight = 0.0;
-    for (i, band) in bands.iter_mut().enumerate() {
-        let (s, w) = band_signal(now, reference, first, i, band, amp, dphi)?;
-        sums[i] = s;
-        weight += w;
+    if first {
+        let mut total = 0.0f64;
+        for (i, b) in bands.iter_mut().enumerate() {
+            let amp = &mut amp[..b.len];
+            reference.amplitude_into(i, amp).map_err(err)?;
+            b.weight
+                .iter_mut()
+                .zip(amp.iter())
+                .for_each(|(w, a)| *w = a * a);
+            for y in b.y0..b.y1 {
+                total += b.weight[y * b.width + b.x0..y * b.width + b.x1]
+                    .iter()
+                    .map(|&w| w as f64)
+                    .sum::<f64>();
+            }
+            sums[i] = 0.0;
+        }
+        return Ok(total);
     }
-    Ok(weight)
+    let bands = &*bands;
+    let work = |(slot, &(i, y0, y1)): (&mut f64, &(usize, usize, usize))| {
+        let b = &bands[i];
+        *slot = now
+            .weighted_phase_delta_sum(reference, i, &b.weight, y0..y1, b.x0..b.x1)
+            .unwrap_or(f64::NAN);
+    };
+    match pool {
+        Some(pool) => pool.install(|| partial.par_iter_mut().zip(items.par_iter()).for_each(work)),
+        None => partial.iter_mut().zip(items.iter()).for_each(work),
+    }
+    sums.iter_mut().for_each(|s| *s = 0.0);
+    for (&p, &(i, _, _)) in partial.iter().zip(items) {
+        sums[i] += p;
+    }
+    if sums.iter().any(|s| s.is_nan()) {
+        return Err(StageError::msg(
+            "pyramid: coefficients do not match the region (internal error)",
+        ));
+    }
+    Ok(0.0)
 }
 
 impl Stage for Phase {
@@ -323,20 +362,22 @@ impl Stage for Phase {
             self.t0_ns = f.meta().t_ns;
             self.rate = f.format().fps;
         }
-        let (bands, amp, dphi, sums) = (
+        let (bands, amp, items, partial, sums) = (
             &mut st.bands[..],
             &mut st.amp[..],
-            &mut st.dphi[..],
+            &st.items[..],
+            &mut st.partial[..],
             &mut st.sums[..],
         );
+        let pool = self.pool.as_ref();
         let weight = match &mut st.pyr {
             Pyr::Csp(p, c) => {
                 p.analyze(&st.input, &mut c[slot]).map_err(err)?;
-                frame_signals(c, first, bands, amp, dphi, sums)?
+                frame_signals(c, first, bands, amp, items, partial, pool, sums)?
             }
             Pyr::Riesz(p, c) => {
                 p.analyze(&st.input, &mut c[slot]).map_err(err)?;
-                frame_signals(c, first, bands, amp, dphi, sums)?
+                frame_signals(c, first, bands, amp, items, partial, pool, sums)?
             }
         };
         if first {
