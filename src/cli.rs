@@ -370,12 +370,7 @@ pub fn run_decl(
         eprint!("{}", report.table());
     }
     for e in &report.errors {
-        eprintln!("error: {e:#}");
-        let mut src = std::error::Error::source(&e.source);
-        while let Some(s) = src {
-            eprintln!("  caused by: {s}");
-            src = s.source();
-        }
+        eprintln!("error: {}", engine::error_chain(e));
     }
     let code = if !report.errors.is_empty() {
         ExitCode::from(1)

@@ -17,5 +17,5 @@ pub use frame::{
 };
 pub use graph::{BuildCtx, Graph, KindSpec, Output, Plan};
 pub use item::{AudioBlock, Item, PortType, SampleBlock, Spectrum};
-pub use runner::{run, RunError, RunOptions, RunReport, StageReport};
+pub use runner::{error_chain, run, RunError, RunOptions, RunReport, StageReport};
 pub use stage::{Control, EmitError, Emitter, Node, Source, SourceCtx, Stage, StageError};

@@ -44,9 +44,11 @@ impl StageReport {
     }
 }
 
-/// A stage failure, with the stage that reported it.
+/// A stage failure, with the stage that reported it. The message names the
+/// stage only; the failure itself is the error's `source`, so chain printers
+/// (`{:#}` of anyhow, [`error_chain`]) show each cause once.
 #[derive(Debug, thiserror::Error)]
-#[error("stage `{stage}`: {source}")]
+#[error("stage `{stage}`")]
 pub struct RunError {
     pub stage: String,
     #[source]
@@ -94,6 +96,18 @@ impl RunReport {
         s.push('\n');
         s
     }
+}
+
+/// An error and its causes on one line, `a: b: c`.
+pub fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut cur = e.source();
+    while let Some(c) = cur {
+        s.push_str(": ");
+        s.push_str(&c.to_string());
+        cur = c.source();
+    }
+    s
 }
 
 /// Peak resident memory of this process in bytes (Linux `VmHWM`), if known.
@@ -188,7 +202,8 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
                     Node::Stage(st) => run_stage(st, emitter, ins, &ctl, &counters),
                 };
                 if let Err(e) = res {
-                    tracing::error!(stage = %id, error = %e, "stage failed");
+                    // Reported to the caller in the RunReport; only traced here.
+                    tracing::debug!(stage = %id, error = %e, "stage failed");
                     ctl.stop();
                     errors
                         .lock()

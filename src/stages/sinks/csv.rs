@@ -1,7 +1,9 @@
 //! `csv`: writes signals or spectra as CSV.
 //!
 //! Audio: `t_s,value`; samples: `t_s,ch0,ch1,...`; spectra: one row per bin,
-//! `t_s,freq_hz,power`. Rows are written as they arrive; the buffer is
+//! `t_s,freq_hz,power`. The file is created on the first item (a run that
+//! fails before any data arrives leaves no empty file behind); rows are
+//! written as they arrive, and the buffer is
 //! flushed on finish (end of stream, Ctrl-C or an upstream error).
 
 use crate::engine::*;
@@ -26,7 +28,6 @@ pub const KIND: KindSpec = KindSpec {
         Ok(Box::new(Csv {
             path: v.path,
             out: None,
-            wrote_header: false,
         }))
     },
 };
@@ -34,12 +35,10 @@ pub const KIND: KindSpec = KindSpec {
 struct Csv {
     path: PathBuf,
     out: Option<BufWriter<std::fs::File>>,
-    wrote_header: bool,
 }
 
 impl Plan for Csv {
-    fn build(mut self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
-        self.out = Some(BufWriter::new(super::create(&self.path)?));
+    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
         Ok(Node::Stage(self))
     }
 }
@@ -96,8 +95,10 @@ impl Csv {
 
 impl Stage for Csv {
     fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
-        let header = !self.wrote_header;
-        self.wrote_header = true;
+        let header = self.out.is_none();
+        if header {
+            self.out = Some(BufWriter::new(super::create(&self.path)?));
+        }
         self.write_rows(&item, header)
             .map_err(|e| StageError::msg(format!("{}: {e}", self.path.display())))
     }

@@ -288,7 +288,8 @@ impl Align {
 
     /// Emits every queued block whose samples (and lagged neighbours) are in.
     fn emit_ready(&mut self, out: &mut Emitter, at_end: bool) {
-        let Some(shifts) = self.shifts.clone() else {
+        // Taken out for the loop (self.get borrows self), put back below.
+        let Some(shifts) = self.shifts.take() else {
             return;
         };
         let lookahead = shifts
@@ -317,6 +318,7 @@ impl Align {
                 samples: Arc::from(&self.buf[..]),
             }));
         }
+        self.shifts = Some(shifts);
         // Keep only what lagged reads can still need.
         let keep_from = self
             .blocks

@@ -6,7 +6,7 @@
 //! time of its first sample, taken from the input blocks.
 
 use crate::dsp::denoise::{
-    DenoiseConfig, SpectralSubtraction, SpeechEnhance, DEFAULT_ALPHA, DEFAULT_BETA,
+    DenoiseConfig, DenoiseError, SpectralSubtraction, SpeechEnhance, DEFAULT_ALPHA, DEFAULT_BETA,
 };
 use crate::engine::*;
 use serde::Deserialize;
@@ -68,10 +68,11 @@ fn plan(p: &Params<'_>, method: Method) -> Result<Box<dyn Plan>, ConfigError> {
         Method::Enhance => SpeechEnhance::new(8000.0, &cfg).map(|_| ()),
     };
     if let Err(e) = probe {
-        let field = ["frame_ms", "overlap", "noise_window_s", "alpha", "beta"]
-            .into_iter()
-            .find(|f| e.to_string().contains(f))
-            .unwrap_or("frame_ms");
+        let field = match &e {
+            DenoiseError::InvalidOverlap(_) => "overlap",
+            DenoiseError::InvalidParameter { name, .. } => name,
+            _ => "frame_ms",
+        };
         return Err(p.error(field, e.to_string()));
     }
     Ok(Box::new(DenoisePlan {

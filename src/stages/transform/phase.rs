@@ -107,18 +107,8 @@ impl Plan for PhasePlan {
                 .min(8),
             n => n,
         };
-        let pool = if threads > 1 {
-            Some(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .map_err(|e| StageError::msg(format!("cannot start {threads} threads: {e}")))?,
-            )
-        } else {
-            None
-        };
         Ok(Node::Stage(Box::new(Phase {
-            pool,
+            pool: super::reduce::thread_pool(threads)?,
             kind: v.pyramid,
             scales: v.scales,
             orientations: v.orientations,

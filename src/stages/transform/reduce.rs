@@ -31,6 +31,19 @@ pub fn check_common(
     Ok(())
 }
 
+/// A rayon pool of `threads` workers, or none for `threads <= 1` (work
+/// then runs on the stage's own thread).
+pub fn thread_pool(threads: usize) -> Result<Option<rayon::ThreadPool>, StageError> {
+    if threads <= 1 {
+        return Ok(None);
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map(Some)
+        .map_err(|e| StageError::msg(format!("cannot start {threads} threads: {e}")))
+}
+
 /// Row-chunked summation on an optional rayon pool.
 pub struct RowReducer {
     pool: Option<rayon::ThreadPool>,
@@ -40,18 +53,8 @@ pub struct RowReducer {
 impl RowReducer {
     /// Starts `threads - 1` workers when `threads > 1`.
     pub fn new(threads: usize) -> Result<Self, StageError> {
-        let pool = if threads > 1 {
-            Some(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .map_err(|e| StageError::msg(format!("cannot start {threads} threads: {e}")))?,
-            )
-        } else {
-            None
-        };
         Ok(Self {
-            pool,
+            pool: thread_pool(threads)?,
             partial: Vec::new(),
         })
     }
