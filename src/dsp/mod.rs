@@ -3,6 +3,7 @@
 pub mod denoise;
 pub mod fastmath;
 pub mod iir;
+pub mod kernels;
 pub mod metrics;
 pub mod pyramid;
 pub mod riesz;
