@@ -17,6 +17,10 @@ pub static SHIPPED: &[Shipped] = &[
         text: include_str!("../pipelines/visual-microphone.toml"),
     },
     Shipped {
+        name: "rolling-shutter",
+        text: include_str!("../pipelines/rolling-shutter.toml"),
+    },
+    Shipped {
         name: "motion",
         text: include_str!("../pipelines/motion.toml"),
     },
