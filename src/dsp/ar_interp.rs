@@ -32,6 +32,9 @@ pub struct ArInterpolator {
     rhs: Vec<f64>,
     c: Vec<f64>,
     work: Vec<f64>,
+    decimate: usize,
+    lp: Vec<f64>,
+    coarse: Vec<f64>,
 }
 
 impl ArInterpolator {
@@ -41,6 +44,7 @@ impl ArInterpolator {
         Self {
             order: order.max(1),
             iterations: iterations.max(1),
+            decimate: 1,
             ..Self::default()
         }
     }
@@ -52,7 +56,116 @@ impl ArInterpolator {
     /// Fills `x[left..left + missing]` from the known samples around it (the
     /// rest of `x`). The order is reduced to what the context supports; with
     /// fewer than two known samples on a side the gap is filled linearly.
+    /// With [`ArInterpolator::with_decimation`], long gaps are bridged at a
+    /// lower rate (see there).
     pub fn fill(&mut self, x: &mut [f64], left: usize, missing: usize) {
+        let d = self.decimate;
+        if d > 1 && missing >= 2 * d && left + missing <= x.len() {
+            self.fill_decimated(x, left, missing);
+        } else {
+            self.fill_direct(x, left, missing);
+        }
+    }
+
+    /// Also bridge gaps at 1/`decimate` of the rate: a row-rate signal is
+    /// hugely oversampled for sound (1/d ≈ 60 kHz, exposure limits it to
+    /// 1/E ≈ 2 kHz), and an AR model at the full rate would need hundreds of
+    /// coefficients to remember one pitch period across a 5 ms gap. The
+    /// known samples are low-passed (windowed sinc at 0.45 of the low rate's
+    /// Nyquist, evaluated only where its support avoids the gap), the gap is
+    /// AR-interpolated on that coarse grid, and the result is brought back
+    /// to the full rate by cubic interpolation. Content above the low rate's
+    /// Nyquist is not restored inside gaps (it is removed downstream anyway).
+    pub fn with_decimation(mut self, decimate: usize) -> Self {
+        self.decimate = decimate.max(1);
+        let d = self.decimate;
+        if d > 1 {
+            let hw = 3 * d;
+            let fc = 0.45 / d as f64;
+            let mut h: Vec<f64> = (0..=2 * hw)
+                .map(|k| {
+                    let j = k as f64 - hw as f64;
+                    let sinc = if j == 0.0 {
+                        2.0 * fc
+                    } else {
+                        (2.0 * std::f64::consts::PI * fc * j).sin() / (std::f64::consts::PI * j)
+                    };
+                    let w = k as f64 / (2 * hw) as f64;
+                    let win = 0.42 - 0.5 * (2.0 * std::f64::consts::PI * w).cos()
+                        + 0.08 * (4.0 * std::f64::consts::PI * w).cos();
+                    sinc * win
+                })
+                .collect();
+            let sum: f64 = h.iter().sum();
+            h.iter_mut().for_each(|v| *v /= sum);
+            self.lp = h;
+        }
+        self
+    }
+
+    fn fill_decimated(&mut self, x: &mut [f64], left: usize, missing: usize) {
+        let d = self.decimate;
+        let hw = self.lp.len() / 2;
+        let n = x.len();
+        // Coarse grid g_k = g0 + k d, aligned so that one point falls on the
+        // gap's first sample; a point is known when its filter support
+        // avoids the gap and the window's ends.
+        let g0 = left % d;
+        let count = (n - g0).div_ceil(d);
+        let is_known =
+            |g: usize| g >= hw && g + hw < n && (g + hw < left || g >= left + missing + hw);
+        let mut coarse = std::mem::take(&mut self.coarse);
+        coarse.clear();
+        let (mut first_unknown, mut last_unknown) = (None, None);
+        let mut first_known = None;
+        for k in 0..count {
+            let g = g0 + k * d;
+            if is_known(g) {
+                first_known.get_or_insert(k);
+                let src = &x[g - hw..=g + hw];
+                coarse.push(src.iter().zip(&self.lp).map(|(a, b)| a * b).sum::<f64>());
+            } else {
+                if g + hw >= left && g < left + missing + hw {
+                    first_unknown.get_or_insert(k);
+                    last_unknown = Some(k);
+                }
+                coarse.push(0.0);
+            }
+        }
+        let (Some(k0), Some(k1), Some(kf)) = (first_unknown, last_unknown, first_known) else {
+            self.coarse = coarse;
+            self.fill_direct(x, left, missing);
+            return;
+        };
+        // Only the contiguous stretch of known points on each side is used.
+        let mut lo = k0;
+        while lo > kf && is_known(g0 + (lo - 1) * d) {
+            lo -= 1;
+        }
+        let mut hi = k1 + 1;
+        while hi < count && is_known(g0 + hi * d) {
+            hi += 1;
+        }
+        let seg = &mut coarse[lo..hi];
+        self.fill_direct(seg, k0 - lo, k1 + 1 - k0);
+        // Back to the full rate inside the gap: Catmull-Rom on the coarse grid.
+        let at = |k: isize| coarse[(k.max(lo as isize) as usize).min(hi - 1)];
+        for s in left..left + missing {
+            let u = (s - g0) as f64 / d as f64;
+            let i = u.floor() as isize;
+            let t = u - i as f64;
+            let (p0, p1, p2, p3) = (at(i - 1), at(i), at(i + 1), at(i + 2));
+            x[s] = p1
+                + 0.5
+                    * t
+                    * (p2 - p0
+                        + t * (2.0 * p0 - 5.0 * p1 + 4.0 * p2 - p3
+                            + t * (3.0 * (p1 - p2) + p3 - p0)));
+        }
+        self.coarse = coarse;
+    }
+
+    fn fill_direct(&mut self, x: &mut [f64], left: usize, missing: usize) {
         let n = x.len();
         if missing == 0 || left + missing > n {
             return;

@@ -45,6 +45,9 @@ struct P {
     /// Rounds of estimate-then-interpolate (Janssen et al.).
     #[serde(default = "d_iterations")]
     iterations: usize,
+    /// Bridge gaps at 1/decimate of the row rate (1 = at the row rate).
+    #[serde(default = "d_decimate")]
+    decimate: usize,
     /// Known samples used on each side of a gap.
     #[serde(default = "d_context")]
     context: usize,
@@ -58,13 +61,16 @@ fn d_method() -> FillMethod {
     FillMethod::Ar
 }
 fn d_order() -> usize {
-    32
+    128
 }
 fn d_iterations() -> usize {
     2
 }
+fn d_decimate() -> usize {
+    8
+}
 fn d_context() -> usize {
-    720
+    2048
 }
 fn d_max_gap() -> f64 {
     0.1
@@ -84,6 +90,9 @@ pub const KIND: KindSpec = KindSpec {
         if !(1..=16).contains(&v.iterations) {
             return Err(p.error("iterations", format!("must be 1..=16, got {}", v.iterations)));
         }
+        if !(1..=64).contains(&v.decimate) {
+            return Err(p.error("decimate", format!("must be 1..=64, got {}", v.decimate)));
+        }
         if !(2..=1 << 20).contains(&v.context) {
             return Err(p.error("context", format!("must be 2..=1048576, got {}", v.context)));
         }
@@ -100,7 +109,7 @@ impl Plan for FillPlan {
     fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
         let v = self.0;
         Ok(Node::Stage(Box::new(GapFill {
-            ar: ArInterpolator::new(v.order, v.iterations),
+            ar: ArInterpolator::new(v.order, v.iterations).with_decimation(v.decimate),
             p: v,
             grid: None,
             hist: Vec::new(),
