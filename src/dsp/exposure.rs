@@ -74,21 +74,24 @@ pub fn design(mode: Mode, exposure_s: f64, rate_hz: f64, taps: usize, floor_db: 
             1.0
         }
     };
-    // h[j] = (2 / fs) ∫_0^{fs/2} D(f) cos(2π f j / fs) df, midpoint rule.
-    const GRID: usize = 8192;
-    let df = nyq / GRID as f64;
-    let c = (taps / 2) as f64;
-    let mut h: Vec<f64> = (0..taps)
-        .map(|n| {
-            let j = n as f64 - c;
-            let s: f64 = (0..GRID)
-                .map(|k| {
-                    let f = (k as f64 + 0.5) * df;
-                    desired(f) * (2.0 * PI * f * j / rate_hz).cos()
-                })
-                .sum();
-            2.0 * s * df / rate_hz
+    // Frequency sampling: D on an FFT grid much finer than the filter
+    // (N >= 16 taps), one inverse real FFT, then the central taps (the
+    // zero-phase impulse response, circularly centred on 0).
+    let n_fft = (16 * taps).next_power_of_two().max(4096);
+    let mut planner = realfft::RealFftPlanner::<f64>::new();
+    let inv = planner.plan_fft_inverse(n_fft);
+    let mut spec: Vec<realfft::num_complex::Complex<f64>> = (0..=n_fft / 2)
+        .map(|k| {
+            realfft::num_complex::Complex::new(desired(k as f64 * rate_hz / n_fft as f64), 0.0)
         })
+        .collect();
+    let mut circ = vec![0.0; n_fft];
+    if inv.process(&mut spec, &mut circ).is_err() {
+        return vec![0.0; taps];
+    }
+    let c = taps / 2;
+    let mut h: Vec<f64> = (0..taps)
+        .map(|i| circ[(i + n_fft - c) % n_fft] / n_fft as f64)
         .collect();
     // Blackman window.
     let m = (taps - 1).max(1) as f64;

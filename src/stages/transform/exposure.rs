@@ -11,6 +11,7 @@
 //! is resampled by cubic interpolation. A block that does not follow its
 //! predecessor in time starts a new segment (filter state reset).
 
+use super::gap_fill::LatencyMeter;
 use crate::dsp::exposure::{default_taps, design, CubicResampler, Fir, Mode};
 use crate::engine::*;
 use serde::Deserialize;
@@ -29,6 +30,9 @@ struct P {
     taps: Option<usize>,
     /// Output rate, Hz; default: the input's (1/d).
     rate_hz: Option<f64>,
+    /// Print the output's wall-clock latency at the end (live runs).
+    #[serde(default)]
+    report_latency: bool,
 }
 fn d_mode() -> Mode {
     Mode::Lowpass
@@ -76,6 +80,7 @@ impl Plan for ExposurePlan {
             p: self.0,
             seg: None,
             buf: Vec::new(),
+            lat: LatencyMeter::default(),
         })))
     }
 }
@@ -97,6 +102,7 @@ struct Exposure {
     p: P,
     seg: Option<Segment>,
     buf: Vec<f32>,
+    lat: LatencyMeter,
 }
 
 impl Exposure {
@@ -135,6 +141,10 @@ impl Stage for Exposure {
         if a.samples.is_empty() {
             return Ok(());
         }
+        if self.p.report_latency {
+            let newest = a.t0_ns + ((a.samples.len() - 1) as f64 * 1e9 / a.rate_hz).round() as i64;
+            self.lat.arrived(std::time::Instant::now(), newest);
+        }
         let contiguous = self.seg.as_ref().is_some_and(|s| {
             s.rate_in == a.rate_hz && (a.t0_ns as f64 - s.next_in_ns).abs() <= 0.5e9 / a.rate_hz
         });
@@ -163,6 +173,19 @@ impl Stage for Exposure {
             rate_hz: seg.rate_out,
             samples: Arc::from(&self.buf[..]),
         }));
+        if self.p.report_latency {
+            self.lat.emitted(t0.round() as i64);
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
+        if let (true, Some((max, mean))) = (self.p.report_latency, self.lat.summary_ms()) {
+            eprintln!(
+                "exposure latency (oldest sample of each block, capture to emission): max {max:.2} ms, mean {mean:.2} ms over {} blocks",
+                self.lat.blocks()
+            );
+        }
         Ok(())
     }
 }

@@ -116,7 +116,9 @@ impl Plan for FillPlan {
             cur: Vec::new(),
             win: Vec::new(),
             out: Vec::new(),
-            lat: Latency::default(),
+            lat: LatencyMeter::default(),
+            frame_period_ns: 0.0,
+            last_t0: None,
         })))
     }
 }
@@ -131,17 +133,63 @@ struct Grid {
     next_k: i64,
 }
 
+/// Wall-clock latency of a stage's output (live runs): how late the oldest
+/// sample of each emitted block leaves, against its capture time. Capture
+/// times are on the source's clock; the offset between the two clocks is
+/// taken as the smallest (arrival - newest capture time) seen, i.e. the
+/// fastest delivery counts as instantaneous, so the figure is a lower bound
+/// by that delivery time (a few ms here). Only reporting reads the clock;
+/// the output does not depend on it.
 #[derive(Default)]
-struct Latency {
+pub struct LatencyMeter {
     epoch: Option<Instant>,
-    /// min over blocks of (arrival wall time - capture time of its newest row), ns.
     min_offset: f64,
-    /// max and sum over blocks of (emission wall time - capture time of the oldest sample emitted), ns.
     max_age: f64,
     sum_age: f64,
     blocks: u64,
-    frame_period_ns: f64,
-    last_t0: Option<i64>,
+}
+
+impl LatencyMeter {
+    fn ns(&mut self, t: Instant) -> f64 {
+        let e = *self.epoch.get_or_insert(t);
+        t.duration_since(e).as_nanos() as f64
+    }
+
+    /// A block arrived at `now`; its newest sample was captured at `newest_ns`.
+    pub fn arrived(&mut self, now: Instant, newest_ns: i64) {
+        let off = self.ns(now) - newest_ns as f64;
+        self.min_offset = if self.blocks == 0 {
+            off
+        } else {
+            self.min_offset.min(off)
+        };
+    }
+
+    /// A block whose oldest sample was captured at `oldest_ns` is leaving now.
+    pub fn emitted(&mut self, oldest_ns: i64) {
+        let age = self.ns(Instant::now()) - oldest_ns as f64;
+        self.max_age = if self.blocks == 0 {
+            age
+        } else {
+            self.max_age.max(age)
+        };
+        self.sum_age += age;
+        self.blocks += 1;
+    }
+
+    /// (max, mean) latency in ms, if anything was emitted.
+    pub fn summary_ms(&self) -> Option<(f64, f64)> {
+        (self.blocks > 0).then(|| {
+            (
+                (self.max_age - self.min_offset) * 1e-6,
+                (self.sum_age / self.blocks as f64 - self.min_offset) * 1e-6,
+            )
+        })
+    }
+
+    pub fn blocks(&self) -> u64 {
+        self.blocks
+    }
 }
 
 struct GapFill {
@@ -153,7 +201,9 @@ struct GapFill {
     cur: Vec<f64>,
     win: Vec<f64>,
     out: Vec<f32>,
-    lat: Latency,
+    lat: LatencyMeter,
+    frame_period_ns: f64,
+    last_t0: Option<i64>,
 }
 
 impl GapFill {
@@ -293,42 +343,22 @@ impl Stage for GapFill {
             samples: Arc::from(&self.out[..]),
         }));
         if self.p.report_latency {
-            let l = &mut self.lat;
-            let epoch = *l.epoch.get_or_insert(now);
-            let arrival = now.duration_since(epoch).as_nanos() as f64;
-            let emitted = Instant::now().duration_since(epoch).as_nanos() as f64;
-            let newest = times[times.len() - 1] as f64;
-            let offset = arrival - newest;
-            l.min_offset = if l.blocks == 0 {
-                offset
-            } else {
-                l.min_offset.min(offset)
-            };
-            let age = emitted - t0 as f64;
-            l.max_age = if l.blocks == 0 {
-                age
-            } else {
-                l.max_age.max(age)
-            };
-            l.sum_age += age;
-            if let Some(p) = l.last_t0 {
-                l.frame_period_ns = (s.t0_ns - p) as f64;
+            self.lat.arrived(now, times[times.len() - 1]);
+            self.lat.emitted(t0);
+            if let Some(p) = self.last_t0 {
+                self.frame_period_ns = (s.t0_ns - p) as f64;
             }
-            l.last_t0 = Some(s.t0_ns);
-            l.blocks += 1;
+            self.last_t0 = Some(s.t0_ns);
         }
         Ok(())
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
-        let l = &self.lat;
-        if self.p.report_latency && l.blocks > 0 {
-            let max = (l.max_age - l.min_offset) * 1e-6;
-            let mean = (l.sum_age / l.blocks as f64 - l.min_offset) * 1e-6;
-            let period = l.frame_period_ns * 1e-6;
+        if let (true, Some((max, mean))) = (self.p.report_latency, self.lat.summary_ms()) {
+            let period = self.frame_period_ns * 1e-6;
             eprintln!(
                 "gap_fill latency (oldest sample of each block, capture to emission): max {max:.2} ms, mean {mean:.2} ms over {} blocks; frame period {period:.2} ms ({:.2} periods at most)",
-                l.blocks,
+                self.lat.blocks(),
                 if period > 0.0 { max / period } else { f64::NAN }
             );
         }
