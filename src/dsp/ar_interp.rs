@@ -150,12 +150,12 @@ impl ArInterpolator {
         self.fill_direct(seg, k0 - lo, k1 + 1 - k0);
         // Back to the full rate inside the gap: Catmull-Rom on the coarse grid.
         let at = |k: isize| coarse[(k.max(lo as isize) as usize).min(hi - 1)];
-        for s in left..left + missing {
+        for (s, out) in x.iter_mut().enumerate().skip(left).take(missing) {
             let u = (s - g0) as f64 / d as f64;
             let i = u.floor() as isize;
             let t = u - i as f64;
             let (p0, p1, p2, p3) = (at(i - 1), at(i), at(i + 1), at(i + 2));
-            x[s] = p1
+            *out = p1
                 + 0.5
                     * t
                     * (p2 - p0
@@ -385,6 +385,7 @@ mod tests {
     /// The banded solver against a dense least-squares solve of the
     /// prediction-error problem written out in full (the slow reference).
     #[test]
+    #[allow(clippy::needless_range_loop)]
     fn banded_solution_matches_dense_least_squares() {
         let x0 = tones(120, 0.3, 3);
         let (left, m, p) = (40, 25, 6);
