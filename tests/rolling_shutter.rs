@@ -78,9 +78,13 @@ fn two_tones_far_above_the_frame_rate_are_heard() {
     let (rate, x) = read_wav(&d.join("rs.wav"));
     assert_eq!(rate, 62_500, "one sample per line delay");
     let (p, df) = spectrum(&x, rate as f64);
-    let peaks = top_peaks(&p, df, 100.0, 5000.0, 4);
+    let peaks = top_peaks(&p, df, 100.0, 5000.0, 6);
     let floor = noise_floor(&p, df, 100.0, 3000.0, &[440.0, 1200.0], 20.0);
-    eprintln!("rolling shutter: peaks {peaks:?}, floor {floor:.3e}");
+    let rel: Vec<(f64, f64)> = peaks
+        .iter()
+        .map(|(f, pw)| (*f, 10.0 * (pw / peaks[0].1).log10()))
+        .collect();
+    eprintln!("rolling shutter: strongest peaks (Hz, dB) {rel:.1?}");
     for want in [440.0, 1200.0] {
         let (f, pw) = peaks
             .iter()
@@ -495,4 +499,54 @@ fn bad_rolling_shutter_parameters_are_named() {
         }
         assert!(!err.contains("panicked"), "{args:?}: {err}");
     }
+}
+
+/// Amplitude ratio (dB) of the 1200 Hz to the 440 Hz tone in `path`.
+fn tone_ratio_db(path: &Path) -> f64 {
+    let (rate, x) = read_wav(path);
+    let (p, df) = spectrum(&x, rate as f64);
+    let at = |f: f64| {
+        let i = (f / df).round() as usize;
+        p[i - 3..=i + 3].iter().cloned().fold(0.0, f64::max)
+    };
+    10.0 * (at(1200.0) / at(440.0)).log10()
+}
+
+/// The two tones drive the object equally. Through the exposure boxcar the
+/// 1200 Hz tone comes back weaker by |H(1200)| / |H(440)| (sinc, E =
+/// 1/2000 s: -5.2 dB); compensation undoes it.
+#[test]
+fn exposure_compensation_restores_the_tone_balance() {
+    use vibroscope::dsp::exposure::boxcar_gain;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let e = 1.0 / 2000.0;
+    let want = 20.0 * (boxcar_gain(1200.0, e) / boxcar_gain(440.0, e)).log10();
+    run_ok(
+        d,
+        &["run", "rolling-shutter", "-q", "--set", "out.path=lp.wav"],
+    );
+    let set = "exposure.mode=\"compensate\"";
+    run_ok(
+        d,
+        &[
+            "run",
+            "rolling-shutter",
+            "-q",
+            "--set",
+            "out.path=c.wav",
+            "--set",
+            set,
+        ],
+    );
+    let (lp, comp) = (
+        tone_ratio_db(&d.join("lp.wav")),
+        tone_ratio_db(&d.join("c.wav")),
+    );
+    eprintln!("1200/440 Hz: low-pass {lp:+.2} dB (boxcar predicts {want:+.2} dB), compensated {comp:+.2} dB (truth 0)");
+    assert!(
+        (lp - want).abs() < 1.0,
+        "low-pass {lp:+.2} vs {want:+.2} dB"
+    );
+    assert!(comp.abs() < 1.0, "compensated {comp:+.2} dB");
 }
