@@ -7,29 +7,11 @@
 
 mod common;
 use common::*;
-use rustfft::{num_complex::Complex, FftPlanner};
 use std::path::Path;
 
 /// Power spectrum (Hann window, zero-padded to a power of two >= 2·len) and bin spacing.
 fn spectrum(x: &[f32], rate: f64) -> (Vec<f64>, f64) {
-    let n = (2 * x.len()).next_power_of_two();
-    let mean = x.iter().map(|&v| v as f64).sum::<f64>() / x.len() as f64;
-    let mut buf: Vec<Complex<f64>> = (0..n)
-        .map(|i| {
-            if i < x.len() {
-                let w = 0.5
-                    - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (x.len() - 1) as f64).cos();
-                Complex::new((x[i] as f64 - mean) * w, 0.0)
-            } else {
-                Complex::new(0.0, 0.0)
-            }
-        })
-        .collect();
-    FftPlanner::new().plan_fft_forward(n).process(&mut buf);
-    (
-        buf[..n / 2].iter().map(|c| c.norm_sqr()).collect(),
-        rate / n as f64,
-    )
+    power_spectrum(x, rate, (2 * x.len()).next_power_of_two())
 }
 
 /// Frequencies (parabolic interpolation) and powers of the `k` strongest local maxima in [lo, hi] Hz.
