@@ -29,7 +29,7 @@ pub mod signal;
 pub mod texture;
 
 pub use scene::{Depth, Dest, EdgeMode, Scene, SceneSpec};
-pub use signal::{Signal, SignalSpec};
+pub use signal::{Resonance, Signal, SignalSpec};
 
 use std::path::PathBuf;
 

@@ -379,7 +379,9 @@ impl Scene {
         let [ox, oy, ow, oh] = spec.object.map(|v| v as usize);
         let full = spec.full_scale();
         let (sin, cos) = detmath::sin_cos_turns(spec.direction_deg / 360.0);
-        let amp_max = spec.amplitude_px.abs();
+        // Room for the largest excursion (a resonance or interference can
+        // exceed the unit-peak signal).
+        let amp_max = spec.amplitude_px.abs() * signal.peak_bound().max(1.0);
 
         // Object texture on its padded lattice, normalised over the object.
         let tex = Texture::new(hash2(spec.seed, 1), OBJECT_SIGMA_PX);

@@ -50,6 +50,33 @@ pub struct SyntheticParams {
     pub frame_delay_us: Option<f64>,
     /// Each row averages the motion over this exposure (a boxcar).
     pub exposure_us: Option<f64>,
+    /// The object's transfer function from sound to motion: peaking
+    /// resonances in series (`[{ freq_hz, q, gain_db }]`); none = flat.
+    #[serde(default)]
+    pub resonances: Vec<sim::Resonance>,
+    /// Narrowband motion added to the object's (camera shake, a machine):
+    /// `[{ freq_hz, amplitude_px }]`.
+    #[serde(default)]
+    pub interference: Vec<Interference>,
+    /// The camera's true frame rate is `fps · (1 + clock_error_ppm·1e-6)`
+    /// while its frames are stamped at the stated `fps`.
+    #[serde(default)]
+    pub clock_error_ppm: f64,
+    /// Captured frames the camera loses (0-based capture indices): the
+    /// stream skips them and later frames are stamped as if nothing was lost.
+    #[serde(default)]
+    pub drop_frames: Vec<u64>,
+    /// Captured frames the camera delivers twice (identical copies).
+    #[serde(default)]
+    pub duplicate_frames: Vec<u64>,
+}
+
+/// A narrowband motion added to the object's.
+#[derive(Deserialize, Clone, Debug, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Interference {
+    pub freq_hz: f64,
+    pub amplitude_px: f64,
 }
 fn d_size() -> u32 {
     256
@@ -99,14 +126,37 @@ impl Default for SyntheticParams {
             line_delay_us: None,
             frame_delay_us: None,
             exposure_us: None,
+            resonances: Vec::new(),
+            interference: Vec::new(),
+            clock_error_ppm: 0.0,
+            drop_frames: Vec::new(),
+            duplicate_frames: Vec::new(),
         }
     }
 }
 
 impl SyntheticParams {
+    /// Frames the camera captures (before drops and duplicates).
     pub fn frame_count(&self) -> u64 {
         self.frames
             .unwrap_or((self.duration_s * self.fps).round().max(0.0) as u64)
+    }
+
+    /// The camera's true frame rate (see `clock_error_ppm`).
+    pub fn true_fps(&self) -> f64 {
+        self.fps * (1.0 + self.clock_error_ppm * 1e-6)
+    }
+
+    /// Frames delivered: captured, minus drops, plus duplicates.
+    pub fn delivered_count(&self) -> u64 {
+        let n = self.frame_count();
+        let count = |v: &[u64]| {
+            let mut v: Vec<u64> = v.iter().copied().filter(|&i| i < n).collect();
+            v.sort_unstable();
+            v.dedup();
+            v.len() as u64
+        };
+        n - count(&self.drop_frames) + count(&self.duplicate_frames)
     }
 
     pub fn depth(&self) -> crate::io::Depth {
@@ -119,7 +169,24 @@ impl SyntheticParams {
 
     /// The forward model for these parameters.
     pub fn scene(&self) -> Result<Scene, String> {
-        let signal = Signal::new(&self.signal).map_err(|e| e.to_string())?;
+        let span = (self.frame_count() + 2) as f64 / self.true_fps()
+            + self.exposure_us.unwrap_or(0.0) * 1e-6
+            + 0.01;
+        let rate = (16.0 * self.fps).max(96_000.0);
+        let unit = if self.amplitude_px != 0.0 {
+            1.0 / self.amplitude_px
+        } else {
+            0.0
+        };
+        let tones: Vec<(f64, f64)> = self
+            .interference
+            .iter()
+            .map(|i| (i.freq_hz, i.amplitude_px * unit))
+            .collect();
+        let signal = Signal::new(&self.signal)
+            .and_then(|s| s.through(&self.resonances, rate, span))
+            .and_then(|s| s.plus_tones(&tones))
+            .map_err(|e| e.to_string())?;
         let (w, h) = (self.width, self.height);
         let object = self
             .object
@@ -171,7 +238,35 @@ impl SyntheticParams {
             return Err(("amplitude_px", "must be a finite number".into()));
         }
         self.check_rolling()?;
-        self.scene().map(|_| ()).map_err(|m| ("signal", m))
+        let e = self.clock_error_ppm;
+        if !(e.is_finite() && e.abs() <= 1e5) {
+            return Err((
+                "clock_error_ppm",
+                format!("must be within ±100000 ppm, got {e}"),
+            ));
+        }
+        if !self.interference.is_empty() && self.amplitude_px == 0.0 {
+            return Err((
+                "interference",
+                "needs amplitude_px != 0 (it is scaled with the signal)".into(),
+            ));
+        }
+        if self.drop_frames.len() + self.duplicate_frames.len() > 1 << 20 {
+            return Err((
+                "drop_frames",
+                "at most 1048576 dropped and duplicated frames".into(),
+            ));
+        }
+        self.scene().map(|_| ()).map_err(|m| {
+            let field = if m.contains("resonances") {
+                "resonances"
+            } else if m.contains("interference") {
+                "interference"
+            } else {
+                "signal"
+            };
+            (field, m)
+        })
     }
 
     /// Rolling-shutter fields: positive line delay, rows that fit in the
@@ -238,8 +333,14 @@ impl Plan for SyntheticParams {
             pool: FramePool::new(format, ctx.pool_frames),
             scene,
             seq: 0,
-            total: self.frame_count(),
+            total: self.delivered_count(),
             fps: self.fps,
+            true_fps: self.true_fps(),
+            capture: 0,
+            captured: self.frame_count(),
+            drops: sorted(&self.drop_frames),
+            dups: sorted(&self.duplicate_frames),
+            repeat: false,
             pacer: self.realtime.then(|| Pacer::new(self.fps)),
             rows: self.row_timing(),
         })))
@@ -250,12 +351,29 @@ impl Plan for SyntheticParams {
     }
 }
 
+fn sorted(v: &[u64]) -> std::collections::VecDeque<u64> {
+    let mut v = v.to_vec();
+    v.sort_unstable();
+    v.dedup();
+    v.into()
+}
+
 struct Synthetic {
     pool: FramePool,
     scene: Scene,
+    /// Frames delivered so far (the stamp index).
     seq: u64,
     total: u64,
     fps: f64,
+    true_fps: f64,
+    /// Next capture index, captures in all, and the pending drops and
+    /// duplicates (sorted capture indices).
+    capture: u64,
+    captured: u64,
+    drops: std::collections::VecDeque<u64>,
+    dups: std::collections::VecDeque<u64>,
+    /// The last capture is to be delivered once more.
+    repeat: bool,
     pacer: Option<Pacer>,
     rows: Option<RowTiming>,
 }
@@ -265,7 +383,29 @@ impl Source for Synthetic {
         if self.seq >= self.total {
             return Ok(None);
         }
-        let t_s = self.seq as f64 / self.fps;
+        // Which capture this delivery shows: drops are skipped, a
+        // duplicate is the previous capture again (same noise, same pixels).
+        let c = if self.repeat {
+            self.repeat = false;
+            self.capture - 1
+        } else {
+            while self.drops.front() == Some(&self.capture) {
+                self.drops.pop_front();
+                self.capture += 1;
+            }
+            if self.capture >= self.captured {
+                return Ok(None);
+            }
+            let c = self.capture;
+            self.capture += 1;
+            if self.dups.front() == Some(&c) {
+                self.dups.pop_front();
+                self.repeat = true;
+            }
+            c
+        };
+        // Captured on the camera's own clock, stamped on the stated one.
+        let t_s = c as f64 / self.true_fps;
         if let Some(p) = &mut self.pacer {
             p.wait(self.seq, ctx.control.epoch());
         }
@@ -277,14 +417,11 @@ impl Source for Synthetic {
             PixelsMut::U16(p) => sim::Dest::U16(p),
         };
         match self.rows {
-            Some(rt) => self.scene.render_rows(
-                self.seq,
-                t_s,
-                rt.line_delay_ns * 1e-9,
-                rt.exposure_ns * 1e-9,
-                dst,
-            ),
-            None => self.scene.render(self.seq, t_s, dst),
+            Some(rt) => {
+                self.scene
+                    .render_rows(c, t_s, rt.line_delay_ns * 1e-9, rt.exposure_ns * 1e-9, dst)
+            }
+            None => self.scene.render(c, t_s, dst),
         }
         let item = nominal_frame(f, self.seq, self.fps);
         self.seq += 1;
