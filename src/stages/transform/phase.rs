@@ -23,7 +23,7 @@
 //! weights (Eq. 3.6 sums them unnormalised) and gives values of the order
 //! of radians of phase instead of millions.
 
-use super::roi::{Roi, RoiParam};
+use super::roi::{Mask, Roi, RoiParam};
 use crate::dsp::kernels::MAX_ORIENT;
 use crate::dsp::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError};
 use crate::dsp::riesz::{RieszCoeffs, RieszPyramid};
@@ -48,6 +48,9 @@ struct P {
     #[serde(default = "d_orient")]
     orientations: usize,
     roi: Option<RoiParam>,
+    /// Region as an image the size of the frame (PGM or PNG; pixels > 0
+    /// are inside); with `roi`, the overlap of both.
+    mask: Option<std::path::PathBuf>,
     /// Frames per emitted block.
     #[serde(default = "d_block")]
     block: usize,
@@ -91,6 +94,9 @@ pub const KIND: KindSpec = KindSpec {
         if let Some(r) = &v.roi {
             r.check().map_err(|m| p.error("roi", m))?;
         }
+        if let Some(m) = &v.mask {
+            Mask::load(m).map_err(|e| p.error("mask", e))?;
+        }
         if v.threads > 256 {
             return Err(p.error("threads", format!("must be 0..=256, got {}", v.threads)));
         }
@@ -120,6 +126,10 @@ impl Plan for PhasePlan {
             scales: v.scales,
             orientations: v.orientations,
             roi: v.roi,
+            mask: match &v.mask {
+                Some(path) => Some((path.clone(), Mask::load(path).map_err(StageError::msg)?)),
+                None => None,
+            },
             block: v.block,
             engine: None,
             pending: Vec::with_capacity(threads),
@@ -171,6 +181,8 @@ struct BandState {
     width: usize,
     /// A(t0)² over the band (Eq. 3.3 weights), set on the first frame.
     weight: Vec<f32>,
+    /// Band pixels inside the mask, if there is one.
+    inside: Option<Vec<bool>>,
 }
 
 /// One worker's pyramid and buffers (nothing is allocated per frame).
@@ -229,8 +241,8 @@ impl<A: Analyzer> Engine<A> {
         scales: usize,
         orientations: usize,
         roi: Roi,
-        width: usize,
-        height: usize,
+        mask: Option<&Mask>,
+        (width, height): (usize, usize),
     ) -> Result<Self, StageError> {
         let mut ws = Vec::with_capacity(workers);
         for _ in 0..workers.max(1) {
@@ -257,6 +269,18 @@ impl<A: Analyzer> Engine<A> {
             let x1 = to_band(roi.x + roi.w, b.step_x, b.width).max(x0);
             let y0 = to_band(roi.y, b.step_y, b.height);
             let y1 = to_band(roi.y + roi.h, b.step_y, b.height).max(y0);
+            // Band pixels whose input position falls outside the mask get
+            // no weight (multiplied into A² on the first frame).
+            let inside = mask.map(|m| {
+                (0..b.len())
+                    .map(|i| {
+                        let (bx, by) = (i % b.width, i / b.width);
+                        let x = ((bx as f32 * b.step_x).round() as usize).min(width - 1);
+                        let y = ((by as f32 * b.step_y).round() as usize).min(height - 1);
+                        m.at(x, y)
+                    })
+                    .collect::<Vec<bool>>()
+            });
             bands.push(BandState {
                 x0,
                 x1,
@@ -264,6 +288,7 @@ impl<A: Analyzer> Engine<A> {
                 y1,
                 width: b.width,
                 weight: vec![0.0; b.len()],
+                inside,
             });
         }
         Ok(Self {
@@ -289,6 +314,13 @@ impl<A: Analyzer> Engine<A> {
         for (i, b) in self.bands.iter_mut().enumerate() {
             reference.amplitude_into(i, &mut b.weight).map_err(err)?;
             b.weight.iter_mut().for_each(|a| *a = *a * *a);
+            if let Some(inside) = &b.inside {
+                for (w, &i) in b.weight.iter_mut().zip(inside) {
+                    if !i {
+                        *w = 0.0;
+                    }
+                }
+            }
             for y in b.y0..b.y1 {
                 total += b.weight[y * b.width + b.x0..y * b.width + b.x1]
                     .iter()
@@ -393,6 +425,7 @@ struct Phase {
     scales: usize,
     orientations: usize,
     roi: Option<RoiParam>,
+    mask: Option<(std::path::PathBuf, Mask)>,
     block: usize,
     engine: Option<Box<dyn FrameSignals>>,
     /// Frames waiting for a full batch (one per worker).
@@ -406,7 +439,17 @@ struct Phase {
 impl Phase {
     fn init(&mut self, f: &Frame) -> Result<(), StageError> {
         let (w, h) = (f.width(), f.height());
-        let roi = Roi::resolve(self.roi.as_ref(), w, h)?;
+        let mut roi = Roi::resolve(self.roi.as_ref(), w, h)?;
+        let mask = match self.mask.take() {
+            Some((path, m)) => {
+                m.check_size(&path, w, h)?;
+                roi = roi.intersect(&m.bounds()).ok_or_else(|| {
+                    StageError::msg(format!("mask {} does not overlap the roi", path.display()))
+                })?;
+                Some(m)
+            }
+            None => None,
+        };
         let (s, k, n) = (self.scales, self.orientations, self.threads);
         let engine: Box<dyn FrameSignals> = match self.kind {
             PyramidKind::Csp => Box::new(Engine::new(
@@ -419,8 +462,8 @@ impl Phase {
                 s,
                 k,
                 roi,
-                w,
-                h,
+                mask.as_ref(),
+                (w, h),
             )?),
             PyramidKind::Riesz => Box::new(Engine::new(
                 || RieszPyramid::new(w, h, s, k),
@@ -428,8 +471,8 @@ impl Phase {
                 s,
                 k,
                 roi,
-                w,
-                h,
+                mask.as_ref(),
+                (w, h),
             )?),
         };
         self.out = Vec::with_capacity(self.block * engine.bands());

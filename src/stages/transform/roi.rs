@@ -46,3 +46,96 @@ impl Roi {
         Ok(Roi { x, y, w, h })
     }
 }
+
+/// A region given as an image: pixels > 0 are inside. Read from a PGM
+/// (P2 or P5, 8 or 16 bit) or PNG file the size of the frame.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Mask {
+    pub width: usize,
+    pub height: usize,
+    inside: Vec<bool>,
+}
+
+impl Mask {
+    /// Reads `path` (the error names it and what is wrong).
+    pub fn load(path: &std::path::Path) -> Result<Mask, String> {
+        let img = image::ImageReader::open(path)
+            .map_err(|e| format!("{}: {e}", path.display()))?
+            .with_guessed_format()
+            .map_err(|e| format!("{}: {e}", path.display()))?
+            .decode()
+            .map_err(|e| format!("{}: not a readable PGM or PNG image: {e}", path.display()))?
+            .into_luma16();
+        let (w, h) = img.dimensions();
+        let inside: Vec<bool> = img.pixels().map(|p| p.0[0] > 0).collect();
+        if !inside.iter().any(|&v| v) {
+            return Err(format!(
+                "{}: the mask is empty (no pixel > 0)",
+                path.display()
+            ));
+        }
+        Ok(Mask {
+            width: w as usize,
+            height: h as usize,
+            inside,
+        })
+    }
+
+    /// Whether input pixel (x, y) is inside (false outside the image).
+    pub fn at(&self, x: usize, y: usize) -> bool {
+        x < self.width && y < self.height && self.inside[y * self.width + x]
+    }
+
+    /// The bounding box of the inside pixels, as a region.
+    pub fn bounds(&self) -> Roi {
+        let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+        for y in 0..self.height {
+            for x in 0..self.width {
+                if self.inside[y * self.width + x] {
+                    (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+                }
+            }
+        }
+        Roi {
+            x: x0,
+            y: y0,
+            w: x1 + 1 - x0,
+            h: y1 + 1 - y0,
+        }
+    }
+
+    /// Checks the mask against the frame size.
+    pub fn check_size(
+        &self,
+        path: &std::path::Path,
+        width: usize,
+        height: usize,
+    ) -> Result<(), StageError> {
+        if (self.width, self.height) != (width, height) {
+            return Err(StageError::msg(format!(
+                "mask {} is {}x{}, but the frames are {width}x{height}",
+                path.display(),
+                self.width,
+                self.height
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl Roi {
+    /// The overlap of two regions, if any.
+    pub fn intersect(&self, o: &Roi) -> Option<Roi> {
+        let (x0, y0) = (self.x.max(o.x), self.y.max(o.y));
+        let (x1, y1) = (
+            (self.x + self.w).min(o.x + o.w),
+            (self.y + self.h).min(o.y + o.h),
+        );
+        (x1 > x0 && y1 > y0).then_some(Roi {
+            x: x0,
+            y: y0,
+            w: x1 - x0,
+            h: y1 - y0,
+        })
+    }
+}
