@@ -105,6 +105,10 @@ enum Command {
         /// Region of the object: X,Y,W,H in pixels (default: the whole frame).
         #[arg(long, value_name = "X,Y,W,H")]
         roi: Option<String>,
+        /// Region of the object as an image the size of the frame (PGM or
+        /// PNG; pixels > 0 count); with --roi, the overlap of both.
+        #[arg(long, value_name = "FILE")]
+        mask: Option<PathBuf>,
         /// Denoising after the high-pass.
         #[arg(long, value_enum, default_value = "none")]
         denoise: DenoiseArg,
@@ -254,12 +258,20 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
             output,
             fps,
             roi,
+            mask,
             denoise,
             pyramid,
             speaker,
             stats,
             rolling,
         } => {
+            if mask.is_some() && rolling.rolling_shutter {
+                return Err(cfg_error(
+                    "--mask",
+                    "not available with --rolling-shutter yet (use --roi)".into(),
+                )
+                .into());
+            }
             let mut decl = if rolling.rolling_shutter {
                 if !matches!(denoise, DenoiseArg::None) {
                     return Err(cfg_error(
@@ -271,7 +283,16 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
                 rs_listen_pipeline(&video, &output, fps, roi.as_deref(), &rolling)?
             } else {
                 rolling.check_unused()?;
-                listen_pipeline(&video, &output, fps, roi.as_deref(), denoise, pyramid)?
+                let mut decl =
+                    listen_pipeline(&video, &output, fps, roi.as_deref(), denoise, pyramid)?;
+                if let Some(m) = mask {
+                    if let Some(st) = decl.stages.iter_mut().find(|s| s.id == "phase") {
+                        let origin = Origin::Set(format!("--mask {}", m.display()));
+                        let v = toml::Value::String(m.display().to_string());
+                        set_param(st, "mask", v, origin);
+                    }
+                }
+                decl
             };
             if let Some(dev) = speaker {
                 add_speaker(&mut decl, &dev)?;

@@ -57,6 +57,8 @@ impl fmt::Display for ConfigError {
         write!(f, "{}", self.file)?;
         match &self.origin {
             Some(Origin::Line(l)) => write!(f, ":{l}")?,
+            // A command-line flag that stands for a setting names itself.
+            Some(Origin::Set(s)) if s.starts_with('-') => write!(f, " ({s})")?,
             Some(Origin::Set(s)) => write!(f, " (--set {s})")?,
             Some(Origin::Builtin(s)) => write!(f, " ({s})")?,
             None => {}
