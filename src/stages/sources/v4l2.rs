@@ -180,7 +180,12 @@ pub fn to_gray(
 
 /// Decodes a (motion) JPEG frame to its luma plane. Streams that omit the
 /// Huffman tables (common in MJPEG) use the standard ones.
-pub fn mjpeg_to_gray(src: &[u8], width: usize, height: usize, out: &mut [u8]) -> Result<(), String> {
+pub fn mjpeg_to_gray(
+    src: &[u8],
+    width: usize,
+    height: usize,
+    out: &mut [u8],
+) -> Result<(), String> {
     use zune_jpeg::zune_core::bytestream::ZCursor;
     use zune_jpeg::zune_core::colorspace::ColorSpace;
     use zune_jpeg::zune_core::options::DecoderOptions;
@@ -337,21 +342,22 @@ impl std::fmt::Display for DeviceInfo {
         for t in &self.timing {
             writeln!(f, "  {t}")?;
         }
-        for fmt in &self.formats {
-            let usable = if PixelFormat::from_fourcc(fmt.fourcc).is_some() {
-                ""
-            } else {
-                " (not converted by vibroscope)"
-            };
-            writeln!(
-                f,
-                "  {} {}{usable}",
-                fourcc_str(fmt.fourcc),
-                fmt.description
-            )?;
+        let (usable, other): (Vec<&FormatInfo>, Vec<&FormatInfo>) = self
+            .formats
+            .iter()
+            .partition(|fmt| PixelFormat::from_fourcc(fmt.fourcc).is_some());
+        if usable.is_empty() {
+            writeln!(f, "  no format vibroscope converts (GREY, YUYV, MJPEG)")?;
+        }
+        for fmt in usable {
+            writeln!(f, "  {} ({})", fourcc_str(fmt.fourcc), fmt.description)?;
             for s in &fmt.sizes {
                 writeln!(f, "    {s}")?;
             }
+        }
+        if !other.is_empty() {
+            let names: Vec<String> = other.iter().map(|fmt| fourcc_str(fmt.fourcc)).collect();
+            writeln!(f, "  also offers (not converted): {}", names.join(", "))?;
         }
         Ok(())
     }
@@ -444,7 +450,10 @@ mod imp {
     /// Exposure (ns) and line time (ns) when the driver exposes them.
     fn row_timing(dev: &Device, width: u32) -> (Option<f64>, Option<f64>) {
         let exposure = int_control(dev, CID_EXPOSURE_ABSOLUTE).map(|v| v as f64 * 100_000.0);
-        let line = match (int_control(dev, CID_PIXEL_RATE), int_control(dev, CID_HBLANK)) {
+        let line = match (
+            int_control(dev, CID_PIXEL_RATE),
+            int_control(dev, CID_HBLANK),
+        ) {
             (Some(rate), Some(hblank)) if rate > 0 => {
                 Some((f64::from(width) + hblank as f64) * 1e9 / rate as f64)
             }
@@ -503,7 +512,11 @@ mod imp {
                 "{path}: asked for {}, the driver gave {} (offered: {})",
                 fourcc_str(fourcc),
                 fourcc_str(got.fourcc.repr),
-                offered.iter().map(|&f| fourcc_str(f)).collect::<Vec<_>>().join(", ")
+                offered
+                    .iter()
+                    .map(|&f| fourcc_str(f))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )));
         };
         if got.width == 0 || got.height == 0 || got.width > 16384 || got.height > 16384 {
@@ -527,7 +540,10 @@ mod imp {
         // Frame rate: request, then read back the granted interval.
         if let Some(fps) = p.fps {
             // The frame interval 1/fps as a fraction of seconds.
-            let frac = v4l::Fraction::new(1000, (fps * 1000.0).round().clamp(1.0, f64::from(u32::MAX)) as u32);
+            let frac = v4l::Fraction::new(
+                1000,
+                (fps * 1000.0).round().clamp(1.0, f64::from(u32::MAX)) as u32,
+            );
             if let Err(e) = dev.set_params(&v4l::video::capture::Parameters::new(frac)) {
                 tracing::warn!(device = %path, "cannot set the frame rate to {fps} Hz: {e}");
             }
@@ -629,11 +645,10 @@ mod imp {
                 if ctx.should_stop() {
                     return Ok(false);
                 }
-                let n = self
-                    .dev
-                    .handle()
-                    .poll(libc::POLLIN, POLL_MS)
-                    .map_err(|e| StageError::msg(device_error(&self.path, "capture failed", &e)))?;
+                let n =
+                    self.dev.handle().poll(libc::POLLIN, POLL_MS).map_err(|e| {
+                        StageError::msg(device_error(&self.path, "capture failed", &e))
+                    })?;
                 if n > 0 {
                     return Ok(true);
                 }
@@ -664,9 +679,9 @@ mod imp {
                 let Some(stream) = self.stream.as_mut() else {
                     return Ok(None);
                 };
-                let (buf, meta) = stream.next().map_err(|e| {
-                    StageError::msg(device_error(&self.path, "capture failed", &e))
-                })?;
+                let (buf, meta) = stream
+                    .next()
+                    .map_err(|e| StageError::msg(device_error(&self.path, "capture failed", &e)))?;
                 self.started = true;
                 let (seq, gap) = self.seqs.next(meta.sequence);
                 if gap > 0 {
@@ -765,7 +780,12 @@ mod imp {
                     let rates = describe_rates(dev, fourcc, s.max_width, s.max_height);
                     out.push(format!(
                         "{}x{} to {}x{} in steps of {}x{}{rates}",
-                        s.min_width, s.min_height, s.max_width, s.max_height, s.step_width, s.step_height
+                        s.min_width,
+                        s.min_height,
+                        s.max_width,
+                        s.max_height,
+                        s.step_width,
+                        s.step_height
                     ));
                 }
             }
@@ -851,7 +871,8 @@ mod imp {
 mod imp {
     use super::*;
 
-    const WHY: &str = "this vibroscope was built without V4L2 support (Linux, cargo feature `v4l2`)";
+    const WHY: &str =
+        "this vibroscope was built without V4L2 support (Linux, cargo feature `v4l2`)";
 
     pub(super) fn open(p: V4l2Params, _pool_frames: usize) -> Result<Box<dyn Source>, StageError> {
         Err(StageError::msg(format!("{}: {WHY}", p.device.display())))
@@ -915,20 +936,39 @@ mod tests {
         assert!(e.contains("32x16"), "{e}");
         assert!(to_gray(PixelFormat::Mjpeg, b"\xff\xd8garbage", 32, 16, 0, &mut out).is_err());
         // A torn frame must not panic (zune-jpeg may fill what is missing).
-        let _ = to_gray(PixelFormat::Mjpeg, &jpeg[..jpeg.len() / 3], 32, 16, 0, &mut out);
+        let _ = to_gray(
+            PixelFormat::Mjpeg,
+            &jpeg[..jpeg.len() / 3],
+            32,
+            16,
+            0,
+            &mut out,
+        );
     }
 
     #[test]
     fn format_choice_and_unsupported_format_message() {
         let vivid = [*b"YUYV", *b"UYVY", *b"GREY", *b"RGB3"];
-        assert_eq!(choose_format("/dev/video0", PixelFormat::Auto, &vivid).unwrap(), *b"GREY");
-        assert_eq!(choose_format("/dev/video0", PixelFormat::Yuyv, &vivid).unwrap(), *b"YUYV");
+        assert_eq!(
+            choose_format("/dev/video0", PixelFormat::Auto, &vivid).unwrap(),
+            *b"GREY"
+        );
+        assert_eq!(
+            choose_format("/dev/video0", PixelFormat::Yuyv, &vivid).unwrap(),
+            *b"YUYV"
+        );
         let e = choose_format("/dev/video0", PixelFormat::Mjpeg, &vivid).unwrap_err();
         assert!(e.contains("/dev/video0") && e.contains("MJPG"), "{e}");
-        assert!(e.contains("YUYV, UYVY, GREY, RGB3"), "lists what it offers: {e}");
+        assert!(
+            e.contains("YUYV, UYVY, GREY, RGB3"),
+            "lists what it offers: {e}"
+        );
         let e = choose_format("/dev/video2", PixelFormat::Auto, &[*b"RGB3", *b"NV12"]).unwrap_err();
         assert!(e.contains("/dev/video2") && e.contains("RGB3, NV12"), "{e}");
-        assert_eq!(choose_format("d", PixelFormat::Mjpeg, &[*b"JPEG"]).unwrap(), *b"JPEG");
+        assert_eq!(
+            choose_format("d", PixelFormat::Mjpeg, &[*b"JPEG"]).unwrap(),
+            *b"JPEG"
+        );
     }
 
     #[test]

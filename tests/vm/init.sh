@@ -1,0 +1,74 @@
+#!/bin/sh
+# /init of the test VM (busybox). Loads vivid and snd-dummy, runs vibroscope
+# against /dev/video0 and reports over the serial console: every line the
+# host checks starts with "@@VM ". Outputs go to the second disk as a tar.
+export PATH=/bin:/sbin
+mount -t proc proc /proc
+mount -t sysfs sys /sys
+mount -t devtmpfs dev /dev
+mount -t tmpfs tmp /tmp
+mkdir -p /out
+mount -t tmpfs out /out
+say() { echo "@@VM $*"; }
+say "kernel $(uname -r) cpus $(grep -c ^processor /proc/cpuinfo)"
+for m in vivid snd-dummy virtio_pci virtio_blk; do
+  modprobe "$m" || say "modprobe $m failed"
+done
+n=0
+while [ ! -e /dev/video0 ] && [ $n -lt 100 ]; do sleep 0.1; n=$((n + 1)); done
+say "nodes $(ls /dev | grep -E '^(video|snd)' | tr '\n' ' ') $(ls /dev/snd 2>/dev/null | tr '\n' ' ')"
+cd /out
+export RUST_BACKTRACE=1
+
+# 1. Devices.
+vibroscope devices > devices.txt 2>&1
+say "devices rc=$?"
+sed 's/^/  /' devices.txt
+
+# 2. Record two seconds, asking for a size vivid does not have.
+vibroscope record --device /dev/video0 -o /out/rec.y4m --seconds 2 \
+  --width 400 --height 300 --fps 30 --format yuyv --stats > record.txt 2>&1
+say "record rc=$?"
+sed 's/^/  /' record.txt
+vibroscope probe /out/rec.y4m > probe.txt 2>&1
+say "probe rc=$?"
+sed 's/^/  /' probe.txt
+
+# 3. The live microphone pipeline for a few seconds.
+vibroscope run live-microphone --set cam.duration_s=4 --set out.path=/out/live.wav \
+  --stats --quiet > live.txt 2>&1
+say "live rc=$?"
+sed 's/^/  /' live.txt
+if [ -x /bin/live-extra.sh ]; then /bin/live-extra.sh; fi
+
+# 4. Faults on a real driver: a missing node, and an output-only node.
+vibroscope record --device /dev/video99 -o /out/missing.y4m --seconds 1 > missing.txt 2>&1
+say "missing rc=$?"
+sed 's/^/  /' missing.txt
+
+# 5. Ctrl-C while recording: exit 130 and a valid file.
+vibroscope record --device /dev/video0 -o /out/interrupted.y4m --width 320 --height 180 \
+  > interrupted.txt 2>&1 &
+pid=$!
+sleep 3
+kill -INT $pid
+wait $pid
+say "interrupted rc=$?"
+sed 's/^/  /' interrupted.txt
+
+# 6. Unplugged mid-stream: vivid's "Disconnect" control emulates a USB
+# unplug (every ioctl then fails with ENODEV). Last: the node goes away.
+vibroscope run live-microphone --set cam.duration_s=60 --set out.path=/out/unplug.wav \
+  --quiet > unplug.txt 2>&1 &
+pid=$!
+sleep 4
+v4l2-ctl -d /dev/video0 --set-ctrl disconnect=1 > unplug-ctl.txt 2>&1
+say "disconnect rc=$?"
+wait $pid
+say "unplug rc=$?"
+sed 's/^/  /' unplug.txt unplug-ctl.txt
+
+tar cf /dev/vda -C /out . && say "results written"
+sync
+say "done"
+poweroff -f
