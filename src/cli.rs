@@ -111,6 +111,11 @@ enum Command {
         /// Pyramid: complex steerable (quality) or Riesz (speed).
         #[arg(long, value_enum, default_value = "csp")]
         pyramid: PyramidArg,
+        /// Also play the sound on a speaker, in real time, resampled to the
+        /// device rate: the default output, part of a device's name, or
+        /// `null` (a virtual device that discards audio).
+        #[arg(long, value_name = "DEVICE", num_args = 0..=1, default_missing_value = "default")]
+        speaker: Option<String>,
         /// Print the per-stage summary at exit.
         #[arg(long)]
         stats: bool,
@@ -274,9 +279,13 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
             roi,
             denoise,
             pyramid,
+            speaker,
             stats,
         } => {
-            let decl = listen_pipeline(&video, &output, fps, roi.as_deref(), denoise, pyramid)?;
+            let mut decl = listen_pipeline(&video, &output, fps, roi.as_deref(), denoise, pyramid)?;
+            if let Some(dev) = speaker {
+                add_speaker(&mut decl, &dev)?;
+            }
             let (code, _) = run_decl(&decl, stats, true)?;
             if code == ExitCode::SUCCESS {
                 eprintln!("wrote {}", output.display());
@@ -662,6 +671,28 @@ fn score(reference: &Path, test: &Path, max_lag_s: f64) -> anyhow::Result<ExitCo
 }
 
 /// The visual-microphone pipeline set up for `listen`.
+/// Adds a `speaker` sink fed by whatever feeds the `out` sink (fan-out:
+/// the WAV and the speaker get the same blocks).
+fn add_speaker(decl: &mut PipelineDecl, device: &str) -> anyhow::Result<()> {
+    let Some(out) = decl.stages.iter().position(|s| s.id == "out") else {
+        anyhow::bail!("the pipeline has no stage `out` to play alongside");
+    };
+    let origin = Origin::Set(format!("--speaker {device}"));
+    let mut st = decl.stages[out].clone();
+    st.id = "speaker".into();
+    st.kind = "speaker".into();
+    st.kind_origin = origin.clone();
+    st.params.clear();
+    set_param(
+        &mut st,
+        "device",
+        toml::Value::String(device.into()),
+        origin,
+    );
+    decl.stages.push(st);
+    Ok(())
+}
+
 fn listen_pipeline(
     video: &Path,
     output: &Path,

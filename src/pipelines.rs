@@ -21,6 +21,10 @@ pub static SHIPPED: &[Shipped] = &[
         text: include_str!("../pipelines/live-microphone.toml"),
     },
     Shipped {
+        name: "live-demo",
+        text: include_str!("../pipelines/live-demo.toml"),
+    },
+    Shipped {
         name: "motion",
         text: include_str!("../pipelines/motion.toml"),
     },

@@ -42,6 +42,9 @@ pub struct BuildCtx {
     pub pool_frames: usize,
     /// Types arriving on each input port.
     pub input_types: Vec<PortType>,
+    /// The graph has a live source: sinks that pace themselves (a speaker)
+    /// drop rather than hold up the stream.
+    pub live: bool,
 }
 
 /// A stage whose parameters are valid; `build` opens files and devices.
@@ -78,6 +81,14 @@ pub struct Graph {
     pub file: String,
     pub name: String,
     pub nodes: Vec<GraphNode>,
+}
+
+impl Graph {
+    /// Whether any source paces itself in real time (a camera, a live
+    /// simulation); such runs report capture-to-sink latency.
+    pub fn is_live(&self) -> bool {
+        self.nodes.iter().any(|n| n.plan.is_live())
+    }
 }
 
 pub const DEFAULT_CAPACITY: usize = 16;

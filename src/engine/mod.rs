@@ -6,6 +6,7 @@ pub mod edge;
 pub mod frame;
 pub mod graph;
 pub mod item;
+pub mod latency;
 pub mod notify;
 pub mod runner;
 pub mod stage;
@@ -17,5 +18,6 @@ pub use frame::{
 };
 pub use graph::{BuildCtx, Graph, KindSpec, Output, Plan};
 pub use item::{AudioBlock, Item, PortType, SampleBlock, Spectrum};
+pub use latency::{LatencyHist, LatencySummary};
 pub use runner::{error_chain, run, RunError, RunOptions, RunReport, StageReport};
 pub use stage::{Control, EmitError, Emitter, Node, Source, SourceCtx, Stage, StageError};

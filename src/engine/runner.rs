@@ -9,6 +9,7 @@
 use super::edge::{edge, EdgeRx, EdgeStats, Recv};
 use super::graph::{BuildCtx, Graph};
 use super::item::PortType;
+use super::latency::{LatencyHist, LatencySummary};
 use super::stage::{Control, EmitError, Emitter, Node, SourceCtx, StageError};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -36,6 +37,8 @@ pub struct StageReport {
     pub queue_capacity: u64,
     /// Time spent inside `process`/`next` (not waiting).
     pub busy: Duration,
+    /// Capture-to-arrival latency of what reached this sink (live runs only).
+    pub latency: Option<LatencySummary>,
 }
 
 impl StageReport {
@@ -90,6 +93,14 @@ impl RunReport {
                 r.us_per_item()
             );
         }
+        for r in &self.stages {
+            if let Some(l) = r.latency {
+                s += &format!(
+                    "latency capture -> {}: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} samples)\n",
+                    r.id, l.p50_ms, l.p99_ms, l.max_ms, l.count
+                );
+            }
+        }
         s += &format!("elapsed {:.3} s", self.elapsed.as_secs_f64());
         if let Some(rss) = peak_rss_bytes() {
             s += &format!(", peak RSS {:.1} MiB", rss as f64 / (1024.0 * 1024.0));
@@ -127,6 +138,8 @@ struct Counters {
     source_dropped: AtomicU64,
     inputs: Vec<Arc<EdgeStats>>,
     capacity: u64,
+    /// Sinks of live runs measure capture-to-arrival latency.
+    latency: Option<Mutex<LatencyHist>>,
 }
 
 /// Builds every stage (opening files and devices), then runs the graph to
@@ -134,6 +147,16 @@ struct Counters {
 pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<RunReport, RunError> {
     let start = Instant::now();
     let n = graph.nodes.len();
+    let live = graph.is_live();
+    let has_consumer: Vec<bool> = {
+        let mut v = vec![false; n];
+        for node in &graph.nodes {
+            for inp in &node.inputs {
+                v[inp.from] = true;
+            }
+        }
+        v
+    };
     // A source's pool covers every ring frames can sit in, plus what each
     // stage holds while working, plus slack.
     let mut frame_slots = 8usize;
@@ -170,6 +193,8 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
             source_dropped: AtomicU64::new(0),
             inputs: stats,
             capacity: cap,
+            latency: (live && !has_consumer[i] && !node.inputs.is_empty())
+                .then(|| Mutex::new(LatencyHist::new())),
         }));
     }
     // Build (opens files); nothing runs yet.
@@ -180,6 +205,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
         let ctx = BuildCtx {
             pool_frames: frame_slots,
             input_types: node.inputs.iter().map(|i| i.port_type).collect(),
+            live,
         };
         let built_node = node.plan.build(&ctx).map_err(|e| RunError {
             stage: node.id.clone(),
@@ -190,6 +216,8 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
         kinds.push(node.kind.name);
     }
     let errors: Arc<Mutex<Vec<RunError>>> = Arc::new(Mutex::new(Vec::new()));
+    // Live capture times count from here.
+    control.start_clock();
     let mut handles = Vec::with_capacity(n);
     for (i, ((node, outs), ins)) in built.into_iter().zip(outs).zip(ins).enumerate() {
         let ctl = Arc::clone(&control);
@@ -266,6 +294,10 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
                 .unwrap_or(0),
             queue_capacity: c.capacity,
             busy: Duration::from_nanos(c.busy_ns.load(Ordering::Relaxed)),
+            latency: c
+                .latency
+                .as_ref()
+                .and_then(|h| h.lock().unwrap_or_else(|e| e.into_inner()).summary()),
         })
         .collect::<Vec<_>>();
     for r in &stages {
@@ -344,6 +376,11 @@ fn run_stage(
     let mut open: Vec<bool> = vec![true; ins.len()];
     let mut port = 0usize;
     let mut result = Ok(());
+    // Only this thread records; the lock is uncontended until the report.
+    let mut latency = c
+        .latency
+        .as_ref()
+        .map(|h| h.lock().unwrap_or_else(|e| e.into_inner()));
     'outer: while open.iter().any(|&o| o) {
         if !open[port] {
             port = (port + 1) % ins.len();
@@ -352,6 +389,9 @@ fn run_stage(
         match ins[port].recv(&control.hard_stop) {
             Recv::Item(item) => {
                 c.items_in.fetch_add(1, Ordering::Relaxed);
+                if let Some(h) = latency.as_mut() {
+                    h.record_item(&item, control.now_ns());
+                }
                 let t = Instant::now();
                 let r = st.process(port, item, &mut out);
                 c.busy_ns
@@ -366,6 +406,7 @@ fn run_stage(
         }
         port = (port + 1) % ins.len();
     }
+    drop(latency);
     // Stop listening before finishing so upstream is not held up by us.
     drop(std::mem::take(&mut ins));
     let t = Instant::now();

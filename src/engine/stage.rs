@@ -5,8 +5,8 @@ use super::edge::{EdgeTx, Sent};
 use super::frame::{FrameMut, FramePool};
 use super::item::Item;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::Arc;
-use std::time::Duration;
+use std::sync::{Arc, OnceLock};
+use std::time::{Duration, Instant};
 
 /// Run-wide flags. Raising `stop_sources` ends the stream gracefully:
 /// sources stop, everything queued drains, sinks finalise. Raising
@@ -15,6 +15,9 @@ use std::time::Duration;
 pub struct Control {
     pub stop_sources: AtomicBool,
     pub hard_stop: AtomicBool,
+    /// The run's clock: live sources stamp capture times in ns since this
+    /// instant, so a sink can tell how old a sample is (`now_ns() - t`).
+    epoch: OnceLock<Instant>,
 }
 
 impl Control {
@@ -32,6 +35,19 @@ impl Control {
     }
     pub fn sources_should_stop(&self) -> bool {
         self.stop_sources.load(Ordering::Acquire)
+    }
+    /// Starts the run clock (the runner calls this just before the stage
+    /// threads start; later calls keep the first instant).
+    pub fn start_clock(&self) -> Instant {
+        *self.epoch.get_or_init(Instant::now)
+    }
+    /// The instant live capture times count from.
+    pub fn epoch(&self) -> Instant {
+        self.start_clock()
+    }
+    /// Nanoseconds on the run clock.
+    pub fn now_ns(&self) -> i64 {
+        self.epoch().elapsed().as_nanos() as i64
     }
 }
 

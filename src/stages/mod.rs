@@ -22,6 +22,7 @@ pub static REGISTRY: &[KindSpec] = &[
     transform::denoise::SUBTRACT_KIND,
     transform::denoise::ENHANCE_KIND,
     sinks::wav::KIND,
+    sinks::speaker::KIND,
     sinks::csv::KIND,
     sinks::json::KIND,
     sinks::y4m::KIND,

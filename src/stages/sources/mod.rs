@@ -7,21 +7,22 @@ use crate::engine::{FrameFormat, FrameMeta, FrameMut, Item};
 use std::time::{Duration, Instant};
 
 /// Paces a source like a live camera: frame `seq` is delivered at
-/// `start + seq / fps` on the wall clock, whatever downstream is doing.
+/// `epoch + seq / fps` on the wall clock, whatever downstream is doing. The
+/// epoch is the run clock ([`crate::engine::Control::epoch`]), so the
+/// nominal capture time `seq / fps` is also the frame's time on that clock
+/// and sinks can measure how old what reaches them is.
 pub struct Pacer {
     fps: f64,
-    start: Option<Instant>,
 }
 
 impl Pacer {
     pub fn new(fps: f64) -> Self {
-        Self { fps, start: None }
+        Self { fps }
     }
 
-    /// Sleeps until frame `seq` is due (the first call starts the clock).
-    pub fn wait(&mut self, seq: u64) {
-        let start = *self.start.get_or_insert_with(Instant::now);
-        let due = start + Duration::from_secs_f64(seq as f64 / self.fps);
+    /// Sleeps until frame `seq` is due on the run clock.
+    pub fn wait(&mut self, seq: u64, epoch: Instant) {
+        let due = epoch + Duration::from_secs_f64(seq as f64 / self.fps);
         let now = Instant::now();
         if due > now {
             std::thread::sleep(due - now);

@@ -117,7 +117,7 @@ impl Source for Pattern {
             return Ok(None);
         }
         if let Some(p) = &mut self.pacer {
-            p.wait(self.seq);
+            p.wait(self.seq, ctx.control.epoch());
         }
         let Some(mut f) = ctx.acquire(&self.pool) else {
             return Ok(None);

@@ -220,7 +220,7 @@ impl Source for Synthetic {
         }
         let t_s = self.seq as f64 / self.fps;
         if let Some(p) = &mut self.pacer {
-            p.wait(self.seq);
+            p.wait(self.seq, ctx.control.epoch());
         }
         let Some(mut f) = ctx.acquire(&self.pool) else {
             return Ok(None);

@@ -5,7 +5,10 @@
 //! Streaming: the lags are estimated once, on the first `window` samples
 //! (high-passed copies, so drift does not decide the lag; ch. 4 footnote
 //! 1), then held. Output waits only for the largest negative lag, plus the
-//! block being assembled. Unlike Eq. 3.5, the lag maximises |correlation|
+//! block being assembled. Before the window is in, output is held; live
+//! pipelines set `warmup` to a few blocks so that a provisional estimate on
+//! the first `warmup` samples starts the sound at once, and the estimate on
+//! the full window replaces it when that is in. Unlike Eq. 3.5, the lag maximises |correlation|
 //! and the band is multiplied by the correlation's sign, so a band that
 //! sees the motion inverted (diagonal motion, the thesis' y = -x corner
 //! case) adds constructively instead of being shifted half a period.
@@ -50,6 +53,9 @@ struct P {
     /// Samples used to estimate the lags.
     #[serde(default = "d_window")]
     window: usize,
+    /// Samples after which a provisional estimate starts the output (live
+    /// use); default: `window` (output waits for the full estimate).
+    warmup: Option<usize>,
 }
 fn d_weights() -> Weights {
     Weights::Equal
@@ -75,6 +81,14 @@ pub const KIND: KindSpec = KindSpec {
         if !(1..=1 << 22).contains(&v.window) {
             return Err(p.error("window", format!("must be 1..=4194304 samples, got {}", v.window)));
         }
+        if let Some(w) = v.warmup {
+            if w == 0 || w > v.window {
+                return Err(p.error(
+                    "warmup",
+                    format!("must be 1..=window ({}) samples, got {w}", v.window),
+                ));
+            }
+        }
         Ok(Box::new(AlignPlan(v)))
     },
 };
@@ -91,6 +105,8 @@ impl Plan for AlignPlan {
             total: 0,
             blocks: VecDeque::new(),
             shifts: None,
+            train: Vec::new(),
+            trained: false,
             buf: Vec::new(),
         })))
     }
@@ -185,6 +201,10 @@ struct Align {
     /// Input blocks not yet emitted: (t0_ns, rate, first sample, length).
     blocks: VecDeque<(i64, f64, usize, usize)>,
     shifts: Option<Vec<Shift>>,
+    /// The first `window` samples, interleaved, kept for the estimate.
+    train: Vec<f32>,
+    /// The estimate on the full window is done.
+    trained: bool,
     buf: Vec<f32>,
 }
 
@@ -196,9 +216,9 @@ impl Align {
         self.hist[(n as usize - self.hist_start) * self.channels + ch]
     }
 
-    /// Eq. 3.5 on the buffered window.
+    /// Eq. 3.5 on the training samples received so far.
     fn estimate(&mut self, rate: f64) -> Result<(), StageError> {
-        let (c, n) = (self.channels, self.total - self.hist_start);
+        let (c, n) = (self.channels, self.train.len() / self.channels.max(1));
         if let Some(r) = self.p.reference_band {
             if r >= c {
                 return Err(StageError::msg(format!(
@@ -212,7 +232,7 @@ impl Align {
                 let mut hp = Sos::butterworth_highpass(2, cutoff, rate).ok();
                 (0..n)
                     .map(|i| {
-                        let x = self.hist[i * c + ch] as f64;
+                        let x = self.train[i * c + ch] as f64;
                         hp.as_mut().map_or(x, |h| h.step(x))
                     })
                     .collect()
@@ -346,16 +366,27 @@ impl Stage for Align {
         let len = b.data.len() / self.channels;
         self.hist.extend_from_slice(&b.data[..len * self.channels]);
         self.blocks.push_back((b.t0_ns, b.rate_hz, self.total, len));
+        let before = self.total;
         self.total += len;
-        if self.shifts.is_none() && self.total >= self.p.window {
-            self.estimate(b.rate_hz)?;
+        if !self.trained {
+            let want = (self.p.window - before.min(self.p.window)).min(len);
+            self.train
+                .extend_from_slice(&b.data[..want * self.channels]);
+            let warmup = self.p.warmup.unwrap_or(self.p.window);
+            if self.total >= self.p.window {
+                self.estimate(b.rate_hz)?;
+                self.trained = true;
+                self.train = Vec::new();
+            } else if self.shifts.is_none() && self.total >= warmup {
+                self.estimate(b.rate_hz)?;
+            }
         }
         self.emit_ready(out, false);
         Ok(())
     }
 
     fn finish(&mut self, out: &mut Emitter) -> Result<(), StageError> {
-        if self.shifts.is_none() && self.total > 0 {
+        if !self.trained && self.total > 0 {
             let rate = self.blocks.front().map_or(1.0, |b| b.1);
             self.estimate(rate)?;
         }
@@ -376,8 +407,11 @@ mod tests {
                 weights: Weights::Equal,
                 max_lag: 8,
                 window: 4096,
+                warmup: None,
             },
             channels,
+            train: hist.clone(),
+            trained: false,
             hist,
             hist_start: 0,
             total,
