@@ -52,6 +52,26 @@ fn stats_row(table: &str, id: &str) -> (u64, u64, u64) {
     (c[0], c[1], c[2])
 }
 
+/// (p50, p99) in ms of a `latency capture -> SINK:` line of `--stats`.
+fn latency(table: &str, sink: &str) -> (f64, f64) {
+    let key = format!("latency capture -> {sink}:");
+    let line = table
+        .lines()
+        .map(str::trim)
+        .find(|l| l.starts_with(&key))
+        .unwrap_or_else(|| panic!("no `{key}` line in:\n{table}"));
+    let num = |tag: &str| -> f64 {
+        let at = line.find(tag).unwrap() + tag.len();
+        line[at..]
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    (num("p50 "), num("p99 "))
+}
+
 struct Y4mFrames {
     width: usize,
     height: usize,
@@ -227,6 +247,17 @@ fn vm_live_camera_results() {
     let (phase_in, _, phase_dropped) = stats_row(&live, "phase");
     assert!(cam_out > 0, "{live}");
     assert_eq!(phase_in + phase_dropped, cam_out, "{live}");
+    // Heard live on snd-dummy through cpal, and written to the WAV at once.
+    let (out_in, ..) = stats_row(&live, "out");
+    let (speaker_in, ..) = stats_row(&live, "speaker");
+    assert!(out_in > 0 && speaker_in == out_in, "{live}");
+    for sink in ["out", "speaker"] {
+        let (p50, p99) = latency(&live, sink);
+        assert!(0.0 < p50 && p50 <= p99, "{sink}: p50 {p50} p99 {p99}");
+        eprintln!(
+            "live: capture -> {sink} latency p50 {p50:.1} ms, p99 {p99:.1} ms (emulated CPU)"
+        );
+    }
     let (rate, samples) = read_wav(&res.join("live.wav"));
     assert_eq!(rate, 60, "the WAV runs at the granted frame rate");
     assert!(
@@ -286,6 +317,8 @@ fn vm_recording_replays_every_frame_identically() {
                 rec.to_str().unwrap(),
                 "--set",
                 &format!("out.path={name}"),
+                "--set",
+                "speaker.device=\"null\"",
                 "--stats",
                 "--quiet",
             ],

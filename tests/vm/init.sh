@@ -19,6 +19,9 @@ while [ ! -e /dev/video0 ] && [ $n -lt 100 ]; do sleep 0.1; n=$((n + 1)); done
 say "nodes $(ls /dev | grep -E '^(video|snd)' | tr '\n' ' ') $(ls /dev/snd 2>/dev/null | tr '\n' ' ')"
 cd /out
 export RUST_BACKTRACE=1
+# The emulated CPU cannot keep the sound card fed; one warning per ALSA
+# underrun would flood the log (the speaker sums them up at the end).
+export RUST_LOG=warn,vibroscope::stages::sinks::speaker::cpal_device=error
 
 # 1. Devices.
 vibroscope devices > devices.txt 2>&1

@@ -11,9 +11,13 @@
 //! - **Rate.** `fps` is requested with `VIDIOC_S_PARM` and the granted frame
 //!   interval is read back; it is the stream's nominal rate.
 //! - **Time.** Frames are mmap-streamed. `FrameMeta::t_ns` is the driver's
-//!   buffer timestamp on `CLOCK_MONOTONIC` (V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
-//!   a driver that stamps otherwise gets the dequeue time on the same clock,
-//!   with a warning). `FrameMeta::seq` is the driver's sequence number
+//!   buffer timestamp, taken on `CLOCK_MONOTONIC`
+//!   (V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC), moved onto the run clock
+//!   ([`Control::now_ns`], ns since the run started; `Instant` is
+//!   `CLOCK_MONOTONIC` on Linux, so this is a constant offset read once), so
+//!   capture-to-sink latency is `now - t_ns`. A driver that stamps on
+//!   another clock gets the dequeue time instead, with a warning.
+//!   `FrameMeta::seq` is the driver's sequence number
 //!   (widened to 64 bits, counted from the first frame), so a gap is a frame
 //!   the device dropped: gaps and buffers flagged as corrupt are counted in
 //!   the source's `dropped` column of `--stats`.
@@ -614,6 +618,7 @@ mod imp {
                 .max_frames
                 .or(p.duration_s.map(|d| (d * fps).round() as u64)),
             warned_clock: false,
+            clock_offset: None,
         }))
     }
 
@@ -634,6 +639,8 @@ mod imp {
         max_frames: Option<u64>,
         total: Option<u64>,
         warned_clock: bool,
+        /// CLOCK_MONOTONIC at the run clock's zero, in ns.
+        clock_offset: Option<i64>,
     }
 
     impl V4l2Source {
@@ -696,13 +703,18 @@ mod imp {
                 let monotonic = (meta.flags.bits() & Flags::TIMESTAMP_MASK.bits())
                     == Flags::TIMESTAMP_MONOTONIC.bits();
                 let t_ns = if monotonic {
+                    // CLOCK_MONOTONIC minus where the run clock started on it.
+                    let offset = *self
+                        .clock_offset
+                        .get_or_insert_with(|| monotonic_ns() - ctx.control.now_ns());
                     meta.timestamp.sec as i64 * 1_000_000_000 + meta.timestamp.usec as i64 * 1000
+                        - offset
                 } else {
                     if !self.warned_clock {
                         tracing::warn!(device = %self.path, "the driver's timestamps are not on CLOCK_MONOTONIC; using the dequeue time");
                         self.warned_clock = true;
                     }
-                    monotonic_ns()
+                    ctx.control.now_ns()
                 };
                 let t0 = *self.t_first.get_or_insert(t_ns);
                 if self.duration_ns.is_some_and(|d| t_ns - t0 >= d) {
