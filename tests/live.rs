@@ -1,6 +1,6 @@
 //! The live path without a camera: a missing device is named and nothing
 //! invalid is left behind; a live session with a deliberately slow stage
-//! drops frames (counted) with bounded queues, while a recording of the same
+//! drops frames (counted) with bounded queues and latency, while a recording of the same
 //! session replays through the same graph without losing a frame, and two
 //! replays are byte-identical. (The live path on a real V4L2 driver, with a
 //! mid-stream unplug, is tests/vm/run.sh.)
@@ -25,6 +25,22 @@ fn row(table: &str, id: &str) -> (u64, u64, u64, u64, u64) {
         qmax.parse().unwrap(),
         qcap.parse().unwrap(),
     )
+}
+
+/// p99 of the `latency capture -> SINK:` line of `--stats`, in ms.
+fn latency_p99_ms(table: &str, sink: &str) -> f64 {
+    let key = format!("latency capture -> {sink}:");
+    let line = table
+        .lines()
+        .find(|l| l.starts_with(&key))
+        .unwrap_or_else(|| panic!("no `{key}` in:\n{table}"));
+    let at = line.find("p99 ").unwrap() + 4;
+    line[at..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
 }
 
 #[test]
@@ -125,6 +141,35 @@ fn slow_live_session_drops_counted_and_its_recording_replays_every_frame() {
     assert_eq!((rec_in, rec_dropped), (400, 0), "{table}");
     let (_, live_wav) = read_wav(&dir.path().join("live.wav"));
     assert_eq!(live_wav.len() as u64, slow_in);
+    // Latency stays bounded: the same camera behind a blocking edge falls
+    // further behind with every frame; dropping the oldest holds it near
+    // the queue's length times the stage's time.
+    let dropping = latency_p99_ms(&table, "out");
+    let blocking_toml = live.replace(
+        "input = { from = \"cam\", capacity = 4 }",
+        "input = { from = \"cam\", capacity = 4, policy = \"block\" }",
+    );
+    std::fs::write(dir.path().join("block.toml"), blocking_toml).unwrap();
+    let o = run_in(
+        dir.path(),
+        &[
+            "run",
+            "block.toml",
+            "--set",
+            "out.path=block.wav",
+            "--stats",
+            "--quiet",
+        ],
+    );
+    let t = stderr(&o);
+    assert_eq!(code(&o), 0, "{t}");
+    assert_eq!(row(&t, "slow").2, 0, "{t}");
+    let blocking = latency_p99_ms(&t, "out");
+    eprintln!("p99 capture -> out: {dropping:.1} ms dropping oldest, {blocking:.1} ms blocking");
+    assert!(
+        dropping * 5.0 < blocking,
+        "drop-oldest p99 {dropping} ms vs blocking {blocking} ms"
+    );
 
     // The recording of that session, replayed through the same graph:
     // every frame is processed, and twice gives the same bytes.
