@@ -13,6 +13,7 @@ pub static REGISTRY: &[KindSpec] = &[
     sources::synthetic::KIND,
     sources::pattern::KIND,
     sources::v4l2::KIND,
+    sources::nokhwa::KIND,
     transform::passthrough::KIND,
     transform::mean::KIND,
     transform::gradient_motion::KIND,

@@ -1,4 +1,5 @@
 pub mod file;
+pub mod nokhwa;
 pub mod pattern;
 pub mod synthetic;
 pub mod v4l2;
