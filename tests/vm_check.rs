@@ -177,6 +177,8 @@ fn vm_live_camera_results() {
         ("probe", 0),
         ("live", 0),
         ("missing", 1),
+        ("unsupported", 1),
+        ("busy", 1),
         ("interrupted", 130),
         ("disconnect", 0),
         ("unplug", 1),
@@ -278,6 +280,17 @@ fn vm_live_camera_results() {
         missing.contains("/dev/video99") && missing.contains("no such device"),
         "{missing}"
     );
+    let unsupported = text("unsupported.txt");
+    assert!(
+        unsupported.contains("/dev/video0: the device does not offer MJPG (it offers: YUYV,"),
+        "{unsupported}"
+    );
+    let busy = text("busy.txt");
+    assert!(
+        busy.contains("/dev/video0") && busy.contains("busy"),
+        "{busy}"
+    );
+    assert!(!res.join("busy.y4m").exists() && !res.join("mjpeg.y4m").exists());
     let interrupted = text("interrupted.txt");
     let line = interrupted
         .lines()

@@ -44,16 +44,25 @@ say "live rc=$?"
 sed 's/^/  /' live.txt
 if [ -x /bin/live-extra.sh ]; then /bin/live-extra.sh; fi
 
-# 4. Faults on a real driver: a missing node, and an output-only node.
+# 4. Faults on a real driver: a missing node, a format it does not offer.
 vibroscope record --device /dev/video99 -o /out/missing.y4m --seconds 1 > missing.txt 2>&1
 say "missing rc=$?"
 sed 's/^/  /' missing.txt
 
-# 5. Ctrl-C while recording: exit 130 and a valid file.
+vibroscope record --device /dev/video0 -o /out/mjpeg.y4m --seconds 1 --format mjpeg > unsupported.txt 2>&1
+say "unsupported rc=$?"
+sed 's/^/  /' unsupported.txt
+
+# 5. Ctrl-C while recording: exit 130 and a valid file. Meanwhile a second
+# recorder finds the camera busy.
 vibroscope record --device /dev/video0 -o /out/interrupted.y4m --width 320 --height 180 \
   > interrupted.txt 2>&1 &
 pid=$!
-sleep 3
+sleep 2
+vibroscope record --device /dev/video0 -o /out/busy.y4m --seconds 1 > busy.txt 2>&1
+say "busy rc=$?"
+sed 's/^/  /' busy.txt
+sleep 1
 kill -INT $pid
 wait $pid
 say "interrupted rc=$?"

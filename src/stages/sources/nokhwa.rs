@@ -79,7 +79,8 @@ mod imp {
 
     pub(super) fn open(p: NokhwaParams, pool_frames: usize) -> Result<Box<dyn Source>, StageError> {
         let name = format!("nokhwa camera {}", p.index);
-        let err = |what: &str, e: nokhwa::NokhwaError| StageError::msg(format!("{name}: {what}: {e}"));
+        let err =
+            |what: &str, e: nokhwa::NokhwaError| StageError::msg(format!("{name}: {what}: {e}"));
         let want = match (p.width, p.height) {
             (Some(w), Some(h)) => RequestedFormatType::Closest(CameraFormat::new(
                 Resolution::new(w, h),
@@ -96,7 +97,8 @@ mod imp {
             RequestedFormat::new::<LumaFormat>(want),
         )
         .map_err(|e| err("cannot open", e))?;
-        cam.open_stream().map_err(|e| err("cannot start streaming", e))?;
+        cam.open_stream()
+            .map_err(|e| err("cannot start streaming", e))?;
         let res = cam.resolution();
         let fps = f64::from(cam.frame_rate());
         let fps = super::super::check_fps(fps)
@@ -156,7 +158,10 @@ mod imp {
             if self.duration_ns.is_some_and(|d| t_ns - t0 >= d) {
                 return Ok(None);
             }
-            *f.meta_mut() = FrameMeta { seq: self.seq, t_ns };
+            *f.meta_mut() = FrameMeta {
+                seq: self.seq,
+                t_ns,
+            };
             self.seq += 1;
             Ok(Some(Item::Frame(f.freeze())))
         }
@@ -183,7 +188,10 @@ mod imp {
 mod imp {
     use super::*;
 
-    pub(super) fn open(p: NokhwaParams, _pool_frames: usize) -> Result<Box<dyn Source>, StageError> {
+    pub(super) fn open(
+        p: NokhwaParams,
+        _pool_frames: usize,
+    ) -> Result<Box<dyn Source>, StageError> {
         Err(StageError::msg(format!(
             "nokhwa camera {}: this vibroscope was built without nokhwa; rebuild with \
              --features input-avfoundation (macOS), input-msmf (Windows) or input-v4l (Linux)",

@@ -434,6 +434,12 @@ mod imp {
         format!("{path}: {what}: {e}{hint}")
     }
 
+    /// Nanoseconds from C seconds and a sub-second count in units of
+    /// `unit` ns (`time_t` and `long` are 32-bit on some targets).
+    fn to_ns<S: Into<i64>, F: Into<i64>>(sec: S, frac: F, unit: i64) -> i64 {
+        sec.into() * 1_000_000_000 + frac.into() * unit
+    }
+
     fn monotonic_ns() -> i64 {
         let mut ts = libc::timespec {
             tv_sec: 0,
@@ -441,7 +447,7 @@ mod imp {
         };
         // SAFETY: clock_gettime writes into the timespec we own.
         unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
-        ts.tv_sec as i64 * 1_000_000_000 + ts.tv_nsec as i64
+        to_ns(ts.tv_sec, ts.tv_nsec, 1)
     }
 
     fn int_control(dev: &Device, id: u32) -> Option<i64> {
@@ -707,8 +713,7 @@ mod imp {
                     let offset = *self
                         .clock_offset
                         .get_or_insert_with(|| monotonic_ns() - ctx.control.now_ns());
-                    meta.timestamp.sec as i64 * 1_000_000_000 + meta.timestamp.usec as i64 * 1000
-                        - offset
+                    to_ns(meta.timestamp.sec, meta.timestamp.usec, 1000) - offset
                 } else {
                     if !self.warned_clock {
                         tracing::warn!(device = %self.path, "the driver's timestamps are not on CLOCK_MONOTONIC; using the dequeue time");
