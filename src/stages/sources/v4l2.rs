@@ -410,15 +410,16 @@ mod imp {
     pub(super) fn device_error(path: &str, what: &str, e: &io::Error) -> String {
         let hint = match e.raw_os_error() {
             Some(libc::ENOENT) => {
-                let found: Vec<String> = video_nodes()
+                let found: Vec<String> = list_devices()
+                    .unwrap_or_default()
                     .iter()
-                    .map(|p| p.display().to_string())
+                    .map(|d| d.path.display().to_string())
                     .collect();
                 if found.is_empty() {
-                    " (no such device; no camera found: no /dev/video* node)".to_string()
+                    " (no such device; no camera found)".to_string()
                 } else {
                     format!(
-                        " (no such device; found: {}; see `vibroscope devices`)",
+                        " (no such device; cameras: {}; see `vibroscope devices`)",
                         found.join(", ")
                     )
                 }
