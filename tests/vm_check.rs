@@ -314,6 +314,24 @@ fn vm_live_camera_results() {
         "{unplug}"
     );
     assert!(!unplug.contains("panicked"), "{unplug}");
+    // The nokhwa kind, when run.sh was asked to build it (VM_NOKHWA=1).
+    if let Some(&rc) = rc.get("nokhwa") {
+        let log = text("nokhwa.txt");
+        assert_eq!(rc, 0, "{log}");
+        let r = read_y4m(&res.join("nokhwa.y4m"));
+        assert_eq!(r.ts.len(), 30, "{log}");
+        assert!(
+            r.spread.iter().all(|&s| s > 1.0),
+            "frames carry vivid's pattern"
+        );
+        assert!(r.ts.windows(2).all(|w| w[0] < w[1]));
+        eprintln!(
+            "nokhwa: 30 frames of {}x{} at {} fps",
+            r.width, r.height, r.fps
+        );
+    } else {
+        eprintln!("nokhwa kind not exercised (run with VM_NOKHWA=1)");
+    }
     let (_, s) = read_wav(&res.join("unplug.wav"));
     assert!(
         !s.is_empty(),

@@ -44,6 +44,14 @@ say "live rc=$?"
 sed 's/^/  /' live.txt
 if [ -x /bin/live-extra.sh ]; then /bin/live-extra.sh; fi
 
+# 3b. The nokhwa kind on the same camera (only with VM_NOKHWA=1).
+if [ -x /bin/vibroscope-nokhwa ]; then
+  printf '[[stage]]\nid = "cam"\nkind = "nokhwa"\nwidth = 320\nheight = 180\nfps = 30\nmax_frames = 30\n\n[[stage]]\nid = "rec"\nkind = "y4m"\ninput = "cam"\npath = "/out/nokhwa.y4m"\n' > /tmp/nokhwa.toml
+  vibroscope-nokhwa run /tmp/nokhwa.toml --stats --quiet > nokhwa.txt 2>&1
+  say "nokhwa rc=$?"
+  sed 's/^/  /' nokhwa.txt
+fi
+
 # 4. Faults on a real driver: a missing node, a format it does not offer.
 vibroscope record --device /dev/video99 -o /out/missing.y4m --seconds 1 > missing.txt 2>&1
 say "missing rc=$?"

@@ -52,6 +52,13 @@ BUSYBOX=$(command -v busybox || true)
 
 cargo build --release --bin vibroscope
 BIN=$ROOT/target/release/vibroscope
+# VM_NOKHWA=1 also builds the `nokhwa` kind (feature input-v4l) and runs it
+# on vivid; off by default (nokhwa's dependencies add minutes of build).
+NOKHWA_BIN=""
+if [ "${VM_NOKHWA:-0}" = 1 ]; then
+  CARGO_TARGET_DIR=$ROOT/target/nokhwa cargo build --release --features input-v4l --bin vibroscope
+  NOKHWA_BIN=$ROOT/target/nokhwa/release/vibroscope
+fi
 
 echo "vm test: building the initramfs for kernel $KVER"
 STAGE=$OUT/root
@@ -81,7 +88,10 @@ depmod -b "$STAGE" "$KVER" || fail "depmod -b $STAGE $KVER failed"
 strip -o "$STAGE/bin/vibroscope" "$BIN" 2>/dev/null || cp "$BIN" "$STAGE/bin/vibroscope"
 V4L2CTL=$(command -v v4l2-ctl) || fail "v4l2-ctl not found (package v4l-utils)"
 cp "$V4L2CTL" "$STAGE/bin/v4l2-ctl"
-ldd "$BIN" "$V4L2CTL" | grep -oE '/[^ :]+' | sort -u | while read -r lib; do
+if [ -n "$NOKHWA_BIN" ]; then
+  strip -o "$STAGE/bin/vibroscope-nokhwa" "$NOKHWA_BIN" 2>/dev/null || cp "$NOKHWA_BIN" "$STAGE/bin/vibroscope-nokhwa"
+fi
+ldd "$BIN" "$V4L2CTL" $NOKHWA_BIN | grep -oE '/[^ :]+' | sort -u | while read -r lib; do
   mkdir -p "$STAGE$(dirname "$lib")"
   cp -L "$lib" "$STAGE$lib"
 done
