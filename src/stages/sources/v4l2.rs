@@ -767,14 +767,13 @@ mod imp {
             // v4l's Stream panics in its Drop when STREAMOFF fails with anything
             // but ENODEV; stop it here and leak it instead on a failure (the
             // device is broken and the process is ending).
+            // (STREAMOFF on a stream never started is a no-op that succeeds.)
             if let Some(mut s) = self.stream.take() {
-                if self.started {
-                    if let Err(e) = s.stop() {
-                        if e.raw_os_error() != Some(libc::ENODEV) {
-                            tracing::warn!(device = %self.path, "cannot stop streaming: {e}");
-                            std::mem::forget(s);
-                            return;
-                        }
+                if let Err(e) = s.stop() {
+                    if e.raw_os_error() != Some(libc::ENODEV) {
+                        tracing::warn!(device = %self.path, "cannot stop streaming: {e}");
+                        std::mem::forget(s);
+                        return;
                     }
                 }
                 drop(s);
