@@ -37,20 +37,28 @@ vibroscope probe /out/rec.y4m > probe.txt 2>&1
 say "probe rc=$?"
 sed 's/^/  /' probe.txt
 
+# 2b. The nokhwa kind on the same camera (only with VM_NOKHWA=1). Runs while
+# the device is still in YUYV: nokhwa 0.10 cannot open a V4L2 camera whose
+# current format is GREY (it looks for the FourCC "GRAY").
+if [ -x /bin/vibroscope-nokhwa ]; then
+  printf '[[stage]]\nid = "cam"\nkind = "nokhwa"\nwidth = 320\nheight = 180\nfps = 30\nmax_frames = 30\n\n[[stage]]\nid = "rec"\nkind = "y4m"\ninput = "cam"\npath = "/out/nokhwa.y4m"\n' > /tmp/nokhwa.toml
+  vibroscope-nokhwa run /tmp/nokhwa.toml --stats --quiet > nokhwa.txt 2>&1
+  say "nokhwa rc=$?"
+  sed 's/^/  /' nokhwa.txt
+  # The same without a size: nokhwa picks the highest frame rate itself.
+  sed -i '/^width\|^height\|^fps/d' /tmp/nokhwa.toml
+  sed -i 's|/out/nokhwa.y4m|/out/nokhwa-auto.y4m|' /tmp/nokhwa.toml
+  vibroscope-nokhwa run /tmp/nokhwa.toml --stats --quiet > nokhwa-auto.txt 2>&1
+  say "nokhwa-auto rc=$?"
+  sed 's/^/  /' nokhwa-auto.txt
+fi
+
 # 3. The live microphone pipeline for a few seconds.
 vibroscope run live-microphone --set cam.duration_s=4 --set out.path=/out/live.wav \
   --stats --quiet > live.txt 2>&1
 say "live rc=$?"
 sed 's/^/  /' live.txt
 if [ -x /bin/live-extra.sh ]; then /bin/live-extra.sh; fi
-
-# 3b. The nokhwa kind on the same camera (only with VM_NOKHWA=1).
-if [ -x /bin/vibroscope-nokhwa ]; then
-  printf '[[stage]]\nid = "cam"\nkind = "nokhwa"\nwidth = 320\nheight = 180\nfps = 30\nmax_frames = 30\n\n[[stage]]\nid = "rec"\nkind = "y4m"\ninput = "cam"\npath = "/out/nokhwa.y4m"\n' > /tmp/nokhwa.toml
-  vibroscope-nokhwa run /tmp/nokhwa.toml --stats --quiet > nokhwa.txt 2>&1
-  say "nokhwa rc=$?"
-  sed 's/^/  /' nokhwa.txt
-fi
 
 # 4. Faults on a real driver: a missing node, a format it does not offer.
 vibroscope record --device /dev/video99 -o /out/missing.y4m --seconds 1 > missing.txt 2>&1

@@ -2,8 +2,10 @@
 //! V4L2 (macOS: cargo feature `input-avfoundation`, Windows: `input-msmf`;
 //! on Linux `input-v4l`, though the `v4l2` kind does more there).
 //!
-//! nokhwa picks the format closest to the requested size and rate and
-//! decodes it to 8-bit luma; the granted size and rate are read back. It
+//! nokhwa picks the format closest to the requested size and rate (GREY,
+//! YUYV, NV12 or MJPEG), read back; the frames are converted to gray with
+//! the `v4l2` kind's converters (nokhwa 0.10 cannot decode into a caller's
+//! luma buffer), and nokhwa allocates each raw frame it hands over. It
 //! gives neither driver timestamps nor sequence numbers, so frames are
 //! stamped on the run clock when they arrive ([`Control::now_ns`]) and
 //! numbered in arrival order: drops inside the camera stack are not seen.
@@ -70,6 +72,7 @@ impl Plan for NokhwaParams {
 ))]
 mod imp {
     use super::*;
+    use crate::stages::sources::v4l2::{to_gray, PixelFormat};
     use nokhwa::pixel_format::LumaFormat;
     use nokhwa::utils::{
         CameraFormat, CameraIndex, FrameFormat as Fourcc, RequestedFormat, RequestedFormatType,
@@ -81,22 +84,32 @@ mod imp {
         let name = format!("nokhwa camera {}", p.index);
         let err =
             |what: &str, e: nokhwa::NokhwaError| StageError::msg(format!("{name}: {what}: {e}"));
-        let want = match (p.width, p.height) {
-            (Some(w), Some(h)) => RequestedFormatType::Closest(CameraFormat::new(
-                Resolution::new(w, h),
-                Fourcc::MJPEG,
-                p.fps.unwrap_or(30),
-            )),
-            _ => match p.fps {
+        // nokhwa matches a requested size only within one pixel format: try
+        // the ones that convert to gray cheaply first.
+        let open = |want: RequestedFormatType| {
+            Camera::new(
+                CameraIndex::Index(p.index),
+                RequestedFormat::new::<LumaFormat>(want),
+            )
+        };
+        let mut cam = match (p.width, p.height) {
+            (Some(w), Some(h)) => {
+                let try_fmt = |fourcc| {
+                    let fmt = CameraFormat::new(Resolution::new(w, h), fourcc, p.fps.unwrap_or(30));
+                    open(RequestedFormatType::Closest(fmt))
+                };
+                try_fmt(Fourcc::GRAY)
+                    .or_else(|_| try_fmt(Fourcc::YUYV))
+                    .or_else(|_| try_fmt(Fourcc::NV12))
+                    .or_else(|_| try_fmt(Fourcc::MJPEG))
+                    .map_err(|e| err("cannot open", e))?
+            }
+            _ => open(match p.fps {
                 Some(f) => RequestedFormatType::HighestFrameRate(f),
                 None => RequestedFormatType::AbsoluteHighestFrameRate,
-            },
+            })
+            .map_err(|e| err("cannot open", e))?,
         };
-        let mut cam = Camera::new(
-            CameraIndex::Index(p.index),
-            RequestedFormat::new::<LumaFormat>(want),
-        )
-        .map_err(|e| err("cannot open", e))?;
         cam.open_stream()
             .map_err(|e| err("cannot start streaming", e))?;
         let res = cam.resolution();
@@ -150,9 +163,32 @@ mod imp {
             let PixelsMut::U8(px) = f.pixels_mut() else {
                 return Err(StageError::msg("internal: 8-bit pool expected"));
             };
-            self.cam
-                .write_frame_to_buffer::<LumaFormat>(px)
+            // nokhwa 0.10 cannot decode YUYV or MJPEG into a caller's luma
+            // buffer, so the raw frame is converted here, as for `v4l2`.
+            let buf = self
+                .cam
+                .frame()
                 .map_err(|e| StageError::msg(format!("{}: capture failed: {e}", self.name)))?;
+            let res = buf.resolution();
+            let (w, h) = (res.width_x as usize, res.height_y as usize);
+            if w * h != px.len() {
+                return Err(StageError::msg(format!(
+                    "{}: the camera switched to {w}x{h} mid-stream",
+                    self.name
+                )));
+            }
+            let kind = match buf.source_frame_format() {
+                // NV12 starts with its full-size luma plane.
+                Fourcc::GRAY | Fourcc::NV12 => PixelFormat::Grey,
+                Fourcc::YUYV => PixelFormat::Yuyv,
+                Fourcc::MJPEG => PixelFormat::Mjpeg,
+                other => return Err(StageError::msg(format!(
+                    "{}: the camera delivers {other}, which vibroscope does not convert to gray",
+                    self.name
+                ))),
+            };
+            to_gray(kind, buf.buffer(), w, h, 0, px)
+                .map_err(|m| StageError::msg(format!("{}: {m}", self.name)))?;
             let t_ns = ctx.control.now_ns();
             let t0 = *self.t_first.get_or_insert(t_ns);
             if self.duration_ns.is_some_and(|d| t_ns - t0 >= d) {
