@@ -119,7 +119,17 @@ enum Command {
         /// Print the per-stage summary at exit.
         #[arg(long)]
         stats: bool,
+        #[command(flatten)]
+        rolling: RollingArgs,
     },
+    /// Estimate a rolling-shutter camera's line delay (and frame delay) from
+    /// a video of a known tone or a flickering light (thesis ch. 4.5: the
+    /// slope of the tone's phase down the rows).
+    #[command(
+        name = "rs-calibrate",
+        after_help = "Example:\n  vibroscope rs-calibrate tone440.mp4 --tone-hz 440 --fps 60"
+    )]
+    RsCalibrate(RsCalibrateArgs),
     /// Score a recovered signal against the reference sound: SNR, segmental
     /// SNR (Hansen & Pellom), LLR and STOI (Taal et al. 2011), as JSON, after
     /// finding the best lag and gain (a recovery's scale and sign are arbitrary).
@@ -281,8 +291,21 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
             pyramid,
             speaker,
             stats,
+            rolling,
         } => {
-            let mut decl = listen_pipeline(&video, &output, fps, roi.as_deref(), denoise, pyramid)?;
+            let mut decl = if rolling.rolling_shutter {
+                if !matches!(denoise, DenoiseArg::None) {
+                    return Err(cfg_error(
+                        "--denoise",
+                        "not available with --rolling-shutter yet".into(),
+                    )
+                    .into());
+                }
+                rs_listen_pipeline(&video, &output, fps, roi.as_deref(), &rolling)?
+            } else {
+                rolling.check_unused()?;
+                listen_pipeline(&video, &output, fps, roi.as_deref(), denoise, pyramid)?
+            };
             if let Some(dev) = speaker {
                 add_speaker(&mut decl, &dev)?;
             }
@@ -292,6 +315,7 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
             }
             Ok(code)
         }
+        Command::RsCalibrate(a) => rs_calibrate(&a),
         Command::Score {
             reference,
             test,
@@ -861,4 +885,354 @@ fn record(a: &RecordArgs) -> anyhow::Result<ExitCode> {
         rec.dropped
     );
     Ok(code)
+}
+
+// ---------------------------------------------------------------------------
+// Rolling shutter (issue 4): `listen --rolling-shutter` and `rs-calibrate`.
+// ---------------------------------------------------------------------------
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum FillArg {
+    Ar,
+    Linear,
+}
+
+/// `listen` options for rolling-shutter recordings (thesis ch. 4.5).
+#[derive(clap::Args, Debug, Clone)]
+struct RollingArgs {
+    /// One sample per image row instead of per frame: hears far above the
+    /// frame rate (needs --line-delay-us).
+    #[arg(long)]
+    rolling_shutter: bool,
+    /// Time between consecutive rows, µs (see `vibroscope rs-calibrate`).
+    #[arg(long, value_name = "US", allow_negative_numbers = true)]
+    line_delay_us: Option<f64>,
+    /// Blind time between a frame's last row and the next frame's first, µs
+    /// (checked against the frame rate and row count).
+    #[arg(long, value_name = "US", allow_negative_numbers = true)]
+    frame_delay_us: Option<f64>,
+    /// Exposure per row, µs: low-pass at its first null 1/E.
+    #[arg(long, value_name = "US", allow_negative_numbers = true)]
+    exposure_us: Option<f64>,
+    /// Invert the exposure boxcar where its gain is above -12 dB (needs --exposure-us).
+    #[arg(long)]
+    compensate_exposure: bool,
+    /// Filling of the frame-delay gaps.
+    #[arg(long, value_enum, default_value = "ar")]
+    fill: FillArg,
+    /// Resample the output to this rate in Hz (needs --exposure-us); default 1/d.
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    rate: Option<f64>,
+}
+
+impl RollingArgs {
+    /// Rolling-shutter options without --rolling-shutter are a usage error.
+    fn check_unused(&self) -> anyhow::Result<()> {
+        let used = [
+            ("--line-delay-us", self.line_delay_us.is_some()),
+            ("--frame-delay-us", self.frame_delay_us.is_some()),
+            ("--exposure-us", self.exposure_us.is_some()),
+            ("--compensate-exposure", self.compensate_exposure),
+            ("--rate", self.rate.is_some()),
+        ];
+        match used.iter().find(|(_, u)| *u) {
+            Some((flag, _)) => Err(cfg_error(flag, "needs --rolling-shutter".into()).into()),
+            None => Ok(()),
+        }
+    }
+}
+
+/// The shipped rolling-shutter pipeline replayed on `video` with the
+/// camera's timing from the command line.
+fn rs_listen_pipeline(
+    video: &Path,
+    output: &Path,
+    fps: Option<f64>,
+    roi: Option<&str>,
+    a: &RollingArgs,
+) -> anyhow::Result<PipelineDecl> {
+    let mut decl = prepare("rolling-shutter", &[], Some(video), fps)?;
+    let set = |decl: &mut PipelineDecl, id: &str, key: &str, v: toml::Value, flag: String| {
+        if let Some(st) = decl.stages.iter_mut().find(|s| s.id == id) {
+            set_param(st, key, v, Origin::Set(flag));
+        }
+    };
+    let Some(d) = a.line_delay_us else {
+        return Err(cfg_error(
+            "--line-delay-us",
+            "required with --rolling-shutter (estimate it with `vibroscope rs-calibrate`)".into(),
+        )
+        .into());
+    };
+    set(
+        &mut decl,
+        "rows",
+        "line_delay_us",
+        toml::Value::Float(d),
+        format!("--line-delay-us {d}"),
+    );
+    if let Some(g) = a.frame_delay_us {
+        set(
+            &mut decl,
+            "rows",
+            "frame_delay_us",
+            toml::Value::Float(g),
+            format!("--frame-delay-us {g}"),
+        );
+    }
+    // The shipped region is the simulator's object: a recording starts from the whole frame.
+    if let Some(st) = decl.stages.iter_mut().find(|s| s.id == "rows") {
+        st.params.retain(|p| p.key != "roi");
+    }
+    if let Some(r) = roi {
+        let v = parse_roi_arg(r)?;
+        let arr = toml::Value::Array(v.iter().map(|&x| toml::Value::Integer(x)).collect());
+        set(&mut decl, "rows", "roi", arr, format!("--roi {r}"));
+    }
+    let method = match a.fill {
+        FillArg::Ar => "ar",
+        FillArg::Linear => "linear",
+    };
+    set(
+        &mut decl,
+        "fill",
+        "method",
+        toml::Value::String(method.into()),
+        "--fill".into(),
+    );
+    match a.exposure_us {
+        Some(e) => {
+            set(
+                &mut decl,
+                "exposure",
+                "exposure_us",
+                toml::Value::Float(e),
+                format!("--exposure-us {e}"),
+            );
+            if a.compensate_exposure {
+                let v = toml::Value::String("compensate".into());
+                set(
+                    &mut decl,
+                    "exposure",
+                    "mode",
+                    v,
+                    "--compensate-exposure".into(),
+                );
+            }
+            if let Some(r) = a.rate {
+                set(
+                    &mut decl,
+                    "exposure",
+                    "rate_hz",
+                    toml::Value::Float(r),
+                    format!("--rate {r}"),
+                );
+            }
+        }
+        None => {
+            if a.compensate_exposure || a.rate.is_some() {
+                let flag = if a.rate.is_some() {
+                    "--rate"
+                } else {
+                    "--compensate-exposure"
+                };
+                return Err(cfg_error(flag, "needs --exposure-us".into()).into());
+            }
+            eprintln!("note: no --exposure-us: the output is not band-limited to the exposure's first null");
+            decl.stages.retain(|s| s.id != "exposure");
+            for s in decl.stages.iter_mut().filter(|s| s.id == "out") {
+                for inp in &mut s.inputs {
+                    inp.from = "fill".into();
+                }
+            }
+        }
+    }
+    if let Some(st) = decl.stages.iter_mut().find(|s| s.id == "out") {
+        let v = toml::Value::String(output.display().to_string());
+        set_param(st, "path", v, Origin::Set("-o".into()));
+    }
+    Ok(decl)
+}
+
+/// `X,Y,W,H` as four whole numbers >= 0.
+fn parse_roi_arg(r: &str) -> Result<Vec<i64>, ConfigError> {
+    let v: Result<Vec<i64>, _> = r.split(',').map(|v| v.trim().parse::<i64>()).collect();
+    match v {
+        Ok(v) if v.len() == 4 && v.iter().all(|&x| x >= 0) => Ok(v),
+        _ => Err(cfg_error(
+            "--roi",
+            format!("expected X,Y,W,H (four whole numbers >= 0), got `{r}`"),
+        )),
+    }
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum CalSignal {
+    /// Horizontal motion of each row (a vibrating textured object).
+    Motion,
+    /// Mean brightness of each row (a flickering light).
+    Intensity,
+}
+
+/// Arguments of `vibroscope rs-calibrate`.
+#[derive(clap::Args, Debug, Clone)]
+struct RsCalibrateArgs {
+    /// A video of an object vibrating with a pure tone, or of a light flickering at one.
+    video: PathBuf,
+    /// The tone's (or flicker's) frequency, Hz.
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    tone_hz: f64,
+    /// Capture frame rate in Hz (containers often state the playback rate).
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    fps: Option<f64>,
+    /// What each row measures.
+    #[arg(long, value_enum, default_value = "motion")]
+    signal: CalSignal,
+    /// Region used: X,Y,W,H (default: the whole frame).
+    #[arg(long, value_name = "X,Y,W,H")]
+    roi: Option<String>,
+    /// Frames read at most.
+    #[arg(long, default_value_t = 300)]
+    max_frames: usize,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+fn rs_calibrate(a: &RsCalibrateArgs) -> anyhow::Result<ExitCode> {
+    use crate::dsp::row_phase::RowPhase;
+    use crate::dsp::rs_calibrate::{estimate, remove_row_means};
+    if !(a.tone_hz.is_finite() && a.tone_hz > 0.0) {
+        return Err(cfg_error("--tone-hz", format!("must be > 0 Hz, got {}", a.tone_hz)).into());
+    }
+    if let Some(f) = a.fps {
+        stages::sources::check_fps(f).map_err(|m| cfg_error("--fps", m))?;
+    }
+    let mut reader = io::open(&a.video, io::Format::Auto)?;
+    let info = reader.info().clone();
+    let fps = a.fps.or(info.fps).ok_or_else(|| {
+        cfg_error(
+            "--fps",
+            format!(
+                "{}: the file states no frame rate; pass --fps",
+                a.video.display()
+            ),
+        )
+    })?;
+    let (w, h) = (info.width as usize, info.height as usize);
+    let (x, y, rw, rh) = match &a.roi {
+        Some(r) => {
+            let v = parse_roi_arg(r)?;
+            let (x, y, rw, rh) = (v[0] as usize, v[1] as usize, v[2] as usize, v[3] as usize);
+            if rw == 0 || rh < 8 || x + rw > w || y + rh > h {
+                return Err(cfg_error(
+                    "--roi",
+                    format!("`{r}` does not fit a {w}x{h} frame (at least 8 rows)"),
+                )
+                .into());
+            }
+            (x, y, rw, rh)
+        }
+        None => (0, 0, w, h),
+    };
+    let mut rp = match a.signal {
+        CalSignal::Motion => {
+            Some(RowPhase::new(w, x, x + rw, rh, &[8.0, 16.0]).map_err(|m| cfg_error("--roi", m))?)
+        }
+        CalSignal::Intensity => None,
+    };
+    let mut buf8 = vec![0u8; w * h];
+    let mut buf16 = vec![0u16; w * h];
+    let mut line = vec![0.0f32; w];
+    let mut frames: Vec<Vec<f64>> = Vec::new();
+    for n in 0..a.max_frames {
+        let dst = match info.depth {
+            io::Depth::U8 => io::FrameDest::U8(&mut buf8),
+            io::Depth::U16 => io::FrameDest::U16(&mut buf16),
+        };
+        if reader.read_frame(dst)?.is_none() {
+            break;
+        }
+        let mut rows = Vec::with_capacity(rh);
+        for i in 0..rh {
+            let s = (y + i) * w;
+            match info.depth {
+                io::Depth::U8 => line
+                    .iter_mut()
+                    .zip(&buf8[s..s + w])
+                    .for_each(|(o, &v)| *o = v as f32),
+                io::Depth::U16 => line
+                    .iter_mut()
+                    .zip(&buf16[s..s + w])
+                    .for_each(|(o, &v)| *o = v as f32),
+            }
+            let v = match rp.as_mut() {
+                Some(rp) if n == 0 => {
+                    rp.set_reference(i, &line);
+                    0.0
+                }
+                Some(rp) => rp.displacement(i, &line),
+                None => line[x..x + rw].iter().map(|&v| v as f64).sum::<f64>() / rw as f64,
+            };
+            rows.push(v);
+        }
+        // The motion reference frame reads zero everywhere: leave it out.
+        if rp.is_none() || n > 0 {
+            frames.push(rows);
+        }
+    }
+    if frames.len() < 2 {
+        anyhow::bail!(
+            "{}: need at least 3 frames, got {}",
+            a.video.display(),
+            frames.len() + 1
+        );
+    }
+    remove_row_means(&mut frames);
+    let period = 1.0 / fps;
+    let est = estimate(&frames, a.tone_hz, period / h as f64).ok_or_else(|| {
+        anyhow::anyhow!(
+            "{}: cannot fit: the tone must make at least a quarter cycle during the readout of {rh} rows",
+            a.video.display()
+        )
+    })?;
+    let d = est.line_delay_s;
+    let gap = (period - h as f64 * d).max(0.0);
+    if a.json {
+        let v = serde_json::json!({
+            "line_delay_us": d * 1e6,
+            "frame_delay_us": gap * 1e6,
+            "rows": h,
+            "fps": fps,
+            "row_rate_hz": 1.0 / d,
+            "missing_fraction": gap / period,
+            "explained": est.explained,
+            "frames": frames.len(),
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        println!(
+            "line delay:   {:.3} us  (one sample per row: {:.0} Hz)",
+            d * 1e6,
+            1.0 / d
+        );
+        println!(
+            "frame delay:  {:.3} us  (frame period {:.3} ms, {h} rows: {:.1}% of the time unseen)",
+            gap * 1e6,
+            period * 1e3,
+            100.0 * gap / period
+        );
+        println!(
+            "fit:          the {} Hz tone explains {:.0}% of the per-row signal ({} frames)",
+            a.tone_hz,
+            100.0 * est.explained,
+            frames.len()
+        );
+    }
+    if est.explained < 0.1 {
+        eprintln!(
+            "warning: weak fit; check --tone-hz, and that the tone is not a multiple of the frame rate"
+        );
+    }
+    Ok(ExitCode::SUCCESS)
 }

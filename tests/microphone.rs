@@ -6,28 +6,6 @@
 
 mod common;
 use common::*;
-use rustfft::{num_complex::Complex, FftPlanner};
-
-/// Power spectrum (Hann window, zero-padded to `n`) and bin spacing.
-fn spectrum(x: &[f32], rate: f64, n: usize) -> (Vec<f64>, f64) {
-    let mean = x.iter().map(|&v| v as f64).sum::<f64>() / x.len() as f64;
-    let mut buf: Vec<Complex<f64>> = (0..n)
-        .map(|i| {
-            if i < x.len() {
-                let w = 0.5
-                    - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (x.len() - 1) as f64).cos();
-                Complex::new((x[i] as f64 - mean) * w, 0.0)
-            } else {
-                Complex::new(0.0, 0.0)
-            }
-        })
-        .collect();
-    FftPlanner::new().plan_fft_forward(n).process(&mut buf);
-    (
-        buf[..n / 2].iter().map(|c| c.norm_sqr()).collect(),
-        rate / n as f64,
-    )
-}
 
 /// Frequencies of the `k` strongest local maxima within [lo, hi] Hz.
 fn top_peaks(p: &[f64], df: f64, lo: f64, hi: f64, k: usize) -> Vec<f64> {
@@ -63,7 +41,7 @@ fn guitar_strings_are_heard_at_their_pitches() {
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let (rate, x) = read_wav(&dir.path().join("g.wav"));
     assert_eq!((rate, x.len()), (600, 300));
-    let (p, df) = spectrum(&x, rate as f64, 4096);
+    let (p, df) = power_spectrum(&x, rate as f64, 4096);
     let peaks = top_peaks(&p, df, 40.0, 290.0, 3);
     eprintln!("strongest peaks: {peaks:?} Hz");
     for want in [82.4, 110.0] {
@@ -96,7 +74,7 @@ fn synthetic_chirp_is_recovered() {
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let (rate, x) = read_wav(&dir.path().join("s.wav"));
     assert_eq!((rate, x.len()), (2200, 1100));
-    let (p, df) = spectrum(&x, rate as f64, 8192);
+    let (p, df) = power_spectrum(&x, rate as f64, 8192);
     let peaks = top_peaks(&p, df, 50.0, 1100.0, 1);
     assert!((peaks[0] - 440.0).abs() < 2.0, "{peaks:?}");
 }

@@ -183,6 +183,20 @@ pub trait PhaseBands {
         rows: std::ops::Range<usize>,
         cols: std::ops::Range<usize>,
     ) -> Result<f64, PyramidError>;
+    /// The sums of [`PhaseBands::weighted_phase_delta_sum`] for every
+    /// orientation of one scale at once: `out[k]` for band
+    /// `scale * orientations + k`, weighted by `weights[k]`. The bands of a
+    /// scale share their shape, so one region serves all; a pyramid whose
+    /// orientations share work per pixel (Riesz) does it once.
+    fn scale_phase_delta_sums(
+        &self,
+        reference: &Self,
+        scale: usize,
+        weights: &[&[f32]],
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+        out: &mut [f64],
+    ) -> Result<(), PyramidError>;
 }
 
 /// Checks a region against a band's shape and a weight buffer.
@@ -386,18 +400,38 @@ impl PhaseBands for PyramidCoeffs {
         let mut sum = 0.0f64;
         for y in rows {
             let span = y * w + cols.start..y * w + cols.end;
-            let mut acc = 0.0f32;
-            for ((c, c0), &wt) in b.data[span.clone()]
-                .iter()
-                .zip(&r.data[span.clone()])
-                .zip(&weights[span])
-            {
-                let p = c * c0.conj();
-                acc += wt * super::fastmath::atan2(p.im, p.re);
-            }
-            sum += acc as f64;
+            sum += super::kernels::csp_row(
+                &b.data[span.clone()],
+                &r.data[span.clone()],
+                &weights[span],
+            ) as f64;
         }
         Ok(sum)
+    }
+
+    fn scale_phase_delta_sums(
+        &self,
+        reference: &Self,
+        scale: usize,
+        weights: &[&[f32]],
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+        out: &mut [f64],
+    ) -> Result<(), PyramidError> {
+        let k = self.key.orientations;
+        if weights.len() != k || out.len() != k {
+            return Err(PyramidError::LayoutMismatch);
+        }
+        for (o, (wt, sum)) in weights.iter().zip(out.iter_mut()).enumerate() {
+            *sum = self.weighted_phase_delta_sum(
+                reference,
+                scale * k + o,
+                wt,
+                rows.clone(),
+                cols.clone(),
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -479,6 +513,9 @@ struct Grid {
 pub struct ComplexSteerablePyramid {
     key: LayoutKey,
     half_w: usize,
+    /// Whether `analyze` computes the high- and low-pass residuals (only
+    /// reconstruction needs them; the phase stage turns them off).
+    residuals: bool,
     /// Grids of scales `0..S` and, last, the low-pass grid `S`.
     grids: Vec<Grid>,
     /// Product masks per band (scale-major), on the band's grid, layout
@@ -642,6 +679,7 @@ impl ComplexSteerablePyramid {
         let full = w * h;
         let spec_len = half_w * h;
         Ok(Self {
+            residuals: true,
             key,
             half_w,
             grids,
@@ -742,6 +780,47 @@ impl ComplexSteerablePyramid {
         self.col_fwd
             .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
 
+        if self.residuals {
+            self.residuals_into(out)?;
+        }
+
+        // Complex bands.
+        let k = self.key.orientations;
+        for (bi, band) in out.bands.iter_mut().enumerate() {
+            let grid = &self.grids[bi / k];
+            let n = grid.w * grid.h;
+            gather(
+                &self.spec,
+                h,
+                grid,
+                &self.band_masks[bi],
+                &mut self.work[..n],
+            );
+            grid.inv_y
+                .process_with_scratch(&mut self.work[..n], &mut self.scratch);
+            transpose(&self.work[..n], grid.w, grid.h, &mut band.data);
+            grid.inv_x
+                .process_with_scratch(&mut band.data, &mut self.scratch);
+            for v in band.data.iter_mut() {
+                *v *= norm;
+            }
+        }
+        Ok(())
+    }
+
+    /// Skips (false) or computes (true, the default) the high- and
+    /// low-pass residuals in [`Self::analyze`]. Skipped, they keep whatever
+    /// they held: for analysis that reads only the complex bands.
+    pub fn set_residuals(&mut self, on: bool) {
+        self.residuals = on;
+    }
+
+    /// The residuals of the spectrum in `self.spec` (see `analyze`).
+    fn residuals_into(&mut self, out: &mut PyramidCoeffs) -> Result<(), PyramidError> {
+        let (w, h) = (self.key.width, self.key.height);
+        let half_w = self.half_w;
+        let spec_len = half_w * h;
+        let norm = 1.0 / (w as f32 * h as f32);
         // High-pass residual (real): mask, inverse columns, inverse real rows.
         for ((d, s), m) in self.work[..spec_len]
             .iter_mut()
@@ -765,28 +844,6 @@ impl ComplexSteerablePyramid {
                 .process_with_scratch(&mut self.row_cplx, row, &mut self.scratch)
                 .map_err(|e| PyramidError::Fft(e.to_string()))?;
             for v in row.iter_mut() {
-                *v *= norm;
-            }
-        }
-
-        // Complex bands.
-        let k = self.key.orientations;
-        for (bi, band) in out.bands.iter_mut().enumerate() {
-            let grid = &self.grids[bi / k];
-            let n = grid.w * grid.h;
-            gather(
-                &self.spec,
-                h,
-                grid,
-                &self.band_masks[bi],
-                &mut self.work[..n],
-            );
-            grid.inv_y
-                .process_with_scratch(&mut self.work[..n], &mut self.scratch);
-            transpose(&self.work[..n], grid.w, grid.h, &mut band.data);
-            grid.inv_x
-                .process_with_scratch(&mut band.data, &mut self.scratch);
-            for v in band.data.iter_mut() {
                 *v *= norm;
             }
         }

@@ -227,6 +227,64 @@ impl PhaseBands for RieszCoeffs {
         }
         Ok(sum)
     }
+
+    fn scale_phase_delta_sums(
+        &self,
+        reference: &Self,
+        scale: usize,
+        weights: &[&[f32]],
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+        out: &mut [f64],
+    ) -> Result<(), PyramidError> {
+        let k = self.key.orientations;
+        if reference.key != self.key
+            || weights.len() != k
+            || out.len() != k
+            || k > super::kernels::MAX_ORIENT
+        {
+            return Err(PyramidError::LayoutMismatch);
+        }
+        let (cur, _) = self.split(scale * k)?;
+        let (prev, _) = reference.split(scale * k)?;
+        for (o, wt) in weights.iter().enumerate() {
+            let info = self
+                .infos
+                .get(scale * k + o)
+                .ok_or(PyramidError::LayoutMismatch)?;
+            crate::dsp::pyramid::check_region(info, wt, &rows, &cols)?;
+        }
+        let w = cur.width;
+        out.iter_mut().for_each(|v| *v = 0.0);
+        let mut acc = [0.0f32; super::kernels::MAX_ORIENT];
+        let mut wrow: [&[f32]; super::kernels::MAX_ORIENT] = [&[]; super::kernels::MAX_ORIENT];
+        for y in rows {
+            let span = y * w + cols.start..y * w + cols.end;
+            for (d, wt) in wrow.iter_mut().zip(weights) {
+                *d = &wt[span.clone()];
+            }
+            acc[..k].iter_mut().for_each(|v| *v = 0.0);
+            super::kernels::riesz_row(
+                [
+                    &cur.band[span.clone()],
+                    &cur.r1[span.clone()],
+                    &cur.r2[span.clone()],
+                ],
+                [
+                    &prev.band[span.clone()],
+                    &prev.r1[span.clone()],
+                    &prev.r2[span.clone()],
+                ],
+                &wrow[..k],
+                &self.dirs[..k],
+                &mut acc[..k],
+            );
+            for (o, a) in out.iter_mut().zip(&acc[..k]) {
+                *o += *a as f64;
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Phase change from `q0 = (I, R1, R2)` to `q1`, projected on the

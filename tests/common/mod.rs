@@ -98,3 +98,26 @@ pub fn true_motion(decl: &vibroscope::engine::PipelineDecl, stage_id: &str, n: u
         .map(|k| scene.displacement_px(k as f64 / p.fps))
         .collect()
 }
+
+/// Power spectrum (Hann window, zero-padded to `n`) and bin spacing.
+pub fn power_spectrum(x: &[f32], rate: f64, n: usize) -> (Vec<f64>, f64) {
+    let mean = x.iter().map(|&v| v as f64).sum::<f64>() / x.len() as f64;
+    let mut buf: Vec<rustfft::num_complex::Complex<f64>> = (0..n)
+        .map(|i| {
+            if i < x.len() {
+                let w = 0.5
+                    - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / (x.len() - 1) as f64).cos();
+                rustfft::num_complex::Complex::new((x[i] as f64 - mean) * w, 0.0)
+            } else {
+                rustfft::num_complex::Complex::new(0.0, 0.0)
+            }
+        })
+        .collect();
+    rustfft::FftPlanner::new()
+        .plan_fft_forward(n)
+        .process(&mut buf);
+    (
+        buf[..n / 2].iter().map(|c| c.norm_sqr()).collect(),
+        rate / n as f64,
+    )
+}

@@ -46,6 +46,12 @@ struct P {
     fps: Option<f64>,
     /// Stop after this many frames.
     max_frames: Option<u64>,
+    /// Play the recording at its own pace, like the camera that made it:
+    /// a live source (edges drop the oldest when downstream lags), its
+    /// times moved onto the run clock (first frame at 0) so sinks can
+    /// report capture-to-sink latency. For rehearsing live pipelines.
+    #[serde(default)]
+    realtime: bool,
 }
 
 pub const KIND: KindSpec = KindSpec {
@@ -68,6 +74,7 @@ pub const KIND: KindSpec = KindSpec {
             format: v.format,
             fps: v.fps,
             max_frames: v.max_frames,
+            realtime: v.realtime,
         }))
     },
 };
@@ -77,9 +84,14 @@ struct FilePlan {
     format: FormatName,
     fps: Option<f64>,
     max_frames: Option<u64>,
+    realtime: bool,
 }
 
 impl Plan for FilePlan {
+    fn is_live(&self) -> bool {
+        self.realtime
+    }
+
     fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
         let reader = io::open(&self.path, self.format.into())?;
         let info = reader.info().clone();
@@ -118,6 +130,8 @@ impl Plan for FilePlan {
             seq: 0,
             max_frames: self.max_frames,
             fps,
+            realtime: self.realtime,
+            first_ns: None,
         })))
     }
 }
@@ -130,6 +144,9 @@ struct FileSource {
     total: Option<u64>,
     use_file_times: bool,
     fps: f64,
+    realtime: bool,
+    /// File time of the first frame (real-time mode).
+    first_ns: Option<i64>,
 }
 
 impl Source for FileSource {
@@ -147,10 +164,20 @@ impl Source for FileSource {
         let Some(read) = self.reader.read_frame(dst)? else {
             return Ok(None);
         };
-        let t_ns = match read.timestamp_ns {
+        let mut t_ns = match read.timestamp_ns {
             Some(t) if self.use_file_times => t,
             _ => nominal_time_ns(self.seq, self.fps),
         };
+        if self.realtime {
+            // Due at the file's own spacing on the run clock.
+            let t = t_ns - *self.first_ns.get_or_insert(t_ns);
+            let due = ctx.control.epoch() + std::time::Duration::from_nanos(t.max(0) as u64);
+            let now = std::time::Instant::now();
+            if due > now {
+                std::thread::sleep(due - now);
+            }
+            t_ns = t;
+        }
         *f.meta_mut() = FrameMeta {
             seq: self.seq,
             t_ns,
@@ -161,5 +188,9 @@ impl Source for FileSource {
 
     fn total_hint(&self) -> Option<u64> {
         self.total
+    }
+
+    fn is_live(&self) -> bool {
+        self.realtime
     }
 }

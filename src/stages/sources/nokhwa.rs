@@ -182,10 +182,12 @@ mod imp {
                 Fourcc::GRAY | Fourcc::NV12 => PixelFormat::Grey,
                 Fourcc::YUYV => PixelFormat::Yuyv,
                 Fourcc::MJPEG => PixelFormat::Mjpeg,
-                other => return Err(StageError::msg(format!(
+                other => {
+                    return Err(StageError::msg(format!(
                     "{}: the camera delivers {other}, which vibroscope does not convert to gray",
                     self.name
-                ))),
+                )))
+                }
             };
             to_gray(kind, buf.buffer(), w, h, 0, px)
                 .map_err(|m| StageError::msg(format!("{}: {m}", self.name)))?;

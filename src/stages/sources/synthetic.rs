@@ -43,6 +43,13 @@ pub struct SyntheticParams {
     /// Pace frames by the wall clock like a live camera.
     #[serde(default)]
     pub realtime: bool,
+    /// Rolling shutter (thesis Eq. 4.4): row y of frame n is captured at
+    /// n/fps + y·line_delay; absent = global shutter.
+    pub line_delay_us: Option<f64>,
+    /// Stated frame delay, checked against 1/fps - height·line_delay.
+    pub frame_delay_us: Option<f64>,
+    /// Each row averages the motion over this exposure (a boxcar).
+    pub exposure_us: Option<f64>,
 }
 fn d_size() -> u32 {
     256
@@ -89,6 +96,9 @@ impl Default for SyntheticParams {
             seed: d_seed(),
             signal: d_signal(),
             realtime: false,
+            line_delay_us: None,
+            frame_delay_us: None,
+            exposure_us: None,
         }
     }
 }
@@ -160,7 +170,42 @@ impl SyntheticParams {
         if !self.amplitude_px.is_finite() {
             return Err(("amplitude_px", "must be a finite number".into()));
         }
+        self.check_rolling()?;
         self.scene().map(|_| ()).map_err(|m| ("signal", m))
+    }
+
+    /// Rolling-shutter fields: positive line delay, rows that fit in the
+    /// frame period, a stated frame delay that agrees with both.
+    fn check_rolling(&self) -> Result<(), (&'static str, String)> {
+        use crate::stages::transform::rows::{check_line_delay_us, check_time_us, frame_delay_us};
+        if let Some(e) = self.exposure_us {
+            check_time_us(e).map_err(|m| ("exposure_us", m))?;
+        }
+        match (self.line_delay_us, self.frame_delay_us) {
+            (Some(d), g) => {
+                check_line_delay_us(d).map_err(|m| ("line_delay_us", m))?;
+                if let Some(g) = g {
+                    check_time_us(g).map_err(|m| ("frame_delay_us", m))?;
+                }
+                frame_delay_us(self.height as usize, d, self.fps, g).map(|_| ())
+            }
+            (None, Some(_)) => Err((
+                "frame_delay_us",
+                "needs line_delay_us (a frame delay only exists with a rolling shutter)".into(),
+            )),
+            (None, None) => Ok(()),
+        }
+    }
+
+    /// Row timing of the simulated camera, if it has a rolling shutter or an exposure.
+    pub fn row_timing(&self) -> Option<RowTiming> {
+        if self.line_delay_us.is_none() && self.exposure_us.is_none() {
+            return None;
+        }
+        Some(RowTiming {
+            line_delay_ns: self.line_delay_us.unwrap_or(0.0) * 1e3,
+            exposure_ns: self.exposure_us.unwrap_or(0.0) * 1e3,
+        })
     }
 }
 
@@ -187,7 +232,7 @@ impl Plan for SyntheticParams {
             depth: self.depth(),
             bits: self.bits,
             fps: self.fps,
-            row_timing: None,
+            row_timing: self.row_timing(),
         };
         Ok(Node::Source(Box::new(Synthetic {
             pool: FramePool::new(format, ctx.pool_frames),
@@ -196,6 +241,7 @@ impl Plan for SyntheticParams {
             total: self.frame_count(),
             fps: self.fps,
             pacer: self.realtime.then(|| Pacer::new(self.fps)),
+            rows: self.row_timing(),
         })))
     }
 
@@ -211,6 +257,7 @@ struct Synthetic {
     total: u64,
     fps: f64,
     pacer: Option<Pacer>,
+    rows: Option<RowTiming>,
 }
 
 impl Source for Synthetic {
@@ -229,7 +276,16 @@ impl Source for Synthetic {
             PixelsMut::U8(p) => sim::Dest::U8(p),
             PixelsMut::U16(p) => sim::Dest::U16(p),
         };
-        self.scene.render(self.seq, t_s, dst);
+        match self.rows {
+            Some(rt) => self.scene.render_rows(
+                self.seq,
+                t_s,
+                rt.line_delay_ns * 1e-9,
+                rt.exposure_ns * 1e-9,
+                dst,
+            ),
+            None => self.scene.render(self.seq, t_s, dst),
+        }
         let item = nominal_frame(f, self.seq, self.fps);
         self.seq += 1;
         Ok(Some(item))

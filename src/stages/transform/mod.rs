@@ -1,6 +1,8 @@
 pub mod align;
 pub mod audio_out;
 pub mod denoise;
+pub mod exposure;
+pub mod gap_fill;
 pub mod gradient_motion;
 pub mod highpass;
 pub mod mean;
@@ -8,3 +10,4 @@ pub mod passthrough;
 pub mod phase;
 pub mod reduce;
 pub mod roi;
+pub mod rows;

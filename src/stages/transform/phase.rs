@@ -24,7 +24,8 @@
 //! of radians of phase instead of millions.
 
 use super::roi::{Roi, RoiParam};
-use crate::dsp::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeffs};
+use crate::dsp::kernels::MAX_ORIENT;
+use crate::dsp::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError};
 use crate::dsp::riesz::{RieszCoeffs, RieszPyramid};
 use crate::engine::*;
 use serde::Deserialize;
@@ -50,9 +51,10 @@ struct P {
     /// Frames per emitted block.
     #[serde(default = "d_block")]
     block: usize,
-    /// Worker threads for the per-pixel phase sums (0 = one per core, at
-    /// most 8). The output is bit-identical for any value: rows are summed
-    /// in fixed chunks and the chunks added in order.
+    /// Frames analysed at once, one per worker thread (0 = one per core,
+    /// at most 8). The reference is fixed, so frames are independent: each
+    /// is computed whole by one worker, and the output is bit-identical for
+    /// any value. A frame waits for at most `threads - 1` later frames.
     #[serde(default)]
     threads: usize,
 }
@@ -98,35 +100,66 @@ pub const KIND: KindSpec = KindSpec {
 
 struct PhasePlan(P);
 
+fn resolve_threads(n: usize) -> usize {
+    match n {
+        0 => std::thread::available_parallelism()
+            .map_or(1, |n| n.get())
+            .min(8),
+        n => n,
+    }
+}
+
 impl Plan for PhasePlan {
     fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
         let v = self.0;
-        let threads = match v.threads {
-            0 => std::thread::available_parallelism()
-                .map_or(1, |n| n.get())
-                .min(8),
-            n => n,
-        };
+        let threads = resolve_threads(v.threads);
         Ok(Node::Stage(Box::new(Phase {
             pool: super::reduce::thread_pool(threads)?,
+            threads,
             kind: v.pyramid,
             scales: v.scales,
             orientations: v.orientations,
             roi: v.roi,
             block: v.block,
-            state: None,
+            engine: None,
+            pending: Vec::with_capacity(threads),
             out: Vec::new(),
             t0_ns: 0,
             rate: 0.0,
             frames_in_block: 0,
         })))
     }
+
+    fn frames_held(&self) -> usize {
+        resolve_threads(self.0.threads)
+    }
 }
 
-/// One pyramid with the coefficients of the current and previous frame.
-enum Pyr {
-    Csp(Box<ComplexSteerablePyramid>, Box<[PyramidCoeffs; 2]>),
-    Riesz(Box<RieszPyramid>, Box<[RieszCoeffs; 2]>),
+/// A pyramid that turns a frame into per-band coefficients.
+trait Analyzer: Send {
+    type C: PhaseBands + Send + Sync;
+    fn alloc(&self) -> Self::C;
+    fn analyze(&mut self, x: &[f32], c: &mut Self::C) -> Result<(), PyramidError>;
+}
+
+impl Analyzer for ComplexSteerablePyramid {
+    type C = PyramidCoeffs;
+    fn alloc(&self) -> PyramidCoeffs {
+        self.alloc_coeffs()
+    }
+    fn analyze(&mut self, x: &[f32], c: &mut PyramidCoeffs) -> Result<(), PyramidError> {
+        ComplexSteerablePyramid::analyze(self, x, c)
+    }
+}
+
+impl Analyzer for RieszPyramid {
+    type C = RieszCoeffs;
+    fn alloc(&self) -> RieszCoeffs {
+        self.alloc_coeffs()
+    }
+    fn analyze(&mut self, x: &[f32], c: &mut RieszCoeffs) -> Result<(), PyramidError> {
+        RieszPyramid::analyze(self, x, c)
+    }
 }
 
 struct BandState {
@@ -136,74 +169,87 @@ struct BandState {
     y0: usize,
     y1: usize,
     width: usize,
-    len: usize,
     /// A(t0)² over the band (Eq. 3.3 weights), set on the first frame.
     weight: Vec<f32>,
 }
 
-struct State {
-    /// Coefficient set 0 holds the reference (first) frame, set 1 the current one.
-    pyr: Pyr,
-    frames: u64,
+/// One worker's pyramid and buffers (nothing is allocated per frame).
+struct Worker<A: Analyzer> {
+    an: A,
+    c: A::C,
     input: Vec<f32>,
-    bands: Vec<BandState>,
-    amp: Vec<f32>,
-    width: usize,
-    height: usize,
-    /// Σ A² over every band's region in the first frame (output scale).
-    norm: f64,
+    /// Σ A(t0)² Δφ per band for the frame this worker last computed.
     sums: Vec<f64>,
-    /// Fixed work items (band, first row, end row) and their partial sums.
-    items: Vec<(usize, usize, usize)>,
-    partial: Vec<f64>,
+    result: Result<(), StageError>,
 }
 
-struct Phase {
-    pool: Option<rayon::ThreadPool>,
-    kind: PyramidKind,
+/// Per-band weighted phase sums, frames spread over workers.
+struct Engine<A: Analyzer> {
+    workers: Vec<Worker<A>>,
+    /// The first frame's coefficients (Eq. 3.2 reference), once seen.
+    reference: Option<A::C>,
+    bands: Vec<BandState>,
     scales: usize,
     orientations: usize,
-    roi: Option<RoiParam>,
-    block: usize,
-    state: Option<State>,
-    out: Vec<f32>,
-    t0_ns: i64,
-    rate: f64,
-    frames_in_block: usize,
+    /// Σ A² over every band's region in the first frame (output scale).
+    norm: f64,
+    width: usize,
+    height: usize,
 }
 
-fn err(e: crate::dsp::pyramid::PyramidError) -> StageError {
+/// The object-safe face of [`Engine`] (one per pyramid kind).
+trait FrameSignals: Send {
+    fn bands(&self) -> usize;
+    fn size(&self) -> (usize, usize);
+    /// Computes `frames` in order and calls `emit` with each frame's
+    /// normalised band signals.
+    fn run(
+        &mut self,
+        frames: &[Frame],
+        pool: Option<&rayon::ThreadPool>,
+        emit: &mut dyn FnMut(&Frame, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError>;
+}
+
+fn err(e: PyramidError) -> StageError {
     StageError::msg(format!("pyramid: {e}"))
 }
 
-impl Phase {
-    fn init(&mut self, f: &Frame) -> Result<(), StageError> {
-        let (w, h) = (f.width(), f.height());
-        let roi = Roi::resolve(self.roi.as_ref(), w, h)?;
-        let pyr = match self.kind {
-            PyramidKind::Csp => {
-                let p = ComplexSteerablePyramid::new(w, h, self.scales, self.orientations)
-                    .map_err(err)?;
-                let c = Box::new([p.alloc_coeffs(), p.alloc_coeffs()]);
-                Pyr::Csp(Box::new(p), c)
-            }
-            PyramidKind::Riesz => {
-                let p = RieszPyramid::new(w, h, self.scales, self.orientations).map_err(err)?;
-                let c = Box::new([p.alloc_coeffs(), p.alloc_coeffs()]);
-                Pyr::Riesz(Box::new(p), c)
-            }
-        };
-        let infos: Vec<_> = match &pyr {
-            Pyr::Csp(_, c) => (0..c[0].num_bands())
-                .filter_map(|i| c[0].band_info(i).cloned())
-                .collect(),
-            Pyr::Riesz(_, c) => (0..c[0].num_bands())
-                .filter_map(|i| c[0].band_info(i).cloned())
-                .collect(),
-        };
-        let mut bands: Vec<BandState> = Vec::with_capacity(infos.len());
-        let mut largest = 0;
-        for b in &infos {
+fn to_f32(f: &Frame, dst: &mut [f32]) {
+    match f.pixels() {
+        PixelsRef::U8(p) => dst.iter_mut().zip(p).for_each(|(d, &s)| *d = s as f32),
+        PixelsRef::U16(p) => dst.iter_mut().zip(p).for_each(|(d, &s)| *d = s as f32),
+    }
+}
+
+impl<A: Analyzer> Engine<A> {
+    fn new(
+        mut make: impl FnMut() -> Result<A, PyramidError>,
+        workers: usize,
+        scales: usize,
+        orientations: usize,
+        roi: Roi,
+        width: usize,
+        height: usize,
+    ) -> Result<Self, StageError> {
+        let mut ws = Vec::with_capacity(workers);
+        for _ in 0..workers.max(1) {
+            let an = make().map_err(err)?;
+            let c = an.alloc();
+            ws.push(Worker {
+                an,
+                c,
+                input: vec![0.0; width * height],
+                sums: vec![0.0; scales * orientations],
+                result: Ok(()),
+            });
+        }
+        let c = &ws[0].c;
+        let mut bands = Vec::with_capacity(c.num_bands());
+        for i in 0..c.num_bands() {
+            let b = c
+                .band_info(i)
+                .ok_or_else(|| err(PyramidError::LayoutMismatch))?;
             // Band pixel x' sits at input x = x' * step.
             let to_band =
                 |v: usize, step: f32, n: usize| ((v as f32 / step).ceil() as usize).min(n);
@@ -211,45 +257,228 @@ impl Phase {
             let x1 = to_band(roi.x + roi.w, b.step_x, b.width).max(x0);
             let y0 = to_band(roi.y, b.step_y, b.height);
             let y1 = to_band(roi.y + roi.h, b.step_y, b.height).max(y0);
-            largest = largest.max(b.len());
             bands.push(BandState {
                 x0,
                 x1,
                 y0,
                 y1,
                 width: b.width,
-                len: b.len(),
                 weight: vec![0.0; b.len()],
             });
         }
-        let items: Vec<(usize, usize, usize)> = bands
-            .iter()
-            .enumerate()
-            .flat_map(|(i, b)| {
-                (b.y0..b.y1)
-                    .step_by(ROWS_PER_ITEM)
-                    .map(move |y| (i, y, (y + ROWS_PER_ITEM).min(b.y1)))
-            })
-            .collect();
-        self.state = Some(State {
-            pyr,
-            frames: 0,
-            input: vec![0.0; w * h],
-            amp: vec![0.0; largest],
-            sums: vec![0.0; bands.len()],
-            partial: vec![0.0; items.len()],
-            items,
+        Ok(Self {
+            workers: ws,
+            reference: None,
             bands,
-            width: w,
-            height: h,
+            scales,
+            orientations,
             norm: 0.0,
-        });
-        self.out = Vec::with_capacity(self.block * infos.len());
+            width,
+            height,
+        })
+    }
+
+    /// The first frame becomes the reference: its A² are the weights.
+    fn set_reference(&mut self, f: &Frame) -> Result<(), StageError> {
+        let w0 = &mut self.workers[0];
+        to_f32(f, &mut w0.input);
+        w0.an.analyze(&w0.input, &mut w0.c).map_err(err)?;
+        let fresh = w0.an.alloc();
+        let reference = std::mem::replace(&mut w0.c, fresh);
+        let mut total = 0.0f64;
+        for (i, b) in self.bands.iter_mut().enumerate() {
+            reference.amplitude_into(i, &mut b.weight).map_err(err)?;
+            b.weight.iter_mut().for_each(|a| *a = *a * *a);
+            for y in b.y0..b.y1 {
+                total += b.weight[y * b.width + b.x0..y * b.width + b.x1]
+                    .iter()
+                    .map(|&w| w as f64)
+                    .sum::<f64>();
+            }
+        }
+        if total <= 0.0 {
+            return Err(StageError::msg(
+                "the region has no texture (zero local contrast in every band)",
+            ));
+        }
+        self.norm = total;
+        self.reference = Some(reference);
+        Ok(())
+    }
+}
+
+/// Eq. 3.2-3.4 for one frame: Σ A(t0)² (φ(t) - φ(t0)) per band.
+fn compute<A: Analyzer>(
+    w: &mut Worker<A>,
+    f: &Frame,
+    reference: &A::C,
+    bands: &[BandState],
+    scales: usize,
+    k: usize,
+) -> Result<(), StageError> {
+    to_f32(f, &mut w.input);
+    w.an.analyze(&w.input, &mut w.c).map_err(err)?;
+    for s in 0..scales {
+        let bs = &bands[s * k..(s + 1) * k];
+        let mut weights: [&[f32]; MAX_ORIENT] = [&[]; MAX_ORIENT];
+        for (d, b) in weights.iter_mut().zip(bs) {
+            *d = &b.weight;
+        }
+        let b = &bs[0];
+        w.c.scale_phase_delta_sums(
+            reference,
+            s,
+            &weights[..k],
+            b.y0..b.y1,
+            b.x0..b.x1,
+            &mut w.sums[s * k..(s + 1) * k],
+        )
+        .map_err(err)?;
+    }
+    Ok(())
+}
+
+impl<A: Analyzer> FrameSignals for Engine<A> {
+    fn bands(&self) -> usize {
+        self.bands.len()
+    }
+    fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    fn run(
+        &mut self,
+        frames: &[Frame],
+        pool: Option<&rayon::ThreadPool>,
+        emit: &mut dyn FnMut(&Frame, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError> {
+        use rayon::prelude::*;
+        let mut rest = frames;
+        if self.reference.is_none() {
+            let Some((first, tail)) = frames.split_first() else {
+                return Ok(());
+            };
+            self.set_reference(first)?;
+            emit(first, &mut std::iter::repeat_n(0.0, self.bands.len()));
+            rest = tail;
+        }
+        let Some(reference) = self.reference.as_ref() else {
+            return Ok(());
+        };
+        let (bands, scales, k, norm) = (&self.bands[..], self.scales, self.orientations, self.norm);
+        for batch in rest.chunks(self.workers.len()) {
+            let workers = &mut self.workers[..batch.len()];
+            let job = |(w, f): (&mut Worker<A>, &Frame)| {
+                w.result = compute(w, f, reference, bands, scales, k);
+            };
+            match pool {
+                Some(pool) if batch.len() > 1 => {
+                    pool.install(|| workers.par_iter_mut().zip(batch.par_iter()).for_each(job))
+                }
+                _ => workers.iter_mut().zip(batch.iter()).for_each(job),
+            }
+            for (w, f) in workers.iter_mut().zip(batch) {
+                std::mem::replace(&mut w.result, Ok(()))?;
+                emit(f, &mut w.sums.iter().map(|&s| (s / norm) as f32));
+            }
+        }
+        Ok(())
+    }
+}
+
+struct Phase {
+    pool: Option<rayon::ThreadPool>,
+    threads: usize,
+    kind: PyramidKind,
+    scales: usize,
+    orientations: usize,
+    roi: Option<RoiParam>,
+    block: usize,
+    engine: Option<Box<dyn FrameSignals>>,
+    /// Frames waiting for a full batch (one per worker).
+    pending: Vec<Frame>,
+    out: Vec<f32>,
+    t0_ns: i64,
+    rate: f64,
+    frames_in_block: usize,
+}
+
+impl Phase {
+    fn init(&mut self, f: &Frame) -> Result<(), StageError> {
+        let (w, h) = (f.width(), f.height());
+        let roi = Roi::resolve(self.roi.as_ref(), w, h)?;
+        let (s, k, n) = (self.scales, self.orientations, self.threads);
+        let engine: Box<dyn FrameSignals> = match self.kind {
+            PyramidKind::Csp => Box::new(Engine::new(
+                || {
+                    let mut p = ComplexSteerablePyramid::new(w, h, s, k)?;
+                    p.set_residuals(false);
+                    Ok(p)
+                },
+                n,
+                s,
+                k,
+                roi,
+                w,
+                h,
+            )?),
+            PyramidKind::Riesz => Box::new(Engine::new(
+                || RieszPyramid::new(w, h, s, k),
+                n,
+                s,
+                k,
+                roi,
+                w,
+                h,
+            )?),
+        };
+        self.out = Vec::with_capacity(self.block * engine.bands());
+        self.engine = Some(engine);
         Ok(())
     }
 
+    /// Computes the pending frames and appends their samples to the block.
+    fn run_pending(&mut self, out: &mut Emitter) -> Result<(), StageError> {
+        let Some(engine) = self.engine.as_mut() else {
+            return Ok(());
+        };
+        let channels = engine.bands();
+        let frames = std::mem::take(&mut self.pending);
+        let buf = &mut self.out;
+        let (mut t0, mut rate, mut n, block) =
+            (self.t0_ns, self.rate, self.frames_in_block, self.block);
+        // Completed blocks (allocates only when a block completes).
+        let mut full: Vec<(i64, f64, Arc<[f32]>)> = Vec::new();
+        let r = engine.run(&frames, self.pool.as_ref(), &mut |f, vals| {
+            if n == 0 {
+                t0 = f.meta().t_ns;
+                rate = f.format().fps;
+            }
+            buf.extend(vals);
+            n += 1;
+            if n >= block {
+                full.push((t0, rate, Arc::from(&buf[..])));
+                buf.clear();
+                n = 0;
+            }
+        });
+        self.pending = frames;
+        self.pending.clear();
+        (self.t0_ns, self.rate, self.frames_in_block) = (t0, rate, n);
+        for (t0_ns, rate_hz, data) in full {
+            let _ = out.emit(Item::Samples(SampleBlock {
+                t0_ns,
+                rate_hz,
+                channels,
+                data,
+                times_ns: None,
+            }));
+        }
+        r
+    }
+
     fn flush(&mut self, out: &mut Emitter) {
-        let Some(st) = &self.state else { return };
+        let Some(engine) = &self.engine else { return };
         if self.frames_in_block == 0 {
             return;
         }
@@ -259,73 +488,11 @@ impl Phase {
         let _ = out.emit(Item::Samples(SampleBlock {
             t0_ns: self.t0_ns,
             rate_hz: self.rate,
-            channels: st.bands.len(),
+            channels: engine.bands(),
             data,
             times_ns: None,
         }));
     }
-}
-
-/// Rows of one band per parallel work item.
-const ROWS_PER_ITEM: usize = 8;
-
-/// Eq. 3.2-3.4 for every band of one frame: fills `sums` with
-/// Σ A(t0)² (φ(t) - φ(t0)) per band and returns the total A(t0)². Set 0 of
-/// `c` is the reference frame, set 1 the current one; on the first frame
-/// the weights are recorded and the sums are zero.
-#[allow(clippy::too_many_arguments)]
-fn frame_signals<C: PhaseBands + Sync>(
-    c: &[C; 2],
-    first: bool,
-    bands: &mut [BandState],
-    amp: &mut [f32],
-    items: &[(usize, usize, usize)],
-    partial: &mut [f64],
-    pool: Option<&rayon::ThreadPool>,
-    sums: &mut [f64],
-) -> Result<f64, StageError> {
-    use rayon::prelude::*;
-    let [reference, now] = c;
-    if first {
-        let mut total = 0.0f64;
-        for (i, b) in bands.iter_mut().enumerate() {
-            let amp = &mut amp[..b.len];
-            reference.amplitude_into(i, amp).map_err(err)?;
-            b.weight
-                .iter_mut()
-                .zip(amp.iter())
-                .for_each(|(w, a)| *w = a * a);
-            for y in b.y0..b.y1 {
-                total += b.weight[y * b.width + b.x0..y * b.width + b.x1]
-                    .iter()
-                    .map(|&w| w as f64)
-                    .sum::<f64>();
-            }
-            sums[i] = 0.0;
-        }
-        return Ok(total);
-    }
-    let bands = &*bands;
-    let work = |(slot, &(i, y0, y1)): (&mut f64, &(usize, usize, usize))| {
-        let b = &bands[i];
-        *slot = now
-            .weighted_phase_delta_sum(reference, i, &b.weight, y0..y1, b.x0..b.x1)
-            .unwrap_or(f64::NAN);
-    };
-    match pool {
-        Some(pool) => pool.install(|| partial.par_iter_mut().zip(items.par_iter()).for_each(work)),
-        None => partial.iter_mut().zip(items.iter()).for_each(work),
-    }
-    sums.iter_mut().for_each(|s| *s = 0.0);
-    for (&p, &(i, _, _)) in partial.iter().zip(items) {
-        sums[i] += p;
-    }
-    if sums.iter().any(|s| s.is_nan()) {
-        return Err(StageError::msg(
-            "pyramid: coefficients do not match the region (internal error)",
-        ));
-    }
-    Ok(0.0)
 }
 
 impl Stage for Phase {
@@ -333,63 +500,24 @@ impl Stage for Phase {
         let Item::Frame(f) = item else {
             return Err(StageError::msg("expected frames"));
         };
-        if self.state.is_none() {
+        if self.engine.is_none() {
             self.init(&f)?;
         }
-        let Some(st) = self.state.as_mut() else {
-            return Ok(());
-        };
-        if (f.width(), f.height()) != (st.width, st.height) {
-            return Err(StageError::msg("the frame size changed mid-stream"));
-        }
-        match f.pixels() {
-            PixelsRef::U8(p) => st.input.iter_mut().zip(p).for_each(|(d, &s)| *d = s as f32),
-            PixelsRef::U16(p) => st.input.iter_mut().zip(p).for_each(|(d, &s)| *d = s as f32),
-        }
-        let first = st.frames == 0;
-        let slot = usize::from(!first);
-        if self.frames_in_block == 0 {
-            self.t0_ns = f.meta().t_ns;
-            self.rate = f.format().fps;
-        }
-        let (bands, amp, items, partial, sums) = (
-            &mut st.bands[..],
-            &mut st.amp[..],
-            &st.items[..],
-            &mut st.partial[..],
-            &mut st.sums[..],
-        );
-        let pool = self.pool.as_ref();
-        let weight = match &mut st.pyr {
-            Pyr::Csp(p, c) => {
-                p.analyze(&st.input, &mut c[slot]).map_err(err)?;
-                frame_signals(c, first, bands, amp, items, partial, pool, sums)?
+        if let Some(e) = &self.engine {
+            if (f.width(), f.height()) != e.size() {
+                return Err(StageError::msg("the frame size changed mid-stream"));
             }
-            Pyr::Riesz(p, c) => {
-                p.analyze(&st.input, &mut c[slot]).map_err(err)?;
-                frame_signals(c, first, bands, amp, items, partial, pool, sums)?
-            }
-        };
-        if first {
-            st.norm = weight;
         }
-        if first && st.norm <= 0.0 {
-            return Err(StageError::msg(
-                "the region has no texture (zero local contrast in every band)",
-            ));
-        }
-        let norm = st.norm;
-        self.out.extend(st.sums.iter().map(|&s| (s / norm) as f32));
-        st.frames += 1;
-        self.frames_in_block += 1;
-        if self.frames_in_block >= self.block {
-            self.flush(out);
+        self.pending.push(f);
+        if self.pending.len() >= self.threads {
+            self.run_pending(out)?;
         }
         Ok(())
     }
 
     fn finish(&mut self, out: &mut Emitter) -> Result<(), StageError> {
+        let r = self.run_pending(out);
         self.flush(out);
-        Ok(())
+        r
     }
 }
