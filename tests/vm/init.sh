@@ -58,7 +58,6 @@ vibroscope run live-microphone --set cam.duration_s=4 --set out.path=/out/live.w
   --stats --quiet > live.txt 2>&1
 say "live rc=$?"
 sed 's/^/  /' live.txt
-if [ -x /bin/live-extra.sh ]; then /bin/live-extra.sh; fi
 
 # 4. Faults on a real driver: a missing node, a format it does not offer.
 vibroscope record --device /dev/video99 -o /out/missing.y4m --seconds 1 > missing.txt 2>&1

@@ -17,7 +17,7 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 ROOT=$PWD
 OUT=${VM_OUT:-$ROOT/target/vm}
-TIMEOUT=${VM_TIMEOUT:-300}
+TIMEOUT=${VM_TIMEOUT:-420}
 START=$(date +%s)
 fail() {
   echo "vm test: FAILED: $*" >&2
@@ -99,7 +99,6 @@ done
 [ -d /usr/share/alsa ] && mkdir -p "$STAGE/usr/share" && cp -r /usr/share/alsa "$STAGE/usr/share/"
 cp tests/vm/init.sh "$STAGE/init"
 chmod +x "$STAGE/init"
-[ -f tests/vm/live-extra.sh ] && cp tests/vm/live-extra.sh "$STAGE/bin/" && chmod +x "$STAGE/bin/live-extra.sh"
 (cd "$STAGE" && find . | "$BUSYBOX" cpio -o -H newc 2>/dev/null | gzip -1) >"$OUT/initramfs.cpio.gz"
 truncate -s 0 "$OUT/results.img"
 truncate -s 128M "$OUT/results.img"
