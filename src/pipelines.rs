@@ -17,6 +17,10 @@ pub static SHIPPED: &[Shipped] = &[
         text: include_str!("../pipelines/visual-microphone.toml"),
     },
     Shipped {
+        name: "live-microphone",
+        text: include_str!("../pipelines/live-microphone.toml"),
+    },
+    Shipped {
         name: "live-demo",
         text: include_str!("../pipelines/live-demo.toml"),
     },

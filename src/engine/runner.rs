@@ -29,7 +29,8 @@ pub struct StageReport {
     pub kind: &'static str,
     pub items_in: u64,
     pub items_out: u64,
-    /// Items evicted from this stage's input rings (drop-oldest).
+    /// Items evicted from this stage's input rings (drop-oldest); for a
+    /// source, frames the device dropped before delivering them.
     pub dropped: u64,
     /// Highest occupancy seen on any input ring, and that ring's capacity.
     pub max_queue: u64,
@@ -133,6 +134,8 @@ struct Counters {
     items_in: AtomicU64,
     items_out: Arc<AtomicU64>,
     busy_ns: AtomicU64,
+    /// Frames a source reports lost upstream of it (camera sequence gaps).
+    source_dropped: AtomicU64,
     inputs: Vec<Arc<EdgeStats>>,
     capacity: u64,
     /// Sinks of live runs measure capture-to-arrival latency.
@@ -187,6 +190,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
             items_in: AtomicU64::new(0),
             items_out: Arc::new(AtomicU64::new(0)),
             busy_ns: AtomicU64::new(0),
+            source_dropped: AtomicU64::new(0),
             inputs: stats,
             capacity: cap,
             latency: (live && !has_consumer[i] && !node.inputs.is_empty())
@@ -280,7 +284,8 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
                 .inputs
                 .iter()
                 .map(|s| s.dropped.load(Ordering::Relaxed))
-                .sum(),
+                .sum::<u64>()
+                + c.source_dropped.load(Ordering::Relaxed),
             max_queue: c
                 .inputs
                 .iter()
@@ -328,7 +333,10 @@ fn run_source(
         }
         _ => None,
     };
-    let ctx = SourceCtx { control };
+    let ctx = SourceCtx {
+        control,
+        dropped: &c.source_dropped,
+    };
     let result = loop {
         if control.sources_should_stop() {
             break Ok(());

@@ -71,11 +71,19 @@ impl StageError {
 /// Handed to sources on every call.
 pub struct SourceCtx<'a> {
     pub control: &'a Control,
+    /// Frames lost before they reached the source (a camera's sequence
+    /// gaps); shown in the source's `dropped` column of `--stats`.
+    pub dropped: &'a AtomicU64,
 }
 
 impl SourceCtx<'_> {
     pub fn should_stop(&self) -> bool {
         self.control.sources_should_stop()
+    }
+
+    /// Counts `n` frames the device dropped before delivering them.
+    pub fn count_dropped(&self, n: u64) {
+        self.dropped.fetch_add(n, Ordering::Relaxed);
     }
 
     /// Takes a frame buffer from `pool`, sleeping while all are in use

@@ -681,6 +681,18 @@ impl<W: Write> Y4mWriter<W> {
         pixels: FrameDestRef<'_>,
         timestamp_ns: Option<i64>,
     ) -> Result<(), io::Error> {
+        self.write_frame_seq(pixels, timestamp_ns, None)
+    }
+
+    /// Like [`Y4mWriter::write_frame`], adding the source's sequence number
+    /// (`FRAME Xts=<ns> Xseq=<n>`): a camera's gaps stay visible in the file.
+    /// Readers ignore the field.
+    pub fn write_frame_seq(
+        &mut self,
+        pixels: FrameDestRef<'_>,
+        timestamp_ns: Option<i64>,
+        seq: Option<u64>,
+    ) -> Result<(), io::Error> {
         let expected = u64::from(self.width) * u64::from(self.height);
         let (depth, len) = match pixels {
             FrameDestRef::U8(p) => (Depth::U8, p.len()),
@@ -695,9 +707,11 @@ impl<W: Write> Y4mWriter<W> {
                 ),
             ));
         }
-        match timestamp_ns {
-            Some(ts) => writeln!(self.out, "FRAME Xts={ts}")?,
-            None => self.out.write_all(b"FRAME\n")?,
+        match (timestamp_ns, seq) {
+            (Some(ts), Some(n)) => writeln!(self.out, "FRAME Xts={ts} Xseq={n}")?,
+            (Some(ts), None) => writeln!(self.out, "FRAME Xts={ts}")?,
+            (None, Some(n)) => writeln!(self.out, "FRAME Xseq={n}")?,
+            (None, None) => self.out.write_all(b"FRAME\n")?,
         }
         match pixels {
             FrameDestRef::U8(p) => self.out.write_all(p)?,

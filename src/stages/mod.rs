@@ -12,6 +12,8 @@ pub static REGISTRY: &[KindSpec] = &[
     sources::file::KIND,
     sources::synthetic::KIND,
     sources::pattern::KIND,
+    sources::v4l2::KIND,
+    sources::nokhwa::KIND,
     transform::passthrough::KIND,
     transform::mean::KIND,
     transform::gradient_motion::KIND,

@@ -1,6 +1,7 @@
 //! `y4m`: records frames to a Y4M file (`Cmono`/`Cmono16`) with each frame's
-//! capture timestamp in its frame header (`FRAME Xts=<ns>`), so a replay
-//! uses the true capture times. `path = "-"` writes to standard output
+//! capture timestamp and sequence number in its frame header
+//! (`FRAME Xts=<ns> Xseq=<n>`), so a replay uses the true capture times and
+//! a camera's dropped frames show as gaps in `Xseq`. `path = "-"` writes to standard output
 //! (to pipe into another process).
 
 use crate::engine::*;
@@ -73,7 +74,8 @@ impl Stage for Rec {
             PixelsRef::U8(p) => FrameDestRef::U8(p),
             PixelsRef::U16(p) => FrameDestRef::U16(p),
         };
-        w.write_frame(px, Some(f.meta().t_ns)).map_err(io)
+        w.write_frame_seq(px, Some(f.meta().t_ns), Some(f.meta().seq))
+            .map_err(io)
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {

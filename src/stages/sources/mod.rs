@@ -1,6 +1,8 @@
 pub mod file;
+pub mod nokhwa;
 pub mod pattern;
 pub mod synthetic;
+pub mod v4l2;
 
 use crate::engine::{FrameFormat, FrameMeta, FrameMut, Item};
 use std::time::{Duration, Instant};
