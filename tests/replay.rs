@@ -232,3 +232,48 @@ fn phase_stage_is_bit_identical_for_any_thread_count() {
         }
     }
 }
+
+/// Frame times survive a gap (frames lost before the file was written): the
+/// phase stage's sample blocks start afresh at the gap, so every sample
+/// carries its frame's capture time, not one extrapolated from the rate.
+#[test]
+fn phase_samples_keep_their_frame_times_across_a_gap() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (32usize, 32usize);
+    let mut y4m = format!("YUV4MPEG2 W{w} H{h} F1000:1 Ip A1:1 Cmono\n").into_bytes();
+    let mut times = Vec::new();
+    let mut state = 12345u32;
+    let texture: Vec<u8> = (0..w * h)
+        .map(|_| {
+            state = state.wrapping_mul(1664525).wrapping_add(1013904223);
+            (state >> 24) as u8
+        })
+        .collect();
+    for k in 0..200u64 {
+        // 1 ms apart, with 37 frames missing after frame 99.
+        let t = if k < 100 { k } else { k + 37 } * 1_000_000;
+        times.push(t);
+        y4m.extend_from_slice(format!("FRAME Xts={t}\n").as_bytes());
+        y4m.extend_from_slice(&texture);
+    }
+    std::fs::write(dir.path().join("gap.y4m"), y4m).unwrap();
+    let toml = "[[stage]]\nid = \"src\"\nkind = \"file\"\npath = \"gap.y4m\"\n\n\
+                [[stage]]\nid = \"phase\"\nkind = \"phase\"\ninput = \"src\"\nscales = 2\nblock = 64\n\n\
+                [[stage]]\nid = \"out\"\nkind = \"csv\"\ninput = \"phase\"\npath = \"t.csv\"\n";
+    std::fs::write(dir.path().join("gap.toml"), toml).unwrap();
+    let o = run_in(dir.path(), &["run", "gap.toml", "--quiet"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let csv = std::fs::read_to_string(dir.path().join("t.csv")).unwrap();
+    let got: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(got.len(), times.len());
+    for (k, (g, t)) in got.iter().zip(&times).enumerate() {
+        assert!(
+            (g - *t as f64 * 1e-9).abs() < 1e-7,
+            "sample {k}: {g} s, frame at {t} ns"
+        );
+    }
+}

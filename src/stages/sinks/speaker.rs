@@ -130,6 +130,8 @@ struct Shared {
     underrun: AtomicU64,
     /// Samples discarded in live runs because the ring was full.
     discarded: AtomicU64,
+    /// Errors the device reported (xruns and the like).
+    device_errors: AtomicU64,
     started: AtomicBool,
 }
 
@@ -378,7 +380,20 @@ mod cpal_device {
             let channels = self.config.channels() as usize;
             let fmt = self.config.sample_format();
             let config: cpal::StreamConfig = self.config.into();
-            let err = |e: cpal::Error| tracing::warn!("audio device: {e}");
+            // The first device error is logged; the rest are counted (an
+            // xrun every period would flood the log) and summed at close.
+            let errs = std::sync::Arc::clone(shared);
+            let err = move |e: cpal::Error| {
+                if errs
+                    .device_errors
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+                    == 0
+                {
+                    tracing::warn!(
+                        "audio device: {e} (further device errors are counted, not logged)"
+                    );
+                }
+            };
             let sh = std::sync::Arc::clone(shared);
             macro_rules! build {
                 ($t:ty, $conv:expr) => {
@@ -663,13 +678,14 @@ impl Stage for Speaker {
                 std::thread::sleep(Duration::from_millis(5));
             }
             out.close();
-            let (played, underrun, discarded) = (
+            let (played, underrun, discarded, device_errors) = (
                 self.shared.played.load(Ordering::Relaxed),
                 self.shared.underrun.load(Ordering::Relaxed),
                 self.shared.discarded.load(Ordering::Relaxed),
+                self.shared.device_errors.load(Ordering::Relaxed),
             );
-            if underrun + discarded > 0 {
-                tracing::warn!(device = %out.name, played, underrun, discarded, "speaker: gaps in playback (samples)");
+            if underrun + discarded + device_errors > 0 {
+                tracing::warn!(device = %out.name, played, underrun, discarded, device_errors, "speaker: gaps in playback (samples) and device errors");
             } else {
                 tracing::info!(device = %out.name, played, "speaker closed");
             }

@@ -493,8 +493,20 @@ impl Phase {
         // Completed blocks (allocates only when a block completes).
         let mut full: Vec<(i64, f64, Arc<[f32]>)> = Vec::new();
         let r = engine.run(&frames, self.pool.as_ref(), &mut |f, vals| {
+            // A block's times follow from its first frame and the rate, so a
+            // frame that is not where the rate puts it (frames dropped
+            // upstream, a clock jump) starts a new block.
+            let t = f.meta().t_ns;
+            if n > 0 {
+                let expect = t0 as f64 + n as f64 * 1e9 / rate;
+                if (t as f64 - expect).abs() > 0.5e9 / rate {
+                    full.push((t0, rate, Arc::from(&buf[..])));
+                    buf.clear();
+                    n = 0;
+                }
+            }
             if n == 0 {
-                t0 = f.meta().t_ns;
+                t0 = t;
                 rate = f.format().fps;
             }
             buf.extend(vals);
