@@ -23,7 +23,13 @@ impl Pacer {
 
     /// Sleeps until frame `seq` is due on the run clock.
     pub fn wait(&mut self, seq: u64, epoch: Instant) {
-        let due = epoch + Duration::from_secs_f64(seq as f64 / self.fps);
+        self.wait_after(seq, epoch, 0.0);
+    }
+
+    /// Sleeps until `extra_s` after frame `seq` starts: a rolling-shutter
+    /// frame can only be delivered once its last row has been read out.
+    pub fn wait_after(&mut self, seq: u64, epoch: Instant, extra_s: f64) {
+        let due = epoch + Duration::from_secs_f64(seq as f64 / self.fps + extra_s.max(0.0));
         let now = Instant::now();
         if due > now {
             std::thread::sleep(due - now);

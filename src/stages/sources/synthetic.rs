@@ -407,7 +407,12 @@ impl Source for Synthetic {
         // Captured on the camera's own clock, stamped on the stated one.
         let t_s = c as f64 / self.true_fps;
         if let Some(p) = &mut self.pacer {
-            p.wait(self.seq, ctx.control.epoch());
+            // Delivered when the last row's exposure ends, as a camera does.
+            let readout = self.rows.map_or(0.0, |rt| {
+                ((self.pool.format().height.max(1) - 1) as f64 * rt.line_delay_ns + rt.exposure_ns)
+                    * 1e-9
+            });
+            p.wait_after(self.seq, ctx.control.epoch(), readout);
         }
         let Some(mut f) = ctx.acquire(&self.pool) else {
             return Ok(None);
