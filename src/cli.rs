@@ -1122,7 +1122,7 @@ struct SpectrumArgs {
     #[arg(long, value_name = "X,Y,W,H")]
     roi: Option<String>,
     /// Welch segments over the recording (more: less noise, coarser bins;
-    /// default one per 2048 frames, 1 to 16).
+    /// default one per 2048 frames, 1 to 64).
     #[arg(long, value_name = "K")]
     segments: Option<usize>,
     /// Segment length in frames instead of --segments (even).

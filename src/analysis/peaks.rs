@@ -42,6 +42,9 @@ pub struct PeakOptions {
     /// Search band (Hz); `None` = from 3 bins above DC / up to Nyquist.
     pub min_hz: Option<f64>,
     pub max_hz: Option<f64>,
+    /// The taper's power response |W|² at steps of [`KERNEL_STEP`] bins
+    /// (odd length, centred); empty = fit the bare Lorentzian.
+    pub window_kernel: Vec<f64>,
 }
 
 impl Default for PeakOptions {
@@ -51,6 +54,7 @@ impl Default for PeakOptions {
             min_prominence_db: 6.0,
             min_hz: None,
             max_hz: None,
+            window_kernel: Vec::new(),
         }
     }
 }
@@ -167,11 +171,11 @@ pub fn find_peaks(power: &[f64], f0_hz: f64, df_hz: f64, opts: &PeakOptions) -> 
     c.truncate(opts.max_peaks);
     c.sort_by_key(|c| c.bin);
     c.iter()
-        .map(|c| analyse(power, &db, f0_hz, df_hz, c))
+        .map(|c| analyse(&opts.window_kernel, power, &db, f0_hz, df_hz, c))
         .collect()
 }
 
-fn analyse(p: &[f64], db: &[f64], f0_hz: f64, df: f64, c: &Candidate) -> Peak {
+fn analyse(kernel: &[f64], p: &[f64], db: &[f64], f0_hz: f64, df: f64, c: &Candidate) -> Peak {
     let freq = |k: f64| f0_hz + k * df;
     let i = c.bin;
     // Sub-bin peak position by a parabola through the dB values.
@@ -202,7 +206,7 @@ fn analyse(p: &[f64], db: &[f64], f0_hz: f64, df: f64, c: &Candidate) -> Peak {
     }
     let hw0 = (hw_bins * df).max(0.5 * df);
 
-    let fit = lorentzian_fit(p, df, f0_hz, c, f_peak, hw0, background);
+    let fit = lorentzian_fit(kernel, p, df, f0_hz, c, f_peak, hw0, background);
     // Half-power bandwidth: the level is half the fitted peak above the
     // fitted background (else above the valleys), the crossings are found on
     // a running mean over a quarter of the half width.
@@ -347,17 +351,69 @@ pub struct LorentzFit {
     pub hi_hz: f64,
 }
 
-/// ln of the model at `f` for parameters [f0, ln γ, ln A, ln B].
-fn model_ln(q: &[f64; 4], f: f64) -> f64 {
-    let g = q[1].exp();
-    let x = (f - q[0]) / g;
-    (q[2].exp() / (1.0 + x * x) + q[3].exp()).ln()
+/// The peak model: a Lorentzian seen through the taper's spectral window
+/// (the expected periodogram is the true spectrum convolved with the
+/// window's power response |W|², which widens a peak a few bins wide), plus
+/// a flat background.
+struct Model<'a> {
+    /// |W|² at steps of `KERNEL_STEP` bins, centred, summing to 1; empty = none.
+    kernel: &'a [f64],
+    df: f64,
+}
+
+/// Spacing of the window-kernel taps, in bins.
+pub const KERNEL_STEP: f64 = 0.25;
+
+impl Model<'_> {
+    /// Kernel taps as (frequency offset, weight).
+    fn taps(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+        let mid = (self.kernel.len() / 2) as f64;
+        let one = [(0.0, 1.0)];
+        let k = self
+            .kernel
+            .iter()
+            .enumerate()
+            .map(move |(j, &w)| ((j as f64 - mid) * KERNEL_STEP * self.df, w));
+        let none = self.kernel.is_empty();
+        one.into_iter().filter(move |_| none).chain(k)
+    }
+
+    /// ln of the model at `f` for parameters [f0, ln γ, ln A, ln B].
+    fn ln(&self, q: &[f64; 4], f: f64) -> f64 {
+        let g = q[1].exp();
+        let l: f64 = self
+            .taps()
+            .map(|(d, w)| {
+                let x = (f - d - q[0]) / g;
+                w / (1.0 + x * x)
+            })
+            .sum();
+        (q[2].exp() * l + q[3].exp()).ln()
+    }
+
+    /// Gradient of ln model with respect to [f0, ln γ, ln A, ln B].
+    fn jac(&self, q: &[f64; 4], f: f64) -> [f64; 4] {
+        let g = q[1].exp();
+        let a = q[2].exp();
+        let b = q[3].exp();
+        let (mut l, mut dl0, mut dlg) = (0.0, 0.0, 0.0);
+        for (d, w) in self.taps() {
+            let x = (f - d - q[0]) / g;
+            let den = 1.0 + x * x;
+            l += w / den;
+            dl0 += w * 2.0 * x / (g * den * den);
+            dlg += w * 2.0 * x * x / (den * den);
+        }
+        let m = a * l + b;
+        [a * dl0 / m, a * dlg / m, a * l / m, b / m]
+    }
 }
 
 /// Least squares on ln P over an automatically chosen range (see the module
 /// documentation). `None` when the fit does not converge to a peak inside
 /// its range.
 fn lorentzian_fit(
+    kernel: &[f64],
     p: &[f64],
     df: f64,
     f0_hz: f64,
@@ -366,6 +422,7 @@ fn lorentzian_fit(
     gamma0: f64,
     background: f64,
 ) -> Option<LorentzFit> {
+    let model = Model { kernel, df };
     let freq = |k: usize| f0_hz + k as f64 * df;
     let b0 = background.max(p[c.bin] * 1e-12);
     let a0 = (p[c.bin] - background).max(p[c.bin] * 1e-3);
@@ -394,13 +451,13 @@ fn lorentzian_fit(
             break;
         }
         last = Some(range);
-        q = gauss_newton(p, df, f0_hz, range, q)?;
+        q = gauss_newton(&model, p, f0_hz, range, q)?;
     }
     let (lo, hi) = range;
     let n = hi - lo + 1;
     // Residuals, their scatter and lag-1 correlation.
     let r: Vec<f64> = (lo..=hi)
-        .map(|k| p[k].max(f64::MIN_POSITIVE).ln() - model_ln(&q, freq(k)))
+        .map(|k| p[k].max(f64::MIN_POSITIVE).ln() - model.ln(&q, freq(k)))
         .collect();
     let mean = r.iter().sum::<f64>() / n as f64;
     let var = r.iter().map(|x| (x - mean).powi(2)).sum::<f64>();
@@ -415,7 +472,7 @@ fn lorentzian_fit(
     };
     let rho = rho.clamp(0.0, 0.9);
     let inflate = (1.0 + rho) / (1.0 - rho);
-    let mut jtj = normal_matrix(df, f0_hz, range, &q);
+    let mut jtj = normal_matrix(&model, f0_hz, range, &q);
     // A background far below the peak's tails over the range is not
     // identifiable (its column vanishes): hold it fixed for the covariance.
     let trace = jtj[0][0] + jtj[1][1] + jtj[2][2];
@@ -445,28 +502,15 @@ fn lorentzian_fit(
     })
 }
 
-/// Jacobian rows of ln model with respect to [f0, ln γ, ln A, ln B].
-fn jac_row(q: &[f64; 4], f: f64) -> [f64; 4] {
-    let g = q[1].exp();
-    let a = q[2].exp();
-    let b = q[3].exp();
-    let x = (f - q[0]) / g;
-    let den = 1.0 + x * x;
-    let l = a / den;
-    let m = l + b;
-    // dL/df0 = A·2x/(g·den²); dL/dlnγ = A·2x²/den²
-    [
-        a * 2.0 * x / (g * den * den) / m,
-        a * 2.0 * x * x / (den * den) / m,
-        l / m,
-        b / m,
-    ]
-}
-
-fn normal_matrix(df: f64, f0_hz: f64, (lo, hi): (usize, usize), q: &[f64; 4]) -> [[f64; 4]; 4] {
+fn normal_matrix(
+    model: &Model,
+    f0_hz: f64,
+    (lo, hi): (usize, usize),
+    q: &[f64; 4],
+) -> [[f64; 4]; 4] {
     let mut m = [[0.0; 4]; 4];
     for k in lo..=hi {
-        let j = jac_row(q, f0_hz + k as f64 * df);
+        let j = model.jac(q, f0_hz + k as f64 * model.df);
         for a in 0..4 {
             for b in 0..4 {
                 m[a][b] += j[a] * j[b];
@@ -478,12 +522,13 @@ fn normal_matrix(df: f64, f0_hz: f64, (lo, hi): (usize, usize), q: &[f64; 4]) ->
 
 /// Levenberg-Marquardt on ln P over bins `lo..=hi`.
 fn gauss_newton(
+    model: &Model,
     p: &[f64],
-    df: f64,
     f0_hz: f64,
     (lo, hi): (usize, usize),
     mut q: [f64; 4],
 ) -> Option<[f64; 4]> {
+    let df = model.df;
     let freq = |k: usize| f0_hz + k as f64 * df;
     let y: Vec<f64> = (lo..=hi)
         .map(|k| p[k].max(f64::MIN_POSITIVE).ln())
@@ -491,7 +536,7 @@ fn gauss_newton(
     let cost = |q: &[f64; 4]| -> f64 {
         (lo..=hi)
             .zip(&y)
-            .map(|(k, y)| (y - model_ln(q, freq(k))).powi(2))
+            .map(|(k, y)| (y - model.ln(q, freq(k))).powi(2))
             .sum()
     };
     let mut c0 = cost(&q);
@@ -501,8 +546,8 @@ fn gauss_newton(
         let mut jtr = [0.0; 4];
         for (k, y) in (lo..=hi).zip(&y) {
             let f = freq(k);
-            let j = jac_row(&q, f);
-            let r = y - model_ln(&q, f);
+            let j = model.jac(&q, f);
+            let r = y - model.ln(&q, f);
             for a in 0..4 {
                 jtr[a] += j[a] * r;
                 for b in 0..4 {

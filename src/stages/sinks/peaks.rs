@@ -17,6 +17,7 @@
 
 use crate::analysis::peaks::{find_peaks, PeakOptions};
 use crate::engine::*;
+use crate::stages::transform::spectrum::Taper;
 use serde::Deserialize;
 use std::path::PathBuf;
 
@@ -32,6 +33,24 @@ struct P {
     max_hz: Option<f64>,
     #[serde(default)]
     include_spectrum: bool,
+    /// The taper the spectrum was computed with: the fit sees each line
+    /// through its spectral window (`"none"` fits the bare Lorentzian).
+    #[serde(default = "d_taper")]
+    taper: String,
+}
+fn d_taper() -> String {
+    "hann".into()
+}
+
+fn taper_of(name: &str) -> Option<Option<Taper>> {
+    Some(match name {
+        "hann" => Some(Taper::Hann),
+        "hamming" => Some(Taper::Hamming),
+        "blackman" => Some(Taper::Blackman),
+        "rect" => Some(Taper::Rect),
+        "none" => None,
+        _ => return None,
+    })
 }
 fn d_peaks() -> usize {
     5
@@ -68,6 +87,15 @@ pub const KIND: KindSpec = KindSpec {
             if a >= b {
                 return Err(p.error("max_hz", format!("must exceed min_hz ({a}), got {b}")));
             }
+        }
+        if taper_of(&v.taper).is_none() {
+            return Err(p.error(
+                "taper",
+                format!(
+                    "must be hann, hamming, blackman, rect or none, got `{}`",
+                    v.taper
+                ),
+            ));
         }
         Ok(Box::new(PeaksPlan(v)))
     },
@@ -127,6 +155,11 @@ impl Stage for Peaks {
             min_prominence_db: self.p.min_prominence_db,
             min_hz: self.p.min_hz,
             max_hz: self.p.max_hz,
+            // One-sided spectrum of an even-length segment: n = 2 (bins - 1).
+            window_kernel: match taper_of(&self.p.taper).flatten() {
+                Some(t) => t.power_kernel(2 * (mean.len() - 1), 4),
+                None => Vec::new(),
+            },
         };
         let peaks = find_peaks(&mean, self.f0, self.df, &opts);
         for pk in &peaks {

@@ -10,8 +10,8 @@
 //! `hop` says otherwise); without `window`, the segment is chosen so that
 //! about `segments` half-overlapping segments cover the recording (the
 //! finest resolution that still averages the noise down); without
-//! `segments` either, one per 2048 frames, 1 to 16 (a 300-frame clip keeps
-//! its full resolution; a 10-minute recording averages 16 segments).
+//! `segments` either, one per 2048 frames, 1 to 64 (a 300-frame clip keeps
+//! its full resolution; a 10-minute recording at 300 fps averages 64).
 //!
 //! Power is a one-sided density (input units² per Hz): each segment has its
 //! mean removed, is tapered (`hann`, `hamming`, `blackman` or `rect`), and
@@ -28,9 +28,10 @@
 //! hop = 220          # samples (default window / 4; whole: window / 2)
 //! taper = "hann"
 //! welch = 1          # sliding: windows averaged
-//! segments = 8       # whole, without `window` (default: frames / 2048, 1..=16)
+//! segments = 8       # whole, without `window` (default: frames / 2048, 1..=64)
 //! ```
 
+use crate::analysis::peaks::KERNEL_STEP;
 use crate::engine::*;
 use realfft::num_complex::Complex;
 use realfft::{RealFftPlanner, RealToComplex};
@@ -74,6 +75,33 @@ impl Taper {
     }
 }
 
+impl Taper {
+    /// The taper's power response |W(ν)|² for an `n`-sample segment, at
+    /// ν = j·[`KERNEL_STEP`] bins for |ν| <= `half_bins`, normalised to sum
+    /// to 1: what one spectral line looks like in this stage's output (from
+    /// a zero-padded FFT of the taper itself).
+    pub fn power_kernel(self, n: usize, half_bins: usize) -> Vec<f64> {
+        let pad = (1.0 / KERNEL_STEP).round() as usize;
+        let len = n.max(2) * pad;
+        let mut buf = vec![Complex::new(0.0, 0.0); len];
+        for (b, w) in buf.iter_mut().zip(self.coefficients(n)) {
+            b.re = w;
+        }
+        rustfft::FftPlanner::new()
+            .plan_fft_forward(len)
+            .process(&mut buf);
+        let h = (half_bins * pad) as isize;
+        let mut k: Vec<f64> = (-h..=h)
+            .map(|j| buf[j.rem_euclid(len as isize) as usize].norm_sqr())
+            .collect();
+        let sum: f64 = k.iter().sum();
+        if sum > 0.0 {
+            k.iter_mut().for_each(|v| *v /= sum);
+        }
+        k
+    }
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
@@ -99,7 +127,7 @@ fn d_welch() -> usize {
 /// Whole mode without `segments`: one segment per this many frames...
 pub const AUTO_FRAMES_PER_SEGMENT: usize = 2048;
 /// ...and at most this many (more buys little noise, costs resolution).
-pub const AUTO_MAX_SEGMENTS: usize = 16;
+pub const AUTO_MAX_SEGMENTS: usize = 64;
 
 /// Default sliding window, in samples.
 pub const DEFAULT_WINDOW: usize = 1024;
