@@ -206,7 +206,7 @@ fn analyse(kernel: &[f64], p: &[f64], db: &[f64], f0_hz: f64, df: f64, c: &Candi
     }
     let hw0 = (hw_bins * df).max(0.5 * df);
 
-    let fit = lorentzian_fit(kernel, p, df, f0_hz, c, f_peak, hw0, background);
+    let fit = lorentzian_fit(kernel, p, df, f0_hz, c, (f_peak, hw0, background));
     // Half-power bandwidth: the level is half the fitted peak above the
     // fitted background (else above the valleys), the crossings are found on
     // a running mean over a quarter of the half width.
@@ -410,7 +410,8 @@ impl Model<'_> {
 }
 
 /// Least squares on ln P over an automatically chosen range (see the module
-/// documentation). `None` when the fit does not converge to a peak inside
+/// documentation), from an initial guess (peak frequency, half width,
+/// background). `None` when the fit does not converge to a peak inside
 /// its range.
 fn lorentzian_fit(
     kernel: &[f64],
@@ -418,9 +419,7 @@ fn lorentzian_fit(
     df: f64,
     f0_hz: f64,
     c: &Candidate,
-    f_peak: f64,
-    gamma0: f64,
-    background: f64,
+    (f_peak, gamma0, background): (f64, f64, f64),
 ) -> Option<LorentzFit> {
     let model = Model { kernel, df };
     let freq = |k: usize| f0_hz + k as f64 * df;
@@ -477,16 +476,16 @@ fn lorentzian_fit(
     // identifiable (its column vanishes): hold it fixed for the covariance.
     let trace = jtj[0][0] + jtj[1][1] + jtj[2][2];
     if jtj[3][3] < 1e-9 * trace {
-        for k in 0..4 {
-            jtj[3][k] = 0.0;
-            jtj[k][3] = 0.0;
+        jtj[3] = [0.0; 4];
+        for row in jtj.iter_mut() {
+            row[3] = 0.0;
         }
         jtj[3][3] = 1.0;
     }
     let cov = invert4(&jtj)?;
     let f0 = q[0];
     let gamma = q[1].exp();
-    if !(f0 >= freq(lo) && f0 <= freq(hi)) || !gamma.is_finite() {
+    if !(f0 >= freq(lo) && f0 <= freq(hi) && gamma.is_finite()) {
         return None;
     }
     Some(LorentzFit {
