@@ -442,3 +442,56 @@ impl Stage for SpectrumStage {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Against a naive DFT of the tapered, mean-removed segment, with the
+    /// one-sided density scaling; and Parseval: a sine of amplitude a
+    /// integrates over frequency to its mean square a²/2.
+    #[test]
+    fn segment_power_matches_naive_dft_and_parseval() {
+        let (n, fs) = (64usize, 100.0);
+        let x: Vec<f32> = (0..n)
+            .map(|i| (2.0 * std::f64::consts::PI * 12.5 * i as f64 / fs).sin() as f32 * 2.0 + 0.3)
+            .collect();
+        let mut f = SegmentFft::new(n, Taper::Hann, fs);
+        let mut acc = vec![0.0; f.bins()];
+        f.accumulate(&x, 1, 0, &mut acc);
+        let w = Taper::Hann.coefficients(n);
+        let mean = x.iter().map(|&v| v as f64).sum::<f64>() / n as f64;
+        let s2: f64 = w.iter().map(|v| v * v).sum();
+        for (k, got) in acc.iter().enumerate() {
+            let (mut re, mut im) = (0.0, 0.0);
+            for (i, (&xi, wi)) in x.iter().zip(&w).enumerate() {
+                let ph = -2.0 * std::f64::consts::PI * (k * i) as f64 / n as f64;
+                re += (xi as f64 - mean) * wi * ph.cos();
+                im += (xi as f64 - mean) * wi * ph.sin();
+            }
+            let one_sided = if k == 0 || k == n / 2 { 1.0 } else { 2.0 };
+            let want = one_sided * (re * re + im * im) / (fs * s2);
+            assert!(
+                (got - want).abs() <= 1e-9 * want.max(1e-12),
+                "bin {k}: {got} vs {want}"
+            );
+        }
+        // 12.5 Hz is bin 8 exactly: the Hann line spreads over bins 7-9.
+        let total: f64 = acc.iter().sum::<f64>() * fs / n as f64;
+        assert!((total - 2.0).abs() < 0.05, "power {total}, want a²/2 = 2");
+    }
+
+    /// The power kernel sums to 1, is symmetric and peaks at the centre.
+    #[test]
+    fn power_kernel_is_a_normalised_line() {
+        let k = Taper::Hann.power_kernel(1024, 4);
+        assert_eq!(k.len(), 33);
+        assert!((k.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        for j in 0..16 {
+            assert!((k[j] - k[32 - j]).abs() < 1e-12);
+            assert!(k[16] >= k[j]);
+        }
+        // Hann: |W(±1 bin)|² = |W(0)|²/4.
+        assert!((k[20] / k[16] - 0.25).abs() < 1e-3, "{}", k[20] / k[16]);
+    }
+}
