@@ -23,8 +23,9 @@
 //!   between bins. Uncertainty: each crossing moves by s·γ for a relative
 //!   power scatter s (the slope of a Lorentzian at half power is A / 2γ).
 //!
-//! A peak narrower than the bin spacing can resolve (half width under
-//! `MIN_RESOLVED_BINS` bins) is marked unresolved: its damping is then only
+//! A peak narrower than the bin spacing can resolve (fitted half width under
+//! `MIN_RESOLVED_BINS` bins, or twice that of raw half-power width when the
+//! fit fails) is marked unresolved: its damping is then only
 //! an upper bound, and says so in its method.
 
 /// Fit range, in fitted half widths either side of the peak.
@@ -236,7 +237,9 @@ fn analyse(kernel: &[f64], p: &[f64], db: &[f64], f0_hz: f64, df: f64, c: &Candi
             f_peak,
             df / 12f64.sqrt(),
             [freq(c.left_base as f64), freq(c.right_base as f64)],
-            hw_bins >= MIN_RESOLVED_BINS,
+            // No fit, so no correction for the taper's own line width
+            // (a Hann line is about a bin either side): ask for twice as much.
+            hw_bins >= 2.0 * MIN_RESOLVED_BINS,
             1.0,
             hw0,
         ),
@@ -267,7 +270,7 @@ fn analyse(kernel: &[f64], p: &[f64], db: &[f64], f0_hz: f64, df: f64, c: &Candi
     // that is resolved, else only the bound the bin spacing sets.
     let best = if resolved {
         estimates[0].clone()
-    } else if 0.5 * hp_width >= MIN_RESOLVED_BINS * df {
+    } else if fit.is_some() && 0.5 * hp_width >= 2.0 * MIN_RESOLVED_BINS * df {
         estimates[estimates.len() - 1].clone()
     } else {
         DampingEstimate {
