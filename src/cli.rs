@@ -200,6 +200,13 @@ enum Command {
         #[arg(long)]
         stats: bool,
     },
+    /// Motion spectrum of a video (thesis Eq. 3.17) and its resonances:
+    /// frequency, damping ratio with its uncertainty and method, power and
+    /// prominence of each peak, as JSON.
+    #[command(after_help = "Examples:\n  \
+        vibroscope spectrum ../shared/data/guitar.mp4 --fps 600 --json guitar.json\n  \
+        vibroscope spectrum beam.y4m --json beam.json --peaks 3 --roi 0,0,64,64")]
+    Spectrum(SpectrumArgs),
     /// Render the built-in synthetic scene, recover its motion, write a WAV
     /// and print the SNR against the known signal.
     Demo {
@@ -362,6 +369,7 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
             Ok(code)
         }
         Command::RsCalibrate(a) => rs_calibrate(&a),
+        Command::Spectrum(a) => spectrum_cmd(&a),
         Command::Score {
             reference,
             test,
@@ -1325,6 +1333,135 @@ fn simulate(scene: &Path, output: &Path, set: &[String], stats: bool) -> anyhow:
     let (code, _) = run_decl(&decl, stats, output != Path::new("-"))?;
     if code == ExitCode::SUCCESS && output != Path::new("-") {
         eprintln!("wrote {}", output.display());
+    }
+    Ok(code)
+}
+
+// ---------------------------------------------------------------------------
+// Spectra and damping (issue 5): `vibroscope spectrum`.
+// ---------------------------------------------------------------------------
+
+/// Arguments of `vibroscope spectrum`.
+#[derive(clap::Args, Clone)]
+struct SpectrumArgs {
+    /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
+    video: PathBuf,
+    /// Output JSON: sample_rate_hz, resolution_hz and the peaks.
+    #[arg(long, value_name = "OUT.json")]
+    json: PathBuf,
+    /// Capture frame rate in Hz (containers often state the playback rate).
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    fps: Option<f64>,
+    /// Report at most this many peaks (the most prominent).
+    #[arg(long, default_value_t = 5, value_name = "N")]
+    peaks: usize,
+    /// Region of the object: X,Y,W,H in pixels (default: the whole frame).
+    #[arg(long, value_name = "X,Y,W,H")]
+    roi: Option<String>,
+    /// Welch segments over the recording (more: less noise, coarser bins;
+    /// default one per 2048 frames, 1 to 64).
+    #[arg(long, value_name = "K")]
+    segments: Option<usize>,
+    /// Segment length in frames instead of --segments (even).
+    #[arg(long, value_name = "FRAMES")]
+    window: Option<usize>,
+    /// Only peaks in this band (Hz).
+    #[arg(long, value_name = "HZ")]
+    min_hz: Option<f64>,
+    #[arg(long, value_name = "HZ")]
+    max_hz: Option<f64>,
+    /// Also write the spectrum (dB) into the JSON.
+    #[arg(long)]
+    include_spectrum: bool,
+    /// Pyramid: complex steerable (quality) or Riesz (speed).
+    #[arg(long, value_enum, default_value = "csp")]
+    pyramid: PyramidArg,
+    /// Print the per-stage summary at exit.
+    #[arg(long)]
+    stats: bool,
+}
+
+/// The shipped live-spectrum graph on a recording, with one
+/// whole-recording spectrum (finest resolution) feeding the peak picker.
+fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl> {
+    let mut decl = prepare("live-spectrum", &[], Some(&a.video), a.fps)?;
+    let pos = |decl: &PipelineDecl, id: &str| decl.stages.iter().position(|s| s.id == id);
+    let (Some(phase), Some(spec), Some(out)) = (
+        pos(&decl, "phase"),
+        pos(&decl, "spectrum"),
+        pos(&decl, "out"),
+    ) else {
+        anyhow::bail!(
+            "the shipped live-spectrum pipeline lacks a stage `phase`, `spectrum` or `out`"
+        );
+    };
+    let o = |s: &str| Origin::Set(s.to_string());
+    let st = &mut decl.stages[phase];
+    let pyr = match a.pyramid {
+        PyramidArg::Csp => "csp",
+        PyramidArg::Riesz => "riesz",
+    };
+    set_param(
+        st,
+        "pyramid",
+        toml::Value::String(pyr.into()),
+        o("--pyramid"),
+    );
+    set_param(st, "scales", toml::Value::Integer(4), o("spectrum"));
+    set_param(st, "block", toml::Value::Integer(64), o("spectrum"));
+    if let Some(r) = &a.roi {
+        let v = parse_roi_arg(r)?;
+        let arr = toml::Value::Array(v.into_iter().map(toml::Value::Integer).collect());
+        set_param(st, "roi", arr, o(&format!("--roi {r}")));
+    }
+    let st = &mut decl.stages[spec];
+    st.params
+        .retain(|p| !matches!(p.key.as_str(), "window" | "hop" | "welch"));
+    set_param(
+        st,
+        "mode",
+        toml::Value::String("whole".into()),
+        o("spectrum"),
+    );
+    if let Some(k) = a.segments {
+        let k = i64::try_from(k).unwrap_or(i64::MAX);
+        set_param(st, "segments", toml::Value::Integer(k), o("--segments"));
+    }
+    if let Some(w) = a.window {
+        let w = i64::try_from(w).unwrap_or(i64::MAX);
+        set_param(st, "window", toml::Value::Integer(w), o("--window"));
+    }
+    let st = &mut decl.stages[out];
+    let path = toml::Value::String(a.json.display().to_string());
+    set_param(st, "path", path, o("--json"));
+    let n = i64::try_from(a.peaks).unwrap_or(i64::MAX);
+    set_param(st, "peaks", toml::Value::Integer(n), o("--peaks"));
+    for (key, v) in [("min_hz", a.min_hz), ("max_hz", a.max_hz)] {
+        if let Some(f) = v {
+            set_param(
+                st,
+                key,
+                toml::Value::Float(f),
+                o(&format!("--{}", key.replace('_', "-"))),
+            );
+        }
+    }
+    if a.include_spectrum {
+        set_param(
+            st,
+            "include_spectrum",
+            toml::Value::Boolean(true),
+            o("--include-spectrum"),
+        );
+    }
+    Ok(decl)
+}
+
+fn spectrum_cmd(a: &SpectrumArgs) -> anyhow::Result<ExitCode> {
+    let decl = spectrum_pipeline(a)?;
+    let (code, _) = run_decl(&decl, a.stats, false)?;
+    if code == ExitCode::SUCCESS {
+        eprintln!("wrote {}", a.json.display());
     }
     Ok(code)
 }

@@ -9,8 +9,10 @@
 //! - [`io`]: video file formats (Y4M, Phantom cine, Photron mraw, ffmpeg).
 //! - [`sim`]: the forward model of object and camera (ground truth).
 //! - [`pipelines`]: the pipeline files that ship with the binary.
+//! - [`analysis`]: peaks, prominence and damping of motion spectra.
 //! - [`cli`]: the `vibroscope` command line.
 
+pub mod analysis;
 pub mod cli;
 pub mod dsp;
 pub mod engine;

@@ -41,6 +41,10 @@ pub static SHIPPED: &[Shipped] = &[
         text: include_str!("../pipelines/render.toml"),
     },
     Shipped {
+        name: "live-spectrum",
+        text: include_str!("../pipelines/live-spectrum.toml"),
+    },
+    Shipped {
         name: "passthrough",
         text: include_str!("../pipelines/passthrough.toml"),
     },

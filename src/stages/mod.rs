@@ -25,10 +25,12 @@ pub static REGISTRY: &[KindSpec] = &[
     transform::rows::KIND,
     transform::gap_fill::KIND,
     transform::exposure::KIND,
+    transform::spectrum::KIND,
     sinks::wav::KIND,
     sinks::speaker::KIND,
     sinks::csv::KIND,
     sinks::json::KIND,
+    sinks::peaks::KIND,
     sinks::y4m::KIND,
     sinks::null::KIND,
 ];

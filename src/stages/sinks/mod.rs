@@ -1,6 +1,7 @@
 pub mod csv;
 pub mod json;
 pub mod null;
+pub mod peaks;
 pub mod speaker;
 pub mod wav;
 pub mod y4m;

@@ -11,3 +11,4 @@ pub mod phase;
 pub mod reduce;
 pub mod roi;
 pub mod rows;
+pub mod spectrum;

@@ -1,0 +1,3 @@
+//! Analysis of measured signals and spectra: resonances and damping.
+
+pub mod peaks;
