@@ -23,13 +23,13 @@
 //! weights (Eq. 3.6 sums them unnormalised) and gives values of the order
 //! of radians of phase instead of millions.
 
+use super::audio_out::Batcher;
 use super::roi::{Mask, Roi, RoiParam};
 use crate::dsp::kernels::MAX_ORIENT;
 use crate::dsp::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError};
 use crate::dsp::riesz::{RieszCoeffs, RieszPyramid};
 use crate::engine::*;
 use serde::Deserialize;
-use std::sync::Arc;
 
 #[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
 #[serde(rename_all = "lowercase")]
@@ -94,17 +94,22 @@ pub const KIND: KindSpec = KindSpec {
         if let Some(r) = &v.roi {
             r.check().map_err(|m| p.error("roi", m))?;
         }
-        if let Some(m) = &v.mask {
-            Mask::load(m).map_err(|e| p.error("mask", e))?;
-        }
+        // Read once, here, so a bad mask is a configuration error.
+        let mask = match &v.mask {
+            Some(m) => Some((m.clone(), Mask::load(m).map_err(|e| p.error("mask", e))?)),
+            None => None,
+        };
         if v.threads > 256 {
             return Err(p.error("threads", format!("must be 0..=256, got {}", v.threads)));
         }
-        Ok(Box::new(PhasePlan(v)))
+        Ok(Box::new(PhasePlan { p: v, mask }))
     },
 };
 
-struct PhasePlan(P);
+struct PhasePlan {
+    p: P,
+    mask: Option<(std::path::PathBuf, Mask)>,
+}
 
 fn resolve_threads(n: usize) -> usize {
     match n {
@@ -117,7 +122,7 @@ fn resolve_threads(n: usize) -> usize {
 
 impl Plan for PhasePlan {
     fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
-        let v = self.0;
+        let PhasePlan { p: v, mask } = *self;
         let threads = resolve_threads(v.threads);
         Ok(Node::Stage(Box::new(Phase {
             pool: super::reduce::thread_pool(threads)?,
@@ -126,22 +131,16 @@ impl Plan for PhasePlan {
             scales: v.scales,
             orientations: v.orientations,
             roi: v.roi,
-            mask: match &v.mask {
-                Some(path) => Some((path.clone(), Mask::load(path).map_err(StageError::msg)?)),
-                None => None,
-            },
+            mask,
             block: v.block,
             engine: None,
             pending: Vec::with_capacity(threads),
-            out: Vec::new(),
-            t0_ns: 0,
-            rate: 0.0,
-            frames_in_block: 0,
+            batch: None,
         })))
     }
 
     fn frames_held(&self) -> usize {
-        resolve_threads(self.0.threads)
+        resolve_threads(self.p.threads)
     }
 }
 
@@ -430,10 +429,8 @@ struct Phase {
     engine: Option<Box<dyn FrameSignals>>,
     /// Frames waiting for a full batch (one per worker).
     pending: Vec<Frame>,
-    out: Vec<f32>,
-    t0_ns: i64,
-    rate: f64,
-    frames_in_block: usize,
+    /// Band signals into sample blocks (set up with the engine).
+    batch: Option<Batcher>,
 }
 
 impl Phase {
@@ -475,78 +472,21 @@ impl Phase {
                 (w, h),
             )?),
         };
-        self.out = Vec::with_capacity(self.block * engine.bands());
+        self.batch = Some(Batcher::samples(self.block, engine.bands()));
         self.engine = Some(engine);
         Ok(())
     }
 
     /// Computes the pending frames and appends their samples to the block.
     fn run_pending(&mut self, out: &mut Emitter) -> Result<(), StageError> {
-        let Some(engine) = self.engine.as_mut() else {
+        let (Some(engine), Some(batch)) = (self.engine.as_mut(), self.batch.as_mut()) else {
             return Ok(());
         };
-        let channels = engine.bands();
-        let frames = std::mem::take(&mut self.pending);
-        let buf = &mut self.out;
-        let (mut t0, mut rate, mut n, block) =
-            (self.t0_ns, self.rate, self.frames_in_block, self.block);
-        // Completed blocks (allocates only when a block completes).
-        let mut full: Vec<(i64, f64, Arc<[f32]>)> = Vec::new();
-        let r = engine.run(&frames, self.pool.as_ref(), &mut |f, vals| {
-            // A block's times follow from its first frame and the rate, so a
-            // frame that is not where the rate puts it (frames dropped
-            // upstream, a clock jump) starts a new block.
-            let t = f.meta().t_ns;
-            if n > 0 {
-                let expect = t0 as f64 + n as f64 * 1e9 / rate;
-                if (t as f64 - expect).abs() > 0.5e9 / rate {
-                    full.push((t0, rate, Arc::from(&buf[..])));
-                    buf.clear();
-                    n = 0;
-                }
-            }
-            if n == 0 {
-                t0 = t;
-                rate = f.format().fps;
-            }
-            buf.extend(vals);
-            n += 1;
-            if n >= block {
-                full.push((t0, rate, Arc::from(&buf[..])));
-                buf.clear();
-                n = 0;
-            }
+        let r = engine.run(&self.pending, self.pool.as_ref(), &mut |f, vals| {
+            batch.push(f.meta().t_ns, f.format().fps, vals, out)
         });
-        self.pending = frames;
         self.pending.clear();
-        (self.t0_ns, self.rate, self.frames_in_block) = (t0, rate, n);
-        for (t0_ns, rate_hz, data) in full {
-            let _ = out.emit(Item::Samples(SampleBlock {
-                t0_ns,
-                rate_hz,
-                channels,
-                data,
-                times_ns: None,
-            }));
-        }
         r
-    }
-
-    fn flush(&mut self, out: &mut Emitter) {
-        let Some(engine) = &self.engine else { return };
-        if self.frames_in_block == 0 {
-            return;
-        }
-        let data: Arc<[f32]> = Arc::from(&self.out[..]);
-        self.out.clear();
-        self.frames_in_block = 0;
-        let _ = out.emit(Item::Samples(SampleBlock {
-            t0_ns: self.t0_ns,
-            rate_hz: self.rate,
-            channels: engine.bands(),
-            data,
-            times_ns: None,
-        }));
     }
 }
 
@@ -572,7 +512,9 @@ impl Stage for Phase {
 
     fn finish(&mut self, out: &mut Emitter) -> Result<(), StageError> {
         let r = self.run_pending(out);
-        self.flush(out);
+        if let Some(b) = self.batch.as_mut() {
+            b.flush(out);
+        }
         r
     }
 }
