@@ -332,3 +332,166 @@ fn a_pgm_mask_selects_the_pixels_that_count() {
         assert!(stderr(&o).contains(needle), "{}", stderr(&o));
     }
 }
+
+/// Least-squares fit of `x` on the columns `cols` (each `x.len()` long):
+/// the coefficients and the residual energy.
+fn lstsq(cols: &[Vec<f64>], x: &[f64]) -> (Vec<f64>, f64) {
+    let k = cols.len();
+    let mut a = vec![vec![0.0; k + 1]; k];
+    for i in 0..k {
+        for j in 0..k {
+            a[i][j] = cols[i].iter().zip(&cols[j]).map(|(p, q)| p * q).sum();
+        }
+        a[i][k] = cols[i].iter().zip(x).map(|(p, q)| p * q).sum();
+    }
+    // Gauss-Jordan with partial pivoting.
+    for c in 0..k {
+        let p = (c..k)
+            .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
+            .unwrap();
+        a.swap(c, p);
+        for r in 0..k {
+            if r != c {
+                let f = a[r][c] / a[c][c];
+                for j in c..=k {
+                    a[r][j] -= f * a[c][j];
+                }
+            }
+        }
+    }
+    let coef: Vec<f64> = (0..k).map(|i| a[i][k] / a[i][i]).collect();
+    let res = x
+        .iter()
+        .enumerate()
+        .map(|(n, v)| {
+            let m: f64 = (0..k).map(|i| coef[i] * cols[i][n]).sum();
+            (v - m) * (v - m)
+        })
+        .sum();
+    (coef, res)
+}
+
+/// Drift beyond half a wavelength (issue 3, item 2): the object slides
+/// 6 px over 3 s (the finest band's wavelength is 4 px) while it vibrates
+/// 0.05 px at 150 Hz. With the reference renewed every second (the
+/// default) the tone keeps its amplitude to the end and the output follows
+/// the drift; with the first frame as the only reference (the comparison,
+/// which shows the test can fail) the phase wraps: the tone's amplitude
+/// wanders and the output no longer follows the drift.
+#[test]
+fn a_slow_drift_beyond_half_a_wavelength_is_followed() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    let (fps, secs, drift_px, tone_px, f0) = (1000.0, 3.0, 6.0, 0.05, 150.0);
+    let rate = 16000u32;
+    let n = (secs * rate as f64) as usize;
+    let motion: Vec<f64> = (0..n)
+        .map(|i| {
+            let t = i as f64 / rate as f64;
+            drift_px * t / secs + tone_px * (2.0 * std::f64::consts::PI * f0 * t).sin()
+        })
+        .collect();
+    let peak = motion.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(dir.join("drift.wav"), spec).unwrap();
+    for v in &motion {
+        w.write_sample((v / peak) as f32).unwrap();
+    }
+    w.finalize().unwrap();
+    let text = format!(
+        "[[stage]]\nid = \"src\"\nkind = \"synthetic\"\nwidth = 96\nheight = 96\nfps = {fps}\nduration_s = {secs}\n\
+         object = [16, 16, 64, 64]\namplitude_px = {peak}\nsignal = {{ type = \"wav\", path = \"drift.wav\" }}\n\n\
+         [[stage]]\nid = \"phase\"\nkind = \"phase\"\ninput = \"src\"\nroi = [16, 16, 64, 64]\n\n\
+         [[stage]]\nid = \"align\"\nkind = \"align\"\ninput = \"phase\"\n\n\
+         [[stage]]\nid = \"out\"\nkind = \"wav\"\ninput = \"align\"\npath = \"drift-out.wav\"\n"
+    );
+    std::fs::write(dir.join("drift.toml"), text).unwrap();
+    let frames = (secs * fps) as usize;
+    let truth_drift: Vec<f64> = (0..frames)
+        .map(|i| drift_px * i as f64 / fps / secs)
+        .collect();
+    // Per 0.25 s segment: the tone's amplitude, from a fit of
+    // [sin, cos, 1, t, t²] (the polynomial takes the drift).
+    let seg = (0.25 * fps) as usize;
+    let analyse = |interval: &str| {
+        let o = run_in(
+            dir,
+            &[
+                "run",
+                "drift.toml",
+                "--quiet",
+                "--set",
+                &format!("phase.reference_interval_s={interval}"),
+            ],
+        );
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        let (_, est) = read_wav(&dir.join("drift-out.wav"));
+        assert_eq!(est.len(), frames);
+        let est: Vec<f64> = est.iter().map(|&v| v as f64).collect();
+        let amps: Vec<f64> = est
+            .chunks_exact(seg)
+            .enumerate()
+            .map(|(s, x)| {
+                let t = |i: usize| (s * seg + i) as f64 / fps;
+                let w = 2.0 * std::f64::consts::PI * f0;
+                let cols = vec![
+                    (0..seg).map(|i| (w * t(i)).sin()).collect(),
+                    (0..seg).map(|i| (w * t(i)).cos()).collect(),
+                    vec![1.0; seg],
+                    (0..seg).map(|i| i as f64 / seg as f64).collect(),
+                    (0..seg).map(|i| (i as f64 / seg as f64).powi(2)).collect(),
+                ];
+                let (c, _) = lstsq(&cols, x);
+                c[0].hypot(c[1])
+            })
+            .collect();
+        // How well a gain and an offset on the true drift explain the
+        // output once the tone is fitted out too.
+        let w = 2.0 * std::f64::consts::PI * f0;
+        let cols = vec![
+            truth_drift.clone(),
+            vec![1.0; frames],
+            (0..frames).map(|i| (w * i as f64 / fps).sin()).collect(),
+            (0..frames).map(|i| (w * i as f64 / fps).cos()).collect(),
+        ];
+        let (_, res) = lstsq(&cols, &est);
+        let mean = est.iter().sum::<f64>() / frames as f64;
+        let var: f64 = est.iter().map(|v| (v - mean) * (v - mean)).sum();
+        let r2 = 1.0 - res / var;
+        (amps, r2)
+    };
+    let (renewed, r2) = analyse("1.0");
+    let (fixed, r2_fixed) = analyse("0");
+    eprintln!(
+        "tone amplitude per 0.25 s, renewed every 1 s: {renewed:.4?} drift R² {r2:.5}\n\
+         first frame as the only reference: {fixed:.4?}, drift R² {r2_fixed:.5}"
+    );
+    // The tone keeps its amplitude within 10% in every segment, and the
+    // drift explains the rest of the output (R² > 0.999).
+    let holds = |amps: &[f64], r2: f64| -> Result<(), String> {
+        if let Some((i, a)) = amps
+            .iter()
+            .enumerate()
+            .find(|(_, a)| (*a / amps[0] - 1.0).abs() >= 0.1)
+        {
+            return Err(format!(
+                "segment {i}: tone amplitude {a} vs {} at the start",
+                amps[0]
+            ));
+        }
+        if r2 <= 0.999 {
+            return Err(format!("the output does not follow the drift: R² {r2}"));
+        }
+        Ok(())
+    };
+    holds(&renewed, r2).unwrap();
+    assert!(
+        holds(&fixed, r2_fixed).is_err(),
+        "without renewal the check should fail"
+    );
+}

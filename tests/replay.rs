@@ -194,7 +194,8 @@ fn live_pipeline_replays_unchanged_and_never_drops() {
 /// The visual microphone itself (issue 3): the phase stage spreads frames
 /// over workers, each computing a whole frame, so its output does not
 /// depend on the thread count; checked for both pyramids with 1, 2 and 3
-/// workers (3 leaves a short last batch).
+/// workers (3 leaves a short last batch), with the reference renewed every
+/// 31 ms so that renewals and their handovers fall inside batches.
 #[test]
 fn phase_stage_is_bit_identical_for_any_thread_count() {
     let dir = tempfile::tempdir().unwrap();
@@ -216,6 +217,11 @@ fn phase_stage_is_bit_identical_for_any_thread_count() {
                     &format!("phase.pyramid=\"{pyramid}\""),
                     "--set",
                     &format!("phase.threads={threads}"),
+                    // Renewals (with their handovers) across batches.
+                    "--set",
+                    "phase.reference_interval_s=0.031",
+                    "--set",
+                    "phase.reference_overlap=7",
                     "--quiet",
                 ],
             );

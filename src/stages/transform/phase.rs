@@ -15,13 +15,21 @@
 //! motions beyond half a wavelength)? In low-contrast pixels the phase is
 //! noise, increments wrap, and the sum becomes a random walk of ±2π steps
 //! that swamps sub-pixel signals even after A² weighting (measured: -12.7 dB
-//! instead of +20 dB on the synthetic scene). Large, slow drifts are left to
-//! a re-referencing scheme not built yet. The output carries one
-//! channel per band (scale-major: `scale * orientations + orientation`)
-//! at each frame's capture time. All bands are divided by one constant, the
-//! total A² of the first frame over all bands, which keeps their relative
-//! weights (Eq. 3.6 sums them unnormalised) and gives values of the order
-//! of radians of phase instead of millions.
+//! instead of +20 dB on the synthetic scene). Instead the reference is
+//! renewed every `reference_interval_s` (default 1 s): the frame due becomes
+//! the next reference (its A² the next weights), both references run side by
+//! side for `reference_overlap` frames, and the next one takes over with an
+//! offset per band, the mean difference of the two over the overlap, so the
+//! output continues. A drift then only has to stay under half a wavelength
+//! per interval, and the only random walk is one step per renewal, the
+//! overlap mean's error (a 1/√(overlap+1) fraction of one sample's noise).
+//!
+//! The output carries one channel per band (scale-major:
+//! `scale * orientations + orientation`) at each frame's capture time. All
+//! bands are divided by one constant, the reference's total A² over all
+//! bands, which keeps their relative weights (Eq. 3.6 sums them
+//! unnormalised) and gives values of the order of radians of phase instead
+//! of millions.
 
 use super::audio_out::Batcher;
 use super::roi::{Mask, Roi, RoiParam};
@@ -60,6 +68,20 @@ struct P {
     /// any value. A frame waits for at most `threads - 1` later frames.
     #[serde(default)]
     threads: usize,
+    /// Seconds between reference renewals (0 = the first frame stays the
+    /// reference); see the module docs.
+    #[serde(default = "d_interval")]
+    reference_interval_s: f64,
+    /// Frames over which the old and the next reference run side by side
+    /// to measure the offset that joins them.
+    #[serde(default = "d_overlap")]
+    reference_overlap: usize,
+}
+fn d_interval() -> f64 {
+    1.0
+}
+fn d_overlap() -> usize {
+    32
 }
 fn d_pyr() -> PyramidKind {
     PyramidKind::Csp
@@ -99,6 +121,18 @@ pub const KIND: KindSpec = KindSpec {
             Some(m) => Some((m.clone(), Mask::load(m).map_err(|e| p.error("mask", e))?)),
             None => None,
         };
+        if !(v.reference_interval_s.is_finite() && v.reference_interval_s >= 0.0) {
+            return Err(p.error(
+                "reference_interval_s",
+                format!("must be >= 0 (0 = never renew), got {}", v.reference_interval_s),
+            ));
+        }
+        if v.reference_overlap > 65536 {
+            return Err(p.error(
+                "reference_overlap",
+                format!("must be 0..=65536 frames, got {}", v.reference_overlap),
+            ));
+        }
         if v.threads > 256 {
             return Err(p.error("threads", format!("must be 0..=256, got {}", v.threads)));
         }
@@ -133,6 +167,10 @@ impl Plan for PhasePlan {
             roi: v.roi,
             mask,
             block: v.block,
+            renewal: Renewal {
+                interval_s: v.reference_interval_s,
+                overlap: v.reference_overlap,
+            },
             engine: None,
             pending: Vec::with_capacity(threads),
             batch: None,
@@ -178,10 +216,32 @@ struct BandState {
     y0: usize,
     y1: usize,
     width: usize,
-    /// A(t0)² over the band (Eq. 3.3 weights), set on the first frame.
-    weight: Vec<f32>,
+    /// Band pixels (width × height).
+    len: usize,
     /// Band pixels inside the mask, if there is one.
     inside: Option<Vec<bool>>,
+}
+
+/// A reference frame (Eq. 3.2) with its A² weights (Eq. 3.3).
+struct Reference<C> {
+    c: C,
+    /// A(t_ref)² per band, zero outside the mask.
+    weights: Vec<Vec<f32>>,
+    /// Σ A² over every band's region (output scale).
+    norm: f64,
+    t_ns: i64,
+    /// Added per band to this reference's normalised sums, so the output
+    /// continues across renewals.
+    offset: Vec<f64>,
+}
+
+/// The next reference while both run side by side.
+struct Handover<C> {
+    next: Reference<C>,
+    /// Overlap frames still to compute.
+    left: usize,
+    /// Frames summed into the engine's `acc`.
+    n: usize,
 }
 
 /// One worker's pyramid and buffers (nothing is allocated per frame).
@@ -189,23 +249,39 @@ struct Worker<A: Analyzer> {
     an: A,
     c: A::C,
     input: Vec<f32>,
-    /// Σ A(t0)² Δφ per band for the frame this worker last computed.
+    /// Σ A² Δφ per band against the reference, for this worker's frame.
     sums: Vec<f64>,
+    /// The same against the next reference, during a handover.
+    next_sums: Vec<f64>,
     result: Result<(), StageError>,
 }
 
 /// Per-band weighted phase sums, frames spread over workers.
 struct Engine<A: Analyzer> {
     workers: Vec<Worker<A>>,
-    /// The first frame's coefficients (Eq. 3.2 reference), once seen.
-    reference: Option<A::C>,
+    reference: Option<Reference<A::C>>,
+    handover: Option<Handover<A::C>>,
+    /// A retired reference, recycled for the next renewal.
+    spare: Option<Reference<A::C>>,
+    /// Renew the reference this long after the last one (None = never).
+    interval_ns: Option<i64>,
+    overlap: usize,
     bands: Vec<BandState>,
     scales: usize,
     orientations: usize,
-    /// Σ A² over every band's region in the first frame (output scale).
-    norm: f64,
+    /// The output values of one frame.
+    vals: Vec<f32>,
+    /// Σ (output - next reference's normalised sum) per band, during a handover.
+    acc: Vec<f64>,
     width: usize,
     height: usize,
+}
+
+/// How `phase` renews its reference.
+#[derive(Clone, Copy)]
+struct Renewal {
+    interval_s: f64,
+    overlap: usize,
 }
 
 /// The object-safe face of [`Engine`] (one per pyramid kind).
@@ -237,12 +313,12 @@ impl<A: Analyzer> Engine<A> {
     fn new(
         mut make: impl FnMut() -> Result<A, PyramidError>,
         workers: usize,
-        scales: usize,
-        orientations: usize,
-        roi: Roi,
-        mask: Option<&Mask>,
+        (scales, orientations): (usize, usize),
+        (roi, mask): (Roi, Option<&Mask>),
+        renewal: Renewal,
         (width, height): (usize, usize),
     ) -> Result<Self, StageError> {
+        let nb = scales * orientations;
         let mut ws = Vec::with_capacity(workers);
         for _ in 0..workers.max(1) {
             let an = make().map_err(err)?;
@@ -251,7 +327,8 @@ impl<A: Analyzer> Engine<A> {
                 an,
                 c,
                 input: vec![0.0; width * height],
-                sums: vec![0.0; scales * orientations],
+                sums: vec![0.0; nb],
+                next_sums: vec![0.0; nb],
                 result: Ok(()),
             });
         }
@@ -269,7 +346,7 @@ impl<A: Analyzer> Engine<A> {
             let y0 = to_band(roi.y, b.step_y, b.height);
             let y1 = to_band(roi.y + roi.h, b.step_y, b.height).max(y0);
             // Band pixels whose input position falls outside the mask get
-            // no weight (multiplied into A² on the first frame).
+            // no weight (multiplied into A² of each reference).
             let inside = mask.map(|m| {
                 (0..b.len())
                     .map(|i| {
@@ -286,85 +363,216 @@ impl<A: Analyzer> Engine<A> {
                 y0,
                 y1,
                 width: b.width,
-                weight: vec![0.0; b.len()],
+                len: b.len(),
                 inside,
             });
         }
+        let interval_ns = (renewal.interval_s > 0.0).then(|| (renewal.interval_s * 1e9) as i64);
         Ok(Self {
             workers: ws,
             reference: None,
+            handover: None,
+            spare: None,
+            interval_ns,
+            overlap: renewal.overlap,
             bands,
             scales,
             orientations,
-            norm: 0.0,
+            vals: vec![0.0; nb],
+            acc: vec![0.0; nb],
             width,
             height,
         })
     }
 
-    /// The first frame becomes the reference: its A² are the weights.
-    fn set_reference(&mut self, f: &Frame) -> Result<(), StageError> {
-        let w0 = &mut self.workers[0];
-        to_f32(f, &mut w0.input);
-        w0.an.analyze(&w0.input, &mut w0.c).map_err(err)?;
-        let fresh = w0.an.alloc();
-        let reference = std::mem::replace(&mut w0.c, fresh);
+    /// Turns worker `w`'s last analysed frame into a reference (its
+    /// coefficients are swapped out, not copied; a spare is reused). `None`
+    /// when the frame has no contrast in the region.
+    fn make_reference(
+        &mut self,
+        w: usize,
+        t_ns: i64,
+    ) -> Result<Option<Reference<A::C>>, StageError> {
+        let nb = self.bands.len();
+        let mut r = match self.spare.take() {
+            Some(r) => r,
+            None => Reference {
+                c: self.workers[0].an.alloc(),
+                weights: self.bands.iter().map(|b| vec![0.0; b.len]).collect(),
+                norm: 0.0,
+                t_ns: 0,
+                offset: vec![0.0; nb],
+            },
+        };
+        std::mem::swap(&mut r.c, &mut self.workers[w].c);
         let mut total = 0.0f64;
-        for (i, b) in self.bands.iter_mut().enumerate() {
-            reference.amplitude_into(i, &mut b.weight).map_err(err)?;
-            b.weight.iter_mut().for_each(|a| *a = *a * *a);
+        for (i, (b, wt)) in self.bands.iter().zip(r.weights.iter_mut()).enumerate() {
+            r.c.amplitude_into(i, wt).map_err(err)?;
+            wt.iter_mut().for_each(|a| *a = *a * *a);
             if let Some(inside) = &b.inside {
-                for (w, &i) in b.weight.iter_mut().zip(inside) {
+                for (w, &i) in wt.iter_mut().zip(inside) {
                     if !i {
                         *w = 0.0;
                     }
                 }
             }
             for y in b.y0..b.y1 {
-                total += b.weight[y * b.width + b.x0..y * b.width + b.x1]
+                total += wt[y * b.width + b.x0..y * b.width + b.x1]
                     .iter()
                     .map(|&w| w as f64)
                     .sum::<f64>();
             }
         }
-        if total <= 0.0 {
-            return Err(StageError::msg(
-                "the region has no texture (zero local contrast in every band)",
-            ));
+        r.norm = total;
+        r.t_ns = t_ns;
+        r.offset.iter_mut().for_each(|o| *o = 0.0);
+        if total > 0.0 {
+            Ok(Some(r))
+        } else {
+            self.spare = Some(r);
+            Ok(None)
         }
-        self.norm = total;
-        self.reference = Some(reference);
+    }
+
+    /// The first frame becomes the reference.
+    fn set_reference(&mut self, f: &Frame) -> Result<(), StageError> {
+        let w0 = &mut self.workers[0];
+        to_f32(f, &mut w0.input);
+        w0.an.analyze(&w0.input, &mut w0.c).map_err(err)?;
+        let r = self.make_reference(0, f.meta().t_ns)?.ok_or_else(|| {
+            StageError::msg("the region has no texture (zero local contrast in every band)")
+        })?;
+        self.reference = Some(r);
+        Ok(())
+    }
+
+    /// Whether a frame at `t_ns` starts a renewal.
+    fn due(&self, t_ns: i64) -> bool {
+        match (&self.reference, self.interval_ns) {
+            (Some(r), Some(iv)) if self.handover.is_none() => t_ns.saturating_sub(r.t_ns) >= iv,
+            _ => false,
+        }
+    }
+
+    /// Ends a handover: the next reference takes over.
+    fn take_over(&mut self) {
+        if let Some(mut h) = self.handover.take() {
+            let n = h.n.max(1) as f64;
+            for (o, a) in h.next.offset.iter_mut().zip(&self.acc) {
+                *o = a / n;
+            }
+            self.spare = self.reference.replace(h.next);
+        }
+    }
+
+    /// Computes `batch` (one frame per worker; during a handover also
+    /// against the next reference) and emits it in order.
+    fn batch(
+        &mut self,
+        batch: &[Frame],
+        pool: Option<&rayon::ThreadPool>,
+        emit: &mut dyn FnMut(&Frame, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError> {
+        use rayon::prelude::*;
+        let Some(reference) = self.reference.as_ref() else {
+            return Ok(());
+        };
+        let next = self.handover.as_ref().map(|h| &h.next);
+        let (bands, scales, k) = (&self.bands[..], self.scales, self.orientations);
+        let workers = &mut self.workers[..batch.len()];
+        let job = |(w, f): (&mut Worker<A>, &Frame)| {
+            w.result = compute(w, f, (reference, next), bands, (scales, k));
+        };
+        match pool {
+            Some(pool) if batch.len() > 1 => {
+                pool.install(|| workers.par_iter_mut().zip(batch.par_iter()).for_each(job))
+            }
+            _ => workers.iter_mut().zip(batch.iter()).for_each(job),
+        }
+        for (w, f) in workers.iter_mut().zip(batch) {
+            std::mem::replace(&mut w.result, Ok(()))?;
+            for ((v, s), o) in self.vals.iter_mut().zip(&w.sums).zip(&reference.offset) {
+                *v = (o + s / reference.norm) as f32;
+            }
+            if let Some(h) = self.handover.as_mut() {
+                for ((a, v), s) in self.acc.iter_mut().zip(&self.vals).zip(&w.next_sums) {
+                    *a += *v as f64 - s / h.next.norm;
+                }
+                h.n += 1;
+                h.left = h.left.saturating_sub(1);
+            }
+            emit(f, &mut self.vals.iter().copied());
+        }
+        Ok(())
+    }
+
+    /// A renewal: `f` is computed against the current reference, emitted,
+    /// and becomes the next reference.
+    fn renew(
+        &mut self,
+        f: &Frame,
+        emit: &mut dyn FnMut(&Frame, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError> {
+        self.batch(std::slice::from_ref(f), None, emit)?;
+        let t_ns = f.meta().t_ns;
+        match self.make_reference(0, t_ns)? {
+            Some(next) => {
+                // On its own frame the next reference reads zero.
+                for (a, &v) in self.acc.iter_mut().zip(&self.vals) {
+                    *a = v as f64;
+                }
+                self.handover = Some(Handover {
+                    next,
+                    left: self.overlap,
+                    n: 1,
+                });
+                if self.overlap == 0 {
+                    self.take_over();
+                }
+            }
+            // No contrast to renew from: try again an interval later.
+            None => {
+                if let Some(r) = self.reference.as_mut() {
+                    r.t_ns = t_ns;
+                }
+            }
+        }
         Ok(())
     }
 }
 
-/// Eq. 3.2-3.4 for one frame: Σ A(t0)² (φ(t) - φ(t0)) per band.
+/// Eq. 3.2-3.4 for one frame: Σ A(t_ref)² (φ(t) - φ(t_ref)) per band,
+/// against the reference and, during a handover, the next one.
 fn compute<A: Analyzer>(
     w: &mut Worker<A>,
     f: &Frame,
-    reference: &A::C,
+    (reference, next): (&Reference<A::C>, Option<&Reference<A::C>>),
     bands: &[BandState],
-    scales: usize,
-    k: usize,
+    (scales, k): (usize, usize),
 ) -> Result<(), StageError> {
     to_f32(f, &mut w.input);
     w.an.analyze(&w.input, &mut w.c).map_err(err)?;
-    for s in 0..scales {
-        let bs = &bands[s * k..(s + 1) * k];
-        let mut weights: [&[f32]; MAX_ORIENT] = [&[]; MAX_ORIENT];
-        for (d, b) in weights.iter_mut().zip(bs) {
-            *d = &b.weight;
+    let refs = [
+        Some((reference, &mut w.sums)),
+        next.map(|n| (n, &mut w.next_sums)),
+    ];
+    for (r, sums) in refs.into_iter().flatten() {
+        for s in 0..scales {
+            let mut weights: [&[f32]; MAX_ORIENT] = [&[]; MAX_ORIENT];
+            for (d, wt) in weights.iter_mut().zip(&r.weights[s * k..(s + 1) * k]) {
+                *d = wt;
+            }
+            let b = &bands[s * k];
+            w.c.scale_phase_delta_sums(
+                &r.c,
+                s,
+                &weights[..k],
+                b.y0..b.y1,
+                b.x0..b.x1,
+                &mut sums[s * k..(s + 1) * k],
+            )
+            .map_err(err)?;
         }
-        let b = &bs[0];
-        w.c.scale_phase_delta_sums(
-            reference,
-            s,
-            &weights[..k],
-            b.y0..b.y1,
-            b.x0..b.x1,
-            &mut w.sums[s * k..(s + 1) * k],
-        )
-        .map_err(err)?;
     }
     Ok(())
 }
@@ -383,7 +591,6 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
         pool: Option<&rayon::ThreadPool>,
         emit: &mut dyn FnMut(&Frame, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError> {
-        use rayon::prelude::*;
         let mut rest = frames;
         if self.reference.is_none() {
             let Some((first, tail)) = frames.split_first() else {
@@ -393,25 +600,27 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
             emit(first, &mut std::iter::repeat_n(0.0, self.bands.len()));
             rest = tail;
         }
-        let Some(reference) = self.reference.as_ref() else {
-            return Ok(());
-        };
-        let (bands, scales, k, norm) = (&self.bands[..], self.scales, self.orientations, self.norm);
-        for batch in rest.chunks(self.workers.len()) {
-            let workers = &mut self.workers[..batch.len()];
-            let job = |(w, f): (&mut Worker<A>, &Frame)| {
-                w.result = compute(w, f, reference, bands, scales, k);
-            };
-            match pool {
-                Some(pool) if batch.len() > 1 => {
-                    pool.install(|| workers.par_iter_mut().zip(batch.par_iter()).for_each(job))
+        while let Some(first) = rest.first() {
+            if self.due(first.meta().t_ns) {
+                self.renew(first, emit)?;
+                rest = &rest[1..];
+                continue;
+            }
+            // A batch never spans a change of reference.
+            let mut n = rest.len().min(self.workers.len());
+            match &self.handover {
+                Some(h) => n = n.min(h.left.max(1)),
+                None => {
+                    if let Some(i) = rest[1..n].iter().position(|f| self.due(f.meta().t_ns)) {
+                        n = i + 1;
+                    }
                 }
-                _ => workers.iter_mut().zip(batch.iter()).for_each(job),
             }
-            for (w, f) in workers.iter_mut().zip(batch) {
-                std::mem::replace(&mut w.result, Ok(()))?;
-                emit(f, &mut w.sums.iter().map(|&s| (s / norm) as f32));
+            self.batch(&rest[..n], pool, emit)?;
+            if self.handover.as_ref().is_some_and(|h| h.left == 0) {
+                self.take_over();
             }
+            rest = &rest[n..];
         }
         Ok(())
     }
@@ -426,6 +635,7 @@ struct Phase {
     roi: Option<RoiParam>,
     mask: Option<(std::path::PathBuf, Mask)>,
     block: usize,
+    renewal: Renewal,
     engine: Option<Box<dyn FrameSignals>>,
     /// Frames waiting for a full batch (one per worker).
     pending: Vec<Frame>,
@@ -456,19 +666,17 @@ impl Phase {
                     Ok(p)
                 },
                 n,
-                s,
-                k,
-                roi,
-                mask.as_ref(),
+                (s, k),
+                (roi, mask.as_ref()),
+                self.renewal,
                 (w, h),
             )?),
             PyramidKind::Riesz => Box::new(Engine::new(
                 || RieszPyramid::new(w, h, s, k),
                 n,
-                s,
-                k,
-                roi,
-                mask.as_ref(),
+                (s, k),
+                (roi, mask.as_ref()),
+                self.renewal,
                 (w, h),
             )?),
         };
