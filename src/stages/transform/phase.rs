@@ -367,7 +367,7 @@ impl<A: Analyzer> Engine<A> {
                 inside,
             });
         }
-        let interval_ns = (renewal.interval_s > 0.0).then(|| (renewal.interval_s * 1e9) as i64);
+        let interval_ns = (renewal.interval_s > 0.0).then_some((renewal.interval_s * 1e9) as i64);
         Ok(Self {
             workers: ws,
             reference: None,
