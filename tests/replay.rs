@@ -283,3 +283,78 @@ fn phase_samples_keep_their_frame_times_across_a_gap() {
         );
     }
 }
+
+/// The pyramid as a stage of its own (issue 3, item 1): `pyramid -> phase`
+/// reads the coefficients `phase` would have computed itself, so the two
+/// graphs write the same bytes, for both pyramids, for any thread count,
+/// with reference renewals inside the run.
+#[test]
+fn pyramid_stage_then_phase_equals_phase() {
+    let dir = tempfile::tempdir().unwrap();
+    render_y4m(dir.path(), "scene.y4m", SCENE);
+    let split = "[[stage]]\nid = \"src\"\nkind = \"file\"\npath = \"scene.y4m\"\n\n\
+                 [[stage]]\nid = \"pyr\"\nkind = \"pyramid\"\ninput = \"src\"\n\n\
+                 [[stage]]\nid = \"phase\"\nkind = \"phase\"\ninput = \"pyr\"\nreference_interval_s = 0.031\nreference_overlap = 7\n\n\
+                 [[stage]]\nid = \"out\"\nkind = \"csv\"\ninput = \"phase\"\npath = \"split.csv\"\n";
+    let fused = "[[stage]]\nid = \"src\"\nkind = \"file\"\npath = \"scene.y4m\"\n\n\
+                 [[stage]]\nid = \"phase\"\nkind = \"phase\"\ninput = \"src\"\nreference_interval_s = 0.031\nreference_overlap = 7\n\n\
+                 [[stage]]\nid = \"out\"\nkind = \"csv\"\ninput = \"phase\"\npath = \"fused.csv\"\n";
+    std::fs::write(dir.path().join("split.toml"), split).unwrap();
+    std::fs::write(dir.path().join("fused.toml"), fused).unwrap();
+    for pyramid in ["csp", "riesz"] {
+        let kind = format!("=\"{pyramid}\"");
+        let o = run_in(
+            dir.path(),
+            &[
+                "run",
+                "fused.toml",
+                "--quiet",
+                "--set",
+                &format!("phase.pyramid{kind}"),
+            ],
+        );
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        let want = std::fs::read(dir.path().join("fused.csv")).unwrap();
+        assert!(want.len() > 10_000, "{pyramid}: fused output too short");
+        for (pt, ft) in [("1", "1"), ("3", "2"), ("2", "3")] {
+            let o = run_in(
+                dir.path(),
+                &[
+                    "run",
+                    "split.toml",
+                    "--quiet",
+                    "--set",
+                    &format!("pyr.pyramid{kind}"),
+                    "--set",
+                    &format!("pyr.threads={pt}"),
+                    "--set",
+                    &format!("phase.threads={ft}"),
+                ],
+            );
+            assert_eq!(code(&o), 0, "{}", stderr(&o));
+            let got = std::fs::read(dir.path().join("split.csv")).unwrap();
+            assert!(
+                got == want,
+                "{pyramid}: pyramid -> phase (threads {pt}/{ft}) differs from phase"
+            );
+        }
+    }
+}
+
+/// A pyramid edge into a stage that takes frames is refused at validation,
+/// naming the stage and both types.
+#[test]
+fn a_pyramid_edge_into_a_frame_stage_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "[[stage]]\nid = \"src\"\nkind = \"pattern\"\n\n\
+                [[stage]]\nid = \"pyr\"\nkind = \"pyramid\"\ninput = \"src\"\n\n\
+                [[stage]]\nid = \"m\"\nkind = \"mean\"\ninput = \"pyr\"\n";
+    std::fs::write(dir.path().join("bad.toml"), text).unwrap();
+    let o = run_in(dir.path(), &["run", "bad.toml"]);
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("stage `m`") && e.contains("gives pyramid") && e.contains("takes frames"),
+        "{e}"
+    );
+}

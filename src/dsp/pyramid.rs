@@ -199,6 +199,51 @@ pub trait PhaseBands {
     ) -> Result<(), PyramidError>;
 }
 
+/// Shared coefficients (an edge payload) read like their owner.
+impl<T: PhaseBands> PhaseBands for std::sync::Arc<T> {
+    fn num_bands(&self) -> usize {
+        (**self).num_bands()
+    }
+    fn band_info(&self, i: usize) -> Option<&BandInfo> {
+        (**self).band_info(i)
+    }
+    fn amplitude_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
+        (**self).amplitude_into(i, out)
+    }
+    fn phase_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
+        (**self).phase_into(i, out)
+    }
+    fn phase_delta_into(
+        &self,
+        reference: &Self,
+        i: usize,
+        out: &mut [f32],
+    ) -> Result<(), PyramidError> {
+        (**self).phase_delta_into(reference, i, out)
+    }
+    fn weighted_phase_delta_sum(
+        &self,
+        reference: &Self,
+        i: usize,
+        weights: &[f32],
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+    ) -> Result<f64, PyramidError> {
+        (**self).weighted_phase_delta_sum(reference, i, weights, rows, cols)
+    }
+    fn scale_phase_delta_sums(
+        &self,
+        reference: &Self,
+        scale: usize,
+        weights: &[&[f32]],
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+        out: &mut [f64],
+    ) -> Result<(), PyramidError> {
+        (**self).scale_phase_delta_sums(reference, scale, weights, rows, cols, out)
+    }
+}
+
 /// Checks a region against a band's shape and a weight buffer.
 pub(crate) fn check_region(
     info: &BandInfo,

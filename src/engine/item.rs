@@ -1,6 +1,8 @@
 //! Typed payloads that travel on edges.
 
 use super::frame::Frame;
+use crate::dsp::pyramid::{BandInfo, PhaseBands, PyramidCoeffs, PyramidError};
+use crate::dsp::riesz::RieszCoeffs;
 use std::fmt;
 use std::sync::Arc;
 
@@ -15,6 +17,8 @@ pub enum PortType {
     Audio,
     /// Power spectra.
     Spectrum,
+    /// One frame's pyramid coefficients (local amplitude and phase per band).
+    Pyramid,
 }
 
 impl fmt::Display for PortType {
@@ -24,6 +28,7 @@ impl fmt::Display for PortType {
             PortType::Samples => "samples",
             PortType::Audio => "audio",
             PortType::Spectrum => "spectrum",
+            PortType::Pyramid => "pyramid",
         })
     }
 }
@@ -67,6 +72,76 @@ pub struct Spectrum {
     pub power: Arc<[f32]>,
 }
 
+/// The coefficients of one frame's pyramid (thesis Eq. 3.1), shared, not
+/// copied, by the stages that read them.
+#[derive(Clone, Debug)]
+pub enum PyramidData {
+    /// Complex steerable pyramid: one complex band per scale and orientation.
+    Csp(Arc<PyramidCoeffs>),
+    /// Riesz pyramid: one quadrature triple per scale, projected on each
+    /// orientation.
+    Riesz(Arc<RieszCoeffs>),
+}
+
+impl PyramidData {
+    /// Number of (scale, orientation) bands, scale-major.
+    pub fn num_bands(&self) -> usize {
+        match self {
+            PyramidData::Csp(c) => c.num_bands(),
+            PyramidData::Riesz(c) => c.num_bands(),
+        }
+    }
+
+    /// Shape of band `i`.
+    pub fn band_info(&self, i: usize) -> Option<&BandInfo> {
+        match self {
+            PyramidData::Csp(c) => c.band_info(i),
+            PyramidData::Riesz(c) => c.band_info(i),
+        }
+    }
+
+    /// Local amplitude of band `i`, row-major.
+    pub fn amplitude_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
+        match self {
+            PyramidData::Csp(c) => c.amplitude_into(i, out),
+            PyramidData::Riesz(c) => c.amplitude_into(i, out),
+        }
+    }
+
+    /// Local phase of band `i`, radians, row-major.
+    pub fn phase_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
+        match self {
+            PyramidData::Csp(c) => c.phase_into(i, out),
+            PyramidData::Riesz(c) => c.phase_into(i, out),
+        }
+    }
+
+    /// (scales, orientations) of the layout.
+    pub fn layout(&self) -> (usize, usize) {
+        let n = self.num_bands();
+        let k = (0..n)
+            .filter(|&i| self.band_info(i).is_some_and(|b| b.scale == 0))
+            .count()
+            .max(1);
+        (n / k, k)
+    }
+}
+
+/// A frame's pyramid, with the frame's time and rate.
+#[derive(Clone, Debug)]
+pub struct PyramidFrame {
+    /// Capture time of the frame, ns on the source clock.
+    pub t_ns: i64,
+    /// The source's sequence number of the frame.
+    pub seq: u64,
+    /// Nominal frame rate in Hz.
+    pub fps: f64,
+    /// Size of the frame the pyramid was built from.
+    pub width: usize,
+    pub height: usize,
+    pub data: PyramidData,
+}
+
 /// What an edge carries.
 #[derive(Clone, Debug)]
 pub enum Item {
@@ -74,6 +149,7 @@ pub enum Item {
     Samples(SampleBlock),
     Audio(AudioBlock),
     Spectrum(Spectrum),
+    Pyramid(PyramidFrame),
 }
 
 impl Item {
@@ -83,6 +159,7 @@ impl Item {
             Item::Samples(_) => PortType::Samples,
             Item::Audio(_) => PortType::Audio,
             Item::Spectrum(_) => PortType::Spectrum,
+            Item::Pyramid(_) => PortType::Pyramid,
         }
     }
 
@@ -93,6 +170,7 @@ impl Item {
             Item::Samples(s) => s.t0_ns,
             Item::Audio(a) => a.t0_ns,
             Item::Spectrum(s) => s.t_ns,
+            Item::Pyramid(p) => p.t_ns,
         }
     }
 }

@@ -17,7 +17,7 @@ pub use frame::{
     Frame, FrameFormat, FrameMeta, FrameMut, FramePool, PixelsMut, PixelsRef, RowTiming,
 };
 pub use graph::{BuildCtx, Graph, KindSpec, Output, Plan};
-pub use item::{AudioBlock, Item, PortType, SampleBlock, Spectrum};
+pub use item::{AudioBlock, Item, PortType, PyramidData, PyramidFrame, SampleBlock, Spectrum};
 pub use latency::{LatencyHist, LatencySummary};
 pub use runner::{error_chain, run, RunError, RunOptions, RunReport, StageReport};
 pub use stage::{Control, EmitError, Emitter, Node, Source, SourceCtx, Stage, StageError};

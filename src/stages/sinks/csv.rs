@@ -87,7 +87,7 @@ impl Csv {
                     writeln!(o, "{t:.9},{},{p}", s.f0_hz + k as f64 * s.resolution_hz)?;
                 }
             }
-            Item::Frame(_) => {}
+            Item::Frame(_) | Item::Pyramid(_) => {}
         }
         Ok(())
     }

@@ -15,6 +15,7 @@ pub const KIND: KindSpec = KindSpec {
         PortType::Samples,
         PortType::Audio,
         PortType::Spectrum,
+        PortType::Pyramid,
     ],
     max_inputs: 16,
     output: Output::None,

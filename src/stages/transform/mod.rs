@@ -8,6 +8,7 @@ pub mod highpass;
 pub mod mean;
 pub mod passthrough;
 pub mod phase;
+pub mod pyramid;
 pub mod reduce;
 pub mod roi;
 pub mod rows;

@@ -21,6 +21,7 @@ pub const KIND: KindSpec = KindSpec {
         PortType::Samples,
         PortType::Audio,
         PortType::Spectrum,
+        PortType::Pyramid,
     ],
     max_inputs: 1,
     output: Output::SameAsInput,

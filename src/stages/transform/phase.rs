@@ -32,19 +32,16 @@
 //! of millions.
 
 use super::audio_out::Batcher;
+use super::pyramid::{
+    d_orient, d_pyr, d_scales, pyramid_err as err, resolve_threads, Analyzer, Carried, OnFrames,
+    PyramidKind, PyramidSpec,
+};
 use super::roi::{Mask, Roi, RoiParam};
 use crate::dsp::kernels::MAX_ORIENT;
-use crate::dsp::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError};
-use crate::dsp::riesz::{RieszCoeffs, RieszPyramid};
+use crate::dsp::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidError};
+use crate::dsp::riesz::RieszPyramid;
 use crate::engine::*;
 use serde::Deserialize;
-
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
-#[serde(rename_all = "lowercase")]
-pub enum PyramidKind {
-    Csp,
-    Riesz,
-}
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -83,15 +80,6 @@ fn d_interval() -> f64 {
 fn d_overlap() -> usize {
     32
 }
-fn d_pyr() -> PyramidKind {
-    PyramidKind::Csp
-}
-fn d_scales() -> usize {
-    4
-}
-fn d_orient() -> usize {
-    2
-}
 fn d_block() -> usize {
     64
 }
@@ -99,17 +87,17 @@ fn d_block() -> usize {
 pub const KIND: KindSpec = KindSpec {
     name: "phase",
     summary: "pyramid (csp or riesz) local phase, A²-weighted and summed per band (Eq. 3.1-3.4) -> one channel per band",
-    accepts: &[PortType::Frames],
+    accepts: &[PortType::Frames, PortType::Pyramid],
     max_inputs: 1,
     output: Output::Fixed(PortType::Samples),
     plan: |p| {
         let v: P = p.parse()?;
-        if !(1..=8).contains(&v.scales) {
-            return Err(p.error("scales", format!("must be 1..=8, got {}", v.scales)));
+        PyramidSpec {
+            kind: v.pyramid,
+            scales: v.scales,
+            orientations: v.orientations,
         }
-        if !(1..=8).contains(&v.orientations) {
-            return Err(p.error("orientations", format!("must be 1..=8, got {}", v.orientations)));
-        }
+        .check(p)?;
         if !(1..=65536).contains(&v.block) {
             return Err(p.error("block", format!("must be 1..=65536, got {}", v.block)));
         }
@@ -145,15 +133,6 @@ struct PhasePlan {
     mask: Option<(std::path::PathBuf, Mask)>,
 }
 
-fn resolve_threads(n: usize) -> usize {
-    match n {
-        0 => std::thread::available_parallelism()
-            .map_or(1, |n| n.get())
-            .min(8),
-        n => n,
-    }
-}
-
 impl Plan for PhasePlan {
     fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
         let PhasePlan { p: v, mask } = *self;
@@ -179,33 +158,6 @@ impl Plan for PhasePlan {
 
     fn frames_held(&self) -> usize {
         resolve_threads(self.p.threads)
-    }
-}
-
-/// A pyramid that turns a frame into per-band coefficients.
-trait Analyzer: Send {
-    type C: PhaseBands + Send + Sync;
-    fn alloc(&self) -> Self::C;
-    fn analyze(&mut self, x: &[f32], c: &mut Self::C) -> Result<(), PyramidError>;
-}
-
-impl Analyzer for ComplexSteerablePyramid {
-    type C = PyramidCoeffs;
-    fn alloc(&self) -> PyramidCoeffs {
-        self.alloc_coeffs()
-    }
-    fn analyze(&mut self, x: &[f32], c: &mut PyramidCoeffs) -> Result<(), PyramidError> {
-        ComplexSteerablePyramid::analyze(self, x, c)
-    }
-}
-
-impl Analyzer for RieszPyramid {
-    type C = RieszCoeffs;
-    fn alloc(&self) -> RieszCoeffs {
-        self.alloc_coeffs()
-    }
-    fn analyze(&mut self, x: &[f32], c: &mut RieszCoeffs) -> Result<(), PyramidError> {
-        RieszPyramid::analyze(self, x, c)
     }
 }
 
@@ -292,21 +244,10 @@ trait FrameSignals: Send {
     /// normalised band signals.
     fn run(
         &mut self,
-        frames: &[Frame],
+        frames: &[Item],
         pool: Option<&rayon::ThreadPool>,
-        emit: &mut dyn FnMut(&Frame, &mut dyn Iterator<Item = f32>),
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError>;
-}
-
-fn err(e: PyramidError) -> StageError {
-    StageError::msg(format!("pyramid: {e}"))
-}
-
-fn to_f32(f: &Frame, dst: &mut [f32]) {
-    match f.pixels() {
-        PixelsRef::U8(p) => dst.iter_mut().zip(p).for_each(|(d, &s)| *d = s as f32),
-        PixelsRef::U16(p) => dst.iter_mut().zip(p).for_each(|(d, &s)| *d = s as f32),
-    }
 }
 
 impl<A: Analyzer> Engine<A> {
@@ -435,11 +376,10 @@ impl<A: Analyzer> Engine<A> {
     }
 
     /// The first frame becomes the reference.
-    fn set_reference(&mut self, f: &Frame) -> Result<(), StageError> {
+    fn set_reference(&mut self, f: &Item) -> Result<(), StageError> {
         let w0 = &mut self.workers[0];
-        to_f32(f, &mut w0.input);
-        w0.an.analyze(&w0.input, &mut w0.c).map_err(err)?;
-        let r = self.make_reference(0, f.meta().t_ns)?.ok_or_else(|| {
+        w0.an.analyze(f, &mut w0.input, &mut w0.c)?;
+        let r = self.make_reference(0, f.t_ns())?.ok_or_else(|| {
             StageError::msg("the region has no texture (zero local contrast in every band)")
         })?;
         self.reference = Some(r);
@@ -469,9 +409,9 @@ impl<A: Analyzer> Engine<A> {
     /// against the next reference) and emits it in order.
     fn batch(
         &mut self,
-        batch: &[Frame],
+        batch: &[Item],
         pool: Option<&rayon::ThreadPool>,
-        emit: &mut dyn FnMut(&Frame, &mut dyn Iterator<Item = f32>),
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError> {
         use rayon::prelude::*;
         let Some(reference) = self.reference.as_ref() else {
@@ -480,7 +420,7 @@ impl<A: Analyzer> Engine<A> {
         let next = self.handover.as_ref().map(|h| &h.next);
         let (bands, scales, k) = (&self.bands[..], self.scales, self.orientations);
         let workers = &mut self.workers[..batch.len()];
-        let job = |(w, f): (&mut Worker<A>, &Frame)| {
+        let job = |(w, f): (&mut Worker<A>, &Item)| {
             w.result = compute(w, f, (reference, next), bands, (scales, k));
         };
         match pool {
@@ -510,11 +450,11 @@ impl<A: Analyzer> Engine<A> {
     /// and becomes the next reference.
     fn renew(
         &mut self,
-        f: &Frame,
-        emit: &mut dyn FnMut(&Frame, &mut dyn Iterator<Item = f32>),
+        f: &Item,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError> {
         self.batch(std::slice::from_ref(f), None, emit)?;
-        let t_ns = f.meta().t_ns;
+        let t_ns = f.t_ns();
         match self.make_reference(0, t_ns)? {
             Some(next) => {
                 // On its own frame the next reference reads zero.
@@ -545,13 +485,12 @@ impl<A: Analyzer> Engine<A> {
 /// against the reference and, during a handover, the next one.
 fn compute<A: Analyzer>(
     w: &mut Worker<A>,
-    f: &Frame,
+    f: &Item,
     (reference, next): (&Reference<A::C>, Option<&Reference<A::C>>),
     bands: &[BandState],
     (scales, k): (usize, usize),
 ) -> Result<(), StageError> {
-    to_f32(f, &mut w.input);
-    w.an.analyze(&w.input, &mut w.c).map_err(err)?;
+    w.an.analyze(f, &mut w.input, &mut w.c)?;
     let refs = [
         Some((reference, &mut w.sums)),
         next.map(|n| (n, &mut w.next_sums)),
@@ -587,9 +526,9 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
 
     fn run(
         &mut self,
-        frames: &[Frame],
+        frames: &[Item],
         pool: Option<&rayon::ThreadPool>,
-        emit: &mut dyn FnMut(&Frame, &mut dyn Iterator<Item = f32>),
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError> {
         let mut rest = frames;
         if self.reference.is_none() {
@@ -601,7 +540,7 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
             rest = tail;
         }
         while let Some(first) = rest.first() {
-            if self.due(first.meta().t_ns) {
+            if self.due(first.t_ns()) {
                 self.renew(first, emit)?;
                 rest = &rest[1..];
                 continue;
@@ -611,7 +550,7 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
             match &self.handover {
                 Some(h) => n = n.min(h.left.max(1)),
                 None => {
-                    if let Some(i) = rest[1..n].iter().position(|f| self.due(f.meta().t_ns)) {
+                    if let Some(i) = rest[1..n].iter().position(|f| self.due(f.t_ns())) {
                         n = i + 1;
                     }
                 }
@@ -637,15 +576,33 @@ struct Phase {
     block: usize,
     renewal: Renewal,
     engine: Option<Box<dyn FrameSignals>>,
-    /// Frames waiting for a full batch (one per worker).
-    pending: Vec<Frame>,
+    /// Frames (or their pyramids) waiting for a full batch (one per worker).
+    pending: Vec<Item>,
     /// Band signals into sample blocks (set up with the engine).
     batch: Option<Batcher>,
 }
 
+/// Size of the frame behind an item (frames or pyramid coefficients).
+fn item_size(item: &Item) -> Option<(usize, usize)> {
+    match item {
+        Item::Frame(f) => Some((f.width(), f.height())),
+        Item::Pyramid(p) => Some((p.width, p.height)),
+        _ => None,
+    }
+}
+
+/// Nominal frame rate of an item's frame.
+fn item_fps(item: &Item) -> f64 {
+    match item {
+        Item::Frame(f) => f.format().fps,
+        Item::Pyramid(p) => p.fps,
+        _ => 0.0,
+    }
+}
+
 impl Phase {
-    fn init(&mut self, f: &Frame) -> Result<(), StageError> {
-        let (w, h) = (f.width(), f.height());
+    fn init(&mut self, f: &Item) -> Result<(), StageError> {
+        let (w, h) = item_size(f).ok_or_else(|| StageError::msg("expected frames or a pyramid"))?;
         let mut roi = Roi::resolve(self.roi.as_ref(), w, h)?;
         let mask = match self.mask.take() {
             Some((path, m)) => {
@@ -657,28 +614,56 @@ impl Phase {
             }
             None => None,
         };
-        let (s, k, n) = (self.scales, self.orientations, self.threads);
-        let engine: Box<dyn FrameSignals> = match self.kind {
-            PyramidKind::Csp => Box::new(Engine::new(
-                || {
-                    let mut p = ComplexSteerablePyramid::new(w, h, s, k)?;
-                    p.set_residuals(false);
-                    Ok(p)
-                },
-                n,
-                (s, k),
-                (roi, mask.as_ref()),
-                self.renewal,
-                (w, h),
-            )?),
-            PyramidKind::Riesz => Box::new(Engine::new(
-                || RieszPyramid::new(w, h, s, k),
-                n,
-                (s, k),
-                (roi, mask.as_ref()),
-                self.renewal,
-                (w, h),
-            )?),
+        let n = self.threads;
+        let region = (roi, mask.as_ref());
+        let engine: Box<dyn FrameSignals> = match f {
+            // An upstream `pyramid` stage decides the pyramid and its layout.
+            Item::Pyramid(p) => {
+                let sk = p.data.layout();
+                match &p.data {
+                    PyramidData::Csp(c) => Box::new(Engine::new(
+                        || Ok(Carried { first: c.clone() }),
+                        n,
+                        sk,
+                        region,
+                        self.renewal,
+                        (w, h),
+                    )?),
+                    PyramidData::Riesz(c) => Box::new(Engine::new(
+                        || Ok(Carried { first: c.clone() }),
+                        n,
+                        sk,
+                        region,
+                        self.renewal,
+                        (w, h),
+                    )?),
+                }
+            }
+            _ => {
+                let (s, k) = (self.scales, self.orientations);
+                match self.kind {
+                    PyramidKind::Csp => Box::new(Engine::new(
+                        || {
+                            let mut p = ComplexSteerablePyramid::new(w, h, s, k)?;
+                            p.set_residuals(false);
+                            Ok(OnFrames(p))
+                        },
+                        n,
+                        (s, k),
+                        region,
+                        self.renewal,
+                        (w, h),
+                    )?),
+                    PyramidKind::Riesz => Box::new(Engine::new(
+                        || Ok(OnFrames(RieszPyramid::new(w, h, s, k)?)),
+                        n,
+                        (s, k),
+                        region,
+                        self.renewal,
+                        (w, h),
+                    )?),
+                }
+            }
         };
         self.batch = Some(Batcher::samples(self.block, engine.bands()));
         self.engine = Some(engine);
@@ -691,7 +676,7 @@ impl Phase {
             return Ok(());
         };
         let r = engine.run(&self.pending, self.pool.as_ref(), &mut |f, vals| {
-            batch.push(f.meta().t_ns, f.format().fps, vals, out)
+            batch.push(f.t_ns(), item_fps(f), vals, out)
         });
         self.pending.clear();
         r
@@ -700,18 +685,15 @@ impl Phase {
 
 impl Stage for Phase {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
-        let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
-        };
         if self.engine.is_none() {
-            self.init(&f)?;
+            self.init(&item)?;
         }
         if let Some(e) = &self.engine {
-            if (f.width(), f.height()) != e.size() {
+            if item_size(&item) != Some(e.size()) {
                 return Err(StageError::msg("the frame size changed mid-stream"));
             }
         }
-        self.pending.push(f);
+        self.pending.push(item);
         if self.pending.len() >= self.threads {
             self.run_pending(out)?;
         }
