@@ -182,3 +182,112 @@ fn scene_errors_name_the_file_line_and_field() {
     assert_eq!(code(&o), 2);
     assert!(stderr(&o).contains("missing.toml"));
 }
+
+/// Writes an 8-bit gray PGM.
+fn write_pgm(path: &Path, w: usize, h: usize, px: impl Fn(usize, usize) -> u8) {
+    let mut b = format!("P5\n{w} {h}\n255\n").into_bytes();
+    for y in 0..h {
+        for x in 0..w {
+            b.push(px(x, y));
+        }
+    }
+    std::fs::write(path, b).unwrap();
+}
+
+/// A picture as the object's texture and a silhouette (issue 6, item 1):
+/// the rendered object shows the picture (low-passed by the texture's
+/// Gaussian), sub-pixel shifts of it stay exact against the continuous
+/// model, the silhouette's outside shows the background and its inside the
+/// object, and bad files are named.
+#[test]
+fn a_picture_texture_and_a_silhouette() {
+    use vibroscope::stages::sources::synthetic::SyntheticParams;
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    // Smooth stripes and a ramp: 64x64, the object's size.
+    let pic = |x: usize, y: usize| {
+        let v = 128.0
+            + 60.0 * (x as f64 * std::f64::consts::TAU / 16.0).sin()
+            + 40.0 * (y as f64 / 63.0 - 0.5);
+        v.round() as u8
+    };
+    write_pgm(&dir.join("pic.pgm"), 64, 64, pic);
+    // The silhouette: a disc of radius 24 in the 128x128 frame.
+    let inside = |x: usize, y: usize| {
+        let (dx, dy) = (x as f64 - 63.5, y as f64 - 63.5);
+        dx * dx + dy * dy <= 24.0 * 24.0
+    };
+    write_pgm(&dir.join("disc.pgm"), 128, 128, |x, y| {
+        if inside(x, y) {
+            255
+        } else {
+            0
+        }
+    });
+    let text = format!(
+        "width = 128\nheight = 128\nobject = [32, 32, 64, 64]\nnoise_std = 0.0\namplitude_px = 1.0\n\
+         texture = \"{}\"\nobject_mask = \"{}\"\n",
+        dir.join("pic.pgm").display(),
+        dir.join("disc.pgm").display()
+    );
+    let p: SyntheticParams = toml::from_str(&text).unwrap();
+    let mut scene = p.scene().unwrap();
+    let mut frame = vec![0.0f32; 128 * 128];
+    for d_px in [0.0, 0.37, -0.81] {
+        scene.render_clean_displaced(d_px, &mut frame);
+        let mut worst = 0.0f64;
+        for y in 0..128 {
+            for x in 0..128 {
+                let got = frame[y * 128 + x] as f64;
+                let want = if inside(x, y) {
+                    scene.object_value(x as f64, y as f64, d_px)
+                } else {
+                    scene.background_value(x as u32, y as u32)
+                };
+                worst = worst.max((got - want).abs());
+            }
+        }
+        eprintln!("shift {d_px} px: worst error against the continuous model {worst:.2e} DN");
+        assert!(worst < 1e-3, "shift {d_px}: {worst}");
+    }
+    // At rest the disc shows the picture: correlation of the object pixels
+    // with the stripes (the Gaussian keeps 73% of their amplitude).
+    scene.render_clean_displaced(0.0, &mut frame);
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for y in 32..96 {
+        for x in 32..96 {
+            if inside(x, y) {
+                a.push(frame[y * 128 + x] as f64);
+                b.push(pic(x - 32, y - 32) as f64);
+            }
+        }
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (ma, mb) = (mean(&a), mean(&b));
+    let cov: f64 = a.iter().zip(&b).map(|(x, y)| (x - ma) * (y - mb)).sum();
+    let va: f64 = a.iter().map(|x| (x - ma) * (x - ma)).sum();
+    let vb: f64 = b.iter().map(|y| (y - mb) * (y - mb)).sum();
+    let r = cov / (va * vb).sqrt();
+    eprintln!("correlation of the rendered object with the picture: {r:.4}");
+    assert!(r > 0.98, "{r}");
+    // Bad files: named, exit 2.
+    for (extra, needles) in [
+        ("texture = \"nope.png\"\n", &["texture", "nope.png"][..]),
+        (
+            "object_mask = \"pic.pgm\"\n",
+            &["object_mask", "64x64", "128x128"][..],
+        ),
+    ] {
+        std::fs::write(
+            dir.join("s.toml"),
+            format!("width = 128\nheight = 128\nduration_s = 0.01\n{extra}"),
+        )
+        .unwrap();
+        let o = run_in(dir, &["simulate", "s.toml", "-o", "s.y4m"]);
+        let err = stderr(&o);
+        assert_eq!(code(&o), 2, "{err}");
+        for n in needles {
+            assert!(err.contains(n), "`{n}` not in: {err}");
+        }
+    }
+}

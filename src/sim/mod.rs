@@ -28,7 +28,7 @@ pub mod scene;
 pub mod signal;
 pub mod texture;
 
-pub use scene::{Depth, Dest, EdgeMode, Scene, SceneSpec};
+pub use scene::{Depth, Dest, EdgeMode, Look, Scene, SceneSpec};
 pub use signal::{Resonance, Signal, SignalSpec};
 
 use std::path::PathBuf;

@@ -311,6 +311,23 @@ impl Span {
     }
 }
 
+/// What the object looks like, beyond the procedural default.
+#[derive(Clone, Debug, Default)]
+pub struct Look {
+    /// A picture for the object's texture: `(pixels, width, height)`, gray,
+    /// row-major. It is low-passed by the object texture's Gaussian
+    /// (σ = [`OBJECT_SIGMA_PX`]) so sub-pixel shifts stay exact, mirrored
+    /// beyond its edges, and scaled to the spec's `contrast`. Size it to the
+    /// object's rectangle to see it whole.
+    pub texture: Option<(Vec<f64>, usize, usize)>,
+    /// The object's silhouette: per frame pixel (`width × height`,
+    /// row-major), the fraction in [0, 1] that belongs to the object. Within
+    /// the object's rectangle, a pixel shows `m·object + (1 - m)·background`;
+    /// the silhouette stays put (like the rectangle's outline in
+    /// [`EdgeMode::Fixed`]) while the texture moves behind it.
+    pub mask: Option<Vec<f32>>,
+}
+
 /// Everything fixed after construction.
 struct Model {
     spec: SceneSpec,
@@ -336,6 +353,8 @@ struct Model {
     gw: usize,
     /// Background in DN, `w x h`.
     bg: Vec<f32>,
+    /// Object coverage per frame pixel (see [`Look::mask`]).
+    mask: Option<Vec<f32>>,
     interp: Interp,
     zig: Ziggurat,
     noise_key: u64,
@@ -374,6 +393,11 @@ fn mean_std(values: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
 impl Scene {
     /// Validates `spec` and precomputes the textures.
     pub fn new(spec: SceneSpec, signal: Signal) -> Result<Scene, SimError> {
+        Self::with_look(spec, signal, Look::default())
+    }
+
+    /// [`Scene::new`] with a picture for the texture and/or a silhouette.
+    pub fn with_look(spec: SceneSpec, signal: Signal, look: Look) -> Result<Scene, SimError> {
         spec.validate()?;
         let (w, h) = (spec.width as usize, spec.height as usize);
         let [ox, oy, ow, oh] = spec.object.map(|v| v as usize);
@@ -384,7 +408,22 @@ impl Scene {
         let amp_max = spec.amplitude_px.abs() * signal.peak_bound().max(1.0);
 
         // Object texture on its padded lattice, normalised over the object.
-        let tex = Texture::new(hash2(spec.seed, 1), OBJECT_SIGMA_PX);
+        let tex = match &look.texture {
+            Some((pixels, tw, th)) => Texture::from_image(pixels, *tw, *th, OBJECT_SIGMA_PX)
+                .ok_or_else(|| SimError::Invalid {
+                    field: "texture".into(),
+                    msg: format!("the picture ({tw}x{th}) is empty or has no contrast"),
+                })?,
+            None => Texture::new(hash2(spec.seed, 1), OBJECT_SIGMA_PX),
+        };
+        if let Some(m) = &look.mask {
+            if m.len() != w * h {
+                return Err(SimError::Invalid {
+                    field: "object_mask".into(),
+                    msg: format!("has {} pixels, the frame {w}x{h}", m.len()),
+                });
+            }
+        }
         let pad = PAD + amp_max.ceil() as usize + 1;
         let (gw, gh) = (ow + 2 * pad, oh + 2 * pad);
         let raw = tex.sample_grid(-(pad as i64), -(pad as i64), gw, gh);
@@ -451,6 +490,9 @@ impl Scene {
             grid,
             gw,
             bg,
+            mask: look
+                .mask
+                .map(|m| m.iter().map(|v| v.clamp(0.0, 1.0)).collect()),
             interp: Interp::new(OBJECT_SIGMA_PX),
             zig: Ziggurat::new(),
         };
@@ -846,7 +888,13 @@ impl Model {
             let ty = self.interp.taps_f32_reversed(sy.frac);
             vcombine(&ty, &s.hbuf[r * n..(r + TAPS) * n], obj);
         }
-        self.blend(sx, sy.coverage(y), &s.obj[..n], &s.covx[..n], &mut s.line);
+        self.blend(
+            sx,
+            (y, sy.coverage(y)),
+            &s.obj[..n],
+            &s.covx[..n],
+            &mut s.line,
+        );
     }
 
     fn rolling_row(&self, d: f64, s: &mut Scratch, y: usize) {
@@ -871,13 +919,29 @@ impl Model {
         if self.edges == EdgeMode::Moving {
             self.fill_covx(&sx, &mut s.covx[..n]);
         }
-        self.blend(&sx, sy.coverage(y), &s.obj[..n], &s.covx[..n], &mut s.line);
+        self.blend(
+            &sx,
+            (y, sy.coverage(y)),
+            &s.obj[..n],
+            &s.covx[..n],
+            &mut s.line,
+        );
     }
 
-    /// Writes the object's values over the background in `line`.
-    fn blend(&self, sx: &Span, cy: f32, obj: &[f32], covx: &[f32], line: &mut [f32]) {
+    /// Writes the object's values over the background in `line` (row `y`,
+    /// vertical coverage `cy`).
+    fn blend(&self, sx: &Span, (y, cy): (usize, f32), obj: &[f32], covx: &[f32], line: &mut [f32]) {
         let mean = self.obj_mean;
         let dst = &mut line[sx.p0..sx.p1];
+        if let Some(mask) = &self.mask {
+            let m = &mask[y * self.w + sx.p0..y * self.w + sx.p1];
+            let fixed = self.edges == EdgeMode::Fixed;
+            for (((d, &o), &cx), &mk) in dst.iter_mut().zip(obj).zip(covx).zip(m) {
+                let c = if fixed { mk } else { cx * cy * mk };
+                *d += c * (mean + o - *d);
+            }
+            return;
+        }
         match self.edges {
             EdgeMode::Fixed => {
                 for (d, &o) in dst.iter_mut().zip(obj) {

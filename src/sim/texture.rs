@@ -39,10 +39,32 @@ pub const TAP_MIN: i64 = -(TAPS as i64 / 2 - 1);
 pub const PAD: usize = TAPS / 2;
 const _: () = assert!(PAD as i64 == TAPS as i64 - 1 + TAP_MIN);
 
-/// A seeded continuous texture.
+/// Where a texture's lattice weights come from.
+#[derive(Clone, Debug)]
+enum Weights {
+    /// Hashed from `(seed, n, m)`: white noise.
+    Hash(u64),
+    /// A picture's pixels, standardised to zero mean and unit variance,
+    /// mirrored beyond its edges (`n = -1` reads column 0, `n = w` reads
+    /// column `w - 1`).
+    Image {
+        data: std::sync::Arc<[f64]>,
+        width: usize,
+        height: usize,
+    },
+}
+
+/// Reflects `n` into `0..len` (half-sample symmetric, period `2·len`).
+fn mirror(n: i64, len: usize) -> usize {
+    let l = len as i64;
+    let i = n.rem_euclid(2 * l);
+    (if i >= l { 2 * l - 1 - i } else { i }) as usize
+}
+
+/// A seeded continuous texture, or a picture made continuous the same way.
 #[derive(Clone, Debug)]
 pub struct Texture {
-    seed: u64,
+    weights: Weights,
     sigma: f64,
     radius: i64,
     /// g(k) for integer k in -radius..=radius.
@@ -61,11 +83,36 @@ impl Texture {
             .map(|k| Self::g_sigma(sigma, k as f64))
             .collect();
         Self {
-            seed,
+            weights: Weights::Hash(seed),
             sigma,
             radius,
             kernel,
         }
+    }
+
+    /// A picture (`width × height` gray values, row-major) as a texture:
+    /// its pixels become the lattice weights, so the continuous field is the
+    /// picture low-passed by the same Gaussian as a random texture, and
+    /// sub-pixel shifts stay as exact. `None` for an empty or flat picture.
+    pub fn from_image(pixels: &[f64], width: usize, height: usize, sigma: f64) -> Option<Self> {
+        if width == 0 || height == 0 || pixels.len() != width * height {
+            return None;
+        }
+        let n = pixels.len() as f64;
+        let mean = pixels.iter().sum::<f64>() / n;
+        let var = pixels.iter().map(|p| (p - mean) * (p - mean)).sum::<f64>() / n;
+        if !(var.is_finite() && var > 0.0) {
+            return None;
+        }
+        let inv = 1.0 / var.sqrt();
+        let data: std::sync::Arc<[f64]> = pixels.iter().map(|p| (p - mean) * inv).collect();
+        let mut t = Self::new(0, sigma);
+        t.weights = Weights::Image {
+            data,
+            width,
+            height,
+        };
+        Some(t)
     }
 
     pub fn sigma(&self) -> f64 {
@@ -76,17 +123,23 @@ impl Texture {
         detmath::exp(-(r * r) / (2.0 * sigma * sigma))
     }
 
-    /// Unit-variance uniform lattice weight at (n, m).
+    /// Unit-variance lattice weight at (n, m).
     fn weight(&self, n: i64, m: i64) -> f64 {
-        let h = mix64(
-            mix64(
-                self.seed
-                    .wrapping_add((n as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)),
-            )
-            .wrapping_add((m as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)),
-        );
-        const SQRT12: f64 = 3.464_101_615_137_754_6;
-        (unit_f64(h) - 0.5) * SQRT12
+        match &self.weights {
+            Weights::Hash(seed) => {
+                let h = mix64(
+                    mix64(seed.wrapping_add((n as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15)))
+                        .wrapping_add((m as u64).wrapping_mul(0xc2b2_ae3d_27d4_eb4f)),
+                );
+                const SQRT12: f64 = 3.464_101_615_137_754_6;
+                (unit_f64(h) - 0.5) * SQRT12
+            }
+            Weights::Image {
+                data,
+                width,
+                height,
+            } => data[mirror(m, *height) * width + mirror(n, *width)],
+        }
     }
 
     /// Expected variance of `raw` (for normalising tiny patches).

@@ -69,6 +69,13 @@ pub struct SyntheticParams {
     /// Captured frames the camera delivers twice (identical copies).
     #[serde(default)]
     pub duplicate_frames: Vec<u64>,
+    /// A picture (PGM or PNG) for the object's texture instead of the
+    /// procedural one, resized to the object's rectangle.
+    pub texture: Option<std::path::PathBuf>,
+    /// The object's silhouette (PGM or PNG, the frame's size): a pixel's
+    /// gray level over the brightest pixel's is the fraction of it that
+    /// belongs to the object (0 = background).
+    pub object_mask: Option<std::path::PathBuf>,
 }
 
 /// A narrowband motion added to the object's.
@@ -131,6 +138,8 @@ impl Default for SyntheticParams {
             clock_error_ppm: 0.0,
             drop_frames: Vec::new(),
             duplicate_frames: Vec::new(),
+            texture: None,
+            object_mask: None,
         }
     }
 }
@@ -207,10 +216,23 @@ impl SyntheticParams {
             contrast: self.contrast.unwrap_or(0.15 * full),
             seed: self.seed,
         };
-        Scene::new(spec, signal).map_err(|e| e.to_string())
+        let look = sim::Look {
+            texture: match &self.texture {
+                Some(p) => Some(texture_picture(p, object[2], object[3])?),
+                None => None,
+            },
+            mask: match &self.object_mask {
+                Some(p) => Some(silhouette(p, w, h)?),
+                None => None,
+            },
+        };
+        Scene::with_look(spec, signal, look).map_err(|e| e.to_string())
     }
 
     /// Checks every field; the message names the field.
+    ///
+    /// (`texture` and `object_mask` are read by [`SyntheticParams::scene`],
+    /// which `check` calls last.)
     pub fn check(&self) -> Result<(), (&'static str, String)> {
         check_fps(self.fps).map_err(|m| ("fps", m))?;
         if !(self.duration_s.is_finite() && self.duration_s >= 0.0) {
@@ -258,7 +280,11 @@ impl SyntheticParams {
             ));
         }
         self.scene().map(|_| ()).map_err(|m| {
-            let field = if m.contains("resonances") {
+            let field = if m.starts_with("texture") {
+                "texture"
+            } else if m.starts_with("object_mask") {
+                "object_mask"
+            } else if m.contains("resonances") {
                 "resonances"
             } else if m.contains("interference") {
                 "interference"
@@ -440,4 +466,49 @@ impl Source for Synthetic {
     fn is_live(&self) -> bool {
         self.pacer.is_some()
     }
+}
+
+/// A picture for the object's texture, resized to `w × h` (Catmull-Rom).
+fn texture_picture(
+    path: &std::path::Path,
+    w: u32,
+    h: u32,
+) -> Result<(Vec<f64>, usize, usize), String> {
+    let img =
+        crate::stages::transform::roi::read_gray16(path).map_err(|m| format!("texture: {m}"))?;
+    let img = if img.dimensions() == (w, h) {
+        img
+    } else {
+        image::imageops::resize(&img, w, h, image::imageops::FilterType::CatmullRom)
+    };
+    let px: Vec<f64> = img.pixels().map(|p| p.0[0] as f64).collect();
+    let flat = px.iter().all(|&v| v == px[0]);
+    if flat {
+        return Err(format!(
+            "texture: {}: the picture is flat (no contrast)",
+            path.display()
+        ));
+    }
+    Ok((px, w as usize, h as usize))
+}
+
+/// The object's silhouette, one coverage in [0, 1] per frame pixel.
+fn silhouette(path: &std::path::Path, w: u32, h: u32) -> Result<Vec<f32>, String> {
+    let img = crate::stages::transform::roi::read_gray16(path)
+        .map_err(|m| format!("object_mask: {m}"))?;
+    if img.dimensions() != (w, h) {
+        let (iw, ih) = img.dimensions();
+        return Err(format!(
+            "object_mask: {} is {iw}x{ih}, the frame {w}x{h}",
+            path.display()
+        ));
+    }
+    let max = img.pixels().map(|p| p.0[0]).max().unwrap_or(0);
+    if max == 0 {
+        return Err(format!(
+            "object_mask: {}: the mask is empty (no pixel > 0)",
+            path.display()
+        ));
+    }
+    Ok(img.pixels().map(|p| p.0[0] as f32 / max as f32).collect())
 }
