@@ -33,8 +33,8 @@
 
 use super::audio_out::Batcher;
 use super::pyramid::{
-    d_orient, d_pyr, d_scales, pyramid_err as err, resolve_threads, Analyzer, Carried, OnFrames,
-    PyramidKind, PyramidSpec,
+    d_orient, d_pyr, d_scales, pyramid_err as err, resolve_threads, spread, Analyzer, Carried,
+    OnFrames, PyramidKind, PyramidSpec,
 };
 use super::roi::{Mask, Roi, RoiParam};
 use crate::dsp::kernels::MAX_ORIENT;
@@ -413,22 +413,15 @@ impl<A: Analyzer> Engine<A> {
         pool: Option<&rayon::ThreadPool>,
         emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError> {
-        use rayon::prelude::*;
         let Some(reference) = self.reference.as_ref() else {
             return Ok(());
         };
         let next = self.handover.as_ref().map(|h| &h.next);
         let (bands, scales, k) = (&self.bands[..], self.scales, self.orientations);
         let workers = &mut self.workers[..batch.len()];
-        let job = |(w, f): (&mut Worker<A>, &Item)| {
+        spread(pool, workers, batch, |w: &mut Worker<A>, f: &Item| {
             w.result = compute(w, f, (reference, next), bands, (scales, k));
-        };
-        match pool {
-            Some(pool) if batch.len() > 1 => {
-                pool.install(|| workers.par_iter_mut().zip(batch.par_iter()).for_each(job))
-            }
-            _ => workers.iter_mut().zip(batch.iter()).for_each(job),
-        }
+        });
         for (w, f) in workers.iter_mut().zip(batch) {
             std::mem::replace(&mut w.result, Ok(()))?;
             for ((v, s), o) in self.vals.iter_mut().zip(&w.sums).zip(&reference.offset) {

@@ -284,6 +284,26 @@ impl Plan for PyramidPlan {
     }
 }
 
+/// Runs `job` on each (worker, item) pair of a batch: on the pool when
+/// there are several, in order on this thread otherwise.
+pub(super) fn spread<W: Send, T: Sync>(
+    pool: Option<&rayon::ThreadPool>,
+    workers: &mut [W],
+    batch: &[T],
+    job: impl Fn(&mut W, &T) + Send + Sync,
+) {
+    use rayon::prelude::*;
+    match pool {
+        Some(pool) if batch.len() > 1 => pool.install(|| {
+            workers
+                .par_iter_mut()
+                .zip(batch.par_iter())
+                .for_each(|(w, t)| job(w, t))
+        }),
+        _ => workers.iter_mut().zip(batch).for_each(|(w, t)| job(w, t)),
+    }
+}
+
 /// Shared buffers that come back into use once nobody else holds them.
 struct Recycler<T> {
     items: Vec<Arc<T>>,
@@ -361,14 +381,13 @@ impl<A: FramePyramid> Analyse for Workers<A> {
         pool: Option<&rayon::ThreadPool>,
         out: &mut Emitter,
     ) -> Result<(), StageError> {
-        use rayon::prelude::*;
         for batch in frames.chunks(self.workers.len()) {
             let workers = &mut self.workers[..batch.len()];
             for w in workers.iter_mut() {
                 let an = &w.an;
                 w.out = Some(self.recycler.take(|| an.alloc_coeffs()));
             }
-            let job = |(w, f): (&mut Worker<A>, &Frame)| {
+            let job = |w: &mut Worker<A>, f: &Frame| {
                 w.result = match w.out.as_mut().and_then(Arc::get_mut) {
                     Some(c) => {
                         to_f32(f, &mut w.input);
@@ -377,12 +396,7 @@ impl<A: FramePyramid> Analyse for Workers<A> {
                     None => Err(StageError::msg("pyramid buffer still shared")),
                 };
             };
-            match pool {
-                Some(pool) if batch.len() > 1 => {
-                    pool.install(|| workers.par_iter_mut().zip(batch.par_iter()).for_each(job))
-                }
-                _ => workers.iter_mut().zip(batch.iter()).for_each(job),
-            }
+            spread(pool, workers, batch, job);
             for (w, f) in workers.iter_mut().zip(batch) {
                 std::mem::replace(&mut w.result, Ok(()))?;
                 let Some(c) = w.out.take() else {
