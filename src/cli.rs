@@ -13,6 +13,8 @@ use std::process::ExitCode;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
+mod modes;
+
 #[derive(Parser)]
 #[command(
     name = "vibroscope",
@@ -207,6 +209,13 @@ enum Command {
         vibroscope spectrum ../shared/data/guitar.mp4 --fps 600 --json guitar.json\n  \
         vibroscope spectrum beam.y4m --json beam.json --peaks 3 --roi 0,0,64,64")]
     Spectrum(SpectrumArgs),
+    /// Modal image of a video at one frequency (thesis ch. 3.5, Eq.
+    /// 3.18-3.19): the A²-weighted, blurred and normalised motion spectrum
+    /// slice, phase as hue and amplitude as brightness; optionally the
+    /// complex image as .npy.
+    #[command(after_help = "Example:\n  \
+        vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --npy e2.npy")]
+    Modes(modes::ModesArgs),
     /// Render the built-in synthetic scene, recover its motion, write a WAV
     /// and print the SNR against the known signal.
     Demo {
@@ -370,6 +379,7 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
         }
         Command::RsCalibrate(a) => rs_calibrate(&a),
         Command::Spectrum(a) => spectrum_cmd(&a),
+        Command::Modes(a) => modes::modes_cmd(&a),
         Command::Score {
             reference,
             test,

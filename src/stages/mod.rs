@@ -31,6 +31,7 @@ pub static REGISTRY: &[KindSpec] = &[
     sinks::csv::KIND,
     sinks::json::KIND,
     sinks::peaks::KIND,
+    sinks::modes::KIND,
     sinks::y4m::KIND,
     sinks::null::KIND,
 ];

@@ -1,5 +1,6 @@
 pub mod csv;
 pub mod json;
+pub mod modes;
 pub mod null;
 pub mod peaks;
 pub mod speaker;
