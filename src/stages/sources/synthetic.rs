@@ -69,6 +69,10 @@ pub struct SyntheticParams {
     /// Captured frames the camera delivers twice (identical copies).
     #[serde(default)]
     pub duplicate_frames: Vec<u64>,
+    /// The object as a vibrating cantilever beam, column by column, instead
+    /// of a rigid motion (`{ modes = [{ freq_hz, amplitude_px, shape, ... }] }`,
+    /// see [`crate::sim::modal`]); global shutter only.
+    pub modal: Option<sim::ModalSpec>,
 }
 
 /// A narrowband motion added to the object's.
@@ -131,6 +135,7 @@ impl Default for SyntheticParams {
             clock_error_ppm: 0.0,
             drop_frames: Vec::new(),
             duplicate_frames: Vec::new(),
+            modal: None,
         }
     }
 }
@@ -207,7 +212,11 @@ impl SyntheticParams {
             contrast: self.contrast.unwrap_or(0.15 * full),
             seed: self.seed,
         };
-        Scene::new(spec, signal).map_err(|e| e.to_string())
+        match &self.modal {
+            Some(m) => Scene::with_modal(spec, signal, m),
+            None => Scene::new(spec, signal),
+        }
+        .map_err(|e| e.to_string())
     }
 
     /// Checks every field; the message names the field.
@@ -257,8 +266,16 @@ impl SyntheticParams {
                 "at most 1048576 dropped and duplicated frames".into(),
             ));
         }
+        if self.modal.is_some() && self.row_timing().is_some() {
+            return Err((
+                "modal",
+                "needs a global shutter (no line_delay_us or exposure_us)".into(),
+            ));
+        }
         self.scene().map(|_| ()).map_err(|m| {
-            let field = if m.contains("resonances") {
+            let field = if m.contains("modal") {
+                "modal"
+            } else if m.contains("resonances") {
                 "resonances"
             } else if m.contains("interference") {
                 "interference"
