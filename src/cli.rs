@@ -14,6 +14,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
 mod modes;
+mod plots;
 
 #[derive(Parser)]
 #[command(
@@ -1386,6 +1387,15 @@ struct SpectrumArgs {
     /// Pyramid: complex steerable (quality) or Riesz (speed).
     #[arg(long, value_enum, default_value = "csp")]
     pyramid: PyramidArg,
+    /// Also plot the spectrum (dB, peaks marked) to this PNG.
+    #[arg(long, value_name = "OUT.png")]
+    png: Option<PathBuf>,
+    /// Also plot sliding spectra over time (a spectrogram) to this PNG.
+    #[arg(long, value_name = "OUT.png")]
+    spectrogram: Option<PathBuf>,
+    /// The spectrogram's window in frames (hop: an eighth of it).
+    #[arg(long, value_name = "FRAMES", default_value_t = 256)]
+    spectrogram_window: usize,
     /// Print the per-stage summary at exit.
     #[arg(long)]
     stats: bool,
@@ -1464,6 +1474,15 @@ fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl> {
             o("--include-spectrum"),
         );
     }
+    let plots = plots::PlotArgs {
+        png: a.png.as_deref(),
+        spectrogram: a.spectrogram.as_deref(),
+        window: a.spectrogram_window,
+        peaks: a.peaks,
+        min_hz: a.min_hz,
+        max_hz: a.max_hz,
+    };
+    plots::add_plots(&mut decl, &plots)?;
     Ok(decl)
 }
 
@@ -1471,7 +1490,12 @@ fn spectrum_cmd(a: &SpectrumArgs) -> anyhow::Result<ExitCode> {
     let decl = spectrum_pipeline(a)?;
     let (code, _) = run_decl(&decl, a.stats, false)?;
     if code == ExitCode::SUCCESS {
-        eprintln!("wrote {}", a.json.display());
+        for p in [Some(&a.json), a.png.as_ref(), a.spectrogram.as_ref()]
+            .into_iter()
+            .flatten()
+        {
+            eprintln!("wrote {}", p.display());
+        }
     }
     Ok(code)
 }

@@ -2,3 +2,4 @@
 
 pub mod modal;
 pub mod peaks;
+pub mod plot;

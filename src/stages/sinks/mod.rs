@@ -4,6 +4,7 @@ pub mod modes;
 pub mod null;
 pub mod peaks;
 pub mod speaker;
+pub mod spectrum_png;
 pub mod wav;
 pub mod y4m;
 

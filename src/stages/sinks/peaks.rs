@@ -42,7 +42,7 @@ fn d_taper() -> String {
     "hann".into()
 }
 
-fn taper_of(name: &str) -> Option<Option<Taper>> {
+pub(crate) fn taper_of(name: &str) -> Option<Option<Taper>> {
     Some(match name {
         "hann" => Some(Taper::Hann),
         "hamming" => Some(Taper::Hamming),
