@@ -101,25 +101,13 @@ pub fn power_plot(
     let hi = db.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max);
     let (lo, hi) = (lo - 3.0, hi + 6.0);
     let (xa, xb) = (db[0].0, db[db.len() - 1].0);
-    let mut buf = vec![255u8; (width * height * 3) as usize];
-    let area;
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption("motion power spectrum", ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(56)
-            .build_cartesian_2d(xa..xb, lo..hi)
-            .map_err(draw_err)?;
-        chart
-            .configure_mesh()
-            .x_desc("frequency (Hz)")
-            .y_desc("power (dB)")
-            .label_style(("sans-serif", 13))
-            .draw()
-            .map_err(draw_err)?;
+    let axes = Axes {
+        caption: "motion power spectrum",
+        x_desc: "frequency (Hz)",
+        y_desc: "power (dB)",
+        mesh: true,
+    };
+    draw(size, &axes, (xa..xb, lo..hi), |chart| {
         chart
             .draw_series(LineSeries::new(db.iter().copied(), BLUE.stroke_width(1)))
             .map_err(draw_err)?;
@@ -135,12 +123,64 @@ pub fn power_plot(
                     + Text::new(format!("{f:.1} Hz"), (6, -16), ("sans-serif", 13))
             }))
             .map_err(draw_err)?;
+        Ok(())
+    })
+}
+
+/// Titles of a plot.
+struct Axes {
+    caption: &'static str,
+    x_desc: &'static str,
+    y_desc: &'static str,
+    mesh: bool,
+}
+
+type Chart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// A white `size` canvas with titled axes over `ranges`; `series` draws
+/// the data. Returns the image and where its plotting area is.
+fn draw(
+    size: (u32, u32),
+    axes: &Axes,
+    ranges: (std::ops::Range<f64>, std::ops::Range<f64>),
+    series: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), String>,
+) -> Result<(Rgb, PlotArea), String> {
+    let (width, height) = size;
+    let mut buf = vec![255u8; (width * height * 3) as usize];
+    let area;
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let (xr, yr) = ranges;
+        let x_range = (xr.start, xr.end);
+        let y_range = (yr.start, yr.end);
+        let mut chart = ChartBuilder::on(&root)
+            .caption(axes.caption, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(56)
+            .build_cartesian_2d(xr, yr)
+            .map_err(draw_err)?;
+        let mut mesh = chart.configure_mesh();
+        if !axes.mesh {
+            mesh.disable_mesh();
+        }
+        mesh.x_desc(axes.x_desc)
+            .y_desc(axes.y_desc)
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(draw_err)?;
+        series(&mut chart)?;
         let (x_px, y_px) = chart.plotting_area().get_pixel_range();
         area = PlotArea {
             x_px: (x_px.start, x_px.end),
             y_px: (y_px.start, y_px.end),
-            x_range: (xa, xb),
-            y_range: (lo, hi),
+            x_range,
+            y_range,
         };
         root.present().map_err(draw_err)?;
     }
@@ -205,26 +245,13 @@ pub fn spectrogram_plot(
         spectra[spectra.len() - 1].t_s + dt / 2.0,
     );
     let (fa, fb) = (f0 + (k0 as f64 - 0.5) * df, f0 + (k1 as f64 + 0.5) * df);
-    let mut buf = vec![255u8; (width * height * 3) as usize];
-    let area;
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption("spectrogram", ("sans-serif", 18))
-            .margin(12)
-            .x_label_area_size(40)
-            .y_label_area_size(56)
-            .build_cartesian_2d(ta..tb, fa..fb)
-            .map_err(draw_err)?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .x_desc("time (s)")
-            .y_desc("frequency (Hz)")
-            .label_style(("sans-serif", 13))
-            .draw()
-            .map_err(draw_err)?;
+    let axes = Axes {
+        caption: "spectrogram",
+        x_desc: "time (s)",
+        y_desc: "frequency (Hz)",
+        mesh: false,
+    };
+    draw(size, &axes, (ta..tb, fa..fb), |chart| {
         let cells = spectra.iter().flat_map(|s| {
             (k0..=k1).map(move |k| {
                 let v = ((db(s.power[k]) - top) / SPECTROGRAM_RANGE_DB + 1.0).clamp(0.0, 1.0);
@@ -239,23 +266,8 @@ pub fn spectrogram_plot(
             })
         });
         chart.draw_series(cells).map_err(draw_err)?;
-        let (x_px, y_px) = chart.plotting_area().get_pixel_range();
-        area = PlotArea {
-            x_px: (x_px.start, x_px.end),
-            y_px: (y_px.start, y_px.end),
-            x_range: (ta, tb),
-            y_range: (fa, fb),
-        };
-        root.present().map_err(draw_err)?;
-    }
-    Ok((
-        Rgb {
-            width,
-            height,
-            pixels: buf,
-        },
-        area,
-    ))
+        Ok(())
+    })
 }
 
 /// Black → purple → orange → light yellow, monotone in brightness.

@@ -87,27 +87,7 @@ pub const KIND: KindSpec = KindSpec {
                 ));
             }
         }
-        for (name, f) in [("min_hz", v.min_hz), ("max_hz", v.max_hz)] {
-            if let Some(f) = f {
-                if !(f.is_finite() && f >= 0.0) {
-                    return Err(p.error(name, format!("must be >= 0 Hz, got {f}")));
-                }
-            }
-        }
-        if let (Some(a), Some(b)) = (v.min_hz, v.max_hz) {
-            if a >= b {
-                return Err(p.error("max_hz", format!("must exceed min_hz ({a}), got {b}")));
-            }
-        }
-        if super::peaks::taper_of(&v.taper).is_none() {
-            return Err(p.error(
-                "taper",
-                format!(
-                    "must be hann, hamming, blackman, rect or none, got `{}`",
-                    v.taper
-                ),
-            ));
-        }
+        super::peaks::check_band_taper(p, v.min_hz, v.max_hz, &v.taper)?;
         Ok(Box::new(PlotPlan(v)))
     },
 };
