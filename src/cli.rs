@@ -13,6 +13,9 @@ use std::process::ExitCode;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
+mod modes;
+mod plots;
+
 #[derive(Parser)]
 #[command(
     name = "vibroscope",
@@ -207,6 +210,13 @@ enum Command {
         vibroscope spectrum ../shared/data/guitar.mp4 --fps 600 --json guitar.json\n  \
         vibroscope spectrum beam.y4m --json beam.json --peaks 3 --roi 0,0,64,64")]
     Spectrum(SpectrumArgs),
+    /// Modal image of a video at one frequency (thesis ch. 3.5, Eq.
+    /// 3.18-3.19): the A²-weighted, blurred and normalised motion spectrum
+    /// slice, phase as hue and amplitude as brightness; optionally the
+    /// complex image as .npy.
+    #[command(after_help = "Example:\n  \
+        vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --npy e2.npy")]
+    Modes(modes::ModesArgs),
     /// Render the built-in synthetic scene, recover its motion, write a WAV
     /// and print the SNR against the known signal.
     Demo {
@@ -370,6 +380,7 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
         }
         Command::RsCalibrate(a) => rs_calibrate(&a),
         Command::Spectrum(a) => spectrum_cmd(&a),
+        Command::Modes(a) => modes::modes_cmd(&a),
         Command::Score {
             reference,
             test,
@@ -1376,6 +1387,15 @@ struct SpectrumArgs {
     /// Pyramid: complex steerable (quality) or Riesz (speed).
     #[arg(long, value_enum, default_value = "csp")]
     pyramid: PyramidArg,
+    /// Also plot the spectrum (dB, peaks marked) to this PNG.
+    #[arg(long, value_name = "OUT.png")]
+    png: Option<PathBuf>,
+    /// Also plot sliding spectra over time (a spectrogram) to this PNG.
+    #[arg(long, value_name = "OUT.png")]
+    spectrogram: Option<PathBuf>,
+    /// The spectrogram's window in frames (hop: an eighth of it).
+    #[arg(long, value_name = "FRAMES", default_value_t = 256)]
+    spectrogram_window: usize,
     /// Print the per-stage summary at exit.
     #[arg(long)]
     stats: bool,
@@ -1454,6 +1474,15 @@ fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl> {
             o("--include-spectrum"),
         );
     }
+    let plots = plots::PlotArgs {
+        png: a.png.as_deref(),
+        spectrogram: a.spectrogram.as_deref(),
+        window: a.spectrogram_window,
+        peaks: a.peaks,
+        min_hz: a.min_hz,
+        max_hz: a.max_hz,
+    };
+    plots::add_plots(&mut decl, &plots)?;
     Ok(decl)
 }
 
@@ -1461,7 +1490,12 @@ fn spectrum_cmd(a: &SpectrumArgs) -> anyhow::Result<ExitCode> {
     let decl = spectrum_pipeline(a)?;
     let (code, _) = run_decl(&decl, a.stats, false)?;
     if code == ExitCode::SUCCESS {
-        eprintln!("wrote {}", a.json.display());
+        for p in [Some(&a.json), a.png.as_ref(), a.spectrogram.as_ref()]
+            .into_iter()
+            .flatten()
+        {
+            eprintln!("wrote {}", p.display());
+        }
     }
     Ok(code)
 }

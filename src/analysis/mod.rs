@@ -1,3 +1,5 @@
 //! Analysis of measured signals and spectra: resonances and damping.
 
+pub mod modal;
 pub mod peaks;
+pub mod plot;

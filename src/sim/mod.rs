@@ -23,11 +23,13 @@
 //! ~75 Mpix/s for a diagonal rolling-shutter frame with exposure averaging.
 
 pub mod detmath;
+pub mod modal;
 pub mod rng;
 pub mod scene;
 pub mod signal;
 pub mod texture;
 
+pub use modal::{ModalBeam, ModalSpec};
 pub use scene::{Depth, Dest, EdgeMode, Look, Scene, SceneSpec};
 pub use signal::{Resonance, Signal, SignalSpec};
 

@@ -277,6 +277,8 @@ impl Out<'_> {
 enum Timing {
     /// One displacement (px) for the whole frame.
     Global(f64),
+    /// A modal beam's column-wise displacement at this time ([`super::modal`]).
+    Modal(f64),
     Rolling {
         t_s: f64,
         line_delay_s: f64,
@@ -358,6 +360,7 @@ struct Model {
     interp: Interp,
     zig: Ziggurat,
     noise_key: u64,
+    modal: Option<super::ModalBeam>,
 }
 
 /// Per-frame working memory, allocated once.
@@ -368,6 +371,8 @@ struct Scratch {
     covx: Vec<f32>,
     line: Vec<f32>,
     noise: Vec<f32>,
+    /// The modal beam's object, `ow x oh` (empty without one).
+    modal_obj: Vec<f32>,
 }
 
 /// The forward model: see the module docs.
@@ -393,11 +398,32 @@ fn mean_std(values: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
 impl Scene {
     /// Validates `spec` and precomputes the textures.
     pub fn new(spec: SceneSpec, signal: Signal) -> Result<Scene, SimError> {
-        Self::with_look(spec, signal, Look::default())
+        Self::build(spec, signal, None, Look::default())
     }
 
     /// [`Scene::new`] with a picture for the texture and/or a silhouette.
     pub fn with_look(spec: SceneSpec, signal: Signal, look: Look) -> Result<Scene, SimError> {
+        Self::build(spec, signal, None, look)
+    }
+
+    /// A scene whose object vibrates as a modal beam instead of moving
+    /// rigidly (see [`super::modal`]; global shutter only).
+    pub fn with_modal(
+        spec: SceneSpec,
+        signal: Signal,
+        modal: &super::ModalSpec,
+        look: Look,
+    ) -> Result<Scene, SimError> {
+        let beam = super::ModalBeam::new(modal, spec.object[2] as usize, spec.seed)?;
+        Self::build(spec, signal, Some(beam), look)
+    }
+
+    fn build(
+        spec: SceneSpec,
+        signal: Signal,
+        modal: Option<super::ModalBeam>,
+        look: Look,
+    ) -> Result<Scene, SimError> {
         spec.validate()?;
         let (w, h) = (spec.width as usize, spec.height as usize);
         let [ox, oy, ow, oh] = spec.object.map(|v| v as usize);
@@ -405,7 +431,8 @@ impl Scene {
         let (sin, cos) = detmath::sin_cos_turns(spec.direction_deg / 360.0);
         // Room for the largest excursion (a resonance or interference can
         // exceed the unit-peak signal).
-        let amp_max = spec.amplitude_px.abs() * signal.peak_bound().max(1.0);
+        let amp_max = (spec.amplitude_px.abs() * signal.peak_bound().max(1.0))
+            .max(modal.as_ref().map_or(0.0, |b| b.peak_bound()));
 
         // Object texture on its padded lattice, normalised over the object.
         let tex = match &look.texture {
@@ -467,6 +494,7 @@ impl Scene {
             covx: vec![1.0; ncols],
             line: vec![0.0; w],
             noise: vec![0.0; w],
+            modal_obj: vec![0.0; if modal.is_some() { ow * oh } else { 0 }],
         };
         let m = Model {
             noise_key: hash2(spec.seed, 3),
@@ -495,6 +523,7 @@ impl Scene {
                 .map(|m| m.iter().map(|v| v.clamp(0.0, 1.0)).collect()),
             interp: Interp::new(OBJECT_SIGMA_PX),
             zig: Ziggurat::new(),
+            modal,
         };
         Ok(Scene { m, s })
     }
@@ -595,8 +624,8 @@ impl Scene {
     /// `(seed, index)`. A `dst` of the other depth gets values clamped to its
     /// own range too; a short `dst` gets its whole rows only.
     pub fn render(&mut self, index: u64, t_s: f64, dst: Dest<'_>) {
-        let d = self.displacement_px(t_s);
-        self.run(Some(index), Timing::Global(d), dest_out(dst));
+        let timing = self.timing(t_s);
+        self.run(Some(index), timing, dest_out(dst));
     }
 
     /// Rolling shutter (thesis Eq. 4.4): row `y` shows the displacement
@@ -625,8 +654,20 @@ impl Scene {
 
     /// The noise-free, unquantised frame (DN) at `t_s`, global shutter.
     pub fn render_clean(&mut self, t_s: f64, dst: &mut [f32]) {
-        let d = self.displacement_px(t_s);
-        self.run(None, Timing::Global(d), Out::F32(dst));
+        let timing = self.timing(t_s);
+        self.run(None, timing, Out::F32(dst));
+    }
+
+    /// The modal beam, if the object is one.
+    pub fn modal(&self) -> Option<&super::ModalBeam> {
+        self.m.modal.as_ref()
+    }
+
+    fn timing(&self, t_s: f64) -> Timing {
+        match self.m.modal {
+            Some(_) => Timing::Modal(t_s),
+            None => Timing::Global(self.displacement_px(t_s)),
+        }
     }
 
     /// The noise-free, unquantised frame (DN) for displacement `d_px`.
@@ -661,6 +702,10 @@ impl Scene {
         };
         let global = match timing {
             Timing::Global(d) => m.prepare_global(d, s),
+            Timing::Modal(t) => {
+                m.prepare_modal(t, &mut s.modal_obj);
+                None
+            }
             Timing::Rolling { .. } => None,
         };
         for y in 0..rows {
@@ -671,6 +716,7 @@ impl Scene {
                         m.global_row(sx, sy, s, y);
                     }
                 }
+                Timing::Modal(_) => m.modal_row(&s.modal_obj, y, &mut s.line),
                 Timing::Rolling {
                     t_s,
                     line_delay_s,
@@ -755,6 +801,42 @@ fn vcombine(taps: &[f32; TAPS], rows: &[f32], out: &mut [f32]) {
 }
 
 impl Model {
+    /// Renders the modal beam's object for time `t` into `obj`.
+    fn prepare_modal(&mut self, t: f64, obj: &mut [f32]) {
+        let lat = super::modal::Lattice {
+            grid: &self.grid,
+            gw: self.gw,
+            pad: self.pad,
+            interp: &self.interp,
+            amp_max: self.amp_max,
+        };
+        if let Some(b) = self.modal.as_mut() {
+            b.render(t, &lat, self.oh, obj);
+        }
+    }
+
+    /// Row `y` of the modal beam's object over the background (fixed outline).
+    fn modal_row(&self, obj: &[f32], y: usize, line: &mut [f32]) {
+        if y < self.oy || y >= self.oy + self.oh || obj.is_empty() {
+            return;
+        }
+        let src = &obj[(y - self.oy) * self.ow..][..self.ow];
+        let dst = &mut line[self.ox..self.ox + self.ow];
+        match &self.mask {
+            Some(mask) => {
+                let m = &mask[y * self.w + self.ox..][..self.ow];
+                for ((d, &o), &c) in dst.iter_mut().zip(src).zip(m) {
+                    *d += c * (self.obj_mean + o - *d);
+                }
+            }
+            None => {
+                for (d, &o) in dst.iter_mut().zip(src) {
+                    *d = self.obj_mean + o;
+                }
+            }
+        }
+    }
+
     fn displacement(&self, t_s: f64) -> f64 {
         self.spec.amplitude_px * self.signal.value(t_s)
     }

@@ -32,6 +32,8 @@ pub static REGISTRY: &[KindSpec] = &[
     sinks::csv::KIND,
     sinks::json::KIND,
     sinks::peaks::KIND,
+    sinks::modes::KIND,
+    sinks::spectrum_png::KIND,
     sinks::y4m::KIND,
     sinks::null::KIND,
 ];

@@ -1,8 +1,10 @@
 pub mod csv;
 pub mod json;
+pub mod modes;
 pub mod null;
 pub mod peaks;
 pub mod speaker;
+pub mod spectrum_png;
 pub mod wav;
 pub mod y4m;
 

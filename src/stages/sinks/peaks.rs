@@ -42,7 +42,7 @@ fn d_taper() -> String {
     "hann".into()
 }
 
-fn taper_of(name: &str) -> Option<Option<Taper>> {
+pub(crate) fn taper_of(name: &str) -> Option<Option<Taper>> {
     Some(match name {
         "hann" => Some(Taper::Hann),
         "hamming" => Some(Taper::Hamming),
@@ -76,30 +76,39 @@ pub const KIND: KindSpec = KindSpec {
                 format!("must be >= 0 dB, got {}", v.min_prominence_db),
             ));
         }
-        for (name, f) in [("min_hz", v.min_hz), ("max_hz", v.max_hz)] {
-            if let Some(f) = f {
-                if !(f.is_finite() && f >= 0.0) {
-                    return Err(p.error(name, format!("must be >= 0 Hz, got {f}")));
-                }
-            }
-        }
-        if let (Some(a), Some(b)) = (v.min_hz, v.max_hz) {
-            if a >= b {
-                return Err(p.error("max_hz", format!("must exceed min_hz ({a}), got {b}")));
-            }
-        }
-        if taper_of(&v.taper).is_none() {
-            return Err(p.error(
-                "taper",
-                format!(
-                    "must be hann, hamming, blackman, rect or none, got `{}`",
-                    v.taper
-                ),
-            ));
-        }
+        check_band_taper(p, v.min_hz, v.max_hz, &v.taper)?;
         Ok(Box::new(PeaksPlan(v)))
     },
 };
+
+/// Checks the band (`min_hz`, `max_hz`) and `taper` fields, which
+/// `peaks` and `spectrum_png` share.
+pub(crate) fn check_band_taper(
+    p: &Params<'_>,
+    min_hz: Option<f64>,
+    max_hz: Option<f64>,
+    taper: &str,
+) -> Result<(), ConfigError> {
+    for (name, f) in [("min_hz", min_hz), ("max_hz", max_hz)] {
+        if let Some(f) = f {
+            if !(f.is_finite() && f >= 0.0) {
+                return Err(p.error(name, format!("must be >= 0 Hz, got {f}")));
+            }
+        }
+    }
+    if let (Some(a), Some(b)) = (min_hz, max_hz) {
+        if a >= b {
+            return Err(p.error("max_hz", format!("must exceed min_hz ({a}), got {b}")));
+        }
+    }
+    if taper_of(taper).is_none() {
+        return Err(p.error(
+            "taper",
+            format!("must be hann, hamming, blackman, rect or none, got `{taper}`"),
+        ));
+    }
+    Ok(())
+}
 
 struct PeaksPlan(P);
 

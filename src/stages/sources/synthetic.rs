@@ -76,6 +76,10 @@ pub struct SyntheticParams {
     /// gray level over the brightest pixel's is the fraction of it that
     /// belongs to the object (0 = background).
     pub object_mask: Option<std::path::PathBuf>,
+    /// The object as a vibrating cantilever beam, column by column, instead
+    /// of a rigid motion (`{ modes = [{ freq_hz, amplitude_px, shape, ... }] }`,
+    /// see [`crate::sim::modal`]); global shutter only.
+    pub modal: Option<sim::ModalSpec>,
 }
 
 /// A narrowband motion added to the object's.
@@ -140,6 +144,7 @@ impl Default for SyntheticParams {
             duplicate_frames: Vec::new(),
             texture: None,
             object_mask: None,
+            modal: None,
         }
     }
 }
@@ -226,7 +231,11 @@ impl SyntheticParams {
                 None => None,
             },
         };
-        Scene::with_look(spec, signal, look).map_err(|e| e.to_string())
+        match &self.modal {
+            Some(m) => Scene::with_modal(spec, signal, m, look),
+            None => Scene::with_look(spec, signal, look),
+        }
+        .map_err(|e| e.to_string())
     }
 
     /// Checks every field; the message names the field.
@@ -279,11 +288,19 @@ impl SyntheticParams {
                 "at most 1048576 dropped and duplicated frames".into(),
             ));
         }
+        if self.modal.is_some() && self.row_timing().is_some() {
+            return Err((
+                "modal",
+                "needs a global shutter (no line_delay_us or exposure_us)".into(),
+            ));
+        }
         self.scene().map(|_| ()).map_err(|m| {
             let field = if m.starts_with("texture") {
                 "texture"
             } else if m.starts_with("object_mask") {
                 "object_mask"
+            } else if m.contains("modal") {
+                "modal"
             } else if m.contains("resonances") {
                 "resonances"
             } else if m.contains("interference") {

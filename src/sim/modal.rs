@@ -1,0 +1,333 @@
+//! A spatially varying vibration: the object as a horizontal cantilever
+//! beam (clamped at its left edge, free at its right) whose vertical
+//! displacement at column x is Σ_k q_k(t) φ_k(x), with known mode shapes
+//! φ_k and modal coordinates q_k (thesis Eq. 3.8-3.11). The ground truth
+//! for modal images (ch. 3.5).
+//!
+//! Mode shapes are the Euler-Bernoulli clamped-free ones,
+//! φ_n(s) = cosh βs - cos βs - σ_n (sinh βs - sin βs), s = x/L in [0, 1],
+//! β = β_n L (1.8751, 4.6941, 7.8548, 10.9955, then (2n - 1)π/2),
+//! σ_n = (sinh β - sin β) / (cosh β + cos β), scaled so that the free end
+//! is +1: mode n has n - 1 nodes, and the sign flips across each.
+//!
+//! Each modal coordinate is either a tone, q(t) = a sin(2π f t + phase), or
+//! (`drive = "noise"`, the default) the stationary response of the mode to
+//! a broadband force near its resonance: a random-phase multisine of
+//! [`NOISE_COMPONENTS`] lines spaced evenly over f ± 10 ξ f with amplitudes
+//! ∝ 1/√(1 + ((f' - f)/(ξ f))²) (the Lorentzian power of Eq. 3.14), so its
+//! power spectrum has the mode's half width ξ f. It is a function of
+//! continuous time (any frame time, exact), deterministic from the seed.
+//! `amplitude_px` is the free end's peak for a tone, √2 × its RMS for noise.
+//!
+//! ```toml
+//! modal = { modes = [
+//!   { freq_hz = 7.3, amplitude_px = 0.3, shape = 1 },
+//!   { freq_hz = 58.3, amplitude_px = 0.2, shape = 2, damping = 0.01, drive = "tone" },
+//! ] }
+//! ```
+//!
+//! With `modal`, the object's rigid motion (`signal`, `amplitude_px`) is
+//! not applied; the texture moves vertically column by column inside the
+//! object's rest rectangle (fixed outline), rendered with the same 16-tap
+//! interpolator as the rigid motion.
+
+use super::detmath;
+use super::rng::{hash2, Xoshiro256};
+use super::texture::{Interp, PAD, TAPS};
+use super::SimError;
+
+/// Lines of a noise-driven modal coordinate.
+pub const NOISE_COMPONENTS: usize = 96;
+/// Half span of those lines, in half widths ξ f.
+const NOISE_SPAN: f64 = 10.0;
+
+/// How a mode is driven.
+#[derive(serde::Deserialize, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Drive {
+    #[default]
+    Noise,
+    Tone,
+}
+
+/// One mode of a [`ModalSpec`].
+#[derive(serde::Deserialize, Clone, Debug, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ModeSpec {
+    pub freq_hz: f64,
+    pub amplitude_px: f64,
+    /// Cantilever mode number (1 = fundamental), which sets the shape.
+    pub shape: u32,
+    /// Damping ratio ξ (the width of a noise-driven mode's line).
+    #[serde(default = "d_damping")]
+    pub damping: f64,
+    #[serde(default)]
+    pub drive: Drive,
+    /// Phase of a tone, radians.
+    #[serde(default)]
+    pub phase_rad: f64,
+}
+fn d_damping() -> f64 {
+    0.01
+}
+
+/// The `modal` key of a scene.
+#[derive(serde::Deserialize, Clone, Debug, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ModalSpec {
+    pub modes: Vec<ModeSpec>,
+}
+
+/// β_n L of the clamped-free beam.
+fn beta(n: u32) -> f64 {
+    match n {
+        1 => 1.875_104_068_711_961,
+        2 => 4.694_091_132_974_175,
+        3 => 7.854_757_438_237_613,
+        4 => 10.995_540_734_875_467,
+        n => (2.0 * n as f64 - 1.0) * std::f64::consts::FRAC_PI_2,
+    }
+}
+
+fn raw_shape(b: f64, sigma: f64, s: f64) -> f64 {
+    let x = b * s;
+    let (ep, em) = (detmath::exp(x), detmath::exp(-x));
+    let (sin, cos) = detmath::sin_cos_turns(x / std::f64::consts::TAU);
+    let (ch, sh) = (0.5 * (ep + em), 0.5 * (ep - em));
+    ch - cos - sigma * (sh - sin)
+}
+
+/// Cantilever mode shape `n` (>= 1) at `s = x/L` in [0, 1]: 0 at the
+/// clamped end, +1 at the free end.
+pub fn cantilever_shape(n: u32, s: f64) -> f64 {
+    let b = beta(n.max(1));
+    let (eb, emb) = (detmath::exp(b), detmath::exp(-b));
+    let (sin, cos) = detmath::sin_cos_turns(b / std::f64::consts::TAU);
+    let sigma = (0.5 * (eb - emb) - sin) / (0.5 * (eb + emb) + cos);
+    raw_shape(b, sigma, s) / raw_shape(b, sigma, 1.0)
+}
+
+/// One mode, ready to evaluate.
+#[derive(Clone, Debug)]
+struct Mode {
+    /// φ at the centre of each object column.
+    shape: Vec<f64>,
+    /// (frequency Hz, amplitude px, phase turns) of each line.
+    lines: Vec<(f64, f64, f64)>,
+}
+
+/// A validated [`ModalSpec`] for an object `width` columns wide.
+#[derive(Clone, Debug)]
+pub struct ModalBeam {
+    modes: Vec<Mode>,
+    /// Column displacements and modal coordinates of the current frame.
+    column: Vec<f64>,
+    q: Vec<f64>,
+    peak: f64,
+}
+
+/// Where the object's texture lives (the scene's padded lattice).
+pub(super) struct Lattice<'a> {
+    /// Zero-mean texture on `[-pad, ow + pad) x [-pad, oh + pad)`.
+    pub grid: &'a [f32],
+    pub gw: usize,
+    pub pad: usize,
+    pub interp: &'a Interp,
+    /// Displacements are clamped to ±this (the lattice covers it).
+    pub amp_max: f64,
+}
+
+impl ModalBeam {
+    /// Validates `spec` for an object `width` columns wide; `seed` drives
+    /// the random phases.
+    pub fn new(spec: &ModalSpec, width: usize, seed: u64) -> Result<Self, SimError> {
+        let bad = |field: String, msg: String| SimError::Invalid { field, msg };
+        if spec.modes.is_empty() || spec.modes.len() > 64 {
+            return Err(bad(
+                "modal.modes".into(),
+                format!("must list 1..=64 modes, got {}", spec.modes.len()),
+            ));
+        }
+        let mut modes = Vec::with_capacity(spec.modes.len());
+        let mut peak = 0.0;
+        for (k, m) in spec.modes.iter().enumerate() {
+            let f = |name: &str| format!("modal.modes[{k}].{name}");
+            if !(m.freq_hz.is_finite() && m.freq_hz > 0.0) {
+                return Err(bad(
+                    f("freq_hz"),
+                    format!("must be > 0 Hz, got {}", m.freq_hz),
+                ));
+            }
+            if !(m.amplitude_px.is_finite() && m.amplitude_px.abs() <= 100.0) {
+                return Err(bad(
+                    f("amplitude_px"),
+                    format!("must be within ±100 px, got {}", m.amplitude_px),
+                ));
+            }
+            if !(1..=20).contains(&m.shape) {
+                return Err(bad(f("shape"), format!("must be 1..=20, got {}", m.shape)));
+            }
+            if !(m.damping.is_finite() && m.damping > 0.0 && m.damping < 0.5) {
+                return Err(bad(
+                    f("damping"),
+                    format!("must be in (0, 0.5), got {}", m.damping),
+                ));
+            }
+            if !m.phase_rad.is_finite() {
+                return Err(bad(
+                    f("phase_rad"),
+                    format!("must be finite, got {}", m.phase_rad),
+                ));
+            }
+            let shape = (0..width)
+                .map(|c| cantilever_shape(m.shape, (c as f64 + 0.5) / width as f64))
+                .collect();
+            let lines = match m.drive {
+                Drive::Tone => vec![(
+                    m.freq_hz,
+                    m.amplitude_px,
+                    m.phase_rad / std::f64::consts::TAU - 0.25,
+                )],
+                Drive::Noise => {
+                    let mut rng = Xoshiro256::new(hash2(seed ^ 0x6d6f_6461_6c00, k as u64));
+                    let n = NOISE_COMPONENTS;
+                    let raw: Vec<(f64, f64)> = (0..n)
+                        .map(|j| {
+                            let x = NOISE_SPAN * (2.0 * j as f64 / (n - 1) as f64 - 1.0);
+                            (x, 1.0 / (1.0 + x * x).sqrt())
+                        })
+                        .collect();
+                    let norm = raw.iter().map(|(_, a)| a * a).sum::<f64>().sqrt();
+                    raw.iter()
+                        .map(|&(x, a)| {
+                            let fj = m.freq_hz * (1.0 + m.damping * x);
+                            (fj, m.amplitude_px * a / norm, rng.next_f64())
+                        })
+                        .collect()
+                }
+            };
+            peak += lines.iter().map(|l| l.1.abs()).sum::<f64>();
+            modes.push(Mode { shape, lines });
+        }
+        Ok(Self {
+            q: vec![0.0; modes.len()],
+            modes,
+            column: vec![0.0; width],
+            peak,
+        })
+    }
+
+    /// An upper bound of |displacement| anywhere, px.
+    pub fn peak_bound(&self) -> f64 {
+        self.peak
+    }
+
+    /// Modal coordinate `k` (the free end's displacement from mode `k`) at `t_s`.
+    pub fn coordinate(&self, k: usize, t_s: f64) -> f64 {
+        self.modes.get(k).map_or(0.0, |m| {
+            m.lines
+                .iter()
+                .map(|&(f, a, ph)| a * detmath::sin_cos_turns(f * t_s + ph).1)
+                .sum()
+        })
+    }
+
+    /// Vertical displacement (px, +y down) of object column `c` at `t_s`.
+    pub fn displacement_px(&self, c: usize, t_s: f64) -> f64 {
+        self.modes
+            .iter()
+            .enumerate()
+            .map(|(k, m)| m.shape.get(c).copied().unwrap_or(0.0) * self.coordinate(k, t_s))
+            .sum()
+    }
+
+    /// Renders the zero-mean object (`ow x oh`, row-major) at `t_s` into `out`.
+    pub(super) fn render(&mut self, t_s: f64, lat: &Lattice<'_>, oh: usize, out: &mut [f32]) {
+        let ow = self.column.len();
+        for k in 0..self.q.len() {
+            self.q[k] = self.coordinate(k, t_s);
+        }
+        for (c, d) in self.column.iter_mut().enumerate() {
+            *d = self
+                .modes
+                .iter()
+                .zip(&self.q)
+                .map(|(m, q)| m.shape[c] * q)
+                .sum();
+        }
+        for c in 0..ow {
+            let d = self.column[c].clamp(-lat.amp_max, lat.amp_max);
+            let i = d.floor();
+            let taps = lat.interp.taps_f32_reversed(d - i);
+            let col = c + lat.pad;
+            for r in 0..oh {
+                // Lattice row k = r - i; its window starts at grid row k - PAD + pad.
+                let g0 = (r as i64 - i as i64 - PAD as i64 + lat.pad as i64) as usize;
+                let mut v = 0.0f32;
+                for (s, &t) in taps.iter().enumerate().take(TAPS) {
+                    v += t * lat.grid[(g0 + s) * lat.gw + col];
+                }
+                out[r * ow + c] = v;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shapes_have_their_nodes_and_free_end() {
+        // Nodes of the clamped-free beam (x/L): mode 2 at 0.783, mode 3 at 0.504 and 0.868.
+        let sign_changes = |n: u32| -> Vec<f64> {
+            let mut v = Vec::new();
+            let steps = 10_000;
+            for i in 1..steps {
+                let (a, b) = (i as f64 / steps as f64, (i + 1) as f64 / steps as f64);
+                if cantilever_shape(n, a).signum() != cantilever_shape(n, b).signum() {
+                    v.push(a);
+                }
+            }
+            v
+        };
+        assert!(sign_changes(1).is_empty());
+        let n2 = sign_changes(2);
+        assert!(n2.len() == 1 && (n2[0] - 0.7834).abs() < 1e-3, "{n2:?}");
+        let n3 = sign_changes(3);
+        assert!(n3.len() == 2 && (n3[0] - 0.5036).abs() < 1e-3 && (n3[1] - 0.8677).abs() < 1e-3);
+        for n in 1..=5 {
+            assert!((cantilever_shape(n, 1.0) - 1.0).abs() < 1e-12);
+            assert!(cantilever_shape(n, 0.0).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn noise_drive_has_the_stated_rms_and_is_deterministic() {
+        let spec = ModalSpec {
+            modes: vec![ModeSpec {
+                freq_hz: 50.0,
+                amplitude_px: 0.2,
+                shape: 1,
+                damping: 0.02,
+                drive: Drive::Noise,
+                phase_rad: 0.0,
+            }],
+        };
+        let a = ModalBeam::new(&spec, 8, 3).unwrap();
+        let b = ModalBeam::new(&spec, 8, 3).unwrap();
+        let n = 200_000;
+        let ms: f64 = (0..n)
+            .map(|i| a.coordinate(0, i as f64 * 1e-3).powi(2))
+            .sum::<f64>()
+            / n as f64;
+        // √2 × RMS = amplitude_px (the lines are incommensurate over 200 s).
+        assert!(
+            ((2.0 * ms).sqrt() - 0.2).abs() < 0.01,
+            "{}",
+            (2.0 * ms).sqrt()
+        );
+        assert_eq!(a.coordinate(0, 1.2345), b.coordinate(0, 1.2345));
+    }
+}
