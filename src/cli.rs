@@ -1379,6 +1379,10 @@ struct SpectrumArgs {
     /// Print the per-stage summary at exit.
     #[arg(long)]
     stats: bool,
+    /// Keep the extracted motion (bands aligned and summed) that the
+    /// time-domain damping (SSI-cov) ran on, as a WAV.
+    #[arg(long, value_name = "OUT.wav")]
+    motion_wav: Option<PathBuf>,
 }
 
 /// The shipped live-spectrum graph on a recording, with one
@@ -1458,9 +1462,11 @@ fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl> {
 }
 
 fn spectrum_cmd(a: &SpectrumArgs) -> anyhow::Result<ExitCode> {
-    let decl = spectrum_pipeline(a)?;
+    let mut decl = spectrum_pipeline(a)?;
+    let tap = crate::vibrometry::damping::MotionTap::add(&mut decl, a.motion_wav.clone())?;
     let (code, _) = run_decl(&decl, a.stats, false)?;
     if code == ExitCode::SUCCESS {
+        tap.refine(&a.json, &Default::default())?;
         eprintln!("wrote {}", a.json.display());
     }
     Ok(code)

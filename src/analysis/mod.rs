@@ -1,3 +1,4 @@
 //! Analysis of measured signals and spectra: resonances and damping.
 
 pub mod peaks;
+pub mod ssi;
