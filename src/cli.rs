@@ -42,7 +42,7 @@ enum DenoiseArg {
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
-enum PyramidArg {
+pub(crate) enum PyramidArg {
     Csp,
     Riesz,
 }
@@ -207,6 +207,13 @@ enum Command {
         vibroscope spectrum ../shared/data/guitar.mp4 --fps 600 --json guitar.json\n  \
         vibroscope spectrum beam.y4m --json beam.json --peaks 3 --roi 0,0,64,64")]
     Spectrum(SpectrumArgs),
+    /// A clamped rod's fundamental by voting over its mode ratios (thesis
+    /// Eq. 5.3), refined through the highest mode; Young's modulus (Eq. 5.1)
+    /// or length (Eq. 5.4) with propagated errors (Eq. 5.5).
+    #[command(after_help = "Examples:\n  \
+        vibroscope rod rod.y4m --json rod.json --diameter-m 0.00635 --length-m 0.5588 --density-kg-m3 8530\n  \
+        vibroscope rod rod.y4m --json rod.json --ratios 1,6.27,17.55 --tolerance length-m=0.002")]
+    Rod(crate::vibrometry::rod::RodArgs),
     /// Render the built-in synthetic scene, recover its motion, write a WAV
     /// and print the SNR against the known signal.
     Demo {
@@ -370,6 +377,7 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
         }
         Command::RsCalibrate(a) => rs_calibrate(&a),
         Command::Spectrum(a) => spectrum_cmd(&a),
+        Command::Rod(a) => crate::vibrometry::rod::rod_cmd(&a),
         Command::Score {
             reference,
             test,
@@ -1343,51 +1351,51 @@ fn simulate(scene: &Path, output: &Path, set: &[String], stats: bool) -> anyhow:
 
 /// Arguments of `vibroscope spectrum`.
 #[derive(clap::Args, Clone)]
-struct SpectrumArgs {
+pub(crate) struct SpectrumArgs {
     /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
-    video: PathBuf,
+    pub(crate) video: PathBuf,
     /// Output JSON: sample_rate_hz, resolution_hz and the peaks.
     #[arg(long, value_name = "OUT.json")]
-    json: PathBuf,
+    pub(crate) json: PathBuf,
     /// Capture frame rate in Hz (containers often state the playback rate).
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
-    fps: Option<f64>,
+    pub(crate) fps: Option<f64>,
     /// Report at most this many peaks (the most prominent).
     #[arg(long, default_value_t = 5, value_name = "N")]
-    peaks: usize,
+    pub(crate) peaks: usize,
     /// Region of the object: X,Y,W,H in pixels (default: the whole frame).
     #[arg(long, value_name = "X,Y,W,H")]
-    roi: Option<String>,
+    pub(crate) roi: Option<String>,
     /// Welch segments over the recording (more: less noise, coarser bins;
     /// default one per 2048 frames, 1 to 64).
     #[arg(long, value_name = "K")]
-    segments: Option<usize>,
+    pub(crate) segments: Option<usize>,
     /// Segment length in frames instead of --segments (even).
     #[arg(long, value_name = "FRAMES")]
-    window: Option<usize>,
+    pub(crate) window: Option<usize>,
     /// Only peaks in this band (Hz).
     #[arg(long, value_name = "HZ")]
-    min_hz: Option<f64>,
+    pub(crate) min_hz: Option<f64>,
     #[arg(long, value_name = "HZ")]
-    max_hz: Option<f64>,
+    pub(crate) max_hz: Option<f64>,
     /// Also write the spectrum (dB) into the JSON.
     #[arg(long)]
-    include_spectrum: bool,
+    pub(crate) include_spectrum: bool,
     /// Pyramid: complex steerable (quality) or Riesz (speed).
     #[arg(long, value_enum, default_value = "csp")]
-    pyramid: PyramidArg,
+    pub(crate) pyramid: PyramidArg,
     /// Print the per-stage summary at exit.
     #[arg(long)]
-    stats: bool,
+    pub(crate) stats: bool,
     /// Keep the extracted motion (bands aligned and summed) that the
     /// time-domain damping (SSI-cov) ran on, as a WAV.
     #[arg(long, value_name = "OUT.wav")]
-    motion_wav: Option<PathBuf>,
+    pub(crate) motion_wav: Option<PathBuf>,
 }
 
 /// The shipped live-spectrum graph on a recording, with one
 /// whole-recording spectrum (finest resolution) feeding the peak picker.
-fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl> {
+pub(crate) fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl> {
     let mut decl = prepare("live-spectrum", &[], Some(&a.video), a.fps)?;
     let pos = |decl: &PipelineDecl, id: &str| decl.stages.iter().position(|s| s.id == id);
     let (Some(phase), Some(spec), Some(out)) = (

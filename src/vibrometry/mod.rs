@@ -5,6 +5,7 @@
 //! [`crate::analysis`]; these modules run the spectrum graph and write JSON.
 
 pub mod damping;
+pub mod rod;
 
 use crate::engine::config::{self, PipelineDecl};
 use std::path::{Path, PathBuf};
