@@ -214,6 +214,12 @@ enum Command {
         vibroscope rod rod.y4m --json rod.json --diameter-m 0.00635 --length-m 0.5588 --density-kg-m3 8530\n  \
         vibroscope rod rod.y4m --json rod.json --ratios 1,6.27,17.55 --tolerance length-m=0.002")]
     Rod(crate::vibrometry::rod::RodArgs),
+    /// Per-region resonance shifts between two recordings (thesis ch. 5.6):
+    /// each region's spectrum and peaks in A and in B, and the shift of its
+    /// strongest resonance with its uncertainty.
+    #[command(after_help = "Example:\n  \
+        vibroscope compare empty.y4m filled.y4m --roi 0,0,64,64 --roi 64,0,64,64 --json shifts.json")]
+    Compare(crate::vibrometry::compare::CompareArgs),
     /// Render the built-in synthetic scene, recover its motion, write a WAV
     /// and print the SNR against the known signal.
     Demo {
@@ -378,6 +384,7 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
         Command::RsCalibrate(a) => rs_calibrate(&a),
         Command::Spectrum(a) => spectrum_cmd(&a),
         Command::Rod(a) => crate::vibrometry::rod::rod_cmd(&a),
+        Command::Compare(a) => crate::vibrometry::compare::compare_cmd(&a),
         Command::Score {
             reference,
             test,
@@ -1117,7 +1124,7 @@ fn rs_listen_pipeline(
 }
 
 /// `X,Y,W,H` as four whole numbers >= 0.
-fn parse_roi_arg(r: &str) -> Result<Vec<i64>, ConfigError> {
+pub(crate) fn parse_roi_arg(r: &str) -> Result<Vec<i64>, ConfigError> {
     let v: Result<Vec<i64>, _> = r.split(',').map(|v| v.trim().parse::<i64>()).collect();
     match v {
         Ok(v) if v.len() == 4 && v.iter().all(|&x| x >= 0) => Ok(v),
@@ -1366,6 +1373,10 @@ pub(crate) struct SpectrumArgs {
     /// Region of the object: X,Y,W,H in pixels (default: the whole frame).
     #[arg(long, value_name = "X,Y,W,H")]
     pub(crate) roi: Option<String>,
+    /// Region as an image the size of the frame (PGM or PNG; pixels > 0
+    /// count); with --roi, the overlap of both.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) mask: Option<PathBuf>,
     /// Welch segments over the recording (more: less noise, coarser bins;
     /// default one per 2048 frames, 1 to 64).
     #[arg(long, value_name = "K")]
@@ -1425,6 +1436,10 @@ pub(crate) fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl
         let v = parse_roi_arg(r)?;
         let arr = toml::Value::Array(v.into_iter().map(toml::Value::Integer).collect());
         set_param(st, "roi", arr, o(&format!("--roi {r}")));
+    }
+    if let Some(m) = &a.mask {
+        let v = toml::Value::String(m.display().to_string());
+        set_param(st, "mask", v, o(&format!("--mask {}", m.display())));
     }
     let st = &mut decl.stages[spec];
     st.params

@@ -4,6 +4,7 @@
 //! (`vibroscope compare`, [`compare`]). The math lives in
 //! [`crate::analysis`]; these modules run the spectrum graph and write JSON.
 
+pub mod compare;
 pub mod damping;
 pub mod rod;
 
