@@ -45,7 +45,7 @@ enum DenoiseArg {
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
-enum PyramidArg {
+pub(crate) enum PyramidArg {
     Csp,
     Riesz,
 }
@@ -217,6 +217,19 @@ enum Command {
     #[command(after_help = "Example:\n  \
         vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --npy e2.npy")]
     Modes(modes::ModesArgs),
+    /// A clamped rod's fundamental by voting over its mode ratios (thesis
+    /// Eq. 5.3), refined through the highest mode; Young's modulus (Eq. 5.1)
+    /// or length (Eq. 5.4) with propagated errors (Eq. 5.5).
+    #[command(after_help = "Examples:\n  \
+        vibroscope rod rod.y4m --json rod.json --diameter-m 0.00635 --length-m 0.5588 --density-kg-m3 8530\n  \
+        vibroscope rod rod.y4m --json rod.json --ratios 1,6.27,17.55 --tolerance length-m=0.002")]
+    Rod(crate::vibrometry::rod::RodArgs),
+    /// Per-region resonance shifts between two recordings (thesis ch. 5.6):
+    /// each region's spectrum and peaks in A and in B, and the shift of its
+    /// strongest resonance with its uncertainty.
+    #[command(after_help = "Example:\n  \
+        vibroscope compare empty.y4m filled.y4m --roi 0,0,64,64 --roi 64,0,64,64 --json shifts.json")]
+    Compare(crate::vibrometry::compare::CompareArgs),
     /// Render the built-in synthetic scene, recover its motion, write a WAV
     /// and print the SNR against the known signal.
     Demo {
@@ -381,6 +394,8 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
         Command::RsCalibrate(a) => rs_calibrate(&a),
         Command::Spectrum(a) => spectrum_cmd(&a),
         Command::Modes(a) => modes::modes_cmd(&a),
+        Command::Rod(a) => crate::vibrometry::rod::rod_cmd(&a),
+        Command::Compare(a) => crate::vibrometry::compare::compare_cmd(&a),
         Command::Score {
             reference,
             test,
@@ -1120,7 +1135,7 @@ fn rs_listen_pipeline(
 }
 
 /// `X,Y,W,H` as four whole numbers >= 0.
-fn parse_roi_arg(r: &str) -> Result<Vec<i64>, ConfigError> {
+pub(crate) fn parse_roi_arg(r: &str) -> Result<Vec<i64>, ConfigError> {
     let v: Result<Vec<i64>, _> = r.split(',').map(|v| v.trim().parse::<i64>()).collect();
     match v {
         Ok(v) if v.len() == 4 && v.iter().all(|&x| x >= 0) => Ok(v),
@@ -1354,56 +1369,64 @@ fn simulate(scene: &Path, output: &Path, set: &[String], stats: bool) -> anyhow:
 
 /// Arguments of `vibroscope spectrum`.
 #[derive(clap::Args, Clone)]
-struct SpectrumArgs {
+pub(crate) struct SpectrumArgs {
     /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
-    video: PathBuf,
+    pub(crate) video: PathBuf,
     /// Output JSON: sample_rate_hz, resolution_hz and the peaks.
     #[arg(long, value_name = "OUT.json")]
-    json: PathBuf,
+    pub(crate) json: PathBuf,
     /// Capture frame rate in Hz (containers often state the playback rate).
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
-    fps: Option<f64>,
+    pub(crate) fps: Option<f64>,
     /// Report at most this many peaks (the most prominent).
     #[arg(long, default_value_t = 5, value_name = "N")]
-    peaks: usize,
+    pub(crate) peaks: usize,
     /// Region of the object: X,Y,W,H in pixels (default: the whole frame).
     #[arg(long, value_name = "X,Y,W,H")]
-    roi: Option<String>,
+    pub(crate) roi: Option<String>,
+    /// Region as an image the size of the frame (PGM or PNG; pixels > 0
+    /// count); with --roi, the overlap of both.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) mask: Option<PathBuf>,
     /// Welch segments over the recording (more: less noise, coarser bins;
     /// default one per 2048 frames, 1 to 64).
     #[arg(long, value_name = "K")]
-    segments: Option<usize>,
+    pub(crate) segments: Option<usize>,
     /// Segment length in frames instead of --segments (even).
     #[arg(long, value_name = "FRAMES")]
-    window: Option<usize>,
+    pub(crate) window: Option<usize>,
     /// Only peaks in this band (Hz).
     #[arg(long, value_name = "HZ")]
-    min_hz: Option<f64>,
+    pub(crate) min_hz: Option<f64>,
     #[arg(long, value_name = "HZ")]
-    max_hz: Option<f64>,
+    pub(crate) max_hz: Option<f64>,
     /// Also write the spectrum (dB) into the JSON.
     #[arg(long)]
-    include_spectrum: bool,
+    pub(crate) include_spectrum: bool,
     /// Pyramid: complex steerable (quality) or Riesz (speed).
     #[arg(long, value_enum, default_value = "csp")]
-    pyramid: PyramidArg,
+    pub(crate) pyramid: PyramidArg,
     /// Also plot the spectrum (dB, peaks marked) to this PNG.
     #[arg(long, value_name = "OUT.png")]
-    png: Option<PathBuf>,
+    pub(crate) png: Option<PathBuf>,
     /// Also plot sliding spectra over time (a spectrogram) to this PNG.
     #[arg(long, value_name = "OUT.png")]
-    spectrogram: Option<PathBuf>,
+    pub(crate) spectrogram: Option<PathBuf>,
     /// The spectrogram's window in frames (hop: an eighth of it).
     #[arg(long, value_name = "FRAMES", default_value_t = 256)]
-    spectrogram_window: usize,
+    pub(crate) spectrogram_window: usize,
     /// Print the per-stage summary at exit.
     #[arg(long)]
-    stats: bool,
+    pub(crate) stats: bool,
+    /// Keep the extracted motion (bands aligned and summed) that the
+    /// time-domain damping (SSI-cov) ran on, as a WAV.
+    #[arg(long, value_name = "OUT.wav")]
+    pub(crate) motion_wav: Option<PathBuf>,
 }
 
 /// The shipped live-spectrum graph on a recording, with one
 /// whole-recording spectrum (finest resolution) feeding the peak picker.
-fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl> {
+pub(crate) fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl> {
     let mut decl = prepare("live-spectrum", &[], Some(&a.video), a.fps)?;
     let pos = |decl: &PipelineDecl, id: &str| decl.stages.iter().position(|s| s.id == id);
     let (Some(phase), Some(spec), Some(out)) = (
@@ -1433,6 +1456,10 @@ fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl> {
         let v = parse_roi_arg(r)?;
         let arr = toml::Value::Array(v.into_iter().map(toml::Value::Integer).collect());
         set_param(st, "roi", arr, o(&format!("--roi {r}")));
+    }
+    if let Some(m) = &a.mask {
+        let v = toml::Value::String(m.display().to_string());
+        set_param(st, "mask", v, o(&format!("--mask {}", m.display())));
     }
     let st = &mut decl.stages[spec];
     st.params
@@ -1487,9 +1514,11 @@ fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl> {
 }
 
 fn spectrum_cmd(a: &SpectrumArgs) -> anyhow::Result<ExitCode> {
-    let decl = spectrum_pipeline(a)?;
+    let mut decl = spectrum_pipeline(a)?;
+    let tap = crate::vibrometry::damping::MotionTap::add(&mut decl, a.motion_wav.clone())?;
     let (code, _) = run_decl(&decl, a.stats, false)?;
     if code == ExitCode::SUCCESS {
+        tap.refine(&a.json, &Default::default())?;
         for p in [Some(&a.json), a.png.as_ref(), a.spectrogram.as_ref()]
             .into_iter()
             .flatten()

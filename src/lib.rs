@@ -10,6 +10,7 @@
 //! - [`sim`]: the forward model of object and camera (ground truth).
 //! - [`pipelines`]: the pipeline files that ship with the binary.
 //! - [`analysis`]: peaks, prominence and damping of motion spectra.
+//! - [`vibrometry`]: time-domain damping, rods, regions (issue 5 commands).
 //! - [`cli`]: the `vibroscope` command line.
 
 pub mod analysis;
@@ -20,3 +21,4 @@ pub mod io;
 pub mod pipelines;
 pub mod sim;
 pub mod stages;
+pub mod vibrometry;

@@ -3,3 +3,5 @@
 pub mod modal;
 pub mod peaks;
 pub mod plot;
+pub mod rod;
+pub mod ssi;
