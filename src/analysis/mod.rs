@@ -1,3 +1,5 @@
-//! Analysis of measured signals and spectra: resonances and damping.
+//! Analysis of measured signals and spectra: resonances and damping, and
+//! calibration against a known sound.
 
+pub mod calibrate;
 pub mod peaks;

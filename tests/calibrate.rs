@@ -1,0 +1,336 @@
+//! `vibroscope calibrate` (issue 6): each catalog effect rendered alone by
+//! the simulator (library call, no subprocess), recovered by the listen
+//! pipeline and calibrated against the played chirp; two effects combined;
+//! no effect; bad input.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+use common::*;
+use serde_json::Value;
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+use vibroscope::analysis::calibrate::Calibration;
+
+const REF_RATE: u32 = 32_000;
+
+/// A linear chirp 100-1000 Hz over 2.2 s (longer than the 2 s videos).
+fn write_chirp(path: &Path) -> f64 {
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: REF_RATE,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec).unwrap();
+    let (secs, f0, f1) = (2.2, 100.0, 1000.0);
+    let mut peak = 0.0f64;
+    for i in 0..(secs * REF_RATE as f64) as usize {
+        let t = i as f64 / REF_RATE as f64;
+        let v = 0.9 * (2.0 * PI * (f0 * t + (f1 - f0) * t * t / (2.0 * secs))).sin();
+        peak = peak.max(v.abs() as f32 as f64);
+        w.write_sample(v as f32).unwrap();
+    }
+    w.finalize().unwrap();
+    peak
+}
+
+struct Case {
+    _dir: tempfile::TempDir,
+    cal: Calibration,
+    report: Value,
+    peak: f64,
+}
+
+/// Renders a 64x64, 2 s, 2200 fps scene moving with the chirp plus
+/// `extra` scene keys, then calibrates with the whole catalog.
+fn run(name: &str, noise: f64, extra: &str) -> Case {
+    let dir = tempfile::tempdir().unwrap();
+    let wav = dir.path().join("chirp.wav");
+    let peak = write_chirp(&wav);
+    let scene = format!(
+        "width = 64\nheight = 64\nfps = 2200.0\nnoise_std = {noise}\nduration_s = 2.0\namplitude_px = 0.05\nsignal = {{ type = \"wav\", path = {:?} }}\n{extra}\n",
+        wav.display().to_string()
+    );
+    let toml = dir.path().join(format!("{name}.toml"));
+    std::fs::write(&toml, scene).unwrap();
+    let y4m: PathBuf = dir.path().join(format!("{name}.y4m"));
+    let code = vibroscope::cli::simulate(&toml, &y4m, &[], false).unwrap();
+    assert_eq!(code, std::process::ExitCode::SUCCESS);
+    let (_, _, _, cal) =
+        vibroscope::cli::calibrate::calibrate_video(&y4m, &wav, None, None).unwrap();
+    let report = serde_json::to_value(&cal.report).unwrap();
+    eprintln!("{name}: {}", serde_json::to_string(&report).unwrap());
+    Case {
+        _dir: dir,
+        cal,
+        report,
+        peak,
+    }
+}
+
+fn names(c: &Case) -> Vec<String> {
+    c.cal
+        .report
+        .effects
+        .iter()
+        .map(|e| e.name.clone())
+        .collect()
+}
+
+fn effect<'a>(c: &'a Case, name: &str) -> &'a Value {
+    let e = c.report["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["name"] == name)
+        .unwrap_or_else(|| panic!("{name} not found: {:?}", names(c)));
+    e
+}
+
+fn gain(c: &Case) -> f64 {
+    c.cal.report.after.snr_db - c.cal.report.before.snr_db
+}
+
+#[test]
+fn no_effect_claims_none() {
+    let c = run("plain", 0.5, "");
+    assert!(c.cal.report.effects.is_empty(), "{:?}", names(&c));
+    assert!(
+        c.cal.report.before.snr_db > 10.0,
+        "{:?}",
+        c.cal.report.before
+    );
+}
+
+/// Time base: a camera 2000 ppm fast stamped at the declared 2200 fps;
+/// tolerance 0.05% (500 ppm) on the rate.
+#[test]
+fn time_base_error() {
+    let c = run("clock", 0.5, "clock_error_ppm = 2000.0");
+    let ppm = effect(&c, "time_base")["parameters"]["clock_error_ppm"]
+        .as_f64()
+        .unwrap();
+    eprintln!(
+        "clock: {ppm:.1} ppm (true 2000), held-out SNR +{:.2} dB",
+        gain(&c)
+    );
+    assert!((ppm - 2000.0).abs() < 500.0, "{ppm}");
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+/// Dropped captures 1000 and 3000 and a duplicated capture 2000: events at
+/// delivered frames 1000 (drop), 2000 - 1 + 1 = 2000 (repeat) and 3000 - 1
+/// + 1 = 3000 (drop), within 2 frames.
+#[test]
+fn dropped_and_duplicated_frames() {
+    let c = run(
+        "drops",
+        0.5,
+        "drop_frames = [1000, 3000]\nduplicate_frames = [2000]",
+    );
+    let ev = effect(&c, "dropped_frames")["parameters"]["events"]
+        .as_array()
+        .unwrap()
+        .clone();
+    let got: Vec<(i64, String)> = ev
+        .iter()
+        .map(|e| {
+            (
+                e["frame"].as_i64().unwrap(),
+                e["kind"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    eprintln!("frames: {got:?}, held-out SNR +{:.2} dB", gain(&c));
+    assert_eq!(got.len(), 3, "{got:?}");
+    for ((f, k), (tf, tk)) in
+        got.iter()
+            .zip([(1000, "dropped"), (2000, "duplicated"), (3000, "dropped")])
+    {
+        assert!((f - tf).abs() <= 2, "{got:?}");
+        assert_eq!(k, tk);
+    }
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+/// A 0.02 px line at 137 Hz beside 0.05 px of chirp: frequency within
+/// 0.5 Hz, amplitude (in the reference's units) within 20%.
+#[test]
+fn interference_line() {
+    let c = run(
+        "line",
+        0.5,
+        "interference = [{ freq_hz = 137.0, amplitude_px = 0.02 }]",
+    );
+    let lines = effect(&c, "interference")["parameters"]["lines"]
+        .as_array()
+        .unwrap()
+        .clone();
+    let l = &lines[0];
+    let (f, a) = (
+        l["freq_hz"].as_f64().unwrap(),
+        l["amplitude"].as_f64().unwrap(),
+    );
+    let want = 0.02 / 0.05 * c.peak;
+    eprintln!(
+        "line: {f:.3} Hz, amplitude {a:.4} (true {want:.4}), held-out SNR +{:.2} dB",
+        gain(&c)
+    );
+    assert!((f - 137.0).abs() < 0.5, "{f}");
+    assert!((a / want - 1.0).abs() < 0.2, "{a} vs {want}");
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+/// Object transfer function: a +12 dB resonance at 500 Hz (Q 3). The
+/// transfer coefficients rise by 12 ± 3 dB from 200 Hz to 500 Hz.
+#[test]
+fn object_transfer_function() {
+    let c = run(
+        "res",
+        0.5,
+        "resonances = [{ freq_hz = 500.0, q = 3.0, gain_db = 12.0 }]",
+    );
+    let p = &effect(&c, "transfer_function")["parameters"];
+    let f: Vec<f64> = serde_json::from_value(p["frequencies_hz"].clone()).unwrap();
+    let db: Vec<f64> = serde_json::from_value(p["coefficients_db"].clone()).unwrap();
+    let at = |x: f64| {
+        let i = f
+            .iter()
+            .enumerate()
+            .min_by(|a, b| (a.1 - x).abs().total_cmp(&(b.1 - x).abs()))
+            .unwrap()
+            .0;
+        db[i]
+    };
+    let rise = at(500.0) - at(200.0);
+    eprintln!(
+        "transfer: {rise:.2} dB from 200 to 500 Hz (true {:.2}), k {:.2}, effects {:?}, held-out SNR +{:.2} dB",
+        12.0 - 20.0 * peaking_gain_at(200.0).log10(),
+        p["k"],
+        names(&c),
+        gain(&c)
+    );
+    assert!((rise - 12.0).abs() < 3.0, "{rise}");
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+/// |H| of the RBJ peaking section (500 Hz, Q 3, +12 dB) at `f` (analog
+/// prototype; 200 Hz is well below the resonance).
+fn peaking_gain_at(f: f64) -> f64 {
+    let a = 10f64.powf(12.0 / 40.0);
+    let (w, q) = (f / 500.0, 3.0);
+    let num = ((1.0 - w * w).powi(2) + (w * a / q).powi(2)).sqrt();
+    let den = ((1.0 - w * w).powi(2) + (w / (a * q)).powi(2)).sqrt();
+    num / den
+}
+
+/// Two effects: a clock error and an interference line.
+#[test]
+fn two_effects_combined() {
+    let c = run(
+        "two",
+        0.5,
+        "clock_error_ppm = -1500.0\ninterference = [{ freq_hz = 233.0, amplitude_px = 0.02 }]",
+    );
+    let ppm = effect(&c, "time_base")["parameters"]["clock_error_ppm"]
+        .as_f64()
+        .unwrap();
+    // The line is heard at 233 / (1 - 0.0015) Hz before the time base is
+    // fixed, at 233 Hz after: either way within 0.5 Hz of one of them.
+    let f = effect(&c, "interference")["parameters"]["lines"][0]["freq_hz"]
+        .as_f64()
+        .unwrap();
+    eprintln!(
+        "two: {ppm:.1} ppm, line {f:.3} Hz, held-out SNR +{:.2} dB",
+        gain(&c)
+    );
+    assert!((ppm + 1500.0).abs() < 500.0, "{ppm}");
+    assert!(
+        (f - 233.0).abs() < 0.5 || (f - 233.0 / 0.9985).abs() < 0.5,
+        "{f}"
+    );
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+#[test]
+fn bad_input_exits_2_naming_the_file() {
+    let d = tempfile::tempdir().unwrap();
+    let wav = d.path().join("chirp.wav");
+    write_chirp(&wav);
+    std::fs::write(
+        d.path().join("s.toml"),
+        "width = 32\nheight = 32\nfps = 2200.0\nduration_s = 3.0\n",
+    )
+    .unwrap();
+    let o = run_in(d.path(), &["simulate", "s.toml", "-o", "s.y4m"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    // Missing reference.
+    let o = run_in(
+        d.path(),
+        &[
+            "calibrate",
+            "s.y4m",
+            "--reference",
+            "nope.wav",
+            "--json",
+            "r.json",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("nope.wav"), "{}", stderr(&o));
+    // The 2.2 s reference is shorter than the 3 s video.
+    let o = run_in(
+        d.path(),
+        &[
+            "calibrate",
+            "s.y4m",
+            "--reference",
+            "chirp.wav",
+            "--json",
+            "r.json",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("shorter"), "{}", stderr(&o));
+    // A reference sampled below the frame rate.
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: 1000,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let mut w = hound::WavWriter::create(d.path().join("low.wav"), spec).unwrap();
+    for i in 0..5000 {
+        w.write_sample(((i % 7) * 100) as i16).unwrap();
+    }
+    w.finalize().unwrap();
+    let o = run_in(
+        d.path(),
+        &[
+            "calibrate",
+            "s.y4m",
+            "--reference",
+            "low.wav",
+            "--json",
+            "r.json",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("1000 Hz"), "{}", stderr(&o));
+    // Unknown effect name.
+    let o = run_in(
+        d.path(),
+        &[
+            "calibrate",
+            "s.y4m",
+            "--reference",
+            "chirp.wav",
+            "--json",
+            "r.json",
+            "--effects",
+            "wobble",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("wobble"), "{}", stderr(&o));
+}
