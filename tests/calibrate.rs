@@ -87,6 +87,11 @@ fn effect<'a>(c: &'a Case, name: &str) -> &'a Value {
     e
 }
 
+/// The effect alone is claimed, nothing else.
+fn only(c: &Case, name: &str) {
+    assert_eq!(names(c), [name], "{:?}", c.report);
+}
+
 fn gain(c: &Case) -> f64 {
     c.cal.report.after.snr_db - c.cal.report.before.snr_db
 }
@@ -107,6 +112,7 @@ fn no_effect_claims_none() {
 #[test]
 fn time_base_error() {
     let c = run("clock", 0.5, "clock_error_ppm = 2000.0");
+    only(&c, "time_base");
     let ppm = effect(&c, "time_base")["parameters"]["clock_error_ppm"]
         .as_f64()
         .unwrap();
@@ -128,6 +134,7 @@ fn dropped_and_duplicated_frames() {
         0.5,
         "drop_frames = [1000, 3000]\nduplicate_frames = [2000]",
     );
+    only(&c, "dropped_frames");
     let ev = effect(&c, "dropped_frames")["parameters"]["events"]
         .as_array()
         .unwrap()
@@ -162,6 +169,7 @@ fn interference_line() {
         0.5,
         "interference = [{ freq_hz = 137.0, amplitude_px = 0.02 }]",
     );
+    only(&c, "interference");
     let lines = effect(&c, "interference")["parameters"]["lines"]
         .as_array()
         .unwrap()
@@ -190,6 +198,7 @@ fn object_transfer_function() {
         0.5,
         "resonances = [{ freq_hz = 500.0, q = 3.0, gain_db = 12.0 }]",
     );
+    only(&c, "transfer_function");
     let p = &effect(&c, "transfer_function")["parameters"];
     let f: Vec<f64> = serde_json::from_value(p["frequencies_hz"].clone()).unwrap();
     let db: Vec<f64> = serde_json::from_value(p["coefficients_db"].clone()).unwrap();
@@ -333,4 +342,22 @@ fn bad_input_exits_2_naming_the_file() {
     );
     assert_eq!(code(&o), 2, "{}", stderr(&o));
     assert!(stderr(&o).contains("wobble"), "{}", stderr(&o));
+}
+
+/// Exposure: each frame averages the motion over 450 µs (99% of the frame
+/// period); found within 20%.
+#[test]
+fn exposure_lowpass() {
+    let c = run("exposure", 0.05, "exposure_us = 450.0");
+    only(&c, "exposure");
+    let e = effect(&c, "exposure")["parameters"]["exposure_us"]
+        .as_f64()
+        .unwrap();
+    eprintln!(
+        "exposure: {e:.1} us (true 450), effects {:?}, held-out SNR +{:.2} dB",
+        names(&c),
+        gain(&c)
+    );
+    assert!((e / 450.0 - 1.0).abs() < 0.2, "{e}");
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
 }

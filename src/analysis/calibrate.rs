@@ -194,10 +194,12 @@ pub enum Correction {
     /// Subtract lines (recovery units; phase from sample 0).
     Interference { lines: Vec<Line> },
     /// Equalise by `coefficient^-k` (coefficients in dB at frequencies;
-    /// 0 dB outside the table), at most ±30 dB.
+    /// 0 dB outside the table), at most ±30 dB, and undo the phase of the
+    /// response (degrees at the same frequencies).
     Transfer {
         freqs_hz: Vec<f64>,
         coef_db: Vec<f64>,
+        phase_deg: Vec<f64>,
         k: f64,
     },
 }
@@ -240,7 +242,9 @@ impl Correction {
             Correction::Exposure { exposure_s } => {
                 let e = *exposure_s;
                 equalize(z, fs, |f| {
-                    (1.0 / crate::dsp::exposure::boxcar_gain(f, e).max(1e-9)).min(EXPOSURE_MAX_GAIN)
+                    let g = (1.0 / crate::dsp::exposure::boxcar_gain(f, e).max(1e-9))
+                        .min(EXPOSURE_MAX_GAIN);
+                    Complex::new(g, 0.0)
                 })
             }
             Correction::Interference { lines } => {
@@ -257,10 +261,13 @@ impl Correction {
             Correction::Transfer {
                 freqs_hz,
                 coef_db,
+                phase_deg,
                 k,
             } => equalize(z, fs, |f| {
                 let c = interp_table(freqs_hz, coef_db, f);
-                10f64.powf((-k * c).clamp(-TRANSFER_MAX_DB, TRANSFER_MAX_DB) / 20.0)
+                let ph = interp_table(freqs_hz, phase_deg, f).to_radians();
+                let g = 10f64.powf((-k * c).clamp(-TRANSFER_MAX_DB, TRANSFER_MAX_DB) / 20.0);
+                Complex::from_polar(g, -ph)
             }),
         }
     }
@@ -293,11 +300,13 @@ impl Correction {
             Correction::Transfer {
                 freqs_hz,
                 coef_db,
+                phase_deg,
                 k,
             } => json!({
                 "k": k,
                 "frequencies_hz": freqs_hz,
                 "coefficients_db": coef_db,
+                "phase_deg": phase_deg,
             }),
         }
     }
@@ -344,9 +353,21 @@ impl Correction {
                         c.len()
                     ));
                 }
+                let phase = match p.get("phase_deg") {
+                    None => vec![0.0; f.len()],
+                    Some(_) => list("phase_deg")?,
+                };
+                if phase.len() != f.len() {
+                    return Err(format!(
+                        "effect `{name}`: phase_deg has {} entries, frequencies_hz {}",
+                        phase.len(),
+                        f.len()
+                    ));
+                }
                 Some(Correction::Transfer {
                     freqs_hz: f,
                     coef_db: c,
+                    phase_deg: phase,
                     k: num("k")?,
                 })
             }
@@ -468,7 +489,7 @@ pub fn stft_len(fs: f64) -> usize {
 
 /// Periodic sqrt-Hann frames, hop N/2, zero-phase gain `gain(f)` per bin,
 /// weighted overlap-add (perfect reconstruction for gain 1).
-pub fn equalize(x: &[f64], fs: f64, gain: impl Fn(f64) -> f64) -> Vec<f64> {
+pub fn equalize(x: &[f64], fs: f64, gain: impl Fn(f64) -> Complex<f64>) -> Vec<f64> {
     let nfft = stft_len(fs);
     let hop = nfft / 2;
     let mut planner = RealFftPlanner::<f64>::new();
@@ -477,7 +498,7 @@ pub fn equalize(x: &[f64], fs: f64, gain: impl Fn(f64) -> f64) -> Vec<f64> {
     let win: Vec<f64> = (0..nfft)
         .map(|i| (0.5 - 0.5 * (2.0 * PI * i as f64 / nfft as f64).cos()).sqrt())
         .collect();
-    let g: Vec<f64> = (0..=nfft / 2)
+    let g: Vec<Complex<f64>> = (0..=nfft / 2)
         .map(|k| gain(k as f64 * fs / nfft as f64))
         .collect();
     // Padded by one frame on each side.
@@ -1318,12 +1339,18 @@ fn fit_interference(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
 /// the recovery's magnitude over time weighted by the reference's short-
 /// time power, over the same average of the reference's magnitude; in dB
 /// relative to the linear gain, smoothed over three bins; bins where the
-/// reference has little energy are left out (coefficient 1, 0 dB).
-fn transfer_coefficients(m: &Model, z: &[f64], fit: &Fit) -> (Vec<f64>, Vec<f64>) {
+/// reference has little energy are left out (coefficient 1, 0 dB). Also
+/// the phase of the response: the angle of the cross-spectrum (recovery
+/// times the conjugate reference, sign of the gain removed) summed over the
+/// same frames, smoothed over three bins. The thesis' coefficients are
+/// magnitudes; without the phase, a resonance leaves a lag that changes
+/// with frequency, which other effects then try to explain.
+fn transfer_coefficients(m: &Model, z: &[f64], fit: &Fit) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let nfft = stft_len(m.fs);
     let (fz, ft) = (stft(z, nfft), stft(&fit.t, nfft));
     let nb = nfft / 2 + 1;
     let (mut num, mut den, mut wsum) = (vec![0.0; nb], vec![0.0; nb], vec![0.0; nb]);
+    let mut cross = vec![Complex::new(0.0, 0.0); nb];
     for (i, (a, b)) in fz.iter().zip(&ft).enumerate() {
         // Frames centred in the fit part.
         if !m.is_fit(i * nfft / 2 + nfft / 2) {
@@ -1334,6 +1361,7 @@ fn transfer_coefficients(m: &Model, z: &[f64], fit: &Fit) -> (Vec<f64>, Vec<f64>
             num[k] += a[k].norm() * px;
             den[k] += b[k].norm() * px;
             wsum[k] += px;
+            cross[k] += a[k] * b[k].conj() * fit.g.signum();
         }
     }
     let wmax = wsum.iter().cloned().fold(0.0, f64::max);
@@ -1352,21 +1380,32 @@ fn transfer_coefficients(m: &Model, z: &[f64], fit: &Fit) -> (Vec<f64>, Vec<f64>
             raw[a..b].iter().sum::<f64>() / (b - a) as f64
         })
         .collect();
+    let phase: Vec<f64> = (0..valid.len())
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(1), (i + 2).min(valid.len()));
+            let c: Complex<f64> = valid[a..b]
+                .iter()
+                .map(|&k| cross[k] / cross[k].norm().max(1e-300))
+                .sum();
+            c.arg().to_degrees()
+        })
+        .collect();
     let freqs = valid
         .iter()
         .map(|&k| k as f64 * m.fs / nfft as f64)
         .collect();
-    (freqs, smooth)
+    (freqs, smooth, phase)
 }
 
 fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
-    let (freqs, coef) = transfer_coefficients(m, z, fit);
+    let (freqs, coef, phase) = transfer_coefficients(m, z, fit);
     if freqs.len() < 3 {
         return None;
     }
     let corr = |k: f64| Correction::Transfer {
         freqs_hz: freqs.clone(),
         coef_db: coef.clone(),
+        phase_deg: phase.clone(),
         k,
     };
     let grid: Vec<(f64, f64)> = (0..=12)
@@ -1379,9 +1418,6 @@ fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
         .iter()
         .enumerate()
         .min_by(|a, b| a.1 .1.total_cmp(&b.1 .1))?;
-    if bi == 0 {
-        return None;
-    }
     let (lo, hi) = (grid[bi].0 - 0.25, grid[bi].0 + 0.25);
     let (k, sse) = golden(|k| eq_sse(m, z, fit, &corr(k)), lo.max(0.0), hi, 16);
     let nf = m.nfit(z.len());
@@ -1798,7 +1834,7 @@ mod tests {
     #[test]
     fn equalize_with_unit_gain_reconstructs() {
         let x = chirp(2200.0, 1.0, 100.0, 900.0);
-        let y = equalize(&x, 2200.0, |_| 1.0);
+        let y = equalize(&x, 2200.0, |_| Complex::new(1.0, 0.0));
         let err: f64 = x
             .iter()
             .zip(&y)
@@ -1806,7 +1842,7 @@ mod tests {
             .fold(0.0, f64::max);
         assert!(err < 1e-9, "{err}");
         // A gain of 2 doubles.
-        let y = equalize(&x, 2200.0, |_| 2.0);
+        let y = equalize(&x, 2200.0, |_| Complex::new(2.0, 0.0));
         assert!((y[1000] - 2.0 * x[1000]).abs() < 1e-9);
     }
 
@@ -1927,6 +1963,7 @@ mod tests {
             Correction::Transfer {
                 freqs_hz: vec![100.0, 200.0],
                 coef_db: vec![3.0, -2.0],
+                phase_deg: vec![10.0, -20.0],
                 k: 1.2,
             },
         ];
