@@ -430,7 +430,7 @@ fn apply_frames(z: &[f64], events: &[FrameEvent]) -> Vec<f64> {
 // ---------------------------------------------------------------------------
 
 /// Half-width of the band-limited interpolator, in input samples.
-const SINC_HALF: isize = 16;
+const SINC_HALF: isize = 32;
 
 fn bessel_i0(x: f64) -> f64 {
     let (mut sum, mut term, mut k) = (1.0, 1.0, 1.0);
@@ -1891,11 +1891,7 @@ mod tests {
             opts: &opts(),
         };
         // Captured at the true rate fs (1 + e), high-passed, scaled.
-        let y: Vec<f64> = m
-            .target(4000, 0, 0.0, e * 1e6)
-            .iter()
-            .map(|v| 0.3 * v)
-            .collect();
+        let y = noisy(&m.target(4000, 0, 0.0, e * 1e6), 1);
         let cal = calibrate(&y, fs, &r, fr, &opts()).unwrap();
         let names: Vec<&str> = cal.report.effects.iter().map(|e| e.name.as_str()).collect();
         assert_eq!(names, ["time_base"], "{:?}", cal.report);
@@ -1905,11 +1901,7 @@ mod tests {
         assert!((ppm - 3000.0).abs() < 50.0, "{ppm}");
         assert!(cal.report.after.snr_db > cal.report.before.snr_db + 10.0);
         // No warp: nothing to claim.
-        let y: Vec<f64> = m
-            .target(4000, 0, 0.0, 0.0)
-            .iter()
-            .map(|v| 0.3 * v)
-            .collect();
+        let y = noisy(&m.target(4000, 0, 0.0, 0.0), 2);
         let cal = calibrate(&y, fs, &r, fr, &opts()).unwrap();
         assert!(cal.report.effects.is_empty(), "{:?}", cal.report.effects);
     }
