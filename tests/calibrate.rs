@@ -361,3 +361,125 @@ fn exposure_lowpass() {
     assert!((e / 450.0 - 1.0).abs() < 0.2, "{e}");
     assert!(gain(&c) >= 3.0, "{}", gain(&c));
 }
+
+/// Thesis Table 4.2 on simulated data: calibrate on a chirp from an object
+/// with a non-flat response (two resonances), then equalise six espeak-ng
+/// speech recordings of the same object with `listen --calibration`;
+/// segmental SNR against the played speech (at the frame rate, best lag
+/// and gain) must improve on every one. Skips when espeak-ng or sox is
+/// missing. NOT MET YET (hence ignored): at noise 0.5 DN the equalised
+/// segmental SNR rose on 3 of the 6 and fell on 3 (-1.4 to +2.7 dB); run
+/// with `--ignored --nocapture` for the table.
+#[test]
+#[ignore = "not met yet: equalisation improves 3 of 6 speech recordings (see README)"]
+fn table_4_2_equalised_speech() {
+    for tool in ["espeak-ng", "sox"] {
+        if std::process::Command::new(tool)
+            .arg("--version")
+            .output()
+            .is_err()
+        {
+            eprintln!("skipping: {tool} is not installed");
+            return;
+        }
+    }
+    let d = tempfile::tempdir().unwrap();
+    let object = "width = 64\nheight = 64\nfps = 2200.0\nnoise_std = 0.5\nduration_s = 2.0\namplitude_px = 0.05\nresonances = [{ freq_hz = 480.0, q = 2.0, gain_db = 10.0 }, { freq_hz = 180.0, q = 1.5, gain_db = -6.0 }]\n";
+    let scene = |name: &str, wav: &str| {
+        let toml = d.path().join(format!("{name}.toml"));
+        std::fs::write(
+            &toml,
+            format!(
+                "{object}signal = {{ type = \"wav\", path = {:?} }}\n",
+                d.path().join(wav).display().to_string()
+            ),
+        )
+        .unwrap();
+        let y4m = d.path().join(format!("{name}.y4m"));
+        let code = vibroscope::cli::simulate(&toml, &y4m, &[], false).unwrap();
+        assert_eq!(code, std::process::ExitCode::SUCCESS);
+        y4m
+    };
+    write_chirp(&d.path().join("chirp.wav"));
+    scene("chirp", "chirp.wav");
+    let o = run_in(
+        d.path(),
+        &[
+            "calibrate",
+            "chirp.y4m",
+            "--reference",
+            "chirp.wav",
+            "--json",
+            "report.json",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let speech = [
+        ("en-us", "The birch canoe slid on the smooth planks."),
+        ("en-gb", "Glue the sheet to the dark blue background."),
+        ("en+f3", "It is easy to tell the depth of a well."),
+        ("en+m3", "These days a chicken leg is a rare dish."),
+        ("en-gb-scotland", "Rice is often served in round bowls."),
+        ("en+f2", "The juice of lemons makes fine punch."),
+    ];
+    let mut rows = Vec::new();
+    for (i, (voice, text)) in speech.iter().enumerate() {
+        let raw = d.path().join(format!("raw{i}.wav"));
+        let o = std::process::Command::new("espeak-ng")
+            .args(["-v", voice, "-s", "190", "-w"])
+            .arg(&raw)
+            .arg(text)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "espeak-ng: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        // Band-limited to the camera's Nyquist (1.1 kHz) as played, 2.3 s.
+        let wav = format!("speech{i}.wav");
+        let o = std::process::Command::new("sox")
+            .arg(&raw)
+            .args(["-r", "32000", "-b", "32", "-e", "floating-point"])
+            .arg(d.path().join(&wav))
+            .args([
+                "lowpass", "1000", "norm", "-1", "pad", "0", "2.3", "trim", "0", "2.3",
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "sox: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        scene(&format!("s{i}"), &wav);
+        let mut ssnr = [0.0; 2];
+        for (k, extra) in [&[][..], &["--calibration", "report.json"][..]]
+            .iter()
+            .enumerate()
+        {
+            let out = format!("s{i}-{k}.wav");
+            let y4m = format!("s{i}.y4m");
+            let mut args = vec!["listen", y4m.as_str(), "-o", out.as_str()];
+            args.extend_from_slice(extra);
+            let o = run_in(d.path(), &args);
+            assert_eq!(code(&o), 0, "{}", stderr(&o));
+            let (_, y) = read_wav(&d.path().join(&out));
+            let (_, r) = read_wav(&d.path().join(&wav));
+            let r: Vec<f64> = r.iter().map(|&v| v as f64).collect();
+            let r = vibroscope::dsp::metrics::resample(&r, 11, 160).unwrap();
+            let y: Vec<f64> = y.iter().map(|&v| v as f64).collect();
+            let n = y.len().min(r.len());
+            ssnr[k] = vibroscope::dsp::metrics::score(&r[..n], &y[..n], 2200.0, 220).ssnr_db;
+        }
+        rows.push((voice.to_string(), ssnr[0], ssnr[1]));
+    }
+    eprintln!("| speech (espeak-ng voice) | segmental SNR, dB | equalised |");
+    eprintln!("|---|---|---|");
+    for (v, a, b) in &rows {
+        eprintln!("| {v} | {a:.2} | {b:.2} |");
+    }
+    for (v, a, b) in &rows {
+        assert!(b > a, "{v}: {a} -> {b}");
+    }
+}
