@@ -208,20 +208,20 @@ enum Command {
         #[arg(long)]
         stats: bool,
     },
-    /// Motion spectrum of a video (thesis Eq. 3.17) and its resonances:
-    /// frequency, damping ratio with its uncertainty and method, power and
-    /// prominence of each peak, as JSON.
     /// Compare what the visual microphone recovers from VIDEO with the sound
     /// that was played (REF.wav): fit delay and gain, then try the catalog
     /// of effects (time-base error, dropped or duplicated frames, exposure,
-    /// interference lines, object transfer function), each fitted on the
-    /// first 60% of the recording and kept only if it lowers the error on
-    /// the last 40%; report the errors before and after and the residual
-    /// no effect explains.
+    /// interference lines, object transfer function), each fitted on 60%
+    /// of the recording (blocks of about 0.1 s, 3 of every 5) and kept only
+    /// if it lowers the error on the other 40%; report the errors before
+    /// and after and the residual no effect explains.
     #[command(after_help = "Examples:\n  \
         vibroscope calibrate chirp.y4m --reference chirp.wav --json report.json -o corrected.wav\n  \
         vibroscope listen speech.y4m --calibration report.json -o speech.wav")]
     Calibrate(calibrate::CalibrateArgs),
+    /// Motion spectrum of a video (thesis Eq. 3.17) and its resonances:
+    /// frequency, damping ratio with its uncertainty and method, power and
+    /// prominence of each peak, as JSON.
     #[command(after_help = "Examples:\n  \
         vibroscope spectrum ../shared/data/guitar.mp4 --fps 600 --json guitar.json\n  \
         vibroscope spectrum beam.y4m --json beam.json --peaks 3 --roi 0,0,64,64")]

@@ -25,7 +25,8 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "REPORT.json")]
     pub json: PathBuf,
     /// Also write the corrected recovery, aligned and scaled to the
-    /// reference, at the reference's sample rate.
+    /// reference, at the reference's sample rate (band-limited to half the
+    /// frame rate, and still high-passed like every recovery).
     #[arg(short, long, value_name = "CORRECTED.wav")]
     pub output: Option<PathBuf>,
     /// Capture frame rate in Hz (containers often state the playback rate).
