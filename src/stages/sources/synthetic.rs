@@ -69,6 +69,10 @@ pub struct SyntheticParams {
     /// Captured frames the camera delivers twice (identical copies).
     #[serde(default)]
     pub duplicate_frames: Vec<u64>,
+    /// The object's excursion saturates softly: displacement `L tanh(d /
+    /// L)` with `L = soft_clip_px` (a nonlinear object or loudspeaker; odd
+    /// harmonics); before interference, which is not clipped.
+    pub soft_clip_px: Option<f64>,
 }
 
 /// A narrowband motion added to the object's.
@@ -131,6 +135,7 @@ impl Default for SyntheticParams {
             clock_error_ppm: 0.0,
             drop_frames: Vec::new(),
             duplicate_frames: Vec::new(),
+            soft_clip_px: None,
         }
     }
 }
@@ -185,6 +190,10 @@ impl SyntheticParams {
             .collect();
         let signal = Signal::new(&self.signal)
             .and_then(|s| s.through(&self.resonances, rate, span))
+            .and_then(|s| match self.soft_clip_px {
+                Some(l) => s.soft_clipped(l * unit),
+                None => Ok(s),
+            })
             .and_then(|s| s.plus_tones(&tones))
             .map_err(|e| e.to_string())?;
         let (w, h) = (self.width, self.height);
@@ -258,7 +267,9 @@ impl SyntheticParams {
             ));
         }
         self.scene().map(|_| ()).map_err(|m| {
-            let field = if m.contains("resonances") {
+            let field = if m.contains("soft_clip_px") {
+                "soft_clip_px"
+            } else if m.contains("resonances") {
                 "resonances"
             } else if m.contains("interference") {
                 "interference"
