@@ -13,6 +13,7 @@ use std::process::ExitCode;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
+pub mod calibrate;
 mod modes;
 mod plots;
 
@@ -126,6 +127,12 @@ enum Command {
         /// Print the per-stage summary at exit.
         #[arg(long)]
         stats: bool,
+        /// Apply a stored calibration (REPORT.json from `vibroscope
+        /// calibrate` on the same object and camera): its time-base,
+        /// exposure and transfer-function corrections, not the per-recording
+        /// ones (dropped frames, interference).
+        #[arg(long, value_name = "REPORT.json")]
+        calibration: Option<PathBuf>,
         #[command(flatten)]
         rolling: RollingArgs,
     },
@@ -203,6 +210,17 @@ enum Command {
         #[arg(long)]
         stats: bool,
     },
+    /// Compare what the visual microphone recovers from VIDEO with the sound
+    /// that was played (REF.wav): fit delay and gain, then try the catalog
+    /// of effects (time-base error, dropped or duplicated frames, exposure,
+    /// interference lines, object transfer function), each fitted on 60%
+    /// of the recording (blocks of about 0.1 s, 3 of every 5) and kept only
+    /// if it lowers the error on the other 40%; report the errors before
+    /// and after and the residual no effect explains.
+    #[command(after_help = "Examples:\n  \
+        vibroscope calibrate chirp.y4m --reference chirp.wav --json report.json -o corrected.wav\n  \
+        vibroscope listen speech.y4m --calibration report.json -o speech.wav")]
+    Calibrate(calibrate::CalibrateArgs),
     /// Motion spectrum of a video (thesis Eq. 3.17) and its resonances:
     /// frequency, damping ratio with its uncertainty and method, power and
     /// prominence of each peak, as JSON.
@@ -351,8 +369,27 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
             pyramid,
             speaker,
             stats,
+            calibration,
             rolling,
         } => {
+            let corrections = match &calibration {
+                Some(path) => {
+                    if rolling.rolling_shutter || speaker.is_some() {
+                        let flag = if speaker.is_some() {
+                            "--speaker"
+                        } else {
+                            "--rolling-shutter"
+                        };
+                        return Err(cfg_error(
+                            "--calibration",
+                            format!("not available with {flag} (the correction is applied to the finished WAV)"),
+                        )
+                        .into());
+                    }
+                    Some(calibrate::load_calibration(path)?)
+                }
+                None => None,
+            };
             if mask.is_some() && rolling.rolling_shutter {
                 return Err(cfg_error(
                     "--mask",
@@ -387,10 +424,15 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
             }
             let (code, _) = run_decl(&decl, stats, true)?;
             if code == ExitCode::SUCCESS {
+                if let Some(c) = &corrections {
+                    calibrate::apply_to_wav(&output, c)?;
+                    eprintln!("applied calibration: {}", calibrate::describe(c));
+                }
                 eprintln!("wrote {}", output.display());
             }
             Ok(code)
         }
+        Command::Calibrate(a) => calibrate::run(&a),
         Command::RsCalibrate(a) => rs_calibrate(&a),
         Command::Spectrum(a) => spectrum_cmd(&a),
         Command::Modes(a) => modes::modes_cmd(&a),
@@ -1322,7 +1364,12 @@ fn rs_calibrate(a: &RsCalibrateArgs) -> anyhow::Result<ExitCode> {
 /// `vibroscope simulate`: the shipped `render` pipeline with its camera's
 /// parameters replaced by the scene file's (one code path with the
 /// `synthetic` source; validation names the file and the field).
-fn simulate(scene: &Path, output: &Path, set: &[String], stats: bool) -> anyhow::Result<ExitCode> {
+pub fn simulate(
+    scene: &Path,
+    output: &Path,
+    set: &[String],
+    stats: bool,
+) -> anyhow::Result<ExitCode> {
     let text = std::fs::read_to_string(scene)
         .map_err(|e| cfg_error(&scene.display().to_string(), format!("cannot read: {e}")))?;
     let table: toml::Table = toml::from_str(&text)

@@ -1,5 +1,7 @@
-//! Analysis of measured signals and spectra: resonances and damping.
+//! Analysis of measured signals and spectra: resonances and damping, and
+//! calibration against a known sound.
 
+pub mod calibrate;
 pub mod modal;
 pub mod peaks;
 pub mod plot;

@@ -50,6 +50,8 @@ pub struct Signal {
     kind: Kind,
     /// Tones added after everything else (interference), `(Hz, weight)`.
     extra: Vec<(f64, f64)>,
+    /// Soft clipping level (signal units): `c tanh(x / c)` before the extra tones.
+    clip: Option<f64>,
 }
 
 /// One resonance of an object's transfer function: a peaking section
@@ -172,6 +174,7 @@ impl Signal {
             spec: spec.clone(),
             kind,
             extra: Vec::new(),
+            clip: None,
         })
     }
 
@@ -243,6 +246,7 @@ impl Signal {
                 samples: samples.into(),
             },
             extra: self.extra,
+            clip: self.clip,
         })
     }
 
@@ -259,6 +263,20 @@ impl Signal {
             }
             self.extra.push((f, w));
         }
+        Ok(self)
+    }
+
+    /// Saturates the motion softly at `level` (signal units): `level ·
+    /// tanh(x / level)`, a nonlinear object or loudspeaker (odd harmonics);
+    /// applied before the extra tones (interference is not clipped).
+    pub fn soft_clipped(mut self, level: f64) -> Result<Signal, SimError> {
+        if !(level.is_finite() && level > 0.0) {
+            return Err(invalid(
+                "soft_clip_px",
+                format!("must be a finite level > 0, got {level}"),
+            ));
+        }
+        self.clip = Some(level);
         Ok(self)
     }
 
@@ -305,7 +323,16 @@ impl Signal {
             .iter()
             .map(|&(f, w)| w * sin_turns(turns(f, t_s)))
             .sum();
-        self.base_value(t_s) + extra
+        let b = self.base_value(t_s);
+        let b = match self.clip {
+            // tanh(u) = 1 - 2 / (exp(2u) + 1), with the deterministic exp.
+            Some(c) => {
+                let u = (b / c).clamp(-20.0, 20.0);
+                c * (1.0 - 2.0 / (super::detmath::exp(2.0 * u) + 1.0))
+            }
+            None => b,
+        };
+        b + extra
     }
 
     fn base_value(&self, t_s: f64) -> f64 {

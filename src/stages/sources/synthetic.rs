@@ -80,6 +80,10 @@ pub struct SyntheticParams {
     /// of a rigid motion (`{ modes = [{ freq_hz, amplitude_px, shape, ... }] }`,
     /// see [`crate::sim::modal`]); global shutter only.
     pub modal: Option<sim::ModalSpec>,
+    /// The object's excursion saturates softly: displacement `L tanh(d /
+    /// L)` with `L = soft_clip_px` (a nonlinear object or loudspeaker; odd
+    /// harmonics); before interference, which is not clipped.
+    pub soft_clip_px: Option<f64>,
 }
 
 /// A narrowband motion added to the object's.
@@ -145,6 +149,7 @@ impl Default for SyntheticParams {
             texture: None,
             object_mask: None,
             modal: None,
+            soft_clip_px: None,
         }
     }
 }
@@ -199,6 +204,10 @@ impl SyntheticParams {
             .collect();
         let signal = Signal::new(&self.signal)
             .and_then(|s| s.through(&self.resonances, rate, span))
+            .and_then(|s| match self.soft_clip_px {
+                Some(l) => s.soft_clipped(l * unit),
+                None => Ok(s),
+            })
             .and_then(|s| s.plus_tones(&tones))
             .map_err(|e| e.to_string())?;
         let (w, h) = (self.width, self.height);
@@ -301,6 +310,8 @@ impl SyntheticParams {
                 "object_mask"
             } else if m.contains("modal") {
                 "modal"
+            } else if m.contains("soft_clip_px") {
+                "soft_clip_px"
             } else if m.contains("resonances") {
                 "resonances"
             } else if m.contains("interference") {

@@ -1,0 +1,522 @@
+//! `vibroscope calibrate` (issue 6): each catalog effect rendered alone by
+//! the simulator (library call, no subprocess), recovered by the listen
+//! pipeline and calibrated against the played chirp; two effects combined;
+//! no effect; bad input.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+use common::*;
+use serde_json::Value;
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+use vibroscope::analysis::calibrate::Calibration;
+
+const REF_RATE: u32 = 32_000;
+
+/// A linear chirp 100-1000 Hz over 2.2 s (longer than the 2 s videos).
+fn write_chirp(path: &Path) -> f64 {
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: REF_RATE,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec).unwrap();
+    let (secs, f0, f1) = (2.2, 100.0, 1000.0);
+    let mut peak = 0.0f64;
+    for i in 0..(secs * REF_RATE as f64) as usize {
+        let t = i as f64 / REF_RATE as f64;
+        let v = 0.9 * (2.0 * PI * (f0 * t + (f1 - f0) * t * t / (2.0 * secs))).sin();
+        peak = peak.max(v.abs() as f32 as f64);
+        w.write_sample(v as f32).unwrap();
+    }
+    w.finalize().unwrap();
+    peak
+}
+
+struct Case {
+    _dir: tempfile::TempDir,
+    cal: Calibration,
+    report: Value,
+    peak: f64,
+}
+
+/// Renders a 64x64, 2 s, 2200 fps scene moving with the chirp plus
+/// `extra` scene keys, then calibrates with the whole catalog.
+fn run(name: &str, noise: f64, extra: &str) -> Case {
+    let dir = tempfile::tempdir().unwrap();
+    let wav = dir.path().join("chirp.wav");
+    let peak = write_chirp(&wav);
+    let scene = format!(
+        "width = 64\nheight = 64\nfps = 2200.0\nnoise_std = {noise}\nduration_s = 2.0\namplitude_px = 0.05\nsignal = {{ type = \"wav\", path = {:?} }}\n{extra}\n",
+        wav.display().to_string()
+    );
+    let toml = dir.path().join(format!("{name}.toml"));
+    std::fs::write(&toml, scene).unwrap();
+    let y4m: PathBuf = dir.path().join(format!("{name}.y4m"));
+    let code = vibroscope::cli::simulate(&toml, &y4m, &[], false).unwrap();
+    assert_eq!(code, std::process::ExitCode::SUCCESS);
+    let (_, _, _, cal) =
+        vibroscope::cli::calibrate::calibrate_video(&y4m, &wav, None, None).unwrap();
+    let report = serde_json::to_value(&cal.report).unwrap();
+    eprintln!("{name}: {}", serde_json::to_string(&report).unwrap());
+    Case {
+        _dir: dir,
+        cal,
+        report,
+        peak,
+    }
+}
+
+fn names(c: &Case) -> Vec<String> {
+    c.cal
+        .report
+        .effects
+        .iter()
+        .map(|e| e.name.clone())
+        .collect()
+}
+
+fn effect<'a>(c: &'a Case, name: &str) -> &'a Value {
+    let e = c.report["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["name"] == name)
+        .unwrap_or_else(|| panic!("{name} not found: {:?}", names(c)));
+    e
+}
+
+/// The effect alone is claimed, nothing else.
+fn only(c: &Case, name: &str) {
+    assert_eq!(names(c), [name], "{:?}", c.report);
+}
+
+fn gain(c: &Case) -> f64 {
+    c.cal.report.after.snr_db - c.cal.report.before.snr_db
+}
+
+#[test]
+fn no_effect_claims_none() {
+    let c = run("plain", 0.5, "");
+    assert!(c.cal.report.effects.is_empty(), "{:?}", names(&c));
+    assert!(
+        c.cal.report.before.snr_db > 10.0,
+        "{:?}",
+        c.cal.report.before
+    );
+}
+
+/// Time base: a camera 2000 ppm fast stamped at the declared 2200 fps;
+/// tolerance 0.05% (500 ppm) on the rate.
+#[test]
+fn time_base_error() {
+    let c = run("clock", 0.5, "clock_error_ppm = 2000.0");
+    only(&c, "time_base");
+    let ppm = effect(&c, "time_base")["parameters"]["clock_error_ppm"]
+        .as_f64()
+        .unwrap();
+    eprintln!(
+        "clock: {ppm:.1} ppm (true 2000), held-out SNR +{:.2} dB",
+        gain(&c)
+    );
+    assert!((ppm - 2000.0).abs() < 500.0, "{ppm}");
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+/// Dropped captures 1000 and 3000 and a duplicated capture 2000: events at
+/// delivered frames 1000 (drop), 2000 - 1 + 1 = 2000 (repeat) and 3000 - 1
+/// + 1 = 3000 (drop), within 2 frames.
+#[test]
+fn dropped_and_duplicated_frames() {
+    let c = run(
+        "drops",
+        0.5,
+        "drop_frames = [1000, 3000]\nduplicate_frames = [2000]",
+    );
+    only(&c, "dropped_frames");
+    let ev = effect(&c, "dropped_frames")["parameters"]["events"]
+        .as_array()
+        .unwrap()
+        .clone();
+    let got: Vec<(i64, String)> = ev
+        .iter()
+        .map(|e| {
+            (
+                e["frame"].as_i64().unwrap(),
+                e["kind"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    eprintln!("frames: {got:?}, held-out SNR +{:.2} dB", gain(&c));
+    assert_eq!(got.len(), 3, "{got:?}");
+    for ((f, k), (tf, tk)) in
+        got.iter()
+            .zip([(1000, "dropped"), (2000, "duplicated"), (3000, "dropped")])
+    {
+        assert!((f - tf).abs() <= 2, "{got:?}");
+        assert_eq!(k, tk);
+    }
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+/// A 0.02 px line at 137 Hz beside 0.05 px of chirp: frequency within
+/// 0.5 Hz, amplitude (in the reference's units) within 20%.
+#[test]
+fn interference_line() {
+    let c = run(
+        "line",
+        0.5,
+        "interference = [{ freq_hz = 137.0, amplitude_px = 0.02 }]",
+    );
+    only(&c, "interference");
+    let lines = effect(&c, "interference")["parameters"]["lines"]
+        .as_array()
+        .unwrap()
+        .clone();
+    let l = &lines[0];
+    let (f, a) = (
+        l["freq_hz"].as_f64().unwrap(),
+        l["amplitude"].as_f64().unwrap(),
+    );
+    let want = 0.02 / 0.05 * c.peak;
+    eprintln!(
+        "line: {f:.3} Hz, amplitude {a:.4} (true {want:.4}), held-out SNR +{:.2} dB",
+        gain(&c)
+    );
+    assert!((f - 137.0).abs() < 0.5, "{f}");
+    assert!((a / want - 1.0).abs() < 0.2, "{a} vs {want}");
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+/// Object transfer function: a +12 dB resonance at 500 Hz (Q 3). The
+/// transfer coefficients rise by 12 ± 3 dB from 200 Hz to 500 Hz.
+#[test]
+fn object_transfer_function() {
+    let c = run(
+        "res",
+        0.5,
+        "resonances = [{ freq_hz = 500.0, q = 3.0, gain_db = 12.0 }]",
+    );
+    only(&c, "transfer_function");
+    let p = &effect(&c, "transfer_function")["parameters"];
+    let f: Vec<f64> = serde_json::from_value(p["frequencies_hz"].clone()).unwrap();
+    let db: Vec<f64> = serde_json::from_value(p["coefficients_db"].clone()).unwrap();
+    let at = |x: f64| {
+        let i = f
+            .iter()
+            .enumerate()
+            .min_by(|a, b| (a.1 - x).abs().total_cmp(&(b.1 - x).abs()))
+            .unwrap()
+            .0;
+        db[i]
+    };
+    let rise = at(500.0) - at(200.0);
+    eprintln!(
+        "transfer: {rise:.2} dB from 200 to 500 Hz (true {:.2}), k {:.2}, effects {:?}, held-out SNR +{:.2} dB",
+        12.0 - 20.0 * peaking_gain_at(200.0).log10(),
+        p["k"],
+        names(&c),
+        gain(&c)
+    );
+    assert!((rise - 12.0).abs() < 3.0, "{rise}");
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+/// |H| of the RBJ peaking section (500 Hz, Q 3, +12 dB) at `f` (analog
+/// prototype; 200 Hz is well below the resonance).
+fn peaking_gain_at(f: f64) -> f64 {
+    let a = 10f64.powf(12.0 / 40.0);
+    let (w, q) = (f / 500.0, 3.0);
+    let num = ((1.0 - w * w).powi(2) + (w * a / q).powi(2)).sqrt();
+    let den = ((1.0 - w * w).powi(2) + (w / (a * q)).powi(2)).sqrt();
+    num / den
+}
+
+/// Two effects: a clock error and an interference line.
+#[test]
+fn two_effects_combined() {
+    let c = run(
+        "two",
+        0.5,
+        "clock_error_ppm = -1500.0\ninterference = [{ freq_hz = 233.0, amplitude_px = 0.02 }]",
+    );
+    let ppm = effect(&c, "time_base")["parameters"]["clock_error_ppm"]
+        .as_f64()
+        .unwrap();
+    // The line is heard at 233 / (1 - 0.0015) Hz before the time base is
+    // fixed, at 233 Hz after: either way within 0.5 Hz of one of them.
+    let f = effect(&c, "interference")["parameters"]["lines"][0]["freq_hz"]
+        .as_f64()
+        .unwrap();
+    eprintln!(
+        "two: {ppm:.1} ppm, line {f:.3} Hz, held-out SNR +{:.2} dB",
+        gain(&c)
+    );
+    assert!((ppm + 1500.0).abs() < 500.0, "{ppm}");
+    assert!(
+        (f - 233.0).abs() < 0.5 || (f - 233.0 / 0.9985).abs() < 0.5,
+        "{f}"
+    );
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+#[test]
+fn bad_input_exits_2_naming_the_file() {
+    let d = tempfile::tempdir().unwrap();
+    let wav = d.path().join("chirp.wav");
+    write_chirp(&wav);
+    std::fs::write(
+        d.path().join("s.toml"),
+        "width = 32\nheight = 32\nfps = 2200.0\nduration_s = 3.0\n",
+    )
+    .unwrap();
+    let o = run_in(d.path(), &["simulate", "s.toml", "-o", "s.y4m"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    // Missing reference.
+    let o = run_in(
+        d.path(),
+        &[
+            "calibrate",
+            "s.y4m",
+            "--reference",
+            "nope.wav",
+            "--json",
+            "r.json",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("nope.wav"), "{}", stderr(&o));
+    // The 2.2 s reference is shorter than the 3 s video.
+    let o = run_in(
+        d.path(),
+        &[
+            "calibrate",
+            "s.y4m",
+            "--reference",
+            "chirp.wav",
+            "--json",
+            "r.json",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("shorter"), "{}", stderr(&o));
+    // A reference sampled below the frame rate.
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: 1000,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let mut w = hound::WavWriter::create(d.path().join("low.wav"), spec).unwrap();
+    for i in 0..5000 {
+        w.write_sample(((i % 7) * 100) as i16).unwrap();
+    }
+    w.finalize().unwrap();
+    let o = run_in(
+        d.path(),
+        &[
+            "calibrate",
+            "s.y4m",
+            "--reference",
+            "low.wav",
+            "--json",
+            "r.json",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("1000 Hz"), "{}", stderr(&o));
+    // Unknown effect name.
+    let o = run_in(
+        d.path(),
+        &[
+            "calibrate",
+            "s.y4m",
+            "--reference",
+            "chirp.wav",
+            "--json",
+            "r.json",
+            "--effects",
+            "wobble",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("wobble"), "{}", stderr(&o));
+}
+
+/// Exposure: each frame averages the motion over 450 µs (99% of the frame
+/// period); found within 20%.
+#[test]
+fn exposure_lowpass() {
+    let c = run("exposure", 0.05, "exposure_us = 450.0");
+    only(&c, "exposure");
+    let e = effect(&c, "exposure")["parameters"]["exposure_us"]
+        .as_f64()
+        .unwrap();
+    eprintln!(
+        "exposure: {e:.1} us (true 450), effects {:?}, held-out SNR +{:.2} dB",
+        names(&c),
+        gain(&c)
+    );
+    assert!((e / 450.0 - 1.0).abs() < 0.2, "{e}");
+    assert!(gain(&c) >= 3.0, "{}", gain(&c));
+}
+
+/// Thesis Table 4.2 on simulated data: calibrate on a chirp from an object
+/// with a non-flat response (two resonances), then equalise six espeak-ng
+/// speech recordings of the same object with `listen --calibration`;
+/// segmental SNR against the played speech (at the frame rate, best lag
+/// and gain) must improve on every one. Skips when espeak-ng or sox is
+/// missing. NOT MET YET (hence ignored): at noise 0.5 DN the equalised
+/// segmental SNR rose on 3 of the 6 and fell on 3 (-1.4 to +2.7 dB); run
+/// with `--ignored --nocapture` for the table.
+#[test]
+#[ignore = "not met yet: equalisation improves 3 of 6 speech recordings (see README)"]
+fn table_4_2_equalised_speech() {
+    for tool in ["espeak-ng", "sox"] {
+        if std::process::Command::new(tool)
+            .arg("--version")
+            .output()
+            .is_err()
+        {
+            eprintln!("skipping: {tool} is not installed");
+            return;
+        }
+    }
+    let d = tempfile::tempdir().unwrap();
+    let object = "width = 64\nheight = 64\nfps = 2200.0\nnoise_std = 0.5\nduration_s = 2.0\namplitude_px = 0.05\nresonances = [{ freq_hz = 480.0, q = 2.0, gain_db = 10.0 }, { freq_hz = 180.0, q = 1.5, gain_db = -6.0 }]\n";
+    let scene = |name: &str, wav: &str| {
+        let toml = d.path().join(format!("{name}.toml"));
+        std::fs::write(
+            &toml,
+            format!(
+                "{object}signal = {{ type = \"wav\", path = {:?} }}\n",
+                d.path().join(wav).display().to_string()
+            ),
+        )
+        .unwrap();
+        let y4m = d.path().join(format!("{name}.y4m"));
+        let code = vibroscope::cli::simulate(&toml, &y4m, &[], false).unwrap();
+        assert_eq!(code, std::process::ExitCode::SUCCESS);
+        y4m
+    };
+    write_chirp(&d.path().join("chirp.wav"));
+    scene("chirp", "chirp.wav");
+    let o = run_in(
+        d.path(),
+        &[
+            "calibrate",
+            "chirp.y4m",
+            "--reference",
+            "chirp.wav",
+            "--json",
+            "report.json",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let speech = [
+        ("en-us", "The birch canoe slid on the smooth planks."),
+        ("en-gb", "Glue the sheet to the dark blue background."),
+        ("en+f3", "It is easy to tell the depth of a well."),
+        ("en+m3", "These days a chicken leg is a rare dish."),
+        ("en-gb-scotland", "Rice is often served in round bowls."),
+        ("en+f2", "The juice of lemons makes fine punch."),
+    ];
+    let mut rows = Vec::new();
+    for (i, (voice, text)) in speech.iter().enumerate() {
+        let raw = d.path().join(format!("raw{i}.wav"));
+        let o = std::process::Command::new("espeak-ng")
+            .args(["-v", voice, "-s", "190", "-w"])
+            .arg(&raw)
+            .arg(text)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "espeak-ng: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        // Band-limited to the camera's Nyquist (1.1 kHz) as played, 2.3 s.
+        let wav = format!("speech{i}.wav");
+        let o = std::process::Command::new("sox")
+            .arg(&raw)
+            .args(["-r", "32000", "-b", "32", "-e", "floating-point"])
+            .arg(d.path().join(&wav))
+            .args([
+                "lowpass", "1000", "norm", "-1", "pad", "0", "2.3", "trim", "0", "2.3",
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "sox: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        scene(&format!("s{i}"), &wav);
+        let mut ssnr = [0.0; 2];
+        for (k, extra) in [&[][..], &["--calibration", "report.json"][..]]
+            .iter()
+            .enumerate()
+        {
+            let out = format!("s{i}-{k}.wav");
+            let y4m = format!("s{i}.y4m");
+            let mut args = vec!["listen", y4m.as_str(), "-o", out.as_str()];
+            args.extend_from_slice(extra);
+            let o = run_in(d.path(), &args);
+            assert_eq!(code(&o), 0, "{}", stderr(&o));
+            let (_, y) = read_wav(&d.path().join(&out));
+            let (_, r) = read_wav(&d.path().join(&wav));
+            let r: Vec<f64> = r.iter().map(|&v| v as f64).collect();
+            let r = vibroscope::dsp::metrics::resample(&r, 11, 160).unwrap();
+            let y: Vec<f64> = y.iter().map(|&v| v as f64).collect();
+            let n = y.len().min(r.len());
+            ssnr[k] = vibroscope::dsp::metrics::score(&r[..n], &y[..n], 2200.0, 220).ssnr_db;
+        }
+        rows.push((voice.to_string(), ssnr[0], ssnr[1]));
+    }
+    eprintln!("| speech (espeak-ng voice) | segmental SNR, dB | equalised |");
+    eprintln!("|---|---|---|");
+    for (v, a, b) in &rows {
+        eprintln!("| {v} | {a:.2} | {b:.2} |");
+    }
+    for (v, a, b) in &rows {
+        assert!(b > a, "{v}: {a} -> {b}");
+    }
+}
+
+/// An effect outside the catalog: the object's excursion saturates softly
+/// (`soft_clip_px`, L tanh(d / L) with L = 0.6 of the 0.05 px peak).
+/// Calibrate claims no catalog effect, and `unexplained` reports the odd
+/// harmonic: energy at 3x the chirp's frequency (aliases included), and no
+/// 2nd harmonic. The level is printed against what tanh predicts, not
+/// asserted: the cell count under-reads a sweeping harmonic (about 5 dB).
+#[test]
+fn outside_the_catalog_soft_clipping() {
+    let c = run("clip", 0.5, "soft_clip_px = 0.03");
+    assert!(c.cal.report.effects.is_empty(), "{:?}", names(&c));
+    let un = c.report["unexplained"].as_array().unwrap();
+    let h3 = un
+        .iter()
+        .find(|u| u["kind"] == "harmonics" && u["order"] == 3)
+        .unwrap_or_else(|| panic!("no 3rd harmonic in {un:?}"));
+    assert!(
+        !un.iter()
+            .any(|u| u["kind"] == "harmonics" && u["order"] == 2),
+        "{un:?}"
+    );
+    // 3rd against 1st Fourier coefficient of 0.6 tanh(sin(x) / 0.6).
+    let (mut c1, mut c3) = (0.0, 0.0);
+    for i in 0..4096 {
+        let x = 2.0 * PI * i as f64 / 4096.0;
+        let v = 0.6 * (x.sin() / 0.6).tanh();
+        c1 += v * x.sin();
+        c3 += v * (3.0 * x).sin();
+    }
+    let want = 20.0 * (c3.abs() / c1.abs()).log10();
+    let got = h3["level_db"].as_f64().unwrap();
+    eprintln!(
+        "soft clip: 3rd harmonic {got:.1} dB (tanh: {want:.1} dB), {}",
+        h3["description"]
+    );
+    assert!(got.is_finite() && got < 0.0, "{got}");
+}
