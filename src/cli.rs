@@ -159,10 +159,12 @@ enum Command {
     /// (with per-frame timestamps). The scene file holds the `synthetic`
     /// source's parameters at its top level: size, rate, object, motion
     /// `signal`, `amplitude_px`, `noise_std`, `bits`, rolling shutter
-    /// (`line_delay_us`, `exposure_us`), the object's `resonances`, and
-    /// camera effects (`clock_error_ppm`, `drop_frames`,
-    /// `duplicate_frames`, `interference`). See `vibroscope kinds` and the
-    /// README's "Simulator" section.
+    /// (`line_delay_us`, `exposure_us`), the object's look (`texture`: a
+    /// picture; `object_mask`: a silhouette), response (`resonances`,
+    /// `soft_clip_px`, or a `modal` beam), and camera effects
+    /// (`clock_error_ppm`, `drop_frames`, `duplicate_frames`,
+    /// `interference`). See `vibroscope kinds` and the README's "Simulator"
+    /// section.
     Simulate {
         scene: PathBuf,
         /// Output Y4M (`-` for stdout).
