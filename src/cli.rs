@@ -1462,7 +1462,7 @@ pub(crate) struct SpectrumArgs {
     #[arg(long, value_name = "OUT.png")]
     pub(crate) spectrogram: Option<PathBuf>,
     /// The spectrogram's window in frames (hop: an eighth of it).
-    #[arg(long, value_name = "FRAMES", default_value_t = 256)]
+    #[arg(long, value_name = "FRAMES", default_value_t = SPECTROGRAM_WINDOW)]
     pub(crate) spectrogram_window: usize,
     /// Print the per-stage summary at exit.
     #[arg(long)]
@@ -1561,6 +1561,9 @@ pub(crate) fn spectrum_pipeline(a: &SpectrumArgs) -> anyhow::Result<PipelineDecl
     plots::add_plots(&mut decl, &plots)?;
     Ok(decl)
 }
+
+/// The spectrogram's default window in frames (`spectrum --spectrogram-window`).
+pub(crate) const SPECTROGRAM_WINDOW: usize = 256;
 
 fn spectrum_cmd(a: &SpectrumArgs) -> anyhow::Result<ExitCode> {
     let mut decl = spectrum_pipeline(a)?;

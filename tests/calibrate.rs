@@ -273,34 +273,6 @@ fn bad_input_exits_2_naming_the_file() {
     .unwrap();
     let o = run_in(d.path(), &["simulate", "s.toml", "-o", "s.y4m"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
-    // Missing reference.
-    let o = run_in(
-        d.path(),
-        &[
-            "calibrate",
-            "s.y4m",
-            "--reference",
-            "nope.wav",
-            "--json",
-            "r.json",
-        ],
-    );
-    assert_eq!(code(&o), 2, "{}", stderr(&o));
-    assert!(stderr(&o).contains("nope.wav"), "{}", stderr(&o));
-    // The 2.2 s reference is shorter than the 3 s video.
-    let o = run_in(
-        d.path(),
-        &[
-            "calibrate",
-            "s.y4m",
-            "--reference",
-            "chirp.wav",
-            "--json",
-            "r.json",
-        ],
-    );
-    assert_eq!(code(&o), 2, "{}", stderr(&o));
-    assert!(stderr(&o).contains("shorter"), "{}", stderr(&o));
     // A reference sampled below the frame rate.
     let spec = hound::WavSpec {
         channels: 1,
@@ -313,35 +285,30 @@ fn bad_input_exits_2_naming_the_file() {
         w.write_sample(((i % 7) * 100) as i16).unwrap();
     }
     w.finalize().unwrap();
-    let o = run_in(
-        d.path(),
-        &[
+    // (reference, extra arguments, what the message must name)
+    for (reference, extra, needle) in [
+        // Missing reference.
+        ("nope.wav", &[][..], "nope.wav"),
+        // The 2.2 s reference is shorter than the 3 s video.
+        ("chirp.wav", &[][..], "shorter"),
+        // Sampled below the frame rate.
+        ("low.wav", &[][..], "1000 Hz"),
+        // Unknown effect name.
+        ("chirp.wav", &["--effects", "wobble"][..], "wobble"),
+    ] {
+        let mut args = vec![
             "calibrate",
             "s.y4m",
             "--reference",
-            "low.wav",
+            reference,
             "--json",
             "r.json",
-        ],
-    );
-    assert_eq!(code(&o), 2, "{}", stderr(&o));
-    assert!(stderr(&o).contains("1000 Hz"), "{}", stderr(&o));
-    // Unknown effect name.
-    let o = run_in(
-        d.path(),
-        &[
-            "calibrate",
-            "s.y4m",
-            "--reference",
-            "chirp.wav",
-            "--json",
-            "r.json",
-            "--effects",
-            "wobble",
-        ],
-    );
-    assert_eq!(code(&o), 2, "{}", stderr(&o));
-    assert!(stderr(&o).contains("wobble"), "{}", stderr(&o));
+        ];
+        args.extend_from_slice(extra);
+        let o = run_in(d.path(), &args);
+        assert_eq!(code(&o), 2, "{}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{}", stderr(&o));
+    }
 }
 
 /// Exposure: each frame averages the motion over 450 µs (99% of the frame

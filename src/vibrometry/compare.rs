@@ -98,7 +98,7 @@ pub(crate) fn compare_cmd(a: &CompareArgs) -> anyhow::Result<ExitCode> {
                 motion_wav: None,
                 png: None,
                 spectrogram: None,
-                spectrogram_window: 256,
+                spectrogram_window: crate::cli::SPECTROGRAM_WINDOW,
             };
             let decl = spectrum_pipeline(&sa)?;
             let (code, _) = run_decl(&decl, false, false)?;
