@@ -38,8 +38,8 @@ pub struct Cli {
     command: Command,
 }
 
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum DenoiseArg {
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub(crate) enum DenoiseArg {
     None,
     Subtract,
     Enhance,
@@ -130,7 +130,10 @@ enum Command {
         /// Apply a stored calibration (REPORT.json from `vibroscope
         /// calibrate` on the same object and camera): its time-base,
         /// exposure and transfer-function corrections, not the per-recording
-        /// ones (dropped frames, interference).
+        /// ones (dropped frames, interference). With --denoise, the denoiser
+        /// runs again after the correction, as in the thesis' Table 4.2: an
+        /// equaliser lifts the noise in the bands it boosts, so equalising
+        /// noisy speech without denoising can lower its segmental SNR.
         #[arg(long, value_name = "REPORT.json")]
         calibration: Option<PathBuf>,
         #[command(flatten)]
@@ -427,7 +430,8 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
             let (code, _) = run_decl(&decl, stats, true)?;
             if code == ExitCode::SUCCESS {
                 if let Some(c) = &corrections {
-                    calibrate::apply_to_wav(&output, c)?;
+                    let again = (!matches!(denoise, DenoiseArg::None)).then_some(denoise);
+                    calibrate::apply_to_wav(&output, c, again)?;
                     eprintln!("applied calibration: {}", calibrate::describe(c));
                 }
                 eprintln!("wrote {}", output.display());

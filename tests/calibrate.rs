@@ -233,7 +233,10 @@ fn peaking_gain_at(f: f64) -> f64 {
     num / den
 }
 
-/// Two effects: a clock error and an interference line.
+/// Two effects: a clock error and an interference line. Both are found,
+/// nothing else is claimed; the line is reported on the recording's
+/// declared time base (lines are removed from the recovery as delivered),
+/// where 233 Hz is heard at 233 / (1 - 0.0015) Hz.
 #[test]
 fn two_effects_combined() {
     let c = run(
@@ -241,23 +244,25 @@ fn two_effects_combined() {
         0.5,
         "clock_error_ppm = -1500.0\ninterference = [{ freq_hz = 233.0, amplitude_px = 0.02 }]",
     );
+    let mut got = names(&c);
+    got.sort();
+    assert_eq!(got, ["interference", "time_base"], "{:?}", c.report);
     let ppm = effect(&c, "time_base")["parameters"]["clock_error_ppm"]
         .as_f64()
         .unwrap();
-    // The line is heard at 233 / (1 - 0.0015) Hz before the time base is
-    // fixed, at 233 Hz after: either way within 0.5 Hz of one of them.
-    let f = effect(&c, "interference")["parameters"]["lines"][0]["freq_hz"]
-        .as_f64()
-        .unwrap();
+    let line = &effect(&c, "interference")["parameters"]["lines"][0];
+    let (f, a) = (
+        line["freq_hz"].as_f64().unwrap(),
+        line["amplitude"].as_f64().unwrap(),
+    );
+    let (want_f, want_a) = (233.0 / (1.0 - 1500e-6), 0.02 / 0.05 * c.peak);
     eprintln!(
-        "two: {ppm:.1} ppm, line {f:.3} Hz, held-out SNR +{:.2} dB",
+        "two: {ppm:.1} ppm (true -1500), line {f:.3} Hz (true {want_f:.3}), amplitude {a:.4} (true {want_a:.4}), held-out SNR +{:.2} dB",
         gain(&c)
     );
     assert!((ppm + 1500.0).abs() < 500.0, "{ppm}");
-    assert!(
-        (f - 233.0).abs() < 0.5 || (f - 233.0 / 0.9985).abs() < 0.5,
-        "{f}"
-    );
+    assert!((f - want_f).abs() < 0.5, "{f}");
+    assert!((a / want_a - 1.0).abs() < 0.2, "{a} vs {want_a}");
     assert!(gain(&c) >= 3.0, "{}", gain(&c));
 }
 
@@ -331,14 +336,13 @@ fn exposure_lowpass() {
 
 /// Thesis Table 4.2 on simulated data: calibrate on a chirp from an object
 /// with a non-flat response (two resonances), then equalise six espeak-ng
-/// speech recordings of the same object with `listen --calibration`;
-/// segmental SNR against the played speech (at the frame rate, best lag
-/// and gain) must improve on every one. Skips when espeak-ng or sox is
-/// missing. NOT MET YET (hence ignored): at noise 0.5 DN the equalised
-/// segmental SNR rose on 3 of the 6 and fell on 3 (-1.4 to +2.7 dB); run
-/// with `--ignored --nocapture` for the table.
+/// speech recordings of the same object with `listen --calibration`. As in
+/// the thesis, both columns are denoised by spectral subtraction, and the
+/// equalised one is denoised again after equalising (equalising lifts the
+/// noise in the bands it boosts). Segmental SNR against the played speech
+/// (at the frame rate, best lag and gain) must improve on every one. Skips
+/// when espeak-ng or sox is missing.
 #[test]
-#[ignore = "not met yet: equalisation improves 3 of 6 speech recordings (see README)"]
 fn table_4_2_equalised_speech() {
     for tool in ["espeak-ng", "sox"] {
         if std::process::Command::new(tool)
@@ -381,6 +385,16 @@ fn table_4_2_equalised_speech() {
         ],
     );
     assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.path().join("report.json")).unwrap())
+            .unwrap();
+    let kept: Vec<&str> = report["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(kept, ["transfer_function"], "{report}");
     let speech = [
         ("en-us", "The birch canoe slid on the smooth planks."),
         ("en-gb", "Glue the sheet to the dark blue background."),
@@ -421,9 +435,12 @@ fn table_4_2_equalised_speech() {
         );
         scene(&format!("s{i}"), &wav);
         let mut ssnr = [0.0; 2];
-        for (k, extra) in [&[][..], &["--calibration", "report.json"][..]]
-            .iter()
-            .enumerate()
+        for (k, extra) in [
+            &["--denoise", "subtract"][..],
+            &["--denoise", "subtract", "--calibration", "report.json"][..],
+        ]
+        .iter()
+        .enumerate()
         {
             let out = format!("s{i}-{k}.wav");
             let y4m = format!("s{i}.y4m");
@@ -441,10 +458,10 @@ fn table_4_2_equalised_speech() {
         }
         rows.push((voice.to_string(), ssnr[0], ssnr[1]));
     }
-    eprintln!("| speech (espeak-ng voice) | segmental SNR, dB | equalised |");
-    eprintln!("|---|---|---|");
+    eprintln!("| speech (espeak-ng voice) | segmental SNR, dB | equalised | change |");
+    eprintln!("|---|---|---|---|");
     for (v, a, b) in &rows {
-        eprintln!("| {v} | {a:.2} | {b:.2} |");
+        eprintln!("| {v} | {a:.2} | {b:.2} | {:+.2} |", b - a);
     }
     for (v, a, b) in &rows {
         assert!(b > a, "{v}: {a} -> {b}");

@@ -257,15 +257,60 @@ pub fn load_calibration(path: &Path) -> anyhow::Result<Vec<Correction>> {
 }
 
 /// Applies `corrections` to the WAV at `path` in place (at its own rate).
-pub fn apply_to_wav(path: &Path, corrections: &[Correction]) -> anyhow::Result<()> {
+/// With `denoise` (the recovery was denoised), the same denoiser runs
+/// again after the corrections, as in the thesis' Table 4.2: equalising
+/// boosts the noise in the bands it lifts, and that noise is removed
+/// again. Its latency is taken out, so samples keep their times.
+pub(crate) fn apply_to_wav(
+    path: &Path,
+    corrections: &[Correction],
+    denoise: Option<DenoiseArg>,
+) -> anyhow::Result<()> {
     let (rate, y) = read_wav_mono(path)?;
-    let z = cal::apply_all(corrections, &y, rate as f64);
+    let mut z = cal::apply_all(corrections, &y, rate as f64);
+    if let Some(kind) = denoise {
+        z = denoise_again(&z, rate as f64, kind)
+            .with_context(|| format!("denoising {} after the calibration", path.display()))?;
+    }
     let peak = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let ypeak = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     // Keep the recovery's scale (the equaliser's level is arbitrary).
     let s = if peak > 0.0 { ypeak / peak } else { 1.0 };
     let z: Vec<f64> = z.iter().map(|v| v * s).collect();
     write_wav(path, rate, &z)
+}
+
+/// Runs the `--denoise` method (default settings, as the stage's) over `x`
+/// with its latency removed; `x` itself for `none`.
+fn denoise_again(x: &[f64], rate: f64, kind: DenoiseArg) -> anyhow::Result<Vec<f64>> {
+    use crate::dsp::denoise::{SpectralSubtraction, SpeechEnhance};
+    let input: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+    let mut out = Vec::with_capacity(input.len() * 2);
+    let latency = match kind {
+        DenoiseArg::None => return Ok(x.to_vec()),
+        DenoiseArg::Subtract => {
+            let mut d = SpectralSubtraction::with_defaults(rate)?;
+            let pad = vec![0.0f32; d.latency_samples()];
+            d.process(&input, &mut out);
+            d.process(&pad, &mut out);
+            d.finish(&mut out);
+            d.latency_samples()
+        }
+        DenoiseArg::Enhance => {
+            let mut d = SpeechEnhance::with_defaults(rate)?;
+            let pad = vec![0.0f32; d.latency_samples()];
+            d.process(&input, &mut out);
+            d.process(&pad, &mut out);
+            d.finish(&mut out);
+            d.latency_samples()
+        }
+    };
+    Ok(out
+        .iter()
+        .skip(latency)
+        .take(x.len())
+        .map(|&v| v as f64)
+        .collect())
 }
 
 /// The names of the corrections a report holds, for messages.
