@@ -218,7 +218,7 @@ enum Command {
     /// Compare what the visual microphone recovers from VIDEO with the sound
     /// that was played (REF.wav): fit delay and gain, then try the catalog
     /// of effects (time-base error, dropped or duplicated frames, exposure,
-    /// interference lines, object transfer function), each fitted on 60%
+    /// interference lines, object transfer function, soft saturation), each fitted on 60%
     /// of the recording (blocks of about 0.1 s, 3 of every 5) and kept only
     /// if it lowers the error on the other 40%; report the errors before
     /// and after and the residual no effect explains.

@@ -9,7 +9,7 @@ use common::*;
 use serde_json::Value;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
-use vibroscope::analysis::calibrate::Calibration;
+use vibroscope::analysis::calibrate::{Calibration, EffectKind, Options, CATALOG};
 
 const REF_RATE: u32 = 32_000;
 
@@ -44,6 +44,20 @@ struct Case {
 /// Renders a 64x64, 2 s, 2200 fps scene moving with the chirp plus
 /// `extra` scene keys, then calibrates with the whole catalog.
 fn run(name: &str, noise: f64, extra: &str) -> Case {
+    run_with(name, noise, extra, None)
+}
+
+/// The catalog before soft clipping was added to it: (a)-(e).
+fn catalog_a_to_e() -> Vec<EffectKind> {
+    CATALOG
+        .iter()
+        .copied()
+        .filter(|k| *k != EffectKind::SoftClip)
+        .collect()
+}
+
+/// [`run`] with a catalog of `effects` (`None`: all of it).
+fn run_with(name: &str, noise: f64, extra: &str, effects: Option<Vec<EffectKind>>) -> Case {
     let dir = tempfile::tempdir().unwrap();
     let wav = dir.path().join("chirp.wav");
     let peak = write_chirp(&wav);
@@ -56,8 +70,12 @@ fn run(name: &str, noise: f64, extra: &str) -> Case {
     let y4m: PathBuf = dir.path().join(format!("{name}.y4m"));
     let code = vibroscope::cli::simulate(&toml, &y4m, &[], false).unwrap();
     assert_eq!(code, std::process::ExitCode::SUCCESS);
+    let opts = effects.map(|effects| Options {
+        effects,
+        ..Options::for_rate(2200.0)
+    });
     let (_, _, _, cal) =
-        vibroscope::cli::calibrate::calibrate_video(&y4m, &wav, None, None).unwrap();
+        vibroscope::cli::calibrate::calibrate_video(&y4m, &wav, None, opts).unwrap();
     let report = serde_json::to_value(&cal.report).unwrap();
     eprintln!("{name}: {}", serde_json::to_string(&report).unwrap());
     Case {
@@ -468,26 +486,33 @@ fn table_4_2_equalised_speech() {
     }
 }
 
+/// Level (dB) of the `unexplained` harmonic of `order`, if reported.
+fn harmonic_db(c: &Case, order: u64) -> Option<f64> {
+    c.report["unexplained"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|u| u["kind"] == "harmonics" && u["order"] == order)
+        .map(|u| u["level_db"].as_f64().unwrap())
+}
+
 /// An effect outside the catalog: the object's excursion saturates softly
-/// (`soft_clip_px`, L tanh(d / L) with L = 0.6 of the 0.05 px peak).
+/// (`soft_clip_px`, L tanh(d / L) with L = 0.6 of the 0.05 px peak), and
+/// the catalog is (a)-(e), as before soft clipping was added to it.
 /// Calibrate claims no catalog effect, and `unexplained` reports the odd
 /// harmonic: energy at 3x the chirp's frequency (aliases included), and no
 /// 2nd harmonic. The level is printed against what tanh predicts, not
 /// asserted: the cell count under-reads a sweeping harmonic (about 5 dB).
 #[test]
 fn outside_the_catalog_soft_clipping() {
-    let c = run("clip", 0.5, "soft_clip_px = 0.03");
+    let c = run_with("clip", 0.5, "soft_clip_px = 0.03", Some(catalog_a_to_e()));
     assert!(c.cal.report.effects.is_empty(), "{:?}", names(&c));
     let un = c.report["unexplained"].as_array().unwrap();
     let h3 = un
         .iter()
         .find(|u| u["kind"] == "harmonics" && u["order"] == 3)
         .unwrap_or_else(|| panic!("no 3rd harmonic in {un:?}"));
-    assert!(
-        !un.iter()
-            .any(|u| u["kind"] == "harmonics" && u["order"] == 2),
-        "{un:?}"
-    );
+    assert!(harmonic_db(&c, 2).is_none(), "{un:?}");
     // 3rd against 1st Fourier coefficient of 0.6 tanh(sin(x) / 0.6).
     let (mut c1, mut c3) = (0.0, 0.0);
     for i in 0..4096 {
@@ -503,4 +528,39 @@ fn outside_the_catalog_soft_clipping() {
         h3["description"]
     );
     assert!(got.is_finite() && got < 0.0, "{got}");
+}
+
+/// The README's worked example ("Closing the loop"): the same saturation
+/// with less sensor noise (0.1 DN), calibrated with the catalog before
+/// and after soft clipping (f) was added. Before: no effect, the 3rd
+/// harmonic unexplained. After: `soft_clip` alone is kept, its tanh level
+/// is within 25% of the true 0.6 x 0.9 (the chirp's peak) = 0.54 in the
+/// reference's units, and the 3rd harmonic left over drops by at least
+/// 3 dB (or is gone).
+#[test]
+fn soft_clipping_found_once_in_the_catalog() {
+    let before = run_with(
+        "clip-a-e",
+        0.1,
+        "soft_clip_px = 0.03",
+        Some(catalog_a_to_e()),
+    );
+    let after = run("clip-a-f", 0.1, "soft_clip_px = 0.03");
+    assert!(before.cal.report.effects.is_empty(), "{:?}", names(&before));
+    let h_before = harmonic_db(&before, 3).expect("3rd harmonic unexplained before");
+    only(&after, "soft_clip");
+    let level = effect(&after, "soft_clip")["parameters"]["tanh_level_in_reference_units"]
+        .as_f64()
+        .unwrap();
+    let want = 0.03 / 0.05 * after.peak;
+    let h_after = harmonic_db(&after, 3);
+    eprintln!(
+        "worked example: SNR {:.2} -> {:.2} dB (held-out), tanh level {level:.3} (true {want:.3}), 3rd harmonic {h_before:.1} dB -> {:?}",
+        after.cal.report.before.snr_db, after.cal.report.after.snr_db, h_after
+    );
+    assert!((level / want - 1.0).abs() < 0.25, "{level} vs {want}");
+    assert!(gain(&after) >= 0.5, "{}", gain(&after));
+    if let Some(h) = h_after {
+        assert!(h <= h_before - 3.0, "{h_before} -> {h}");
+    }
 }

@@ -17,7 +17,7 @@
 //! recovery can be written out and the same correction reused on a new
 //! recording of the same object and camera). The catalog: time-base
 //! error, dropped or duplicated frames, exposure, narrowband interference
-//! lines, object transfer function. Acceptance is greedy, best first: each
+//! lines, object transfer function, soft saturation. Acceptance is greedy, best first: each
 //! round fits every effect not yet kept on the current corrected recovery
 //! and keeps the one that gains most on the held-out part. Each is fitted on the fit part of the recording (blocks of
 //! about 0.1 s: blocks 0, 2 and 4 of every five, 60%; interleaved so that
@@ -69,7 +69,7 @@ impl Options {
     /// 4th-order high-pass at fs/40 (20-100 Hz), the whole catalog.
     pub fn for_rate(fs: f64) -> Options {
         Options {
-            min_gain_db: 0.2,
+            min_gain_db: 0.5,
             max_lag_s: 0.5,
             highpass: Some((4, crate::stages::transform::highpass::default_cutoff_hz(fs))),
             effects: CATALOG.to_vec(),
@@ -90,16 +90,21 @@ pub enum EffectKind {
     Interference,
     /// (a) The object's transfer function (thesis ch. 4.3.3).
     Transfer,
+    /// (f) The response saturates softly (`L tanh(x / L)`): a nonlinear
+    /// object or loudspeaker driven hard. Added by the worked example in
+    /// the README's "Closing the loop".
+    SoftClip,
 }
 
 /// The catalog in the order it is tried: time base, then frames, then the
-/// spectral effects.
-pub const CATALOG: [EffectKind; 5] = [
+/// spectral effects, then saturation.
+pub const CATALOG: [EffectKind; 6] = [
     EffectKind::TimeBase,
     EffectKind::Frames,
     EffectKind::Exposure,
     EffectKind::Interference,
     EffectKind::Transfer,
+    EffectKind::SoftClip,
 ];
 
 impl EffectKind {
@@ -110,6 +115,7 @@ impl EffectKind {
             EffectKind::Exposure => "exposure",
             EffectKind::Interference => "interference",
             EffectKind::Transfer => "transfer_function",
+            EffectKind::SoftClip => "soft_clip",
         }
     }
 }
@@ -211,6 +217,16 @@ pub enum Correction {
         phase_deg: Vec<f64>,
         k: f64,
     },
+    /// Undo a soft saturation: `u + a3 u³ + a5 u⁵` (recovery units) on
+    /// `u`, the recovery with its high-pass undone, then high-passed again
+    /// (the saturation acts on the motion, before the pipeline's
+    /// high-pass; after it, the high-pass's phase has moved each harmonic
+    /// against its fundamental and no memoryless inverse fits).
+    SoftClip {
+        a3: f64,
+        a5: f64,
+        highpass: Option<(usize, f64)>,
+    },
 }
 
 /// Most boost the exposure inverse applies (the `exposure` stage's -12 dB floor).
@@ -226,6 +242,7 @@ impl Correction {
             Correction::Exposure { .. } => EffectKind::Exposure,
             Correction::Interference { .. } => EffectKind::Interference,
             Correction::Transfer { .. } => EffectKind::Transfer,
+            Correction::SoftClip { .. } => EffectKind::SoftClip,
         }
     }
 
@@ -248,6 +265,17 @@ impl Correction {
                 sample_at(z, 1.0, (0..m.min(z.len() * 2)).map(|k| k as f64 * s))
             }
             Correction::Frames { events } => apply_frames(z, events),
+            Correction::SoftClip { a3, a5, highpass } => {
+                let u = undo_highpass(z, fs, *highpass);
+                let p: Vec<f64> = u
+                    .iter()
+                    .map(|&v| {
+                        let v2 = v * v;
+                        v * (1.0 + v2 * (a3 + v2 * a5))
+                    })
+                    .collect();
+                redo_highpass(&p, fs, *highpass)
+            }
             Correction::Exposure { .. } | Correction::Transfer { .. } => equalize(z, fs, |f| {
                 self.response(f).unwrap_or(Complex::new(1.0, 0.0))
             }),
@@ -348,6 +376,16 @@ impl Correction {
                 "coefficients_db": coef_db,
                 "phase_deg": phase_deg,
             }),
+            // L tanh(x / L) = x - x³ / (3 L²) + ..., whose inverse starts
+            // x + x³ / (3 L²): the level of the tanh with the same cubic
+            // term, in the reference's units (the corrected recovery over
+            // the gain).
+            Correction::SoftClip { a3, a5, .. } => json!({
+                "a3": a3,
+                "a5": a5,
+                "tanh_level_in_reference_units":
+                    (1.0 / (3.0 * a3.max(1e-300))).sqrt() / gain.abs().max(1e-300),
+            }),
         }
     }
 
@@ -411,7 +449,9 @@ impl Correction {
                     k: num("k")?,
                 })
             }
-            "dropped_frames" | "interference" => None,
+            // Per recording: the level is in the recovery's units, which
+            // depend on the texture and region as much as on the object.
+            "dropped_frames" | "interference" | "soft_clip" => None,
             other => return Err(format!("unknown effect `{other}`")),
         })
     }
@@ -1472,6 +1512,163 @@ fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
     })
 }
 
+/// The odd-order inverse of a saturation, by linear least squares on the
+/// fit part: `T ≈ b1 z + b3 z³ + b5 z⁵`, so `a3 = b3 / b1`, `a5 = b5 / b1`
+/// (the quintic term is dropped when it is negative or would make the
+/// inverse fold back within the recovery's range). A polynomial rather than `L atanh(z / L)`:
+/// the exact inverse amplifies the noise at the peaks by `1 / (1 - (z /
+/// L)²)`, which at this effect's levels costs more than the harmonics it
+/// removes; least squares picks the trade-off. `None` unless the inverse
+/// expands (`a3 > 0`), as undoing a saturation must.
+fn fit_soft_clip(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
+    let hp = m.opts.highpass;
+    let u = undo_highpass(z, m.fs, hp);
+    let peak = u.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    if peak.is_nan() || peak <= 0.0 {
+        return None;
+    }
+    // Columns u, u³, u⁵ (scaled to the peak for conditioning), each
+    // high-passed as the target is.
+    let col = |k: i32| {
+        redo_highpass(
+            &u.iter().map(|v| (v / peak).powi(k)).collect::<Vec<_>>(),
+            m.fs,
+            hp,
+        )
+    };
+    let (c1, c3, c5) = (col(1), col(3), col(5));
+    let cols = |p: usize| -> Vec<[f64; 3]> {
+        (0..u.len())
+            .map(|i| [c1[i], c3[i], if p == 5 { c5[i] } else { 0.0 }])
+            .collect()
+    };
+    let solve = |p: usize| -> Option<([f64; 3], [f64; 3], f64)> {
+        let x = cols(p);
+        let dim = if p == 5 { 3 } else { 2 };
+        let mut a = [[0.0; 3]; 3];
+        let mut rhs = [0.0; 3];
+        for (i, row) in x.iter().enumerate() {
+            if !m.is_fit(i) {
+                continue;
+            }
+            for r in 0..dim {
+                rhs[r] += row[r] * fit.t[i];
+                for c in 0..dim {
+                    a[r][c] += row[r] * row[c];
+                }
+            }
+        }
+        let inv = invert(&a, dim)?;
+        let mut b = [0.0; 3];
+        for r in 0..dim {
+            b[r] = (0..dim).map(|c| inv[r][c] * rhs[c]).sum();
+        }
+        let sse: f64 = x
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| m.is_fit(*i))
+            .map(|(i, row)| (fit.t[i] - (0..dim).map(|c| b[c] * row[c]).sum::<f64>()).powi(2))
+            .sum();
+        let sigma2 = sse / m.nfit(z.len()) as f64;
+        let var = [inv[0][0] * sigma2, inv[1][1] * sigma2, inv[2][2] * sigma2];
+        Some((b, var, sse))
+    };
+    // Monotonic on |u| <= 1: 1 + 3 a3 u² + 5 a5 u⁴ > 0.
+    let monotonic = |a3: f64, a5: f64| {
+        (0..=100).all(|i| {
+            let w = (i as f64 / 100.0).powi(2);
+            1.0 + 3.0 * a3 * w + 5.0 * a5 * w * w > 0.0
+        })
+    };
+    let (b, var, _) = match solve(5) {
+        // The inverse of a saturation expands: atanh's series has every
+        // odd term positive; a negative quintic is something else.
+        Some((b, v, e))
+            if b[0] != 0.0 && b[2] / b[0] >= 0.0 && monotonic(b[1] / b[0], b[2] / b[0]) =>
+        {
+            (b, v, e)
+        }
+        _ => solve(3)?,
+    };
+    if b[0] == 0.0 {
+        return None;
+    }
+    let (a3, a5) = (b[1] / b[0], b[2] / b[0]);
+    if a3.is_nan() || a3 <= 0.0 {
+        return None;
+    }
+    Some(Candidate {
+        correction: Correction::SoftClip {
+            a3: a3 / peak.powi(2),
+            a5: a5 / peak.powi(4),
+            highpass: hp,
+        },
+        uncertainty: json!({
+            "a3": var[1].sqrt() / b[0].abs() / peak.powi(2),
+            "a5": var[2].sqrt() / b[0].abs() / peak.powi(4),
+        }),
+    })
+}
+
+/// `x` with the recovery's high-pass undone where it passes more than half
+/// the amplitude (below that, the band is left out: it holds drift and
+/// noise the inverse would lift).
+fn undo_highpass(x: &[f64], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
+    let Some(sos) = hp.and_then(|(o, c)| crate::dsp::iir::Sos::butterworth_highpass(o, c, fs).ok())
+    else {
+        return x.to_vec();
+    };
+    equalize(x, fs, |f| {
+        let h = sos.response_at(f, fs);
+        if h.norm() > 0.5 {
+            h.inv()
+        } else {
+            Complex::new(0.0, 0.0)
+        }
+    })
+}
+
+/// `x` through the recovery's high-pass (the pipeline's IIR filter).
+fn redo_highpass(x: &[f64], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
+    match hp.and_then(|(o, c)| crate::dsp::iir::Sos::butterworth_highpass(o, c, fs).ok()) {
+        Some(mut sos) => x.iter().map(|&v| sos.step(v)).collect(),
+        None => x.to_vec(),
+    }
+}
+
+/// Inverse of the leading `dim` x `dim` block of `a` (Gauss-Jordan with
+/// partial pivoting); `None` when singular.
+fn invert(a: &[[f64; 3]; 3], dim: usize) -> Option<[[f64; 3]; 3]> {
+    let mut m = *a;
+    let mut inv = [[0.0; 3]; 3];
+    for (i, row) in inv.iter_mut().enumerate().take(dim) {
+        row[i] = 1.0;
+    }
+    for c in 0..dim {
+        let p = (c..dim).max_by(|&x, &y| m[x][c].abs().total_cmp(&m[y][c].abs()))?;
+        if m[p][c].abs() < 1e-300 {
+            return None;
+        }
+        m.swap(c, p);
+        inv.swap(c, p);
+        let d = m[c][c];
+        for k in 0..dim {
+            m[c][k] /= d;
+            inv[c][k] /= d;
+        }
+        for r in 0..dim {
+            if r != c {
+                let f = m[r][c];
+                for k in 0..dim {
+                    m[r][k] -= f * m[c][k];
+                    inv[r][k] -= f * inv[c][k];
+                }
+            }
+        }
+    }
+    Some(inv)
+}
+
 // ---------------------------------------------------------------------------
 // The residual no effect explains
 // ---------------------------------------------------------------------------
@@ -1840,6 +2037,7 @@ fn fit_effect(kind: EffectKind, m: &Model, z: &[f64], fit: &Fit) -> Option<Candi
         EffectKind::Exposure => fit_exposure(m, z, fit),
         EffectKind::Interference => fit_interference(m, z, fit),
         EffectKind::Transfer => fit_transfer(m, z, fit),
+        EffectKind::SoftClip => fit_soft_clip(m, z, fit),
     }
 }
 

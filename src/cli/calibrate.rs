@@ -34,7 +34,8 @@ pub struct CalibrateArgs {
     pub fps: Option<f64>,
     /// The effects to try, comma-separated, in the catalog's order
     /// whatever the order given (default: all of time_base,
-    /// dropped_frames, exposure, interference, transfer_function).
+    /// dropped_frames, exposure, interference, transfer_function,
+    /// soft_clip).
     #[arg(long, value_name = "LIST")]
     pub effects: Option<String>,
 }

@@ -119,6 +119,20 @@ impl Sos {
             .product()
     }
 
+    /// Complex response at `f_hz` for a stream at `rate_hz`.
+    pub fn response_at(&self, f_hz: f64, rate_hz: f64) -> realfft::num_complex::Complex<f64> {
+        use realfft::num_complex::Complex;
+        let w = 2.0 * PI * f_hz / rate_hz;
+        let (z1, z2) = (
+            Complex::from_polar(1.0, -w),
+            Complex::from_polar(1.0, -2.0 * w),
+        );
+        self.sections
+            .iter()
+            .map(|s| (s.b[0] + z1 * s.b[1] + z2 * s.b[2]) / (1.0 + z1 * s.a[0] + z2 * s.a[1]))
+            .product()
+    }
+
     /// Forgets the past (zero state).
     pub fn reset(&mut self) {
         self.state.iter_mut().for_each(|s| *s = [0.0; 2]);
