@@ -225,6 +225,9 @@ pub enum Correction {
     SoftClip {
         a3: f64,
         a5: f64,
+        /// The saturation level `L` of `L tanh(x / L)` in the reference's
+        /// units, fitted by the forward model (reported, not applied).
+        level: f64,
         highpass: Option<(usize, f64)>,
     },
 }
@@ -265,7 +268,9 @@ impl Correction {
                 sample_at(z, 1.0, (0..m.min(z.len() * 2)).map(|k| k as f64 * s))
             }
             Correction::Frames { events } => apply_frames(z, events),
-            Correction::SoftClip { a3, a5, highpass } => {
+            Correction::SoftClip {
+                a3, a5, highpass, ..
+            } => {
                 let u = undo_highpass(z, fs, *highpass);
                 let p: Vec<f64> = u
                     .iter()
@@ -376,15 +381,10 @@ impl Correction {
                 "coefficients_db": coef_db,
                 "phase_deg": phase_deg,
             }),
-            // L tanh(x / L) = x - x³ / (3 L²) + ..., whose inverse starts
-            // x + x³ / (3 L²): the level of the tanh with the same cubic
-            // term, in the reference's units (the corrected recovery over
-            // the gain).
-            Correction::SoftClip { a3, a5, .. } => json!({
+            Correction::SoftClip { a3, a5, level, .. } => json!({
+                "level_in_reference_units": level,
                 "a3": a3,
                 "a5": a5,
-                "tanh_level_in_reference_units":
-                    (1.0 / (3.0 * a3.max(1e-300))).sqrt() / gain.abs().max(1e-300),
             }),
         }
     }
@@ -755,6 +755,11 @@ impl Model<'_> {
             }
         }
         t
+    }
+
+    /// The reference at `n / fs - tau` for `n` in `0..len`, not high-passed.
+    fn unfiltered_target(&self, len: usize, tau: f64) -> Vec<f64> {
+        sample_at(self.r, self.fr, (0..len).map(|i| i as f64 / self.fs - tau))
     }
 
     /// Whether sample `i` is in the fit part: blocks of one STFT length
@@ -1597,15 +1602,43 @@ fn fit_soft_clip(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
     if a3.is_nan() || a3 <= 0.0 {
         return None;
     }
+    // The level itself by the forward model, which the recovery's noise
+    // does not bias (the polynomial's trade-off with the noise does):
+    // `z ≈ g HP(L tanh(r / L))` on the fit part, L on a geometric grid from
+    // a quarter to four times the reference's peak, then golden section.
+    let rpk = m.r.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let zm = m.masked(z);
+    let raw = m.unfiltered_target(z.len(), fit.tau);
+    let sse = |l: f64| {
+        let t = redo_highpass(
+            &raw.iter().map(|v| l * (v / l).tanh()).collect::<Vec<_>>(),
+            m.fs,
+            hp,
+        );
+        gain_sse(&m.masked(&t), &zm).1
+    };
+    let level_at = |i: usize| 0.25 * rpk * 16f64.powf(i as f64 / 32.0);
+    let grid: Vec<f64> = (0..=32).map(|i| sse(level_at(i))).collect();
+    let (bi, _) = grid.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
+    let (level, best) = golden(
+        sse,
+        level_at(bi.saturating_sub(1)),
+        level_at((bi + 1).min(32)),
+        20,
+    );
+    let nf = m.nfit(z.len());
+    let level_sd = curvature_sigma(sse, level, 0.01 * level, best / nf as f64);
     Some(Candidate {
         correction: Correction::SoftClip {
             a3: a3 / peak.powi(2),
             a5: a5 / peak.powi(4),
+            level,
             highpass: hp,
         },
         uncertainty: json!({
             "a3": var[1].sqrt() / b[0].abs() / peak.powi(2),
             "a5": var[2].sqrt() / b[0].abs() / peak.powi(4),
+            "level_in_reference_units": level_sd,
         }),
     })
 }
