@@ -17,9 +17,10 @@
 //! recovery can be written out and the same correction reused on a new
 //! recording of the same object and camera). The catalog: time-base
 //! error, dropped or duplicated frames, exposure, narrowband interference
-//! lines, object transfer function, soft saturation. Acceptance is greedy, best first: each
-//! round fits every effect not yet kept on the current corrected recovery
-//! and keeps the one that gains most on the held-out part. Each is fitted on the fit part of the recording (blocks of
+//! lines, object transfer function, soft saturation. Acceptance is
+//! greedy, best first: each round fits every effect not yet kept on the
+//! current corrected recovery and keeps the one that gains most on the
+//! held-out part. Each is fitted on the fit part of the recording (blocks of
 //! about 0.1 s: blocks 0, 2 and 4 of every five, 60%; interleaved so that
 //! both parts see every frequency of a sweep), the linear model is refitted
 //! on that part, and the effect is kept when the SNR on the held-out part
@@ -1518,11 +1519,12 @@ fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
 }
 
 /// The odd-order inverse of a saturation, by linear least squares on the
-/// fit part: `T ≈ b1 z + b3 z³ + b5 z⁵`, so `a3 = b3 / b1`, `a5 = b5 / b1`
-/// (the quintic term is dropped when it is negative or would make the
-/// inverse fold back within the recovery's range). A polynomial rather than `L atanh(z / L)`:
-/// the exact inverse amplifies the noise at the peaks by `1 / (1 - (z /
-/// L)²)`, which at this effect's levels costs more than the harmonics it
+/// fit part: with `u` the recovery with its high-pass undone, `T ≈ HP(b1 u
+/// + b3 u³ + b5 u⁵)`, so `a3 = b3 / b1`, `a5 = b5 / b1` (the quintic term
+/// is dropped when it is negative or would make the inverse fold back
+/// within the recovery's range). A polynomial rather than `L atanh(u /
+/// L)`: the exact inverse amplifies the noise at the peaks by `1 / (1 - (u
+/// / L)²)`, which at this effect's levels costs more than the harmonics it
 /// removes; least squares picks the trade-off. `None` unless the inverse
 /// expands (`a3 > 0`), as undoing a saturation must.
 fn fit_soft_clip(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
