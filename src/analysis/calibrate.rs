@@ -1519,12 +1519,12 @@ fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
 }
 
 /// The odd-order inverse of a saturation, by linear least squares on the
-/// fit part: with `u` the recovery with its high-pass undone, `T ≈ HP(b1 u
-/// + b3 u³ + b5 u⁵)`, so `a3 = b3 / b1`, `a5 = b5 / b1` (the quintic term
-/// is dropped when it is negative or would make the inverse fold back
-/// within the recovery's range). A polynomial rather than `L atanh(u /
-/// L)`: the exact inverse amplifies the noise at the peaks by `1 / (1 - (u
-/// / L)²)`, which at this effect's levels costs more than the harmonics it
+/// fit part: with `u` the recovery with its high-pass undone,
+/// `T ≈ HP(b1 u + b3 u³ + b5 u⁵)`, so `a3 = b3 / b1`, `a5 = b5 / b1` (the
+/// quintic term is dropped when it is negative or would make the inverse
+/// fold back within the recovery's range). A polynomial rather than
+/// `L atanh(u / L)`: the exact inverse amplifies the noise at the peaks by
+/// `1 / (1 - (u / L)²)`, which at this effect's levels costs more than the harmonics it
 /// removes; least squares picks the trade-off. `None` unless the inverse
 /// expands (`a3 > 0`), as undoing a saturation must.
 fn fit_soft_clip(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
