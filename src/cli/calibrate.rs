@@ -261,7 +261,7 @@ pub fn load_calibration(path: &Path) -> anyhow::Result<Vec<Correction>> {
 /// With `denoise` (the recovery was denoised), the same denoiser runs
 /// again after the corrections, as in the thesis' Table 4.2: equalising
 /// boosts the noise in the bands it lifts, and that noise is removed
-/// again. Its latency is taken out, so samples keep their times.
+/// again. Samples keep their times.
 pub(crate) fn apply_to_wav(
     path: &Path,
     corrections: &[Correction],
@@ -281,37 +281,28 @@ pub(crate) fn apply_to_wav(
     write_wav(path, rate, &z)
 }
 
-/// Runs the `--denoise` method (default settings, as the stage's) over `x`
-/// with its latency removed; `x` itself for `none`.
+/// Runs the `--denoise` method (default settings, as the stage's) over `x`;
+/// `x` itself for `none`. Output sample `k` is the estimate of input sample
+/// `k` (the denoisers' latency is only in when a sample is released), so
+/// the whole signal is fed and finished.
 fn denoise_again(x: &[f64], rate: f64, kind: DenoiseArg) -> anyhow::Result<Vec<f64>> {
     use crate::dsp::denoise::{SpectralSubtraction, SpeechEnhance};
     let input: Vec<f32> = x.iter().map(|&v| v as f32).collect();
-    let mut out = Vec::with_capacity(input.len() * 2);
-    let latency = match kind {
+    let mut out = Vec::with_capacity(input.len());
+    match kind {
         DenoiseArg::None => return Ok(x.to_vec()),
         DenoiseArg::Subtract => {
             let mut d = SpectralSubtraction::with_defaults(rate)?;
-            let pad = vec![0.0f32; d.latency_samples()];
             d.process(&input, &mut out);
-            d.process(&pad, &mut out);
             d.finish(&mut out);
-            d.latency_samples()
         }
         DenoiseArg::Enhance => {
             let mut d = SpeechEnhance::with_defaults(rate)?;
-            let pad = vec![0.0f32; d.latency_samples()];
             d.process(&input, &mut out);
-            d.process(&pad, &mut out);
             d.finish(&mut out);
-            d.latency_samples()
         }
-    };
-    Ok(out
-        .iter()
-        .skip(latency)
-        .take(x.len())
-        .map(|&v| v as f64)
-        .collect())
+    }
+    Ok(out.iter().map(|&v| v as f64).collect())
 }
 
 /// The names of the corrections a report holds, for messages.
@@ -324,4 +315,32 @@ pub fn describe(corrections: &[Correction]) -> String {
         .map(|c| c.kind().name())
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    /// Denoising again after a calibration keeps every sample at its time:
+    /// a chirp in noise comes out at lag 0, as long as it went in.
+    #[test]
+    fn denoising_again_keeps_sample_times() {
+        let fs = 2200.0;
+        let mut s = 12345u64;
+        let x: Vec<f64> = (0..4400)
+            .map(|i| {
+                let t = i as f64 / fs;
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1);
+                let noise = ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.05;
+                (2.0 * std::f64::consts::PI * (100.0 * t + 100.0 * t * t)).sin() + noise
+            })
+            .collect();
+        for kind in [DenoiseArg::Subtract, DenoiseArg::Enhance] {
+            let y = denoise_again(&x, fs, kind).unwrap();
+            assert_eq!(y.len(), x.len(), "{kind:?}");
+            let (lag, _) = crate::dsp::metrics::best_lag_gain(&x, &y, 500);
+            assert_eq!(lag, 0, "{kind:?}");
+        }
+    }
 }
