@@ -32,11 +32,8 @@
 //!
 //! Interference lines are subtracted from the recovery as delivered,
 //! before every other correction (their frequencies are on the declared
-//! time base), and once lines and another effect are both kept, all kept
-//! effects are refitted together: the others on the recovery without the
-//! lines, the lines on the recovery with the others applied. When more
-//! than one effect is kept, each one's reported gain is what the held-out
-//! SNR loses without it.
+//! time base). When more than one effect is kept, each one's reported gain
+//! is what the held-out SNR loses without it.
 //!
 //! Errors are on the held-out part: SNR and segmental SNR
 //! ([`crate::dsp::metrics`]) and the log-spectral distance (dB, STFT frames
@@ -745,17 +742,12 @@ impl Model<'_> {
     fn target_about(&self, len: usize, pre: usize, tau: f64, ppm: f64, centre: f64) -> Vec<f64> {
         let rate = self.fs * (1.0 + ppm * 1e-6);
         let c = centre / self.fs;
-        let mut t = sample_at(
+        let t = sample_at(
             self.r,
             self.fr,
             (0..len + pre).map(|i| (i as f64 - pre as f64 - centre) / rate + c - tau),
         );
-        if let Some((order, fc)) = self.opts.highpass {
-            if let Ok(mut hp) = crate::dsp::iir::Sos::butterworth_highpass(order, fc, self.fs) {
-                t.iter_mut().for_each(|v| *v = hp.step(*v));
-            }
-        }
-        t
+        redo_highpass(&t, self.fs, self.opts.highpass)
     }
 
     /// The reference at `n / fs - tau` for `n` in `0..len`, not high-passed.
@@ -1960,8 +1952,7 @@ pub fn calibrate(
     let mut rejected = Vec::new();
     // Greedy, best first: each round fits every effect not yet kept (in
     // catalog order) on the current corrected recovery and keeps the one
-    // with the largest held-out gain, if it reaches `min_gain_db`; the kept
-    // effects are then refitted together (see [`backfit`]).
+    // with the largest held-out gain, if it reaches `min_gain_db`.
     let mut left: Vec<EffectKind> = opts.effects.clone();
     let (mut z, mut fit, mut cur) = (y.to_vec(), fit0, before);
     loop {
@@ -2006,45 +1997,34 @@ pub fn calibrate(
             c: t.c,
             gain: t.gain,
         });
-        backfit(&m, y, &mut kept);
         z = apply_all(&chain(&kept), y, fs);
         fit = m.fit_linear(&z);
         cur = m.errors(&z, &fit);
     }
-    // Each effect's gain: what the held-out SNR loses without it (the
-    // others as fitted), when more than one is kept.
-    if kept.len() > 1 {
-        for i in 0..kept.len() {
-            let others: Vec<Kept> = kept
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != i)
-                .map(|(_, k)| Kept {
-                    c: Candidate {
-                        correction: k.c.correction.clone(),
-                        uncertainty: Value::Null,
-                    },
-                    gain: 0.0,
-                })
-                .collect();
-            let w = apply_all(&chain(&others), y, fs);
-            let e = m.errors(&w, &m.fit_linear(&w));
-            kept[i].gain = cur.snr_db - e.snr_db;
-        }
-    }
     let corrections = chain(&kept);
     let effects = corrections
         .iter()
-        .map(|c| {
+        .enumerate()
+        .map(|(i, c)| {
             let k = kept
                 .iter()
                 .find(|k| k.c.correction.kind() == c.kind())
                 .expect("every correction comes from a kept effect");
+            // With more than one kept: what the held-out SNR loses without
+            // this one (the others as fitted).
+            let gain = if corrections.len() > 1 {
+                let mut others = corrections.clone();
+                others.remove(i);
+                let w = apply_all(&others, y, fs);
+                cur.snr_db - m.errors(&w, &m.fit_linear(&w)).snr_db
+            } else {
+                k.gain
+            };
             EffectReport {
                 name: c.kind().name().to_string(),
                 parameters: c.parameters(fs, fit.g),
                 uncertainty: k.c.uncertainty.clone(),
-                snr_gain_db: k.gain,
+                snr_gain_db: gain,
             }
         })
         .collect();
@@ -2093,48 +2073,6 @@ fn chain(kept: &[Kept]) -> Vec<Correction> {
         .iter()
         .filter(|k| k.c.correction.kind() != EffectKind::Interference);
     lines.chain(rest).map(|k| k.c.correction.clone()).collect()
-}
-
-/// Refits the kept effects together when interference lines are among
-/// them (two passes). A line biases the fit of an effect kept before it,
-/// which saw the line (for a chirp, a clock error fitted with a strong
-/// line left in is off by several percent, and a transfer function then
-/// absorbs what is left). So: the other effects are refitted in order on
-/// the recovery with the lines removed, and the lines are refitted on the
-/// recovery with the others applied and carried back to it.
-fn backfit(m: &Model, y: &[f64], kept: &mut [Kept]) {
-    let Some(li) = kept
-        .iter()
-        .position(|k| k.c.correction.kind() == EffectKind::Interference)
-    else {
-        return;
-    };
-    if kept.len() < 2 {
-        return;
-    }
-    for _ in 0..2 {
-        let mut z = kept[li].c.correction.apply(y, m.fs);
-        for j in (0..kept.len()).filter(|&j| j != li) {
-            let fit = m.fit_linear(&z);
-            if let Some(c) = fit_effect(kept[j].c.correction.kind(), m, &z, &fit) {
-                kept[j].c = c;
-            }
-            z = kept[j].c.correction.apply(&z, m.fs);
-        }
-        let others: Vec<Correction> = (0..kept.len())
-            .filter(|&j| j != li)
-            .map(|j| kept[j].c.correction.clone())
-            .collect();
-        let w = apply_all(&others, y, m.fs);
-        if let Some(mut c) = fit_interference(m, &w, &m.fit_linear(&w)) {
-            if let Correction::Interference { lines } = &mut c.correction {
-                for l in lines.iter_mut() {
-                    *l = Correction::line_before(*l, &others, m.fs);
-                }
-            }
-            kept[li].c = c;
-        }
-    }
 }
 
 /// One effect fitted in a round of [`calibrate`].

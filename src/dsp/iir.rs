@@ -105,18 +105,7 @@ impl Sos {
 
     /// Magnitude response at `f_hz` for a stream at `rate_hz`.
     pub fn gain_at(&self, f_hz: f64, rate_hz: f64) -> f64 {
-        let w = 2.0 * PI * f_hz / rate_hz;
-        let (c1, s1, c2, s2) = (w.cos(), -w.sin(), (2.0 * w).cos(), -(2.0 * w).sin());
-        self.sections
-            .iter()
-            .map(|s| {
-                let nr = s.b[0] + s.b[1] * c1 + s.b[2] * c2;
-                let ni = s.b[1] * s1 + s.b[2] * s2;
-                let dr = 1.0 + s.a[0] * c1 + s.a[1] * c2;
-                let di = s.a[0] * s1 + s.a[1] * s2;
-                ((nr * nr + ni * ni) / (dr * dr + di * di)).sqrt()
-            })
-            .product()
+        self.response_at(f_hz, rate_hz).norm()
     }
 
     /// Complex response at `f_hz` for a stream at `rate_hz`.
