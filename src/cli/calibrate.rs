@@ -164,6 +164,8 @@ pub fn calibrate_video(
     Ok((fs, fr, r, c))
 }
 
+/// Writes a mono 32-bit float WAV atomically (a temporary sibling, then a
+/// rename), so an interrupted run never leaves half a file.
 fn write_wav(path: &Path, rate: u32, x: &[f64]) -> anyhow::Result<()> {
     let spec = hound::WavSpec {
         channels: 1,
@@ -171,14 +173,16 @@ fn write_wav(path: &Path, rate: u32, x: &[f64]) -> anyhow::Result<()> {
         bits_per_sample: 32,
         sample_format: hound::SampleFormat::Float,
     };
-    let mut w = hound::WavWriter::create(path, spec)
-        .with_context(|| format!("cannot create {}", path.display()))?;
+    let mut bytes = std::io::Cursor::new(Vec::with_capacity(44 + 4 * x.len()));
+    let mut w = hound::WavWriter::new(&mut bytes, spec)
+        .with_context(|| format!("cannot encode {}", path.display()))?;
     for &v in x {
         w.write_sample(v as f32)
-            .with_context(|| format!("cannot write {}", path.display()))?;
+            .with_context(|| format!("cannot encode {}", path.display()))?;
     }
     w.finalize()
-        .with_context(|| format!("cannot write {}", path.display()))
+        .with_context(|| format!("cannot encode {}", path.display()))?;
+    crate::stages::sinks::write_atomic(path, bytes.get_ref()).map_err(|e| anyhow::anyhow!("{e}"))
 }
 
 fn fmt_db(v: f64) -> String {
@@ -201,8 +205,8 @@ pub fn run(a: &CalibrateArgs) -> anyhow::Result<ExitCode> {
     };
     let (fs, fr, r, c) = calibrate_video(&a.video, &a.reference, a.fps, opts)?;
     let text = serde_json::to_string_pretty(&c.report)?;
-    std::fs::write(&a.json, text + "\n")
-        .with_context(|| format!("cannot write {}", a.json.display()))?;
+    crate::stages::sinks::write_atomic(&a.json, (text + "\n").as_bytes())
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     let (b, af) = (&c.report.before, &c.report.after);
     eprintln!(
         "linear model: delay {:.3} ms, gain {:.4e}; held-out part (40%): SNR {} -> {} dB, segmental SNR {} -> {} dB, LSD {} -> {} dB",
