@@ -9,7 +9,7 @@ use common::*;
 use serde_json::Value;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
-use vibroscope::analysis::calibrate::{Calibration, EffectKind, Options, CATALOG};
+use vibroscope::math::calibrate::{Calibration, EffectKind, Options, CATALOG};
 
 const REF_RATE: u32 = 32_000;
 
@@ -469,10 +469,10 @@ fn table_4_2_equalised_speech() {
             let (_, y) = read_wav(&d.path().join(&out));
             let (_, r) = read_wav(&d.path().join(&wav));
             let r: Vec<f64> = r.iter().map(|&v| v as f64).collect();
-            let r = vibroscope::dsp::metrics::resample(&r, 11, 160).unwrap();
+            let r = vibroscope::math::metrics::resample(&r, 11, 160).unwrap();
             let y: Vec<f64> = y.iter().map(|&v| v as f64).collect();
             let n = y.len().min(r.len());
-            ssnr[k] = vibroscope::dsp::metrics::score(&r[..n], &y[..n], 2200.0, 220).ssnr_db;
+            ssnr[k] = vibroscope::math::metrics::score(&r[..n], &y[..n], 2200.0, 220).ssnr_db;
         }
         rows.push((voice.to_string(), ssnr[0], ssnr[1]));
     }

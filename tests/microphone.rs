@@ -104,7 +104,7 @@ fn snr_of(dir: &std::path::Path, sets: &[String]) -> f64 {
     }
     let truth = true_motion(&decl, "src", est.len());
     let est: Vec<f64> = est.iter().map(|&v| v as f64).collect();
-    vibroscope::dsp::truth::snr_db_fit(&truth, &est)
+    vibroscope::math::truth::snr_db_fit(&truth, &est)
 }
 
 /// Thesis Eq. 4.3 in the noise-limited regime, for one driving signal:

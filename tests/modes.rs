@@ -7,7 +7,7 @@
 
 mod common;
 use common::*;
-use vibroscope::analysis::modal::{read_npy_complex64, ModalConfig, ModalImager, Motion};
+use vibroscope::math::modal::{read_npy_complex64, ModalConfig, ModalImager, Motion};
 use vibroscope::sim::modal::cantilever_shape;
 use vibroscope::sim::Dest;
 use vibroscope::stages::sources::synthetic::SyntheticParams;

@@ -6,7 +6,7 @@
 
 mod common;
 use common::*;
-use vibroscope::dsp::truth::snr_db_fit;
+use vibroscope::math::truth::snr_db_fit;
 
 const SCENE: &[&str] = &[
     "--set",

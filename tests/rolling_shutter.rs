@@ -104,8 +104,8 @@ fn two_tones_far_above_the_frame_rate_are_heard() {
 /// Band-limits to 80-2000 Hz (Butterworth high-pass, FIR low-pass): the
 /// band the issue scores speech in; applied identically to truth and test.
 fn band(x: &[f64], fs: f64) -> Vec<f64> {
-    use vibroscope::dsp::exposure::{design, Fir, Mode};
-    use vibroscope::dsp::iir::Sos;
+    use vibroscope::math::exposure::{design, Fir, Mode};
+    use vibroscope::math::iir::Sos;
     let mut hp = Sos::butterworth_highpass(4, 80.0, fs).unwrap();
     let mut lp = Fir::new(design(Mode::Lowpass, 1.0 / 2000.0, fs, 129, -12.0));
     x.iter().map(|&v| lp.step(hp.step(v))).collect()
@@ -174,7 +174,7 @@ fn speech_through_a_rolling_shutter_ar_beats_linear() {
             band(&t, fs)
         };
         let est: Vec<f64> = band(&est.iter().map(|&v| v as f64).collect::<Vec<_>>(), fs);
-        let s = vibroscope::dsp::metrics::score(&truth, &est, fs, 800);
+        let s = vibroscope::math::metrics::score(&truth, &est, fs, 800);
         eprintln!(
             "{method}: SNR {:.2} dB, segmental SNR {:.2} dB, STOI {:.3} (80-2000 Hz, against the true motion)",
             s.snr_db, s.ssnr_db, s.stoi
@@ -521,7 +521,7 @@ fn tone_ratio_db(path: &Path) -> f64 {
 /// 1/2000 s: -5.2 dB); compensation undoes it.
 #[test]
 fn exposure_compensation_restores_the_tone_balance() {
-    use vibroscope::dsp::exposure::boxcar_gain;
+    use vibroscope::math::exposure::boxcar_gain;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let e = 1.0 / 2000.0;

@@ -7,7 +7,7 @@
 
 mod common;
 use common::*;
-use vibroscope::analysis::peaks::{find_peaks, PeakOptions};
+use vibroscope::math::peaks::{find_peaks, PeakOptions};
 use vibroscope::stages::transform::spectrum::{SegmentFft, Taper};
 
 /// Thesis Table 5.5: the cantilever beam's first three modes (Hz), with

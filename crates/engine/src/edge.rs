@@ -1,0 +1,329 @@
+//! Edges: one bounded SPSC ring (`ringbuf`) per producer/consumer pair.
+//!
+//! A full ring is a policy decision, not an error: under [`Policy::Block`]
+//! the producer sleeps until the consumer frees a slot (replay: nothing is
+//! lost); under [`Policy::DropOldest`] the producer evicts the oldest queued
+//! item and counts it (live: the newest frames win, memory stays bounded).
+//!
+//! Eviction needs the consumer half, so on drop-oldest edges that half sits
+//! behind a mutex. The consumer takes it (uncontended) to pop; the producer
+//! takes it only when the ring is full. Block edges own their consumer half
+//! outright and take no lock at all.
+
+use super::item::Item;
+use super::notify::Notify;
+use ringbuf::traits::{Consumer, Observer, Producer, Split};
+use ringbuf::{HeapCons, HeapProd, HeapRb};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// How long a blocked thread sleeps before re-checking stop flags.
+const WAIT_SLICE: Duration = Duration::from_millis(50);
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Policy {
+    Block,
+    DropOldest,
+}
+
+impl Policy {
+    pub fn parse(s: &str) -> Option<Policy> {
+        match s {
+            "block" => Some(Policy::Block),
+            "drop_oldest" => Some(Policy::DropOldest),
+            _ => None,
+        }
+    }
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Policy::Block => "block",
+            Policy::DropOldest => "drop_oldest",
+        }
+    }
+}
+
+/// Counters of one edge, shared by both ends and the stats report.
+#[derive(Default, Debug)]
+pub struct EdgeStats {
+    pub pushed: AtomicU64,
+    pub popped: AtomicU64,
+    pub dropped: AtomicU64,
+    pub max_occupancy: AtomicU64,
+}
+
+struct Shared {
+    policy: Policy,
+    capacity: usize,
+    data: Notify,
+    space: Notify,
+    producer_done: AtomicBool,
+    consumer_gone: AtomicBool,
+    stats: Arc<EdgeStats>,
+}
+
+enum ConsHalf {
+    Owned(HeapCons<Item>),
+    Locked(Arc<Mutex<HeapCons<Item>>>),
+}
+
+impl ConsHalf {
+    fn try_pop(&mut self) -> Option<Item> {
+        match self {
+            ConsHalf::Owned(c) => c.try_pop(),
+            ConsHalf::Locked(m) => m.lock().unwrap_or_else(|e| e.into_inner()).try_pop(),
+        }
+    }
+    fn occupied(&self) -> usize {
+        match self {
+            ConsHalf::Owned(c) => c.occupied_len(),
+            ConsHalf::Locked(m) => m.lock().unwrap_or_else(|e| e.into_inner()).occupied_len(),
+        }
+    }
+}
+
+/// The producing end of an edge.
+pub struct EdgeTx {
+    prod: HeapProd<Item>,
+    evict: Option<Arc<Mutex<HeapCons<Item>>>>,
+    shared: Arc<Shared>,
+}
+
+/// The consuming end of an edge.
+pub struct EdgeRx {
+    cons: ConsHalf,
+    shared: Arc<Shared>,
+}
+
+/// Outcome of [`EdgeTx::send`].
+#[derive(Debug, PartialEq, Eq)]
+pub enum Sent {
+    /// Queued (possibly after evicting `evicted` older items).
+    Queued { evicted: u64 },
+    /// The consumer has gone away; the item was discarded.
+    Gone,
+    /// The stop flag was raised while waiting for space.
+    Stopped,
+}
+
+/// Outcome of [`EdgeRx::recv`].
+#[derive(Debug)]
+pub enum Recv {
+    Item(Item),
+    /// The producer finished and the ring is drained.
+    Closed,
+    /// The stop flag was raised while waiting.
+    Stopped,
+}
+
+/// Creates an edge of `capacity` slots (at least 1).
+pub fn edge(capacity: usize, policy: Policy) -> (EdgeTx, EdgeRx, Arc<EdgeStats>) {
+    let capacity = capacity.max(1);
+    let (prod, cons) = HeapRb::<Item>::new(capacity).split();
+    let stats = Arc::new(EdgeStats::default());
+    let shared = Arc::new(Shared {
+        policy,
+        capacity,
+        data: Notify::new(),
+        space: Notify::new(),
+        producer_done: AtomicBool::new(false),
+        consumer_gone: AtomicBool::new(false),
+        stats: Arc::clone(&stats),
+    });
+    let (cons, evict) = match policy {
+        Policy::Block => (ConsHalf::Owned(cons), None),
+        Policy::DropOldest => {
+            let m = Arc::new(Mutex::new(cons));
+            (ConsHalf::Locked(Arc::clone(&m)), Some(m))
+        }
+    };
+    (
+        EdgeTx {
+            prod,
+            evict,
+            shared: Arc::clone(&shared),
+        },
+        EdgeRx { cons, shared },
+        stats,
+    )
+}
+
+impl EdgeTx {
+    pub fn policy(&self) -> Policy {
+        self.shared.policy
+    }
+
+    pub fn capacity(&self) -> usize {
+        self.shared.capacity
+    }
+
+    pub fn consumer_gone(&self) -> bool {
+        self.shared.consumer_gone.load(Ordering::Acquire)
+    }
+
+    /// Queues `item` according to the edge policy. Waiting (block policy)
+    /// ends early when `stop` is raised.
+    pub fn send(&mut self, item: Item, stop: &AtomicBool) -> Sent {
+        let mut item = item;
+        let mut evicted = 0u64;
+        loop {
+            if self.consumer_gone() {
+                return Sent::Gone;
+            }
+            match self.prod.try_push(item) {
+                Ok(()) => {
+                    let st = &self.shared.stats;
+                    st.pushed.fetch_add(1, Ordering::Relaxed);
+                    let occ = self.prod.occupied_len() as u64;
+                    st.max_occupancy.fetch_max(occ, Ordering::Relaxed);
+                    self.shared.data.notify();
+                    return Sent::Queued { evicted };
+                }
+                Err(back) => item = back,
+            }
+            if let Some(m) = &self.evict {
+                // Drop-oldest: evict the head, count it, then retry the push.
+                let old = m.lock().unwrap_or_else(|e| e.into_inner()).try_pop();
+                if old.is_some() {
+                    evicted += 1;
+                    self.shared.stats.dropped.fetch_add(1, Ordering::Relaxed);
+                }
+                drop(old);
+                continue;
+            }
+            if stop.load(Ordering::Acquire) {
+                return Sent::Stopped;
+            }
+            let prod = &self.prod;
+            let shared = &self.shared;
+            shared.space.wait_until(WAIT_SLICE, || {
+                !prod.is_full() || shared.consumer_gone.load(Ordering::Acquire)
+            });
+        }
+    }
+}
+
+impl Drop for EdgeTx {
+    fn drop(&mut self) {
+        self.shared.producer_done.store(true, Ordering::Release);
+        self.shared.data.notify();
+    }
+}
+
+impl EdgeRx {
+    pub fn capacity(&self) -> usize {
+        self.shared.capacity
+    }
+
+    pub fn stats(&self) -> &Arc<EdgeStats> {
+        &self.shared.stats
+    }
+
+    /// Items queued now.
+    pub fn occupancy(&self) -> usize {
+        self.cons.occupied()
+    }
+
+    /// Takes the next item without waiting.
+    pub fn try_recv(&mut self) -> Option<Item> {
+        let it = self.cons.try_pop();
+        if it.is_some() {
+            self.shared.stats.popped.fetch_add(1, Ordering::Relaxed);
+            self.shared.space.notify();
+        }
+        it
+    }
+
+    /// Waits (sleeping, not spinning) for the next item, the end of the
+    /// stream, or `stop`.
+    pub fn recv(&mut self, stop: &AtomicBool) -> Recv {
+        loop {
+            if let Some(it) = self.try_recv() {
+                return Recv::Item(it);
+            }
+            if self.shared.producer_done.load(Ordering::Acquire) {
+                // The producer may have pushed just before finishing.
+                return match self.try_recv() {
+                    Some(it) => Recv::Item(it),
+                    None => Recv::Closed,
+                };
+            }
+            if stop.load(Ordering::Acquire) {
+                return Recv::Stopped;
+            }
+            let shared = Arc::clone(&self.shared);
+            let cons = &self.cons;
+            shared.data.wait_until(WAIT_SLICE, || {
+                cons.occupied() > 0 || shared.producer_done.load(Ordering::Acquire)
+            });
+        }
+    }
+}
+
+impl Drop for EdgeRx {
+    fn drop(&mut self) {
+        self.shared.consumer_gone.store(true, Ordering::Release);
+        // Return queued frames to their pool now rather than when the
+        // producer finishes.
+        while self.cons.try_pop().is_some() {}
+        self.shared.space.notify();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::item::AudioBlock;
+
+    fn audio(i: i64) -> Item {
+        Item::Audio(AudioBlock {
+            t0_ns: i,
+            rate_hz: 1.0,
+            samples: Arc::from(vec![i as f32]),
+        })
+    }
+
+    #[test]
+    fn drop_oldest_keeps_newest() {
+        let stop = AtomicBool::new(false);
+        let (mut tx, mut rx, stats) = edge(3, Policy::DropOldest);
+        for i in 0..10 {
+            tx.send(audio(i), &stop);
+        }
+        drop(tx);
+        let mut got = vec![];
+        while let Recv::Item(it) = rx.recv(&stop) {
+            got.push(it.t_ns());
+        }
+        assert_eq!(got, vec![7, 8, 9]);
+        assert_eq!(stats.dropped.load(Ordering::Relaxed), 7);
+    }
+
+    #[test]
+    fn block_delivers_everything_in_order_across_threads() {
+        let stop = Arc::new(AtomicBool::new(false));
+        let (mut tx, mut rx, _) = edge(2, Policy::Block);
+        let s2 = Arc::clone(&stop);
+        let h = std::thread::spawn(move || {
+            for i in 0..1000 {
+                assert_eq!(tx.send(audio(i), &s2), Sent::Queued { evicted: 0 });
+            }
+        });
+        let mut next = 0;
+        while let Recv::Item(it) = rx.recv(&stop) {
+            assert_eq!(it.t_ns(), next);
+            next += 1;
+        }
+        h.join().unwrap();
+        assert_eq!(next, 1000);
+    }
+
+    #[test]
+    fn send_to_gone_consumer_does_not_block() {
+        let stop = AtomicBool::new(false);
+        let (mut tx, rx, _) = edge(1, Policy::Block);
+        tx.send(audio(0), &stop);
+        drop(rx);
+        assert_eq!(tx.send(audio(1), &stop), Sent::Gone);
+    }
+}

@@ -1,0 +1,26 @@
+//! The streaming engine: frames and their pool, typed items, edges, the
+//! pipeline configuration and its validation, and the runner.
+
+pub mod config;
+pub mod edge;
+pub mod frame;
+pub mod graph;
+pub mod item;
+pub mod latency;
+pub mod notify;
+pub mod runner;
+pub mod stage;
+
+pub mod pipelines;
+pub mod stages;
+
+pub use config::{ConfigError, Origin, Params, PipelineDecl};
+pub use edge::Policy;
+pub use frame::{
+    Frame, FrameFormat, FrameMeta, FrameMut, FramePool, PixelsMut, PixelsRef, RowTiming,
+};
+pub use graph::{BuildCtx, Graph, KindSpec, Output, Plan};
+pub use item::{AudioBlock, Item, PortType, PyramidData, PyramidFrame, SampleBlock, Spectrum};
+pub use latency::{LatencyHist, LatencySummary};
+pub use runner::{error_chain, run, RunError, RunOptions, RunReport, StageReport};
+pub use stage::{Control, EmitError, Emitter, Node, Source, SourceCtx, Stage, StageError};

@@ -1,0 +1,23 @@
+pub mod csv;
+pub mod json;
+pub mod modes;
+pub mod null;
+pub mod peaks;
+pub mod speaker;
+pub mod spectrum_png;
+pub mod wav;
+pub mod y4m;
+
+use crate::StageError;
+use std::path::Path;
+
+/// Creates `path` (and reports which file could not be created).
+pub fn create(path: &Path) -> Result<std::fs::File, StageError> {
+    std::fs::File::create(path)
+        .map_err(|e| StageError::msg(format!("cannot create {}: {e}", path.display())))
+}
+
+/// Writes a whole file atomically (see [`vibroscope_io::atomic::write_atomic`]).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StageError> {
+    vibroscope_io::atomic::write_atomic(path, bytes).map_err(|e| StageError::msg(e.to_string()))
+}

@@ -1,0 +1,224 @@
+//! `modes`: a modal image (thesis ch. 3.5) of the frames that arrive, at
+//! one frequency, written at the end as a PNG (phase as hue, amplitude as
+//! brightness) and optionally as a `.npy` of the complex image (complex64,
+//! shape (height, width), pixels of motion). The frames are streamed: per
+//! pixel only the running Fourier sums are kept
+//! ([`vibroscope_math::modal`]).
+//!
+//! ```toml
+//! [[stage]]
+//! id = "modes"
+//! kind = "modes"
+//! input = "src"
+//! freq_hz = 80.8
+//! path = "mode.png"
+//! npy = "mode.npy"      # optional
+//! roi = [0, 0, 200, 100] # optional
+//! sigma_px = 3.0        # σ_b of the blur, input pixels
+//! motion = "sum"        # "x", "y" or "sum"
+//! scale = 1             # pyramid scale (0 = finest, 4 px wavelength)
+//! exponent = 1.0        # brightness = amplitude^exponent (after min-max)
+//! normalize = true      # divide by the blurred weights (ch. 3.5.2)
+//! ```
+
+use crate::stages::transform::roi::{Roi, RoiParam};
+use crate::*;
+use image::ImageEncoder;
+use serde::Deserialize;
+use std::path::PathBuf;
+use vibroscope_math::modal::{npy_complex64, render_rgb, ModalConfig, ModalImager, Motion, Visual};
+
+#[derive(Deserialize, Clone)]
+#[serde(deny_unknown_fields)]
+struct P {
+    freq_hz: f64,
+    path: PathBuf,
+    npy: Option<PathBuf>,
+    roi: Option<RoiParam>,
+    #[serde(default = "d_sigma")]
+    sigma_px: f64,
+    #[serde(default = "d_motion")]
+    motion: Motion,
+    #[serde(default = "d_scale")]
+    scale: usize,
+    #[serde(default = "d_exponent")]
+    exponent: f64,
+    #[serde(default = "d_normalize")]
+    normalize: bool,
+}
+fn d_sigma() -> f64 {
+    DEFAULT_SIGMA_PX
+}
+fn d_motion() -> Motion {
+    Motion::Sum
+}
+fn d_scale() -> usize {
+    1
+}
+fn d_exponent() -> f64 {
+    1.0
+}
+fn d_normalize() -> bool {
+    true
+}
+
+/// Default σ_b, input pixels.
+pub const DEFAULT_SIGMA_PX: f64 = 2.0;
+
+pub const KIND: KindSpec = KindSpec {
+    name: "modes",
+    summary: "modal image at freq_hz (Eq. 3.18-3.19): A²-weighted, blurred and normalised spectral-volume slice, as PNG (phase = hue) and .npy",
+    accepts: &[PortType::Frames],
+    max_inputs: 1,
+    output: Output::None,
+    plan: |p| {
+        let v: P = p.parse()?;
+        if !(v.freq_hz.is_finite() && v.freq_hz > 0.0) {
+            return Err(p.error("freq_hz", format!("must be > 0 Hz, got {}", v.freq_hz)));
+        }
+        if !(v.sigma_px.is_finite() && (0.0..=1000.0).contains(&v.sigma_px)) {
+            return Err(p.error(
+                "sigma_px",
+                format!("must be 0..=1000 pixels, got {}", v.sigma_px),
+            ));
+        }
+        if v.scale > 6 {
+            return Err(p.error("scale", format!("must be 0..=6, got {}", v.scale)));
+        }
+        if !(v.exponent.is_finite() && v.exponent > 0.0 && v.exponent <= 100.0) {
+            return Err(p.error(
+                "exponent",
+                format!("must be in (0, 100], got {}", v.exponent),
+            ));
+        }
+        if let Some(r) = &v.roi {
+            r.check().map_err(|m| p.error("roi", m))?;
+        }
+        Ok(Box::new(ModesPlan(v)))
+    },
+};
+
+struct ModesPlan(P);
+
+impl Plan for ModesPlan {
+    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+        Ok(Node::Stage(Box::new(Modes {
+            p: self.0,
+            imager: None,
+            roi: None,
+            buf: Vec::new(),
+        })))
+    }
+}
+
+struct Modes {
+    p: P,
+    imager: Option<ModalImager>,
+    roi: Option<Roi>,
+    buf: Vec<f32>,
+}
+
+impl Modes {
+    fn err(&self, m: impl std::fmt::Display) -> StageError {
+        StageError::msg(format!("{}: {m}", self.p.path.display()))
+    }
+
+    fn start(&mut self, f: &Frame) -> Result<(), StageError> {
+        let fps = f.format().fps;
+        if fps > 0.0 && self.p.freq_hz >= fps / 2.0 {
+            return Err(StageError::msg(format!(
+                "freq_hz {} Hz is not below the Nyquist frequency {} Hz of {} fps frames (pass the capture rate with --fps)",
+                self.p.freq_hz,
+                fps / 2.0,
+                fps
+            )));
+        }
+        let roi = Roi::resolve(self.p.roi.as_ref(), f.width(), f.height())?;
+        let cfg = ModalConfig {
+            freq_hz: self.p.freq_hz,
+            scale: self.p.scale,
+            sigma_px: self.p.sigma_px,
+            motion: self.p.motion,
+            normalize: self.p.normalize,
+        };
+        let im = ModalImager::new(roi.w, roi.h, cfg).map_err(|e| self.err(e))?;
+        self.buf = vec![0.0; roi.w * roi.h];
+        self.roi = Some(roi);
+        self.imager = Some(im);
+        Ok(())
+    }
+}
+
+impl Stage for Modes {
+    fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
+        let Item::Frame(f) = item else {
+            return Ok(());
+        };
+        if self.imager.is_none() {
+            self.start(&f)?;
+        }
+        let (Some(roi), Some(im)) = (self.roi, self.imager.as_mut()) else {
+            return Ok(());
+        };
+        let w = f.width();
+        if f.height() < roi.y + roi.h || w < roi.x + roi.w {
+            return Err(StageError::msg(format!(
+                "frame size changed to {}x{} mid-stream",
+                w,
+                f.height()
+            )));
+        }
+        for (r, dst) in self.buf.chunks_exact_mut(roi.w).enumerate() {
+            let s = (roi.y + r) * w + roi.x;
+            match f.pixels() {
+                PixelsRef::U8(p) => {
+                    for (d, &v) in dst.iter_mut().zip(&p[s..s + roi.w]) {
+                        *d = v as f32;
+                    }
+                }
+                PixelsRef::U16(p) => {
+                    for (d, &v) in dst.iter_mut().zip(&p[s..s + roi.w]) {
+                        *d = v as f32;
+                    }
+                }
+            }
+        }
+        im.push(&self.buf, f.meta().t_ns)
+            .map_err(|e| StageError::msg(format!("{}: {e}", self.p.path.display())))
+    }
+
+    fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
+        let Some(im) = &self.imager else {
+            return Err(self.err("no frame arrived"));
+        };
+        let img = im.finish().map_err(|e| self.err(e))?;
+        let rgb = render_rgb(
+            &img,
+            Visual {
+                exponent: self.p.exponent,
+            },
+        );
+        let mut png = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut png)
+            .write_image(
+                &rgb,
+                img.width as u32,
+                img.height as u32,
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(|e| self.err(e))?;
+        super::write_atomic(&self.p.path, &png)?;
+        if let Some(npy) = &self.p.npy {
+            super::write_atomic(npy, &npy_complex64(&img.data, img.width, img.height))?;
+        }
+        let peak = img.data.iter().map(|c| c.norm()).fold(0.0f32, f32::max);
+        tracing::info!(
+            frames = img.frames,
+            span_s = img.span_s,
+            peak_px = peak,
+            "modal image at {} Hz",
+            img.freq_hz
+        );
+        Ok(())
+    }
+}

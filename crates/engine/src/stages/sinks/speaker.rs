@@ -1,0 +1,762 @@
+//! `speaker`: plays an audio stream on a sound card (cpal), resampled from
+//! the signal's rate (the camera's frame rate for the visual microphone) to
+//! the device's rate.
+//!
+//! The stage thread resamples with a band-limited sinc interpolator
+//! (rubato's asynchronous resampler) into a lock-free ring that the
+//! device's callback drains. The camera and the sound card have separate
+//! clocks, so in live runs the ratio is nudged (at most ±1%) to hold the
+//! ring near `latency_ms`; if the ring still overfills, new audio is
+//! discarded and counted, and an empty ring plays silence (counted as
+//! underruns once sound has started). In replays the stage waits for room
+//! instead, so a file plays at its real speed and nothing is lost.
+//!
+//! `gain = "auto"` (the default) scales a peak-following envelope to
+//! -6 dBFS: recovered motion is in pixels or radians, far below full scale.
+//!
+//! `device = "null"` is a virtual output that consumes samples at its rate
+//! on the wall clock and discards them: for machines without a sound card,
+//! and for tests of the pacing and resampling path.
+
+use crate::*;
+use ringbuf::traits::{Consumer, Observer, Producer, Split};
+use ringbuf::{HeapCons, HeapProd, HeapRb};
+use rubato::audioadapter_buffers::direct::InterleavedSlice;
+use rubato::{
+    Async, FixedAsync, Resampler, SincInterpolationParameters, SincInterpolationType,
+    WindowFunction,
+};
+use serde::Deserialize;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+#[derive(Deserialize, Clone, Debug, PartialEq)]
+#[serde(untagged)]
+enum Gain {
+    Fixed(f64),
+    Named(String),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct P {
+    /// "default", "null", or part of a device's name or id.
+    #[serde(default = "d_device")]
+    device: String,
+    /// Device sample rate; default: the device's own default.
+    rate_hz: Option<u32>,
+    /// "auto" or a fixed factor.
+    #[serde(default = "d_gain")]
+    gain: Gain,
+    /// Audio kept queued for the device in live runs.
+    #[serde(default = "d_latency")]
+    latency_ms: f64,
+}
+fn d_device() -> String {
+    "default".into()
+}
+fn d_gain() -> Gain {
+    Gain::Named("auto".into())
+}
+fn d_latency() -> f64 {
+    40.0
+}
+
+pub const KIND: KindSpec = KindSpec {
+    name: "speaker",
+    summary: "plays audio on a sound card (cpal), resampled to the device rate; `device = \"null\"` for none",
+    accepts: &[PortType::Audio],
+    max_inputs: 1,
+    output: Output::None,
+    plan: |p| {
+        let v: P = p.parse()?;
+        match &v.gain {
+            Gain::Fixed(g) if !g.is_finite() || *g <= 0.0 => {
+                return Err(p.error("gain", format!("must be \"auto\" or a number > 0, got {g}")))
+            }
+            Gain::Named(s) if s != "auto" => {
+                return Err(p.error("gain", format!("must be \"auto\" or a number > 0, got \"{s}\"")))
+            }
+            _ => {}
+        }
+        if !(v.latency_ms.is_finite() && (5.0..=2000.0).contains(&v.latency_ms)) {
+            return Err(p.error(
+                "latency_ms",
+                format!("must be 5..=2000 ms, got {}", v.latency_ms),
+            ));
+        }
+        if let Some(r) = v.rate_hz {
+            if !(4000..=384_000).contains(&r) {
+                return Err(p.error("rate_hz", format!("must be 4000..=384000 Hz, got {r}")));
+            }
+        }
+        if v.device.trim().is_empty() {
+            return Err(p.error("device", "must not be empty (use \"default\")"));
+        }
+        Ok(Box::new(SpeakerPlan(v)))
+    },
+};
+
+struct SpeakerPlan(P);
+
+impl Plan for SpeakerPlan {
+    fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
+        let p = self.0;
+        let shared = Arc::new(Shared::default());
+        let out = Device::open(&p.device, p.rate_hz, Arc::clone(&shared))?;
+        let gain = match p.gain {
+            Gain::Fixed(g) => Agc::fixed(g as f32),
+            Gain::Named(_) => Agc::auto(out.rate),
+        };
+        Ok(Node::Stage(Box::new(Speaker {
+            feed: None,
+            gain,
+            latency_s: p.latency_ms * 1e-3,
+            live: ctx.live,
+            shared,
+            out: Some(out),
+            rate_in: 0.0,
+        })))
+    }
+}
+
+/// Counters shared with the device callback.
+#[derive(Default)]
+struct Shared {
+    /// Samples played from the ring.
+    played: AtomicU64,
+    /// Samples of silence played because the ring ran dry after sound began.
+    underrun: AtomicU64,
+    /// Samples discarded in live runs because the ring was full.
+    discarded: AtomicU64,
+    /// Errors the device reported (xruns and the like).
+    device_errors: AtomicU64,
+    started: AtomicBool,
+}
+
+/// The device side: the ring's consumer lives in its callback.
+struct Device {
+    rate: u32,
+    prod: HeapProd<f32>,
+    stop: crossbeam_channel::Sender<()>,
+    thread: Option<std::thread::JoinHandle<()>>,
+    name: String,
+}
+
+/// Ring size: two seconds of device audio.
+const RING_S: f64 = 2.0;
+
+impl Device {
+    fn open(device: &str, rate: Option<u32>, shared: Arc<Shared>) -> Result<Device, StageError> {
+        let (ready_tx, ready_rx) = crossbeam_channel::bounded::<Result<(u32, String), String>>(1);
+        let (stop_tx, stop_rx) = crossbeam_channel::bounded::<()>(1);
+        let (cons_tx, cons_rx) = crossbeam_channel::bounded::<HeapCons<f32>>(1);
+        let dev = device.to_string();
+        // cpal streams are not `Send` on every platform: one thread opens,
+        // owns and closes the stream.
+        let thread = std::thread::Builder::new()
+            .name("speaker-device".into())
+            .spawn(move || {
+                if dev == "null" {
+                    let rate = rate.unwrap_or(48_000);
+                    let _ = ready_tx.send(Ok((rate, "null (virtual, discards audio)".into())));
+                    if let Ok(cons) = cons_rx.recv() {
+                        null_device(cons, rate, 1, &shared, &stop_rx);
+                    }
+                    return;
+                }
+                match cpal_device::open(&dev, rate) {
+                    Err(e) => {
+                        let _ = ready_tx.send(Err(e));
+                    }
+                    Ok(d) => {
+                        let _ = ready_tx.send(Ok((d.rate, d.name.clone())));
+                        if let Ok(cons) = cons_rx.recv() {
+                            if let Err(e) = d.play(cons, &shared, &stop_rx) {
+                                tracing::error!("speaker: {e}");
+                            }
+                        }
+                    }
+                }
+            })
+            .map_err(|e| StageError::msg(format!("cannot start the audio thread: {e}")))?;
+        let (rate, name) = match ready_rx.recv() {
+            Ok(Ok(v)) => v,
+            Ok(Err(e)) => {
+                let _ = thread.join();
+                return Err(StageError::msg(e));
+            }
+            Err(_) => {
+                let _ = thread.join();
+                return Err(StageError::msg(
+                    "the audio thread ended before opening a device",
+                ));
+            }
+        };
+        let ring = HeapRb::<f32>::new((rate as f64 * RING_S) as usize);
+        let (prod, cons) = ring.split();
+        let _ = cons_tx.send(cons);
+        tracing::info!(device = %name, rate, "speaker opened");
+        Ok(Device {
+            rate,
+            prod,
+            stop: stop_tx,
+            thread: Some(thread),
+            name,
+        })
+    }
+
+    fn close(&mut self) {
+        let _ = self.stop.send(());
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for Device {
+    fn drop(&mut self) {
+        self.close();
+    }
+}
+
+/// Fills a device buffer from the ring: mono to every channel, silence
+/// when the ring is dry.
+fn fill<T: Copy>(
+    data: &mut [T],
+    channels: usize,
+    cons: &mut HeapCons<f32>,
+    shared: &Shared,
+    conv: impl Fn(f32) -> T,
+) {
+    let mut played = 0u64;
+    let mut dry = 0u64;
+    for frame in data.chunks_mut(channels.max(1)) {
+        let v = match cons.try_pop() {
+            Some(v) => {
+                played += 1;
+                v
+            }
+            None => {
+                dry += 1;
+                0.0
+            }
+        };
+        frame.iter_mut().for_each(|s| *s = conv(v));
+    }
+    if played > 0 {
+        shared.started.store(true, Ordering::Relaxed);
+    }
+    shared.played.fetch_add(played, Ordering::Relaxed);
+    if shared.started.load(Ordering::Relaxed) {
+        shared.underrun.fetch_add(dry, Ordering::Relaxed);
+    }
+}
+
+/// The virtual device: drains `rate` samples per second of wall clock, in
+/// 5 ms periods, like a sound card's callback.
+fn null_device(
+    mut cons: HeapCons<f32>,
+    rate: u32,
+    channels: usize,
+    shared: &Shared,
+    stop: &crossbeam_channel::Receiver<()>,
+) {
+    let period = Duration::from_millis(5);
+    let mut buf = vec![0.0f32; (rate as usize / 200).max(1) * channels];
+    let start = Instant::now();
+    let mut done = 0u64;
+    loop {
+        match stop.recv_timeout(period) {
+            Ok(()) | Err(crossbeam_channel::RecvTimeoutError::Disconnected) => return,
+            Err(crossbeam_channel::RecvTimeoutError::Timeout) => {}
+        }
+        let due = (start.elapsed().as_secs_f64() * rate as f64) as u64;
+        while done + (buf.len() / channels) as u64 <= due {
+            fill(&mut buf, channels, &mut cons, shared, |v| v);
+            done += (buf.len() / channels) as u64;
+        }
+    }
+}
+
+mod cpal_device {
+    use super::{fill, Shared};
+    use cpal::traits::{DeviceTrait, HostTrait, StreamTrait};
+    use ringbuf::HeapCons;
+
+    pub struct Opened {
+        device: cpal::Device,
+        config: cpal::SupportedStreamConfig,
+        pub rate: u32,
+        pub name: String,
+    }
+
+    fn describe(d: &cpal::Device) -> String {
+        match (d.description(), d.id()) {
+            (Ok(desc), Ok(id)) => format!("{desc} [{id}]"),
+            (Ok(desc), Err(_)) => desc.to_string(),
+            (Err(_), Ok(id)) => id.to_string(),
+            (Err(_), Err(_)) => "(unnamed device)".into(),
+        }
+    }
+
+    pub fn open(want: &str, rate: Option<u32>) -> Result<Opened, String> {
+        let host = cpal::default_host();
+        let hostname = format!("{:?}", host.id());
+        let device = if want == "default" {
+            host.default_output_device().ok_or_else(|| {
+                format!(
+                    "no audio output device found (cpal host {hostname}); \
+                     use device = \"null\" to run without a sound card"
+                )
+            })?
+        } else {
+            let devices: Vec<cpal::Device> = host
+                .output_devices()
+                .map_err(|e| format!("cannot list audio output devices: {e}"))?
+                .collect();
+            let names: Vec<String> = devices.iter().map(describe).collect();
+            match devices
+                .into_iter()
+                .zip(&names)
+                .find(|(_, n)| n.contains(want))
+            {
+                Some((d, _)) => d,
+                None => {
+                    return Err(format!(
+                        "no audio output device matches \"{want}\"; devices: {}",
+                        if names.is_empty() {
+                            "none".to_string()
+                        } else {
+                            names.join(", ")
+                        }
+                    ))
+                }
+            }
+        };
+        let name = describe(&device);
+        let config = match rate {
+            None => device
+                .default_output_config()
+                .map_err(|e| format!("audio device {name}: no usable output format: {e}"))?,
+            Some(r) => {
+                let ranges: Vec<_> = device
+                    .supported_output_configs()
+                    .map_err(|e| format!("audio device {name}: cannot list formats: {e}"))?
+                    .collect();
+                let found = ranges
+                    .iter()
+                    .find(|c| c.min_sample_rate() <= r && r <= c.max_sample_rate())
+                    .map(|c| c.with_sample_rate(r));
+                found.ok_or_else(|| {
+                    let have: Vec<String> = ranges
+                        .iter()
+                        .map(|c| format!("{}-{} Hz", c.min_sample_rate(), c.max_sample_rate()))
+                        .collect();
+                    format!(
+                        "audio device {name} does not play at {r} Hz; it supports {}",
+                        have.join(", ")
+                    )
+                })?
+            }
+        };
+        Ok(Opened {
+            rate: config.sample_rate(),
+            device,
+            config,
+            name,
+        })
+    }
+
+    impl Opened {
+        /// Plays until `stop` fires or is dropped.
+        pub fn play(
+            self,
+            mut cons: HeapCons<f32>,
+            shared: &std::sync::Arc<Shared>,
+            stop: &crossbeam_channel::Receiver<()>,
+        ) -> Result<(), String> {
+            let channels = self.config.channels() as usize;
+            let fmt = self.config.sample_format();
+            let config: cpal::StreamConfig = self.config.into();
+            // The first device error is logged; the rest are counted (an
+            // xrun every period would flood the log) and summed at close.
+            let errs = std::sync::Arc::clone(shared);
+            let err = move |e: cpal::Error| {
+                if errs
+                    .device_errors
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+                    == 0
+                {
+                    tracing::warn!(
+                        "audio device: {e} (further device errors are counted, not logged)"
+                    );
+                }
+            };
+            let sh = std::sync::Arc::clone(shared);
+            macro_rules! build {
+                ($t:ty, $conv:expr) => {
+                    self.device.build_output_stream(
+                        config,
+                        move |data: &mut [$t], _: &cpal::OutputCallbackInfo| {
+                            fill(data, channels, &mut cons, &sh, $conv)
+                        },
+                        err,
+                        None,
+                    )
+                };
+            }
+            let stream = match fmt {
+                cpal::SampleFormat::F32 => build!(f32, |v: f32| v),
+                cpal::SampleFormat::I16 => {
+                    build!(i16, |v: f32| (v.clamp(-1.0, 1.0) * i16::MAX as f32) as i16)
+                }
+                cpal::SampleFormat::I32 => {
+                    build!(i32, |v: f32| (v.clamp(-1.0, 1.0) as f64 * i32::MAX as f64)
+                        as i32)
+                }
+                cpal::SampleFormat::U16 => {
+                    build!(u16, |v: f32| ((v.clamp(-1.0, 1.0) + 1.0) * 32767.5) as u16)
+                }
+                cpal::SampleFormat::U8 => {
+                    build!(u8, |v: f32| ((v.clamp(-1.0, 1.0) + 1.0) * 127.5) as u8)
+                }
+                other => {
+                    return Err(format!(
+                        "audio device {}: sample format {other:?} is not supported",
+                        self.name
+                    ))
+                }
+            }
+            .map_err(|e| format!("audio device {}: cannot open a stream: {e}", self.name))?;
+            stream
+                .play()
+                .map_err(|e| format!("audio device {}: cannot start: {e}", self.name))?;
+            let _ = stop.recv();
+            Ok(())
+        }
+    }
+}
+
+/// Gain: fixed, or a peak follower (instant attack, ~2 s release) that
+/// maps the envelope to -6 dBFS.
+struct Agc {
+    fixed: Option<f32>,
+    env: f32,
+    release: f32,
+}
+
+impl Agc {
+    fn fixed(g: f32) -> Self {
+        Self {
+            fixed: Some(g),
+            env: 0.0,
+            release: 1.0,
+        }
+    }
+    fn auto(rate: u32) -> Self {
+        Self {
+            fixed: None,
+            env: 0.0,
+            release: (-1.0 / (2.0 * rate as f32)).exp(),
+        }
+    }
+    fn apply(&mut self, x: &mut [f32]) {
+        if let Some(g) = self.fixed {
+            x.iter_mut().for_each(|v| *v *= g);
+            return;
+        }
+        for v in x.iter_mut() {
+            self.env = (self.env * self.release).max(v.abs());
+            *v = if self.env > 0.0 {
+                (*v * 0.5 / self.env).clamp(-1.0, 1.0)
+            } else {
+                0.0
+            };
+        }
+    }
+}
+
+/// Resampling from the signal's rate to the device's, into the ring.
+pub struct Feed {
+    rs: Async<f32>,
+    chunk: usize,
+    staged: Vec<f32>,
+    out: Vec<f32>,
+}
+
+/// Input samples per resampler call: small, for latency.
+const CHUNK: usize = 32;
+
+impl Feed {
+    /// A sinc resampler from `rate_in` to `rate_out` (256-tap Blackman-Harris
+    /// windowed sinc, cutoff chosen by rubato for its sidelobe level).
+    pub fn new(rate_in: f64, rate_out: f64) -> Result<Feed, String> {
+        let params = SincInterpolationParameters::new(256, WindowFunction::BlackmanHarris2)
+            .oversampling_factor(128)
+            .interpolation(SincInterpolationType::Cubic);
+        let rs = Async::<f32>::new_sinc(
+            rate_out / rate_in,
+            1.02,
+            &params,
+            CHUNK,
+            1,
+            FixedAsync::Input,
+        )
+        .map_err(|e| format!("cannot resample {rate_in} Hz to {rate_out} Hz: {e}"))?;
+        let out = vec![0.0; rs.output_frames_max()];
+        Ok(Feed {
+            rs,
+            chunk: CHUNK,
+            staged: Vec::with_capacity(CHUNK),
+            out,
+        })
+    }
+
+    /// Output samples by which the resampler delays its input.
+    pub fn delay(&self) -> usize {
+        self.rs.output_delay()
+    }
+
+    /// Nudges the ratio by `rel` (1.0 = nominal; at most ±2%).
+    pub fn adjust(&mut self, rel: f64) {
+        if let Some(a) = self.rs.as_adjustable() {
+            let _ = a.set_resample_ratio_relative(rel.clamp(0.985, 1.015), true);
+        }
+    }
+
+    /// Feeds input samples; `sink` receives each resampled chunk.
+    pub fn push(&mut self, x: &[f32], mut sink: impl FnMut(&mut [f32])) -> Result<(), String> {
+        for &v in x {
+            self.staged.push(v);
+            if self.staged.len() == self.chunk {
+                self.run_chunk(&mut sink)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Pushes what is staged, padded with silence, and the resampler's tail.
+    pub fn flush(&mut self, mut sink: impl FnMut(&mut [f32])) -> Result<(), String> {
+        if !self.staged.is_empty() {
+            self.staged.resize(self.chunk, 0.0);
+            self.run_chunk(&mut sink)?;
+        }
+        let mut tail = self.delay();
+        while tail > 0 {
+            self.staged.resize(self.chunk, 0.0);
+            let n = self.run_chunk(&mut sink)?;
+            if n == 0 {
+                break;
+            }
+            tail = tail.saturating_sub(n);
+        }
+        Ok(())
+    }
+
+    fn run_chunk(&mut self, sink: &mut impl FnMut(&mut [f32])) -> Result<usize, String> {
+        let input = InterleavedSlice::new(&self.staged[..], 1, self.chunk)
+            .map_err(|e| format!("resampler input: {e}"))?;
+        let cap = self.out.len();
+        let mut output = InterleavedSlice::new_mut(&mut self.out[..], 1, cap)
+            .map_err(|e| format!("resampler output: {e}"))?;
+        let (_, produced) = self
+            .rs
+            .process_into_buffer(&input, &mut output, None)
+            .map_err(|e| format!("resampler: {e}"))?;
+        self.staged.clear();
+        sink(&mut self.out[..produced]);
+        Ok(produced)
+    }
+}
+
+struct Speaker {
+    feed: Option<Feed>,
+    gain: Agc,
+    latency_s: f64,
+    live: bool,
+    shared: Arc<Shared>,
+    out: Option<Device>,
+    rate_in: f64,
+}
+
+/// How long a replay waits for the device to take audio before giving up.
+const STALL: Duration = Duration::from_secs(5);
+
+impl Speaker {
+    fn push(&mut self, x: &[f32], flush: bool) -> Result<(), StageError> {
+        let (Some(feed), Some(out)) = (self.feed.as_mut(), self.out.as_mut()) else {
+            return Ok(());
+        };
+        let live = self.live;
+        let gain = &mut self.gain;
+        let target = (self.latency_s * out.rate as f64) as usize;
+        let mut err: Option<String> = None;
+        let mut discarded = 0u64;
+        let prod = &mut out.prod;
+        let mut deliver = |y: &mut [f32]| {
+            gain.apply(y);
+            if live {
+                // Over twice the target: the device is slower than the
+                // camera; discard rather than grow the delay.
+                let room = (2 * target + y.len()).saturating_sub(prod.occupied_len());
+                let n = prod.push_slice(&y[..y.len().min(room)]);
+                discarded += (y.len() - n) as u64;
+            } else {
+                let mut done = 0;
+                let mut since = Instant::now();
+                while done < y.len() {
+                    let n = prod.push_slice(&y[done..]);
+                    done += n;
+                    if n > 0 {
+                        since = Instant::now();
+                    } else if since.elapsed() > STALL {
+                        err = Some(format!(
+                            "the audio device took nothing for {} s",
+                            STALL.as_secs()
+                        ));
+                        return;
+                    } else {
+                        std::thread::sleep(Duration::from_millis(2));
+                    }
+                }
+            }
+        };
+        let r = if flush {
+            feed.flush(&mut deliver)
+        } else {
+            feed.push(x, &mut deliver)
+        };
+        r.map_err(StageError::msg)?;
+        if let Some(e) = err {
+            return Err(StageError::msg(format!("{}: {e}", out.name)));
+        }
+        if discarded > 0 {
+            tracing::debug!(discarded, "speaker: ring full, audio discarded");
+            self.shared
+                .discarded
+                .fetch_add(discarded, Ordering::Relaxed);
+        }
+        if live {
+            // Hold the ring near the target: a fuller ring plays slower
+            // input (fewer output samples per input sample).
+            let fill = out.prod.occupied_len() as f64;
+            let err = (target as f64 - fill) / target.max(1) as f64;
+            feed.adjust(1.0 + 0.01 * err.clamp(-1.0, 1.0));
+        }
+        Ok(())
+    }
+}
+
+impl Stage for Speaker {
+    fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
+        let Item::Audio(a) = item else {
+            return Err(StageError::msg("expected audio"));
+        };
+        if self.feed.is_none() {
+            let rate_out = self.out.as_ref().map_or(48_000, |o| o.rate) as f64;
+            self.feed = Some(Feed::new(a.rate_hz, rate_out).map_err(StageError::msg)?);
+            self.rate_in = a.rate_hz;
+        } else if (a.rate_hz - self.rate_in).abs() > 1e-9 * self.rate_in {
+            return Err(StageError::msg(format!(
+                "the sample rate changed from {} Hz to {} Hz mid-stream",
+                self.rate_in, a.rate_hz
+            )));
+        }
+        self.push(&a.samples, false)
+    }
+
+    fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
+        let r = self.push(&[], true);
+        // Let the device play what is queued (bounded by the ring size).
+        if let Some(out) = self.out.as_mut() {
+            let rate = out.rate as f64;
+            let deadline = Instant::now()
+                + Duration::from_secs_f64(out.prod.occupied_len() as f64 / rate + 0.5);
+            while out.prod.occupied_len() > 0 && Instant::now() < deadline {
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            out.close();
+            let (played, underrun, discarded, device_errors) = (
+                self.shared.played.load(Ordering::Relaxed),
+                self.shared.underrun.load(Ordering::Relaxed),
+                self.shared.discarded.load(Ordering::Relaxed),
+                self.shared.device_errors.load(Ordering::Relaxed),
+            );
+            if underrun + discarded + device_errors > 0 {
+                tracing::warn!(device = %out.name, played, underrun, discarded, device_errors, "speaker: gaps in playback (samples) and device errors");
+            } else {
+                tracing::info!(device = %out.name, played, "speaker closed");
+            }
+        }
+        r
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 440 Hz tone at 2200 Hz comes out of the resampler at 48 kHz as the
+    /// same tone: compared sample by sample with the exact sine, after the
+    /// resampler's reported delay.
+    #[test]
+    fn resampled_tone_matches_the_exact_tone() {
+        let (fin, fout, f) = (2200.0, 48000.0, 440.0);
+        let x: Vec<f32> = (0..4400)
+            .map(|n| (2.0 * std::f64::consts::PI * f * n as f64 / fin).sin() as f32)
+            .collect();
+        let mut feed = Feed::new(fin, fout).unwrap();
+        let mut y = Vec::new();
+        for block in x.chunks(100) {
+            feed.push(block, |c| y.extend_from_slice(c)).unwrap();
+        }
+        feed.flush(|c| y.extend_from_slice(c)).unwrap();
+        let d = feed.delay();
+        let expect_len = (x.len() as f64 * fout / fin) as usize;
+        assert!(y.len() >= expect_len, "{} < {expect_len}", y.len());
+        // The middle (past the filter's start-up), shifted by the reported
+        // delay: fit a sin + b cos at 440 Hz; the fit must have unit
+        // amplitude, a phase within one output sample of the reported delay
+        // (which is rounded), and a residual 60 dB down.
+        let w = 2.0 * std::f64::consts::PI * f / fout;
+        let idx: Vec<usize> = (4800..expect_len - 4800).collect();
+        let (mut ss, mut cc, mut sc, mut ys, mut yc) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for &m in &idx {
+            let (sn, cs) = ((w * m as f64).sin(), (w * m as f64).cos());
+            let v = y[m + d] as f64;
+            ss += sn * sn;
+            cc += cs * cs;
+            sc += sn * cs;
+            ys += v * sn;
+            yc += v * cs;
+        }
+        let det = ss * cc - sc * sc;
+        let (a, b) = ((ys * cc - yc * sc) / det, (yc * ss - ys * sc) / det);
+        let amp = a.hypot(b);
+        let lag_samples = -b.atan2(a) / w;
+        let (mut err, mut sig) = (0.0f64, 0.0f64);
+        for &m in &idx {
+            let fit = a * (w * m as f64).sin() + b * (w * m as f64).cos();
+            err += (y[m + d] as f64 - fit).powi(2);
+            sig += fit * fit;
+        }
+        let snr = 10.0 * (sig / err).log10();
+        assert!((amp - 1.0).abs() < 0.005, "gain {amp}");
+        assert!(
+            lag_samples.abs() < 1.0,
+            "delay off by {lag_samples} samples"
+        );
+        assert!(snr > 60.0, "resampled tone: residual {snr:.1} dB down");
+    }
+
+    #[test]
+    fn auto_gain_brings_a_tiny_signal_to_half_scale() {
+        let mut agc = Agc::auto(48000);
+        let mut x: Vec<f32> = (0..48000).map(|n| 1e-3 * (n as f32 * 0.05).sin()).collect();
+        agc.apply(&mut x);
+        let peak = x[24000..].iter().fold(0.0f32, |a, v| a.max(v.abs()));
+        assert!((peak - 0.5).abs() < 0.01, "{peak}");
+    }
+}

@@ -1,0 +1,158 @@
+//! `wav`: writes an audio stream to a WAV file (hound).
+//!
+//! The file's sample rate is the signal's (the camera's frame rate for a
+//! per-frame signal). The header is rewritten every second of audio and on
+//! finish, which the runner calls on end of stream, on Ctrl-C and on an
+//! error anywhere, so the file on disk is a valid WAV at all times.
+
+use crate::*;
+use serde::Deserialize;
+use std::io::BufWriter;
+use std::path::PathBuf;
+
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+enum Format {
+    /// 32-bit float, values as the signal has them (pixels of motion, say).
+    F32,
+    /// 16-bit PCM of `gain * value`, clipped to [-1, 1].
+    I16,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct P {
+    path: PathBuf,
+    #[serde(default = "f32_fmt")]
+    format: Format,
+    #[serde(default = "unit")]
+    gain: f64,
+}
+fn f32_fmt() -> Format {
+    Format::F32
+}
+fn unit() -> f64 {
+    1.0
+}
+
+pub const KIND: KindSpec = KindSpec {
+    name: "wav",
+    summary:
+        "writes audio to a WAV file (f32 or i16), valid even after Ctrl-C or an upstream error",
+    accepts: &[PortType::Audio],
+    max_inputs: 1,
+    output: Output::None,
+    plan: |p| {
+        let v: P = p.parse()?;
+        if !v.gain.is_finite() {
+            return Err(p.error("gain", "must be a finite number"));
+        }
+        if v.path.as_os_str().is_empty() {
+            return Err(p.error("path", "must not be empty"));
+        }
+        Ok(Box::new(Wav {
+            path: v.path,
+            format: v.format,
+            gain: v.gain as f32,
+            writer: None,
+            rate: 0,
+            since_flush: 0,
+        }))
+    },
+};
+
+struct Wav {
+    path: PathBuf,
+    format: Format,
+    gain: f32,
+    writer: Option<hound::WavWriter<BufWriter<std::fs::File>>>,
+    rate: u32,
+    since_flush: u32,
+}
+
+impl Plan for Wav {
+    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+        Ok(Node::Stage(self))
+    }
+}
+
+impl Wav {
+    fn err(&self, e: hound::Error) -> StageError {
+        StageError::msg(format!("{}: {e}", self.path.display()))
+    }
+}
+
+impl Stage for Wav {
+    fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
+        let Item::Audio(a) = item else {
+            return Err(StageError::msg("expected audio"));
+        };
+        let rate = a.rate_hz.round();
+        if !(1.0..=u32::MAX as f64).contains(&rate) {
+            return Err(StageError::msg(format!(
+                "{}: sample rate {} Hz cannot be written to WAV",
+                self.path.display(),
+                a.rate_hz
+            )));
+        }
+        let rate = rate as u32;
+        if self.writer.is_none() {
+            if (a.rate_hz - rate as f64).abs() > 1e-6 {
+                tracing::warn!(path = %self.path.display(), rate_hz = a.rate_hz, written_hz = rate, "WAV sample rates are integers; rounding");
+            }
+            let spec = hound::WavSpec {
+                channels: 1,
+                sample_rate: rate,
+                bits_per_sample: if self.format == Format::F32 { 32 } else { 16 },
+                sample_format: if self.format == Format::F32 {
+                    hound::SampleFormat::Float
+                } else {
+                    hound::SampleFormat::Int
+                },
+            };
+            let file = super::create(&self.path)?;
+            let w = hound::WavWriter::new(BufWriter::new(file), spec).map_err(|e| self.err(e))?;
+            self.writer = Some(w);
+            self.rate = rate;
+        } else if rate != self.rate {
+            return Err(StageError::msg(format!(
+                "{}: the sample rate changed from {} to {} Hz mid-stream",
+                self.path.display(),
+                self.rate,
+                rate
+            )));
+        }
+        let gain = self.gain;
+        let fmt = self.format;
+        let Some(w) = self.writer.as_mut() else {
+            return Ok(());
+        };
+        let r = a.samples.iter().try_for_each(|&s| match fmt {
+            Format::F32 => w.write_sample(s * gain),
+            Format::I16 => w.write_sample(((s * gain).clamp(-1.0, 1.0) * 32767.0).round() as i16),
+        });
+        if let Err(e) = r {
+            return Err(self.err(e));
+        }
+        self.since_flush += a.samples.len() as u32;
+        if self.since_flush >= self.rate {
+            self.since_flush = 0;
+            if let Some(w) = self.writer.as_mut() {
+                if let Err(e) = w.flush() {
+                    return Err(self.err(e));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
+        match self.writer.take() {
+            Some(w) => w.finalize().map_err(|e| self.err(e)),
+            None => {
+                tracing::warn!(path = %self.path.display(), "no audio reached the WAV sink; no file written");
+                Ok(())
+            }
+        }
+    }
+}

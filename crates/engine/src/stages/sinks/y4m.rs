@@ -1,0 +1,90 @@
+//! `y4m`: records frames to a Y4M file (`Cmono`/`Cmono16`) with each frame's
+//! capture timestamp and sequence number in its frame header
+//! (`FRAME Xts=<ns> Xseq=<n>`), so a replay uses the true capture times and
+//! a camera's dropped frames show as gaps in `Xseq`. `path = "-"` writes to standard output
+//! (to pipe into another process).
+
+use crate::*;
+use serde::Deserialize;
+use std::io::{BufWriter, Write};
+use std::path::PathBuf;
+use vibroscope_io::{FrameDestRef, Y4mWriter};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct P {
+    path: PathBuf,
+}
+
+pub const KIND: KindSpec = KindSpec {
+    name: "y4m",
+    summary: "records frames to Y4M with per-frame capture timestamps",
+    accepts: &[PortType::Frames],
+    max_inputs: 1,
+    output: Output::None,
+    plan: |p| {
+        let v: P = p.parse()?;
+        Ok(Box::new(Rec {
+            path: v.path,
+            w: None,
+        }))
+    },
+};
+
+struct Rec {
+    path: PathBuf,
+    w: Option<Y4mWriter<BufWriter<Box<dyn Write + Send>>>>,
+}
+
+impl Plan for Rec {
+    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+        Ok(Node::Stage(self))
+    }
+}
+
+impl Stage for Rec {
+    fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
+        let Item::Frame(f) = item else {
+            return Err(StageError::msg("expected frames"));
+        };
+        let path = &self.path;
+        let io = |e: std::io::Error| StageError::msg(format!("{}: {e}", path.display()));
+        if self.w.is_none() {
+            let fmt = f.format();
+            let file: Box<dyn Write + Send> = if path.as_os_str() == "-" {
+                Box::new(std::io::stdout())
+            } else {
+                Box::new(super::create(path)?)
+            };
+            self.w = Some(
+                Y4mWriter::new(
+                    BufWriter::new(file),
+                    fmt.width,
+                    fmt.height,
+                    fmt.depth,
+                    fmt.fps,
+                )
+                .map_err(io)?,
+            );
+        }
+        let Some(w) = self.w.as_mut() else {
+            return Ok(());
+        };
+        let px = match f.pixels() {
+            PixelsRef::U8(p) => FrameDestRef::U8(p),
+            PixelsRef::U16(p) => FrameDestRef::U16(p),
+        };
+        w.write_frame_seq(px, Some(f.meta().t_ns), Some(f.meta().seq))
+            .map_err(io)
+    }
+
+    fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
+        if let Some(w) = self.w.take() {
+            let mut inner = w.into_inner();
+            inner
+                .flush()
+                .map_err(|e| StageError::msg(format!("{}: {e}", self.path.display())))?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,68 @@
+pub mod file;
+pub mod nokhwa;
+pub mod pattern;
+pub mod synthetic;
+pub mod v4l2;
+
+use crate::{FrameFormat, FrameMeta, FrameMut, Item};
+use std::time::{Duration, Instant};
+
+/// Paces a source like a live camera: frame `seq` is delivered at
+/// `epoch + seq / fps` on the wall clock, whatever downstream is doing. The
+/// epoch is the run clock ([`crate::Control::epoch`]), so the
+/// nominal capture time `seq / fps` is also the frame's time on that clock
+/// and sinks can measure how old what reaches them is.
+pub struct Pacer {
+    fps: f64,
+}
+
+impl Pacer {
+    pub fn new(fps: f64) -> Self {
+        Self { fps }
+    }
+
+    /// Sleeps until frame `seq` is due on the run clock.
+    pub fn wait(&mut self, seq: u64, epoch: Instant) {
+        self.wait_after(seq, epoch, 0.0);
+    }
+
+    /// Sleeps until `extra_s` after frame `seq` starts: a rolling-shutter
+    /// frame can only be delivered once its last row has been read out.
+    pub fn wait_after(&mut self, seq: u64, epoch: Instant, extra_s: f64) {
+        let due = epoch + Duration::from_secs_f64(seq as f64 / self.fps + extra_s.max(0.0));
+        let now = Instant::now();
+        if due > now {
+            std::thread::sleep(due - now);
+        }
+    }
+}
+
+/// Stamps a frame rendered at the nominal rate and hands it downstream.
+pub fn nominal_frame(mut f: FrameMut, seq: u64, fps: f64) -> Item {
+    *f.meta_mut() = FrameMeta {
+        seq,
+        t_ns: nominal_time_ns(seq, fps),
+    };
+    Item::Frame(f.freeze())
+}
+
+/// Capture time of frame `seq` at a nominal rate (used only when the file
+/// or device gives no timestamp of its own).
+pub fn nominal_time_ns(seq: u64, fps: f64) -> i64 {
+    (seq as f64 * 1e9 / fps).round() as i64
+}
+
+/// Checks a frame rate given by a user or a file.
+pub fn check_fps(fps: f64) -> Result<f64, String> {
+    if fps.is_finite() && fps > 0.0 && fps <= 1e7 {
+        Ok(fps)
+    } else {
+        Err(format!(
+            "frame rate must be > 0 and at most 1e7 Hz, got {fps}"
+        ))
+    }
+}
+
+pub fn describe(f: &FrameFormat) -> String {
+    format!("{}x{} {}-bit at {} fps", f.width, f.height, f.bits, f.fps)
+}

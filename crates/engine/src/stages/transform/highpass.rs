@@ -1,0 +1,99 @@
+//! `highpass`: streaming Butterworth high-pass on an audio stream (removes
+//! drift and slow camera motion before listening; thesis ch. 4).
+//!
+//! `cutoff_hz` defaults to fs/40 clamped to 20-100 Hz (and never above
+//! fs/4, for slow cameras), decided from the first block's rate.
+
+use crate::*;
+use serde::Deserialize;
+use std::sync::Arc;
+use vibroscope_math::iir::Sos;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct P {
+    #[serde(default = "d_order")]
+    order: usize,
+    cutoff_hz: Option<f64>,
+}
+fn d_order() -> usize {
+    4
+}
+
+pub const KIND: KindSpec = KindSpec {
+    name: "highpass",
+    summary:
+        "streaming Butterworth high-pass (order, cutoff_hz; default fs/40 clamped to 20-100 Hz)",
+    accepts: &[PortType::Audio],
+    max_inputs: 1,
+    output: Output::Fixed(PortType::Audio),
+    plan: |p| {
+        let v: P = p.parse()?;
+        if !(1..=16).contains(&v.order) {
+            return Err(p.error("order", format!("must be 1..=16, got {}", v.order)));
+        }
+        if let Some(c) = v.cutoff_hz {
+            if !(c.is_finite() && c > 0.0) {
+                return Err(p.error("cutoff_hz", format!("must be > 0 Hz, got {c}")));
+            }
+        }
+        Ok(Box::new(HighpassPlan(v)))
+    },
+};
+
+pub use vibroscope_math::iir::default_highpass_cutoff_hz as default_cutoff_hz;
+
+struct HighpassPlan(P);
+
+impl Plan for HighpassPlan {
+    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+        Ok(Node::Stage(Box::new(Highpass {
+            order: self.0.order,
+            cutoff: self.0.cutoff_hz,
+            filter: None,
+            rate: 0.0,
+            buf: Vec::new(),
+        })))
+    }
+}
+
+struct Highpass {
+    order: usize,
+    cutoff: Option<f64>,
+    filter: Option<Sos>,
+    rate: f64,
+    buf: Vec<f32>,
+}
+
+impl Stage for Highpass {
+    fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
+        let Item::Audio(a) = item else {
+            return Err(StageError::msg("expected audio"));
+        };
+        if self.filter.is_none() || a.rate_hz != self.rate {
+            let fc = self.cutoff.unwrap_or_else(|| default_cutoff_hz(a.rate_hz));
+            let f = Sos::butterworth_highpass(self.order, fc, a.rate_hz)
+                .map_err(|e| StageError::msg(format!("highpass: {e}")))?;
+            tracing::info!(
+                cutoff_hz = fc,
+                order = self.order,
+                rate_hz = a.rate_hz,
+                "highpass designed"
+            );
+            self.filter = Some(f);
+            self.rate = a.rate_hz;
+        }
+        let Some(f) = self.filter.as_mut() else {
+            return Ok(());
+        };
+        self.buf.clear();
+        self.buf
+            .extend(a.samples.iter().map(|&x| f.step(x as f64) as f32));
+        let _ = out.emit(Item::Audio(AudioBlock {
+            t0_ns: a.t0_ns,
+            rate_hz: a.rate_hz,
+            samples: Arc::from(&self.buf[..]),
+        }));
+        Ok(())
+    }
+}

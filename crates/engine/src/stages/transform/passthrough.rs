@@ -1,0 +1,55 @@
+//! `passthrough`: forwards every item unchanged (handles, not copies).
+//! `delay_us` makes it deliberately slow, for backpressure tests and demos.
+
+use crate::*;
+use serde::Deserialize;
+use std::time::Duration;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct P {
+    /// Sleep this long per item (simulates a slow stage).
+    #[serde(default)]
+    delay_us: u64,
+}
+
+pub const KIND: KindSpec = KindSpec {
+    name: "passthrough",
+    summary: "forwards items unchanged; `delay_us` makes it slow on purpose",
+    accepts: &[
+        PortType::Frames,
+        PortType::Samples,
+        PortType::Audio,
+        PortType::Spectrum,
+        PortType::Pyramid,
+    ],
+    max_inputs: 1,
+    output: Output::SameAsInput,
+    plan: |p| {
+        let p: P = p.parse()?;
+        Ok(Box::new(Pass {
+            delay: Duration::from_micros(p.delay_us),
+        }))
+    },
+};
+
+struct Pass {
+    delay: Duration,
+}
+
+impl Plan for Pass {
+    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+        Ok(Node::Stage(self))
+    }
+}
+
+impl Stage for Pass {
+    fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
+        if !self.delay.is_zero() {
+            std::thread::sleep(self.delay);
+        }
+        // A downstream that went away is not this stage's error.
+        let _ = out.emit(item);
+        Ok(())
+    }
+}

@@ -1,0 +1,703 @@
+//! `phase`: per-band weighted local motion signals (thesis Eq. 3.1-3.4).
+//!
+//! Each frame goes through a complex steerable pyramid (`pyramid = "csp"`,
+//! Eq. 3.1) or a Riesz pyramid (`"riesz"`, the fast alternative). Per band
+//! `l` and pixel, the local displacement u = φ(t) - φ(t0) (Eq. 3.2) is the
+//! wrapped phase difference against the first frame; the band signal is
+//! a_l(t) = Σ_{x,y in roi} A(t0)² u(t) (Eq. 3.3-3.4). The weights are the
+//! reference frame's contrast: with A(t)², which moves with the object, the
+//! reference frame's fixed phase noise is modulated by the signal and the
+//! error grows with the motion (measured: +3.3 dB instead of +6 dB for
+//! twice the motion at 12 dB SNR); for the sub-pixel motions of a visual
+//! microphone A(t) ≈ A(t0) anyway.
+//!
+//! Why not a running sum of frame-to-frame increments (which would follow
+//! motions beyond half a wavelength)? In low-contrast pixels the phase is
+//! noise, increments wrap, and the sum becomes a random walk of ±2π steps
+//! that swamps sub-pixel signals even after A² weighting (measured: -12.7 dB
+//! instead of +20 dB on the synthetic scene). Instead the reference is
+//! renewed every `reference_interval_s` (default 1 s): the frame due becomes
+//! the next reference (its A² the next weights), both references run side by
+//! side for `reference_overlap` frames, and the next one takes over with an
+//! offset per band, the mean difference of the two over the overlap, so the
+//! output continues. A drift then only has to stay under half a wavelength
+//! per interval, and the only random walk is one step per renewal, the
+//! overlap mean's error (a 1/√(overlap+1) fraction of one sample's noise).
+//!
+//! The output carries one channel per band (scale-major:
+//! `scale * orientations + orientation`) at each frame's capture time. All
+//! bands are divided by one constant, the reference's total A² over all
+//! bands, which keeps their relative weights (Eq. 3.6 sums them
+//! unnormalised) and gives values of the order of radians of phase instead
+//! of millions.
+
+use super::audio_out::Batcher;
+use super::pyramid::{
+    d_orient, d_pyr, d_scales, pyramid_err as err, resolve_threads, spread, Analyzer, Carried,
+    OnFrames, PyramidKind, PyramidSpec,
+};
+use super::roi::{Mask, Roi, RoiParam};
+use crate::*;
+use serde::Deserialize;
+use vibroscope_math::kernels::MAX_ORIENT;
+use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidError};
+use vibroscope_math::riesz::RieszPyramid;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct P {
+    #[serde(default = "d_pyr")]
+    pyramid: PyramidKind,
+    #[serde(default = "d_scales")]
+    scales: usize,
+    #[serde(default = "d_orient")]
+    orientations: usize,
+    roi: Option<RoiParam>,
+    /// Region as an image the size of the frame (PGM or PNG; pixels > 0
+    /// are inside); with `roi`, the overlap of both.
+    mask: Option<std::path::PathBuf>,
+    /// Frames per emitted block.
+    #[serde(default = "d_block")]
+    block: usize,
+    /// Frames analysed at once, one per worker thread (0 = one per core,
+    /// at most 8). The reference is fixed, so frames are independent: each
+    /// is computed whole by one worker, and the output is bit-identical for
+    /// any value. A frame waits for at most `threads - 1` later frames.
+    #[serde(default)]
+    threads: usize,
+    /// Seconds between reference renewals (0 = the first frame stays the
+    /// reference); see the module docs.
+    #[serde(default = "d_interval")]
+    reference_interval_s: f64,
+    /// Frames over which the old and the next reference run side by side
+    /// to measure the offset that joins them.
+    #[serde(default = "d_overlap")]
+    reference_overlap: usize,
+}
+fn d_interval() -> f64 {
+    1.0
+}
+fn d_overlap() -> usize {
+    32
+}
+fn d_block() -> usize {
+    64
+}
+
+pub const KIND: KindSpec = KindSpec {
+    name: "phase",
+    summary: "pyramid (csp or riesz) local phase, A²-weighted and summed per band (Eq. 3.1-3.4) -> one channel per band",
+    accepts: &[PortType::Frames, PortType::Pyramid],
+    max_inputs: 1,
+    output: Output::Fixed(PortType::Samples),
+    plan: |p| {
+        let v: P = p.parse()?;
+        PyramidSpec {
+            kind: v.pyramid,
+            scales: v.scales,
+            orientations: v.orientations,
+        }
+        .check(p)?;
+        if !(1..=65536).contains(&v.block) {
+            return Err(p.error("block", format!("must be 1..=65536, got {}", v.block)));
+        }
+        if let Some(r) = &v.roi {
+            r.check().map_err(|m| p.error("roi", m))?;
+        }
+        // Read once, here, so a bad mask is a configuration error.
+        let mask = match &v.mask {
+            Some(m) => Some((m.clone(), Mask::load(m).map_err(|e| p.error("mask", e))?)),
+            None => None,
+        };
+        if !(v.reference_interval_s.is_finite() && v.reference_interval_s >= 0.0) {
+            return Err(p.error(
+                "reference_interval_s",
+                format!("must be >= 0 (0 = never renew), got {}", v.reference_interval_s),
+            ));
+        }
+        if v.reference_overlap > 65536 {
+            return Err(p.error(
+                "reference_overlap",
+                format!("must be 0..=65536 frames, got {}", v.reference_overlap),
+            ));
+        }
+        if v.threads > 256 {
+            return Err(p.error("threads", format!("must be 0..=256, got {}", v.threads)));
+        }
+        Ok(Box::new(PhasePlan { p: v, mask }))
+    },
+};
+
+struct PhasePlan {
+    p: P,
+    mask: Option<(std::path::PathBuf, Mask)>,
+}
+
+impl Plan for PhasePlan {
+    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+        let PhasePlan { p: v, mask } = *self;
+        let threads = resolve_threads(v.threads);
+        Ok(Node::Stage(Box::new(Phase {
+            pool: super::reduce::thread_pool(threads)?,
+            threads,
+            kind: v.pyramid,
+            scales: v.scales,
+            orientations: v.orientations,
+            roi: v.roi,
+            mask,
+            block: v.block,
+            renewal: Renewal {
+                interval_s: v.reference_interval_s,
+                overlap: v.reference_overlap,
+            },
+            engine: None,
+            pending: Vec::with_capacity(threads),
+            batch: None,
+        })))
+    }
+
+    fn frames_held(&self) -> usize {
+        resolve_threads(self.p.threads)
+    }
+}
+
+struct BandState {
+    /// Region of the band grid that maps into the ROI.
+    x0: usize,
+    x1: usize,
+    y0: usize,
+    y1: usize,
+    width: usize,
+    /// Band pixels (width × height).
+    len: usize,
+    /// Band pixels inside the mask, if there is one.
+    inside: Option<Vec<bool>>,
+}
+
+/// A reference frame (Eq. 3.2) with its A² weights (Eq. 3.3).
+struct Reference<C> {
+    c: C,
+    /// A(t_ref)² per band, zero outside the mask.
+    weights: Vec<Vec<f32>>,
+    /// Σ A² over every band's region (output scale).
+    norm: f64,
+    t_ns: i64,
+    /// Added per band to this reference's normalised sums, so the output
+    /// continues across renewals.
+    offset: Vec<f64>,
+}
+
+/// The next reference while both run side by side.
+struct Handover<C> {
+    next: Reference<C>,
+    /// Overlap frames still to compute.
+    left: usize,
+    /// Frames summed into the engine's `acc`.
+    n: usize,
+}
+
+/// One worker's pyramid and buffers (nothing is allocated per frame).
+struct Worker<A: Analyzer> {
+    an: A,
+    c: A::C,
+    input: Vec<f32>,
+    /// Σ A² Δφ per band against the reference, for this worker's frame.
+    sums: Vec<f64>,
+    /// The same against the next reference, during a handover.
+    next_sums: Vec<f64>,
+    result: Result<(), StageError>,
+}
+
+/// Per-band weighted phase sums, frames spread over workers.
+struct Engine<A: Analyzer> {
+    workers: Vec<Worker<A>>,
+    reference: Option<Reference<A::C>>,
+    handover: Option<Handover<A::C>>,
+    /// A retired reference, recycled for the next renewal.
+    spare: Option<Reference<A::C>>,
+    /// Renew the reference this long after the last one (None = never).
+    interval_ns: Option<i64>,
+    overlap: usize,
+    bands: Vec<BandState>,
+    scales: usize,
+    orientations: usize,
+    /// The output values of one frame.
+    vals: Vec<f32>,
+    /// Σ (output - next reference's normalised sum) per band, during a handover.
+    acc: Vec<f64>,
+    width: usize,
+    height: usize,
+}
+
+/// How `phase` renews its reference.
+#[derive(Clone, Copy)]
+struct Renewal {
+    interval_s: f64,
+    overlap: usize,
+}
+
+/// The object-safe face of [`Engine`] (one per pyramid kind).
+trait FrameSignals: Send {
+    fn bands(&self) -> usize;
+    fn size(&self) -> (usize, usize);
+    /// Computes `frames` in order and calls `emit` with each frame's
+    /// normalised band signals.
+    fn run(
+        &mut self,
+        frames: &[Item],
+        pool: Option<&rayon::ThreadPool>,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError>;
+}
+
+impl<A: Analyzer> Engine<A> {
+    fn new(
+        mut make: impl FnMut() -> Result<A, PyramidError>,
+        workers: usize,
+        (scales, orientations): (usize, usize),
+        (roi, mask): (Roi, Option<&Mask>),
+        renewal: Renewal,
+        (width, height): (usize, usize),
+    ) -> Result<Self, StageError> {
+        let nb = scales * orientations;
+        let mut ws = Vec::with_capacity(workers);
+        for _ in 0..workers.max(1) {
+            let an = make().map_err(err)?;
+            let c = an.alloc();
+            ws.push(Worker {
+                an,
+                c,
+                input: vec![0.0; width * height],
+                sums: vec![0.0; nb],
+                next_sums: vec![0.0; nb],
+                result: Ok(()),
+            });
+        }
+        let c = &ws[0].c;
+        let mut bands = Vec::with_capacity(c.num_bands());
+        for i in 0..c.num_bands() {
+            let b = c
+                .band_info(i)
+                .ok_or_else(|| err(PyramidError::LayoutMismatch))?;
+            // Band pixel x' sits at input x = x' * step.
+            let to_band =
+                |v: usize, step: f32, n: usize| ((v as f32 / step).ceil() as usize).min(n);
+            let x0 = to_band(roi.x, b.step_x, b.width);
+            let x1 = to_band(roi.x + roi.w, b.step_x, b.width).max(x0);
+            let y0 = to_band(roi.y, b.step_y, b.height);
+            let y1 = to_band(roi.y + roi.h, b.step_y, b.height).max(y0);
+            // Band pixels whose input position falls outside the mask get
+            // no weight (multiplied into A² of each reference).
+            let inside = mask.map(|m| {
+                (0..b.len())
+                    .map(|i| {
+                        let (bx, by) = (i % b.width, i / b.width);
+                        let x = ((bx as f32 * b.step_x).round() as usize).min(width - 1);
+                        let y = ((by as f32 * b.step_y).round() as usize).min(height - 1);
+                        m.at(x, y)
+                    })
+                    .collect::<Vec<bool>>()
+            });
+            bands.push(BandState {
+                x0,
+                x1,
+                y0,
+                y1,
+                width: b.width,
+                len: b.len(),
+                inside,
+            });
+        }
+        let interval_ns = (renewal.interval_s > 0.0).then_some((renewal.interval_s * 1e9) as i64);
+        Ok(Self {
+            workers: ws,
+            reference: None,
+            handover: None,
+            spare: None,
+            interval_ns,
+            overlap: renewal.overlap,
+            bands,
+            scales,
+            orientations,
+            vals: vec![0.0; nb],
+            acc: vec![0.0; nb],
+            width,
+            height,
+        })
+    }
+
+    /// Turns worker `w`'s last analysed frame into a reference (its
+    /// coefficients are swapped out, not copied; a spare is reused). `None`
+    /// when the frame has no contrast in the region.
+    fn make_reference(
+        &mut self,
+        w: usize,
+        t_ns: i64,
+    ) -> Result<Option<Reference<A::C>>, StageError> {
+        let nb = self.bands.len();
+        let mut r = match self.spare.take() {
+            Some(r) => r,
+            None => Reference {
+                c: self.workers[0].an.alloc(),
+                weights: self.bands.iter().map(|b| vec![0.0; b.len]).collect(),
+                norm: 0.0,
+                t_ns: 0,
+                offset: vec![0.0; nb],
+            },
+        };
+        std::mem::swap(&mut r.c, &mut self.workers[w].c);
+        let mut total = 0.0f64;
+        for (i, (b, wt)) in self.bands.iter().zip(r.weights.iter_mut()).enumerate() {
+            r.c.amplitude_into(i, wt).map_err(err)?;
+            wt.iter_mut().for_each(|a| *a = *a * *a);
+            if let Some(inside) = &b.inside {
+                for (w, &i) in wt.iter_mut().zip(inside) {
+                    if !i {
+                        *w = 0.0;
+                    }
+                }
+            }
+            for y in b.y0..b.y1 {
+                total += wt[y * b.width + b.x0..y * b.width + b.x1]
+                    .iter()
+                    .map(|&w| w as f64)
+                    .sum::<f64>();
+            }
+        }
+        r.norm = total;
+        r.t_ns = t_ns;
+        r.offset.iter_mut().for_each(|o| *o = 0.0);
+        if total > 0.0 {
+            Ok(Some(r))
+        } else {
+            self.spare = Some(r);
+            Ok(None)
+        }
+    }
+
+    /// The first frame becomes the reference.
+    fn set_reference(&mut self, f: &Item) -> Result<(), StageError> {
+        let w0 = &mut self.workers[0];
+        w0.an.analyze(f, &mut w0.input, &mut w0.c)?;
+        let r = self.make_reference(0, f.t_ns())?.ok_or_else(|| {
+            StageError::msg("the region has no texture (zero local contrast in every band)")
+        })?;
+        self.reference = Some(r);
+        Ok(())
+    }
+
+    /// Whether a frame at `t_ns` starts a renewal.
+    fn due(&self, t_ns: i64) -> bool {
+        match (&self.reference, self.interval_ns) {
+            (Some(r), Some(iv)) if self.handover.is_none() => t_ns.saturating_sub(r.t_ns) >= iv,
+            _ => false,
+        }
+    }
+
+    /// Ends a handover: the next reference takes over.
+    fn take_over(&mut self) {
+        if let Some(mut h) = self.handover.take() {
+            let n = h.n.max(1) as f64;
+            for (o, a) in h.next.offset.iter_mut().zip(&self.acc) {
+                *o = a / n;
+            }
+            self.spare = self.reference.replace(h.next);
+        }
+    }
+
+    /// Computes `batch` (one frame per worker; during a handover also
+    /// against the next reference) and emits it in order.
+    fn batch(
+        &mut self,
+        batch: &[Item],
+        pool: Option<&rayon::ThreadPool>,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError> {
+        let Some(reference) = self.reference.as_ref() else {
+            return Ok(());
+        };
+        let next = self.handover.as_ref().map(|h| &h.next);
+        let (bands, scales, k) = (&self.bands[..], self.scales, self.orientations);
+        let workers = &mut self.workers[..batch.len()];
+        spread(pool, workers, batch, |w: &mut Worker<A>, f: &Item| {
+            w.result = compute(w, f, (reference, next), bands, (scales, k));
+        });
+        for (w, f) in workers.iter_mut().zip(batch) {
+            std::mem::replace(&mut w.result, Ok(()))?;
+            for ((v, s), o) in self.vals.iter_mut().zip(&w.sums).zip(&reference.offset) {
+                *v = (o + s / reference.norm) as f32;
+            }
+            if let Some(h) = self.handover.as_mut() {
+                for ((a, v), s) in self.acc.iter_mut().zip(&self.vals).zip(&w.next_sums) {
+                    *a += *v as f64 - s / h.next.norm;
+                }
+                h.n += 1;
+                h.left = h.left.saturating_sub(1);
+            }
+            emit(f, &mut self.vals.iter().copied());
+        }
+        Ok(())
+    }
+
+    /// A renewal: `f` is computed against the current reference, emitted,
+    /// and becomes the next reference.
+    fn renew(
+        &mut self,
+        f: &Item,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError> {
+        self.batch(std::slice::from_ref(f), None, emit)?;
+        let t_ns = f.t_ns();
+        match self.make_reference(0, t_ns)? {
+            Some(next) => {
+                // On its own frame the next reference reads zero.
+                for (a, &v) in self.acc.iter_mut().zip(&self.vals) {
+                    *a = v as f64;
+                }
+                self.handover = Some(Handover {
+                    next,
+                    left: self.overlap,
+                    n: 1,
+                });
+                if self.overlap == 0 {
+                    self.take_over();
+                }
+            }
+            // No contrast to renew from: try again an interval later.
+            None => {
+                if let Some(r) = self.reference.as_mut() {
+                    r.t_ns = t_ns;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Eq. 3.2-3.4 for one frame: Σ A(t_ref)² (φ(t) - φ(t_ref)) per band,
+/// against the reference and, during a handover, the next one.
+fn compute<A: Analyzer>(
+    w: &mut Worker<A>,
+    f: &Item,
+    (reference, next): (&Reference<A::C>, Option<&Reference<A::C>>),
+    bands: &[BandState],
+    (scales, k): (usize, usize),
+) -> Result<(), StageError> {
+    w.an.analyze(f, &mut w.input, &mut w.c)?;
+    let refs = [
+        Some((reference, &mut w.sums)),
+        next.map(|n| (n, &mut w.next_sums)),
+    ];
+    for (r, sums) in refs.into_iter().flatten() {
+        for s in 0..scales {
+            let mut weights: [&[f32]; MAX_ORIENT] = [&[]; MAX_ORIENT];
+            for (d, wt) in weights.iter_mut().zip(&r.weights[s * k..(s + 1) * k]) {
+                *d = wt;
+            }
+            let b = &bands[s * k];
+            w.c.scale_phase_delta_sums(
+                &r.c,
+                s,
+                &weights[..k],
+                b.y0..b.y1,
+                b.x0..b.x1,
+                &mut sums[s * k..(s + 1) * k],
+            )
+            .map_err(err)?;
+        }
+    }
+    Ok(())
+}
+
+impl<A: Analyzer> FrameSignals for Engine<A> {
+    fn bands(&self) -> usize {
+        self.bands.len()
+    }
+    fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    fn run(
+        &mut self,
+        frames: &[Item],
+        pool: Option<&rayon::ThreadPool>,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError> {
+        let mut rest = frames;
+        if self.reference.is_none() {
+            let Some((first, tail)) = frames.split_first() else {
+                return Ok(());
+            };
+            self.set_reference(first)?;
+            emit(first, &mut std::iter::repeat_n(0.0, self.bands.len()));
+            rest = tail;
+        }
+        while let Some(first) = rest.first() {
+            if self.due(first.t_ns()) {
+                self.renew(first, emit)?;
+                rest = &rest[1..];
+                continue;
+            }
+            // A batch never spans a change of reference.
+            let mut n = rest.len().min(self.workers.len());
+            match &self.handover {
+                Some(h) => n = n.min(h.left.max(1)),
+                None => {
+                    if let Some(i) = rest[1..n].iter().position(|f| self.due(f.t_ns())) {
+                        n = i + 1;
+                    }
+                }
+            }
+            self.batch(&rest[..n], pool, emit)?;
+            if self.handover.as_ref().is_some_and(|h| h.left == 0) {
+                self.take_over();
+            }
+            rest = &rest[n..];
+        }
+        Ok(())
+    }
+}
+
+struct Phase {
+    pool: Option<rayon::ThreadPool>,
+    threads: usize,
+    kind: PyramidKind,
+    scales: usize,
+    orientations: usize,
+    roi: Option<RoiParam>,
+    mask: Option<(std::path::PathBuf, Mask)>,
+    block: usize,
+    renewal: Renewal,
+    engine: Option<Box<dyn FrameSignals>>,
+    /// Frames (or their pyramids) waiting for a full batch (one per worker).
+    pending: Vec<Item>,
+    /// Band signals into sample blocks (set up with the engine).
+    batch: Option<Batcher>,
+}
+
+/// Size of the frame behind an item (frames or pyramid coefficients).
+fn item_size(item: &Item) -> Option<(usize, usize)> {
+    match item {
+        Item::Frame(f) => Some((f.width(), f.height())),
+        Item::Pyramid(p) => Some((p.width, p.height)),
+        _ => None,
+    }
+}
+
+/// Nominal frame rate of an item's frame.
+fn item_fps(item: &Item) -> f64 {
+    match item {
+        Item::Frame(f) => f.format().fps,
+        Item::Pyramid(p) => p.fps,
+        _ => 0.0,
+    }
+}
+
+impl Phase {
+    fn init(&mut self, f: &Item) -> Result<(), StageError> {
+        let (w, h) = item_size(f).ok_or_else(|| StageError::msg("expected frames or a pyramid"))?;
+        let mut roi = Roi::resolve(self.roi.as_ref(), w, h)?;
+        let mask = match self.mask.take() {
+            Some((path, m)) => {
+                m.check_size(&path, w, h)?;
+                roi = roi.intersect(&m.bounds()).ok_or_else(|| {
+                    StageError::msg(format!("mask {} does not overlap the roi", path.display()))
+                })?;
+                Some(m)
+            }
+            None => None,
+        };
+        let n = self.threads;
+        let region = (roi, mask.as_ref());
+        let engine: Box<dyn FrameSignals> = match f {
+            // An upstream `pyramid` stage decides the pyramid and its layout.
+            Item::Pyramid(p) => {
+                let sk = p.data.layout();
+                match &p.data {
+                    PyramidData::Csp(c) => Box::new(Engine::new(
+                        || Ok(Carried { first: c.clone() }),
+                        n,
+                        sk,
+                        region,
+                        self.renewal,
+                        (w, h),
+                    )?),
+                    PyramidData::Riesz(c) => Box::new(Engine::new(
+                        || Ok(Carried { first: c.clone() }),
+                        n,
+                        sk,
+                        region,
+                        self.renewal,
+                        (w, h),
+                    )?),
+                }
+            }
+            _ => {
+                let (s, k) = (self.scales, self.orientations);
+                match self.kind {
+                    PyramidKind::Csp => Box::new(Engine::new(
+                        || {
+                            let mut p = ComplexSteerablePyramid::new(w, h, s, k)?;
+                            p.set_residuals(false);
+                            Ok(OnFrames(p))
+                        },
+                        n,
+                        (s, k),
+                        region,
+                        self.renewal,
+                        (w, h),
+                    )?),
+                    PyramidKind::Riesz => Box::new(Engine::new(
+                        || Ok(OnFrames(RieszPyramid::new(w, h, s, k)?)),
+                        n,
+                        (s, k),
+                        region,
+                        self.renewal,
+                        (w, h),
+                    )?),
+                }
+            }
+        };
+        self.batch = Some(Batcher::samples(self.block, engine.bands()));
+        self.engine = Some(engine);
+        Ok(())
+    }
+
+    /// Computes the pending frames and appends their samples to the block.
+    fn run_pending(&mut self, out: &mut Emitter) -> Result<(), StageError> {
+        let (Some(engine), Some(batch)) = (self.engine.as_mut(), self.batch.as_mut()) else {
+            return Ok(());
+        };
+        let r = engine.run(&self.pending, self.pool.as_ref(), &mut |f, vals| {
+            batch.push(f.t_ns(), item_fps(f), vals, out)
+        });
+        self.pending.clear();
+        r
+    }
+}
+
+impl Stage for Phase {
+    fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
+        if self.engine.is_none() {
+            self.init(&item)?;
+        }
+        if let Some(e) = &self.engine {
+            if item_size(&item) != Some(e.size()) {
+                return Err(StageError::msg("the frame size changed mid-stream"));
+            }
+        }
+        self.pending.push(item);
+        if self.pending.len() >= self.threads {
+            self.run_pending(out)?;
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, out: &mut Emitter) -> Result<(), StageError> {
+        let r = self.run_pending(out);
+        if let Some(b) = self.batch.as_mut() {
+            b.flush(out);
+        }
+        r
+    }
+}

@@ -1,0 +1,488 @@
+//! `pyramid`: each frame's complex steerable pyramid (`pyramid = "csp"`,
+//! Portilla and Simoncelli; thesis Eq. 3.1) or Riesz pyramid (`"riesz"`,
+//! Wadhwa et al. 2014) as an edge payload of its own ([`PortType::Pyramid`]):
+//! per (scale, orientation) band, the local amplitude and phase, read through
+//! [`vibroscope_math::pyramid::PhaseBands`].
+//!
+//! The coefficients travel as shared handles, not copies: a buffer goes back
+//! into use when every stage downstream has let go of it (after warm-up, the
+//! stage allocates nothing per frame). Frames are spread over `threads`
+//! workers, each computing a whole frame, so the output does not depend on
+//! the thread count.
+//!
+//! `phase` reads this payload as well as frames: `pyramid -> phase` gives
+//! the same samples, bit for bit, as `phase` on the frames with the same
+//! pyramid settings (checked in `tests/replay.rs`). The split lets other
+//! consumers share one pyramid; `phase` alone, which builds its pyramid
+//! itself, stays the faster path.
+//!
+//! ```toml
+//! [[stage]]
+//! id = "pyr"
+//! kind = "pyramid"
+//! input = "cam"
+//! pyramid = "riesz"   # or "csp" (default)
+//! scales = 4
+//! orientations = 2
+//! ```
+
+use crate::*;
+use serde::Deserialize;
+use std::sync::Arc;
+use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError};
+use vibroscope_math::riesz::{RieszCoeffs, RieszPyramid};
+
+/// Which pyramid (`pyramid = "csp" | "riesz"` in `pyramid` and `phase`).
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+pub enum PyramidKind {
+    Csp,
+    Riesz,
+}
+
+impl PyramidKind {
+    pub fn name(self) -> &'static str {
+        match self {
+            PyramidKind::Csp => "csp",
+            PyramidKind::Riesz => "riesz",
+        }
+    }
+}
+
+/// Pyramid settings shared by `pyramid` and `phase`.
+#[derive(Clone, Copy, Debug)]
+pub struct PyramidSpec {
+    pub kind: PyramidKind,
+    pub scales: usize,
+    pub orientations: usize,
+}
+
+impl PyramidSpec {
+    /// Range checks, reported against the stage's fields.
+    pub fn check(&self, p: &Params<'_>) -> Result<(), ConfigError> {
+        if !(1..=8).contains(&self.scales) {
+            return Err(p.error("scales", format!("must be 1..=8, got {}", self.scales)));
+        }
+        if !(1..=8).contains(&self.orientations) {
+            return Err(p.error(
+                "orientations",
+                format!("must be 1..=8, got {}", self.orientations),
+            ));
+        }
+        Ok(())
+    }
+}
+
+pub(super) fn d_pyr() -> PyramidKind {
+    PyramidKind::Csp
+}
+pub(super) fn d_scales() -> usize {
+    4
+}
+pub(super) fn d_orient() -> usize {
+    2
+}
+
+/// Worker threads: 0 = one per core, at most 8.
+pub(super) fn resolve_threads(n: usize) -> usize {
+    match n {
+        0 => std::thread::available_parallelism()
+            .map_or(1, |n| n.get())
+            .min(8),
+        n => n,
+    }
+}
+
+pub(super) fn pyramid_err(e: PyramidError) -> StageError {
+    StageError::msg(format!("pyramid: {e}"))
+}
+
+/// A frame's pixels as f32.
+pub(super) fn to_f32(f: &Frame, dst: &mut [f32]) {
+    match f.pixels() {
+        PixelsRef::U8(p) => dst.iter_mut().zip(p).for_each(|(d, &s)| *d = s as f32),
+        PixelsRef::U16(p) => dst.iter_mut().zip(p).for_each(|(d, &s)| *d = s as f32),
+    }
+}
+
+/// Something that turns an item into per-band coefficients: a pyramid
+/// (from a frame) or the coefficients an upstream `pyramid` stage carried.
+pub(super) trait Analyzer: Send {
+    type C: PhaseBands + Send + Sync;
+    /// Coefficients of this analyzer's layout.
+    fn alloc(&self) -> Self::C;
+    /// `input` is scratch of the frame's size.
+    fn analyze(
+        &mut self,
+        item: &Item,
+        input: &mut [f32],
+        c: &mut Self::C,
+    ) -> Result<(), StageError>;
+}
+
+/// A pyramid that analyses frames.
+pub(super) trait FramePyramid: Send {
+    type C: PhaseBands + Send + Sync;
+    fn alloc_coeffs(&self) -> Self::C;
+    fn analyze_frame(&mut self, x: &[f32], c: &mut Self::C) -> Result<(), PyramidError>;
+    /// The coefficients as an edge payload.
+    fn wrap(c: Arc<Self::C>) -> PyramidData;
+}
+
+impl FramePyramid for ComplexSteerablePyramid {
+    type C = PyramidCoeffs;
+    fn alloc_coeffs(&self) -> PyramidCoeffs {
+        ComplexSteerablePyramid::alloc_coeffs(self)
+    }
+    fn analyze_frame(&mut self, x: &[f32], c: &mut PyramidCoeffs) -> Result<(), PyramidError> {
+        self.analyze(x, c)
+    }
+    fn wrap(c: Arc<PyramidCoeffs>) -> PyramidData {
+        PyramidData::Csp(c)
+    }
+}
+
+impl FramePyramid for RieszPyramid {
+    type C = RieszCoeffs;
+    fn alloc_coeffs(&self) -> RieszCoeffs {
+        RieszPyramid::alloc_coeffs(self)
+    }
+    fn analyze_frame(&mut self, x: &[f32], c: &mut RieszCoeffs) -> Result<(), PyramidError> {
+        self.analyze(x, c)
+    }
+    fn wrap(c: Arc<RieszCoeffs>) -> PyramidData {
+        PyramidData::Riesz(c)
+    }
+}
+
+/// A pyramid on frames, as an [`Analyzer`].
+pub(super) struct OnFrames<P>(pub P);
+
+impl<P: FramePyramid> Analyzer for OnFrames<P> {
+    type C = P::C;
+    fn alloc(&self) -> P::C {
+        self.0.alloc_coeffs()
+    }
+    fn analyze(&mut self, item: &Item, input: &mut [f32], c: &mut P::C) -> Result<(), StageError> {
+        let Item::Frame(f) = item else {
+            return Err(StageError::msg("expected frames"));
+        };
+        to_f32(f, input);
+        self.0.analyze_frame(input, c).map_err(pyramid_err)
+    }
+}
+
+/// A pyramid stage's coefficients, as an [`Analyzer`] (no work: the
+/// handle is taken). `first` gives the layout.
+pub(super) struct Carried<C> {
+    pub first: Arc<C>,
+}
+
+/// Unwraps the payload of one pyramid kind.
+pub(super) trait CarriedKind: PhaseBands + Send + Sync + Sized {
+    const NAME: &'static str;
+    fn get(d: &PyramidData) -> Option<&Arc<Self>>;
+}
+
+impl CarriedKind for PyramidCoeffs {
+    const NAME: &'static str = "csp";
+    fn get(d: &PyramidData) -> Option<&Arc<Self>> {
+        match d {
+            PyramidData::Csp(c) => Some(c),
+            PyramidData::Riesz(_) => None,
+        }
+    }
+}
+
+impl CarriedKind for RieszCoeffs {
+    const NAME: &'static str = "riesz";
+    fn get(d: &PyramidData) -> Option<&Arc<Self>> {
+        match d {
+            PyramidData::Riesz(c) => Some(c),
+            PyramidData::Csp(_) => None,
+        }
+    }
+}
+
+impl<C: CarriedKind> Analyzer for Carried<C> {
+    type C = Arc<C>;
+    fn alloc(&self) -> Arc<C> {
+        Arc::clone(&self.first)
+    }
+    fn analyze(&mut self, item: &Item, _: &mut [f32], c: &mut Arc<C>) -> Result<(), StageError> {
+        let Item::Pyramid(p) = item else {
+            return Err(StageError::msg("expected pyramid coefficients"));
+        };
+        let got = C::get(&p.data).ok_or_else(|| {
+            StageError::msg(format!(
+                "the pyramid kind changed mid-stream (expected {})",
+                C::NAME
+            ))
+        })?;
+        *c = Arc::clone(got);
+        Ok(())
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct P {
+    #[serde(default = "d_pyr")]
+    pyramid: PyramidKind,
+    #[serde(default = "d_scales")]
+    scales: usize,
+    #[serde(default = "d_orient")]
+    orientations: usize,
+    /// Frames analysed at once, one per worker thread (0 = one per core,
+    /// at most 8).
+    #[serde(default)]
+    threads: usize,
+}
+
+pub const KIND: KindSpec = KindSpec {
+    name: "pyramid",
+    summary: "complex steerable or Riesz pyramid per frame (Eq. 3.1) -> local amplitude and phase per band, for phase",
+    accepts: &[PortType::Frames],
+    max_inputs: 1,
+    output: Output::Fixed(PortType::Pyramid),
+    plan: |p| {
+        let v: P = p.parse()?;
+        let spec = PyramidSpec {
+            kind: v.pyramid,
+            scales: v.scales,
+            orientations: v.orientations,
+        };
+        spec.check(p)?;
+        if v.threads > 256 {
+            return Err(p.error("threads", format!("must be 0..=256, got {}", v.threads)));
+        }
+        Ok(Box::new(PyramidPlan {
+            spec,
+            threads: resolve_threads(v.threads),
+        }))
+    },
+};
+
+struct PyramidPlan {
+    spec: PyramidSpec,
+    threads: usize,
+}
+
+impl Plan for PyramidPlan {
+    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+        Ok(Node::Stage(Box::new(PyramidStage {
+            pool: super::reduce::thread_pool(self.threads)?,
+            spec: self.spec,
+            threads: self.threads,
+            workers: None,
+            pending: Vec::with_capacity(self.threads),
+        })))
+    }
+
+    fn frames_held(&self) -> usize {
+        self.threads
+    }
+}
+
+/// Runs `job` on each (worker, item) pair of a batch: on the pool when
+/// there are several, in order on this thread otherwise.
+pub(super) fn spread<W: Send, T: Sync>(
+    pool: Option<&rayon::ThreadPool>,
+    workers: &mut [W],
+    batch: &[T],
+    job: impl Fn(&mut W, &T) + Send + Sync,
+) {
+    use rayon::prelude::*;
+    match pool {
+        Some(pool) if batch.len() > 1 => pool.install(|| {
+            workers
+                .par_iter_mut()
+                .zip(batch.par_iter())
+                .for_each(|(w, t)| job(w, t))
+        }),
+        _ => workers.iter_mut().zip(batch).for_each(|(w, t)| job(w, t)),
+    }
+}
+
+/// Shared buffers that come back into use once nobody else holds them.
+struct Recycler<T> {
+    items: Vec<Arc<T>>,
+}
+
+impl<T> Recycler<T> {
+    /// A buffer no other handle points at, or a new one.
+    fn take(&mut self, make: impl FnOnce() -> T) -> Arc<T> {
+        match self.items.iter().position(|a| Arc::strong_count(a) == 1) {
+            Some(i) => self.items.swap_remove(i),
+            None => Arc::new(make()),
+        }
+    }
+
+    fn keep(&mut self, a: &Arc<T>) {
+        self.items.push(Arc::clone(a));
+    }
+}
+
+struct Worker<A: FramePyramid> {
+    an: A,
+    input: Vec<f32>,
+    out: Option<Arc<A::C>>,
+    result: Result<(), StageError>,
+}
+
+/// The pyramid per frame, frames spread over workers.
+trait Analyse: Send {
+    fn size(&self) -> (usize, usize);
+    fn run(
+        &mut self,
+        frames: &[Frame],
+        pool: Option<&rayon::ThreadPool>,
+        out: &mut Emitter,
+    ) -> Result<(), StageError>;
+}
+
+struct Workers<A: FramePyramid> {
+    workers: Vec<Worker<A>>,
+    recycler: Recycler<A::C>,
+    size: (usize, usize),
+}
+
+impl<A: FramePyramid> Workers<A> {
+    fn new(
+        mut make: impl FnMut() -> Result<A, PyramidError>,
+        n: usize,
+        (w, h): (usize, usize),
+    ) -> Result<Self, StageError> {
+        let mut workers = Vec::with_capacity(n.max(1));
+        for _ in 0..n.max(1) {
+            workers.push(Worker {
+                an: make().map_err(pyramid_err)?,
+                input: vec![0.0; w * h],
+                out: None,
+                result: Ok(()),
+            });
+        }
+        Ok(Self {
+            workers,
+            recycler: Recycler { items: Vec::new() },
+            size: (w, h),
+        })
+    }
+}
+
+impl<A: FramePyramid> Analyse for Workers<A> {
+    fn size(&self) -> (usize, usize) {
+        self.size
+    }
+
+    fn run(
+        &mut self,
+        frames: &[Frame],
+        pool: Option<&rayon::ThreadPool>,
+        out: &mut Emitter,
+    ) -> Result<(), StageError> {
+        for batch in frames.chunks(self.workers.len()) {
+            let workers = &mut self.workers[..batch.len()];
+            for w in workers.iter_mut() {
+                let an = &w.an;
+                w.out = Some(self.recycler.take(|| an.alloc_coeffs()));
+            }
+            let job = |w: &mut Worker<A>, f: &Frame| {
+                w.result = match w.out.as_mut().and_then(Arc::get_mut) {
+                    Some(c) => {
+                        to_f32(f, &mut w.input);
+                        w.an.analyze_frame(&w.input, c).map_err(pyramid_err)
+                    }
+                    None => Err(StageError::msg("pyramid buffer still shared")),
+                };
+            };
+            spread(pool, workers, batch, job);
+            for (w, f) in workers.iter_mut().zip(batch) {
+                std::mem::replace(&mut w.result, Ok(()))?;
+                let Some(c) = w.out.take() else {
+                    continue;
+                };
+                self.recycler.keep(&c);
+                let _ = out.emit(Item::Pyramid(PyramidFrame {
+                    t_ns: f.meta().t_ns,
+                    seq: f.meta().seq,
+                    fps: f.format().fps,
+                    width: f.width(),
+                    height: f.height(),
+                    data: A::wrap(c),
+                }));
+            }
+        }
+        Ok(())
+    }
+}
+
+struct PyramidStage {
+    pool: Option<rayon::ThreadPool>,
+    spec: PyramidSpec,
+    threads: usize,
+    workers: Option<Box<dyn Analyse>>,
+    /// Frames waiting for a full batch (one per worker).
+    pending: Vec<Frame>,
+}
+
+impl PyramidStage {
+    fn init(&mut self, f: &Frame) -> Result<(), StageError> {
+        let (w, h) = (f.width(), f.height());
+        let PyramidSpec {
+            kind,
+            scales: s,
+            orientations: k,
+        } = self.spec;
+        let n = self.threads;
+        self.workers = Some(match kind {
+            PyramidKind::Csp => Box::new(Workers::new(
+                || {
+                    let mut p = ComplexSteerablePyramid::new(w, h, s, k)?;
+                    p.set_residuals(false);
+                    Ok(p)
+                },
+                n,
+                (w, h),
+            )?),
+            PyramidKind::Riesz => {
+                Box::new(Workers::new(|| RieszPyramid::new(w, h, s, k), n, (w, h))?)
+            }
+        });
+        Ok(())
+    }
+
+    fn run_pending(&mut self, out: &mut Emitter) -> Result<(), StageError> {
+        let Some(workers) = self.workers.as_mut() else {
+            return Ok(());
+        };
+        let r = workers.run(&self.pending, self.pool.as_ref(), out);
+        self.pending.clear();
+        r
+    }
+}
+
+impl Stage for PyramidStage {
+    fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
+        let Item::Frame(f) = item else {
+            return Err(StageError::msg("expected frames"));
+        };
+        if self.workers.is_none() {
+            self.init(&f)?;
+        }
+        if let Some(w) = &self.workers {
+            if (f.width(), f.height()) != w.size() {
+                return Err(StageError::msg("the frame size changed mid-stream"));
+            }
+        }
+        self.pending.push(f);
+        if self.pending.len() >= self.threads {
+            self.run_pending(out)?;
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, out: &mut Emitter) -> Result<(), StageError> {
+        self.run_pending(out)
+    }
+}

@@ -1,0 +1,87 @@
+//! Whole-file writes that a reader never sees half done, and scratch files
+//! that clean up after themselves.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// A file that could not be written, naming it.
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write {}: {source}", path.display())]
+pub struct WriteError {
+    pub path: PathBuf,
+    #[source]
+    pub source: std::io::Error,
+}
+
+/// A sibling of `path` no other writer uses: `.NAME.PID-N.partial`.
+pub fn temp_sibling(path: &Path) -> PathBuf {
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let n = N.fetch_add(1, Ordering::Relaxed);
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let mut tmp = PathBuf::from(path);
+    tmp.set_file_name(format!(".{name}.{}-{n}.partial", std::process::id()));
+    tmp
+}
+
+/// Writes a whole file atomically: a temporary sibling, then a rename, so a
+/// reader never sees half a file. On error the temporary file is removed.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+    let tmp = temp_sibling(path);
+    let done = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
+    done.map_err(|source| {
+        let _ = std::fs::remove_file(&tmp);
+        WriteError {
+            path: path.to_path_buf(),
+            source,
+        }
+    })
+}
+
+/// A scratch file in the system's temporary directory, removed on drop.
+pub struct TempPath(PathBuf);
+
+impl TempPath {
+    pub fn new(label: &str) -> TempPath {
+        static N: AtomicUsize = AtomicUsize::new(0);
+        let n = N.fetch_add(1, Ordering::Relaxed);
+        TempPath(
+            std::env::temp_dir().join(format!("vibroscope-{}-{n}-{label}", std::process::id())),
+        )
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempPath {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn writes_whole_and_leaves_no_temporary() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let p = dir.path().join("a.json");
+        write_atomic(&p, b"{}").expect("write");
+        assert_eq!(std::fs::read(&p).expect("read"), b"{}");
+        let left: Vec<_> = std::fs::read_dir(dir.path()).expect("dir").collect();
+        assert_eq!(left.len(), 1);
+    }
+
+    #[test]
+    fn a_failed_write_names_the_file_and_leaves_nothing() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let p = dir.path().join("missing-dir").join("a.json");
+        let e = write_atomic(&p, b"{}").expect_err("no directory");
+        assert!(e.to_string().contains("a.json"), "{e}");
+    }
+}

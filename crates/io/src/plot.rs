@@ -1,0 +1,285 @@
+//! PNG plots of motion spectra: the power spectrum in dB against frequency
+//! with the picked peaks marked, and a spectrogram (sliding spectra over
+//! time). Drawn with plotters into an RGB buffer (text by ab_glyph from an
+//! embedded DejaVu Sans, so no system fonts, fontconfig or freetype are
+//! needed) and encoded with the `image` crate.
+
+use image::ImageEncoder;
+use plotters::prelude::*;
+use std::sync::Once;
+use vibroscope_math::peaks::Peak;
+
+/// Where the data sit in a plot: pixel ranges of the plotting area and the
+/// values at its edges (for tests and for reading pixels back).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlotArea {
+    pub x_px: (i32, i32),
+    pub y_px: (i32, i32),
+    pub x_range: (f64, f64),
+    pub y_range: (f64, f64),
+}
+
+/// An RGB8 image.
+#[derive(Clone, Debug)]
+pub struct Rgb {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<u8>,
+}
+
+impl Rgb {
+    /// PNG bytes.
+    pub fn png(&self) -> Result<Vec<u8>, String> {
+        let mut out = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut out)
+            .write_image(
+                &self.pixels,
+                self.width,
+                self.height,
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(|e| e.to_string())?;
+        Ok(out)
+    }
+}
+
+static FONT: Once = Once::new();
+
+/// Registers the embedded font as plotters' "sans-serif" (once per process).
+fn font() {
+    FONT.call_once(|| {
+        let _ = plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            dejavu::sans::regular(),
+        );
+    });
+}
+
+fn draw_err<E: std::fmt::Debug>(e: E) -> String {
+    format!("plot: {e:?}")
+}
+
+/// Smallest accepted plot side, pixels.
+pub const MIN_SIDE: u32 = 200;
+
+fn check_size(width: u32, height: u32) -> Result<(), String> {
+    if !(MIN_SIDE..=8192).contains(&width) || !(MIN_SIDE..=8192).contains(&height) {
+        return Err(format!(
+            "plot size must be {MIN_SIDE}..=8192 pixels each, got {width}x{height}"
+        ));
+    }
+    Ok(())
+}
+
+/// The power spectrum `power` (density, bins `f0 + k·df`) in dB between
+/// `min_hz` and `max_hz`, with `peaks` marked (red circles, labelled).
+pub fn power_plot(
+    power: &[f64],
+    f0: f64,
+    df: f64,
+    band: (f64, f64),
+    peaks: &[Peak],
+    size: (u32, u32),
+) -> Result<(Rgb, PlotArea), String> {
+    let (width, height) = size;
+    check_size(width, height)?;
+    font();
+    let db: Vec<(f64, f64)> = power
+        .iter()
+        .enumerate()
+        .map(|(k, &p)| (f0 + k as f64 * df, 10.0 * p.max(1e-300).log10()))
+        .filter(|(f, _)| *f >= band.0 && *f <= band.1)
+        .collect();
+    if db.len() < 2 {
+        return Err(format!(
+            "fewer than 2 spectrum bins between {} and {} Hz",
+            band.0, band.1
+        ));
+    }
+    let lo = db.iter().map(|v| v.1).fold(f64::INFINITY, f64::min);
+    let hi = db.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max);
+    let (lo, hi) = (lo - 3.0, hi + 6.0);
+    let (xa, xb) = (db[0].0, db[db.len() - 1].0);
+    let axes = Axes {
+        caption: "motion power spectrum",
+        x_desc: "frequency (Hz)",
+        y_desc: "power (dB)",
+        mesh: true,
+    };
+    draw(size, &axes, (xa..xb, lo..hi), |chart| {
+        chart
+            .draw_series(LineSeries::new(db.iter().copied(), BLUE.stroke_width(1)))
+            .map_err(draw_err)?;
+        let marks: Vec<(f64, f64)> = peaks
+            .iter()
+            .filter(|p| p.frequency_hz >= xa && p.frequency_hz <= xb)
+            .map(|p| (p.frequency_hz, p.power_db))
+            .collect();
+        chart
+            .draw_series(marks.iter().map(|&(f, p)| {
+                EmptyElement::at((f, p))
+                    + Circle::new((0, 0), 5, RED.stroke_width(2))
+                    + Text::new(format!("{f:.1} Hz"), (6, -16), ("sans-serif", 13))
+            }))
+            .map_err(draw_err)?;
+        Ok(())
+    })
+}
+
+/// Titles of a plot.
+struct Axes {
+    caption: &'static str,
+    x_desc: &'static str,
+    y_desc: &'static str,
+    mesh: bool,
+}
+
+type Chart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// A white `size` canvas with titled axes over `ranges`; `series` draws
+/// the data. Returns the image and where its plotting area is.
+fn draw(
+    size: (u32, u32),
+    axes: &Axes,
+    ranges: (std::ops::Range<f64>, std::ops::Range<f64>),
+    series: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), String>,
+) -> Result<(Rgb, PlotArea), String> {
+    let (width, height) = size;
+    let mut buf = vec![255u8; (width * height * 3) as usize];
+    let area;
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let (xr, yr) = ranges;
+        let x_range = (xr.start, xr.end);
+        let y_range = (yr.start, yr.end);
+        let mut chart = ChartBuilder::on(&root)
+            .caption(axes.caption, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(56)
+            .build_cartesian_2d(xr, yr)
+            .map_err(draw_err)?;
+        let mut mesh = chart.configure_mesh();
+        if !axes.mesh {
+            mesh.disable_mesh();
+        }
+        mesh.x_desc(axes.x_desc)
+            .y_desc(axes.y_desc)
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(draw_err)?;
+        series(&mut chart)?;
+        let (x_px, y_px) = chart.plotting_area().get_pixel_range();
+        area = PlotArea {
+            x_px: (x_px.start, x_px.end),
+            y_px: (y_px.start, y_px.end),
+            x_range,
+            y_range,
+        };
+        root.present().map_err(draw_err)?;
+    }
+    Ok((
+        Rgb {
+            width,
+            height,
+            pixels: buf,
+        },
+        area,
+    ))
+}
+
+/// A spectrum at one time, for [`spectrogram_plot`].
+#[derive(Clone, Debug)]
+pub struct TimedSpectrum {
+    pub t_s: f64,
+    pub power: Vec<f64>,
+}
+
+/// Dynamic range shown by the spectrogram, dB below its maximum.
+pub const SPECTROGRAM_RANGE_DB: f64 = 60.0;
+
+/// Sliding spectra as an image: time along x, frequency along y (low at
+/// the bottom), power in dB as a dark-to-bright colour map over the top
+/// [`SPECTROGRAM_RANGE_DB`].
+pub fn spectrogram_plot(
+    spectra: &[TimedSpectrum],
+    f0: f64,
+    df: f64,
+    band: (f64, f64),
+    size: (u32, u32),
+) -> Result<(Rgb, PlotArea), String> {
+    let (width, height) = size;
+    check_size(width, height)?;
+    font();
+    if spectra.is_empty() {
+        return Err("no spectra to draw".into());
+    }
+    let bins = spectra[0].power.len();
+    let k0 = (((band.0 - f0) / df).ceil().max(0.0)) as usize;
+    let k1 = ((((band.1 - f0) / df).floor()) as usize).min(bins.saturating_sub(1));
+    if k1 <= k0 {
+        return Err(format!(
+            "fewer than 2 spectrum bins between {} and {} Hz",
+            band.0, band.1
+        ));
+    }
+    let db = |p: f64| 10.0 * p.max(1e-300).log10();
+    let top = spectra
+        .iter()
+        .flat_map(|s| s.power[k0..=k1].iter().map(|&p| db(p)))
+        .fold(f64::NEG_INFINITY, f64::max);
+    // Cells span half-way to their neighbours in time.
+    let dt = if spectra.len() > 1 {
+        (spectra[spectra.len() - 1].t_s - spectra[0].t_s) / (spectra.len() - 1) as f64
+    } else {
+        1.0
+    };
+    let (ta, tb) = (
+        spectra[0].t_s - dt / 2.0,
+        spectra[spectra.len() - 1].t_s + dt / 2.0,
+    );
+    let (fa, fb) = (f0 + (k0 as f64 - 0.5) * df, f0 + (k1 as f64 + 0.5) * df);
+    let axes = Axes {
+        caption: "spectrogram",
+        x_desc: "time (s)",
+        y_desc: "frequency (Hz)",
+        mesh: false,
+    };
+    draw(size, &axes, (ta..tb, fa..fb), |chart| {
+        let cells = spectra.iter().flat_map(|s| {
+            (k0..=k1).map(move |k| {
+                let v = ((db(s.power[k]) - top) / SPECTROGRAM_RANGE_DB + 1.0).clamp(0.0, 1.0);
+                let f = f0 + k as f64 * df;
+                Rectangle::new(
+                    [
+                        (s.t_s - dt / 2.0, f - df / 2.0),
+                        (s.t_s + dt / 2.0, f + df / 2.0),
+                    ],
+                    heat(v).filled(),
+                )
+            })
+        });
+        chart.draw_series(cells).map_err(draw_err)?;
+        Ok(())
+    })
+}
+
+/// Black → purple → orange → light yellow, monotone in brightness.
+pub fn heat(v: f64) -> RGBColor {
+    let v = v.clamp(0.0, 1.0);
+    let r = (1.6 * v).min(1.0);
+    let g = (1.4 * v - 0.35).clamp(0.0, 1.0);
+    let b = if v < 0.4 {
+        1.2 * v
+    } else {
+        (0.48 - 0.8 * (v - 0.4)).max(0.0) + 1.6 * (v - 0.8).max(0.0)
+    };
+    let c = |x: f64| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
+    RGBColor(c(r), c(g), c(b))
+}

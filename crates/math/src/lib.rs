@@ -1,0 +1,32 @@
+//! The mathematics of visual vibration analysis: no threads, no I/O.
+//!
+//! - Motion from video: complex steerable pyramids ([`pyramid`]), the Riesz
+//!   pyramid ([`riesz`]) and their shared filter kernels ([`kernels`]);
+//!   rolling-shutter rows ([`row_phase`], [`rs_calibrate`]), exposure
+//!   ([`exposure`]), gap filling ([`ar_interp`]).
+//! - Signals: IIR filters ([`iir`]), denoising ([`denoise`]), quality
+//!   metrics ([`metrics`]), ground-truth comparison ([`truth`]).
+//! - Resonances: spectral peaks and damping ([`peaks`]), modal images
+//!   ([`modal`]), stochastic subspace identification ([`ssi`]), rods
+//!   ([`rod`]), calibration against a known sound ([`calibrate`]).
+//! - [`rng`]: the deterministic PRNG shared with the simulator.
+
+pub mod ar_interp;
+pub mod calibrate;
+pub mod denoise;
+pub mod detmath;
+pub mod exposure;
+pub mod fastmath;
+pub mod iir;
+pub mod kernels;
+pub mod metrics;
+pub mod modal;
+pub mod peaks;
+pub mod pyramid;
+pub mod riesz;
+pub mod rng;
+pub mod rod;
+pub mod row_phase;
+pub mod rs_calibrate;
+pub mod ssi;
+pub mod truth;

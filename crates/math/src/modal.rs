@@ -1,0 +1,608 @@
+//! Modal images (thesis ch. 3.5, Eq. 3.18-3.19): the slice of the spectral
+//! volume U(x, y, ω) = F_t(A² u(x, y, t)) at one frequency, blurred and
+//! normalised as in ch. 3.5.2, and shown with phase as hue and amplitude as
+//! brightness (ch. 3.5.3).
+//!
+//! # What is computed
+//!
+//! Each frame goes through a complex steerable pyramid (two orientations:
+//! band 0 keeps frequencies along x and so sees x motion, band 1 along y).
+//! At one scale `s` and per band pixel, the local displacement in input
+//! pixels is u = -Δφ / (2π f) (Eq. 3.2 divided by the local spatial
+//! frequency): Δφ is the wrapped phase change against the first frame,
+//! f the band's A²-weighted mean spatial frequency along its axis, measured
+//! on the first frame as the argument of Σ c(p + 1)·conj(c(p)) (the lag-1
+//! autocorrelation along the axis, which weighs each pixel by A²).
+//!
+//! Per pixel the exact discrete-time Fourier transform of the tapered,
+//! mean-removed displacement is accumulated *at the requested frequency
+//! itself* (not at the nearest FFT bin), at each frame's capture time, so
+//! nothing but a few numbers per pixel is kept: the video is streamed.
+//! The taper is w(τ) = (1 - x²)², x = 2τ/T - 1, over the recording's span
+//! T (Hann-like: highest sidelobe -27.7 dB against Hann's -31.5, the same
+//! 18 dB/octave fall-off, a main lobe 8% narrower). Its moments are polynomial in τ, so accumulating
+//! Σ u τ^k e^{-iωτ} for k = 2, 3, 4 lets the taper be applied after the last
+//! frame without knowing the length in advance. The result is scaled to the
+//! complex amplitude in pixels: a motion a·cos(ωτ + φ) at exactly ω reads
+//! a·e^{iφ}.
+//!
+//! The weights are the reference frame's A² (as in the `phase` stage). With
+//! fixed weights, the per-frame filtering of ch. 3.5.2 (Gaussian blur of
+//! std σ_b of the weighted displacements and of the weights, then the ratio)
+//! commutes with the temporal transform, so it is applied once at the end to
+//! the transformed slice, exactly: G∗(A²·U) / G∗(A²) (with `normalize =
+//! false`, G∗(A²·U) / max G∗(A²), the unnormalised images of ch. 4-5). With
+//! `Motion::Sum` the two bands' weighted displacements and weights are added
+//! before the ratio (the x + y sum of ch. 4-5).
+//!
+//! Memory: 7 f64 per band pixel and orientation; the pyramid's buffers.
+//! Nothing is allocated per frame.
+
+use crate::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError};
+use rustfft::num_complex::{Complex32, Complex64};
+use std::f64::consts::TAU;
+
+/// Which motion the image shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Motion {
+    X,
+    Y,
+    Sum,
+}
+
+impl Motion {
+    /// The orientation bands this motion uses (0 = x, 1 = y).
+    fn bands(self) -> &'static [usize] {
+        match self {
+            Motion::X => &[0],
+            Motion::Y => &[1],
+            Motion::Sum => &[0, 1],
+        }
+    }
+}
+
+/// Parameters of a modal image.
+#[derive(Clone, Copy, Debug)]
+pub struct ModalConfig {
+    /// The frequency of the slice, Hz.
+    pub freq_hz: f64,
+    /// Pyramid scale (0 = finest, a 4-pixel wavelength; each next one doubles).
+    pub scale: usize,
+    /// σ_b, the Gaussian blur's standard deviation in input pixels (0 = none).
+    pub sigma_px: f64,
+    pub motion: Motion,
+    /// Divide by the blurred weights (ch. 3.5.2); otherwise by their maximum.
+    pub normalize: bool,
+}
+
+/// Errors of the modal imager.
+#[derive(Debug, thiserror::Error)]
+pub enum ModalError {
+    #[error("pyramid: {0}")]
+    Pyramid(#[from] PyramidError),
+    #[error("frame is {got} pixels, expected {expected}")]
+    FrameSize { expected: usize, got: usize },
+    #[error("{0} frames span no time: a modal image needs at least 3 frames at distinct times")]
+    TooShort(u64),
+    #[error("frame times go backwards ({0} ns after {1} ns)")]
+    TimeOrder(i64, i64),
+}
+
+/// One orientation band's accumulators on the band grid.
+struct BandAcc {
+    band: usize,
+    /// A(t0)² (Eq. 3.3 weights), from the first frame.
+    weight: Vec<f32>,
+    /// Input pixels per radian of phase change: -1 / (2π f).
+    px_per_rad: f32,
+    /// Σ u τ^k e^{-iωτ}, k = 2, 3, 4, per pixel.
+    acc: Vec<[Complex64; 3]>,
+    /// Σ u per pixel (for the mean).
+    sum: Vec<f64>,
+}
+
+/// Streams frames in and accumulates one frequency slice of the spectral
+/// volume; [`ModalImager::finish`] returns the modal image.
+pub struct ModalImager {
+    cfg: ModalConfig,
+    width: usize,
+    height: usize,
+    pyr: ComplexSteerablePyramid,
+    coeffs: PyramidCoeffs,
+    reference: Option<PyramidCoeffs>,
+    delta: Vec<f32>,
+    bands: Vec<BandAcc>,
+    grid_w: usize,
+    grid_h: usize,
+    step: (f64, f64),
+    t0_ns: Option<i64>,
+    last_ns: i64,
+    frames: u64,
+    /// Σ τ^k (k = 2, 3, 4) and Σ τ^k e^{-iωτ}: the taper's own sums.
+    real_moments: [f64; 3],
+    moments: [Complex64; 3],
+}
+
+/// A modal image: complex amplitude (pixels of motion) per input pixel,
+/// row-major `width x height`, and the blurred weights behind each value.
+#[derive(Clone, Debug)]
+pub struct ModalImage {
+    pub width: usize,
+    pub height: usize,
+    pub freq_hz: f64,
+    pub data: Vec<Complex32>,
+    /// G∗A², relative to its maximum (1 = the best-textured place).
+    pub confidence: Vec<f32>,
+    /// Frames and time span used.
+    pub frames: u64,
+    pub span_s: f64,
+}
+
+impl ModalImager {
+    /// An imager for `width x height` frames.
+    pub fn new(width: usize, height: usize, cfg: ModalConfig) -> Result<Self, ModalError> {
+        let mut pyr = ComplexSteerablePyramid::new(width, height, cfg.scale + 1, 2)?;
+        pyr.set_residuals(false);
+        let coeffs = pyr.alloc_coeffs();
+        let info = pyr.band_infos()[cfg.scale * 2].clone();
+        let n = info.len();
+        let bands = cfg
+            .motion
+            .bands()
+            .iter()
+            .map(|&o| BandAcc {
+                band: cfg.scale * 2 + o,
+                weight: vec![0.0; n],
+                px_per_rad: 0.0,
+                acc: vec![[Complex64::new(0.0, 0.0); 3]; n],
+                sum: vec![0.0; n],
+            })
+            .collect();
+        Ok(Self {
+            cfg,
+            width,
+            height,
+            pyr,
+            coeffs,
+            reference: None,
+            delta: vec![0.0; n],
+            bands,
+            grid_w: info.width,
+            grid_h: info.height,
+            step: (info.step_x as f64, info.step_y as f64),
+            t0_ns: None,
+            last_ns: 0,
+            frames: 0,
+            real_moments: [0.0; 3],
+            moments: [Complex64::new(0.0, 0.0); 3],
+        })
+    }
+
+    /// Frames accumulated so far.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// Adds one frame (row-major `width x height`) captured at `t_ns`.
+    pub fn push(&mut self, frame: &[f32], t_ns: i64) -> Result<(), ModalError> {
+        if frame.len() != self.width * self.height {
+            return Err(ModalError::FrameSize {
+                expected: self.width * self.height,
+                got: frame.len(),
+            });
+        }
+        if self.frames > 0 && t_ns < self.last_ns {
+            return Err(ModalError::TimeOrder(t_ns, self.last_ns));
+        }
+        self.pyr.analyze(frame, &mut self.coeffs)?;
+        let t0 = *self.t0_ns.get_or_insert(t_ns);
+        self.last_ns = t_ns;
+        self.frames += 1;
+        if self.reference.is_none() {
+            self.set_reference()?;
+            // Δφ = 0 on the reference frame: only the taper's sums move.
+            self.add_moments(0.0);
+            return Ok(());
+        }
+        let tau = (t_ns - t0) as f64 * 1e-9;
+        let c = self.add_moments(tau);
+        let Some(reference) = &self.reference else {
+            return Ok(());
+        };
+        for b in &mut self.bands {
+            self.coeffs
+                .phase_delta_into(reference, b.band, &mut self.delta)?;
+            let k = b.px_per_rad;
+            for ((a, s), &d) in b.acc.iter_mut().zip(b.sum.iter_mut()).zip(&self.delta) {
+                let u = (d * k) as f64;
+                a[0] += c[0] * u;
+                a[1] += c[1] * u;
+                a[2] += c[2] * u;
+                *s += u;
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds frame time `tau` to the taper's sums; returns τ^k e^{-iωτ}.
+    fn add_moments(&mut self, tau: f64) -> [Complex64; 3] {
+        let (s, co) = (TAU * self.cfg.freq_hz * tau).sin_cos();
+        let e = Complex64::new(co, -s);
+        let t2 = tau * tau;
+        let p = [t2, t2 * tau, t2 * t2];
+        let c = [e * p[0], e * p[1], e * p[2]];
+        for k in 0..3 {
+            self.real_moments[k] += p[k];
+            self.moments[k] += c[k];
+        }
+        c
+    }
+
+    /// First frame: the reference phases, the A² weights and each band's
+    /// spatial frequency along its axis.
+    fn set_reference(&mut self) -> Result<(), ModalError> {
+        let (w, h) = (self.grid_w, self.grid_h);
+        for b in &mut self.bands {
+            self.coeffs.amplitude_into(b.band, &mut b.weight)?;
+            b.weight.iter_mut().for_each(|a| *a *= *a);
+            let Some(band) = self.coeffs.band(b.band) else {
+                continue;
+            };
+            let data = band.data();
+            let vertical = b.band % 2 == 1;
+            let (dx, dy, step) = if vertical {
+                (0, 1, self.step.1)
+            } else {
+                (1, 0, self.step.0)
+            };
+            let mut z = Complex64::new(0.0, 0.0);
+            for y in 0..h.saturating_sub(dy) {
+                for x in 0..w.saturating_sub(dx) {
+                    let p = data[y * w + x];
+                    let q = data[(y + dy) * w + x + dx];
+                    let v = q * p.conj();
+                    z += Complex64::new(v.re as f64, v.im as f64);
+                }
+            }
+            let measured = z.arg() / (TAU * step);
+            let f = if measured.is_finite() && measured > 1e-3 {
+                measured
+            } else {
+                band.info().centre_frequency as f64
+            };
+            b.px_per_rad = (-1.0 / (TAU * f)) as f32;
+        }
+        self.reference = Some(self.coeffs.clone());
+        Ok(())
+    }
+
+    /// The blurred, normalised slice at full input resolution.
+    pub fn finish(&self) -> Result<ModalImage, ModalError> {
+        let span = (self.last_ns - self.t0_ns.unwrap_or(0)) as f64 * 1e-9;
+        if self.frames < 3 || span <= 0.0 {
+            return Err(ModalError::TooShort(self.frames));
+        }
+        // w(τ) = 16 τ² (T - τ)² / T⁴ = (16/T⁴)(T² τ² - 2T τ³ + τ⁴).
+        let t = span;
+        let g = 16.0 / (t * t * t * t);
+        let coef = [g * t * t, -2.0 * g * t, g];
+        let sum_w: f64 = (0..3).map(|k| coef[k] * self.real_moments[k]).sum();
+        let big_w: Complex64 = (0..3).map(|k| self.moments[k] * coef[k]).sum();
+        let n = self.frames as f64;
+        let gn = self.grid_w * self.grid_h;
+        let mut num = vec![Complex64::new(0.0, 0.0); gn];
+        let mut den = vec![0.0f64; gn];
+        for b in &self.bands {
+            for (p, ((a, &s), &wt)) in b.acc.iter().zip(&b.sum).zip(&b.weight).enumerate() {
+                let x: Complex64 = (0..3).map(|k| a[k] * coef[k]).sum();
+                // Mean removed exactly: the taper's transform times the mean.
+                let u = (x - big_w * (s / n)) * (2.0 / sum_w);
+                num[p] += u * wt as f64;
+                den[p] += wt as f64;
+            }
+        }
+        let sx = self.cfg.sigma_px / self.step.0;
+        let sy = self.cfg.sigma_px / self.step.1;
+        let (w, h) = (self.grid_w, self.grid_h);
+        let mut re: Vec<f64> = num.iter().map(|c| c.re).collect();
+        let mut im: Vec<f64> = num.iter().map(|c| c.im).collect();
+        gaussian_blur(&mut re, w, h, sx, sy);
+        gaussian_blur(&mut im, w, h, sx, sy);
+        gaussian_blur(&mut den, w, h, sx, sy);
+        let dmax = den.iter().copied().fold(0.0f64, f64::max);
+        let floor = dmax * 1e-9;
+        let grid: Vec<Complex64> = re
+            .iter()
+            .zip(&im)
+            .zip(&den)
+            .map(|((&r, &i), &d)| {
+                let d = if self.cfg.normalize { d } else { dmax };
+                if d > floor {
+                    Complex64::new(r / d, i / d)
+                } else {
+                    Complex64::new(0.0, 0.0)
+                }
+            })
+            .collect();
+        let conf: Vec<f64> = den
+            .iter()
+            .map(|&d| if dmax > 0.0 { d / dmax } else { 0.0 })
+            .collect();
+        let (fw, fh) = (self.width, self.height);
+        let mut data = Vec::with_capacity(fw * fh);
+        let mut confidence = Vec::with_capacity(fw * fh);
+        for y in 0..fh {
+            for x in 0..fw {
+                let (gx, gy) = (x as f64 / self.step.0, y as f64 / self.step.1);
+                let v = bilinear(&grid, w, h, gx, gy);
+                data.push(Complex32::new(v.re as f32, v.im as f32));
+                let c = bilinear(&conf, w, h, gx, gy);
+                confidence.push(c as f32);
+            }
+        }
+        Ok(ModalImage {
+            width: fw,
+            height: fh,
+            freq_hz: self.cfg.freq_hz,
+            data,
+            confidence,
+            frames: self.frames,
+            span_s: span,
+        })
+    }
+}
+
+/// Values that bilinear interpolation can mix.
+trait Lerp: Copy + std::ops::Mul<f64, Output = Self> + std::ops::Add<Output = Self> {}
+impl Lerp for f64 {}
+impl Lerp for Complex64 {}
+
+/// Bilinear sample of a `w x h` grid at (x, y), clamped to the grid.
+fn bilinear<T: Lerp>(g: &[T], w: usize, h: usize, x: f64, y: f64) -> T {
+    let x = x.clamp(0.0, (w - 1) as f64);
+    let y = y.clamp(0.0, (h - 1) as f64);
+    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+    let row = |yy: usize| g[yy * w + x0] * (1.0 - fx) + g[yy * w + x1] * fx;
+    row(y0) * (1.0 - fy) + row(y1) * fy
+}
+
+/// Separable Gaussian blur in place (std `sx`, `sy` grid pixels, kernel
+/// to ±3σ), zero outside the grid: with the ratio of ch. 3.5.2 that is
+/// normalised convolution, exact at the borders.
+pub fn gaussian_blur(v: &mut [f64], w: usize, h: usize, sx: f64, sy: f64) {
+    let kernel = |s: f64| -> Vec<f64> {
+        if !(s.is_finite() && s > 0.0) {
+            return vec![1.0];
+        }
+        let r = (3.0 * s).ceil() as isize;
+        (-r..=r)
+            .map(|i| (-0.5 * (i as f64 / s).powi(2)).exp())
+            .collect()
+    };
+    let pass = |v: &mut [f64], k: &[f64], n: usize, stride: usize, lines: usize, lstride: usize| {
+        let r = (k.len() / 2) as isize;
+        let mut line = vec![0.0; n];
+        for l in 0..lines {
+            for (i, d) in line.iter_mut().enumerate() {
+                *d = v[l * lstride + i * stride];
+            }
+            for i in 0..n as isize {
+                let mut acc = 0.0;
+                for (j, &kv) in k.iter().enumerate() {
+                    let p = i + j as isize - r;
+                    if p >= 0 && p < n as isize {
+                        acc += kv * line[p as usize];
+                    }
+                }
+                v[l * lstride + i as usize * stride] = acc;
+            }
+        }
+    };
+    let kx = kernel(sx);
+    let ky = kernel(sy);
+    if kx.len() > 1 {
+        pass(v, &kx, w, 1, h, w);
+    }
+    if ky.len() > 1 {
+        pass(v, &ky, h, w, w, 1);
+    }
+}
+
+/// How a modal image is drawn.
+#[derive(Clone, Copy, Debug)]
+pub struct Visual {
+    /// Brightness = ((|U| - min) / (max - min))^exponent.
+    pub exponent: f64,
+}
+
+/// The image rotated by one global phase so that it is as real as possible
+/// (arg Σ U² / 2): in-phase regions share a hue, opposite ones take the
+/// opposite hue. Temporal phase has no absolute origin, so this changes
+/// nothing physical.
+pub fn align_phase(data: &[Complex32]) -> Vec<Complex32> {
+    let s: Complex64 = data
+        .iter()
+        .map(|c| {
+            let c = Complex64::new(c.re as f64, c.im as f64);
+            c * c
+        })
+        .sum();
+    let rot = Complex64::from_polar(1.0, -0.5 * s.arg());
+    let r = Complex32::new(rot.re as f32, rot.im as f32);
+    data.iter().map(|c| c * r).collect()
+}
+
+/// RGB8 pixels of the visualisation (ch. 3.5.3): hue = phase (0 = red,
+/// ±π = cyan), value = normalised amplitude to the exponent, full saturation.
+pub fn render_rgb(img: &ModalImage, vis: Visual) -> Vec<u8> {
+    let data = align_phase(&img.data);
+    let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
+    for c in &data {
+        let a = c.norm();
+        lo = lo.min(a);
+        hi = hi.max(a);
+    }
+    let range = (hi - lo).max(f32::MIN_POSITIVE);
+    let mut out = Vec::with_capacity(data.len() * 3);
+    for c in &data {
+        let v = (((c.norm() - lo) / range) as f64)
+            .clamp(0.0, 1.0)
+            .powf(vis.exponent);
+        let hue = (c.arg() as f64).rem_euclid(TAU) / TAU;
+        let rgb = hsv_to_rgb(hue, 1.0, v);
+        out.extend(rgb.map(|x| (x * 255.0 + 0.5).clamp(0.0, 255.0) as u8));
+    }
+    out
+}
+
+/// HSV (each in [0, 1]) to RGB in [0, 1].
+pub fn hsv_to_rgb(h: f64, s: f64, v: f64) -> [f64; 3] {
+    let h6 = (h.rem_euclid(1.0)) * 6.0;
+    let i = h6.floor();
+    let f = h6 - i;
+    let (p, q, t) = (v * (1.0 - s), v * (1.0 - s * f), v * (1.0 - s * (1.0 - f)));
+    match i as u32 % 6 {
+        0 => [v, t, p],
+        1 => [q, v, p],
+        2 => [p, v, t],
+        3 => [p, q, v],
+        4 => [t, p, v],
+        _ => [v, p, q],
+    }
+}
+
+/// A `.npy` file (format 1.0) of a complex64 `(height, width)` C-order
+/// array: readable by `numpy.load`.
+pub fn npy_complex64(data: &[Complex32], width: usize, height: usize) -> Vec<u8> {
+    let dict =
+        format!("{{'descr': '<c8', 'fortran_order': False, 'shape': ({height}, {width}), }}");
+    // Magic (6) + version (2) + length (2) + header, padded with spaces and
+    // a newline to a multiple of 64 bytes.
+    let unpadded = 10 + dict.len() + 1;
+    let pad = (64 - unpadded % 64) % 64;
+    let header_len = dict.len() + pad + 1;
+    let mut out = Vec::with_capacity(10 + header_len + data.len() * 8);
+    out.extend_from_slice(b"\x93NUMPY\x01\x00");
+    out.extend_from_slice(&(header_len as u16).to_le_bytes());
+    out.extend_from_slice(dict.as_bytes());
+    out.extend(std::iter::repeat_n(b' ', pad));
+    out.push(b'\n');
+    for c in data {
+        out.extend_from_slice(&c.re.to_le_bytes());
+        out.extend_from_slice(&c.im.to_le_bytes());
+    }
+    out
+}
+
+/// Reads back what [`npy_complex64`] writes (for tests and tools): the
+/// shape `(height, width)` and the values. Other `.npy` layouts are refused.
+pub fn read_npy_complex64(bytes: &[u8]) -> Result<(usize, usize, Vec<Complex32>), String> {
+    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
+        return Err("not a .npy file (bad magic)".into());
+    }
+    let (len, start) = match bytes[6] {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        2 | 3 if bytes.len() >= 12 => (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        ),
+        v => return Err(format!("unsupported .npy version {v}")),
+    };
+    let header = bytes
+        .get(start..start + len)
+        .and_then(|h| std::str::from_utf8(h).ok())
+        .ok_or("truncated .npy header")?;
+    if !header.contains("'descr': '<c8'") || !header.contains("'fortran_order': False") {
+        return Err(format!("not a C-order complex64 array: {}", header.trim()));
+    }
+    let shape = header
+        .split("'shape': (")
+        .nth(1)
+        .and_then(|s| s.split(')').next())
+        .ok_or("no shape in the .npy header")?;
+    let dims: Vec<usize> = shape
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| {
+            s.parse::<usize>()
+                .map_err(|e| format!("shape `{shape}`: {e}"))
+        })
+        .collect::<Result<_, _>>()?;
+    let [h, w] = dims[..] else {
+        return Err(format!("expected a 2-D shape, got ({shape})"));
+    };
+    let body = &bytes[start + len..];
+    if body.len() != w * h * 8 {
+        return Err(format!(
+            "{} data bytes for a {h}x{w} complex64 array (expected {})",
+            body.len(),
+            w * h * 8
+        ));
+    }
+    let data = body
+        .chunks_exact(8)
+        .map(|c| {
+            Complex32::new(
+                f32::from_le_bytes([c[0], c[1], c[2], c[3]]),
+                f32::from_le_bytes([c[4], c[5], c[6], c[7]]),
+            )
+        })
+        .collect();
+    Ok((h, w, data))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn npy_round_trips_and_pads_to_64() {
+        let d: Vec<Complex32> = (0..6)
+            .map(|i| Complex32::new(i as f32, -(i as f32)))
+            .collect();
+        let b = npy_complex64(&d, 3, 2);
+        let hl = u16::from_le_bytes([b[8], b[9]]) as usize;
+        assert_eq!((10 + hl) % 64, 0);
+        assert_eq!(b[10 + hl - 1], b'\n');
+        let (h, w, back) = read_npy_complex64(&b).unwrap();
+        assert_eq!((h, w), (2, 3));
+        assert_eq!(back, d);
+    }
+
+    #[test]
+    fn blur_preserves_the_sum_away_from_borders_and_the_ratio_is_exact() {
+        let (w, h) = (41, 31);
+        let mut v = vec![0.0; w * h];
+        v[15 * w + 20] = 1.0;
+        gaussian_blur(&mut v, w, h, 2.0, 3.0);
+        let s: f64 = v.iter().sum();
+        // The kernels are not normalised; the ratio of two blurs is what counts.
+        let k = |s: f64| -> f64 {
+            let r = (3.0 * s).ceil() as i32;
+            (-r..=r)
+                .map(|i| (-0.5 * (i as f64 / s).powi(2)).exp())
+                .sum()
+        };
+        assert!((s - k(2.0) * k(3.0)).abs() < 1e-9, "{s}");
+        // A constant field over constant weights stays constant, also at borders.
+        let mut num = vec![2.5; w * h];
+        let mut den = vec![1.0; w * h];
+        gaussian_blur(&mut num, w, h, 4.0, 4.0);
+        gaussian_blur(&mut den, w, h, 4.0, 4.0);
+        for (a, b) in num.iter().zip(&den) {
+            assert!((a / b - 2.5).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn hsv_primaries() {
+        assert_eq!(hsv_to_rgb(0.0, 1.0, 1.0), [1.0, 0.0, 0.0]);
+        let c = hsv_to_rgb(0.5, 1.0, 1.0);
+        assert!(c[0].abs() < 1e-12 && (c[1] - 1.0).abs() < 1e-12 && (c[2] - 1.0).abs() < 1e-12);
+    }
+}
