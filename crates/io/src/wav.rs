@@ -56,6 +56,31 @@ pub fn read_mono(path: &Path) -> Result<(u32, Vec<f64>), WavError> {
     Ok((spec.sample_rate, out))
 }
 
+/// Writes a mono 32-bit float WAV atomically (a temporary sibling, then a
+/// rename), so an interrupted run never leaves half a file.
+pub fn write_mono_f32(path: &Path, rate: u32, x: &[f64]) -> Result<(), crate::atomic::WriteError> {
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let encode = || -> Result<Vec<u8>, hound::Error> {
+        let mut bytes = std::io::Cursor::new(Vec::with_capacity(44 + 4 * x.len()));
+        let mut w = hound::WavWriter::new(&mut bytes, spec)?;
+        for &v in x {
+            w.write_sample(v as f32)?;
+        }
+        w.finalize()?;
+        Ok(bytes.into_inner())
+    };
+    let bytes = encode().map_err(|e| crate::atomic::WriteError {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e.to_string()),
+    })?;
+    crate::atomic::write_atomic(path, &bytes)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -79,6 +104,15 @@ mod tests {
         let (rate, x) = read_mono(&path).expect("read");
         assert_eq!(rate, 8000);
         assert_eq!(x, vec![0.5, -1.0]);
+    }
+
+    #[test]
+    fn writes_what_it_reads() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("f.wav");
+        write_mono_f32(&path, 2200, &[0.25, -0.5, 1.5]).expect("write");
+        let (rate, x) = read_mono(&path).expect("read");
+        assert_eq!((rate, x), (2200, vec![0.25, -0.5, 1.5]));
     }
 
     #[test]

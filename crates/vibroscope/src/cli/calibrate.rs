@@ -164,25 +164,8 @@ pub fn calibrate_video(
     Ok((fs, fr, r, c))
 }
 
-/// Writes a mono 32-bit float WAV atomically (a temporary sibling, then a
-/// rename), so an interrupted run never leaves half a file.
 fn write_wav(path: &Path, rate: u32, x: &[f64]) -> anyhow::Result<()> {
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: rate,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut bytes = std::io::Cursor::new(Vec::with_capacity(44 + 4 * x.len()));
-    let mut w = hound::WavWriter::new(&mut bytes, spec)
-        .with_context(|| format!("cannot encode {}", path.display()))?;
-    for &v in x {
-        w.write_sample(v as f32)
-            .with_context(|| format!("cannot encode {}", path.display()))?;
-    }
-    w.finalize()
-        .with_context(|| format!("cannot encode {}", path.display()))?;
-    crate::stages::sinks::write_atomic(path, bytes.get_ref()).map_err(|e| anyhow::anyhow!("{e}"))
+    Ok(crate::io::wav::write_mono_f32(path, rate, x)?)
 }
 
 fn fmt_db(v: f64) -> String {
