@@ -1,0 +1,556 @@
+//! The workspace's layering, checked (issue 13): crates depend only on
+//! crates below them, the binary only on the recipes, and no two modules of
+//! a crate import each other through a circle.
+//!
+//!     cargo test --release --test layers -- --nocapture
+//!
+//! prints the crate graph and each crate's module-import graph summary.
+//!
+//! Layers, bottom first: `vibroscope-math` (no threads, no I/O), then
+//! `vibroscope-io`, `vibroscope-sim`, `vibroscope-engine`, `vibroscope`
+//! (typed recipes), `vibroscope-cli` (the binary). A new crate must be
+//! placed in [`LAYERS`].
+//!
+//! A module import is any path `crate::…`, `super::…`, `self::…` (in a
+//! `use` or inline) that names another module of the same crate. A module
+//! and its own submodules are one unit here (a parent registering its
+//! children and the children using the parent's helpers is not a circle);
+//! every other circle fails the test, naming the modules on it.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Workspace crates, bottom layer first.
+const LAYERS: &[&str] = &[
+    "vibroscope-math",
+    "vibroscope-io",
+    "vibroscope-sim",
+    "vibroscope-engine",
+    "vibroscope",
+    "vibroscope-cli",
+];
+
+/// The only workspace crate the binary may depend on.
+const BINARY: &str = "vibroscope-cli";
+const RECIPES: &str = "vibroscope";
+
+struct Package {
+    name: String,
+    /// Workspace crates it depends on (normal, dev and build), with the kind.
+    deps: Vec<(String, String)>,
+    /// `src/lib.rs` or `src/main.rs` directory.
+    src: PathBuf,
+    roots: Vec<PathBuf>,
+}
+
+fn metadata() -> Vec<Package> {
+    let out = Command::new(env!("CARGO"))
+        .args([
+            "metadata",
+            "--format-version",
+            "1",
+            "--no-deps",
+            "--offline",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run cargo metadata");
+    assert!(
+        out.status.success(),
+        "cargo metadata failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).expect("metadata JSON");
+    let members: BTreeSet<String> = doc["packages"]
+        .as_array()
+        .expect("packages")
+        .iter()
+        .map(|p| p["name"].as_str().expect("name").to_string())
+        .collect();
+    doc["packages"]
+        .as_array()
+        .expect("packages")
+        .iter()
+        .map(|p| {
+            let name = p["name"].as_str().expect("name").to_string();
+            let deps = p["dependencies"]
+                .as_array()
+                .expect("dependencies")
+                .iter()
+                .filter_map(|d| {
+                    let n = d["name"].as_str()?.to_string();
+                    let kind = d["kind"].as_str().unwrap_or("normal").to_string();
+                    members.contains(&n).then_some((n, kind))
+                })
+                .collect();
+            let manifest = PathBuf::from(p["manifest_path"].as_str().expect("manifest"));
+            let dir = manifest.parent().expect("manifest dir").to_path_buf();
+            let roots: Vec<PathBuf> = p["targets"]
+                .as_array()
+                .expect("targets")
+                .iter()
+                .filter(|t| {
+                    t["kind"]
+                        .as_array()
+                        .is_some_and(|k| k.iter().any(|k| k == "lib" || k == "bin"))
+                })
+                .map(|t| PathBuf::from(t["src_path"].as_str().expect("src_path")))
+                .collect();
+            Package {
+                name,
+                deps,
+                src: dir.join("src"),
+                roots,
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn crates_depend_only_on_crates_below_them() {
+    let pkgs = metadata();
+    let layer = |n: &str| LAYERS.iter().position(|l| *l == n);
+    let mut bad = Vec::new();
+    for p in &pkgs {
+        let Some(me) = layer(&p.name) else {
+            bad.push(format!(
+                "{} is not placed in the layer list (tests/layers.rs)",
+                p.name
+            ));
+            continue;
+        };
+        let mut below = Vec::new();
+        for (d, kind) in &p.deps {
+            match layer(d) {
+                Some(l) if l < me => below.push(d.as_str()),
+                Some(_) => bad.push(format!(
+                    "{} ({kind}) depends on {d}, which is not below it",
+                    p.name
+                )),
+                None => bad.push(format!("{} depends on {d}, which is not placed", p.name)),
+            }
+            if p.name == BINARY && d != RECIPES {
+                bad.push(format!(
+                    "the binary depends on {d}; it may use only the recipes ({RECIPES})"
+                ));
+            }
+        }
+        below.sort_unstable();
+        below.dedup();
+        println!("{:<18} (layer {me}) -> {}", p.name, below.join(", "));
+    }
+    assert!(bad.is_empty(), "layering broken:\n  {}", bad.join("\n  "));
+    for l in LAYERS {
+        assert!(
+            pkgs.iter().any(|p| p.name == *l),
+            "{l} is in the layer list but not in the workspace"
+        );
+    }
+}
+
+/// A crate's modules: module path (`a::b`) -> file.
+fn modules(root: &Path, src: &Path) -> BTreeMap<String, PathBuf> {
+    let mut m = BTreeMap::new();
+    m.insert(String::new(), root.to_path_buf());
+    let mut stack = vec![(String::new(), root.to_path_buf())];
+    while let Some((path, file)) = stack.pop() {
+        let text = std::fs::read_to_string(&file).expect("read module");
+        let dir = if path.is_empty() {
+            src.to_path_buf()
+        } else if file.file_name().is_some_and(|f| f == "mod.rs") {
+            file.parent().expect("dir").to_path_buf()
+        } else {
+            file.with_extension("")
+        };
+        let code = strip(&text);
+        for line in code.lines() {
+            let t = line.trim();
+            let t = t
+                .strip_prefix("pub(crate) ")
+                .or_else(|| t.strip_prefix("pub "))
+                .unwrap_or(t);
+            let Some(rest) = t.strip_prefix("mod ") else {
+                continue;
+            };
+            let Some(name) = rest.strip_suffix(';') else {
+                continue; // inline module: part of this file
+            };
+            let name = name.trim();
+            let child = if path.is_empty() {
+                name.to_string()
+            } else {
+                format!("{path}::{name}")
+            };
+            let a = dir.join(format!("{name}.rs"));
+            let b = dir.join(name).join("mod.rs");
+            let f = if a.exists() { a } else { b };
+            if f.exists() {
+                m.insert(child.clone(), f.clone());
+                stack.push((child, f));
+            }
+        }
+    }
+    m
+}
+
+/// Code without comments and string literals (doc links are not imports).
+fn strip(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = String::with_capacity(s.len());
+    let mut i = 0;
+    while i < b.len() {
+        if b[i..].starts_with(b"//") {
+            while i < b.len() && b[i] != b'\n' {
+                i += 1;
+            }
+        } else if b[i..].starts_with(b"/*") {
+            i += 2;
+            while i < b.len() && !b[i..].starts_with(b"*/") {
+                i += 1;
+            }
+            i += 2;
+        } else if b[i] == b'"' {
+            i += 1;
+            while i < b.len() && b[i] != b'"' {
+                if b[i] == b'\\' {
+                    i += 1;
+                }
+                i += 1;
+            }
+            i += 1;
+        } else if b[i] == b'\'' && i + 2 < b.len() && (b[i + 2] == b'\'' || b[i + 1] == b'\\') {
+            // a char literal ('"', '\n'); lifetimes fall through
+            i += 1;
+            while i < b.len() && b[i] != b'\'' {
+                if b[i] == b'\\' {
+                    i += 1;
+                }
+                i += 1;
+            }
+            i += 1;
+        } else {
+            out.push(b[i] as char);
+            i += 1;
+        }
+    }
+    out
+}
+
+/// Every path a piece of code names: `use` trees expanded, and inline
+/// `crate::`/`super::`/`self::` paths.
+fn paths(code: &str) -> Vec<Vec<String>> {
+    let mut out = Vec::new();
+    let toks = tokens(code);
+    let mut i = 0;
+    while i < toks.len() {
+        if toks[i] == "use" {
+            let end = toks[i..]
+                .iter()
+                .position(|t| t == ";")
+                .map_or(toks.len(), |p| i + p);
+            let mut j = i + 1;
+            use_tree(&toks[..end], &mut j, Vec::new(), &mut out);
+            i = end + 1;
+        } else if matches!(toks[i].as_str(), "crate" | "super" | "self")
+            && toks.get(i + 1).is_some_and(|t| t == "::")
+        {
+            let mut p = vec![toks[i].clone()];
+            let mut j = i + 1;
+            while toks.get(j).is_some_and(|t| t == "::")
+                && toks.get(j + 1).is_some_and(|t| is_ident(t))
+            {
+                p.push(toks[j + 1].clone());
+                j += 2;
+            }
+            out.push(p);
+            i = j;
+        } else {
+            i += 1;
+        }
+    }
+    out
+}
+
+fn is_ident(t: &str) -> bool {
+    t.chars()
+        .next()
+        .is_some_and(|c| c.is_alphabetic() || c == '_')
+}
+
+fn tokens(code: &str) -> Vec<String> {
+    let mut t = Vec::new();
+    let c: Vec<char> = code.chars().collect();
+    let mut i = 0;
+    while i < c.len() {
+        if c[i].is_alphanumeric() || c[i] == '_' {
+            let s = i;
+            while i < c.len() && (c[i].is_alphanumeric() || c[i] == '_') {
+                i += 1;
+            }
+            t.push(c[s..i].iter().collect());
+        } else if c[i] == ':' && c.get(i + 1) == Some(&':') {
+            t.push("::".into());
+            i += 2;
+        } else if c[i].is_whitespace() {
+            i += 1;
+        } else {
+            t.push(c[i].to_string());
+            i += 1;
+        }
+    }
+    t
+}
+
+/// Expands one use tree starting at `toks[*j]` with `prefix`.
+fn use_tree(toks: &[String], j: &mut usize, mut prefix: Vec<String>, out: &mut Vec<Vec<String>>) {
+    while *j < toks.len() {
+        let t = &toks[*j];
+        if t == "{" {
+            *j += 1;
+            loop {
+                use_tree(toks, j, prefix.clone(), out);
+                match toks.get(*j).map(String::as_str) {
+                    Some(",") => *j += 1,
+                    Some("}") => {
+                        *j += 1;
+                        return;
+                    }
+                    _ => return,
+                }
+                if toks.get(*j).is_some_and(|t| t == "}") {
+                    *j += 1;
+                    return;
+                }
+            }
+        } else if t == "::" {
+            *j += 1;
+        } else if t == "as" {
+            *j += 2;
+        } else if t == "," || t == "}" {
+            break;
+        } else if is_ident(t) || t == "*" {
+            if t != "*" {
+                prefix.push(t.clone());
+            }
+            *j += 1;
+        } else {
+            *j += 1;
+        }
+    }
+    if !prefix.is_empty() {
+        out.push(prefix);
+    }
+}
+
+/// The module (of `mods`) a path names, from module `me`.
+fn resolve(me: &str, p: &[String], mods: &BTreeMap<String, PathBuf>) -> Option<String> {
+    let mut base: Vec<String> = if me.is_empty() {
+        Vec::new()
+    } else {
+        me.split("::").map(String::from).collect()
+    };
+    let mut rest = p;
+    match p.first().map(String::as_str) {
+        Some("crate") => {
+            base.clear();
+            rest = &p[1..];
+        }
+        Some("self") => rest = &p[1..],
+        Some("super") => {
+            while rest.first().is_some_and(|s| s == "super") {
+                base.pop();
+                rest = &rest[1..];
+            }
+        }
+        Some(first) => {
+            // a child module named without a prefix
+            let mut c = base.clone();
+            c.push(first.to_string());
+            if !mods.contains_key(&c.join("::")) {
+                return None;
+            }
+        }
+        None => return None,
+    }
+    let mut best = None;
+    let mut cur = base;
+    if mods.contains_key(&cur.join("::")) {
+        best = Some(cur.join("::"));
+    }
+    for s in rest {
+        cur.push(s.clone());
+        let k = cur.join("::");
+        if mods.contains_key(&k) {
+            best = Some(k);
+        } else {
+            break;
+        }
+    }
+    best
+}
+
+/// Where a `#[cfg(test)] mod …` starts, if the file has one.
+fn test_module(code: &str) -> Option<usize> {
+    let mut from = 0;
+    while let Some(i) = code[from..].find("#[cfg(test)]") {
+        let at = from + i;
+        let after = code[at + "#[cfg(test)]".len()..].trim_start();
+        if after.starts_with("mod ") {
+            return Some(at);
+        }
+        from = at + 1;
+    }
+    None
+}
+
+fn nested(a: &str, b: &str) -> bool {
+    a.is_empty()
+        || b.is_empty()
+        || a == b
+        || b.starts_with(&format!("{a}::"))
+        || a.starts_with(&format!("{b}::"))
+}
+
+/// Circles in a directed graph (strongly connected components of size > 1).
+fn circles(edges: &BTreeMap<String, BTreeSet<String>>) -> Vec<Vec<String>> {
+    // Tarjan's algorithm, iterative enough for a few hundred modules.
+    struct T<'a> {
+        edges: &'a BTreeMap<String, BTreeSet<String>>,
+        index: BTreeMap<String, usize>,
+        low: BTreeMap<String, usize>,
+        on: BTreeSet<String>,
+        stack: Vec<String>,
+        n: usize,
+        out: Vec<Vec<String>>,
+    }
+    fn visit(t: &mut T<'_>, v: &str) {
+        t.index.insert(v.to_string(), t.n);
+        t.low.insert(v.to_string(), t.n);
+        t.n += 1;
+        t.stack.push(v.to_string());
+        t.on.insert(v.to_string());
+        let next: Vec<String> = t
+            .edges
+            .get(v)
+            .map(|s| s.iter().cloned().collect())
+            .unwrap_or_default();
+        for w in next {
+            if !t.index.contains_key(&w) {
+                visit(t, &w);
+                let lw = t.low[&w];
+                let lv = t.low[v];
+                t.low.insert(v.to_string(), lv.min(lw));
+            } else if t.on.contains(&w) {
+                let iw = t.index[&w];
+                let lv = t.low[v];
+                t.low.insert(v.to_string(), lv.min(iw));
+            }
+        }
+        if t.low[v] == t.index[v] {
+            let mut c = Vec::new();
+            while let Some(w) = t.stack.pop() {
+                t.on.remove(&w);
+                let done = w == v;
+                c.push(w);
+                if done {
+                    break;
+                }
+            }
+            if c.len() > 1 {
+                c.sort();
+                t.out.push(c);
+            }
+        }
+    }
+    let mut t = T {
+        edges,
+        index: BTreeMap::new(),
+        low: BTreeMap::new(),
+        on: BTreeSet::new(),
+        stack: Vec::new(),
+        n: 0,
+        out: Vec::new(),
+    };
+    let nodes: Vec<String> = edges.keys().cloned().collect();
+    for v in nodes {
+        if !t.index.contains_key(&v) {
+            visit(&mut t, &v);
+        }
+    }
+    t.out
+}
+
+#[test]
+fn no_module_import_circle() {
+    let mut found = Vec::new();
+    for p in metadata() {
+        for root in &p.roots {
+            let mods = modules(root, &p.src);
+            let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+            for (me, file) in &mods {
+                let code = strip(&std::fs::read_to_string(file).expect("read"));
+                // Test modules may reach anywhere; they are not part of the layering.
+                let code = match test_module(&code) {
+                    Some(i) => &code[..i],
+                    None => &code[..],
+                };
+                for path in paths(code) {
+                    if let Some(target) = resolve(me, &path, &mods) {
+                        if !nested(me, &target) {
+                            edges.entry(me.clone()).or_default().insert(target);
+                        }
+                    }
+                }
+                edges.entry(me.clone()).or_default();
+            }
+            let n_edges: usize = edges.values().map(BTreeSet::len).sum();
+            let cs = circles(&edges);
+            println!(
+                "{:<18} {:>3} modules, {:>3} imports between them, {} circle(s)",
+                p.name,
+                mods.len(),
+                n_edges,
+                cs.len()
+            );
+            for c in cs {
+                found.push(format!("{}: {}", p.name, c.join(" <-> ")));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "module import circles:\n  {}",
+        found.join("\n  ")
+    );
+}
+
+#[test]
+fn the_checker_sees_a_circle() {
+    // The checker itself must be able to fail.
+    let mut e: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    e.entry("a".into()).or_default().insert("b".into());
+    e.entry("b".into()).or_default().insert("c".into());
+    e.entry("c".into()).or_default().insert("a".into());
+    e.entry("d".into()).or_default().insert("a".into());
+    assert_eq!(
+        circles(&e),
+        vec![vec!["a".to_string(), "b".into(), "c".into()]]
+    );
+    let code = strip("use crate::{a::{self, X}, b::Y};\n// crate::c::z\nfn f() { super::d::g(); }");
+    let ps = paths(&code);
+    assert!(
+        ps.contains(&vec!["crate".into(), "a".into(), "self".into()])
+            || ps.contains(&vec!["crate".into(), "a".into()]),
+        "{ps:?}"
+    );
+    assert!(
+        ps.contains(&vec!["crate".into(), "b".into(), "Y".into()]),
+        "{ps:?}"
+    );
+    assert!(
+        ps.contains(&vec!["super".into(), "d".into(), "g".into()]),
+        "{ps:?}"
+    );
+    assert!(!ps.iter().any(|p| p.contains(&"c".to_string())), "{ps:?}");
+}
