@@ -16,6 +16,10 @@
 //! 3. Memory: peak RSS of `listen` reading 10 s and 60 s of 64x64 input
 //!    from a pipe (so the page cache does not count).
 //!
+//! Set `VIBROSCOPE_BENCH_BEFORE` to another build of the binary (say, the
+//! previous commit's) to time it on the same file in the same run,
+//! interleaved with this one, and print the ratio.
+//!
 //!     cargo bench --bench listen
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -29,8 +33,12 @@ const PIX: f64 = 256.0 * 256.0;
 const FRAMES: f64 = 2200.0;
 
 fn vibroscope(dir: &Path, args: &[&str]) -> (f64, String) {
+    run_exe(EXE, dir, args)
+}
+
+fn run_exe(exe: &str, dir: &Path, args: &[&str]) -> (f64, String) {
     let t = Instant::now();
-    let o = Command::new(EXE)
+    let o = Command::new(exe)
         .current_dir(dir)
         .args(args)
         .output()
@@ -139,15 +147,24 @@ fn main() {
         "baseline: decode only (file source -> null): {:.0} Mpix/s",
         mpix(base)
     );
+    let before = std::env::var("VIBROSCOPE_BENCH_BEFORE").ok();
     let mut ours = Vec::new();
     for (pyr, target) in [("riesz", 150.0), ("csp", 60.0)] {
-        let secs = best_of(3, || {
-            vibroscope(
-                &dir,
-                &["listen", "scene.y4m", "-o", "out.wav", "--pyramid", pyr],
-            )
-            .0
-        });
+        let args = ["listen", "scene.y4m", "-o", "out.wav", "--pyramid", pyr];
+        let (mut secs, mut secs_before) = (f64::INFINITY, f64::INFINITY);
+        for _ in 0..3 {
+            secs = secs.min(vibroscope(&dir, &args).0);
+            if let Some(b) = &before {
+                secs_before = secs_before.min(run_exe(b, &dir, &args).0);
+            }
+        }
+        if before.is_some() {
+            println!(
+                "listen --pyramid {pyr:5} with VIBROSCOPE_BENCH_BEFORE: {:6.1} Mpix/s; this build / before: {:.3}",
+                mpix(secs_before),
+                mpix(secs) / mpix(secs_before)
+            );
+        }
         let m = mpix(secs);
         ours.push((pyr, m));
         println!(
