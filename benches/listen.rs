@@ -209,14 +209,18 @@ fn main() {
         );
         let p = dir.join(format!("live-{pyr}.toml"));
         std::fs::write(&p, toml).expect("write pipeline");
-        let (_, stats) = vibroscope(&dir, &["run", p.to_str().unwrap(), "--stats", "--quiet"]);
+        let args = ["run", p.to_str().unwrap(), "--stats", "--quiet"];
         let pre = "latency capture -> speaker:";
-        println!(
-            "live {pyr:5} (2200 fps 256x256 in real time): capture -> speaker p50 {:.1} ms, p99 {:.1} ms (target p99 < 50 ms); frames dropped {}",
-            field(&stats, pre, "p50 ").unwrap_or(f64::NAN),
-            field(&stats, pre, "p99 ").unwrap_or(f64::NAN),
-            dropped(&stats, "phase").map_or("?".into(), |d| d.to_string()),
-        );
+        let runs = std::iter::once(("", EXE)).chain(before.as_deref().map(|b| (" (before)", b)));
+        for (label, exe) in runs {
+            let (_, stats) = run_exe(exe, &dir, &args);
+            println!(
+                "live {pyr:5}{label} (2200 fps 256x256 in real time): capture -> speaker p50 {:.1} ms, p99 {:.1} ms (target p99 < 50 ms); frames dropped {}",
+                field(&stats, pre, "p50 ").unwrap_or(f64::NAN),
+                field(&stats, pre, "p99 ").unwrap_or(f64::NAN),
+                dropped(&stats, "phase").map_or("?".into(), |d| d.to_string()),
+            );
+        }
     }
     let (r10, r60) = (rss_of_stream(&dir, 10), rss_of_stream(&dir, 60));
     println!(
