@@ -9,6 +9,7 @@ pub mod item;
 pub mod latency;
 pub mod notify;
 pub mod runner;
+pub mod spec;
 pub mod stage;
 
 pub mod pipelines;
@@ -20,6 +21,7 @@ pub use frame::{
     Frame, FrameFormat, FrameMeta, FrameMut, FramePool, PixelsMut, PixelsRef, RowTiming,
 };
 pub use graph::{BuildCtx, Graph, KindSpec, Output, Plan};
+pub use spec::{Def, InPort, OutPort, OutType, ParamSpec, ParamType, Range, NO_INPUTS, NO_OUTPUTS};
 pub use item::{AudioBlock, Item, PortType, PyramidData, PyramidFrame, SampleBlock, Spectrum};
 pub use latency::{LatencyHist, LatencySummary};
 pub use runner::{error_chain, run, RunError, RunOptions, RunReport, StageReport};

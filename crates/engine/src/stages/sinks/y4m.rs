@@ -16,14 +16,17 @@ struct P {
     path: PathBuf,
 }
 
+const PARAMS: &[ParamSpec] =
+    &[ParamSpec::new("path", ParamType::Path, Def::Required).doc("the Y4M file (`-` for standard output)")];
+
 pub const KIND: KindSpec = KindSpec {
     name: "y4m",
     summary: "records frames to Y4M with per-frame capture timestamps",
-    accepts: &[PortType::Frames],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[PortType::Frames])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
+        let v: P = p.resolve(PARAMS)?;
         Ok(Box::new(Rec {
             path: v.path,
             w: None,
