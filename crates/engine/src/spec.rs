@@ -39,6 +39,8 @@ pub enum ParamType {
     Path,
     /// One of a fixed set of strings.
     Choice(&'static [&'static str]),
+    /// A number (in `range`) or one of these words (`gain = "auto"`).
+    NumOr(&'static [&'static str]),
     /// An array of integers (each in `range`).
     Ints,
     /// An array of numbers (each in `range`).
@@ -58,6 +60,7 @@ impl fmt::Display for ParamType {
             ParamType::Str => "string",
             ParamType::Path => "path",
             ParamType::Choice(_) => "choice",
+            ParamType::NumOr(_) => "float|word",
             ParamType::Ints => "[int]",
             ParamType::Floats => "[float]",
             ParamType::Table => "table",
@@ -73,6 +76,7 @@ impl ParamType {
             ParamType::Int => "an integer",
             ParamType::Float => "a number",
             ParamType::Str | ParamType::Path | ParamType::Choice(_) => "a string",
+            ParamType::NumOr(_) => "a number or a word",
             ParamType::Ints => "an array of integers",
             ParamType::Floats => "an array of numbers",
             ParamType::Table => "a table",
@@ -245,6 +249,18 @@ impl ParamSpec {
             ..self
         }
     }
+    /// Numbers `> lo` and `<= hi`.
+    pub const fn above_upto(self, lo: f64, hi: f64) -> Self {
+        Self {
+            range: Range::Float {
+                lo,
+                lo_open: true,
+                hi,
+                hi_open: false,
+            },
+            ..self
+        }
+    }
     /// Numbers `>= lo`.
     pub const fn at_least(self, lo: f64) -> Self {
         Self {
@@ -266,13 +282,20 @@ impl ParamSpec {
     pub fn range_text(&self) -> String {
         match self.ty {
             ParamType::Choice(c) => c.join("|"),
+            ParamType::NumOr(w) => format!("{} | {}", w.join("|"), self.range),
             _ => self.range.to_string(),
         }
     }
 
     /// Checks one value's type and range; the message says what was wrong.
     pub fn check(&self, v: &Value) -> Result<(), String> {
-        let bad_type = || format!("invalid type: {}, expected {}", found(v), self.ty.expected());
+        let bad_type = || {
+            format!(
+                "invalid type: {}, expected {}",
+                found(v),
+                self.ty.expected()
+            )
+        };
         let num = |x: &Value| -> Result<(), String> {
             let f = match x {
                 Value::Integer(i) => *i as f64,
@@ -295,6 +318,20 @@ impl ParamSpec {
                     Ok(())
                 } else {
                     Err(format!("must be {}, got `{s}`", or_list(c)))
+                }
+            }
+            (ParamType::NumOr(_), Value::Integer(_) | Value::Float(_)) => num(v),
+            (ParamType::NumOr(w), Value::String(s)) => {
+                if w.contains(&s.as_str()) {
+                    Ok(())
+                } else {
+                    let words: Vec<String> = w.iter().map(|w| format!("\"{w}\"")).collect();
+                    let words: Vec<&str> = words.iter().map(String::as_str).collect();
+                    Err(format!(
+                        "must be {} or a number {}, got \"{s}\"",
+                        or_list(&words),
+                        self.range
+                    ))
                 }
             }
             (ParamType::Ints, Value::Array(a)) => a.iter().try_for_each(|x| match x {
@@ -594,7 +631,12 @@ mod tests {
             let mut text = format!("[[stage]]\nid = \"s\"\nkind = \"{}\"\n", k.name);
             for p in k.params {
                 if let Some(v) = p.default.value() {
-                    assert!(p.check(&v).is_ok(), "{}.{}: default {v} fails", k.name, p.name);
+                    assert!(
+                        p.check(&v).is_ok(),
+                        "{}.{}: default {v} fails",
+                        k.name,
+                        p.name
+                    );
                     assert!(!p.doc.is_empty(), "{}.{} has no doc", k.name, p.name);
                 }
                 if p.default == Def::Required {
@@ -623,7 +665,8 @@ mod tests {
         assert_eq!(l.lines().count(), REGISTRY.len());
         for k in REGISTRY {
             assert!(
-                l.lines().any(|line| line.split_whitespace().next() == Some(k.name)),
+                l.lines()
+                    .any(|line| line.split_whitespace().next() == Some(k.name)),
                 "{} missing: {l}",
                 k.name
             );
@@ -644,7 +687,10 @@ mod tests {
         let s = ParamSpec::new("fps", ParamType::Float, Def::Float(1.0))
             .above(0.0)
             .unit("Hz");
-        assert_eq!(s.check(&Value::Float(0.0)).unwrap_err(), "must be > 0 Hz, got 0");
+        assert_eq!(
+            s.check(&Value::Float(0.0)).unwrap_err(),
+            "must be > 0 Hz, got 0"
+        );
         assert!(s.check(&Value::Float(f64::NAN)).is_err());
         assert!(s
             .check(&Value::String("x".into()))

@@ -23,7 +23,11 @@ const PARAMS: &[ParamSpec] =
 pub const KIND: KindSpec = KindSpec {
     name: "csv",
     summary: "writes audio, samples or spectra as CSV rows",
-    inputs: &[InPort::one(&[PortType::Audio, PortType::Samples, PortType::Spectrum])],
+    inputs: &[InPort::one(&[
+        PortType::Audio,
+        PortType::Samples,
+        PortType::Spectrum,
+    ])],
     outputs: NO_OUTPUTS,
     params: PARAMS,
     plan: |p| {

@@ -15,13 +15,17 @@ struct P {
     path: PathBuf,
 }
 
-const PARAMS: &[ParamSpec] =
-    &[ParamSpec::new("path", ParamType::Path, Def::Required).doc("the JSON file (written atomically at the end)")];
+const PARAMS: &[ParamSpec] = &[ParamSpec::new("path", ParamType::Path, Def::Required)
+    .doc("the JSON file (written atomically at the end)")];
 
 pub const KIND: KindSpec = KindSpec {
     name: "json",
     summary: "writes audio, samples or spectra as one JSON document at the end",
-    inputs: &[InPort::one(&[PortType::Audio, PortType::Samples, PortType::Spectrum])],
+    inputs: &[InPort::one(&[
+        PortType::Audio,
+        PortType::Samples,
+        PortType::Spectrum,
+    ])],
     outputs: NO_OUTPUTS,
     params: PARAMS,
     plan: |p| {

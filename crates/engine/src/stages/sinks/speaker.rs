@@ -41,56 +41,36 @@ enum Gain {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    /// "default", "null", or part of a device's name or id.
-    #[serde(default = "d_device")]
     device: String,
-    /// Device sample rate; default: the device's own default.
     rate_hz: Option<u32>,
-    /// "auto" or a fixed factor.
-    #[serde(default = "d_gain")]
     gain: Gain,
-    /// Audio kept queued for the device in live runs.
-    #[serde(default = "d_latency")]
     latency_ms: f64,
 }
-fn d_device() -> String {
-    "default".into()
-}
-fn d_gain() -> Gain {
-    Gain::Named("auto".into())
-}
-fn d_latency() -> f64 {
-    40.0
-}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("device", ParamType::Str, Def::Str("default"))
+        .doc("\"default\", \"null\" (no sound card), or part of a device's name or id"),
+    ParamSpec::new("rate_hz", ParamType::Int, Def::Optional)
+        .ints(4000, 384_000)
+        .unit("Hz")
+        .doc("device sample rate; default: the device's own"),
+    ParamSpec::new("gain", ParamType::NumOr(&["auto"]), Def::Str("auto"))
+        .above(0.0)
+        .doc("\"auto\" (peak-following envelope to -6 dBFS) or a fixed factor"),
+    ParamSpec::new("latency_ms", ParamType::Float, Def::Float(40.0))
+        .floats(5.0, 2000.0)
+        .unit("ms")
+        .doc("audio kept queued for the device in live runs"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "speaker",
     summary: "plays audio on a sound card (cpal), resampled to the device rate; `device = \"null\"` for none",
-    accepts: &[PortType::Audio],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[PortType::Audio])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        match &v.gain {
-            Gain::Fixed(g) if !g.is_finite() || *g <= 0.0 => {
-                return Err(p.error("gain", format!("must be \"auto\" or a number > 0, got {g}")))
-            }
-            Gain::Named(s) if s != "auto" => {
-                return Err(p.error("gain", format!("must be \"auto\" or a number > 0, got \"{s}\"")))
-            }
-            _ => {}
-        }
-        if !(v.latency_ms.is_finite() && (5.0..=2000.0).contains(&v.latency_ms)) {
-            return Err(p.error(
-                "latency_ms",
-                format!("must be 5..=2000 ms, got {}", v.latency_ms),
-            ));
-        }
-        if let Some(r) = v.rate_hz {
-            if !(4000..=384_000).contains(&r) {
-                return Err(p.error("rate_hz", format!("must be 4000..=384000 Hz, got {r}")));
-            }
-        }
+        let v: P = p.resolve(PARAMS)?;
         if v.device.trim().is_empty() {
             return Err(p.error("device", "must not be empty (use \"default\")"));
         }

@@ -23,30 +23,31 @@ enum Format {
 #[serde(deny_unknown_fields)]
 struct P {
     path: PathBuf,
-    #[serde(default = "f32_fmt")]
     format: Format,
-    #[serde(default = "unit")]
     gain: f64,
 }
-fn f32_fmt() -> Format {
-    Format::F32
-}
-fn unit() -> f64 {
-    1.0
-}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("path", ParamType::Path, Def::Required).doc("the WAV file"),
+    ParamSpec::new(
+        "format",
+        ParamType::Choice(&["f32", "i16"]),
+        Def::Str("f32"),
+    )
+    .doc("f32: values as the signal has them; i16: PCM of gain * value, clipped to [-1, 1]"),
+    ParamSpec::new("gain", ParamType::Float, Def::Float(1.0))
+        .doc("factor applied before writing (i16 clips at ±1)"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "wav",
     summary:
         "writes audio to a WAV file (f32 or i16), valid even after Ctrl-C or an upstream error",
-    accepts: &[PortType::Audio],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[PortType::Audio])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if !v.gain.is_finite() {
-            return Err(p.error("gain", "must be a finite number"));
-        }
+        let v: P = p.resolve(PARAMS)?;
         if v.path.as_os_str().is_empty() {
             return Err(p.error("path", "must not be empty"));
         }

@@ -16,8 +16,8 @@ struct P {
     path: PathBuf,
 }
 
-const PARAMS: &[ParamSpec] =
-    &[ParamSpec::new("path", ParamType::Path, Def::Required).doc("the Y4M file (`-` for standard output)")];
+const PARAMS: &[ParamSpec] = &[ParamSpec::new("path", ParamType::Path, Def::Required)
+    .doc("the Y4M file (`-` for standard output)")];
 
 pub const KIND: KindSpec = KindSpec {
     name: "y4m",

@@ -20,37 +20,48 @@ use serde::Deserialize;
 #[derive(Deserialize, Clone, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct NokhwaParams {
-    /// Camera index, as nokhwa's query lists them.
-    #[serde(default)]
     pub index: u32,
     pub width: Option<u32>,
     pub height: Option<u32>,
-    /// Requested frame rate in Hz (nokhwa takes whole numbers).
     pub fps: Option<u32>,
-    /// Stop after this long (run clock).
     pub duration_s: Option<f64>,
-    /// Stop after this many frames.
     pub max_frames: Option<u64>,
 }
+
+/// Every parameter of the `nokhwa` kind.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("index", ParamType::Int, Def::Int(0))
+        .ints(0, u32::MAX as i64)
+        .doc("camera index, as nokhwa's query lists them"),
+    ParamSpec::new("width", ParamType::Int, Def::Optional)
+        .ints(1, 16384)
+        .unit("px")
+        .doc("requested width; default: the camera's"),
+    ParamSpec::new("height", ParamType::Int, Def::Optional)
+        .ints(1, 16384)
+        .unit("px")
+        .doc("requested height; default: the camera's"),
+    ParamSpec::new("fps", ParamType::Int, Def::Optional)
+        .ints(1, u32::MAX as i64)
+        .unit("Hz")
+        .doc("requested frame rate (whole numbers)"),
+    ParamSpec::new("duration_s", ParamType::Float, Def::Optional)
+        .above(0.0)
+        .unit("s")
+        .doc("stop after this long (run clock)"),
+    ParamSpec::new("max_frames", ParamType::Int, Def::Optional)
+        .ints(0, i64::MAX)
+        .doc("stop after this many frames"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "nokhwa",
     summary: "live camera through nokhwa (macOS/Windows; features input-avfoundation, input-msmf, input-v4l)",
-    accepts: &[],
-    max_inputs: 0,
-    output: Output::Fixed(PortType::Frames),
+    inputs: NO_INPUTS,
+    outputs: &[OutPort::out(PortType::Frames)],
+    params: PARAMS,
     plan: |p| {
-        let v: NokhwaParams = p.parse()?;
-        for (field, val) in [("width", v.width), ("height", v.height), ("fps", v.fps)] {
-            if val == Some(0) {
-                return Err(p.error(field, "must be > 0"));
-            }
-        }
-        if let Some(d) = v.duration_s {
-            if !(d.is_finite() && d > 0.0) {
-                return Err(p.error("duration_s", format!("must be > 0 seconds, got {d}")));
-            }
-        }
+        let v: NokhwaParams = p.resolve(PARAMS)?;
         Ok(Box::new(v))
     },
 };

@@ -242,62 +242,59 @@ impl SeqTracker {
 #[derive(Deserialize, Clone, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct V4l2Params {
-    /// The device node.
-    #[serde(default = "d_device")]
     pub device: PathBuf,
-    /// Requested size; the driver may grant another (read back).
     pub width: Option<u32>,
     pub height: Option<u32>,
-    /// Requested frame rate in Hz; the granted interval is read back.
     pub fps: Option<f64>,
-    #[serde(default)]
     pub format: PixelFormat,
-    /// Driver buffers for mmap streaming.
-    #[serde(default = "d_buffers")]
     pub buffers: u32,
-    /// Stop after this long (by the driver's timestamps).
     pub duration_s: Option<f64>,
-    /// Stop after this many frames.
     pub max_frames: Option<u64>,
 }
-fn d_device() -> PathBuf {
-    PathBuf::from("/dev/video0")
-}
-fn d_buffers() -> u32 {
-    4
-}
+
+/// Every parameter of the `v4l2` kind.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("device", ParamType::Path, Def::Str("/dev/video0")).doc("the device node"),
+    ParamSpec::new("width", ParamType::Int, Def::Optional)
+        .ints(1, 16384)
+        .unit("px")
+        .doc("requested width; the driver may grant another (read back)"),
+    ParamSpec::new("height", ParamType::Int, Def::Optional)
+        .ints(1, 16384)
+        .unit("px")
+        .doc("requested height; the driver may grant another (read back)"),
+    super::fps_param(
+        Def::Optional,
+        "requested frame rate; the granted interval is read back",
+    ),
+    ParamSpec::new(
+        "format",
+        ParamType::Choice(&["auto", "grey", "yuyv", "mjpeg"]),
+        Def::Str("auto"),
+    )
+    .doc("pixel format; auto: the first of GREY, YUYV, MJPEG the device offers"),
+    ParamSpec::new("buffers", ParamType::Int, Def::Int(4))
+        .ints(2, 32)
+        .doc("driver buffers for mmap streaming"),
+    ParamSpec::new("duration_s", ParamType::Float, Def::Optional)
+        .above(0.0)
+        .unit("s")
+        .doc("stop after this long (by the driver's timestamps)"),
+    ParamSpec::new("max_frames", ParamType::Int, Def::Optional)
+        .ints(0, i64::MAX)
+        .doc("stop after this many frames"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "v4l2",
     summary: "live camera through Video4Linux2 (device, width, height, fps, format = grey|yuyv|mjpeg|auto)",
-    accepts: &[],
-    max_inputs: 0,
-    output: Output::Fixed(PortType::Frames),
+    inputs: NO_INPUTS,
+    outputs: &[OutPort::out(PortType::Frames)],
+    params: PARAMS,
     plan: |p| {
-        let v: V4l2Params = p.parse()?;
+        let v: V4l2Params = p.resolve(PARAMS)?;
         if v.device.as_os_str().is_empty() {
             return Err(p.error("device", "must not be empty"));
-        }
-        if let Some(f) = v.fps {
-            super::check_fps(f).map_err(|m| p.error("fps", m))?;
-        }
-        for (field, val) in [("width", v.width), ("height", v.height)] {
-            if let Some(x) = val {
-                if !(1..=16384).contains(&x) {
-                    return Err(p.error(field, format!("must be 1..=16384, got {x}")));
-                }
-            }
-        }
-        if !(2..=32).contains(&v.buffers) {
-            return Err(p.error(
-                "buffers",
-                format!("must be 2..=32, got {}", v.buffers),
-            ));
-        }
-        if let Some(d) = v.duration_s {
-            if !(d.is_finite() && d > 0.0) {
-                return Err(p.error("duration_s", format!("must be > 0 seconds, got {d}")));
-            }
         }
         Ok(Box::new(v))
     },

@@ -43,44 +43,47 @@ enum Weights {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    /// Band the others are aligned to (default: the most coherent one).
     reference_band: Option<usize>,
-    #[serde(default = "d_weights")]
     weights: Weights,
-    /// Largest lag searched, in samples.
-    #[serde(default = "d_lag")]
     max_lag: usize,
-    /// Samples used to estimate the lags.
-    #[serde(default = "d_window")]
     window: usize,
-    /// Samples after which a provisional estimate starts the output (live
-    /// use); default: `window` (output waits for the full estimate).
     warmup: Option<usize>,
 }
-fn d_weights() -> Weights {
-    Weights::Equal
-}
-fn d_lag() -> usize {
-    8
-}
-fn d_window() -> usize {
-    2048
-}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("reference_band", ParamType::Int, Def::Optional)
+        .ints(0, 1 << 16)
+        .doc("band the others are aligned to; default: the most coherent one"),
+    ParamSpec::new(
+        "weights",
+        ParamType::Choice(&["equal", "mrc"]),
+        Def::Str("equal"),
+    )
+    .doc("sum the aligned bands equally, or by maximum-ratio combining"),
+    ParamSpec::new("max_lag", ParamType::Int, Def::Int(8))
+        .ints(0, 4096)
+        .unit("samples")
+        .doc("largest lag searched"),
+    ParamSpec::new("window", ParamType::Int, Def::Int(2048))
+        .ints(1, 1 << 22)
+        .unit("samples")
+        .doc("samples used to estimate the lags"),
+    ParamSpec::new("warmup", ParamType::Int, Def::Optional)
+        .ints(1, 1 << 22)
+        .unit("samples")
+        .doc(
+            "a provisional estimate starts the output after this many (live use); default: window",
+        ),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "align",
     summary: "aligns per-band signals to a reference band by cross-correlation lag and sums them (Eq. 3.5-3.6)",
-    accepts: &[PortType::Samples],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Audio),
+    inputs: &[InPort::one(&[PortType::Samples])],
+    outputs: &[OutPort::out(PortType::Audio)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if v.max_lag > 4096 {
-            return Err(p.error("max_lag", format!("must be at most 4096 samples, got {}", v.max_lag)));
-        }
-        if !(1..=1 << 22).contains(&v.window) {
-            return Err(p.error("window", format!("must be 1..=4194304 samples, got {}", v.window)));
-        }
+        let v: P = p.resolve(PARAMS)?;
         if let Some(w) = v.warmup {
             if w == 0 || w > v.window {
                 return Err(p.error(
