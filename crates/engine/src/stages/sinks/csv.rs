@@ -107,13 +107,13 @@ impl Stage for Csv {
             self.out = Some(BufWriter::new(super::create(&self.path)?));
         }
         self.write_rows(&item, header)
-            .map_err(|e| StageError::msg(format!("{}: {e}", self.path.display())))
+            .map_err(|e| StageError::file("write", &self.path, e))
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
         if let Some(mut o) = self.out.take() {
             o.flush()
-                .map_err(|e| StageError::msg(format!("{}: {e}", self.path.display())))?;
+                .map_err(|e| StageError::file("write", &self.path, e))?;
         }
         Ok(())
     }

@@ -94,7 +94,7 @@ impl Stage for Json {
             })
         };
         let text = serde_json::to_vec_pretty(&doc)
-            .map_err(|e| StageError::msg(format!("{}: {e}", self.path.display())))?;
+            .map_err(|e| StageError::file("write", &self.path, e.into()))?;
         super::write_atomic(&self.path, &text)
     }
 }

@@ -116,15 +116,21 @@ struct Modes {
 }
 
 impl Modes {
+    /// The modal imager failed.
     fn err(&self, m: impl std::fmt::Display) -> StageError {
-        StageError::msg(format!("{}: {m}", self.p.path.display()))
+        StageError::dsp(format!("{}: {m}", self.p.path.display()))
+    }
+
+    /// The image could not be encoded or written.
+    fn write_err(&self, m: impl std::fmt::Display) -> StageError {
+        StageError::file("write", &self.p.path, std::io::Error::other(m.to_string()))
     }
 
     fn start(&mut self, f: &Frame) -> Result<(), StageError> {
         let fps = f.format().fps;
         if fps > 0.0 && self.p.freq_hz >= fps / 2.0 {
-            return Err(StageError::msg(format!(
-                "freq_hz {} Hz is not below the Nyquist frequency {} Hz of {} fps frames (pass the capture rate with --fps)",
+            return Err(StageError::config("freq_hz", format!(
+                "{} Hz is not below the Nyquist frequency {} Hz of {} fps frames (pass the capture rate with --fps)",
                 self.p.freq_hz,
                 fps / 2.0,
                 fps
@@ -159,7 +165,7 @@ impl Stage for Modes {
         };
         let w = f.width();
         if f.height() < roi.y + roi.h || w < roi.x + roi.w {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "frame size changed to {}x{} mid-stream",
                 w,
                 f.height()
@@ -180,13 +186,15 @@ impl Stage for Modes {
                 }
             }
         }
-        im.push(&self.buf, f.meta().t_ns)
-            .map_err(|e| StageError::msg(format!("{}: {e}", self.p.path.display())))
+        im.push(&self.buf, f.meta().t_ns).map_err(|e| self.err(e))
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
         let Some(im) = &self.imager else {
-            return Err(self.err("no frame arrived"));
+            return Err(StageError::format(format!(
+                "{}: no frame arrived",
+                self.p.path.display()
+            )));
         };
         let img = im.finish().map_err(|e| self.err(e))?;
         let rgb = render_rgb(
@@ -203,7 +211,7 @@ impl Stage for Modes {
                 img.height as u32,
                 image::ExtendedColorType::Rgb8,
             )
-            .map_err(|e| self.err(e))?;
+            .map_err(|e| self.write_err(e))?;
         super::write_atomic(&self.p.path, &png)?;
         if let Some(npy) = &self.p.npy {
             super::write_atomic(npy, &npy_complex64(&img.data, img.width, img.height))?;

@@ -138,7 +138,7 @@ impl Stage for Peaks {
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
         let Some(last) = self.last.as_ref().filter(|_| self.count > 0) else {
-            return Err(StageError::msg(format!(
+            return Err(StageError::dsp(format!(
                 "{}: no spectrum arrived (is the recording shorter than one window?)",
                 self.p.path.display()
             )));
@@ -180,7 +180,7 @@ impl Stage for Peaks {
             });
         }
         let text = serde_json::to_vec_pretty(&doc)
-            .map_err(|e| StageError::msg(format!("{}: {e}", self.p.path.display())))?;
+            .map_err(|e| StageError::file("write", &self.p.path, e.into()))?;
         super::write_atomic(&self.p.path, &text)
     }
 }

@@ -106,8 +106,9 @@ struct SpectrumPng {
 }
 
 impl SpectrumPng {
+    /// The plot could not be drawn or encoded.
     fn err(&self, m: impl std::fmt::Display) -> StageError {
-        StageError::msg(format!("{}: {m}", self.p.path.display()))
+        StageError::file("write", &self.p.path, std::io::Error::other(m.to_string()))
     }
 }
 
@@ -140,7 +141,10 @@ impl Stage for SpectrumPng {
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
         let Some(first) = self.spectra.first() else {
-            return Err(self.err("no spectrum arrived (is the recording shorter than one window?)"));
+            return Err(StageError::dsp(format!(
+                "{}: no spectrum arrived (is the recording shorter than one window?)",
+                self.p.path.display()
+            )));
         };
         let bins = first.power.len();
         let nyquist = self.f0 + (bins.saturating_sub(1)) as f64 * self.df;

@@ -79,18 +79,21 @@ impl Plan for Wav {
 
 impl Wav {
     fn err(&self, e: hound::Error) -> StageError {
-        StageError::msg(format!("{}: {e}", self.path.display()))
+        match e {
+            hound::Error::IoError(e) => StageError::file("write", &self.path, e),
+            e => StageError::format(format!("{}: {e}", self.path.display())),
+        }
     }
 }
 
 impl Stage for Wav {
     fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
         let Item::Audio(a) = item else {
-            return Err(StageError::msg("expected audio"));
+            return Err(StageError::expected("audio"));
         };
         let rate = a.rate_hz.round();
         if !(1.0..=u32::MAX as f64).contains(&rate) {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "{}: sample rate {} Hz cannot be written to WAV",
                 self.path.display(),
                 a.rate_hz
@@ -116,7 +119,7 @@ impl Stage for Wav {
             self.writer = Some(w);
             self.rate = rate;
         } else if rate != self.rate {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "{}: the sample rate changed from {} to {} Hz mid-stream",
                 self.path.display(),
                 self.rate,

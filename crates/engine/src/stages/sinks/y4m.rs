@@ -48,10 +48,10 @@ impl Plan for Rec {
 impl Stage for Rec {
     fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         let path = &self.path;
-        let io = |e: std::io::Error| StageError::msg(format!("{}: {e}", path.display()));
+        let io = |e: std::io::Error| StageError::file("write", path, e);
         if self.w.is_none() {
             let fmt = f.format();
             let file: Box<dyn Write + Send> = if path.as_os_str() == "-" {
@@ -86,7 +86,7 @@ impl Stage for Rec {
             let mut inner = w.into_inner();
             inner
                 .flush()
-                .map_err(|e| StageError::msg(format!("{}: {e}", self.path.display())))?;
+                .map_err(|e| StageError::file("write", &self.path, e))?;
         }
         Ok(())
     }

@@ -106,13 +106,19 @@ impl Plan for FilePlan {
         let fps = match (self.fps, info.fps) {
             (Some(f), _) => f,
             (None, Some(f)) => check_fps(f).map_err(|m| {
-                StageError::msg(format!("{}: {m}; pass --fps", self.path.display()))
+                StageError::config(
+                    "fps",
+                    format!("{}: {m}; set it (or pass --fps)", self.path.display()),
+                )
             })?,
             (None, None) => {
-                return Err(StageError::msg(format!(
-                    "{}: the file states no frame rate; set `fps` (or pass --fps)",
-                    self.path.display()
-                )))
+                return Err(StageError::config(
+                    "fps",
+                    format!(
+                        "{}: the file states no frame rate; set it (or pass --fps)",
+                        self.path.display()
+                    ),
+                ))
             }
         };
         let format = FrameFormat {

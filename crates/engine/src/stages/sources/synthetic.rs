@@ -389,7 +389,7 @@ pub const KIND: KindSpec = KindSpec {
 
 impl Plan for SyntheticParams {
     fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
-        let scene = self.scene().map_err(StageError::msg)?;
+        let scene = self.scene().map_err(StageError::dsp)?;
         let format = FrameFormat {
             width: self.width,
             height: self.height,

@@ -404,7 +404,7 @@ mod imp {
     const POLL_MS: i32 = 100;
 
     /// An OS error on `path`, said plainly.
-    pub(super) fn device_error(path: &str, what: &str, e: &io::Error) -> String {
+    pub(super) fn device_error(path: &str, what: &str, e: &io::Error) -> StageError {
         let hint = match e.raw_os_error() {
             Some(libc::ENOENT) => {
                 let found: Vec<String> = list_devices()
@@ -413,23 +413,28 @@ mod imp {
                     .map(|d| d.path.display().to_string())
                     .collect();
                 if found.is_empty() {
-                    " (no such device; no camera found)".to_string()
+                    "no such device; no camera found".to_string()
                 } else {
                     format!(
-                        " (no such device; cameras: {}; see `vibroscope devices`)",
+                        "no such device; cameras: {}; see `vibroscope devices`",
                         found.join(", ")
                     )
                 }
             }
-            Some(libc::EBUSY) => " (the device is busy: another program is using it)".into(),
+            Some(libc::EBUSY) => "the device is busy: another program is using it".into(),
             Some(libc::EACCES) | Some(libc::EPERM) => {
-                " (permission denied: join the `video` group or check the node's mode)".into()
+                "permission denied: join the `video` group or check the node's mode".into()
             }
-            Some(libc::ENODEV) => " (the device is gone: unplugged or its driver unloaded)".into(),
-            Some(libc::EIO) => " (I/O error: the device failed or was unplugged)".into(),
+            Some(libc::ENODEV) => "the device is gone: unplugged or its driver unloaded".into(),
+            Some(libc::EIO) => "I/O error: the device failed or was unplugged".into(),
             _ => String::new(),
         };
-        format!("{path}: {what}: {e}{hint}")
+        let err = StageError::device(path, format!("{what}: {e}"));
+        if hint.is_empty() {
+            err
+        } else {
+            err.with_hint(hint)
+        }
     }
 
     /// Nanoseconds from C seconds and a sub-second count in units of
@@ -471,23 +476,25 @@ mod imp {
     }
 
     fn open_device(path: &str) -> Result<Device, StageError> {
-        let dev = Device::with_path(path)
-            .map_err(|e| StageError::msg(device_error(path, "cannot open", &e)))?;
+        let dev = Device::with_path(path).map_err(|e| device_error(path, "cannot open", &e))?;
         let caps = dev
             .query_caps()
-            .map_err(|e| StageError::msg(device_error(path, "not a V4L2 device", &e)))?;
+            .map_err(|e| device_error(path, "not a V4L2 device", &e))?;
         use v4l::capability::Flags;
         if !caps.capabilities.contains(Flags::VIDEO_CAPTURE) {
-            return Err(StageError::msg(format!(
-                "{path}: {} ({}) is not a video capture node; see `vibroscope devices`",
-                caps.card, caps.driver
-            )));
+            return Err(StageError::device(
+                path,
+                format!(
+                    "{} ({}) is not a video capture node; see `vibroscope devices`",
+                    caps.card, caps.driver
+                ),
+            ));
         }
         if !caps.capabilities.contains(Flags::STREAMING) {
-            return Err(StageError::msg(format!(
-                "{path}: {} does not support streaming I/O",
-                caps.card
-            )));
+            return Err(StageError::device(
+                path,
+                format!("{} does not support streaming I/O", caps.card),
+            ));
         }
         Ok(dev)
     }
@@ -495,14 +502,14 @@ mod imp {
     pub(super) fn open(p: V4l2Params, pool_frames: usize) -> Result<Box<dyn Source>, StageError> {
         let path = p.device.display().to_string();
         let dev = open_device(&path)?;
-        let err = |what: &str, e: io::Error| StageError::msg(device_error(&path, what, &e));
+        let err = |what: &str, e: io::Error| device_error(&path, what, &e);
         let offered: Vec<[u8; 4]> = dev
             .enum_formats()
             .map_err(|e| err("cannot list formats", e))?
             .iter()
             .map(|d| d.fourcc.repr)
             .collect();
-        let fourcc = choose_format(&path, p.format, &offered).map_err(StageError::msg)?;
+        let fourcc = choose_format(&path, p.format, &offered).map_err(StageError::format)?;
         let mut want = dev.format().map_err(|e| err("cannot read the format", e))?;
         want.fourcc = FourCC::new(&fourcc);
         if let Some(w) = p.width {
@@ -516,7 +523,7 @@ mod imp {
         // Read back what the driver granted: it rounds to sizes it supports.
         let got = dev.format().map_err(|e| err("cannot read the format", e))?;
         let Some(pixfmt) = PixelFormat::from_fourcc(got.fourcc.repr) else {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "{path}: asked for {}, the driver gave {} (offered: {})",
                 fourcc_str(fourcc),
                 fourcc_str(got.fourcc.repr),
@@ -528,7 +535,7 @@ mod imp {
             )));
         };
         if got.width == 0 || got.height == 0 || got.width > 16384 || got.height > 16384 {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "{path}: the driver granted an unusable size {}x{}",
                 got.width, got.height
             )));
@@ -571,13 +578,14 @@ mod imp {
             (Some(g), None) => g,
             (None, Some(req)) => req,
             (None, None) => {
-                return Err(StageError::msg(format!(
-                    "{path}: the driver states no frame rate; set `fps`"
-                )))
+                return Err(StageError::config(
+                    "fps",
+                    format!("{path}: the driver states no frame rate; set it"),
+                ))
             }
         };
         let fps = super::super::check_fps(fps)
-            .map_err(|m| StageError::msg(format!("{path}: granted frame rate: {m}")))?;
+            .map_err(|m| StageError::format(format!("{path}: granted frame rate: {m}")))?;
         let (exposure_ns, line_ns) = row_timing(&dev, got.width);
         let row_timing = line_ns.map(|l| RowTiming {
             line_delay_ns: l,
@@ -656,20 +664,20 @@ mod imp {
                 if ctx.should_stop() {
                     return Ok(false);
                 }
-                let n =
-                    self.dev.handle().poll(libc::POLLIN, POLL_MS).map_err(|e| {
-                        StageError::msg(device_error(&self.path, "capture failed", &e))
-                    })?;
+                let n = self
+                    .dev
+                    .handle()
+                    .poll(libc::POLLIN, POLL_MS)
+                    .map_err(|e| device_error(&self.path, "capture failed", &e))?;
                 if n > 0 {
                     return Ok(true);
                 }
                 waited += POLL_MS;
                 if waited >= STALL_MS {
-                    return Err(StageError::msg(format!(
-                        "{}: no frame for {} s: the device stalled",
-                        self.path,
-                        STALL_MS / 1000
-                    )));
+                    return Err(StageError::device(
+                        self.path.clone(),
+                        format!("no frame for {} s: the device stalled", STALL_MS / 1000),
+                    ));
                 }
             }
         }
@@ -692,7 +700,7 @@ mod imp {
                 };
                 let (buf, meta) = stream
                     .next()
-                    .map_err(|e| StageError::msg(device_error(&self.path, "capture failed", &e)))?;
+                    .map_err(|e| device_error(&self.path, "capture failed", &e))?;
                 self.started = true;
                 let (seq, gap) = self.seqs.next(meta.sequence);
                 if gap > 0 {
@@ -889,7 +897,7 @@ mod imp {
         "this vibroscope was built without V4L2 support (Linux, cargo feature `v4l2`)";
 
     pub(super) fn open(p: V4l2Params, _pool_frames: usize) -> Result<Box<dyn Source>, StageError> {
-        Err(StageError::msg(format!("{}: {WHY}", p.device.display())))
+        Err(StageError::device(p.device.display().to_string(), WHY))
     }
 
     pub(super) fn list_devices() -> Result<Vec<DeviceInfo>, String> {

@@ -224,9 +224,10 @@ impl Align {
         let (c, n) = (self.channels, self.train.len() / self.channels.max(1));
         if let Some(r) = self.p.reference_band {
             if r >= c {
-                return Err(StageError::msg(format!(
-                    "reference_band {r} does not exist ({c} bands)"
-                )));
+                return Err(StageError::config(
+                    "reference_band",
+                    format!("band {r} does not exist ({c} bands)"),
+                ));
             }
         }
         let cutoff = super::highpass::default_cutoff_hz(rate);
@@ -359,12 +360,12 @@ impl Align {
 impl Stage for Align {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Samples(b) = item else {
-            return Err(StageError::msg("expected per-band samples"));
+            return Err(StageError::expected("per-band samples"));
         };
         if self.channels == 0 {
             self.channels = b.channels.max(1);
         } else if b.channels != self.channels {
-            return Err(StageError::msg("the number of bands changed mid-stream"));
+            return Err(StageError::format("the number of bands changed mid-stream"));
         }
         let len = b.data.len() / self.channels;
         self.hist.extend_from_slice(&b.data[..len * self.channels]);

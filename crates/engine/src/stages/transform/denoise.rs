@@ -182,7 +182,7 @@ impl Denoise {
 impl Stage for Denoise {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Audio(a) = item else {
-            return Err(StageError::msg("expected audio"));
+            return Err(StageError::expected("audio"));
         };
         if self.filter.is_none() {
             let p = &self.plan;
@@ -193,11 +193,11 @@ impl Stage for Denoise {
                     SpeechEnhance::new(a.rate_hz, &p.cfg).map(|f| Filter::Enhance(Box::new(f)))
                 }
             }
-            .map_err(|e| StageError::msg(format!("denoiser at {} Hz: {e}", a.rate_hz)))?;
+            .map_err(|e| StageError::dsp(format!("denoiser at {} Hz: {e}", a.rate_hz)))?;
             self.filter = Some(f);
             self.rate = a.rate_hz;
         } else if a.rate_hz != self.rate {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "the sample rate changed from {} to {} Hz mid-stream",
                 self.rate, a.rate_hz
             )));

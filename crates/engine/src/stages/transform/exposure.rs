@@ -140,7 +140,7 @@ impl Exposure {
 impl Stage for Exposure {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Audio(a) = item else {
-            return Err(StageError::msg("expected audio"));
+            return Err(StageError::expected("audio"));
         };
         if a.samples.is_empty() {
             return Ok(());

@@ -223,10 +223,10 @@ impl GapFill {
 impl Stage for GapFill {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Samples(s) = item else {
-            return Err(StageError::msg("expected samples"));
+            return Err(StageError::expected("samples"));
         };
         if s.channels != 1 {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "expected one channel of row samples (from `rows`), got {}",
                 s.channels
             )));
@@ -235,14 +235,14 @@ impl Stage for GapFill {
             return Ok(());
         }
         if !(s.rate_hz.is_finite() && s.rate_hz > 0.0) {
-            return Err(StageError::msg(format!("bad row rate {} Hz", s.rate_hz)));
+            return Err(StageError::format(format!("bad row rate {} Hz", s.rate_hz)));
         }
         let now = Instant::now();
         let nominal: Vec<i64>;
         let times: &[i64] = match &s.times_ns {
             Some(t) if t.len() == s.data.len() => t,
             Some(t) => {
-                return Err(StageError::msg(format!(
+                return Err(StageError::format(format!(
                     "{} times for {} samples",
                     t.len(),
                     s.data.len()

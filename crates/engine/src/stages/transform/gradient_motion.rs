@@ -102,9 +102,10 @@ impl Motion {
                 .saturating_sub(y0),
         };
         if r.w == 0 || r.h == 0 {
-            return Err(StageError::msg(format!(
-                "the region is too small in a {w}x{h} frame"
-            )));
+            return Err(StageError::config(
+                "roi",
+                format!("the region is too small in a {w}x{h} frame"),
+            ));
         }
         let p = f.pixels();
         self.reference = Vec::with_capacity(r.w * r.h);
@@ -120,7 +121,7 @@ impl Motion {
         }
         self.norm = self.grad.iter().map(|&g| (g as f64) * (g as f64)).sum();
         if self.norm <= 0.0 {
-            return Err(StageError::msg(
+            return Err(StageError::dsp(
                 "the region has no texture along the chosen direction (zero gradient)",
             ));
         }
@@ -132,7 +133,7 @@ impl Motion {
 impl Stage for Motion {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         let r = match self.region {
             Some(r) => r,

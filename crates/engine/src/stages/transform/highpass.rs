@@ -66,12 +66,12 @@ struct Highpass {
 impl Stage for Highpass {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Audio(a) = item else {
-            return Err(StageError::msg("expected audio"));
+            return Err(StageError::expected("audio"));
         };
         if self.filter.is_none() || a.rate_hz != self.rate {
             let fc = self.cutoff.unwrap_or_else(|| default_cutoff_hz(a.rate_hz));
             let f = Sos::butterworth_highpass(self.order, fc, a.rate_hz)
-                .map_err(|e| StageError::msg(format!("highpass: {e}")))?;
+                .map_err(|e| StageError::dsp(format!("highpass: {e}")))?;
             tracing::info!(
                 cutoff_hz = fc,
                 order = self.order,

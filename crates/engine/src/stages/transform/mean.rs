@@ -59,7 +59,7 @@ fn row_sum(p: PixelsRef<'_>, start: usize, len: usize) -> f64 {
 impl Stage for Mean {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         let r = Roi::resolve(self.roi.as_ref(), f.width(), f.height())?;
         let (w, px) = (f.width(), f.pixels());

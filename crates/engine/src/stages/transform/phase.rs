@@ -354,7 +354,7 @@ impl<A: Analyzer> Engine<A> {
         let w0 = &mut self.workers[0];
         w0.an.analyze(f, &mut w0.input, &mut w0.c)?;
         let r = self.make_reference(0, f.t_ns())?.ok_or_else(|| {
-            StageError::msg("the region has no texture (zero local contrast in every band)")
+            StageError::dsp("the region has no texture (zero local contrast in every band)")
         })?;
         self.reference = Some(r);
         Ok(())
@@ -569,13 +569,16 @@ fn item_fps(item: &Item) -> f64 {
 
 impl Phase {
     fn init(&mut self, f: &Item) -> Result<(), StageError> {
-        let (w, h) = item_size(f).ok_or_else(|| StageError::msg("expected frames or a pyramid"))?;
+        let (w, h) = item_size(f).ok_or_else(|| StageError::expected("frames or a pyramid"))?;
         let mut roi = Roi::resolve(self.roi.as_ref(), w, h)?;
         let mask = match self.mask.take() {
             Some((path, m)) => {
                 m.check_size(&path, w, h)?;
                 roi = roi.intersect(&m.bounds()).ok_or_else(|| {
-                    StageError::msg(format!("mask {} does not overlap the roi", path.display()))
+                    StageError::config(
+                        "mask",
+                        format!("{} does not overlap the roi", path.display()),
+                    )
                 })?;
                 Some(m)
             }
@@ -657,7 +660,7 @@ impl Stage for Phase {
         }
         if let Some(e) = &self.engine {
             if item_size(&item) != Some(e.size()) {
-                return Err(StageError::msg("the frame size changed mid-stream"));
+                return Err(StageError::format("the frame size changed mid-stream"));
             }
         }
         self.pending.push(item);

@@ -89,7 +89,7 @@ pub(super) fn resolve_threads(n: usize) -> usize {
 }
 
 pub(super) fn pyramid_err(e: PyramidError) -> StageError {
-    StageError::msg(format!("pyramid: {e}"))
+    StageError::dsp(format!("pyramid: {e}"))
 }
 
 /// A frame's pixels as f32.
@@ -160,7 +160,7 @@ impl<P: FramePyramid> Analyzer for OnFrames<P> {
     }
     fn analyze(&mut self, item: &Item, input: &mut [f32], c: &mut P::C) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         to_f32(f, input);
         self.0.analyze_frame(input, c).map_err(pyramid_err)
@@ -206,10 +206,10 @@ impl<C: CarriedKind> Analyzer for Carried<C> {
     }
     fn analyze(&mut self, item: &Item, _: &mut [f32], c: &mut Arc<C>) -> Result<(), StageError> {
         let Item::Pyramid(p) = item else {
-            return Err(StageError::msg("expected pyramid coefficients"));
+            return Err(StageError::expected("pyramid coefficients"));
         };
         let got = C::get(&p.data).ok_or_else(|| {
-            StageError::msg(format!(
+            StageError::format(format!(
                 "the pyramid kind changed mid-stream (expected {})",
                 C::NAME
             ))
@@ -380,7 +380,7 @@ impl<A: FramePyramid> Analyse for Workers<A> {
                         to_f32(f, &mut w.input);
                         w.an.analyze_frame(&w.input, c).map_err(pyramid_err)
                     }
-                    None => Err(StageError::msg("pyramid buffer still shared")),
+                    None => Err(StageError::msg("internal: pyramid buffer still shared")),
                 };
             };
             spread(pool, workers, batch, job);
@@ -452,14 +452,14 @@ impl PyramidStage {
 impl Stage for PyramidStage {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         if self.workers.is_none() {
             self.init(&f)?;
         }
         if let Some(w) = &self.workers {
             if (f.width(), f.height()) != w.size() {
-                return Err(StageError::msg("the frame size changed mid-stream"));
+                return Err(StageError::format("the frame size changed mid-stream"));
             }
         }
         self.pending.push(f);

@@ -203,19 +203,20 @@ impl Rows {
             (Some(d), _) => d,
             (None, Some(rt)) => rt.line_delay_ns * 1e-3,
             (None, None) => {
-                return Err(StageError::msg(
-                    "line_delay_us: not set and the camera reports no row timing; \
+                return Err(StageError::config(
+                    "line_delay_us",
+                    "not set and the camera reports no row timing; \
                      give the line delay (or estimate it with `vibroscope rs-calibrate`)",
                 ))
             }
         };
-        check_line_delay_us(d_us).map_err(|m| StageError::msg(format!("line_delay_us: {m}")))?;
+        check_line_delay_us(d_us).map_err(|m| StageError::config("line_delay_us", m))?;
         let (w, h) = (f.width(), f.height());
         let implied = frame_delay_us(h, d_us, fmt.fps, self.p.frame_delay_us)
-            .map_err(|(field, m)| StageError::msg(format!("{field}: {m}")))?;
+            .map_err(|(field, m)| StageError::config(field, m))?;
         let roi = Roi::resolve(self.p.roi.as_ref(), w, h)?;
         let est = RowPhase::new(w, roi.x, roi.x + roi.w, roi.h, &self.p.wavelengths_px)
-            .map_err(|m| StageError::msg(format!("wavelengths_px / roi: {m}")))?;
+            .map_err(|m| StageError::config("wavelengths_px", format!("(with the roi) {m}")))?;
         tracing::info!(
             line_delay_us = d_us,
             frame_delay_us = implied,
@@ -249,7 +250,7 @@ impl Rows {
 impl Stage for Rows {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         if self.st.is_none() {
             self.st = Some(self.init(&f)?);
@@ -259,18 +260,21 @@ impl Stage for Rows {
             return Ok(());
         };
         if (f.width(), f.height()) != (st.width, st.height) {
-            return Err(StageError::msg("the frame size changed mid-stream"));
+            return Err(StageError::format("the frame size changed mid-stream"));
         }
         let t = f.meta().t_ns;
         if let Some(prev) = st.last_t {
             let readout = st.height as f64 * st.d_ns;
             if ((t - prev) as f64) < readout * (1.0 - 1e-6) {
-                return Err(StageError::msg(format!(
-                    "frames {} ns apart, but {} rows x line delay take {readout:.0} ns: \
-                     line_delay_us is too long for these timestamps",
-                    t - prev,
-                    st.height
-                )));
+                return Err(StageError::config(
+                    "line_delay_us",
+                    format!(
+                        "frames {} ns apart, but {} rows x line delay take {readout:.0} ns: \
+                     too long for these timestamps",
+                        t - prev,
+                        st.height
+                    ),
+                ));
             }
         }
         st.last_t = Some(t);

@@ -355,7 +355,7 @@ impl SpectrumStage {
         let ch = self.channels.max(1);
         let frames = self.hist.len() / ch;
         if frames < 8 {
-            return Err(StageError::msg(format!(
+            return Err(StageError::dsp(format!(
                 "spectrum: mode = \"whole\" needs at least 8 samples, got {frames}"
             )));
         }
@@ -406,10 +406,10 @@ impl Stage for SpectrumStage {
         let (t0, rate, ch, data) = match item {
             Item::Samples(s) => (s.t0_ns, s.rate_hz, s.channels.max(1), s.data),
             Item::Audio(a) => (a.t0_ns, a.rate_hz, 1, a.samples),
-            _ => return Err(StageError::msg("spectrum: expected samples or audio")),
+            _ => return Err(StageError::expected("samples or audio")),
         };
         if !(rate.is_finite() && rate > 0.0) {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "spectrum: input sample rate must be > 0 Hz, got {rate}"
             )));
         }
@@ -426,7 +426,7 @@ impl Stage for SpectrumStage {
                 self.hist.reserve((n + hop + 4096) * ch);
             }
         } else if ch != self.channels || (rate - self.rate).abs() > 1e-9 * self.rate {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "spectrum: input changed from {} channels at {} Hz to {ch} at {rate} Hz",
                 self.channels, self.rate
             )));
