@@ -41,18 +41,22 @@ fn registry() -> &'static [KindSpec] {
             .map(|k| KindSpec {
                 name: k.name,
                 summary: k.summary,
-                accepts: k.accepts,
-                max_inputs: k.max_inputs,
-                output: k.output,
+                inputs: k.inputs,
+                outputs: k.outputs,
+                params: k.params,
                 plan: k.plan,
             })
             .collect();
         v.push(KindSpec {
             name: "collect",
             summary: "test sink",
-            accepts: &[PortType::Frames],
-            max_inputs: 1,
-            output: Output::None,
+            inputs: &[InPort {
+                name: "in",
+                accepts: &[PortType::Frames],
+                max_edges: 1,
+            }],
+            outputs: &[],
+            params: &[],
             plan: |p| {
                 #[derive(serde::Deserialize)]
                 #[serde(deny_unknown_fields)]

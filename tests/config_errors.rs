@@ -177,3 +177,36 @@ fn bad_command_line_exits_2() {
     let o = run_in(dir.path(), &["frobnicate"]);
     assert_eq!(code(&o), 2);
 }
+
+/// `kinds` lists every registered kind; `kinds KIND` prints its ports and
+/// parameter table; an unknown KIND is a usage error.
+#[test]
+fn kinds_lists_and_describes_every_kind() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = run_in(dir.path(), &["kinds"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let list = String::from_utf8_lossy(&o.stdout).to_string();
+    for k in vibroscope::stages::REGISTRY {
+        assert!(
+            list.lines()
+                .any(|l| l.split_whitespace().next() == Some(k.name)),
+            "`{}` not listed: {list}",
+            k.name
+        );
+        let o = run_in(dir.path(), &["kinds", k.name]);
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        let table = String::from_utf8_lossy(&o.stdout).to_string();
+        for p in k.params {
+            assert!(table.contains(p.name), "{}: {table}", k.name);
+        }
+    }
+    let o = run_in(dir.path(), &["kinds", "spectrum"]);
+    let table = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(
+        table.contains("in: samples | audio") && table.contains("out: spectrum"),
+        "{table}"
+    );
+    let o = run_in(dir.path(), &["kinds", "camera9000"]);
+    assert_eq!(code(&o), 2);
+    assert!(stderr(&o).contains("camera9000"), "{}", stderr(&o));
+}

@@ -445,7 +445,7 @@ pub fn set_param(st: &mut StageDecl, key: &str, value: Value, origin: Origin) {
     }
 }
 
-fn parse_value(s: &str) -> Value {
+pub(crate) fn parse_value(s: &str) -> Value {
     #[derive(Deserialize)]
     struct W {
         v: Value,
@@ -465,15 +465,23 @@ pub struct Params<'a> {
 impl<'a> Params<'a> {
     /// Deserializes the parameters into `T` (use `#[serde(deny_unknown_fields)]`).
     pub fn parse<T: de::DeserializeOwned>(&self) -> Result<T, ConfigError> {
+        self.parse_list(&self.stage.params)
+    }
+
+    /// Deserializes `params` (the stage's, with defaults added) into `T`.
+    pub(crate) fn parse_list<T: de::DeserializeOwned>(
+        &self,
+        params: &[Param],
+    ) -> Result<T, ConfigError> {
         let current = Cell::new(None);
         let de = ParamsDe {
-            params: &self.stage.params,
+            params,
             current: &current,
         };
         T::deserialize(de).map_err(|e: ParamError| {
             let (field, origin) = match current.get() {
                 Some(i) => {
-                    let p = &self.stage.params[i];
+                    let p = &params[i];
                     (Some(p.key.as_str()), p.origin.clone())
                 }
                 None => (None, self.stage.origin.clone()),

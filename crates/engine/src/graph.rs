@@ -5,6 +5,7 @@
 use super::config::{ConfigError, Origin, Params, PipelineDecl, StageDecl};
 use super::edge::Policy;
 use super::item::PortType;
+use super::spec::{InPort, OutPort, OutType, ParamSpec};
 use super::stage::{Node, StageError};
 use std::collections::HashMap;
 
@@ -18,21 +19,46 @@ pub enum Output {
     SameAsInput,
 }
 
-/// A stage kind in the registry: the name used as `kind` in TOML.
+/// A stage kind in the registry: the name used as `kind` in TOML, its
+/// named and typed ports, and its parameters declared as data (see
+/// [`crate::spec`]).
 pub struct KindSpec {
     pub name: &'static str,
     pub summary: &'static str,
-    /// Port types accepted on inputs; empty for sources.
-    pub accepts: &'static [PortType],
-    pub max_inputs: usize,
-    pub output: Output,
-    /// Parses and range-checks the parameters; opens nothing.
+    /// Input ports; empty for sources. A stage's `input` edges all arrive
+    /// on its (single) input port.
+    pub inputs: &'static [InPort],
+    /// Output ports; empty for sinks.
+    pub outputs: &'static [OutPort],
+    /// Every parameter: name, type, default, range, unit, doc.
+    pub params: &'static [ParamSpec],
+    /// Validates the parameters ([`Params::resolve`] against `params`,
+    /// then any checks across fields); opens nothing.
     pub plan: fn(&Params<'_>) -> Result<Box<dyn Plan>, ConfigError>,
 }
 
 impl KindSpec {
     pub fn is_source(&self) -> bool {
-        self.accepts.is_empty()
+        self.inputs.is_empty()
+    }
+
+    /// Payload types accepted on the input port.
+    pub fn accepts(&self) -> &'static [PortType] {
+        self.inputs.first().map_or(&[], |p| p.accepts)
+    }
+
+    /// Edges the input port takes.
+    pub fn max_inputs(&self) -> usize {
+        self.inputs.iter().map(|p| p.max_edges).sum()
+    }
+
+    /// What the stage gives downstream.
+    pub fn output(&self) -> Output {
+        match self.outputs.first().map(|p| p.ty) {
+            None => Output::None,
+            Some(OutType::Fixed(t)) => Output::Fixed(t),
+            Some(OutType::SameAsInput) => Output::SameAsInput,
+        }
     }
 }
 
@@ -191,7 +217,7 @@ pub fn validate(decl: &PipelineDecl, registry: &'static [KindSpec]) -> Result<Gr
                 format!("a `{}` stage needs an `input`", kind.name),
             ));
         }
-        if s.inputs.len() > kind.max_inputs {
+        if s.inputs.len() > kind.max_inputs() {
             return Err(cerr(
                 file,
                 &s.inputs[0].origin,
@@ -200,7 +226,7 @@ pub fn validate(decl: &PipelineDecl, registry: &'static [KindSpec]) -> Result<Gr
                 format!(
                     "a `{}` stage takes at most {} input(s), got {}",
                     kind.name,
-                    kind.max_inputs,
+                    kind.max_inputs(),
                     s.inputs.len()
                 ),
             ));
@@ -216,7 +242,7 @@ pub fn validate(decl: &PipelineDecl, registry: &'static [KindSpec]) -> Result<Gr
                     format!("unknown input id `{}`", inp.from),
                 )
             })?;
-            if kinds[j].output == Output::None {
+            if kinds[j].output() == Output::None {
                 return Err(cerr(
                     file,
                     &inp.origin,
@@ -264,15 +290,16 @@ pub fn validate(decl: &PipelineDecl, registry: &'static [KindSpec]) -> Result<Gr
                     format!("`{}` has no output", inp.from),
                 ));
             };
-            if !kind.accepts.contains(&t) {
-                let acc: Vec<String> = kind.accepts.iter().map(|t| t.to_string()).collect();
+            if !kind.accepts().contains(&t) {
+                let acc: Vec<String> = kind.accepts().iter().map(|t| t.to_string()).collect();
+                let port = kind.inputs.first().map_or("in", |p| p.name);
                 return Err(cerr(
                     file,
                     &inp.origin,
                     &s.id,
                     Some("input"),
                     format!(
-                        "`{}` gives {t}, but a `{}` stage takes {}",
+                        "`{}` gives {t}, but a `{}` stage takes {} on its port `{port}`",
                         inp.from,
                         kind.name,
                         acc.join(" or ")
@@ -288,12 +315,12 @@ pub fn validate(decl: &PipelineDecl, registry: &'static [KindSpec]) -> Result<Gr
                 port_type: t,
             });
         }
-        out_type[i] = match kind.output {
+        out_type[i] = match kind.output() {
             Output::None => None,
             Output::Fixed(t) => Some(t),
             Output::SameAsInput => inputs.first().map(|r| r.port_type),
         };
-        if kind.output == Output::SameAsInput
+        if kind.output() == Output::SameAsInput
             && inputs.iter().any(|r| Some(r.port_type) != out_type[i])
         {
             return Err(cerr(

@@ -62,13 +62,46 @@ pub struct SampleBlock {
     pub times_ns: Option<Arc<[i64]>>,
 }
 
-/// A power spectrum: `power[k]` at `f0_hz + k * resolution_hz`.
+/// The taper a spectrum's segments were multiplied by: it decides how one
+/// spectral line looks, so it travels with the spectrum (see
+/// `stages::transform::spectrum` for its coefficients and power kernel).
+#[derive(serde::Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+pub enum Taper {
+    Hann,
+    Hamming,
+    Blackman,
+    Rect,
+}
+
+impl Taper {
+    pub fn name(self) -> &'static str {
+        match self {
+            Taper::Hann => "hann",
+            Taper::Hamming => "hamming",
+            Taper::Blackman => "blackman",
+            Taper::Rect => "rect",
+        }
+    }
+}
+
+/// A power spectrum: `power[k]` at `f0_hz + k * resolution_hz`, a one-sided
+/// density in input units² per Hz. The facts of its analysis travel with it,
+/// so that downstream stages read them here rather than restating them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Spectrum {
     /// Time of the centre of the analysed window.
     pub t_ns: i64,
     pub f0_hz: f64,
     pub resolution_hz: f64,
+    /// Sample rate of the analysed signal, Hz.
+    pub rate_hz: f64,
+    /// Segment length in samples (the FFT size).
+    pub window: usize,
+    /// The taper applied to each segment.
+    pub taper: Taper,
+    /// Segments averaged into this spectrum (Welch).
+    pub segments: usize,
     pub power: Arc<[f32]>,
 }
 

@@ -9,6 +9,7 @@ pub mod item;
 pub mod latency;
 pub mod notify;
 pub mod runner;
+pub mod spec;
 pub mod stage;
 
 pub mod pipelines;
@@ -20,7 +21,10 @@ pub use frame::{
     Frame, FrameFormat, FrameMeta, FrameMut, FramePool, PixelsMut, PixelsRef, RowTiming,
 };
 pub use graph::{BuildCtx, Graph, KindSpec, Output, Plan};
-pub use item::{AudioBlock, Item, PortType, PyramidData, PyramidFrame, SampleBlock, Spectrum};
+pub use item::{
+    AudioBlock, Item, PortType, PyramidData, PyramidFrame, SampleBlock, Spectrum, Taper,
+};
 pub use latency::{LatencyHist, LatencySummary};
 pub use runner::{error_chain, run, RunError, RunOptions, RunReport, StageReport};
+pub use spec::{Def, InPort, OutPort, OutType, ParamSpec, ParamType, Range, NO_INPUTS, NO_OUTPUTS};
 pub use stage::{Control, EmitError, Emitter, Node, Source, SourceCtx, Stage, StageError};

@@ -60,3 +60,29 @@ pub fn description(s: &Shipped) -> String {
         .map(|d| d.description)
         .unwrap_or_default()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every file under `pipelines/` parses and validates (kinds, declared
+    /// parameters, ports) against the registry.
+    #[test]
+    fn shipped_pipelines_validate() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../pipelines");
+        let files: Vec<_> = std::fs::read_dir(dir)
+            .map(|d| d.filter_map(Result::ok).collect())
+            .unwrap_or_default();
+        assert_eq!(
+            files.len(),
+            SHIPPED.len(),
+            "a file in pipelines/ is not shipped"
+        );
+        for s in SHIPPED {
+            let decl = crate::config::parse(s.name, s.text).unwrap_or_else(|e| panic!("{e}"));
+            if let Err(e) = crate::graph::validate(&decl, crate::stages::REGISTRY) {
+                panic!("{e}");
+            }
+        }
+    }
+}

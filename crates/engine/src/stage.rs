@@ -4,6 +4,7 @@
 use super::edge::{EdgeTx, Sent};
 use super::frame::{FrameMut, FramePool};
 use super::item::Item;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
@@ -54,10 +55,46 @@ impl Control {
 /// Errors a stage reports at run time. The runner adds the stage id.
 #[derive(Debug, thiserror::Error)]
 pub enum StageError {
+    /// A recording could not be opened or read.
     #[error(transparent)]
     Video(#[from] vibroscope_io::VideoError),
+    /// I/O on a named file.
+    #[error("cannot {op} {}: {source}", path.display())]
+    File {
+        /// What was being done: "create", "write", "read".
+        op: &'static str,
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// I/O on an unnamed stream (standard output, say).
     #[error("{0}")]
     Io(#[from] std::io::Error),
+    /// A setting that proves wrong only once the stream is known (a
+    /// region larger than the frame, a frequency above Nyquist): the field
+    /// to change is named.
+    #[error("{field}: {message}")]
+    Config {
+        field: &'static str,
+        message: String,
+    },
+    /// The stream does not suit the stage: the wrong payload, an unusable
+    /// size, rate or pixel format, or one that changed mid-stream.
+    #[error("{0}")]
+    Format(String),
+    /// Signal processing failed (a filter or resampler that cannot be
+    /// designed for this rate, a pyramid, too little data).
+    #[error("{0}")]
+    Dsp(String),
+    /// A capture or playback device (camera, sound card), with what to do
+    /// about it when there is something.
+    #[error("{device}: {message}{}", hint.as_ref().map(|h| format!(" ({h})")).unwrap_or_default())]
+    Device {
+        device: String,
+        message: String,
+        hint: Option<String>,
+    },
+    /// Anything else (a thread that cannot start, a broken invariant).
     #[error("{0}")]
     Msg(String),
 }
@@ -65,6 +102,51 @@ pub enum StageError {
 impl StageError {
     pub fn msg(s: impl Into<String>) -> Self {
         StageError::Msg(s.into())
+    }
+    /// I/O on `path` failed while doing `op` ("create", "write", "read").
+    pub fn file(op: &'static str, path: &Path, source: std::io::Error) -> Self {
+        StageError::File {
+            op,
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+    pub fn config(field: &'static str, message: impl Into<String>) -> Self {
+        StageError::Config {
+            field,
+            message: message.into(),
+        }
+    }
+    pub fn format(message: impl Into<String>) -> Self {
+        StageError::Format(message.into())
+    }
+    /// The item on an input is not of the payload the stage takes (the
+    /// validator rules this out; a custom registry might not).
+    pub fn expected(what: &str) -> Self {
+        StageError::Format(format!("expected {what}"))
+    }
+    pub fn dsp(message: impl Into<String>) -> Self {
+        StageError::Dsp(message.into())
+    }
+    pub fn device(device: impl Into<String>, message: impl Into<String>) -> Self {
+        StageError::Device {
+            device: device.into(),
+            message: message.into(),
+            hint: None,
+        }
+    }
+    /// Adds what to do about a device error.
+    pub fn with_hint(self, h: impl Into<String>) -> Self {
+        match self {
+            StageError::Device {
+                device, message, ..
+            } => StageError::Device {
+                device,
+                message,
+                hint: Some(h.into()),
+            },
+            other => other,
+        }
     }
 }
 

@@ -78,8 +78,8 @@ enum Command {
     },
     /// List the shipped pipelines.
     Pipelines,
-    /// List the stage kinds a pipeline can use.
-    Kinds,
+    /// List the stage kinds a pipeline can use; with KIND, its ports and parameters.
+    Kinds { kind: Option<String> },
     /// Describe a video file: format, size, bit depth, frames, frame rate, timestamps.
     Probe {
         file: PathBuf,
@@ -323,16 +323,11 @@ fn dispatch(cmd: Command) -> anyhow::Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        Command::Kinds => {
-            for k in REGISTRY {
-                let role = if k.is_source() {
-                    "source"
-                } else if k.output == engine::Output::None {
-                    "sink"
-                } else {
-                    "stage"
-                };
-                println!("{:<16} {:<7} {}", k.name, role, k.summary);
+        Command::Kinds { kind } => {
+            match kind.map(|k| stages::kind(&k).map(|s| s.describe()).ok_or(k)) {
+                None => print!("{}", engine::spec::listing(REGISTRY)),
+                Some(Ok(table)) => print!("{table}"),
+                Some(Err(k)) => Err(cfg_error("kinds", format!("unknown kind `{k}`")))?,
             }
             Ok(ExitCode::SUCCESS)
         }

@@ -17,14 +17,21 @@ struct P {
     path: PathBuf,
 }
 
+const PARAMS: &[ParamSpec] =
+    &[ParamSpec::new("path", ParamType::Path, Def::Required).doc("the CSV file")];
+
 pub const KIND: KindSpec = KindSpec {
     name: "csv",
     summary: "writes audio, samples or spectra as CSV rows",
-    accepts: &[PortType::Audio, PortType::Samples, PortType::Spectrum],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[
+        PortType::Audio,
+        PortType::Samples,
+        PortType::Spectrum,
+    ])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
+        let v: P = p.resolve(PARAMS)?;
         Ok(Box::new(Csv {
             path: v.path,
             out: None,
@@ -100,13 +107,13 @@ impl Stage for Csv {
             self.out = Some(BufWriter::new(super::create(&self.path)?));
         }
         self.write_rows(&item, header)
-            .map_err(|e| StageError::msg(format!("{}: {e}", self.path.display())))
+            .map_err(|e| StageError::file("write", &self.path, e))
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
         if let Some(mut o) = self.out.take() {
             o.flush()
-                .map_err(|e| StageError::msg(format!("{}: {e}", self.path.display())))?;
+                .map_err(|e| StageError::file("write", &self.path, e))?;
         }
         Ok(())
     }

@@ -15,14 +15,21 @@ struct P {
     path: PathBuf,
 }
 
+const PARAMS: &[ParamSpec] = &[ParamSpec::new("path", ParamType::Path, Def::Required)
+    .doc("the JSON file (written atomically at the end)")];
+
 pub const KIND: KindSpec = KindSpec {
     name: "json",
     summary: "writes audio, samples or spectra as one JSON document at the end",
-    accepts: &[PortType::Audio, PortType::Samples, PortType::Spectrum],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[
+        PortType::Audio,
+        PortType::Samples,
+        PortType::Spectrum,
+    ])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
+        let v: P = p.resolve(PARAMS)?;
         Ok(Box::new(Json {
             path: v.path,
             rate: None,
@@ -87,7 +94,7 @@ impl Stage for Json {
             })
         };
         let text = serde_json::to_vec_pretty(&doc)
-            .map_err(|e| StageError::msg(format!("{}: {e}", self.path.display())))?;
+            .map_err(|e| StageError::file("write", &self.path, e.into()))?;
         super::write_atomic(&self.path, &text)
     }
 }

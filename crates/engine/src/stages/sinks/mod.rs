@@ -13,11 +13,11 @@ use std::path::Path;
 
 /// Creates `path` (and reports which file could not be created).
 pub fn create(path: &Path) -> Result<std::fs::File, StageError> {
-    std::fs::File::create(path)
-        .map_err(|e| StageError::msg(format!("cannot create {}: {e}", path.display())))
+    std::fs::File::create(path).map_err(|e| StageError::file("create", path, e))
 }
 
 /// Writes a whole file atomically (see [`vibroscope_io::atomic::write_atomic`]).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), StageError> {
-    vibroscope_io::atomic::write_atomic(path, bytes).map_err(|e| StageError::msg(e.to_string()))
+    vibroscope_io::atomic::write_atomic(path, bytes)
+        .map_err(|e| StageError::file("write", path, e.source))
 }

@@ -35,62 +35,59 @@ struct P {
     path: PathBuf,
     npy: Option<PathBuf>,
     roi: Option<RoiParam>,
-    #[serde(default = "d_sigma")]
     sigma_px: f64,
-    #[serde(default = "d_motion")]
     motion: Motion,
-    #[serde(default = "d_scale")]
     scale: usize,
-    #[serde(default = "d_exponent")]
     exponent: f64,
-    #[serde(default = "d_normalize")]
     normalize: bool,
-}
-fn d_sigma() -> f64 {
-    DEFAULT_SIGMA_PX
-}
-fn d_motion() -> Motion {
-    Motion::Sum
-}
-fn d_scale() -> usize {
-    1
-}
-fn d_exponent() -> f64 {
-    1.0
-}
-fn d_normalize() -> bool {
-    true
 }
 
 /// Default σ_b, input pixels.
 pub const DEFAULT_SIGMA_PX: f64 = 2.0;
 
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("freq_hz", ParamType::Float, Def::Required)
+        .above(0.0)
+        .unit("Hz")
+        .doc("frequency of the mode imaged"),
+    ParamSpec::new("path", ParamType::Path, Def::Required)
+        .doc("the PNG (phase as hue, amplitude as brightness)"),
+    ParamSpec::new("npy", ParamType::Path, Def::Optional)
+        .doc("also write the complex image as .npy (complex64, pixels of motion)"),
+    crate::stages::transform::reduce::ROI,
+    ParamSpec::new("sigma_px", ParamType::Float, Def::Float(DEFAULT_SIGMA_PX))
+        .floats(0.0, 1000.0)
+        .unit("px")
+        .doc("σ_b of the Gaussian blur, input pixels"),
+    ParamSpec::new(
+        "motion",
+        ParamType::Choice(&["x", "y", "sum"]),
+        Def::Str("sum"),
+    )
+    .doc("motion component imaged"),
+    ParamSpec::new("scale", ParamType::Int, Def::Int(1))
+        .ints(0, 6)
+        .doc("pyramid scale (0 = finest, 4 px wavelength)"),
+    ParamSpec::new("exponent", ParamType::Float, Def::Float(1.0))
+        .range(Range::Float {
+            lo: 0.0,
+            lo_open: true,
+            hi: 100.0,
+            hi_open: false,
+        })
+        .doc("brightness = amplitude^exponent (after min-max)"),
+    ParamSpec::new("normalize", ParamType::Bool, Def::Bool(true))
+        .doc("divide by the blurred weights (ch. 3.5.2)"),
+];
+
 pub const KIND: KindSpec = KindSpec {
     name: "modes",
     summary: "modal image at freq_hz (Eq. 3.18-3.19): A²-weighted, blurred and normalised spectral-volume slice, as PNG (phase = hue) and .npy",
-    accepts: &[PortType::Frames],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[PortType::Frames])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if !(v.freq_hz.is_finite() && v.freq_hz > 0.0) {
-            return Err(p.error("freq_hz", format!("must be > 0 Hz, got {}", v.freq_hz)));
-        }
-        if !(v.sigma_px.is_finite() && (0.0..=1000.0).contains(&v.sigma_px)) {
-            return Err(p.error(
-                "sigma_px",
-                format!("must be 0..=1000 pixels, got {}", v.sigma_px),
-            ));
-        }
-        if v.scale > 6 {
-            return Err(p.error("scale", format!("must be 0..=6, got {}", v.scale)));
-        }
-        if !(v.exponent.is_finite() && v.exponent > 0.0 && v.exponent <= 100.0) {
-            return Err(p.error(
-                "exponent",
-                format!("must be in (0, 100], got {}", v.exponent),
-            ));
-        }
+        let v: P = p.resolve(PARAMS)?;
         if let Some(r) = &v.roi {
             r.check().map_err(|m| p.error("roi", m))?;
         }
@@ -119,15 +116,21 @@ struct Modes {
 }
 
 impl Modes {
+    /// The modal imager failed.
     fn err(&self, m: impl std::fmt::Display) -> StageError {
-        StageError::msg(format!("{}: {m}", self.p.path.display()))
+        StageError::dsp(format!("{}: {m}", self.p.path.display()))
+    }
+
+    /// The image could not be encoded or written.
+    fn write_err(&self, m: impl std::fmt::Display) -> StageError {
+        StageError::file("write", &self.p.path, std::io::Error::other(m.to_string()))
     }
 
     fn start(&mut self, f: &Frame) -> Result<(), StageError> {
         let fps = f.format().fps;
         if fps > 0.0 && self.p.freq_hz >= fps / 2.0 {
-            return Err(StageError::msg(format!(
-                "freq_hz {} Hz is not below the Nyquist frequency {} Hz of {} fps frames (pass the capture rate with --fps)",
+            return Err(StageError::config("freq_hz", format!(
+                "{} Hz is not below the Nyquist frequency {} Hz of {} fps frames (pass the capture rate with --fps)",
                 self.p.freq_hz,
                 fps / 2.0,
                 fps
@@ -162,7 +165,7 @@ impl Stage for Modes {
         };
         let w = f.width();
         if f.height() < roi.y + roi.h || w < roi.x + roi.w {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "frame size changed to {}x{} mid-stream",
                 w,
                 f.height()
@@ -183,13 +186,15 @@ impl Stage for Modes {
                 }
             }
         }
-        im.push(&self.buf, f.meta().t_ns)
-            .map_err(|e| StageError::msg(format!("{}: {e}", self.p.path.display())))
+        im.push(&self.buf, f.meta().t_ns).map_err(|e| self.err(e))
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
         let Some(im) = &self.imager else {
-            return Err(self.err("no frame arrived"));
+            return Err(StageError::format(format!(
+                "{}: no frame arrived",
+                self.p.path.display()
+            )));
         };
         let img = im.finish().map_err(|e| self.err(e))?;
         let rgb = render_rgb(
@@ -206,7 +211,7 @@ impl Stage for Modes {
                 img.height as u32,
                 image::ExtendedColorType::Rgb8,
             )
-            .map_err(|e| self.err(e))?;
+            .map_err(|e| self.write_err(e))?;
         super::write_atomic(&self.p.path, &png)?;
         if let Some(npy) = &self.p.npy {
             super::write_atomic(npy, &npy_complex64(&img.data, img.width, img.height))?;

@@ -7,20 +7,26 @@ use serde::Deserialize;
 #[serde(deny_unknown_fields)]
 struct P {}
 
+const ANY: &[PortType] = &[
+    PortType::Frames,
+    PortType::Samples,
+    PortType::Audio,
+    PortType::Spectrum,
+    PortType::Pyramid,
+];
+
 pub const KIND: KindSpec = KindSpec {
     name: "null",
     summary: "discards everything it receives (benchmarks)",
-    accepts: &[
-        PortType::Frames,
-        PortType::Samples,
-        PortType::Audio,
-        PortType::Spectrum,
-        PortType::Pyramid,
-    ],
-    max_inputs: 16,
-    output: Output::None,
+    inputs: &[InPort {
+        name: "in",
+        accepts: ANY,
+        max_edges: 16,
+    }],
+    outputs: NO_OUTPUTS,
+    params: &[],
     plan: |p| {
-        let _: P = p.parse()?;
+        let _: P = p.resolve(KIND.params)?;
         Ok(Box::new(Null))
     },
 };

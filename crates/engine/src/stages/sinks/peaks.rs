@@ -2,7 +2,9 @@
 //! the end (atomically). The spectra that arrive are averaged (one from
 //! `spectrum` in `mode = "whole"`; from a sliding `spectrum`, the mean over
 //! the run), then peaks are picked by prominence and their damping estimated
-//! ([`vibroscope_math::peaks`]).
+//! ([`vibroscope_math::peaks`]). Each line is fitted as seen through the
+//! spectral window of the taper the spectrum carries ([`Spectrum::taper`]),
+//! so the taper is not restated here.
 //!
 //! ```json
 //! {"sample_rate_hz": 600.0, "resolution_hz": 0.29, "spectra_averaged": 1,
@@ -15,97 +17,73 @@
 //! `include_spectrum = true` adds `"spectrum": {"f0_hz", "resolution_hz",
 //! "power_db": [...]}`.
 
-use crate::stages::transform::spectrum::Taper;
 use crate::*;
 use serde::Deserialize;
 use std::path::PathBuf;
+use std::sync::Arc;
 use vibroscope_math::peaks::{find_peaks, PeakOptions};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
     path: PathBuf,
-    #[serde(default = "d_peaks")]
     peaks: usize,
-    #[serde(default = "d_prom")]
     min_prominence_db: f64,
     min_hz: Option<f64>,
     max_hz: Option<f64>,
-    #[serde(default)]
     include_spectrum: bool,
-    /// The taper the spectrum was computed with: the fit sees each line
-    /// through its spectral window (`"none"` fits the bare Lorentzian).
-    #[serde(default = "d_taper")]
-    taper: String,
-}
-fn d_taper() -> String {
-    "hann".into()
 }
 
-pub(crate) fn taper_of(name: &str) -> Option<Option<Taper>> {
-    Some(match name {
-        "hann" => Some(Taper::Hann),
-        "hamming" => Some(Taper::Hamming),
-        "blackman" => Some(Taper::Blackman),
-        "rect" => Some(Taper::Rect),
-        "none" => None,
-        _ => return None,
-    })
-}
-fn d_peaks() -> usize {
-    5
-}
-fn d_prom() -> f64 {
-    6.0
-}
+/// `min_hz` and `max_hz`, shared with `spectrum_png`.
+pub(crate) const MIN_HZ: ParamSpec = ParamSpec::new("min_hz", ParamType::Float, Def::Optional)
+    .at_least(0.0)
+    .unit("Hz")
+    .doc("lower edge of the band searched; default: the first bin");
+pub(crate) const MAX_HZ: ParamSpec = ParamSpec::new("max_hz", ParamType::Float, Def::Optional)
+    .at_least(0.0)
+    .unit("Hz")
+    .doc("upper edge of the band searched (> min_hz); default: Nyquist");
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("path", ParamType::Path, Def::Required)
+        .doc("the JSON file (written atomically at the end)"),
+    ParamSpec::new("peaks", ParamType::Int, Def::Int(5))
+        .ints(1, 1000)
+        .doc("most prominent peaks reported"),
+    ParamSpec::new("min_prominence_db", ParamType::Float, Def::Float(6.0))
+        .at_least(0.0)
+        .unit("dB")
+        .doc("a peak must stand this far above its surroundings"),
+    MIN_HZ,
+    MAX_HZ,
+    ParamSpec::new("include_spectrum", ParamType::Bool, Def::Bool(false))
+        .doc("add the mean spectrum (dB) to the JSON"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "peaks",
     summary: "picks resonances (prominence) of the mean spectrum, with damping and uncertainties, as JSON at the end",
-    accepts: &[PortType::Spectrum],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[PortType::Spectrum])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if !(1..=1000).contains(&v.peaks) {
-            return Err(p.error("peaks", format!("must be 1..=1000, got {}", v.peaks)));
-        }
-        if !(v.min_prominence_db.is_finite() && v.min_prominence_db >= 0.0) {
-            return Err(p.error(
-                "min_prominence_db",
-                format!("must be >= 0 dB, got {}", v.min_prominence_db),
-            ));
-        }
-        check_band_taper(p, v.min_hz, v.max_hz, &v.taper)?;
+        let v: P = p.resolve(PARAMS)?;
+        check_band(p, v.min_hz, v.max_hz)?;
         Ok(Box::new(PeaksPlan(v)))
     },
 };
 
-/// Checks the band (`min_hz`, `max_hz`) and `taper` fields, which
-/// `peaks` and `spectrum_png` share.
-pub(crate) fn check_band_taper(
+/// Checks that the band (`min_hz`, `max_hz`), which `peaks` and
+/// `spectrum_png` share, is not empty.
+pub(crate) fn check_band(
     p: &Params<'_>,
     min_hz: Option<f64>,
     max_hz: Option<f64>,
-    taper: &str,
 ) -> Result<(), ConfigError> {
-    for (name, f) in [("min_hz", min_hz), ("max_hz", max_hz)] {
-        if let Some(f) = f {
-            if !(f.is_finite() && f >= 0.0) {
-                return Err(p.error(name, format!("must be >= 0 Hz, got {f}")));
-            }
-        }
-    }
     if let (Some(a), Some(b)) = (min_hz, max_hz) {
         if a >= b {
             return Err(p.error("max_hz", format!("must exceed min_hz ({a}), got {b}")));
         }
-    }
-    if taper_of(taper).is_none() {
-        return Err(p.error(
-            "taper",
-            format!("must be hann, hamming, blackman, rect or none, got `{taper}`"),
-        ));
     }
     Ok(())
 }
@@ -120,6 +98,7 @@ impl Plan for PeaksPlan {
             count: 0,
             f0: 0.0,
             df: 0.0,
+            last: None,
         })))
     }
 }
@@ -130,6 +109,8 @@ struct Peaks {
     count: usize,
     f0: f64,
     df: f64,
+    /// The facts of the last spectrum (taper, window, rate).
+    last: Option<Spectrum>,
 }
 
 impl Stage for Peaks {
@@ -148,27 +129,28 @@ impl Stage for Peaks {
             *a += p as f64;
         }
         self.count += 1;
+        self.last = Some(Spectrum {
+            power: Arc::from([]),
+            ..s
+        });
         Ok(())
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
-        if self.count == 0 {
-            return Err(StageError::msg(format!(
+        let Some(last) = self.last.as_ref().filter(|_| self.count > 0) else {
+            return Err(StageError::dsp(format!(
                 "{}: no spectrum arrived (is the recording shorter than one window?)",
                 self.p.path.display()
             )));
-        }
+        };
         let mean: Vec<f64> = self.sum.iter().map(|s| s / self.count as f64).collect();
         let opts = PeakOptions {
             max_peaks: self.p.peaks,
             min_prominence_db: self.p.min_prominence_db,
             min_hz: self.p.min_hz,
             max_hz: self.p.max_hz,
-            // One-sided spectrum of an even-length segment: n = 2 (bins - 1).
-            window_kernel: match taper_of(&self.p.taper).flatten() {
-                Some(t) => t.power_kernel(2 * (mean.len() - 1), 4),
-                None => Vec::new(),
-            },
+            // The fit sees each line through the taper's spectral window.
+            window_kernel: last.taper.power_kernel(last.window, 4),
         };
         let peaks = find_peaks(&mean, self.f0, self.df, &opts);
         for pk in &peaks {
@@ -179,10 +161,9 @@ impl Stage for Peaks {
                 "peak"
             );
         }
-        // One-sided spectrum of an even-length window: fs = 2 (bins - 1) df.
-        let rate = 2.0 * (mean.len().saturating_sub(1)) as f64 * self.df;
         let mut doc = serde_json::json!({
-            "sample_rate_hz": rate,
+            "sample_rate_hz": last.rate_hz,
+            "taper": last.taper.name(),
             "resolution_hz": self.df,
             "spectra_averaged": self.count,
             "peaks": peaks,
@@ -199,7 +180,7 @@ impl Stage for Peaks {
             });
         }
         let text = serde_json::to_vec_pretty(&doc)
-            .map_err(|e| StageError::msg(format!("{}: {e}", self.p.path.display())))?;
+            .map_err(|e| StageError::file("write", &self.p.path, e.into()))?;
         super::write_atomic(&self.p.path, &text)
     }
 }

@@ -41,70 +41,54 @@ enum Gain {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    /// "default", "null", or part of a device's name or id.
-    #[serde(default = "d_device")]
     device: String,
-    /// Device sample rate; default: the device's own default.
     rate_hz: Option<u32>,
-    /// "auto" or a fixed factor.
-    #[serde(default = "d_gain")]
     gain: Gain,
-    /// Audio kept queued for the device in live runs.
-    #[serde(default = "d_latency")]
     latency_ms: f64,
 }
-fn d_device() -> String {
-    "default".into()
-}
-fn d_gain() -> Gain {
-    Gain::Named("auto".into())
-}
-fn d_latency() -> f64 {
-    40.0
-}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("device", ParamType::Str, Def::Str("default"))
+        .doc("\"default\", \"null\" (no sound card), or part of a device's name or id"),
+    ParamSpec::new("rate_hz", ParamType::Int, Def::Optional)
+        .ints(4000, 384_000)
+        .unit("Hz")
+        .doc("device sample rate; default: the device's own"),
+    ParamSpec::new("gain", ParamType::NumOr(&["auto"]), Def::Str("auto"))
+        .above(0.0)
+        .doc("\"auto\" (peak-following envelope to -6 dBFS) or a fixed factor"),
+    ParamSpec::new("latency_ms", ParamType::Float, Def::Float(40.0))
+        .floats(5.0, 2000.0)
+        .unit("ms")
+        .doc("audio kept queued for the device in live runs"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "speaker",
     summary: "plays audio on a sound card (cpal), resampled to the device rate; `device = \"null\"` for none",
-    accepts: &[PortType::Audio],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[PortType::Audio])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        match &v.gain {
-            Gain::Fixed(g) if !g.is_finite() || *g <= 0.0 => {
-                return Err(p.error("gain", format!("must be \"auto\" or a number > 0, got {g}")))
-            }
-            Gain::Named(s) if s != "auto" => {
-                return Err(p.error("gain", format!("must be \"auto\" or a number > 0, got \"{s}\"")))
-            }
-            _ => {}
-        }
-        if !(v.latency_ms.is_finite() && (5.0..=2000.0).contains(&v.latency_ms)) {
-            return Err(p.error(
-                "latency_ms",
-                format!("must be 5..=2000 ms, got {}", v.latency_ms),
-            ));
-        }
-        if let Some(r) = v.rate_hz {
-            if !(4000..=384_000).contains(&r) {
-                return Err(p.error("rate_hz", format!("must be 4000..=384000 Hz, got {r}")));
-            }
-        }
+        let v: P = p.resolve(PARAMS)?;
         if v.device.trim().is_empty() {
             return Err(p.error("device", "must not be empty (use \"default\")"));
         }
-        Ok(Box::new(SpeakerPlan(v)))
+        Ok(Box::new(SpeakerPlan(v, p.stage.id.clone())))
     },
 };
 
-struct SpeakerPlan(P);
+struct SpeakerPlan(P, String);
 
 impl Plan for SpeakerPlan {
     fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
-        let p = self.0;
+        let (p, id) = (self.0, self.1);
         let shared = Arc::new(Shared::default());
-        let out = Device::open(&p.device, p.rate_hz, Arc::clone(&shared))?;
+        let out = Device::open(&p.device, p.rate_hz, Arc::clone(&shared)).map_err(|e| {
+            e.with_hint(format!(
+                "to run without a sound card: --set {id}.device=null, or device = \"null\""
+            ))
+        })?;
         let gain = match p.gain {
             Gain::Fixed(g) => Agc::fixed(g as f32),
             Gain::Named(_) => Agc::auto(out.rate),
@@ -148,11 +132,16 @@ struct Device {
 const RING_S: f64 = 2.0;
 
 impl Device {
+    /// Opens `device` ("null" for the virtual one) on its own thread and
+    /// starts it; a device that cannot be opened is an error here, before
+    /// the run starts. ALSA's own diagnostics, which it prints on standard
+    /// error while probing devices, are silenced: the error says what failed.
     fn open(device: &str, rate: Option<u32>, shared: Arc<Shared>) -> Result<Device, StageError> {
-        let (ready_tx, ready_rx) = crossbeam_channel::bounded::<Result<(u32, String), String>>(1);
+        type Ready = Result<(u32, String, HeapProd<f32>), String>;
+        let (ready_tx, ready_rx) = crossbeam_channel::bounded::<Ready>(1);
         let (stop_tx, stop_rx) = crossbeam_channel::bounded::<()>(1);
-        let (cons_tx, cons_rx) = crossbeam_channel::bounded::<HeapCons<f32>>(1);
         let dev = device.to_string();
+        let ring = |rate: u32| HeapRb::<f32>::new((rate as f64 * RING_S) as usize).split();
         // cpal streams are not `Send` on every platform: one thread opens,
         // owns and closes the stream.
         let thread = std::thread::Builder::new()
@@ -160,43 +149,46 @@ impl Device {
             .spawn(move || {
                 if dev == "null" {
                     let rate = rate.unwrap_or(48_000);
-                    let _ = ready_tx.send(Ok((rate, "null (virtual, discards audio)".into())));
-                    if let Ok(cons) = cons_rx.recv() {
-                        null_device(cons, rate, 1, &shared, &stop_rx);
-                    }
+                    let (prod, cons) = ring(rate);
+                    let name = "null (virtual, discards audio)".to_string();
+                    let _ = ready_tx.send(Ok((rate, name, prod)));
+                    null_device(cons, rate, 1, &shared, &stop_rx);
                     return;
                 }
-                match cpal_device::open(&dev, rate) {
+                let started = quiet_stderr(|| {
+                    let d = cpal_device::open(&dev, rate)?;
+                    let (prod, cons) = ring(d.rate);
+                    let (rate, name) = (d.rate, d.name.clone());
+                    let stream = d.start(cons, &shared)?;
+                    Ok::<_, String>((rate, name, prod, stream))
+                });
+                match started {
                     Err(e) => {
                         let _ = ready_tx.send(Err(e));
                     }
-                    Ok(d) => {
-                        let _ = ready_tx.send(Ok((d.rate, d.name.clone())));
-                        if let Ok(cons) = cons_rx.recv() {
-                            if let Err(e) = d.play(cons, &shared, &stop_rx) {
-                                tracing::error!("speaker: {e}");
-                            }
-                        }
+                    Ok((rate, name, prod, stream)) => {
+                        let _ = ready_tx.send(Ok((rate, name, prod)));
+                        let _ = stop_rx.recv();
+                        drop(stream);
                     }
                 }
             })
             .map_err(|e| StageError::msg(format!("cannot start the audio thread: {e}")))?;
-        let (rate, name) = match ready_rx.recv() {
+        let who = format!("audio device \"{device}\"");
+        let (rate, name, prod) = match ready_rx.recv() {
             Ok(Ok(v)) => v,
             Ok(Err(e)) => {
                 let _ = thread.join();
-                return Err(StageError::msg(e));
+                return Err(StageError::device(who, e));
             }
             Err(_) => {
                 let _ = thread.join();
-                return Err(StageError::msg(
-                    "the audio thread ended before opening a device",
+                return Err(StageError::device(
+                    who,
+                    "the audio thread ended before opening the device",
                 ));
             }
         };
-        let ring = HeapRb::<f32>::new((rate as f64 * RING_S) as usize);
-        let (prod, cons) = ring.split();
-        let _ = cons_tx.send(cons);
         tracing::info!(device = %name, rate, "speaker opened");
         Ok(Device {
             rate,
@@ -254,6 +246,46 @@ fn fill<T: Copy>(
     }
 }
 
+/// Runs `f` with standard error sent to /dev/null: ALSA prints a line on
+/// stderr for every PCM it fails to probe ("unable to open slave", "Unknown
+/// PCM cards.pcm.rear", ...), which would bury the one error that matters.
+/// Only the device thread runs meanwhile (the runner is waiting for it).
+#[cfg(target_os = "linux")]
+fn quiet_stderr<T>(f: impl FnOnce() -> T) -> T {
+    use std::io::Write;
+    let _ = std::io::stderr().flush();
+    // SAFETY: plain descriptor calls on descriptors this function opens and
+    // closes itself; descriptor 2 is restored before returning.
+    let saved = unsafe { libc::dup(2) };
+    if saved < 0 {
+        return f();
+    }
+    // SAFETY: as above; the path is a NUL-terminated C string.
+    let null = unsafe { libc::open(c"/dev/null".as_ptr(), libc::O_WRONLY | libc::O_CLOEXEC) };
+    if null < 0 {
+        // SAFETY: `saved` is ours.
+        unsafe { libc::close(saved) };
+        return f();
+    }
+    // SAFETY: both descriptors are valid and ours.
+    unsafe {
+        libc::dup2(null, 2);
+        libc::close(null);
+    }
+    let r = f();
+    // SAFETY: `saved` is a valid descriptor we own.
+    unsafe {
+        libc::dup2(saved, 2);
+        libc::close(saved);
+    }
+    r
+}
+
+#[cfg(not(target_os = "linux"))]
+fn quiet_stderr<T>(f: impl FnOnce() -> T) -> T {
+    f()
+}
+
 /// The virtual device: drains `rate` samples per second of wall clock, in
 /// 5 ms periods, like a sound card's callback.
 fn null_device(
@@ -305,12 +337,8 @@ mod cpal_device {
         let host = cpal::default_host();
         let hostname = format!("{:?}", host.id());
         let device = if want == "default" {
-            host.default_output_device().ok_or_else(|| {
-                format!(
-                    "no audio output device found (cpal host {hostname}); \
-                     use device = \"null\" to run without a sound card"
-                )
-            })?
+            host.default_output_device()
+                .ok_or_else(|| format!("no audio output device found (cpal host {hostname})"))?
         } else {
             let devices: Vec<cpal::Device> = host
                 .output_devices()
@@ -370,13 +398,12 @@ mod cpal_device {
     }
 
     impl Opened {
-        /// Plays until `stop` fires or is dropped.
-        pub fn play(
+        /// Starts playing from `cons`; the stream plays until dropped.
+        pub fn start(
             self,
             mut cons: HeapCons<f32>,
             shared: &std::sync::Arc<Shared>,
-            stop: &crossbeam_channel::Receiver<()>,
-        ) -> Result<(), String> {
+        ) -> Result<cpal::Stream, String> {
             let channels = self.config.channels() as usize;
             let fmt = self.config.sample_format();
             let config: cpal::StreamConfig = self.config.into();
@@ -433,8 +460,7 @@ mod cpal_device {
             stream
                 .play()
                 .map_err(|e| format!("audio device {}: cannot start: {e}", self.name))?;
-            let _ = stop.recv();
-            Ok(())
+            Ok(stream)
         }
     }
 }
@@ -628,9 +654,9 @@ impl Speaker {
         } else {
             feed.push(x, &mut deliver)
         };
-        r.map_err(StageError::msg)?;
+        r.map_err(StageError::dsp)?;
         if let Some(e) = err {
-            return Err(StageError::msg(format!("{}: {e}", out.name)));
+            return Err(StageError::device(&out.name, e));
         }
         if discarded > 0 {
             tracing::debug!(discarded, "speaker: ring full, audio discarded");
@@ -652,14 +678,14 @@ impl Speaker {
 impl Stage for Speaker {
     fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
         let Item::Audio(a) = item else {
-            return Err(StageError::msg("expected audio"));
+            return Err(StageError::expected("audio"));
         };
         if self.feed.is_none() {
             let rate_out = self.out.as_ref().map_or(48_000, |o| o.rate) as f64;
-            self.feed = Some(Feed::new(a.rate_hz, rate_out).map_err(StageError::msg)?);
+            self.feed = Some(Feed::new(a.rate_hz, rate_out).map_err(StageError::dsp)?);
             self.rate_in = a.rate_hz;
         } else if (a.rate_hz - self.rate_in).abs() > 1e-9 * self.rate_in {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "the sample rate changed from {} Hz to {} Hz mid-stream",
                 self.rate_in, a.rate_hz
             )));

@@ -35,59 +35,49 @@ enum Style {
 #[serde(deny_unknown_fields)]
 struct P {
     path: PathBuf,
-    #[serde(default = "d_style")]
     style: Style,
-    #[serde(default = "d_peaks")]
     peaks: usize,
     min_hz: Option<f64>,
     max_hz: Option<f64>,
-    #[serde(default = "d_width")]
     width: u32,
-    #[serde(default = "d_height")]
     height: u32,
-    /// The spectrum's taper (for the peak fits, as in `peaks`).
-    #[serde(default = "d_taper")]
-    taper: String,
 }
-fn d_style() -> Style {
-    Style::Power
-}
-fn d_peaks() -> usize {
-    5
-}
-fn d_width() -> u32 {
-    900
-}
-fn d_height() -> u32 {
-    450
-}
-fn d_taper() -> String {
-    "hann".into()
-}
+
+const SIDE: (i64, i64) = (vibroscope_io::plot::MIN_SIDE as i64, 8192);
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("path", ParamType::Path, Def::Required)
+        .doc("the PNG file (written atomically at the end)"),
+    ParamSpec::new(
+        "style",
+        ParamType::Choice(&["power", "spectrogram"]),
+        Def::Str("power"),
+    )
+    .doc("mean spectrum in dB with peaks marked, or every spectrum as a column"),
+    ParamSpec::new("peaks", ParamType::Int, Def::Int(5))
+        .ints(0, 100)
+        .doc("power: most prominent peaks marked (0 = none)"),
+    super::peaks::MIN_HZ.doc("lower edge of the band shown; default: the first bin"),
+    super::peaks::MAX_HZ.doc("upper edge of the band shown (> min_hz); default: Nyquist"),
+    ParamSpec::new("width", ParamType::Int, Def::Int(900))
+        .ints(SIDE.0, SIDE.1)
+        .unit("px")
+        .doc("image width"),
+    ParamSpec::new("height", ParamType::Int, Def::Int(450))
+        .ints(SIDE.0, SIDE.1)
+        .unit("px")
+        .doc("image height"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "spectrum_png",
     summary: "PNG plot of spectra at the end: style = \"power\" (mean spectrum in dB, peaks marked) or \"spectrogram\"",
-    accepts: &[PortType::Spectrum],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[PortType::Spectrum])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if v.peaks > 100 {
-            return Err(p.error("peaks", format!("must be 0..=100, got {}", v.peaks)));
-        }
-        for (name, n) in [("width", v.width), ("height", v.height)] {
-            if !(vibroscope_io::plot::MIN_SIDE..=8192).contains(&n) {
-                return Err(p.error(
-                    name,
-                    format!(
-                        "must be {}..=8192 pixels, got {n}",
-                        vibroscope_io::plot::MIN_SIDE
-                    ),
-                ));
-            }
-        }
-        super::peaks::check_band_taper(p, v.min_hz, v.max_hz, &v.taper)?;
+        let v: P = p.resolve(PARAMS)?;
+        super::peaks::check_band(p, v.min_hz, v.max_hz)?;
         Ok(Box::new(PlotPlan(v)))
     },
 };
@@ -101,6 +91,7 @@ impl Plan for PlotPlan {
             spectra: Vec::new(),
             f0: 0.0,
             df: 0.0,
+            kernel: Vec::new(),
         })))
     }
 }
@@ -110,11 +101,14 @@ struct SpectrumPng {
     spectra: Vec<TimedSpectrum>,
     f0: f64,
     df: f64,
+    /// The spectral window of the spectra's taper (for the peak fits).
+    kernel: Vec<f64>,
 }
 
 impl SpectrumPng {
+    /// The plot could not be drawn or encoded.
     fn err(&self, m: impl std::fmt::Display) -> StageError {
-        StageError::msg(format!("{}: {m}", self.p.path.display()))
+        StageError::file("write", &self.p.path, std::io::Error::other(m.to_string()))
     }
 }
 
@@ -132,6 +126,11 @@ impl Stage for SpectrumPng {
             self.spectra.clear();
             self.f0 = s.f0_hz;
             self.df = s.resolution_hz;
+            self.kernel = if self.p.peaks > 0 {
+                s.taper.power_kernel(s.window, 4)
+            } else {
+                Vec::new()
+            };
         }
         self.spectra.push(TimedSpectrum {
             t_s: s.t_ns as f64 * 1e-9,
@@ -142,7 +141,10 @@ impl Stage for SpectrumPng {
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
         let Some(first) = self.spectra.first() else {
-            return Err(self.err("no spectrum arrived (is the recording shorter than one window?)"));
+            return Err(StageError::dsp(format!(
+                "{}: no spectrum arrived (is the recording shorter than one window?)",
+                self.p.path.display()
+            )));
         };
         let bins = first.power.len();
         let nyquist = self.f0 + (bins.saturating_sub(1)) as f64 * self.df;
@@ -165,10 +167,7 @@ impl Stage for SpectrumPng {
                         max_peaks: self.p.peaks,
                         min_hz: self.p.min_hz,
                         max_hz: self.p.max_hz,
-                        window_kernel: match super::peaks::taper_of(&self.p.taper).flatten() {
-                            Some(t) => t.power_kernel(2 * (bins - 1), 4),
-                            None => Vec::new(),
-                        },
+                        window_kernel: self.kernel.clone(),
                         ..Default::default()
                     };
                     find_peaks(&mean, self.f0, self.df, &opts)

@@ -23,30 +23,31 @@ enum Format {
 #[serde(deny_unknown_fields)]
 struct P {
     path: PathBuf,
-    #[serde(default = "f32_fmt")]
     format: Format,
-    #[serde(default = "unit")]
     gain: f64,
 }
-fn f32_fmt() -> Format {
-    Format::F32
-}
-fn unit() -> f64 {
-    1.0
-}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("path", ParamType::Path, Def::Required).doc("the WAV file"),
+    ParamSpec::new(
+        "format",
+        ParamType::Choice(&["f32", "i16"]),
+        Def::Str("f32"),
+    )
+    .doc("f32: values as the signal has them; i16: PCM of gain * value, clipped to [-1, 1]"),
+    ParamSpec::new("gain", ParamType::Float, Def::Float(1.0))
+        .doc("factor applied before writing (i16 clips at ±1)"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "wav",
     summary:
         "writes audio to a WAV file (f32 or i16), valid even after Ctrl-C or an upstream error",
-    accepts: &[PortType::Audio],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[PortType::Audio])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if !v.gain.is_finite() {
-            return Err(p.error("gain", "must be a finite number"));
-        }
+        let v: P = p.resolve(PARAMS)?;
         if v.path.as_os_str().is_empty() {
             return Err(p.error("path", "must not be empty"));
         }
@@ -78,18 +79,21 @@ impl Plan for Wav {
 
 impl Wav {
     fn err(&self, e: hound::Error) -> StageError {
-        StageError::msg(format!("{}: {e}", self.path.display()))
+        match e {
+            hound::Error::IoError(e) => StageError::file("write", &self.path, e),
+            e => StageError::format(format!("{}: {e}", self.path.display())),
+        }
     }
 }
 
 impl Stage for Wav {
     fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
         let Item::Audio(a) = item else {
-            return Err(StageError::msg("expected audio"));
+            return Err(StageError::expected("audio"));
         };
         let rate = a.rate_hz.round();
         if !(1.0..=u32::MAX as f64).contains(&rate) {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "{}: sample rate {} Hz cannot be written to WAV",
                 self.path.display(),
                 a.rate_hz
@@ -115,7 +119,7 @@ impl Stage for Wav {
             self.writer = Some(w);
             self.rate = rate;
         } else if rate != self.rate {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "{}: the sample rate changed from {} to {} Hz mid-stream",
                 self.path.display(),
                 self.rate,

@@ -16,14 +16,17 @@ struct P {
     path: PathBuf,
 }
 
+const PARAMS: &[ParamSpec] = &[ParamSpec::new("path", ParamType::Path, Def::Required)
+    .doc("the Y4M file (`-` for standard output)")];
+
 pub const KIND: KindSpec = KindSpec {
     name: "y4m",
     summary: "records frames to Y4M with per-frame capture timestamps",
-    accepts: &[PortType::Frames],
-    max_inputs: 1,
-    output: Output::None,
+    inputs: &[InPort::one(&[PortType::Frames])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
+        let v: P = p.resolve(PARAMS)?;
         Ok(Box::new(Rec {
             path: v.path,
             w: None,
@@ -45,10 +48,10 @@ impl Plan for Rec {
 impl Stage for Rec {
     fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         let path = &self.path;
-        let io = |e: std::io::Error| StageError::msg(format!("{}: {e}", path.display()));
+        let io = |e: std::io::Error| StageError::file("write", path, e);
         if self.w.is_none() {
             let fmt = f.format();
             let file: Box<dyn Write + Send> = if path.as_os_str() == "-" {
@@ -83,7 +86,7 @@ impl Stage for Rec {
             let mut inner = w.into_inner();
             inner
                 .flush()
-                .map_err(|e| StageError::msg(format!("{}: {e}", self.path.display())))?;
+                .map_err(|e| StageError::file("write", &self.path, e))?;
         }
         Ok(())
     }

@@ -38,34 +38,42 @@ impl From<FormatName> for io::Format {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    /// The recording; `-` reads Y4M from standard input.
     path: PathBuf,
-    #[serde(default)]
     format: FormatName,
-    /// Capture rate in Hz, overriding the file's.
     fps: Option<f64>,
-    /// Stop after this many frames.
     max_frames: Option<u64>,
-    /// Play the recording at its own pace, like the camera that made it:
-    /// a live source (edges drop the oldest when downstream lags), its
-    /// times moved onto the run clock (first frame at 0) so sinks can
-    /// report capture-to-sink latency. For rehearsing live pipelines.
-    #[serde(default)]
+    /// (A live source: edges drop the oldest when downstream lags, times
+    /// move onto the run clock, first frame at 0, so sinks can report
+    /// capture-to-sink latency. For rehearsing live pipelines.)
     realtime: bool,
 }
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("path", ParamType::Path, Def::Required)
+        .doc("the recording; `-` reads Y4M from standard input"),
+    ParamSpec::new(
+        "format",
+        ParamType::Choice(&["auto", "y4m", "cine", "mraw", "ffmpeg"]),
+        Def::Str("auto"),
+    )
+    .doc("container; auto: from the file name"),
+    super::fps_param(Def::Optional, "capture rate, overriding the file's"),
+    ParamSpec::new("max_frames", ParamType::Int, Def::Optional)
+        .ints(0, i64::MAX)
+        .doc("stop after this many frames"),
+    ParamSpec::new("realtime", ParamType::Bool, Def::Bool(false))
+        .doc("play at the recording's own pace, like the camera that made it (a live source)"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "file",
     summary:
         "frames from a recording: .y4m (or - for stdin), .cine, .mraw/.cih, other video via ffmpeg",
-    accepts: &[],
-    max_inputs: 0,
-    output: Output::Fixed(PortType::Frames),
+    inputs: NO_INPUTS,
+    outputs: &[OutPort::out(PortType::Frames)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if let Some(f) = v.fps {
-            check_fps(f).map_err(|m| p.error("fps", m))?;
-        }
+        let v: P = p.resolve(PARAMS)?;
         if v.path.as_os_str().is_empty() {
             return Err(p.error("path", "must not be empty"));
         }
@@ -98,13 +106,19 @@ impl Plan for FilePlan {
         let fps = match (self.fps, info.fps) {
             (Some(f), _) => f,
             (None, Some(f)) => check_fps(f).map_err(|m| {
-                StageError::msg(format!("{}: {m}; pass --fps", self.path.display()))
+                StageError::config(
+                    "fps",
+                    format!("{}: {m}; set it (or pass --fps)", self.path.display()),
+                )
             })?,
             (None, None) => {
-                return Err(StageError::msg(format!(
-                    "{}: the file states no frame rate; set `fps` (or pass --fps)",
-                    self.path.display()
-                )))
+                return Err(StageError::config(
+                    "fps",
+                    format!(
+                        "{}: the file states no frame rate; set it (or pass --fps)",
+                        self.path.display()
+                    ),
+                ))
             }
         };
         let format = FrameFormat {

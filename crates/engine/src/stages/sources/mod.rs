@@ -52,9 +52,34 @@ pub fn nominal_time_ns(seq: u64, fps: f64) -> i64 {
     (seq as f64 * 1e9 / fps).round() as i64
 }
 
+/// The largest frame rate accepted, Hz.
+pub const MAX_FPS: f64 = 1e7;
+
+/// A frame rate parameter (`fps`) with the range [`check_fps`] applies.
+pub const fn fps_param(default: crate::Def, doc: &'static str) -> crate::ParamSpec {
+    crate::ParamSpec::new("fps", crate::ParamType::Float, default)
+        .above_upto(0.0, MAX_FPS)
+        .unit("Hz")
+        .doc(doc)
+}
+
+/// `width` or `height` of a rendered frame.
+pub const fn side_param(name: &'static str, default: i64, doc: &'static str) -> crate::ParamSpec {
+    crate::ParamSpec::new(name, crate::ParamType::Int, crate::Def::Int(default))
+        .ints(1, 16384)
+        .unit("px")
+        .doc(doc)
+}
+
+/// `bits` of a rendered frame.
+pub const BITS: crate::ParamSpec =
+    crate::ParamSpec::new("bits", crate::ParamType::Int, crate::Def::Int(8))
+        .ints(1, 16)
+        .doc("bit depth of the pixels (above 8: 16-bit samples)");
+
 /// Checks a frame rate given by a user or a file.
 pub fn check_fps(fps: f64) -> Result<f64, String> {
-    if fps.is_finite() && fps > 0.0 && fps <= 1e7 {
+    if fps.is_finite() && fps > 0.0 && fps <= MAX_FPS {
         Ok(fps)
     } else {
         Err(format!(

@@ -20,37 +20,48 @@ use serde::Deserialize;
 #[derive(Deserialize, Clone, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct NokhwaParams {
-    /// Camera index, as nokhwa's query lists them.
-    #[serde(default)]
     pub index: u32,
     pub width: Option<u32>,
     pub height: Option<u32>,
-    /// Requested frame rate in Hz (nokhwa takes whole numbers).
     pub fps: Option<u32>,
-    /// Stop after this long (run clock).
     pub duration_s: Option<f64>,
-    /// Stop after this many frames.
     pub max_frames: Option<u64>,
 }
+
+/// Every parameter of the `nokhwa` kind.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("index", ParamType::Int, Def::Int(0))
+        .ints(0, u32::MAX as i64)
+        .doc("camera index, as nokhwa's query lists them"),
+    ParamSpec::new("width", ParamType::Int, Def::Optional)
+        .ints(1, 16384)
+        .unit("px")
+        .doc("requested width; default: the camera's"),
+    ParamSpec::new("height", ParamType::Int, Def::Optional)
+        .ints(1, 16384)
+        .unit("px")
+        .doc("requested height; default: the camera's"),
+    ParamSpec::new("fps", ParamType::Int, Def::Optional)
+        .ints(1, u32::MAX as i64)
+        .unit("Hz")
+        .doc("requested frame rate (whole numbers)"),
+    ParamSpec::new("duration_s", ParamType::Float, Def::Optional)
+        .above(0.0)
+        .unit("s")
+        .doc("stop after this long (run clock)"),
+    ParamSpec::new("max_frames", ParamType::Int, Def::Optional)
+        .ints(0, i64::MAX)
+        .doc("stop after this many frames"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "nokhwa",
     summary: "live camera through nokhwa (macOS/Windows; features input-avfoundation, input-msmf, input-v4l)",
-    accepts: &[],
-    max_inputs: 0,
-    output: Output::Fixed(PortType::Frames),
+    inputs: NO_INPUTS,
+    outputs: &[OutPort::out(PortType::Frames)],
+    params: PARAMS,
     plan: |p| {
-        let v: NokhwaParams = p.parse()?;
-        for (field, val) in [("width", v.width), ("height", v.height), ("fps", v.fps)] {
-            if val == Some(0) {
-                return Err(p.error(field, "must be > 0"));
-            }
-        }
-        if let Some(d) = v.duration_s {
-            if !(d.is_finite() && d > 0.0) {
-                return Err(p.error("duration_s", format!("must be > 0 seconds, got {d}")));
-            }
-        }
+        let v: NokhwaParams = p.resolve(PARAMS)?;
         Ok(Box::new(v))
     },
 };
@@ -83,7 +94,7 @@ mod imp {
     pub(super) fn open(p: NokhwaParams, pool_frames: usize) -> Result<Box<dyn Source>, StageError> {
         let name = format!("nokhwa camera {}", p.index);
         let err =
-            |what: &str, e: nokhwa::NokhwaError| StageError::msg(format!("{name}: {what}: {e}"));
+            |what: &str, e: nokhwa::NokhwaError| StageError::device(&name, format!("{what}: {e}"));
         // nokhwa matches a requested size only within one pixel format: try
         // the ones that convert to gray cheaply first.
         let open = |want: RequestedFormatType| {
@@ -115,9 +126,9 @@ mod imp {
         let res = cam.resolution();
         let fps = f64::from(cam.frame_rate());
         let fps = super::super::check_fps(fps)
-            .map_err(|m| StageError::msg(format!("{name}: granted frame rate: {m}")))?;
+            .map_err(|m| StageError::format(format!("{name}: granted frame rate: {m}")))?;
         if res.width_x == 0 || res.height_y == 0 || res.width_x > 16384 || res.height_y > 16384 {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "{name}: unusable size {}x{}",
                 res.width_x, res.height_y
             )));
@@ -168,11 +179,11 @@ mod imp {
             let buf = self
                 .cam
                 .frame()
-                .map_err(|e| StageError::msg(format!("{}: capture failed: {e}", self.name)))?;
+                .map_err(|e| StageError::device(&self.name, format!("capture failed: {e}")))?;
             let res = buf.resolution();
             let (w, h) = (res.width_x as usize, res.height_y as usize);
             if w * h != px.len() {
-                return Err(StageError::msg(format!(
+                return Err(StageError::format(format!(
                     "{}: the camera switched to {w}x{h} mid-stream",
                     self.name
                 )));
@@ -183,14 +194,14 @@ mod imp {
                 Fourcc::YUYV => PixelFormat::Yuyv,
                 Fourcc::MJPEG => PixelFormat::Mjpeg,
                 other => {
-                    return Err(StageError::msg(format!(
+                    return Err(StageError::format(format!(
                     "{}: the camera delivers {other}, which vibroscope does not convert to gray",
                     self.name
                 )))
                 }
             };
             to_gray(kind, buf.buffer(), w, h, 0, px)
-                .map_err(|m| StageError::msg(format!("{}: {m}", self.name)))?;
+                .map_err(|m| StageError::format(format!("{}: {m}", self.name)))?;
             let t_ns = ctx.control.now_ns();
             let t0 = *self.t_first.get_or_insert(t_ns);
             if self.duration_ns.is_some_and(|d| t_ns - t0 >= d) {
@@ -230,10 +241,13 @@ mod imp {
         p: NokhwaParams,
         _pool_frames: usize,
     ) -> Result<Box<dyn Source>, StageError> {
-        Err(StageError::msg(format!(
-            "nokhwa camera {}: this vibroscope was built without nokhwa; rebuild with \
-             --features input-avfoundation (macOS), input-msmf (Windows) or input-v4l (Linux)",
-            p.index
-        )))
+        Err(StageError::device(
+            format!("nokhwa camera {}", p.index),
+            "this vibroscope was built without nokhwa",
+        )
+        .with_hint(
+            "rebuild with --features input-avfoundation (macOS), input-msmf (Windows) \
+             or input-v4l (Linux)",
+        ))
     }
 }

@@ -2,7 +2,7 @@
 //! nothing per frame (each pool buffer is drawn once), so it measures the
 //! engine itself; with `realtime = true` it is a live-paced camera.
 
-use super::{check_fps, nominal_frame, Pacer};
+use super::{nominal_frame, side_param, Pacer, BITS};
 use crate::*;
 use serde::Deserialize;
 use vibroscope_io::Depth;
@@ -10,47 +10,34 @@ use vibroscope_io::Depth;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    #[serde(default = "d_size")]
     width: u32,
-    #[serde(default = "d_size")]
     height: u32,
-    #[serde(default = "d_fps")]
     fps: f64,
-    #[serde(default = "d_frames")]
     frames: u64,
-    #[serde(default = "d_bits")]
     bits: u8,
-    #[serde(default)]
     realtime: bool,
 }
-fn d_size() -> u32 {
-    256
-}
-fn d_fps() -> f64 {
-    1000.0
-}
-fn d_frames() -> u64 {
-    1000
-}
-fn d_bits() -> u8 {
-    8
-}
+
+const PARAMS: &[ParamSpec] = &[
+    side_param("width", 256, "frame width"),
+    side_param("height", 256, "frame height"),
+    super::fps_param(Def::Float(1000.0), "frame rate"),
+    ParamSpec::new("frames", ParamType::Int, Def::Int(1000))
+        .ints(0, i64::MAX)
+        .doc("frames produced"),
+    BITS,
+    ParamSpec::new("realtime", ParamType::Bool, Def::Bool(false))
+        .doc("pace frames by the wall clock like a live camera"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "pattern",
     summary: "static test pattern at a chosen size and rate (engine benchmarks; `realtime` = live camera)",
-    accepts: &[],
-    max_inputs: 0,
-    output: Output::Fixed(PortType::Frames),
+    inputs: NO_INPUTS,
+    outputs: &[OutPort::out(PortType::Frames)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        check_fps(v.fps).map_err(|m| p.error("fps", m))?;
-        if v.width == 0 || v.height == 0 || v.width > 16384 || v.height > 16384 {
-            return Err(p.error("width", format!("frame size must be 1..=16384 each, got {}x{}", v.width, v.height)));
-        }
-        if !(1..=16).contains(&v.bits) {
-            return Err(p.error("bits", format!("must be 1..=16, got {}", v.bits)));
-        }
+        let v: P = p.resolve(PARAMS)?;
         Ok(Box::new(PatternPlan(v)))
     },
 };

@@ -6,83 +6,43 @@
 //! and its edges drop the oldest frame when downstream lags.
 
 use super::{check_fps, nominal_frame, Pacer};
+use crate::spec::default_of;
 use crate::*;
 use serde::Deserialize;
 use vibroscope_sim::{self as sim, Scene, SceneSpec, Signal, SignalSpec};
 
-/// Parameters of the synthetic scene (also used by `vibroscope demo` and tests).
+/// Parameters of the synthetic scene (also used by `vibroscope demo`,
+/// `simulate` and tests). Declared in [`PARAMS`]: their defaults (also
+/// [`SyntheticParams::default`], used when a scene file omits a field), ranges,
+/// units and docs.
 #[derive(Deserialize, Clone, Debug, PartialEq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct SyntheticParams {
-    #[serde(default = "d_size")]
     pub width: u32,
-    #[serde(default = "d_size")]
     pub height: u32,
-    #[serde(default = "d_fps")]
     pub fps: f64,
-    /// Length in seconds (`frames` wins when both are given).
-    #[serde(default = "d_duration")]
     pub duration_s: f64,
     pub frames: Option<u64>,
-    /// Moving object `[x, y, w, h]`; default: the central half of the frame.
     pub object: Option<[u32; 4]>,
-    #[serde(default = "d_amp")]
     pub amplitude_px: f64,
-    #[serde(default)]
     pub direction_deg: f64,
-    #[serde(default = "d_noise")]
     pub noise_std: f64,
-    #[serde(default = "d_bits")]
     pub bits: u8,
-    /// Texture contrast (std, in DN); default 15% of full scale.
     pub contrast: Option<f64>,
-    #[serde(default = "d_seed")]
     pub seed: u64,
-    #[serde(default = "d_signal")]
     pub signal: SignalSpec,
-    /// Pace frames by the wall clock like a live camera.
-    #[serde(default)]
     pub realtime: bool,
-    /// Rolling shutter (thesis Eq. 4.4): row y of frame n is captured at
-    /// n/fps + y·line_delay; absent = global shutter.
     pub line_delay_us: Option<f64>,
-    /// Stated frame delay, checked against 1/fps - height·line_delay.
     pub frame_delay_us: Option<f64>,
-    /// Each row averages the motion over this exposure (a boxcar).
     pub exposure_us: Option<f64>,
-    /// The object's transfer function from sound to motion: peaking
-    /// resonances in series (`[{ freq_hz, q, gain_db }]`); none = flat.
-    #[serde(default)]
     pub resonances: Vec<sim::Resonance>,
-    /// Narrowband motion added to the object's (camera shake, a machine):
-    /// `[{ freq_hz, amplitude_px }]`.
-    #[serde(default)]
     pub interference: Vec<Interference>,
-    /// The camera's true frame rate is `fps · (1 + clock_error_ppm·1e-6)`
-    /// while its frames are stamped at the stated `fps`.
-    #[serde(default)]
     pub clock_error_ppm: f64,
-    /// Captured frames the camera loses (0-based capture indices): the
-    /// stream skips them and later frames are stamped as if nothing was lost.
-    #[serde(default)]
     pub drop_frames: Vec<u64>,
-    /// Captured frames the camera delivers twice (identical copies).
-    #[serde(default)]
     pub duplicate_frames: Vec<u64>,
-    /// A picture (PGM or PNG) for the object's texture instead of the
-    /// procedural one, resized to the object's rectangle.
     pub texture: Option<std::path::PathBuf>,
-    /// The object's silhouette (PGM or PNG, the frame's size): a pixel's
-    /// gray level over the brightest pixel's is the fraction of it that
-    /// belongs to the object (0 = background).
     pub object_mask: Option<std::path::PathBuf>,
-    /// The object as a vibrating cantilever beam, column by column, instead
-    /// of a rigid motion (`{ modes = [{ freq_hz, amplitude_px, shape, ... }] }`,
-    /// see [`vibroscope_sim::modal`]); global shutter only.
     pub modal: Option<sim::ModalSpec>,
-    /// The object's excursion saturates softly: displacement `L tanh(d /
-    /// L)` with `L = soft_clip_px` (a nonlinear object or loudspeaker; odd
-    /// harmonics); before interference, which is not clipped.
     pub soft_clip_px: Option<f64>,
 }
 
@@ -93,57 +53,112 @@ pub struct Interference {
     pub freq_hz: f64,
     pub amplitude_px: f64,
 }
-fn d_size() -> u32 {
-    256
-}
-fn d_fps() -> f64 {
-    2200.0
-}
-fn d_duration() -> f64 {
-    1.0
-}
-fn d_amp() -> f64 {
-    0.05
-}
-fn d_noise() -> f64 {
-    2.0
-}
-fn d_bits() -> u8 {
-    8
-}
-fn d_seed() -> u64 {
-    1
-}
-fn d_signal() -> SignalSpec {
-    SignalSpec::Tone {
-        freq_hz: 440.0,
-        phase_rad: 0.0,
-    }
-}
+
+/// Every parameter of the `synthetic` kind.
+pub const PARAMS: &[ParamSpec] = &[
+    super::side_param("width", 256, "frame width"),
+    super::side_param("height", 256, "frame height"),
+    super::fps_param(Def::Float(2200.0), "frame rate"),
+    ParamSpec::new("duration_s", ParamType::Float, Def::Float(1.0))
+        .at_least(0.0)
+        .unit("s")
+        .doc("length (`frames` wins when both are given)"),
+    ParamSpec::new("frames", ParamType::Int, Def::Optional)
+        .ints(0, i64::MAX)
+        .doc("frames captured; default duration_s * fps"),
+    ParamSpec::new("object", ParamType::Ints, Def::Optional)
+        .ints(0, u32::MAX as i64)
+        .unit("px")
+        .doc("moving object [x, y, w, h]; default: the central half of the frame"),
+    ParamSpec::new("amplitude_px", ParamType::Float, Def::Float(0.05))
+        .unit("px")
+        .doc("peak displacement of the object for a signal of 1"),
+    ParamSpec::new("direction_deg", ParamType::Float, Def::Float(0.0))
+        .unit("deg")
+        .doc("direction of the motion (0 = +x, 90 = +y)"),
+    ParamSpec::new("noise_std", ParamType::Float, Def::Float(2.0))
+        .at_least(0.0)
+        .unit("DN")
+        .doc("sensor noise, standard deviation"),
+    super::BITS,
+    ParamSpec::new("contrast", ParamType::Float, Def::Optional)
+        .unit("DN")
+        .doc("texture contrast (std); default 15% of full scale"),
+    ParamSpec::new("seed", ParamType::Int, Def::Int(1))
+        .ints(0, i64::MAX)
+        .doc("random seed: the scene is deterministic from it"),
+    ParamSpec::new(
+        "signal",
+        ParamType::Table,
+        Def::Toml("{ type = \"tone\", freq_hz = 440.0 }"),
+    )
+    .doc("the motion's waveform: { type = \"tone\" | \"tones\" | ..., ... } (see vibroscope_sim)"),
+    ParamSpec::new("realtime", ParamType::Bool, Def::Bool(false))
+        .doc("pace frames by the wall clock like a live camera"),
+    crate::stages::transform::rows::LINE_DELAY_US
+        .doc("rolling shutter (Eq. 4.4): row y of frame n at n/fps + y*d; absent = global shutter"),
+    crate::stages::transform::rows::FRAME_DELAY_US
+        .doc("stated frame delay, checked against 1/fps - height * line_delay"),
+    ParamSpec::new("exposure_us", ParamType::Float, Def::Optional)
+        .floats(0.0, 1e7)
+        .unit("µs")
+        .doc("each row averages the motion over this exposure (a boxcar)"),
+    ParamSpec::new("resonances", ParamType::Tables, Def::Toml("[]"))
+        .doc("sound-to-motion transfer: peaking resonances [{ freq_hz, q, gain_db }]; none = flat"),
+    ParamSpec::new("interference", ParamType::Tables, Def::Toml("[]"))
+        .doc("narrowband motion added to the object's: [{ freq_hz, amplitude_px }]"),
+    ParamSpec::new("clock_error_ppm", ParamType::Float, Def::Float(0.0))
+        .floats(-1e5, 1e5)
+        .unit("ppm")
+        .doc("true frame rate is fps * (1 + e*1e-6) while frames are stamped at fps"),
+    ParamSpec::new("drop_frames", ParamType::Ints, Def::Toml("[]"))
+        .ints(0, i64::MAX)
+        .doc("captured frames the camera loses (0-based capture indices)"),
+    ParamSpec::new("duplicate_frames", ParamType::Ints, Def::Toml("[]"))
+        .ints(0, i64::MAX)
+        .doc("captured frames the camera delivers twice"),
+    ParamSpec::new("texture", ParamType::Path, Def::Optional)
+        .doc("a picture (PGM/PNG) for the object's texture, resized to the object"),
+    ParamSpec::new("object_mask", ParamType::Path, Def::Optional)
+        .doc("the object's silhouette (PGM/PNG, frame size; gray = fraction of object)"),
+    ParamSpec::new("modal", ParamType::Table, Def::Optional).doc(
+        "the object as a vibrating cantilever: { modes = [{ freq_hz, amplitude_px, shape, ... }] }",
+    ),
+    ParamSpec::new("soft_clip_px", ParamType::Float, Def::Optional)
+        .unit("px")
+        .doc("excursion saturates softly: L tanh(d / L) with L = soft_clip_px"),
+];
 
 impl Default for SyntheticParams {
+    /// The declared defaults ([`PARAMS`]).
     fn default() -> Self {
+        let d = |name| default_of::<toml::Value>(PARAMS, name);
+        let num = |name| d(name).and_then(|v| v.as_float().or(v.as_integer().map(|i| i as f64)));
+        let int = |name| d(name).and_then(|v| v.as_integer()).unwrap_or(0);
         Self {
-            width: d_size(),
-            height: d_size(),
-            fps: d_fps(),
-            duration_s: d_duration(),
+            width: int("width") as u32,
+            height: int("height") as u32,
+            fps: num("fps").unwrap_or(0.0),
+            duration_s: num("duration_s").unwrap_or(0.0),
             frames: None,
             object: None,
-            amplitude_px: d_amp(),
-            direction_deg: 0.0,
-            noise_std: d_noise(),
-            bits: d_bits(),
+            amplitude_px: num("amplitude_px").unwrap_or(0.0),
+            direction_deg: num("direction_deg").unwrap_or(0.0),
+            noise_std: num("noise_std").unwrap_or(0.0),
+            bits: int("bits") as u8,
             contrast: None,
-            seed: d_seed(),
-            signal: d_signal(),
+            seed: int("seed") as u64,
+            signal: default_of(PARAMS, "signal").unwrap_or(SignalSpec::Tone {
+                freq_hz: 0.0,
+                phase_rad: 0.0,
+            }),
             realtime: false,
             line_delay_us: None,
             frame_delay_us: None,
             exposure_us: None,
             resonances: Vec::new(),
             interference: Vec::new(),
-            clock_error_ppm: 0.0,
+            clock_error_ppm: num("clock_error_ppm").unwrap_or(0.0),
             drop_frames: Vec::new(),
             duplicate_frames: Vec::new(),
             texture: None,
@@ -362,11 +377,11 @@ pub const KIND: KindSpec = KindSpec {
     name: "synthetic",
     summary:
         "built-in scene: a textured object moving sub-pixel with a known signal (ground truth)",
-    accepts: &[],
-    max_inputs: 0,
-    output: Output::Fixed(PortType::Frames),
+    inputs: NO_INPUTS,
+    outputs: &[OutPort::out(PortType::Frames)],
+    params: PARAMS,
     plan: |p| {
-        let v: SyntheticParams = p.parse()?;
+        let v: SyntheticParams = p.resolve(PARAMS)?;
         v.check().map_err(|(field, m)| p.error(field, m))?;
         Ok(Box::new(v))
     },
@@ -374,7 +389,7 @@ pub const KIND: KindSpec = KindSpec {
 
 impl Plan for SyntheticParams {
     fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
-        let scene = self.scene().map_err(StageError::msg)?;
+        let scene = self.scene().map_err(StageError::dsp)?;
         let format = FrameFormat {
             width: self.width,
             height: self.height,
@@ -539,4 +554,29 @@ fn silhouette(path: &std::path::Path, w: u32, h: u32) -> Result<Vec<f32>, String
         ));
     }
     Ok(img.pixels().map(|p| p.0[0] as f32 / max as f32).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `Default` (what a scene file that omits a field gets) is the
+    /// declared defaults, as a pipeline stage with no parameters resolves them.
+    #[test]
+    fn default_is_the_declaration() {
+        let decl = crate::config::parse("t.toml", "[[stage]]\nid = \"s\"\nkind = \"synthetic\"\n")
+            .unwrap_or_else(|e| panic!("{e}"));
+        let p = Params {
+            file: "t.toml",
+            stage: &decl.stages[0],
+        };
+        let resolved: SyntheticParams = p.resolve(PARAMS).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(resolved, SyntheticParams::default());
+        assert_eq!(resolved.fps, 2200.0);
+        assert_eq!(resolved.width, 256);
+        let from_toml: SyntheticParams =
+            toml::from_str("fps = 600.0").unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(from_toml.width, 256);
+        assert_eq!(from_toml.fps, 600.0);
+    }
 }

@@ -242,62 +242,59 @@ impl SeqTracker {
 #[derive(Deserialize, Clone, Debug)]
 #[serde(deny_unknown_fields)]
 pub struct V4l2Params {
-    /// The device node.
-    #[serde(default = "d_device")]
     pub device: PathBuf,
-    /// Requested size; the driver may grant another (read back).
     pub width: Option<u32>,
     pub height: Option<u32>,
-    /// Requested frame rate in Hz; the granted interval is read back.
     pub fps: Option<f64>,
-    #[serde(default)]
     pub format: PixelFormat,
-    /// Driver buffers for mmap streaming.
-    #[serde(default = "d_buffers")]
     pub buffers: u32,
-    /// Stop after this long (by the driver's timestamps).
     pub duration_s: Option<f64>,
-    /// Stop after this many frames.
     pub max_frames: Option<u64>,
 }
-fn d_device() -> PathBuf {
-    PathBuf::from("/dev/video0")
-}
-fn d_buffers() -> u32 {
-    4
-}
+
+/// Every parameter of the `v4l2` kind.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("device", ParamType::Path, Def::Str("/dev/video0")).doc("the device node"),
+    ParamSpec::new("width", ParamType::Int, Def::Optional)
+        .ints(1, 16384)
+        .unit("px")
+        .doc("requested width; the driver may grant another (read back)"),
+    ParamSpec::new("height", ParamType::Int, Def::Optional)
+        .ints(1, 16384)
+        .unit("px")
+        .doc("requested height; the driver may grant another (read back)"),
+    super::fps_param(
+        Def::Optional,
+        "requested frame rate; the granted interval is read back",
+    ),
+    ParamSpec::new(
+        "format",
+        ParamType::Choice(&["auto", "grey", "yuyv", "mjpeg"]),
+        Def::Str("auto"),
+    )
+    .doc("pixel format; auto: the first of GREY, YUYV, MJPEG the device offers"),
+    ParamSpec::new("buffers", ParamType::Int, Def::Int(4))
+        .ints(2, 32)
+        .doc("driver buffers for mmap streaming"),
+    ParamSpec::new("duration_s", ParamType::Float, Def::Optional)
+        .above(0.0)
+        .unit("s")
+        .doc("stop after this long (by the driver's timestamps)"),
+    ParamSpec::new("max_frames", ParamType::Int, Def::Optional)
+        .ints(0, i64::MAX)
+        .doc("stop after this many frames"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "v4l2",
     summary: "live camera through Video4Linux2 (device, width, height, fps, format = grey|yuyv|mjpeg|auto)",
-    accepts: &[],
-    max_inputs: 0,
-    output: Output::Fixed(PortType::Frames),
+    inputs: NO_INPUTS,
+    outputs: &[OutPort::out(PortType::Frames)],
+    params: PARAMS,
     plan: |p| {
-        let v: V4l2Params = p.parse()?;
+        let v: V4l2Params = p.resolve(PARAMS)?;
         if v.device.as_os_str().is_empty() {
             return Err(p.error("device", "must not be empty"));
-        }
-        if let Some(f) = v.fps {
-            super::check_fps(f).map_err(|m| p.error("fps", m))?;
-        }
-        for (field, val) in [("width", v.width), ("height", v.height)] {
-            if let Some(x) = val {
-                if !(1..=16384).contains(&x) {
-                    return Err(p.error(field, format!("must be 1..=16384, got {x}")));
-                }
-            }
-        }
-        if !(2..=32).contains(&v.buffers) {
-            return Err(p.error(
-                "buffers",
-                format!("must be 2..=32, got {}", v.buffers),
-            ));
-        }
-        if let Some(d) = v.duration_s {
-            if !(d.is_finite() && d > 0.0) {
-                return Err(p.error("duration_s", format!("must be > 0 seconds, got {d}")));
-            }
         }
         Ok(Box::new(v))
     },
@@ -407,7 +404,7 @@ mod imp {
     const POLL_MS: i32 = 100;
 
     /// An OS error on `path`, said plainly.
-    pub(super) fn device_error(path: &str, what: &str, e: &io::Error) -> String {
+    pub(super) fn device_error(path: &str, what: &str, e: &io::Error) -> StageError {
         let hint = match e.raw_os_error() {
             Some(libc::ENOENT) => {
                 let found: Vec<String> = list_devices()
@@ -416,23 +413,28 @@ mod imp {
                     .map(|d| d.path.display().to_string())
                     .collect();
                 if found.is_empty() {
-                    " (no such device; no camera found)".to_string()
+                    "no such device; no camera found".to_string()
                 } else {
                     format!(
-                        " (no such device; cameras: {}; see `vibroscope devices`)",
+                        "no such device; cameras: {}; see `vibroscope devices`",
                         found.join(", ")
                     )
                 }
             }
-            Some(libc::EBUSY) => " (the device is busy: another program is using it)".into(),
+            Some(libc::EBUSY) => "the device is busy: another program is using it".into(),
             Some(libc::EACCES) | Some(libc::EPERM) => {
-                " (permission denied: join the `video` group or check the node's mode)".into()
+                "permission denied: join the `video` group or check the node's mode".into()
             }
-            Some(libc::ENODEV) => " (the device is gone: unplugged or its driver unloaded)".into(),
-            Some(libc::EIO) => " (I/O error: the device failed or was unplugged)".into(),
+            Some(libc::ENODEV) => "the device is gone: unplugged or its driver unloaded".into(),
+            Some(libc::EIO) => "I/O error: the device failed or was unplugged".into(),
             _ => String::new(),
         };
-        format!("{path}: {what}: {e}{hint}")
+        let err = StageError::device(path, format!("{what}: {e}"));
+        if hint.is_empty() {
+            err
+        } else {
+            err.with_hint(hint)
+        }
     }
 
     /// Nanoseconds from C seconds and a sub-second count in units of
@@ -474,23 +476,25 @@ mod imp {
     }
 
     fn open_device(path: &str) -> Result<Device, StageError> {
-        let dev = Device::with_path(path)
-            .map_err(|e| StageError::msg(device_error(path, "cannot open", &e)))?;
+        let dev = Device::with_path(path).map_err(|e| device_error(path, "cannot open", &e))?;
         let caps = dev
             .query_caps()
-            .map_err(|e| StageError::msg(device_error(path, "not a V4L2 device", &e)))?;
+            .map_err(|e| device_error(path, "not a V4L2 device", &e))?;
         use v4l::capability::Flags;
         if !caps.capabilities.contains(Flags::VIDEO_CAPTURE) {
-            return Err(StageError::msg(format!(
-                "{path}: {} ({}) is not a video capture node; see `vibroscope devices`",
-                caps.card, caps.driver
-            )));
+            return Err(StageError::device(
+                path,
+                format!(
+                    "{} ({}) is not a video capture node; see `vibroscope devices`",
+                    caps.card, caps.driver
+                ),
+            ));
         }
         if !caps.capabilities.contains(Flags::STREAMING) {
-            return Err(StageError::msg(format!(
-                "{path}: {} does not support streaming I/O",
-                caps.card
-            )));
+            return Err(StageError::device(
+                path,
+                format!("{} does not support streaming I/O", caps.card),
+            ));
         }
         Ok(dev)
     }
@@ -498,14 +502,14 @@ mod imp {
     pub(super) fn open(p: V4l2Params, pool_frames: usize) -> Result<Box<dyn Source>, StageError> {
         let path = p.device.display().to_string();
         let dev = open_device(&path)?;
-        let err = |what: &str, e: io::Error| StageError::msg(device_error(&path, what, &e));
+        let err = |what: &str, e: io::Error| device_error(&path, what, &e);
         let offered: Vec<[u8; 4]> = dev
             .enum_formats()
             .map_err(|e| err("cannot list formats", e))?
             .iter()
             .map(|d| d.fourcc.repr)
             .collect();
-        let fourcc = choose_format(&path, p.format, &offered).map_err(StageError::msg)?;
+        let fourcc = choose_format(&path, p.format, &offered).map_err(StageError::format)?;
         let mut want = dev.format().map_err(|e| err("cannot read the format", e))?;
         want.fourcc = FourCC::new(&fourcc);
         if let Some(w) = p.width {
@@ -519,7 +523,7 @@ mod imp {
         // Read back what the driver granted: it rounds to sizes it supports.
         let got = dev.format().map_err(|e| err("cannot read the format", e))?;
         let Some(pixfmt) = PixelFormat::from_fourcc(got.fourcc.repr) else {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "{path}: asked for {}, the driver gave {} (offered: {})",
                 fourcc_str(fourcc),
                 fourcc_str(got.fourcc.repr),
@@ -531,7 +535,7 @@ mod imp {
             )));
         };
         if got.width == 0 || got.height == 0 || got.width > 16384 || got.height > 16384 {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "{path}: the driver granted an unusable size {}x{}",
                 got.width, got.height
             )));
@@ -574,13 +578,14 @@ mod imp {
             (Some(g), None) => g,
             (None, Some(req)) => req,
             (None, None) => {
-                return Err(StageError::msg(format!(
-                    "{path}: the driver states no frame rate; set `fps`"
-                )))
+                return Err(StageError::config(
+                    "fps",
+                    format!("{path}: the driver states no frame rate; set it"),
+                ))
             }
         };
         let fps = super::super::check_fps(fps)
-            .map_err(|m| StageError::msg(format!("{path}: granted frame rate: {m}")))?;
+            .map_err(|m| StageError::format(format!("{path}: granted frame rate: {m}")))?;
         let (exposure_ns, line_ns) = row_timing(&dev, got.width);
         let row_timing = line_ns.map(|l| RowTiming {
             line_delay_ns: l,
@@ -659,20 +664,20 @@ mod imp {
                 if ctx.should_stop() {
                     return Ok(false);
                 }
-                let n =
-                    self.dev.handle().poll(libc::POLLIN, POLL_MS).map_err(|e| {
-                        StageError::msg(device_error(&self.path, "capture failed", &e))
-                    })?;
+                let n = self
+                    .dev
+                    .handle()
+                    .poll(libc::POLLIN, POLL_MS)
+                    .map_err(|e| device_error(&self.path, "capture failed", &e))?;
                 if n > 0 {
                     return Ok(true);
                 }
                 waited += POLL_MS;
                 if waited >= STALL_MS {
-                    return Err(StageError::msg(format!(
-                        "{}: no frame for {} s: the device stalled",
-                        self.path,
-                        STALL_MS / 1000
-                    )));
+                    return Err(StageError::device(
+                        self.path.clone(),
+                        format!("no frame for {} s: the device stalled", STALL_MS / 1000),
+                    ));
                 }
             }
         }
@@ -695,7 +700,7 @@ mod imp {
                 };
                 let (buf, meta) = stream
                     .next()
-                    .map_err(|e| StageError::msg(device_error(&self.path, "capture failed", &e)))?;
+                    .map_err(|e| device_error(&self.path, "capture failed", &e))?;
                 self.started = true;
                 let (seq, gap) = self.seqs.next(meta.sequence);
                 if gap > 0 {
@@ -892,7 +897,7 @@ mod imp {
         "this vibroscope was built without V4L2 support (Linux, cargo feature `v4l2`)";
 
     pub(super) fn open(p: V4l2Params, _pool_frames: usize) -> Result<Box<dyn Source>, StageError> {
-        Err(StageError::msg(format!("{}: {WHY}", p.device.display())))
+        Err(StageError::device(p.device.display().to_string(), WHY))
     }
 
     pub(super) fn list_devices() -> Result<Vec<DeviceInfo>, String> {

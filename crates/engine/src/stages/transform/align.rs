@@ -43,44 +43,47 @@ enum Weights {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    /// Band the others are aligned to (default: the most coherent one).
     reference_band: Option<usize>,
-    #[serde(default = "d_weights")]
     weights: Weights,
-    /// Largest lag searched, in samples.
-    #[serde(default = "d_lag")]
     max_lag: usize,
-    /// Samples used to estimate the lags.
-    #[serde(default = "d_window")]
     window: usize,
-    /// Samples after which a provisional estimate starts the output (live
-    /// use); default: `window` (output waits for the full estimate).
     warmup: Option<usize>,
 }
-fn d_weights() -> Weights {
-    Weights::Equal
-}
-fn d_lag() -> usize {
-    8
-}
-fn d_window() -> usize {
-    2048
-}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("reference_band", ParamType::Int, Def::Optional)
+        .ints(0, 1 << 16)
+        .doc("band the others are aligned to; default: the most coherent one"),
+    ParamSpec::new(
+        "weights",
+        ParamType::Choice(&["equal", "mrc"]),
+        Def::Str("equal"),
+    )
+    .doc("sum the aligned bands equally, or by maximum-ratio combining"),
+    ParamSpec::new("max_lag", ParamType::Int, Def::Int(8))
+        .ints(0, 4096)
+        .unit("samples")
+        .doc("largest lag searched"),
+    ParamSpec::new("window", ParamType::Int, Def::Int(2048))
+        .ints(1, 1 << 22)
+        .unit("samples")
+        .doc("samples used to estimate the lags"),
+    ParamSpec::new("warmup", ParamType::Int, Def::Optional)
+        .ints(1, 1 << 22)
+        .unit("samples")
+        .doc(
+            "a provisional estimate starts the output after this many (live use); default: window",
+        ),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "align",
     summary: "aligns per-band signals to a reference band by cross-correlation lag and sums them (Eq. 3.5-3.6)",
-    accepts: &[PortType::Samples],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Audio),
+    inputs: &[InPort::one(&[PortType::Samples])],
+    outputs: &[OutPort::out(PortType::Audio)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if v.max_lag > 4096 {
-            return Err(p.error("max_lag", format!("must be at most 4096 samples, got {}", v.max_lag)));
-        }
-        if !(1..=1 << 22).contains(&v.window) {
-            return Err(p.error("window", format!("must be 1..=4194304 samples, got {}", v.window)));
-        }
+        let v: P = p.resolve(PARAMS)?;
         if let Some(w) = v.warmup {
             if w == 0 || w > v.window {
                 return Err(p.error(
@@ -221,9 +224,10 @@ impl Align {
         let (c, n) = (self.channels, self.train.len() / self.channels.max(1));
         if let Some(r) = self.p.reference_band {
             if r >= c {
-                return Err(StageError::msg(format!(
-                    "reference_band {r} does not exist ({c} bands)"
-                )));
+                return Err(StageError::config(
+                    "reference_band",
+                    format!("band {r} does not exist ({c} bands)"),
+                ));
             }
         }
         let cutoff = super::highpass::default_cutoff_hz(rate);
@@ -356,12 +360,12 @@ impl Align {
 impl Stage for Align {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Samples(b) = item else {
-            return Err(StageError::msg("expected per-band samples"));
+            return Err(StageError::expected("per-band samples"));
         };
         if self.channels == 0 {
             self.channels = b.channels.max(1);
         } else if b.channels != self.channels {
-            return Err(StageError::msg("the number of bands changed mid-stream"));
+            return Err(StageError::format("the number of bands changed mid-stream"));
         }
         let len = b.data.len() / self.channels;
         self.hist.extend_from_slice(&b.data[..len * self.channels]);

@@ -16,26 +16,42 @@ use vibroscope_math::denoise::{
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    #[serde(default = "d_frame")]
     frame_ms: f64,
-    #[serde(default = "d_overlap")]
     overlap: f64,
-    #[serde(default = "d_window")]
     noise_window_s: f64,
-    /// Over-subtraction factor (spectral subtraction only).
     alpha: Option<f64>,
-    /// Spectral floor (spectral subtraction only).
     beta: Option<f64>,
 }
-fn d_frame() -> f64 {
-    32.0
-}
-fn d_overlap() -> f64 {
-    0.75
-}
-fn d_window() -> f64 {
-    1.5
-}
+
+const FRAME_MS: ParamSpec = ParamSpec::new("frame_ms", ParamType::Float, Def::Float(32.0))
+    .above(0.0)
+    .unit("ms")
+    .doc("STFT frame length (rounded to a power of two of samples)");
+const OVERLAP: ParamSpec = ParamSpec::new("overlap", ParamType::Float, Def::Float(0.75))
+    .floats(0.5, 0.75)
+    .doc("frame overlap: 0.5 or 0.75");
+const NOISE_WINDOW: ParamSpec = ParamSpec::new("noise_window_s", ParamType::Float, Def::Float(1.5))
+    .range(Range::Float {
+        lo: 0.0,
+        lo_open: true,
+        hi: 600.0,
+        hi_open: false,
+    })
+    .unit("s")
+    .doc("window of the minimum-statistics noise tracker");
+
+const SUBTRACT_PARAMS: &[ParamSpec] = &[
+    FRAME_MS,
+    OVERLAP,
+    NOISE_WINDOW,
+    ParamSpec::new("alpha", ParamType::Float, Def::Float(DEFAULT_ALPHA))
+        .at_least(0.0)
+        .doc("over-subtraction factor"),
+    ParamSpec::new("beta", ParamType::Float, Def::Float(DEFAULT_BETA))
+        .floats(0.0, 1.0)
+        .doc("spectral floor, a fraction of the noise power"),
+];
+const ENHANCE_PARAMS: &[ParamSpec] = &[FRAME_MS, OVERLAP, NOISE_WINDOW];
 
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Method {
@@ -44,14 +60,17 @@ enum Method {
 }
 
 fn plan(p: &Params<'_>, method: Method) -> Result<Box<dyn Plan>, ConfigError> {
-    let v: P = p.parse()?;
     if method == Method::Enhance {
-        for (k, val) in [("alpha", v.alpha), ("beta", v.beta)] {
-            if val.is_some() {
+        for k in ["alpha", "beta"] {
+            if p.stage.params.iter().any(|q| q.key == k) {
                 return Err(p.error(k, "only `spectral_subtraction` takes this parameter"));
             }
         }
     }
+    let v: P = p.resolve(match method {
+        Method::Subtract => SUBTRACT_PARAMS,
+        Method::Enhance => ENHANCE_PARAMS,
+    })?;
     let cfg = DenoiseConfig {
         frame_ms: v.frame_ms,
         overlap: v.overlap,
@@ -86,18 +105,18 @@ fn plan(p: &Params<'_>, method: Method) -> Result<Box<dyn Plan>, ConfigError> {
 pub const SUBTRACT_KIND: KindSpec = KindSpec {
     name: "spectral_subtraction",
     summary: "streaming spectral subtraction (Boll 1979) with a tracked noise floor; alpha, beta, frame_ms, overlap",
-    accepts: &[PortType::Audio],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Audio),
+    inputs: &[InPort::one(&[PortType::Audio])],
+    outputs: &[OutPort::out(PortType::Audio)],
+    params: SUBTRACT_PARAMS,
     plan: |p| plan(p, Method::Subtract),
 };
 
 pub const ENHANCE_KIND: KindSpec = KindSpec {
     name: "speech_enhance",
     summary: "streaming MMSE log-spectral-amplitude speech enhancement (Ephraim-Malah) with a tracked noise floor",
-    accepts: &[PortType::Audio],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Audio),
+    inputs: &[InPort::one(&[PortType::Audio])],
+    outputs: &[OutPort::out(PortType::Audio)],
+    params: ENHANCE_PARAMS,
     plan: |p| plan(p, Method::Enhance),
 };
 
@@ -163,7 +182,7 @@ impl Denoise {
 impl Stage for Denoise {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Audio(a) = item else {
-            return Err(StageError::msg("expected audio"));
+            return Err(StageError::expected("audio"));
         };
         if self.filter.is_none() {
             let p = &self.plan;
@@ -174,11 +193,11 @@ impl Stage for Denoise {
                     SpeechEnhance::new(a.rate_hz, &p.cfg).map(|f| Filter::Enhance(Box::new(f)))
                 }
             }
-            .map_err(|e| StageError::msg(format!("denoiser at {} Hz: {e}", a.rate_hz)))?;
+            .map_err(|e| StageError::dsp(format!("denoiser at {} Hz: {e}", a.rate_hz)))?;
             self.filter = Some(f);
             self.rate = a.rate_hz;
         } else if a.rate_hz != self.rate {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "the sample rate changed from {} to {} Hz mid-stream",
                 self.rate, a.rate_hz
             )));

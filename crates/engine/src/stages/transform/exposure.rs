@@ -21,53 +21,57 @@ use vibroscope_math::exposure::{default_taps, design, CubicResampler, Fir, Mode}
 #[serde(deny_unknown_fields)]
 struct P {
     exposure_us: f64,
-    #[serde(default = "d_mode")]
     mode: Mode,
-    /// Lowest boxcar gain compensated, dB (negative).
-    #[serde(default = "d_floor")]
     floor_db: f64,
-    /// FIR length (odd); default about eight exposures.
     taps: Option<usize>,
-    /// Output rate, Hz; default: the input's (1/d).
     rate_hz: Option<f64>,
-    /// Print the output's wall-clock latency at the end (live runs).
-    #[serde(default)]
     report_latency: bool,
 }
-fn d_mode() -> Mode {
-    Mode::Lowpass
-}
-fn d_floor() -> f64 {
-    -12.0
-}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("exposure_us", ParamType::Float, Def::Required)
+        .range(Range::Float {
+            lo: 0.0,
+            lo_open: true,
+            hi: 1e7,
+            hi_open: false,
+        })
+        .unit("µs")
+        .doc("each row's exposure time E (the boxcar's length)"),
+    ParamSpec::new(
+        "mode",
+        ParamType::Choice(&["lowpass", "compensate"]),
+        Def::Str("lowpass"),
+    )
+    .doc("keep what lies below the first null 1/E, or also invert the boxcar"),
+    ParamSpec::new("floor_db", ParamType::Float, Def::Float(-12.0))
+        .range(Range::Float {
+            lo: -60.0,
+            lo_open: false,
+            hi: 0.0,
+            hi_open: true,
+        })
+        .unit("dB")
+        .doc("compensate: lowest boxcar gain inverted"),
+    ParamSpec::new("taps", ParamType::Int, Def::Optional)
+        .ints(3, 8191)
+        .doc("FIR length (odd); default about eight exposures"),
+    ParamSpec::new("rate_hz", ParamType::Float, Def::Optional)
+        .floats(100.0, 1e6)
+        .unit("Hz")
+        .doc("resample the output to this rate; default: the input's"),
+    ParamSpec::new("report_latency", ParamType::Bool, Def::Bool(false))
+        .doc("print the output's wall-clock latency at the end (live runs)"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "exposure",
     summary: "rolling shutter: low-pass at the exposure boxcar's first null 1/E, or invert it above -12 dB; optional resampling (rate_hz)",
-    accepts: &[PortType::Audio],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Audio),
+    inputs: &[InPort::one(&[PortType::Audio])],
+    outputs: &[OutPort::out(PortType::Audio)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if !(v.exposure_us.is_finite() && v.exposure_us > 0.0 && v.exposure_us <= 1e7) {
-            return Err(p.error(
-                "exposure_us",
-                format!("must be > 0 and at most 1e7 us, got {}", v.exposure_us),
-            ));
-        }
-        if !(v.floor_db.is_finite() && (-60.0..0.0).contains(&v.floor_db)) {
-            return Err(p.error("floor_db", format!("must be in [-60, 0) dB, got {}", v.floor_db)));
-        }
-        if let Some(t) = v.taps {
-            if !(3..=8191).contains(&t) {
-                return Err(p.error("taps", format!("must be 3..=8191, got {t}")));
-            }
-        }
-        if let Some(r) = v.rate_hz {
-            if !(r.is_finite() && (100.0..=1e6).contains(&r)) {
-                return Err(p.error("rate_hz", format!("must be 100..=1e6 Hz, got {r}")));
-            }
-        }
+        let v: P = p.resolve(PARAMS)?;
         Ok(Box::new(ExposurePlan(v)))
     },
 };
@@ -136,7 +140,7 @@ impl Exposure {
 impl Stage for Exposure {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Audio(a) = item else {
-            return Err(StageError::msg("expected audio"));
+            return Err(StageError::expected("audio"));
         };
         if a.samples.is_empty() {
             return Ok(());

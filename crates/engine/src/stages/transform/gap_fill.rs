@@ -37,68 +37,51 @@ pub enum FillMethod {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    #[serde(default = "d_method")]
     method: FillMethod,
-    /// AR model order.
-    #[serde(default = "d_order")]
     order: usize,
-    /// Rounds of estimate-then-interpolate (Janssen et al.).
-    #[serde(default = "d_iterations")]
     iterations: usize,
-    /// Bridge gaps at 1/decimate of the row rate (1 = at the row rate).
-    #[serde(default = "d_decimate")]
     decimate: usize,
-    /// Known samples used on each side of a gap.
-    #[serde(default = "d_context")]
     context: usize,
-    /// Longest gap bridged, s.
-    #[serde(default = "d_max_gap")]
     max_gap_s: f64,
-    #[serde(default)]
     report_latency: bool,
 }
-fn d_method() -> FillMethod {
-    FillMethod::Ar
-}
-fn d_order() -> usize {
-    128
-}
-fn d_iterations() -> usize {
-    2
-}
-fn d_decimate() -> usize {
-    8
-}
-fn d_context() -> usize {
-    2048
-}
-fn d_max_gap() -> f64 {
-    0.1
-}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new(
+        "method",
+        ParamType::Choice(&["ar", "linear"]),
+        Def::Str("ar"),
+    )
+    .doc("fill gaps by AR interpolation (Janssen et al. 1986) or linearly"),
+    ParamSpec::new("order", ParamType::Int, Def::Int(128))
+        .ints(1, 1024)
+        .doc("AR model order"),
+    ParamSpec::new("iterations", ParamType::Int, Def::Int(2))
+        .ints(1, 16)
+        .doc("rounds of estimate-then-interpolate"),
+    ParamSpec::new("decimate", ParamType::Int, Def::Int(8))
+        .ints(1, 64)
+        .doc("bridge gaps at 1/decimate of the row rate (1 = at the row rate)"),
+    ParamSpec::new("context", ParamType::Int, Def::Int(2048))
+        .ints(2, 1 << 20)
+        .unit("samples")
+        .doc("known samples used on each side of a gap"),
+    ParamSpec::new("max_gap_s", ParamType::Float, Def::Float(0.1))
+        .above_upto(0.0, 10.0)
+        .unit("s")
+        .doc("longest gap bridged"),
+    ParamSpec::new("report_latency", ParamType::Bool, Def::Bool(false))
+        .doc("print the output's wall-clock latency at the end (live runs)"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "gap_fill",
     summary: "rolling shutter: row samples onto a uniform grid at 1/d, frame-delay gaps filled (AR, Janssen et al. 1986, or linear)",
-    accepts: &[PortType::Samples],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Audio),
+    inputs: &[InPort::one(&[PortType::Samples])],
+    outputs: &[OutPort::out(PortType::Audio)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if !(1..=1024).contains(&v.order) {
-            return Err(p.error("order", format!("must be 1..=1024, got {}", v.order)));
-        }
-        if !(1..=16).contains(&v.iterations) {
-            return Err(p.error("iterations", format!("must be 1..=16, got {}", v.iterations)));
-        }
-        if !(1..=64).contains(&v.decimate) {
-            return Err(p.error("decimate", format!("must be 1..=64, got {}", v.decimate)));
-        }
-        if !(2..=1 << 20).contains(&v.context) {
-            return Err(p.error("context", format!("must be 2..=1048576, got {}", v.context)));
-        }
-        if !(v.max_gap_s.is_finite() && v.max_gap_s > 0.0 && v.max_gap_s <= 10.0) {
-            return Err(p.error("max_gap_s", format!("must be > 0 and at most 10 s, got {}", v.max_gap_s)));
-        }
+        let v: P = p.resolve(PARAMS)?;
         Ok(Box::new(FillPlan(v)))
     },
 };
@@ -240,10 +223,10 @@ impl GapFill {
 impl Stage for GapFill {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Samples(s) = item else {
-            return Err(StageError::msg("expected samples"));
+            return Err(StageError::expected("samples"));
         };
         if s.channels != 1 {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "expected one channel of row samples (from `rows`), got {}",
                 s.channels
             )));
@@ -252,14 +235,14 @@ impl Stage for GapFill {
             return Ok(());
         }
         if !(s.rate_hz.is_finite() && s.rate_hz > 0.0) {
-            return Err(StageError::msg(format!("bad row rate {} Hz", s.rate_hz)));
+            return Err(StageError::format(format!("bad row rate {} Hz", s.rate_hz)));
         }
         let now = Instant::now();
         let nominal: Vec<i64>;
         let times: &[i64] = match &s.times_ns {
             Some(t) if t.len() == s.data.len() => t,
             Some(t) => {
-                return Err(StageError::msg(format!(
+                return Err(StageError::format(format!(
                     "{} times for {} samples",
                     t.len(),
                     s.data.len()

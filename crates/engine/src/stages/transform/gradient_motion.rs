@@ -11,8 +11,7 @@
 //! [`super::reduce`]).
 
 use super::audio_out::AudioBatcher;
-use super::mean::{block, one};
-use super::reduce::{check_common, RowReducer};
+use super::reduce::{check_roi, RowReducer, BLOCK, ROI, THREADS};
 use super::roi::{Roi, RoiParam};
 use crate::*;
 use serde::Deserialize;
@@ -21,27 +20,29 @@ use serde::Deserialize;
 #[serde(deny_unknown_fields)]
 struct P {
     roi: Option<RoiParam>,
-    /// Direction of motion to measure, degrees (0 = +x, 90 = +y).
-    #[serde(default)]
     direction_deg: f64,
-    #[serde(default = "one")]
     threads: usize,
-    #[serde(default = "block")]
     block: usize,
 }
+
+const PARAMS: &[ParamSpec] = &[
+    ROI,
+    ParamSpec::new("direction_deg", ParamType::Float, Def::Float(0.0))
+        .unit("deg")
+        .doc("direction of motion to measure (0 = +x, 90 = +y)"),
+    THREADS,
+    BLOCK,
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "gradient_motion",
     summary: "sub-pixel motion of a region along a direction (least squares on image gradients), as audio",
-    accepts: &[PortType::Frames],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Audio),
+    inputs: &[InPort::one(&[PortType::Frames])],
+    outputs: &[OutPort::out(PortType::Audio)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        check_common(p, v.roi.as_ref(), v.threads, v.block)?;
-        if !v.direction_deg.is_finite() {
-            return Err(p.error("direction_deg", "must be a finite number"));
-        }
+        let v: P = p.resolve(PARAMS)?;
+        check_roi(p, v.roi.as_ref())?;
         Ok(Box::new(MotionPlan(v)))
     },
 };
@@ -101,9 +102,10 @@ impl Motion {
                 .saturating_sub(y0),
         };
         if r.w == 0 || r.h == 0 {
-            return Err(StageError::msg(format!(
-                "the region is too small in a {w}x{h} frame"
-            )));
+            return Err(StageError::config(
+                "roi",
+                format!("the region is too small in a {w}x{h} frame"),
+            ));
         }
         let p = f.pixels();
         self.reference = Vec::with_capacity(r.w * r.h);
@@ -119,7 +121,7 @@ impl Motion {
         }
         self.norm = self.grad.iter().map(|&g| (g as f64) * (g as f64)).sum();
         if self.norm <= 0.0 {
-            return Err(StageError::msg(
+            return Err(StageError::dsp(
                 "the region has no texture along the chosen direction (zero gradient)",
             ));
         }
@@ -131,7 +133,7 @@ impl Motion {
 impl Stage for Motion {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         let r = match self.region {
             Some(r) => r,

@@ -12,31 +12,29 @@ use vibroscope_math::iir::Sos;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    #[serde(default = "d_order")]
     order: usize,
     cutoff_hz: Option<f64>,
 }
-fn d_order() -> usize {
-    4
-}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("order", ParamType::Int, Def::Int(4))
+        .ints(1, 16)
+        .doc("Butterworth order (second-order sections for even orders)"),
+    ParamSpec::new("cutoff_hz", ParamType::Float, Def::Optional)
+        .above(0.0)
+        .unit("Hz")
+        .doc("-3 dB corner; default fs/40 clamped to 20-100 Hz (and <= fs/4)"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "highpass",
     summary:
         "streaming Butterworth high-pass (order, cutoff_hz; default fs/40 clamped to 20-100 Hz)",
-    accepts: &[PortType::Audio],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Audio),
+    inputs: &[InPort::one(&[PortType::Audio])],
+    outputs: &[OutPort::out(PortType::Audio)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if !(1..=16).contains(&v.order) {
-            return Err(p.error("order", format!("must be 1..=16, got {}", v.order)));
-        }
-        if let Some(c) = v.cutoff_hz {
-            if !(c.is_finite() && c > 0.0) {
-                return Err(p.error("cutoff_hz", format!("must be > 0 Hz, got {c}")));
-            }
-        }
+        let v: P = p.resolve(PARAMS)?;
         Ok(Box::new(HighpassPlan(v)))
     },
 };
@@ -68,12 +66,12 @@ struct Highpass {
 impl Stage for Highpass {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Audio(a) = item else {
-            return Err(StageError::msg("expected audio"));
+            return Err(StageError::expected("audio"));
         };
         if self.filter.is_none() || a.rate_hz != self.rate {
             let fc = self.cutoff.unwrap_or_else(|| default_cutoff_hz(a.rate_hz));
             let f = Sos::butterworth_highpass(self.order, fc, a.rate_hz)
-                .map_err(|e| StageError::msg(format!("highpass: {e}")))?;
+                .map_err(|e| StageError::dsp(format!("highpass: {e}")))?;
             tracing::info!(
                 cutoff_hz = fc,
                 order = self.order,

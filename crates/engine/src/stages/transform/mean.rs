@@ -3,7 +3,7 @@
 //! any `threads` (see [`super::reduce`]).
 
 use super::audio_out::AudioBatcher;
-use super::reduce::{check_common, RowReducer};
+use super::reduce::{check_roi, RowReducer, BLOCK, ROI, THREADS};
 use super::roi::{Roi, RoiParam};
 use crate::*;
 use serde::Deserialize;
@@ -11,31 +11,22 @@ use serde::Deserialize;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    /// Region of interest `[x, y, w, h]`; the whole frame when absent.
     roi: Option<RoiParam>,
-    /// Worker threads for the reduction (1 = none).
-    #[serde(default = "one")]
     threads: usize,
-    /// Samples per emitted audio block.
-    #[serde(default = "block")]
     block: usize,
 }
-pub(super) fn one() -> usize {
-    1
-}
-pub(super) fn block() -> usize {
-    256
-}
+
+const PARAMS: &[ParamSpec] = &[ROI, THREADS, BLOCK];
 
 pub const KIND: KindSpec = KindSpec {
     name: "mean",
     summary: "mean intensity of a region per frame, as audio (deterministic for any `threads`)",
-    accepts: &[PortType::Frames],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Audio),
+    inputs: &[InPort::one(&[PortType::Frames])],
+    outputs: &[OutPort::out(PortType::Audio)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        check_common(p, v.roi.as_ref(), v.threads, v.block)?;
+        let v: P = p.resolve(PARAMS)?;
+        check_roi(p, v.roi.as_ref())?;
         Ok(Box::new(MeanPlan(v)))
     },
 };
@@ -68,7 +59,7 @@ fn row_sum(p: PixelsRef<'_>, start: usize, len: usize) -> f64 {
 impl Stage for Mean {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         let r = Roi::resolve(self.roi.as_ref(), f.width(), f.height())?;
         let (w, px) = (f.width(), f.pixels());

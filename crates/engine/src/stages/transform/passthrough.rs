@@ -8,25 +8,31 @@ use std::time::Duration;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    /// Sleep this long per item (simulates a slow stage).
-    #[serde(default)]
     delay_us: u64,
 }
+
+const PARAMS: &[ParamSpec] = &[ParamSpec::new("delay_us", ParamType::Int, Def::Int(0))
+    .ints(0, 60_000_000)
+    .unit("µs")
+    .doc("sleep this long per item (simulates a slow stage)")];
 
 pub const KIND: KindSpec = KindSpec {
     name: "passthrough",
     summary: "forwards items unchanged; `delay_us` makes it slow on purpose",
-    accepts: &[
+    inputs: &[InPort::one(&[
         PortType::Frames,
         PortType::Samples,
         PortType::Audio,
         PortType::Spectrum,
         PortType::Pyramid,
-    ],
-    max_inputs: 1,
-    output: Output::SameAsInput,
+    ])],
+    outputs: &[OutPort {
+        name: "out",
+        ty: OutType::SameAsInput,
+    }],
+    params: PARAMS,
     plan: |p| {
-        let p: P = p.parse()?;
+        let p: P = p.resolve(PARAMS)?;
         Ok(Box::new(Pass {
             delay: Duration::from_micros(p.delay_us),
         }))

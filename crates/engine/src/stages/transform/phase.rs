@@ -33,8 +33,8 @@
 
 use super::audio_out::Batcher;
 use super::pyramid::{
-    d_orient, d_pyr, d_scales, pyramid_err as err, resolve_threads, spread, Analyzer, Carried,
-    OnFrames, PyramidKind, PyramidSpec,
+    pyramid_err as err, resolve_threads, spread, Analyzer, Carried, OnFrames, PyramidKind,
+    FRAME_THREADS, ORIENTATIONS, PYRAMID, SCALES,
 };
 use super::roi::{Mask, Roi, RoiParam};
 use crate::*;
@@ -46,61 +46,50 @@ use vibroscope_math::riesz::RieszPyramid;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    #[serde(default = "d_pyr")]
     pyramid: PyramidKind,
-    #[serde(default = "d_scales")]
     scales: usize,
-    #[serde(default = "d_orient")]
     orientations: usize,
     roi: Option<RoiParam>,
-    /// Region as an image the size of the frame (PGM or PNG; pixels > 0
-    /// are inside); with `roi`, the overlap of both.
     mask: Option<std::path::PathBuf>,
-    /// Frames per emitted block.
-    #[serde(default = "d_block")]
     block: usize,
-    /// Frames analysed at once, one per worker thread (0 = one per core,
-    /// at most 8). The reference is fixed, so frames are independent: each
-    /// is computed whole by one worker, and the output is bit-identical for
-    /// any value. A frame waits for at most `threads - 1` later frames.
-    #[serde(default)]
+    /// (The reference is fixed, so frames are independent: each is
+    /// computed whole by one worker. A frame waits for at most
+    /// `threads - 1` later frames.)
     threads: usize,
-    /// Seconds between reference renewals (0 = the first frame stays the
-    /// reference); see the module docs.
-    #[serde(default = "d_interval")]
     reference_interval_s: f64,
-    /// Frames over which the old and the next reference run side by side
-    /// to measure the offset that joins them.
-    #[serde(default = "d_overlap")]
     reference_overlap: usize,
 }
-fn d_interval() -> f64 {
-    1.0
-}
-fn d_overlap() -> usize {
-    32
-}
-fn d_block() -> usize {
-    64
-}
+
+const PARAMS: &[ParamSpec] = &[
+    PYRAMID,
+    SCALES,
+    ORIENTATIONS,
+    super::reduce::ROI,
+    ParamSpec::new("mask", ParamType::Path, Def::Optional)
+        .doc("region as an image the frame's size (PGM/PNG, > 0 inside); with roi, both"),
+    ParamSpec::new("block", ParamType::Int, Def::Int(64))
+        .ints(1, 65536)
+        .unit("frames")
+        .doc("frames per emitted block"),
+    FRAME_THREADS,
+    ParamSpec::new("reference_interval_s", ParamType::Float, Def::Float(1.0))
+        .at_least(0.0)
+        .unit("s")
+        .doc("time between reference renewals (0 = the first frame stays the reference)"),
+    ParamSpec::new("reference_overlap", ParamType::Int, Def::Int(32))
+        .ints(0, 65536)
+        .unit("frames")
+        .doc("frames over which old and next reference run side by side to join them"),
+];
 
 pub const KIND: KindSpec = KindSpec {
     name: "phase",
     summary: "pyramid (csp or riesz) local phase, A²-weighted and summed per band (Eq. 3.1-3.4) -> one channel per band",
-    accepts: &[PortType::Frames, PortType::Pyramid],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Samples),
+    inputs: &[InPort::one(&[PortType::Frames, PortType::Pyramid])],
+    outputs: &[OutPort::out(PortType::Samples)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        PyramidSpec {
-            kind: v.pyramid,
-            scales: v.scales,
-            orientations: v.orientations,
-        }
-        .check(p)?;
-        if !(1..=65536).contains(&v.block) {
-            return Err(p.error("block", format!("must be 1..=65536, got {}", v.block)));
-        }
+        let v: P = p.resolve(PARAMS)?;
         if let Some(r) = &v.roi {
             r.check().map_err(|m| p.error("roi", m))?;
         }
@@ -109,21 +98,6 @@ pub const KIND: KindSpec = KindSpec {
             Some(m) => Some((m.clone(), Mask::load(m).map_err(|e| p.error("mask", e))?)),
             None => None,
         };
-        if !(v.reference_interval_s.is_finite() && v.reference_interval_s >= 0.0) {
-            return Err(p.error(
-                "reference_interval_s",
-                format!("must be >= 0 (0 = never renew), got {}", v.reference_interval_s),
-            ));
-        }
-        if v.reference_overlap > 65536 {
-            return Err(p.error(
-                "reference_overlap",
-                format!("must be 0..=65536 frames, got {}", v.reference_overlap),
-            ));
-        }
-        if v.threads > 256 {
-            return Err(p.error("threads", format!("must be 0..=256, got {}", v.threads)));
-        }
         Ok(Box::new(PhasePlan { p: v, mask }))
     },
 };
@@ -380,7 +354,7 @@ impl<A: Analyzer> Engine<A> {
         let w0 = &mut self.workers[0];
         w0.an.analyze(f, &mut w0.input, &mut w0.c)?;
         let r = self.make_reference(0, f.t_ns())?.ok_or_else(|| {
-            StageError::msg("the region has no texture (zero local contrast in every band)")
+            StageError::dsp("the region has no texture (zero local contrast in every band)")
         })?;
         self.reference = Some(r);
         Ok(())
@@ -595,13 +569,16 @@ fn item_fps(item: &Item) -> f64 {
 
 impl Phase {
     fn init(&mut self, f: &Item) -> Result<(), StageError> {
-        let (w, h) = item_size(f).ok_or_else(|| StageError::msg("expected frames or a pyramid"))?;
+        let (w, h) = item_size(f).ok_or_else(|| StageError::expected("frames or a pyramid"))?;
         let mut roi = Roi::resolve(self.roi.as_ref(), w, h)?;
         let mask = match self.mask.take() {
             Some((path, m)) => {
                 m.check_size(&path, w, h)?;
                 roi = roi.intersect(&m.bounds()).ok_or_else(|| {
-                    StageError::msg(format!("mask {} does not overlap the roi", path.display()))
+                    StageError::config(
+                        "mask",
+                        format!("{} does not overlap the roi", path.display()),
+                    )
                 })?;
                 Some(m)
             }
@@ -683,7 +660,7 @@ impl Stage for Phase {
         }
         if let Some(e) = &self.engine {
             if item_size(&item) != Some(e.size()) {
-                return Err(StageError::msg("the frame size changed mid-stream"));
+                return Err(StageError::format("the frame size changed mid-stream"));
             }
         }
         self.pending.push(item);

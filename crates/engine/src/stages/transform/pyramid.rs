@@ -57,31 +57,26 @@ pub struct PyramidSpec {
     pub orientations: usize,
 }
 
-impl PyramidSpec {
-    /// Range checks, reported against the stage's fields.
-    pub fn check(&self, p: &Params<'_>) -> Result<(), ConfigError> {
-        if !(1..=8).contains(&self.scales) {
-            return Err(p.error("scales", format!("must be 1..=8, got {}", self.scales)));
-        }
-        if !(1..=8).contains(&self.orientations) {
-            return Err(p.error(
-                "orientations",
-                format!("must be 1..=8, got {}", self.orientations),
-            ));
-        }
-        Ok(())
-    }
-}
-
-pub(super) fn d_pyr() -> PyramidKind {
-    PyramidKind::Csp
-}
-pub(super) fn d_scales() -> usize {
-    4
-}
-pub(super) fn d_orient() -> usize {
-    2
-}
+/// `pyramid`, shared by `pyramid` and `phase`.
+pub(super) const PYRAMID: ParamSpec = ParamSpec::new(
+    "pyramid",
+    ParamType::Choice(&["csp", "riesz"]),
+    Def::Str("csp"),
+)
+.doc("complex steerable pyramid, or the faster Riesz pyramid");
+/// `scales`, shared by `pyramid` and `phase`.
+pub(super) const SCALES: ParamSpec = ParamSpec::new("scales", ParamType::Int, Def::Int(4))
+    .ints(1, 8)
+    .doc("pyramid scales (octaves)");
+/// `orientations`, shared by `pyramid` and `phase`.
+pub(super) const ORIENTATIONS: ParamSpec =
+    ParamSpec::new("orientations", ParamType::Int, Def::Int(2))
+        .ints(1, 8)
+        .doc("orientations per scale");
+/// `threads`, shared by `pyramid` and `phase`.
+pub(super) const FRAME_THREADS: ParamSpec = ParamSpec::new("threads", ParamType::Int, Def::Int(0))
+    .ints(0, 256)
+    .doc("frames analysed at once, one per worker (0 = one per core, at most 8); bit-identical for any");
 
 /// Worker threads: 0 = one per core, at most 8.
 pub(super) fn resolve_threads(n: usize) -> usize {
@@ -94,7 +89,7 @@ pub(super) fn resolve_threads(n: usize) -> usize {
 }
 
 pub(super) fn pyramid_err(e: PyramidError) -> StageError {
-    StageError::msg(format!("pyramid: {e}"))
+    StageError::dsp(format!("pyramid: {e}"))
 }
 
 /// A frame's pixels as f32.
@@ -165,7 +160,7 @@ impl<P: FramePyramid> Analyzer for OnFrames<P> {
     }
     fn analyze(&mut self, item: &Item, input: &mut [f32], c: &mut P::C) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         to_f32(f, input);
         self.0.analyze_frame(input, c).map_err(pyramid_err)
@@ -211,10 +206,10 @@ impl<C: CarriedKind> Analyzer for Carried<C> {
     }
     fn analyze(&mut self, item: &Item, _: &mut [f32], c: &mut Arc<C>) -> Result<(), StageError> {
         let Item::Pyramid(p) = item else {
-            return Err(StageError::msg("expected pyramid coefficients"));
+            return Err(StageError::expected("pyramid coefficients"));
         };
         let got = C::get(&p.data).ok_or_else(|| {
-            StageError::msg(format!(
+            StageError::format(format!(
                 "the pyramid kind changed mid-stream (expected {})",
                 C::NAME
             ))
@@ -227,35 +222,27 @@ impl<C: CarriedKind> Analyzer for Carried<C> {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    #[serde(default = "d_pyr")]
     pyramid: PyramidKind,
-    #[serde(default = "d_scales")]
     scales: usize,
-    #[serde(default = "d_orient")]
     orientations: usize,
-    /// Frames analysed at once, one per worker thread (0 = one per core,
-    /// at most 8).
-    #[serde(default)]
     threads: usize,
 }
+
+const PARAMS: &[ParamSpec] = &[PYRAMID, SCALES, ORIENTATIONS, FRAME_THREADS];
 
 pub const KIND: KindSpec = KindSpec {
     name: "pyramid",
     summary: "complex steerable or Riesz pyramid per frame (Eq. 3.1) -> local amplitude and phase per band, for phase",
-    accepts: &[PortType::Frames],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Pyramid),
+    inputs: &[InPort::one(&[PortType::Frames])],
+    outputs: &[OutPort::out(PortType::Pyramid)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
+        let v: P = p.resolve(PARAMS)?;
         let spec = PyramidSpec {
             kind: v.pyramid,
             scales: v.scales,
             orientations: v.orientations,
         };
-        spec.check(p)?;
-        if v.threads > 256 {
-            return Err(p.error("threads", format!("must be 0..=256, got {}", v.threads)));
-        }
         Ok(Box::new(PyramidPlan {
             spec,
             threads: resolve_threads(v.threads),
@@ -393,7 +380,7 @@ impl<A: FramePyramid> Analyse for Workers<A> {
                         to_f32(f, &mut w.input);
                         w.an.analyze_frame(&w.input, c).map_err(pyramid_err)
                     }
-                    None => Err(StageError::msg("pyramid buffer still shared")),
+                    None => Err(StageError::msg("internal: pyramid buffer still shared")),
                 };
             };
             spread(pool, workers, batch, job);
@@ -465,14 +452,14 @@ impl PyramidStage {
 impl Stage for PyramidStage {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         if self.workers.is_none() {
             self.init(&f)?;
         }
         if let Some(w) = &self.workers {
             if (f.width(), f.height()) != w.size() {
-                return Err(StageError::msg("the frame size changed mid-stream"));
+                return Err(StageError::format("the frame size changed mid-stream"));
             }
         }
         self.pending.push(f);

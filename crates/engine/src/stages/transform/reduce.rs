@@ -6,25 +6,29 @@
 //! bit-identical whether one thread or many did the work.
 
 use super::roi::RoiParam;
-use crate::{ConfigError, Params, StageError};
+use crate::{ConfigError, Def, ParamSpec, ParamType, Params, StageError};
 use rayon::prelude::*;
 
 /// Rows per reduction chunk: fixed, so the summation order never depends on threads.
 pub const CHUNK_ROWS: usize = 8;
 
-/// Range checks for the parameters every per-frame stage shares.
-pub fn check_common(
-    p: &Params<'_>,
-    roi: Option<&RoiParam>,
-    threads: usize,
-    block: usize,
-) -> Result<(), ConfigError> {
-    if !(1..=256).contains(&threads) {
-        return Err(p.error("threads", format!("must be 1..=256, got {threads}")));
-    }
-    if !(1..=1 << 20).contains(&block) {
-        return Err(p.error("block", format!("must be 1..=1048576, got {block}")));
-    }
+/// `roi`, shared by the per-frame stages.
+pub const ROI: ParamSpec = ParamSpec::new("roi", ParamType::Ints, Def::Optional)
+    .ints(0, u32::MAX as i64)
+    .unit("px")
+    .doc("region of interest [x, y, w, h]; the whole frame when absent");
+/// `threads`, shared by the per-frame stages.
+pub const THREADS: ParamSpec = ParamSpec::new("threads", ParamType::Int, Def::Int(1))
+    .ints(1, 256)
+    .doc("worker threads for the reduction (1 = none); the result is bit-identical for any");
+/// `block`, shared by the per-frame stages.
+pub const BLOCK: ParamSpec = ParamSpec::new("block", ParamType::Int, Def::Int(256))
+    .ints(1, 1 << 20)
+    .unit("samples")
+    .doc("samples per emitted block");
+
+/// Checks a region of interest (the ranges of `threads` and `block` are declared).
+pub fn check_roi(p: &Params<'_>, roi: Option<&RoiParam>) -> Result<(), ConfigError> {
     if let Some(r) = roi {
         r.check().map_err(|m| p.error("roi", m))?;
     }

@@ -39,9 +39,10 @@ impl Roi {
         };
         let (x, y, w, h) = (*x as usize, *y as usize, *w as usize, *h as usize);
         if x + w > width || y + h > height || w == 0 || h == 0 {
-            return Err(StageError::msg(format!(
-                "roi [{x}, {y}, {w}, {h}] does not fit in a {width}x{height} frame"
-            )));
+            return Err(StageError::config(
+                "roi",
+                format!("[{x}, {y}, {w}, {h}] does not fit in a {width}x{height} frame"),
+            ));
         }
         Ok(Roi { x, y, w, h })
     }
@@ -119,12 +120,15 @@ impl Mask {
         height: usize,
     ) -> Result<(), StageError> {
         if (self.width, self.height) != (width, height) {
-            return Err(StageError::msg(format!(
-                "mask {} is {}x{}, but the frames are {width}x{height}",
-                path.display(),
-                self.width,
-                self.height
-            )));
+            return Err(StageError::config(
+                "mask",
+                format!(
+                    "{} is {}x{}, but the frames are {width}x{height}",
+                    path.display(),
+                    self.width,
+                    self.height
+                ),
+            ));
         }
         Ok(())
     }

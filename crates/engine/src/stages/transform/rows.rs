@@ -30,24 +30,48 @@ use vibroscope_math::row_phase::{RowPhase, MAX_WAVELENGTH_PX, MIN_WAVELENGTH_PX}
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    /// Time between the starts of consecutive rows, µs.
     line_delay_us: Option<f64>,
-    /// Blind time between a frame's last row and the next frame's first, µs (checked only).
     frame_delay_us: Option<f64>,
-    /// Gabor wavelengths along x, one per scale, px.
-    #[serde(default = "d_wavelengths")]
     wavelengths_px: Vec<f64>,
     roi: Option<RoiParam>,
-    /// Time constant of the per-row running mean, s (0 = off).
-    #[serde(default = "d_row_mean")]
     row_mean_s: f64,
 }
-fn d_wavelengths() -> Vec<f64> {
-    vec![8.0, 16.0]
-}
-fn d_row_mean() -> f64 {
-    0.5
-}
+
+/// `line_delay_us`, shared with `synthetic`.
+pub const LINE_DELAY_US: ParamSpec = ParamSpec::new(
+    "line_delay_us",
+    ParamType::Float,
+    Def::Optional,
+)
+.above_upto(0.0, 1e6)
+.unit("µs")
+.doc(
+    "rolling shutter: time between the starts of consecutive rows; default: the frames' row timing",
+);
+/// `frame_delay_us`, shared with `synthetic`.
+pub const FRAME_DELAY_US: ParamSpec =
+    ParamSpec::new("frame_delay_us", ParamType::Float, Def::Optional)
+        .floats(0.0, 1e7)
+        .unit("µs")
+        .doc("blind time between a frame's last row and the next's first (checked only)");
+
+const PARAMS: &[ParamSpec] = &[
+    LINE_DELAY_US,
+    FRAME_DELAY_US,
+    ParamSpec::new(
+        "wavelengths_px",
+        ParamType::Floats,
+        Def::Toml("[8.0, 16.0]"),
+    )
+    .floats(MIN_WAVELENGTH_PX, MAX_WAVELENGTH_PX)
+    .unit("px")
+    .doc("Gabor wavelengths along x, one per scale (1 to 8)"),
+    super::reduce::ROI,
+    ParamSpec::new("row_mean_s", ParamType::Float, Def::Float(0.5))
+        .at_least(0.0)
+        .unit("s")
+        .doc("time constant of the per-row running mean removed (0 = off)"),
+];
 
 /// Relative tolerance when a stated frame delay is checked against
 /// 1/fps - rows·d (spec sheets round; the thesis' own DSLR figures are 0.9% apart).
@@ -108,33 +132,16 @@ pub fn frame_delay_us(
 pub const KIND: KindSpec = KindSpec {
     name: "rows",
     summary: "rolling shutter: one motion sample per row (1-D local phase along x, A² weights) at its capture time",
-    accepts: &[PortType::Frames],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Samples),
+    inputs: &[InPort::one(&[PortType::Frames])],
+    outputs: &[OutPort::out(PortType::Samples)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
-        if let Some(d) = v.line_delay_us {
-            check_line_delay_us(d).map_err(|m| p.error("line_delay_us", m))?;
-        }
-        if let Some(g) = v.frame_delay_us {
-            check_time_us(g).map_err(|m| p.error("frame_delay_us", m))?;
-        }
+        let v: P = p.resolve(PARAMS)?;
         if v.wavelengths_px.is_empty() || v.wavelengths_px.len() > 8 {
             return Err(p.error(
                 "wavelengths_px",
                 format!("give 1 to 8 wavelengths, got {}", v.wavelengths_px.len()),
             ));
-        }
-        for &w in &v.wavelengths_px {
-            if !(MIN_WAVELENGTH_PX..=MAX_WAVELENGTH_PX).contains(&w) {
-                return Err(p.error(
-                    "wavelengths_px",
-                    format!("each must be {MIN_WAVELENGTH_PX}..={MAX_WAVELENGTH_PX} px, got {w}"),
-                ));
-            }
-        }
-        if !(v.row_mean_s.is_finite() && v.row_mean_s >= 0.0) {
-            return Err(p.error("row_mean_s", format!("must be >= 0 s, got {}", v.row_mean_s)));
         }
         if let Some(r) = &v.roi {
             r.check().map_err(|m| p.error("roi", m))?;
@@ -196,19 +203,20 @@ impl Rows {
             (Some(d), _) => d,
             (None, Some(rt)) => rt.line_delay_ns * 1e-3,
             (None, None) => {
-                return Err(StageError::msg(
-                    "line_delay_us: not set and the camera reports no row timing; \
+                return Err(StageError::config(
+                    "line_delay_us",
+                    "not set and the camera reports no row timing; \
                      give the line delay (or estimate it with `vibroscope rs-calibrate`)",
                 ))
             }
         };
-        check_line_delay_us(d_us).map_err(|m| StageError::msg(format!("line_delay_us: {m}")))?;
+        check_line_delay_us(d_us).map_err(|m| StageError::config("line_delay_us", m))?;
         let (w, h) = (f.width(), f.height());
         let implied = frame_delay_us(h, d_us, fmt.fps, self.p.frame_delay_us)
-            .map_err(|(field, m)| StageError::msg(format!("{field}: {m}")))?;
+            .map_err(|(field, m)| StageError::config(field, m))?;
         let roi = Roi::resolve(self.p.roi.as_ref(), w, h)?;
         let est = RowPhase::new(w, roi.x, roi.x + roi.w, roi.h, &self.p.wavelengths_px)
-            .map_err(|m| StageError::msg(format!("wavelengths_px / roi: {m}")))?;
+            .map_err(|m| StageError::config("wavelengths_px", format!("(with the roi) {m}")))?;
         tracing::info!(
             line_delay_us = d_us,
             frame_delay_us = implied,
@@ -242,7 +250,7 @@ impl Rows {
 impl Stage for Rows {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Frame(f) = item else {
-            return Err(StageError::msg("expected frames"));
+            return Err(StageError::expected("frames"));
         };
         if self.st.is_none() {
             self.st = Some(self.init(&f)?);
@@ -252,18 +260,21 @@ impl Stage for Rows {
             return Ok(());
         };
         if (f.width(), f.height()) != (st.width, st.height) {
-            return Err(StageError::msg("the frame size changed mid-stream"));
+            return Err(StageError::format("the frame size changed mid-stream"));
         }
         let t = f.meta().t_ns;
         if let Some(prev) = st.last_t {
             let readout = st.height as f64 * st.d_ns;
             if ((t - prev) as f64) < readout * (1.0 - 1e-6) {
-                return Err(StageError::msg(format!(
-                    "frames {} ns apart, but {} rows x line delay take {readout:.0} ns: \
-                     line_delay_us is too long for these timestamps",
-                    t - prev,
-                    st.height
-                )));
+                return Err(StageError::config(
+                    "line_delay_us",
+                    format!(
+                        "frames {} ns apart, but {} rows x line delay take {readout:.0} ns: \
+                     too long for these timestamps",
+                        t - prev,
+                        st.height
+                    ),
+                ));
             }
         }
         st.last_t = Some(t);

@@ -46,15 +46,7 @@ pub enum Mode {
     Whole,
 }
 
-/// The taper applied to each segment.
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
-#[serde(rename_all = "lowercase")]
-pub enum Taper {
-    Hann,
-    Hamming,
-    Blackman,
-    Rect,
-}
+pub use crate::item::Taper;
 
 impl Taper {
     /// The periodic taper of length `n` (periodic, so Welch segments at 50%
@@ -105,25 +97,42 @@ impl Taper {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
-    #[serde(default = "d_mode")]
     mode: Mode,
     window: Option<usize>,
     hop: Option<usize>,
-    #[serde(default = "d_taper")]
     taper: Taper,
-    #[serde(default = "d_welch")]
     welch: usize,
     segments: Option<usize>,
 }
-fn d_mode() -> Mode {
-    Mode::Sliding
-}
-fn d_taper() -> Taper {
-    Taper::Hann
-}
-fn d_welch() -> usize {
-    1
-}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new(
+        "mode",
+        ParamType::Choice(&["sliding", "whole"]),
+        Def::Str("sliding"),
+    )
+    .doc("a spectrum every `hop` samples, or one of the whole recording at the end"),
+    ParamSpec::new("window", ParamType::Int, Def::Optional)
+        .ints(8, MAX_WINDOW as i64)
+        .unit("samples")
+        .doc("segment length, even; default 1024 (whole: chosen from `segments`)"),
+    ParamSpec::new("hop", ParamType::Int, Def::Optional)
+        .ints(1, MAX_WINDOW as i64)
+        .unit("samples")
+        .doc("step between segments, <= window; default window/4 (whole: window/2)"),
+    ParamSpec::new(
+        "taper",
+        ParamType::Choice(&["hann", "hamming", "blackman", "rect"]),
+        Def::Str("hann"),
+    )
+    .doc("taper applied to each segment (travels on the spectrum to `peaks`)"),
+    ParamSpec::new("welch", ParamType::Int, Def::Int(1))
+        .ints(1, 1024)
+        .doc("sliding: the last K window spectra averaged"),
+    ParamSpec::new("segments", ParamType::Int, Def::Optional)
+        .ints(1, 4096)
+        .doc("whole, without `window`: segments averaged (default frames/2048, 1..=64)"),
+];
 /// Whole mode without `segments`: one segment per this many frames...
 pub const AUTO_FRAMES_PER_SEGMENT: usize = 2048;
 /// ...and at most this many (more buys little noise, costs resolution).
@@ -137,13 +146,13 @@ pub const MAX_WINDOW: usize = 1 << 24;
 pub const KIND: KindSpec = KindSpec {
     name: "spectrum",
     summary: "global motion power spectrum Σ|F(A² u)|² over channels (Eq. 3.17): sliding window/hop/taper/welch, or mode = \"whole\" at the end",
-    accepts: &[PortType::Samples, PortType::Audio],
-    max_inputs: 1,
-    output: Output::Fixed(PortType::Spectrum),
+    inputs: &[InPort::one(&[PortType::Samples, PortType::Audio])],
+    outputs: &[OutPort::out(PortType::Spectrum)],
+    params: PARAMS,
     plan: |p| {
-        let v: P = p.parse()?;
+        let v: P = p.resolve(PARAMS)?;
         if let Some(w) = v.window {
-            if !(8..=MAX_WINDOW).contains(&w) || w % 2 != 0 {
+            if w % 2 != 0 {
                 return Err(p.error(
                     "window",
                     format!("must be an even number of samples in 8..={MAX_WINDOW}, got {w}"),
@@ -159,19 +168,11 @@ pub const KIND: KindSpec = KindSpec {
                 ));
             }
         }
-        if !(1..=1024).contains(&v.welch) {
-            return Err(p.error("welch", format!("must be 1..=1024, got {}", v.welch)));
-        }
         if v.welch > 1 && v.mode == Mode::Whole {
             return Err(p.error(
                 "welch",
                 "applies to mode = \"sliding\"; \"whole\" always averages all segments",
             ));
-        }
-        if let Some(k) = v.segments {
-            if !(1..=4096).contains(&k) {
-                return Err(p.error("segments", format!("must be 1..=4096, got {k}")));
-            }
         }
         Ok(Box::new(SpectrumPlan(v)))
     },
@@ -298,11 +299,15 @@ impl SpectrumStage {
         self.t0_ns.unwrap_or(0) + (frame / self.rate * 1e9).round() as i64
     }
 
-    fn emit(&self, out: &mut Emitter, power: &[f64], n: usize, centre: f64) {
+    fn emit(&self, out: &mut Emitter, power: &[f64], n: usize, centre: f64, segments: usize) {
         let _ = out.emit(Item::Spectrum(Spectrum {
             t_ns: self.time_of(centre),
             f0_hz: 0.0,
             resolution_hz: self.rate / n as f64,
+            rate_hz: self.rate,
+            window: n,
+            taper: self.taper,
+            segments,
             power: power.iter().map(|&p| p as f32).collect(),
         }));
     }
@@ -334,7 +339,7 @@ impl SpectrumStage {
                 }
             }
             let centre = self.next_end as f64 - n as f64 / 2.0;
-            self.emit(out, &self.sum, n, centre);
+            self.emit(out, &self.sum, n, centre, self.history.len());
             self.next_end += hop;
         }
         // Drop the frames no later window needs.
@@ -350,7 +355,7 @@ impl SpectrumStage {
         let ch = self.channels.max(1);
         let frames = self.hist.len() / ch;
         if frames < 8 {
-            return Err(StageError::msg(format!(
+            return Err(StageError::dsp(format!(
                 "spectrum: mode = \"whole\" needs at least 8 samples, got {frames}"
             )));
         }
@@ -391,7 +396,7 @@ impl SpectrumStage {
             resolution_hz = self.rate / n as f64,
             "whole-recording spectrum"
         );
-        self.emit(out, &acc, n, frames as f64 / 2.0);
+        self.emit(out, &acc, n, frames as f64 / 2.0, count);
         Ok(())
     }
 }
@@ -401,10 +406,10 @@ impl Stage for SpectrumStage {
         let (t0, rate, ch, data) = match item {
             Item::Samples(s) => (s.t0_ns, s.rate_hz, s.channels.max(1), s.data),
             Item::Audio(a) => (a.t0_ns, a.rate_hz, 1, a.samples),
-            _ => return Err(StageError::msg("spectrum: expected samples or audio")),
+            _ => return Err(StageError::expected("samples or audio")),
         };
         if !(rate.is_finite() && rate > 0.0) {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "spectrum: input sample rate must be > 0 Hz, got {rate}"
             )));
         }
@@ -421,7 +426,7 @@ impl Stage for SpectrumStage {
                 self.hist.reserve((n + hop + 4096) * ch);
             }
         } else if ch != self.channels || (rate - self.rate).abs() > 1e-9 * self.rate {
-            return Err(StageError::msg(format!(
+            return Err(StageError::format(format!(
                 "spectrum: input changed from {} channels at {} Hz to {ch} at {rate} Hz",
                 self.channels, self.rate
             )));

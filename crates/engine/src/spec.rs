@@ -1,0 +1,705 @@
+//! Stage kinds declared as data, like a GStreamer element's properties:
+//! each kind lists its parameters ([`ParamSpec`]: name, type, default,
+//! range or allowed values, unit, one line of doc) and its named, typed
+//! ports ([`InPort`], [`OutPort`]). [`Params::resolve`] validates a stage's
+//! parameters against that list (unknown keys, types, ranges, choices,
+//! required fields), fills in the defaults and deserializes the kind's
+//! typed parameters; [`KindSpec::describe`] prints the same list for
+//! `vibroscope kinds KIND`. Checks that involve several fields (a hop no
+//! longer than the window, `min_hz < max_hz`) stay in the kind's `plan`.
+//!
+//! ```
+//! use vibroscope_engine::spec::{Def, ParamSpec, ParamType::*};
+//! const PARAMS: &[ParamSpec] = &[
+//!     ParamSpec::new("fps", Float, Def::Float(2200.0))
+//!         .above(0.0)
+//!         .unit("Hz")
+//!         .doc("frame rate"),
+//!     ParamSpec::new("path", Path, Def::Required).doc("output file"),
+//! ];
+//! # let _ = PARAMS;
+//! ```
+
+use crate::config::{ConfigError, Origin, Param, Params};
+use crate::graph::KindSpec;
+use crate::item::PortType;
+use serde::de::DeserializeOwned;
+use std::fmt::{self, Write as _};
+use toml::Value;
+
+/// The TOML type of a parameter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ParamType {
+    Bool,
+    Int,
+    /// A number (integers are accepted).
+    Float,
+    Str,
+    /// A file or directory path (a string).
+    Path,
+    /// One of a fixed set of strings.
+    Choice(&'static [&'static str]),
+    /// A number (in `range`) or one of these words (`gain = "auto"`).
+    NumOr(&'static [&'static str]),
+    /// An array of integers (each in `range`).
+    Ints,
+    /// An array of numbers (each in `range`).
+    Floats,
+    /// An inline table (its keys are checked by the kind's own types).
+    Table,
+    /// An array of inline tables.
+    Tables,
+}
+
+impl fmt::Display for ParamType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            ParamType::Bool => "bool",
+            ParamType::Int => "int",
+            ParamType::Float => "float",
+            ParamType::Str => "string",
+            ParamType::Path => "path",
+            ParamType::Choice(_) => "choice",
+            ParamType::NumOr(_) => "float|word",
+            ParamType::Ints => "[int]",
+            ParamType::Floats => "[float]",
+            ParamType::Table => "table",
+            ParamType::Tables => "[table]",
+        })
+    }
+}
+
+impl ParamType {
+    fn expected(&self) -> &'static str {
+        match self {
+            ParamType::Bool => "a boolean",
+            ParamType::Int => "an integer",
+            ParamType::Float => "a number",
+            ParamType::Str | ParamType::Path | ParamType::Choice(_) => "a string",
+            ParamType::NumOr(_) => "a number or a word",
+            ParamType::Ints => "an array of integers",
+            ParamType::Floats => "an array of numbers",
+            ParamType::Table => "a table",
+            ParamType::Tables => "an array of tables",
+        }
+    }
+}
+
+/// A parameter's default.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Def {
+    /// The stage cannot be built without it.
+    Required,
+    /// Absent means "automatic" (the doc says what that is).
+    Optional,
+    Bool(bool),
+    Int(i64),
+    Float(f64),
+    Str(&'static str),
+    /// Any other value, as TOML text (`"[1, 2]"`, `"{ type = \"tone\" }"`).
+    Toml(&'static str),
+}
+
+impl Def {
+    /// The default as a TOML value (`None` for required and optional).
+    pub fn value(&self) -> Option<Value> {
+        Some(match *self {
+            Def::Required | Def::Optional => return None,
+            Def::Bool(b) => Value::Boolean(b),
+            Def::Int(i) => Value::Integer(i),
+            Def::Float(x) => Value::Float(x),
+            Def::Str(s) => Value::String(s.to_string()),
+            Def::Toml(t) => crate::config::parse_value(t),
+        })
+    }
+}
+
+impl fmt::Display for Def {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Def::Required => f.write_str("required"),
+            Def::Optional => f.write_str("auto"),
+            Def::Bool(b) => write!(f, "{b}"),
+            Def::Int(i) => write!(f, "{i}"),
+            Def::Float(x) => write!(f, "{x}"),
+            Def::Str(s) => write!(f, "{s}"),
+            Def::Toml(t) => f.write_str(t),
+        }
+    }
+}
+
+/// The valid values of a number (each element's, for arrays).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Range {
+    /// Any value (floats must still be finite).
+    Any,
+    /// `lo..=hi`.
+    Int(i64, i64),
+    /// Between `lo` and `hi`, each bound inclusive or not; finite.
+    Float {
+        lo: f64,
+        lo_open: bool,
+        hi: f64,
+        hi_open: bool,
+    },
+}
+
+impl Range {
+    fn contains_f(&self, x: f64) -> bool {
+        match *self {
+            Range::Any => x.is_finite(),
+            Range::Int(lo, hi) => x >= lo as f64 && x <= hi as f64,
+            Range::Float {
+                lo,
+                lo_open,
+                hi,
+                hi_open,
+            } => {
+                x.is_finite()
+                    && if lo_open { x > lo } else { x >= lo }
+                    && if hi_open { x < hi } else { x <= hi }
+            }
+        }
+    }
+}
+
+impl fmt::Display for Range {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Range::Any => Ok(()),
+            Range::Int(lo, i64::MAX) => write!(f, ">= {lo}"),
+            Range::Int(lo, hi) => write!(f, "{lo}..={hi}"),
+            Range::Float {
+                lo,
+                lo_open,
+                hi,
+                hi_open,
+            } => {
+                let l = if lo_open { ">" } else { ">=" };
+                let h = if hi_open { "<" } else { "<=" };
+                match (lo.is_finite(), hi.is_finite()) {
+                    (true, true) => write!(f, "{l} {lo} and {h} {hi}"),
+                    (true, false) => write!(f, "{l} {lo}"),
+                    (false, true) => write!(f, "{h} {hi}"),
+                    (false, false) => f.write_str("finite"),
+                }
+            }
+        }
+    }
+}
+
+/// One parameter of a stage kind.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub ty: ParamType,
+    pub default: Def,
+    pub range: Range,
+    /// Unit of the value (`"Hz"`, `"px"`, `"samples"`); empty when none.
+    pub unit: &'static str,
+    /// One line.
+    pub doc: &'static str,
+}
+
+impl ParamSpec {
+    pub const fn new(name: &'static str, ty: ParamType, default: Def) -> Self {
+        Self {
+            name,
+            ty,
+            default,
+            range: Range::Any,
+            unit: "",
+            doc: "",
+        }
+    }
+    pub const fn unit(self, unit: &'static str) -> Self {
+        Self { unit, ..self }
+    }
+    pub const fn doc(self, doc: &'static str) -> Self {
+        Self { doc, ..self }
+    }
+    /// Integers in `lo..=hi`.
+    pub const fn ints(self, lo: i64, hi: i64) -> Self {
+        Self {
+            range: Range::Int(lo, hi),
+            ..self
+        }
+    }
+    /// Numbers in `lo..=hi`.
+    pub const fn floats(self, lo: f64, hi: f64) -> Self {
+        Self {
+            range: Range::Float {
+                lo,
+                lo_open: false,
+                hi,
+                hi_open: false,
+            },
+            ..self
+        }
+    }
+    /// Numbers `> lo`.
+    pub const fn above(self, lo: f64) -> Self {
+        Self {
+            range: Range::Float {
+                lo,
+                lo_open: true,
+                hi: f64::INFINITY,
+                hi_open: true,
+            },
+            ..self
+        }
+    }
+    /// Numbers `> lo` and `<= hi`.
+    pub const fn above_upto(self, lo: f64, hi: f64) -> Self {
+        Self {
+            range: Range::Float {
+                lo,
+                lo_open: true,
+                hi,
+                hi_open: false,
+            },
+            ..self
+        }
+    }
+    /// Numbers `>= lo`.
+    pub const fn at_least(self, lo: f64) -> Self {
+        Self {
+            range: Range::Float {
+                lo,
+                lo_open: false,
+                hi: f64::INFINITY,
+                hi_open: true,
+            },
+            ..self
+        }
+    }
+    /// Any range.
+    pub const fn range(self, range: Range) -> Self {
+        Self { range, ..self }
+    }
+
+    /// What `describe` shows in the range column.
+    pub fn range_text(&self) -> String {
+        match self.ty {
+            ParamType::Choice(c) => c.join("|"),
+            ParamType::NumOr(w) => format!("{} | {}", w.join("|"), self.range),
+            _ => self.range.to_string(),
+        }
+    }
+
+    /// Checks one value's type and range; the message says what was wrong.
+    pub fn check(&self, v: &Value) -> Result<(), String> {
+        let bad_type = || {
+            format!(
+                "invalid type: {}, expected {}",
+                found(v),
+                self.ty.expected()
+            )
+        };
+        let num = |x: &Value| -> Result<(), String> {
+            let f = match x {
+                Value::Integer(i) => *i as f64,
+                Value::Float(f) => *f,
+                _ => return Err(bad_type()),
+            };
+            if self.range.contains_f(f) {
+                Ok(())
+            } else {
+                Err(self.out_of_range(&num_text(x)))
+            }
+        };
+        match (self.ty, v) {
+            (ParamType::Bool, Value::Boolean(_)) => Ok(()),
+            (ParamType::Int, Value::Integer(_)) => num(v),
+            (ParamType::Float, Value::Integer(_) | Value::Float(_)) => num(v),
+            (ParamType::Str | ParamType::Path, Value::String(_)) => Ok(()),
+            (ParamType::Choice(c), Value::String(s)) => {
+                if c.contains(&s.as_str()) {
+                    Ok(())
+                } else {
+                    Err(format!("must be {}, got `{s}`", or_list(c)))
+                }
+            }
+            (ParamType::NumOr(_), Value::Integer(_) | Value::Float(_)) => num(v),
+            (ParamType::NumOr(w), Value::String(s)) => {
+                if w.contains(&s.as_str()) {
+                    Ok(())
+                } else {
+                    let words: Vec<String> = w.iter().map(|w| format!("\"{w}\"")).collect();
+                    let words: Vec<&str> = words.iter().map(String::as_str).collect();
+                    Err(format!(
+                        "must be {} or a number {}, got \"{s}\"",
+                        or_list(&words),
+                        self.range
+                    ))
+                }
+            }
+            (ParamType::Ints, Value::Array(a)) => a.iter().try_for_each(|x| match x {
+                Value::Integer(_) => num(x),
+                _ => Err(bad_type()),
+            }),
+            (ParamType::Floats, Value::Array(a)) => a.iter().try_for_each(num),
+            (ParamType::Table, Value::Table(_)) => Ok(()),
+            (ParamType::Tables, Value::Array(a)) if a.iter().all(Value::is_table) => Ok(()),
+            _ => Err(bad_type()),
+        }
+    }
+
+    fn out_of_range(&self, got: &str) -> String {
+        let unit = if self.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" {}", self.unit)
+        };
+        match self.range {
+            Range::Any => format!("must be a finite number, got {got}"),
+            r => format!("must be {r}{unit}, got {got}"),
+        }
+    }
+}
+
+fn num_text(v: &Value) -> String {
+    match v {
+        Value::Integer(i) => i.to_string(),
+        Value::Float(f) => f.to_string(),
+        other => other.to_string(),
+    }
+}
+
+/// How serde names a value in an `invalid type` message.
+fn found(v: &Value) -> String {
+    match v {
+        Value::String(s) => format!("string {s:?}"),
+        Value::Integer(i) => format!("integer `{i}`"),
+        Value::Float(f) => format!("floating point `{f}`"),
+        Value::Boolean(b) => format!("boolean `{b}`"),
+        Value::Datetime(d) => format!("datetime `{d}`"),
+        Value::Array(_) => "sequence".into(),
+        Value::Table(_) => "map".into(),
+    }
+}
+
+/// `a, b or c`.
+pub fn or_list(items: &[&str]) -> String {
+    match items {
+        [] => String::new(),
+        [one] => one.to_string(),
+        [init @ .., last] => format!("{} or {last}", init.join(", ")),
+    }
+}
+
+/// The value `name` defaults to, deserialized (`None` when the kind has no
+/// such parameter or it has no default). For `Default` impls of
+/// parameter types that are also read without [`Params::resolve`].
+pub fn default_of<T: DeserializeOwned>(specs: &[ParamSpec], name: &str) -> Option<T> {
+    let v = specs.iter().find(|s| s.name == name)?.default.value()?;
+    T::deserialize(v).ok()
+}
+
+impl Params<'_> {
+    /// Validates the stage's parameters against `specs` (unknown keys,
+    /// types, ranges and choices, required fields), fills in the declared
+    /// defaults and deserializes `T`. Every error names the file, line,
+    /// stage, field and value.
+    pub fn resolve<T: DeserializeOwned>(&self, specs: &[ParamSpec]) -> Result<T, ConfigError> {
+        let mut all: Vec<Param> = Vec::with_capacity(specs.len());
+        for p in &self.stage.params {
+            let Some(spec) = specs.iter().find(|s| s.name == p.key) else {
+                let names: Vec<String> = specs.iter().map(|s| format!("`{}`", s.name)).collect();
+                let msg = if names.is_empty() {
+                    format!("unknown field `{}`, there are no fields", p.key)
+                } else {
+                    format!(
+                        "unknown field `{}`, expected one of {}",
+                        p.key,
+                        names.join(", ")
+                    )
+                };
+                return Err(self.error(&p.key, msg));
+            };
+            spec.check(&p.value).map_err(|m| self.error(&p.key, m))?;
+            all.push(p.clone());
+        }
+        for spec in specs {
+            if self.stage.params.iter().any(|p| p.key == spec.name) {
+                continue;
+            }
+            match spec.default {
+                Def::Required => {
+                    return Err(ConfigError {
+                        file: self.file.to_string(),
+                        origin: Some(self.stage.origin.clone()),
+                        stage: Some(self.stage.id.as_str().into()),
+                        field: Some(spec.name.into()),
+                        message: format!("missing field `{}`", spec.name),
+                    })
+                }
+                d => {
+                    if let Some(value) = d.value() {
+                        all.push(Param {
+                            key: spec.name.to_string(),
+                            value,
+                            origin: Origin::Builtin("default".into()),
+                        });
+                    }
+                }
+            }
+        }
+        self.parse_list(&all)
+    }
+}
+
+/// An input port: the edges a stage's `input` lists arrive here.
+#[derive(Clone, Copy, Debug)]
+pub struct InPort {
+    pub name: &'static str,
+    /// Payload types accepted.
+    pub accepts: &'static [PortType],
+    /// How many edges may connect.
+    pub max_edges: usize,
+}
+
+impl InPort {
+    /// The usual input: `in`, one edge.
+    pub const fn one(accepts: &'static [PortType]) -> Self {
+        Self {
+            name: "in",
+            accepts,
+            max_edges: 1,
+        }
+    }
+}
+
+/// An output port's payload.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutType {
+    Fixed(PortType),
+    /// Whatever arrives on the inputs (pass-through stages).
+    SameAsInput,
+}
+
+/// An output port (fan-out: any number of consumers).
+#[derive(Clone, Copy, Debug)]
+pub struct OutPort {
+    pub name: &'static str,
+    pub ty: OutType,
+}
+
+impl OutPort {
+    /// The usual output: `out`, of one type.
+    pub const fn out(t: PortType) -> Self {
+        Self {
+            name: "out",
+            ty: OutType::Fixed(t),
+        }
+    }
+}
+
+/// Sources take no input.
+pub const NO_INPUTS: &[InPort] = &[];
+/// Sinks give no output.
+pub const NO_OUTPUTS: &[OutPort] = &[];
+
+impl KindSpec {
+    /// "source", "sink" or "stage".
+    pub fn role(&self) -> &'static str {
+        if self.is_source() {
+            "source"
+        } else if self.outputs.is_empty() {
+            "sink"
+        } else {
+            "stage"
+        }
+    }
+
+    /// One line: name, role, summary (the `vibroscope kinds` listing).
+    pub fn line(&self) -> String {
+        format!("{:<16} {:<7} {}", self.name, self.role(), self.summary)
+    }
+
+    /// The kind's ports and parameters as a table (`vibroscope kinds KIND`).
+    pub fn describe(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "{} ({}): {}", self.name, self.role(), self.summary);
+        s.push('\n');
+        if self.inputs.is_empty() {
+            s.push_str("inputs:  none\n");
+        }
+        for p in self.inputs {
+            let t: Vec<String> = p.accepts.iter().map(|t| t.to_string()).collect();
+            let n = if p.max_edges == 1 {
+                String::new()
+            } else {
+                format!(" (up to {} edges)", p.max_edges)
+            };
+            let t = if t.is_empty() {
+                "any".to_string()
+            } else {
+                t.join(" | ")
+            };
+            let _ = writeln!(s, "input:   {}: {t}{n}", p.name);
+        }
+        if self.outputs.is_empty() {
+            s.push_str("outputs: none\n");
+        }
+        for p in self.outputs {
+            let t = match p.ty {
+                OutType::Fixed(t) => t.to_string(),
+                OutType::SameAsInput => "same as input".into(),
+            };
+            let _ = writeln!(s, "output:  {}: {t}", p.name);
+        }
+        s.push('\n');
+        if self.params.is_empty() {
+            s.push_str("no parameters\n");
+            return s;
+        }
+        let rows: Vec<[String; 6]> = self
+            .params
+            .iter()
+            .map(|p| {
+                [
+                    p.name.to_string(),
+                    p.ty.to_string(),
+                    p.default.to_string(),
+                    p.range_text(),
+                    p.unit.to_string(),
+                    p.doc.to_string(),
+                ]
+            })
+            .collect();
+        let head = ["name", "type", "default", "range", "unit", "doc"];
+        let mut w = head.map(str::len);
+        for r in &rows {
+            for (i, c) in r.iter().enumerate().take(5) {
+                w[i] = w[i].max(c.chars().count());
+            }
+        }
+        let mut row = |cells: [&str; 6]| {
+            let mut line = String::new();
+            for (i, c) in cells.iter().enumerate() {
+                if i < 5 {
+                    let _ = write!(line, "{c:<0$}  ", w[i]);
+                } else {
+                    line.push_str(c);
+                }
+            }
+            s.push_str(line.trim_end());
+            s.push('\n');
+        };
+        row(head);
+        for r in &rows {
+            row([&r[0], &r[1], &r[2], &r[3], &r[4], &r[5]]);
+        }
+        s
+    }
+}
+
+/// One line per kind: what `vibroscope kinds` prints.
+pub fn listing(registry: &[KindSpec]) -> String {
+    registry.iter().map(|k| k.line() + "\n").collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::parse;
+    use crate::stages::REGISTRY;
+
+    /// A value for a required parameter, for the defaults test.
+    fn sample(spec: &ParamSpec) -> Value {
+        match spec.ty {
+            ParamType::Path => Value::String("/tmp/vibroscope-kinds-test/out.x".into()),
+            ParamType::Str => Value::String("x".into()),
+            ParamType::Bool => Value::Boolean(false),
+            ParamType::Int => Value::Integer(match spec.range {
+                Range::Int(lo, _) => lo,
+                _ => 1,
+            }),
+            ParamType::Float => Value::Float(1.0),
+            ParamType::Choice(c) => Value::String(c[0].into()),
+            _ => Value::Array(Vec::new()),
+        }
+    }
+
+    /// Every kind builds its plan from its declared defaults (required
+    /// parameters given a value), and every declared default is itself
+    /// within the declared range.
+    #[test]
+    fn declared_defaults_pass_validation() {
+        for k in REGISTRY {
+            let mut text = format!("[[stage]]\nid = \"s\"\nkind = \"{}\"\n", k.name);
+            for p in k.params {
+                if let Some(v) = p.default.value() {
+                    assert!(
+                        p.check(&v).is_ok(),
+                        "{}.{}: default {v} fails",
+                        k.name,
+                        p.name
+                    );
+                    assert!(!p.doc.is_empty(), "{}.{} has no doc", k.name, p.name);
+                }
+                if p.default == Def::Required {
+                    text.push_str(&format!("{} = {}\n", p.name, sample(p)));
+                }
+            }
+            let decl = parse("t.toml", &text).unwrap();
+            let params = Params {
+                file: "t.toml",
+                stage: &decl.stages[0],
+            };
+            if let Err(e) = (k.plan)(&params) {
+                panic!("kind `{}` rejects its own defaults: {e}", k.name);
+            }
+            assert!(k.inputs.len() <= 1 && k.outputs.len() <= 1, "{}", k.name);
+            let d = k.describe();
+            for p in k.params {
+                assert!(d.contains(p.name), "{}: {d}", k.name);
+            }
+        }
+    }
+
+    #[test]
+    fn listing_names_every_kind() {
+        let l = listing(REGISTRY);
+        assert_eq!(l.lines().count(), REGISTRY.len());
+        for k in REGISTRY {
+            assert!(
+                l.lines()
+                    .any(|line| line.split_whitespace().next() == Some(k.name)),
+                "{} missing: {l}",
+                k.name
+            );
+        }
+    }
+
+    #[test]
+    fn describe_shows_ports_and_params() {
+        let d = crate::stages::kind("spectrum").unwrap().describe();
+        assert!(d.contains("input:   in: samples | audio"), "{d}");
+        assert!(d.contains("output:  out: spectrum"), "{d}");
+        assert!(d.contains("sliding|whole"), "{d}");
+        assert!(d.contains("samples"), "{d}");
+    }
+
+    #[test]
+    fn checks_name_the_value() {
+        let s = ParamSpec::new("fps", ParamType::Float, Def::Float(1.0))
+            .above(0.0)
+            .unit("Hz");
+        assert_eq!(
+            s.check(&Value::Float(0.0)).unwrap_err(),
+            "must be > 0 Hz, got 0"
+        );
+        assert!(s.check(&Value::Float(f64::NAN)).is_err());
+        assert!(s
+            .check(&Value::String("x".into()))
+            .unwrap_err()
+            .contains("invalid type"));
+        let c = ParamSpec::new("m", ParamType::Choice(&["a", "b"]), Def::Str("a"));
+        assert_eq!(
+            c.check(&Value::String("z".into())).unwrap_err(),
+            "must be a or b, got `z`"
+        );
+    }
+}
