@@ -590,10 +590,12 @@ fn rs_calibrate_from_a_flickering_light() {
             "--signal",
             "intensity",
             "--json",
+            "flicker.json",
         ],
     );
     assert_eq!(code(&o), 0, "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let json = std::fs::read_to_string(d.join("flicker.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let got = v["line_delay_us"].as_f64().unwrap();
     eprintln!("flicker: line delay {got:.3} us (true {})", ld * 1e6);
     assert!((got / (ld * 1e6) - 1.0).abs() < 0.03, "{got} us");

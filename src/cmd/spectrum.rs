@@ -3,7 +3,7 @@
 use super::VideoArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use vibroscope::pipeline::RunSettings;
+use vibroscope::pipeline::{short, RunSettings};
 use vibroscope::spectrum::{self, SpectrumOptions, SpectrumReport, SPECTROGRAM_WINDOW};
 
 /// Motion spectrum of a video (thesis Eq. 3.17) and its resonances:
@@ -110,7 +110,8 @@ fn summary(r: &SpectrumReport) {
     if r.peaks.is_empty() {
         eprintln!(
             "no resonance stands out (resolution {:.3} Hz at {} Hz)",
-            r.resolution_hz, r.sample_rate_hz
+            r.resolution_hz,
+            short(r.sample_rate_hz)
         );
         return;
     }
@@ -120,7 +121,7 @@ fn summary(r: &SpectrumReport) {
         "{} peaks (resolution {:.3} Hz at {} Hz sampling):",
         peaks.len(),
         r.resolution_hz,
-        r.sample_rate_hz
+        short(r.sample_rate_hz)
     );
     for p in peaks.iter().take(5) {
         eprintln!(

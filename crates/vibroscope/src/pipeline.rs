@@ -355,11 +355,22 @@ pub fn playback_rate_warning(video: &Path, fps: Option<f64>) -> Option<String> {
     let stated = io::open(video, io::Format::Ffmpeg).ok()?.info().fps?;
     (23.9..=60.01).contains(&stated).then(|| {
         format!(
-            "warning: {} states {stated} fps, a playback rate: if it was filmed at a \
+            "warning: {} states {} fps, a playback rate: if it was filmed at a \
              higher rate, pass the capture rate with --fps (every frequency scales with it)",
-            video.display()
+            video.display(),
+            short(stated)
         )
     })
+}
+
+/// A rate or frequency for messages: at most 3 decimals, no trailing zeros.
+pub fn short(v: f64) -> String {
+    let s = format!("{v:.3}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
 }
 
 // ------------------------------------------------------------------- runs
