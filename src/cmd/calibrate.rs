@@ -6,6 +6,8 @@ use std::process::ExitCode;
 use vibroscope::calibrate::{self, CalibrateOptions};
 use vibroscope::pipeline::RunSettings;
 
+/// Calibrate against a known sound: which camera and object effects explain the error.
+///
 /// Compare what the visual microphone recovers from VIDEO with the sound
 /// that was played (REF.wav): fit delay and gain, then try the catalog
 /// of effects (time-base error, dropped or duplicated frames, exposure,

@@ -6,6 +6,8 @@ use std::process::ExitCode;
 use vibroscope::compare::{self, CompareOptions};
 use vibroscope::pipeline::{Roi, RunSettings};
 
+/// Per-region resonance shifts between two recordings.
+///
 /// Per-region resonance shifts between two recordings (thesis ch. 5.6):
 /// each region's spectrum and peaks in A and in B, and the shift of its
 /// strongest resonance with its uncertainty (significant beyond three

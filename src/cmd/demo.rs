@@ -5,6 +5,8 @@ use std::process::ExitCode;
 use vibroscope::demo::{self, DemoOptions};
 use vibroscope::pipeline::RunSettings;
 
+/// Render the built-in synthetic scene, recover it and score the recovery.
+///
 /// Render the built-in synthetic scene, recover its motion, write a WAV
 /// and print the SNR against the known signal.
 #[derive(clap::Args)]

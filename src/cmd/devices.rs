@@ -2,6 +2,8 @@
 
 use std::process::ExitCode;
 
+/// List the cameras with their formats, sizes and frame rates.
+///
 /// List the cameras (V4L2 capture devices) with their formats, sizes and
 /// frame rates. Exits 1 with "no camera found" when there is none.
 #[derive(clap::Args)]

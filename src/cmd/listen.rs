@@ -25,6 +25,8 @@ enum FillArg {
     Linear,
 }
 
+/// Recover sound from a video (a WAV at the camera's frame rate).
+///
 /// Recover sound from a video: the shipped visual-microphone pipeline
 /// (pyramid local phase, band alignment, high-pass, optional denoising)
 /// replayed on VIDEO, written to a WAV at the camera's frame rate.

@@ -15,6 +15,8 @@ enum MotionArg {
     Sum,
 }
 
+/// Modal image of a video at one frequency (PNG, optionally .npy).
+///
 /// Modal image of a video at one frequency (thesis ch. 3.5, Eq.
 /// 3.18-3.19): the A²-weighted, blurred and normalised motion spectrum
 /// slice, phase as hue and amplitude as brightness; optionally the

@@ -6,6 +6,8 @@ use vibroscope::pipeline::RunSettings;
 use vibroscope::record::{self, RecordOptions};
 use vibroscope::ErrorKind;
 
+/// Record a camera to Y4M with each frame's capture time.
+///
 /// Record a camera to Y4M (gray) with each frame's capture time in its
 /// header, to replay later with `run PIPELINE --replay REC.y4m`. Ctrl-C
 /// stops and leaves a valid file.

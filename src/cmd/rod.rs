@@ -5,6 +5,8 @@ use std::process::ExitCode;
 use vibroscope::math::rod::Measured;
 use vibroscope::rod::{self, RodOptions};
 
+/// A clamped rod's fundamental, and Young's modulus or length.
+///
 /// A clamped rod's fundamental by voting over its mode ratios (thesis
 /// Eq. 5.3), refined through the highest mode; Young's modulus (Eq. 5.1)
 /// or length (Eq. 5.4) with propagated errors (Eq. 5.5).

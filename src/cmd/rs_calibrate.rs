@@ -13,6 +13,8 @@ enum SignalArg {
     Intensity,
 }
 
+/// Estimate a rolling-shutter camera's line delay from a video of a tone.
+///
 /// Estimate a rolling-shutter camera's line delay (and frame delay) from
 /// a video of a known tone or a flickering light (thesis ch. 4.5: the
 /// slope of the tone's phase down the rows).

@@ -3,6 +3,8 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// Score a recovered sound against the reference (SNR, segmental SNR, LLR, STOI).
+///
 /// Score a recovered signal against the reference sound: SNR, segmental
 /// SNR (Hansen & Pellom), LLR and STOI (Taal et al. 2011), printed as JSON,
 /// after finding the best lag and gain (a recovery's scale and sign are

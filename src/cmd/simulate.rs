@@ -5,6 +5,8 @@ use std::process::ExitCode;
 use vibroscope::pipeline::RunSettings;
 use vibroscope::simulate::{self, SimulateOptions};
 
+/// Render a scene file to a Y4M recording through the forward model.
+///
 /// Render a scene file through the forward model to a Y4M recording
 /// (with per-frame timestamps). The scene file holds the `synthetic`
 /// source's parameters at its top level: size, rate, object, motion

@@ -6,6 +6,8 @@ use std::process::ExitCode;
 use vibroscope::pipeline::{short, RunSettings};
 use vibroscope::spectrum::{self, SpectrumOptions, SpectrumReport, SPECTROGRAM_WINDOW};
 
+/// Motion spectrum of a video and its resonances (frequency, damping, strength).
+///
 /// Motion spectrum of a video (thesis Eq. 3.17) and its resonances:
 /// frequency, damping ratio with its uncertainty and method, power and
 /// prominence of each peak, as JSON.
