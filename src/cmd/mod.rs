@@ -147,11 +147,11 @@ impl Bar {
             let _ = write!(w, "{}/s", thousands(s.per_sec().round() as u64));
         };
         let known = indicatif::ProgressStyle::with_template(
-            "{prefix}{bar:40} {pos}/{len} frames  {rate}  eta {eta}",
+            "{prefix}{bar:40} {human_pos}/{human_len} frames  {rate}  eta {eta}",
         )
         .map(|s| s.with_key("rate", rate));
         let unknown = indicatif::ProgressStyle::with_template(
-            "{prefix}{spinner} {pos} frames  {rate}  {elapsed}",
+            "{prefix}{spinner} {human_pos} frames  {rate}  {elapsed}",
         )
         .map(|s| s.with_key("rate", rate));
         let stop = Arc::new(AtomicBool::new(false));
