@@ -11,9 +11,6 @@ use crate::spectrum::{run_spectrum, SpectrumOptions};
 use serde::Serialize;
 use std::path::PathBuf;
 
-/// A measured input: value and standard uncertainty, in its unit.
-pub use crate::math::rod::Measured as Input;
-
 /// What `rod` is asked.
 #[derive(Clone, Debug)]
 pub struct RodOptions {
