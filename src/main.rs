@@ -1,5 +1,152 @@
+//! The `vibroscope` command line: flag parsing and printing only. Each
+//! command (`src/cmd/<command>.rs`) turns its flags into the options of a
+//! recipe of the `vibroscope` library, calls it, and prints what it wrote
+//! and a short summary.
+//!
+//! Exit status (the one table, [`vibroscope::ErrorKind::exit_code`]):
+//!
+//! | exit | meaning                                                        |
+//! |------|----------------------------------------------------------------|
+//! | 0    | success                                                        |
+//! | 1    | runtime error (a stage failed, a file could not be read)       |
+//! | 2    | usage or configuration error (a flag, a value, a file's content) |
+//! | 130  | interrupted by Ctrl-C (outputs were finalised)                 |
+
+mod cmd;
+
+use clap::{Parser, Subcommand};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use vibroscope::ErrorKind;
+
+const EXIT_STATUS_HELP: &str = "Exit status: 0 success; 1 runtime error (a stage failed, a file \
+    could not be read or written); 2 usage or configuration error (a flag, a value, a pipeline, \
+    scene or input file); 130 interrupted by Ctrl-C (outputs were finalised).";
+
+#[derive(Parser)]
+#[command(
+    name = "vibroscope",
+    version,
+    about = "Hear and measure vibration through a camera: a streaming visual-vibration engine",
+    long_about = "Hear and measure vibration through a camera.\n\n\
+        vibroscope runs pipelines of stages (sources, analysis, sinks) joined by bounded \
+        ring buffers, on live cameras or on recordings (Y4M, Phantom .cine, Photron \
+        .mraw/.cih, anything ffmpeg reads). Pipelines are TOML files; the shipped ones \
+        run by name.\n\n\
+        Start with `vibroscope demo` (no camera or file needed), then \
+        `vibroscope pipelines` and `vibroscope probe FILE`.\n\n\
+        Common flags: -o/--output is a command's main output; --json PATH writes JSON to \
+        PATH; --fps HZ gives the capture rate (containers such as MP4 often state a \
+        playback rate instead); --roi X,Y,W,H, --mask FILE and --pyramid csp|riesz choose \
+        what is analysed.",
+    after_help = EXIT_STATUS_HELP
+)]
+struct Cli {
+    /// More log output (-v info, -vv debug); RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    Run(cmd::run::Args),
+    Pipelines(cmd::pipelines::Args),
+    Kinds(cmd::kinds::Args),
+    Probe(cmd::probe::Args),
+    Listen(cmd::listen::Args),
+    #[command(name = "rs-calibrate")]
+    RsCalibrate(cmd::rs_calibrate::Args),
+    Score(cmd::score::Args),
+    Simulate(cmd::simulate::Args),
+    Devices(cmd::devices::Args),
+    Record(cmd::record::Args),
+    Calibrate(cmd::calibrate::Args),
+    Spectrum(cmd::spectrum::Args),
+    Modes(cmd::modes::Args),
+    Rod(cmd::rod::Args),
+    Compare(cmd::compare::Args),
+    Demo(cmd::demo::Args),
+}
 
 fn main() -> ExitCode {
-    vibroscope::cli::main()
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() {
+                ErrorKind::Usage.exit_code()
+            } else {
+                0
+            };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    init_tracing(cli.verbose);
+    install_ctrlc();
+    match run(cli.command) {
+        Ok(code) => code,
+        Err(e) => {
+            let kind = vibroscope::error::kind_of(&e);
+            if kind == ErrorKind::Interrupted {
+                eprintln!("{e:#}");
+            } else {
+                eprintln!("error: {e:#}");
+            }
+            ExitCode::from(kind.exit_code())
+        }
+    }
+}
+
+fn run(command: Command) -> anyhow::Result<ExitCode> {
+    match command {
+        Command::Run(a) => cmd::run::run(a),
+        Command::Pipelines(a) => cmd::pipelines::run(a),
+        Command::Kinds(a) => cmd::kinds::run(a),
+        Command::Probe(a) => cmd::probe::run(a),
+        Command::Listen(a) => cmd::listen::run(a),
+        Command::RsCalibrate(a) => cmd::rs_calibrate::run(a),
+        Command::Score(a) => cmd::score::run(a),
+        Command::Simulate(a) => cmd::simulate::run(a),
+        Command::Devices(a) => cmd::devices::run(a),
+        Command::Record(a) => cmd::record::run(a),
+        Command::Calibrate(a) => cmd::calibrate::run(a),
+        Command::Spectrum(a) => cmd::spectrum::run(a),
+        Command::Modes(a) => cmd::modes::run(a),
+        Command::Rod(a) => cmd::rod::run(a),
+        Command::Compare(a) => cmd::compare::run(a),
+        Command::Demo(a) => cmd::demo::run(a),
+    }
+}
+
+fn init_tracing(verbose: u8) {
+    let default = match verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
+    use std::io::IsTerminal;
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_ansi(std::io::stderr().is_terminal())
+        .with_writer(std::io::stderr)
+        .try_init();
+}
+
+/// First Ctrl-C: stop the sources and drain; second: stop at once (sinks
+/// still finalise); third: exit.
+fn install_ctrlc() {
+    static PRESSES: AtomicUsize = AtomicUsize::new(0);
+    let _ = ctrlc::set_handler(|| match PRESSES.fetch_add(1, Ordering::SeqCst) {
+        0 if vibroscope::pipeline::stop_current() => {
+            eprintln!(
+                "\nstopping: draining queues and finalising outputs (Ctrl-C again to stop at once)"
+            );
+        }
+        1 if vibroscope::pipeline::abort_current() => {}
+        _ => std::process::exit(ErrorKind::Interrupted.exit_code().into()),
+    });
 }

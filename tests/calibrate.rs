@@ -11,6 +11,23 @@ use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 use vibroscope::math::calibrate::{Calibration, EffectKind, Options, CATALOG};
 
+/// Renders the scene file `scene` to `y4m` with the `simulate` recipe; its
+/// exit status.
+fn simulate(scene: &Path, y4m: &Path) -> std::process::ExitCode {
+    let o = vibroscope::simulate::SimulateOptions {
+        scene: scene.to_path_buf(),
+        output: y4m.to_path_buf(),
+        ..Default::default()
+    };
+    match vibroscope::simulate::simulate(&o) {
+        Ok(_) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("{e:#}");
+            std::process::ExitCode::from(e.kind().exit_code())
+        }
+    }
+}
+
 const REF_RATE: u32 = 32_000;
 
 /// A linear chirp 100-1000 Hz over 2.2 s (longer than the 2 s videos).
@@ -68,14 +85,22 @@ fn run_with(name: &str, noise: f64, extra: &str, effects: Option<Vec<EffectKind>
     let toml = dir.path().join(format!("{name}.toml"));
     std::fs::write(&toml, scene).unwrap();
     let y4m: PathBuf = dir.path().join(format!("{name}.y4m"));
-    let code = vibroscope::cli::simulate(&toml, &y4m, &[], false).unwrap();
+    let code = simulate(&toml, &y4m);
     assert_eq!(code, std::process::ExitCode::SUCCESS);
     let opts = effects.map(|effects| Options {
         effects,
         ..Options::for_rate(2200.0)
     });
-    let (_, _, _, cal) =
-        vibroscope::cli::calibrate::calibrate_video(&y4m, &wav, None, opts).unwrap();
+    let cal = vibroscope::calibrate::calibrate_video(
+        &y4m,
+        &wav,
+        None,
+        &Default::default(),
+        opts,
+        Default::default(),
+    )
+    .unwrap()
+    .calibration;
     let report = serde_json::to_value(&cal.report).unwrap();
     eprintln!("{name}: {}", serde_json::to_string(&report).unwrap());
     Case {
@@ -385,7 +410,7 @@ fn table_4_2_equalised_speech() {
         )
         .unwrap();
         let y4m = d.path().join(format!("{name}.y4m"));
-        let code = vibroscope::cli::simulate(&toml, &y4m, &[], false).unwrap();
+        let code = simulate(&toml, &y4m);
         assert_eq!(code, std::process::ExitCode::SUCCESS);
         y4m
     };

@@ -154,9 +154,13 @@ fn ctrl_c_finalises_the_wav() {
 fn probe_real_recordings() {
     let dir = tempfile::tempdir().unwrap();
     if let Some(cine) = shared_data("small.cine") {
-        let o = run_in(dir.path(), &["probe", cine.to_str().unwrap(), "--json"]);
+        let o = run_in(
+            dir.path(),
+            &["probe", cine.to_str().unwrap(), "--json", "probe.json"],
+        );
         assert_eq!(code(&o), 0, "{}", stderr(&o));
-        let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        let json = std::fs::read_to_string(dir.path().join("probe.json")).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&json).unwrap();
         assert_eq!(
             (
                 v["frames"].as_u64(),

@@ -190,7 +190,7 @@ fn listen_with_denoising_improves_speech() {
         eprintln!("skipping: espeak-ng and sox are needed (Debian packages espeak-ng, sox)");
         return;
     }
-    let (_, reference) = vibroscope::cli::read_wav_mono(&d.join("ref.wav")).unwrap();
+    let (_, reference) = vibroscope::io::wav::read_mono(&d.join("ref.wav")).unwrap();
     let secs = reference.len() as f64 / 2200.0;
     let signal = format!(
         "cam.signal={{ type = \"wav\", path = \"{}\" }}",

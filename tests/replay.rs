@@ -44,7 +44,7 @@ fn replay_recovers_the_rendered_motion() {
     assert_eq!(rate, 2200, "the WAV rate is the camera's frame rate");
     assert_eq!(est.len(), 440);
     // Ground truth from the same forward model and the same parameters.
-    let mut decl = vibroscope::cli::load("render").unwrap();
+    let mut decl = vibroscope::pipeline::load("render").unwrap();
     for pair in SCENE.chunks(2) {
         vibroscope::engine::config::apply_set(&mut decl, pair[1]).unwrap();
     }

@@ -140,7 +140,7 @@ fn speech_through_a_rolling_shutter_ar_beats_linear() {
         "exposure.rate_hz=16000.0".to_string(),
     ];
     let fs = 16_000.0;
-    let mut decl = vibroscope::cli::load("rolling-shutter").unwrap();
+    let mut decl = vibroscope::pipeline::load("rolling-shutter").unwrap();
     // Extra `--set`s for diagnosis, e.g. RS_SPEECH_SETS="src.noise_std=0.0;src.exposure_us=0.0"
     // (the README's breakdown of the limits was measured this way).
     let extra: Vec<String> = std::env::var("RS_SPEECH_SETS")
@@ -213,7 +213,7 @@ fn true_motion_at(
 
 /// Any WAV's rate and first channel.
 fn read_wav_any(p: &Path) -> (u32, Vec<f64>) {
-    vibroscope::cli::read_wav_mono(p).unwrap()
+    vibroscope::io::wav::read_mono(p).unwrap()
 }
 
 /// Renders the shipped rolling-shutter camera (two tones) to Y4M, 1 s.
@@ -337,10 +337,18 @@ fn rs_calibrate_recovers_the_line_delay() {
     );
     let o = run_in(
         d,
-        &["rs-calibrate", "cal.y4m", "--tone-hz", "317", "--json"],
+        &[
+            "rs-calibrate",
+            "cal.y4m",
+            "--tone-hz",
+            "317",
+            "--json",
+            "rs.json",
+        ],
     );
     assert_eq!(code(&o), 0, "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let json = std::fs::read_to_string(d.join("rs.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let got = v["line_delay_us"].as_f64().unwrap();
     let gap = v["frame_delay_us"].as_f64().unwrap();
     let want_gap = 1e6 / fps - rows * ld;
@@ -582,10 +590,12 @@ fn rs_calibrate_from_a_flickering_light() {
             "--signal",
             "intensity",
             "--json",
+            "flicker.json",
         ],
     );
     assert_eq!(code(&o), 0, "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let json = std::fs::read_to_string(d.join("flicker.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&json).unwrap();
     let got = v["line_delay_us"].as_f64().unwrap();
     eprintln!("flicker: line delay {got:.3} us (true {})", ld * 1e6);
     assert!((got / (ld * 1e6) - 1.0).abs() < 0.03, "{got} us");

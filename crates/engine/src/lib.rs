@@ -25,6 +25,8 @@ pub use item::{
     AudioBlock, Item, PortType, PyramidData, PyramidFrame, SampleBlock, Spectrum, Taper,
 };
 pub use latency::{LatencyHist, LatencySummary};
-pub use runner::{error_chain, run, RunError, RunOptions, RunReport, StageReport};
+pub use runner::{
+    error_chain, run, thousands, RunError, RunOptions, RunReport, SourceProgress, StageReport,
+};
 pub use spec::{Def, InPort, OutPort, OutType, ParamSpec, ParamType, Range, NO_INPUTS, NO_OUTPUTS};
 pub use stage::{Control, EmitError, Emitter, Node, Source, SourceCtx, Stage, StageError};

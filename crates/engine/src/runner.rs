@@ -20,6 +20,43 @@ use std::time::{Duration, Instant};
 pub struct RunOptions {
     /// Show a progress bar for sources of known length (on a terminal).
     pub progress: bool,
+    /// Count the frames the sources give, for a caller's own progress
+    /// display (read it from another thread while the run goes on).
+    pub counter: Option<Arc<SourceProgress>>,
+}
+
+/// Frames the sources of a run have given, and how many they will give.
+#[derive(Debug, Default)]
+pub struct SourceProgress {
+    frames: AtomicU64,
+    total: AtomicU64,
+    unknown: std::sync::atomic::AtomicBool,
+}
+
+impl SourceProgress {
+    /// Frames given so far.
+    pub fn frames(&self) -> u64 {
+        self.frames.load(Ordering::Relaxed)
+    }
+
+    /// Frames the sources will give, when every source knows its length.
+    pub fn total(&self) -> Option<u64> {
+        let t = self.total.load(Ordering::Relaxed);
+        (!self.unknown.load(Ordering::Relaxed) && t > 0).then_some(t)
+    }
+}
+
+/// A whole number with thousands separators: `4,452`.
+pub fn thousands(n: u64) -> String {
+    let s = n.to_string();
+    let mut out = String::with_capacity(s.len() + s.len() / 3);
+    for (i, c) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
 }
 
 /// What one stage did.
@@ -225,12 +262,15 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
         let counters = Arc::clone(&counters[i]);
         let id = ids[i].clone();
         let progress = opts.progress;
+        let counter = opts.counter.clone();
         let h = std::thread::Builder::new()
             .name(format!("stage-{id}"))
             .spawn(move || {
                 let emitter = Emitter::new(outs, Arc::clone(&ctl), Arc::clone(&counters.items_out));
                 let res = match node {
-                    Node::Source(src) => run_source(src, emitter, &ctl, &counters, progress),
+                    Node::Source(src) => {
+                        run_source(src, emitter, &ctl, &counters, progress, counter.as_deref())
+                    }
                     Node::Stage(st) => run_stage(st, emitter, ins, &ctl, &counters),
                 };
                 if let Err(e) = res {
@@ -319,14 +359,27 @@ fn run_source(
     control: &Control,
     c: &Counters,
     progress: bool,
+    counter: Option<&SourceProgress>,
 ) -> Result<(), StageError> {
+    if let Some(k) = counter {
+        match src.total_hint() {
+            Some(t) => {
+                k.total.fetch_add(t, Ordering::Relaxed);
+            }
+            None => k.unknown.store(true, Ordering::Relaxed),
+        }
+    }
     let bar = match (progress, src.total_hint()) {
         (true, Some(total)) => {
             let bar = indicatif::ProgressBar::new(total);
+            let rate = |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                let _ = write!(w, "{}/s", thousands(s.per_sec().round() as u64));
+            };
             bar.set_style(
                 indicatif::ProgressStyle::with_template(
-                    "{bar:40} {pos}/{len} frames  {per_sec}  eta {eta}",
+                    "{bar:40} {human_pos}/{human_len} frames  {rate}  eta {eta}",
                 )
+                .map(|s| s.with_key("rate", rate))
                 .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
             );
             Some(bar)
@@ -350,6 +403,9 @@ fn run_source(
                 Ok(()) => {
                     if let Some(b) = &bar {
                         b.inc(1);
+                    }
+                    if let Some(k) = counter {
+                        k.frames.fetch_add(1, Ordering::Relaxed);
                     }
                 }
                 Err(EmitError::Disconnected) | Err(EmitError::Stopped) => break Ok(()),

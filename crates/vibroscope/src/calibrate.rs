@@ -1,0 +1,222 @@
+//! Calibration against a known sound (`vibroscope calibrate`) and its
+//! stored corrections (`listen --calibration`). The recovery comes from the
+//! listen pipeline (the same graph `listen` runs), the math from
+//! [`crate::math::calibrate`].
+
+use crate::error::{Error, Result};
+use crate::io::atomic::TempPath;
+use crate::math::calibrate::{self as cal, Calibration, Options};
+use crate::microphone::listen_pipeline;
+use crate::pipeline::Denoise;
+use crate::pipeline::{self, Region, RunSettings};
+use anyhow::Context;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+pub use crate::math::calibrate::{EffectKind, CATALOG};
+
+/// What `calibrate` is asked.
+#[derive(Clone, Debug, Default)]
+pub struct CalibrateOptions {
+    /// The recording of the object while the reference sound played.
+    pub video: PathBuf,
+    /// The sound that was played (WAV, first channel).
+    pub reference: PathBuf,
+    /// Where the report goes (REPORT.json).
+    pub json: PathBuf,
+    /// Also the corrected recovery at the reference's rate.
+    pub output: Option<PathBuf>,
+    pub fps: Option<f64>,
+    pub region: Region,
+    /// The effects to try (`None`: the whole catalog).
+    pub effects: Option<Vec<EffectKind>>,
+    pub run: RunSettings,
+}
+
+/// What `calibrate` found: serialises to the REPORT.json it writes.
+#[derive(Clone, Debug, Serialize)]
+pub struct CalibrationReport {
+    #[serde(flatten)]
+    pub report: cal::Report,
+    /// Delay (s) and gain of the final linear model.
+    #[serde(skip)]
+    pub delay_s: f64,
+    #[serde(skip)]
+    pub gain: f64,
+    /// Effects fitted but not kept: name, SNR gain (dB), parameters.
+    #[serde(skip)]
+    pub rejected: Vec<(String, f64, serde_json::Value)>,
+    /// Files written.
+    #[serde(skip)]
+    pub written: Vec<PathBuf>,
+}
+
+/// `a,b,c` as catalog entries (in catalog order).
+pub fn parse_effects(list: &str) -> Result<Vec<EffectKind>> {
+    let names: Vec<&str> = list
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .collect();
+    for n in &names {
+        if !CATALOG.iter().any(|k| k.name() == *n) {
+            let all: Vec<&str> = CATALOG.iter().map(|k| k.name()).collect();
+            return Err(Error::usage(
+                "--effects",
+                format!("unknown effect `{n}` (known: {})", all.join(", ")),
+            ));
+        }
+    }
+    Ok(CATALOG
+        .iter()
+        .copied()
+        .filter(|k| names.contains(&k.name()))
+        .collect())
+}
+
+/// Reads a WAV as an input error when it is missing or unreadable.
+fn read_input_wav(p: &Path) -> Result<(f64, Vec<f64>)> {
+    if !p.exists() {
+        return Err(Error::input(p, "no such file"));
+    }
+    let (rate, x) = crate::io::wav::read_mono(p).map_err(|e| Error::input(p, e.to_string()))?;
+    if x.is_empty() {
+        return Err(Error::input(p, "the WAV file holds no samples"));
+    }
+    if x.iter().any(|v| !v.is_finite()) {
+        return Err(Error::input(p, "the WAV file holds non-finite samples"));
+    }
+    Ok((rate as f64, x))
+}
+
+/// The frame rate of `video`: `fps`, else the file's.
+pub fn frame_rate(video: &Path, fps: Option<f64>) -> Result<f64> {
+    if let Some(f) = fps {
+        pipeline::check_fps(Some(f))?;
+        return Ok(f);
+    }
+    if !video.exists() {
+        return Err(Error::input(video, "no such file"));
+    }
+    let r = crate::io::open(video, crate::io::Format::Auto)
+        .map_err(|e| Error::input(video, e.to_string()))?;
+    r.info()
+        .fps
+        .ok_or_else(|| Error::input(video, "the file states no frame rate; pass --fps"))
+}
+
+/// Recovers sound from `video` with the listen pipeline (no denoising):
+/// `(frame rate, samples)`.
+pub fn recover(
+    video: &Path,
+    fps: Option<f64>,
+    region: &Region,
+    run: RunSettings,
+) -> Result<(f64, Vec<f64>)> {
+    if !video.exists() {
+        return Err(Error::input(video, "no such file"));
+    }
+    let fs = frame_rate(video, fps)?;
+    let tmp = TempPath::new("calibrate.wav");
+    let decl = listen_pipeline(video, tmp.path(), fps, region, Denoise::None)?;
+    pipeline::run(&decl, run)?;
+    let (_, y) = crate::io::wav::read_mono(tmp.path())
+        .with_context(|| format!("{}: the recovery failed", video.display()))?;
+    Ok((fs, y))
+}
+
+/// A recovery calibrated against its reference.
+pub struct Calibrated {
+    /// The video's frame rate and the reference's sample rate (Hz).
+    pub frame_rate_hz: f64,
+    pub reference_rate_hz: f64,
+    pub reference: Vec<f64>,
+    pub calibration: Calibration,
+}
+
+/// Recovers `video` and calibrates it against `reference` (errors that are
+/// the user's are [`Error::Input`] or [`Error::Usage`]).
+pub fn calibrate_video(
+    video: &Path,
+    reference: &Path,
+    fps: Option<f64>,
+    region: &Region,
+    opts: Option<Options>,
+    run: RunSettings,
+) -> Result<Calibrated> {
+    let (fr, r) = read_input_wav(reference)?;
+    let fs = frame_rate(video, fps)?;
+    if fr < fs {
+        return Err(Error::input(
+            reference,
+            format!(
+                "sampled at {fr} Hz, below the video's frame rate of {fs} Hz: the reference must hold every frequency the camera can see"
+            ),
+        ));
+    }
+    let (fs, y) = recover(video, fps, region, run)?;
+    let (dv, dr) = (y.len() as f64 / fs, r.len() as f64 / fr);
+    if dr + 0.5 / fs < dv {
+        return Err(Error::input(
+            reference,
+            format!(
+                "{dr:.3} s long, shorter than the video {} ({dv:.3} s at {fs} Hz)",
+                video.display()
+            ),
+        ));
+    }
+    let opts = opts.unwrap_or_else(|| Options::for_rate(fs));
+    let c =
+        cal::calibrate(&y, fs, &r, fr, &opts).map_err(|e| Error::input(video, e.to_string()))?;
+    Ok(Calibrated {
+        frame_rate_hz: fs,
+        reference_rate_hz: fr,
+        reference: r,
+        calibration: c,
+    })
+}
+
+/// Runs `calibrate`: writes the report (and the corrected recovery).
+pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
+    let opts = match (&o.effects, frame_rate(&o.video, o.fps)) {
+        (Some(e), Ok(fs)) => Some(Options {
+            effects: e.clone(),
+            ..Options::for_rate(fs)
+        }),
+        _ => None,
+    };
+    let Calibrated {
+        frame_rate_hz: fs,
+        reference_rate_hz: fr,
+        reference: r,
+        calibration: c,
+    } = calibrate_video(&o.video, &o.reference, o.fps, &o.region, opts, o.run)?;
+    let text = serde_json::to_string_pretty(&c.report).context("cannot serialise the report")?;
+    crate::io::atomic::write_atomic(&o.json, (text + "\n").as_bytes())
+        .map_err(anyhow::Error::new)?;
+    let mut written = Vec::new();
+    if let Some(out) = &o.output {
+        // Reference time of corrected sample n is n / fs - delay.
+        let end = c.corrected.len() as f64 / fs - c.delay_s;
+        let count = ((end * fr).floor().max(0.0) as usize).min(r.len());
+        let x = cal::sample_at(
+            &c.corrected,
+            fs,
+            (0..count).map(|k| k as f64 / fr + c.delay_s),
+        );
+        crate::io::wav::write_mono_f32(out, fr as u32, &x).map_err(anyhow::Error::new)?;
+        written.push(out.clone());
+    }
+    written.push(o.json.clone());
+    Ok(CalibrationReport {
+        report: c.report,
+        delay_s: c.delay_s,
+        gain: c.gain,
+        rejected: c
+            .rejected
+            .iter()
+            .map(|e| (e.name.to_string(), e.snr_gain_db, e.parameters.clone()))
+            .collect(),
+        written,
+    })
+}

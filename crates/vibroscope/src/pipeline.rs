@@ -1,0 +1,504 @@
+//! Pipelines as values: load one (a file or a shipped name), edit it with
+//! typed operations (replay a recording, set the frame rate, add or rewire
+//! stages), and run it.
+
+use crate::engine::config::{
+    self, set_param, ConfigError, InputDecl, Origin, PipelineDecl, StageDecl,
+};
+use crate::engine::{self, Control, RunReport};
+use crate::error::{Error, Result, UsageError};
+use crate::stages::{self, REGISTRY};
+use crate::{io, pipelines};
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use toml::Value;
+
+/// A shipped pipeline or a pipeline file, with command-line changes.
+#[derive(Clone, Debug, Default)]
+pub struct PipelineOptions {
+    /// Pipeline file, or a shipped pipeline's name.
+    pub pipeline: String,
+    /// `STAGE.KEY=VALUE` overrides (VALUE is TOML).
+    pub set: Vec<String>,
+    /// Replace the source with this recording.
+    pub replay: Option<PathBuf>,
+    /// The source's capture rate (Hz).
+    pub fps: Option<f64>,
+}
+
+/// A pipeline file, or a shipped pipeline by name.
+pub fn load(pipeline: &str) -> Result<PipelineDecl, ConfigError> {
+    let path = Path::new(pipeline);
+    if path.exists() {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError {
+            file: pipeline.to_string(),
+            origin: None,
+            stage: None,
+            field: None,
+            message: format!("cannot read: {e}"),
+        })?;
+        return config::parse(pipeline, &text);
+    }
+    if let Some(s) = pipelines::find(pipeline) {
+        return config::parse(&format!("pipelines/{}.toml (shipped)", s.name), s.text);
+    }
+    let names: Vec<&str> = pipelines::SHIPPED.iter().map(|s| s.name).collect();
+    Err(ConfigError {
+        file: pipeline.to_string(),
+        origin: None,
+        stage: None,
+        field: None,
+        message: format!(
+            "no such file, and no shipped pipeline of that name (shipped: {})",
+            names.join(", ")
+        ),
+    })
+}
+
+/// Loads a pipeline and applies `set`, `replay` and `fps`, in that order.
+pub fn prepare(o: &PipelineOptions) -> Result<PipelineDecl> {
+    let mut decl = load(&o.pipeline)?;
+    for s in &o.set {
+        config::apply_set(&mut decl, s)?;
+    }
+    if let Some(path) = &o.replay {
+        apply_replay(&mut decl, path)?;
+    }
+    if let Some(f) = o.fps {
+        apply_fps(&mut decl, f)?;
+    }
+    Ok(decl)
+}
+
+/// The one source of `decl`, for an option (`what`) that changes it.
+fn one_source(decl: &PipelineDecl, what: &str) -> Result<usize> {
+    let src: Vec<usize> = decl
+        .stages
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| stages::kind(&s.kind).is_some_and(|k| k.is_source()))
+        .map(|(i, _)| i)
+        .collect();
+    let message = match src.as_slice() {
+        [i] => return Ok(*i),
+        [] => "the pipeline has no source stage".to_string(),
+        many => {
+            let ids: Vec<&str> = many.iter().map(|&i| decl.stages[i].id.as_str()).collect();
+            format!(
+                "the pipeline has several sources ({}); use --set ID.path=... instead",
+                ids.join(", ")
+            )
+        }
+    };
+    Err(Error::input(&decl.file, format!("{what}: {message}")))
+}
+
+/// Replay: the source becomes a `file` source of the same id, feeding the
+/// same stages; every edge blocks (a replay never drops).
+pub fn apply_replay(decl: &mut PipelineDecl, path: &Path) -> Result<()> {
+    let i = one_source(decl, "--replay")?;
+    let origin = Origin::Builtin(format!("--replay {}", path.display()));
+    let st = &mut decl.stages[i];
+    st.kind = "file".into();
+    st.kind_origin = origin.clone();
+    st.params.clear();
+    set_param(st, "path", path_value(path), origin);
+    for s in &mut decl.stages {
+        s.policy = None;
+        for inp in &mut s.inputs {
+            inp.policy = None;
+        }
+    }
+    Ok(())
+}
+
+/// Sets the source's capture rate (Hz).
+pub fn apply_fps(decl: &mut PipelineDecl, fps: f64) -> Result<()> {
+    let i = one_source(decl, "--fps")?;
+    set_param(
+        &mut decl.stages[i],
+        "fps",
+        Value::Float(fps),
+        Origin::Set(format!("--fps {fps}")),
+    );
+    Ok(())
+}
+
+// ------------------------------------------------------------------ edits
+
+/// A path as a parameter value.
+pub fn path_value(p: &Path) -> Value {
+    Value::String(p.display().to_string())
+}
+
+/// A value set by an option of a recipe (errors name the option).
+pub fn by(option: &str) -> Origin {
+    Origin::Set(option.to_string())
+}
+
+/// The stage `id` of `decl` (an error names the pipeline when it lacks it).
+pub fn stage_mut<'a>(decl: &'a mut PipelineDecl, id: &str) -> Result<&'a mut StageDecl> {
+    let file = decl.file.clone();
+    decl.stages
+        .iter_mut()
+        .find(|s| s.id == id)
+        .ok_or_else(|| Error::Runtime(anyhow::anyhow!("{file}: the pipeline has no stage `{id}`")))
+}
+
+/// Position of stage `id`.
+pub fn position(decl: &PipelineDecl, id: &str) -> Result<usize> {
+    decl.stages.iter().position(|s| s.id == id).ok_or_else(|| {
+        Error::Runtime(anyhow::anyhow!(
+            "{}: the pipeline has no stage `{id}`",
+            decl.file
+        ))
+    })
+}
+
+/// Sets `key` of stage `id`.
+pub fn set(decl: &mut PipelineDecl, id: &str, key: &str, v: Value, origin: Origin) -> Result<()> {
+    set_param(stage_mut(decl, id)?, key, v, origin);
+    Ok(())
+}
+
+/// A new stage `id` of `kind` reading from `inputs`, without parameters.
+pub fn new_stage(id: &str, kind: &str, inputs: &[&str], origin: Origin) -> StageDecl {
+    StageDecl {
+        id: id.into(),
+        kind: kind.into(),
+        origin: origin.clone(),
+        kind_origin: origin.clone(),
+        inputs: inputs
+            .iter()
+            .map(|from| InputDecl {
+                from: (*from).into(),
+                capacity: None,
+                policy: None,
+                origin: origin.clone(),
+            })
+            .collect(),
+        capacity: None,
+        policy: None,
+        params: Vec::new(),
+    }
+}
+
+/// An empty pipeline named `name`.
+pub fn empty(name: &str, description: &str) -> PipelineDecl {
+    PipelineDecl {
+        file: format!("vibroscope {name}"),
+        name: name.into(),
+        description: description.into(),
+        stages: Vec::new(),
+    }
+}
+
+/// Every stage reading from `from` reads from `to` instead.
+pub fn rewire(decl: &mut PipelineDecl, consumer: &str, to: &str) -> Result<()> {
+    for inp in &mut stage_mut(decl, consumer)?.inputs {
+        inp.from = to.into();
+    }
+    Ok(())
+}
+
+/// Integer parameter from a count.
+pub fn int(n: usize) -> Value {
+    Value::Integer(i64::try_from(n).unwrap_or(i64::MAX))
+}
+
+// ------------------------------------------------------------ option types
+
+/// A rectangle of the frame, in pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Roi {
+    pub x: u32,
+    pub y: u32,
+    pub w: u32,
+    pub h: u32,
+}
+
+impl FromStr for Roi {
+    type Err = UsageError;
+    /// `X,Y,W,H`: four whole numbers >= 0.
+    fn from_str(r: &str) -> Result<Roi, UsageError> {
+        let v: std::result::Result<Vec<u32>, _> =
+            r.split(',').map(|v| v.trim().parse::<u32>()).collect();
+        match v.as_deref() {
+            Ok([x, y, w, h]) => Ok(Roi {
+                x: *x,
+                y: *y,
+                w: *w,
+                h: *h,
+            }),
+            _ => Err(UsageError::new(
+                "--roi",
+                format!("expected X,Y,W,H (four whole numbers >= 0), got `{r}`"),
+            )),
+        }
+    }
+}
+
+impl fmt::Display for Roi {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{},{},{},{}", self.x, self.y, self.w, self.h)
+    }
+}
+
+impl Roi {
+    /// As a stage's `roi` parameter.
+    pub fn value(&self) -> Value {
+        Value::Array(
+            [self.x, self.y, self.w, self.h]
+                .into_iter()
+                .map(|v| Value::Integer(v.into()))
+                .collect(),
+        )
+    }
+}
+
+/// The pyramid of the local-phase stage.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Pyramid {
+    /// Complex steerable pyramid (quality).
+    #[default]
+    Csp,
+    /// Riesz pyramid (speed).
+    Riesz,
+}
+
+impl Pyramid {
+    pub fn name(self) -> &'static str {
+        match self {
+            Pyramid::Csp => "csp",
+            Pyramid::Riesz => "riesz",
+        }
+    }
+}
+
+/// Denoising after the high-pass.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Denoise {
+    #[default]
+    None,
+    /// Spectral subtraction.
+    Subtract,
+    /// Speech enhancement.
+    Enhance,
+}
+
+impl Denoise {
+    /// The stage kind, if any.
+    pub fn kind(self) -> Option<&'static str> {
+        match self {
+            Denoise::None => None,
+            Denoise::Subtract => Some("spectral_subtraction"),
+            Denoise::Enhance => Some("speech_enhance"),
+        }
+    }
+}
+
+/// The region of the object: a rectangle and/or a mask image, and the pyramid.
+#[derive(Clone, Debug, Default)]
+pub struct Region {
+    pub roi: Option<Roi>,
+    /// An image the size of the frame (PGM or PNG; pixels > 0 count).
+    pub mask: Option<PathBuf>,
+    pub pyramid: Pyramid,
+}
+
+impl Region {
+    /// Sets `roi`, `mask` and `pyramid` on the local-phase stage `id`.
+    pub fn apply(&self, decl: &mut PipelineDecl, id: &str) -> Result<()> {
+        let st = stage_mut(decl, id)?;
+        set_param(
+            st,
+            "pyramid",
+            Value::String(self.pyramid.name().into()),
+            by("--pyramid"),
+        );
+        if let Some(r) = &self.roi {
+            set_param(st, "roi", r.value(), by(&format!("--roi {r}")));
+        }
+        if let Some(m) = &self.mask {
+            set_param(
+                st,
+                "mask",
+                path_value(m),
+                by(&format!("--mask {}", m.display())),
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Checks a frame rate option.
+pub fn check_fps(fps: Option<f64>) -> Result<()> {
+    if let Some(f) = fps {
+        stages::sources::check_fps(f).map_err(|m| Error::usage("--fps", m))?;
+    }
+    Ok(())
+}
+
+/// A warning when the frame rate will come from a container (the ffmpeg
+/// path: MP4, AVI, MKV, ...) and looks like a playback rate (23.976-60 fps):
+/// high-speed clips are usually stored that way, and every frequency would
+/// come out scaled down. `None` with `fps` given, or for other formats.
+pub fn playback_rate_warning(video: &Path, fps: Option<f64>) -> Option<String> {
+    if fps.is_some() || !matches!(io::format_by_extension(video), io::Format::Ffmpeg) {
+        return None;
+    }
+    let stated = io::open(video, io::Format::Ffmpeg).ok()?.info().fps?;
+    (23.9..=60.01).contains(&stated).then(|| {
+        format!(
+            "warning: {} states {} fps, a playback rate: if it was filmed at a \
+             higher rate, pass the capture rate with --fps (every frequency scales with it)",
+            video.display(),
+            short(stated)
+        )
+    })
+}
+
+/// A rate or frequency for messages: at most 3 decimals, no trailing zeros.
+pub fn short(v: f64) -> String {
+    let s = format!("{v:.3}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+// ------------------------------------------------------------------- runs
+
+/// How a run shows itself.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RunSettings {
+    /// Count the sources' frames for [`progress`].
+    pub progress: bool,
+}
+
+/// How far the run under way is: frames out of the source, and how many
+/// it will give when known.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Progress {
+    pub frames: u64,
+    pub total: Option<u64>,
+    /// Runs started in this process (a recipe may run several graphs).
+    pub runs: u64,
+}
+
+static RUNS: AtomicU64 = AtomicU64::new(0);
+static COUNTER: Mutex<Option<Arc<engine::SourceProgress>>> = Mutex::new(None);
+
+/// The progress of the run under way (for a progress bar).
+pub fn progress() -> Progress {
+    let c = COUNTER.lock().ok().and_then(|g| g.clone());
+    Progress {
+        frames: c.as_ref().map_or(0, |c| c.frames()),
+        total: c.as_ref().and_then(|c| c.total()),
+        runs: RUNS.load(Ordering::Relaxed),
+    }
+}
+
+static CURRENT: Mutex<Option<Arc<Control>>> = Mutex::new(None);
+
+/// Stops the run under way, if any: sources stop, queues drain and sinks
+/// finalise (the first Ctrl-C).
+pub fn stop_current() -> bool {
+    current().map(|c| c.stop()).is_some()
+}
+
+/// Stops the run under way at once; sinks still finalise (the second Ctrl-C).
+pub fn abort_current() -> bool {
+    current().map(|c| c.abort()).is_some()
+}
+
+fn current() -> Option<Arc<Control>> {
+    CURRENT.lock().ok().and_then(|g| g.clone())
+}
+
+/// Validates and runs `decl`. A stage error or an interruption is an
+/// [`Error`] holding the run's report; with `allow_interrupt`, an
+/// interrupted run is returned (its `interrupted` set).
+pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> Result<RunReport> {
+    // Errors name the stages the user's pipeline has: validate it first.
+    let graph = engine::graph::validate(decl, REGISTRY)?;
+    let counter = s
+        .progress
+        .then(|| Arc::new(engine::SourceProgress::default()));
+    if let Some(c) = &counter {
+        if let Ok(mut g) = COUNTER.lock() {
+            *g = Some(Arc::clone(c));
+        }
+        RUNS.fetch_add(1, Ordering::Relaxed);
+    }
+    let control = Control::new();
+    if let Ok(mut g) = CURRENT.lock() {
+        *g = Some(Arc::clone(&control));
+    }
+    let report = engine::run(
+        graph,
+        Arc::clone(&control),
+        &engine::RunOptions {
+            progress: false,
+            counter,
+        },
+    )
+    .map_err(|e| {
+        anyhow::Error::new(e).context(format!("{}: cannot start the pipeline", decl.file))
+    });
+    if let Ok(mut g) = CURRENT.lock() {
+        *g = None;
+    }
+    let report = report?;
+    if !report.errors.is_empty() {
+        return Err(Error::Stages {
+            report: Box::new(report),
+        });
+    }
+    if report.interrupted && !allow_interrupt {
+        return Err(Error::Interrupted {
+            report: Box::new(report),
+        });
+    }
+    Ok(report)
+}
+
+/// [`run_with`], an interruption being an error.
+pub fn run(decl: &PipelineDecl, s: RunSettings) -> Result<RunReport> {
+    run_with(decl, s, false)
+}
+
+/// The shipped pipelines: name and description.
+pub fn shipped() -> Vec<(&'static str, String)> {
+    pipelines::SHIPPED
+        .iter()
+        .map(|s| (s.name, pipelines::description(s)))
+        .collect()
+}
+
+/// Every stage kind, one line each: name, role and what it does.
+pub fn kind_listing() -> String {
+    engine::spec::listing(REGISTRY)
+}
+
+/// One kind's declaration as a table: ports, then each parameter's name,
+/// type, default, range, unit and doc; `None` for an unknown kind.
+pub fn kind_table(name: &str) -> Option<String> {
+    stages::kind(name).map(|k| k.describe())
+}
+
+/// The files the sinks of `decl` write (their `path`, not `-`).
+pub fn outputs(decl: &PipelineDecl) -> Vec<PathBuf> {
+    decl.stages
+        .iter()
+        .filter(|s| stages::kind(&s.kind).is_some_and(|k| k.output() == engine::Output::None))
+        .filter_map(|s| s.params.iter().find(|p| p.key == "path"))
+        .filter_map(|p| p.value.as_str())
+        .filter(|p| *p != "-")
+        .map(PathBuf::from)
+        .collect()
+}

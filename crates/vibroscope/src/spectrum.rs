@@ -1,0 +1,219 @@
+//! Motion spectrum of a video (thesis Eq. 3.17) and its resonances: the
+//! shipped live-spectrum graph on a recording, one whole-recording spectrum
+//! (finest resolution) feeding the engine's `peaks` sink, plus time-domain
+//! damping (SSI-cov, [`crate::damping`]) on the extracted motion.
+//!
+//! The `peaks` sink is the engine's only path to the peaks, and it writes
+//! JSON: [`run_spectrum`] reads that document back once, here, into the
+//! typed [`SpectrumReport`]; every other recipe (`rod`, `compare`) and the
+//! damping refinement work on that value in memory.
+
+use crate::damping::MotionTap;
+use crate::engine::config::PipelineDecl;
+use crate::engine::RunReport;
+use crate::error::Result;
+use crate::io::atomic::TempPath;
+pub use crate::peaks::SpectrumReport;
+use crate::pipeline::{self, by, int, path_value, PipelineOptions, Region, RunSettings};
+use std::path::{Path, PathBuf};
+use toml::Value;
+
+/// The spectrogram's default window in frames.
+pub const SPECTROGRAM_WINDOW: usize = 256;
+
+/// What `spectrum` is asked.
+#[derive(Clone, Debug)]
+pub struct SpectrumOptions {
+    pub video: PathBuf,
+    /// Output JSON: sample_rate_hz, resolution_hz and the peaks.
+    pub json: PathBuf,
+    pub fps: Option<f64>,
+    /// At most this many peaks (the most prominent).
+    pub peaks: usize,
+    pub region: Region,
+    /// Welch segments over the recording.
+    pub segments: Option<usize>,
+    /// Segment length in frames instead of `segments`.
+    pub window: Option<usize>,
+    /// Only peaks in this band (Hz).
+    pub min_hz: Option<f64>,
+    pub max_hz: Option<f64>,
+    /// Also write the spectrum (dB) into the JSON.
+    pub include_spectrum: bool,
+    /// Also plot the spectrum to this PNG.
+    pub png: Option<PathBuf>,
+    /// Also plot a spectrogram to this PNG.
+    pub spectrogram: Option<PathBuf>,
+    pub spectrogram_window: usize,
+    /// Keep the extracted motion the SSI-cov damping ran on, as a WAV.
+    pub motion_wav: Option<PathBuf>,
+    pub run: RunSettings,
+}
+
+impl SpectrumOptions {
+    /// Defaults for `video`, writing `json`.
+    pub fn new(video: impl Into<PathBuf>, json: impl Into<PathBuf>) -> SpectrumOptions {
+        SpectrumOptions {
+            video: video.into(),
+            json: json.into(),
+            fps: None,
+            peaks: 5,
+            region: Region::default(),
+            segments: None,
+            window: None,
+            min_hz: None,
+            max_hz: None,
+            include_spectrum: false,
+            png: None,
+            spectrogram: None,
+            spectrogram_window: SPECTROGRAM_WINDOW,
+            motion_wav: None,
+            run: RunSettings::default(),
+        }
+    }
+}
+
+/// The spectrum graph for `o`, its peaks written to `json`.
+pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDecl> {
+    let mut decl = pipeline::prepare(&PipelineOptions {
+        pipeline: "live-spectrum".into(),
+        set: Vec::new(),
+        replay: Some(o.video.clone()),
+        fps: o.fps,
+    })?;
+    o.region.apply(&mut decl, "phase")?;
+    pipeline::set(
+        &mut decl,
+        "phase",
+        "scales",
+        Value::Integer(4),
+        by("spectrum"),
+    )?;
+    pipeline::set(
+        &mut decl,
+        "phase",
+        "block",
+        Value::Integer(64),
+        by("spectrum"),
+    )?;
+    let st = pipeline::stage_mut(&mut decl, "spectrum")?;
+    st.params
+        .retain(|p| !matches!(p.key.as_str(), "window" | "hop" | "welch"));
+    let set = crate::engine::config::set_param;
+    set(st, "mode", Value::String("whole".into()), by("spectrum"));
+    if let Some(k) = o.segments {
+        set(st, "segments", int(k), by("--segments"));
+    }
+    if let Some(w) = o.window {
+        set(st, "window", int(w), by("--window"));
+    }
+    let st = pipeline::stage_mut(&mut decl, "out")?;
+    set(st, "path", path_value(json), by("--json"));
+    set(st, "peaks", int(o.peaks), by("--peaks"));
+    band(st, o.min_hz, o.max_hz);
+    if o.include_spectrum {
+        set(
+            st,
+            "include_spectrum",
+            Value::Boolean(true),
+            by("--include-spectrum"),
+        );
+    }
+    add_plots(&mut decl, o)?;
+    Ok(decl)
+}
+
+fn band(st: &mut crate::engine::config::StageDecl, min_hz: Option<f64>, max_hz: Option<f64>) {
+    for (key, v) in [("min_hz", min_hz), ("max_hz", max_hz)] {
+        if let Some(f) = v {
+            let flag = format!("--{}", key.replace('_', "-"));
+            crate::engine::config::set_param(st, key, Value::Float(f), by(&flag));
+        }
+    }
+}
+
+/// Adds `plot` (power spectrum PNG, fed by `spectrum`) and
+/// `spectrogram_spectrum` -> `spectrogram` (sliding spectra from `phase`).
+fn add_plots(decl: &mut PipelineDecl, o: &SpectrumOptions) -> Result<()> {
+    let spec = pipeline::position(decl, "spectrum")?;
+    let set = crate::engine::config::set_param;
+    if let Some(p) = &o.png {
+        let mut st = pipeline::new_stage("plot", "spectrum_png", &["spectrum"], by("--png"));
+        set(&mut st, "path", path_value(p), by("--png"));
+        let n = i64::try_from(o.peaks).unwrap_or(i64::MAX).min(100);
+        set(&mut st, "peaks", Value::Integer(n), by("--peaks"));
+        band(&mut st, o.min_hz, o.max_hz);
+        decl.stages.push(st);
+    }
+    if let Some(p) = &o.spectrogram {
+        let flag = "--spectrogram-window";
+        let mut sp = decl.stages[spec].clone();
+        sp.id = "spectrogram_spectrum".into();
+        sp.params.clear();
+        let w = i64::try_from(o.spectrogram_window).unwrap_or(i64::MAX);
+        set(
+            &mut sp,
+            "mode",
+            Value::String("sliding".into()),
+            by("--spectrogram"),
+        );
+        set(&mut sp, "window", Value::Integer(w), by(flag));
+        set(&mut sp, "hop", Value::Integer((w / 8).max(1)), by(flag));
+        decl.stages.push(sp);
+        let mut st = pipeline::new_stage(
+            "spectrogram",
+            "spectrum_png",
+            &["spectrogram_spectrum"],
+            by("--spectrogram"),
+        );
+        set(&mut st, "path", path_value(p), by("--spectrogram"));
+        set(
+            &mut st,
+            "style",
+            Value::String("spectrogram".into()),
+            by("--spectrogram"),
+        );
+        band(&mut st, o.min_hz, o.max_hz);
+        decl.stages.push(st);
+    }
+    Ok(())
+}
+
+/// Runs the spectrum graph (peaks into a scratch file, read back once into
+/// the typed report) and, with `damping`, the SSI-cov refinement.
+pub fn run_spectrum(o: &SpectrumOptions, damping: bool) -> Result<(SpectrumReport, RunReport)> {
+    let tmp = TempPath::new("peaks.json");
+    let mut decl = spectrum_pipeline(o, tmp.path())?;
+    let tap = if damping {
+        Some(MotionTap::add(&mut decl, o.motion_wav.clone())?)
+    } else {
+        None
+    };
+    let run = pipeline::run(&decl, o.run)?;
+    let text = std::fs::read(tmp.path())
+        .map_err(|e| anyhow::anyhow!("{}: cannot read the peaks: {e}", tmp.path().display()))?;
+    let mut report: SpectrumReport = serde_json::from_slice(&text)
+        .map_err(|e| anyhow::anyhow!("{}: not the peaks document: {e}", tmp.path().display()))?;
+    if let Some(tap) = tap {
+        tap.refine(&mut report, &Default::default())?;
+    }
+    Ok((report, run))
+}
+
+/// Runs `spectrum`: writes the JSON (and the plots).
+pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
+    let (mut report, run) = run_spectrum(o, true)?;
+    let bytes = serde_json::to_vec_pretty(&report).map_err(anyhow::Error::new)?;
+    crate::io::atomic::write_atomic(&o.json, &bytes).map_err(anyhow::Error::new)?;
+    report.written = [
+        Some(&o.json),
+        o.png.as_ref(),
+        o.spectrogram.as_ref(),
+        o.motion_wav.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
+    .cloned()
+    .collect();
+    Ok((report, run))
+}

@@ -1,0 +1,165 @@
+//! `vibroscope listen`.
+
+use super::VideoArgs;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use vibroscope::listen::{self, Denoise, Fill, ListenOptions, RollingShutter};
+use vibroscope::pipeline::RunSettings;
+use vibroscope::UsageError;
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum DenoiseArg {
+    /// No denoising.
+    None,
+    /// Spectral subtraction.
+    Subtract,
+    /// Speech enhancement.
+    Enhance,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum FillArg {
+    /// Autoregressive prediction from both sides.
+    Ar,
+    /// Straight lines.
+    Linear,
+}
+
+/// Recover sound from a video (a WAV at the camera's frame rate).
+///
+/// Recover sound from a video: the shipped visual-microphone pipeline
+/// (pyramid local phase, band alignment, high-pass, optional denoising)
+/// replayed on VIDEO, written to a WAV at the camera's frame rate.
+#[derive(clap::Args)]
+#[command(
+    after_help = "Examples:\n  vibroscope listen ../shared/data/guitar.mp4 --fps 600 -o guitar.wav\n  \
+    vibroscope listen chips.cine --roi 100,40,200,160 --denoise enhance -o chips.wav"
+)]
+pub struct Args {
+    /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
+    video: PathBuf,
+    /// Output WAV.
+    #[arg(short, long, default_value = "sound.wav")]
+    output: PathBuf,
+    #[command(flatten)]
+    video_args: VideoArgs,
+    /// Denoising after the high-pass.
+    #[arg(long, value_enum, default_value = "none")]
+    denoise: DenoiseArg,
+    /// Also play the sound on a speaker, in real time, resampled to the
+    /// device rate: the default output, part of a device's name, or
+    /// `null` (a virtual device that discards audio).
+    #[arg(long, value_name = "DEVICE", num_args = 0..=1, default_missing_value = "default")]
+    speaker: Option<String>,
+    /// Print the per-stage summary at exit.
+    #[arg(long)]
+    stats: bool,
+    /// Apply a stored calibration (REPORT.json from `vibroscope
+    /// calibrate` on the same object and camera): its time-base,
+    /// exposure and transfer-function corrections, not the per-recording
+    /// ones (dropped frames, interference). With --denoise, the denoiser
+    /// runs again after the correction, as in the thesis' Table 4.2: an
+    /// equaliser lifts the noise in the bands it boosts, so equalising
+    /// noisy speech without denoising can lower its segmental SNR.
+    #[arg(long, value_name = "REPORT.json")]
+    calibration: Option<PathBuf>,
+    #[command(flatten)]
+    rolling: RollingArgs,
+}
+
+/// `listen` options for rolling-shutter recordings (thesis ch. 4.5).
+#[derive(clap::Args, Debug, Clone)]
+struct RollingArgs {
+    /// One sample per image row instead of per frame: hears far above the
+    /// frame rate (needs --line-delay-us).
+    #[arg(long)]
+    rolling_shutter: bool,
+    /// Time between consecutive rows, µs (see `vibroscope rs-calibrate`).
+    #[arg(long, value_name = "US", allow_negative_numbers = true)]
+    line_delay_us: Option<f64>,
+    /// Blind time between a frame's last row and the next frame's first, µs
+    /// (checked against the frame rate and row count).
+    #[arg(long, value_name = "US", allow_negative_numbers = true)]
+    frame_delay_us: Option<f64>,
+    /// Exposure per row, µs: low-pass at its first null 1/E.
+    #[arg(long, value_name = "US", allow_negative_numbers = true)]
+    exposure_us: Option<f64>,
+    /// Invert the exposure boxcar where its gain is above -12 dB (needs --exposure-us).
+    #[arg(long)]
+    compensate_exposure: bool,
+    /// Filling of the frame-delay gaps.
+    #[arg(long, value_enum, default_value = "ar")]
+    fill: FillArg,
+    /// Resample the output to this rate in Hz (needs --exposure-us); default 1/d.
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    rate: Option<f64>,
+}
+
+impl RollingArgs {
+    /// The rolling-shutter options, or a usage error when one is given
+    /// without --rolling-shutter.
+    fn options(&self) -> Result<Option<RollingShutter>, UsageError> {
+        if !self.rolling_shutter {
+            let used = [
+                ("--line-delay-us", self.line_delay_us.is_some()),
+                ("--frame-delay-us", self.frame_delay_us.is_some()),
+                ("--exposure-us", self.exposure_us.is_some()),
+                ("--compensate-exposure", self.compensate_exposure),
+                ("--rate", self.rate.is_some()),
+            ];
+            return match used.iter().find(|(_, u)| *u) {
+                Some((flag, _)) => Err(UsageError::new(*flag, "needs --rolling-shutter")),
+                None => Ok(None),
+            };
+        }
+        Ok(Some(RollingShutter {
+            line_delay_us: self.line_delay_us,
+            frame_delay_us: self.frame_delay_us,
+            exposure_us: self.exposure_us,
+            compensate_exposure: self.compensate_exposure,
+            fill: match self.fill {
+                FillArg::Ar => Fill::Ar,
+                FillArg::Linear => Fill::Linear,
+            },
+            rate: self.rate,
+        }))
+    }
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let o = ListenOptions {
+        video: a.video.clone(),
+        output: a.output.clone(),
+        fps: a.video_args.fps,
+        region: a.video_args.region(),
+        denoise: match a.denoise {
+            DenoiseArg::None => Denoise::None,
+            DenoiseArg::Subtract => Denoise::Subtract,
+            DenoiseArg::Enhance => Denoise::Enhance,
+        },
+        speaker: a.speaker,
+        calibration: a.calibration,
+        rolling_shutter: a.rolling.options()?,
+        run: RunSettings { progress: true },
+    };
+    super::warn_playback_rate(&o.video, o.fps);
+    let bar = super::Bar::start(true);
+    let r = listen::listen(&o);
+    drop(bar);
+    let r = super::stats(a.stats, r, |r| r.run.as_ref().map(|r| r.table()))?;
+    for n in &r.notes {
+        eprintln!("note: {n}");
+    }
+    if let Some(c) = &r.calibration {
+        eprintln!("applied calibration: {c}");
+    }
+    super::wrote(&r.output);
+    if r.sample_rate_hz > 0 {
+        eprintln!(
+            "{:.2} s of sound at {} Hz",
+            r.samples as f64 / f64::from(r.sample_rate_hz),
+            r.sample_rate_hz
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,216 @@
+//! One module per command: clap arguments → options → recipe → print.
+//! Shared here: the video flags, messages and the progress bar.
+
+pub mod calibrate;
+pub mod compare;
+pub mod demo;
+pub mod devices;
+pub mod kinds;
+pub mod listen;
+pub mod modes;
+pub mod pipelines;
+pub mod probe;
+pub mod record;
+pub mod rod;
+pub mod rs_calibrate;
+pub mod run;
+pub mod score;
+pub mod simulate;
+pub mod spectrum;
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+use vibroscope::pipeline::{Pyramid, Region, Roi};
+
+/// `--roi X,Y,W,H`.
+pub fn parse_roi(s: &str) -> Result<Roi, String> {
+    s.parse::<Roi>().map_err(|e| e.message)
+}
+
+#[derive(Clone, Copy, Debug, Default, clap::ValueEnum)]
+pub enum PyramidArg {
+    /// Complex steerable pyramid (quality).
+    #[default]
+    Csp,
+    /// Riesz pyramid (speed).
+    Riesz,
+}
+
+impl From<PyramidArg> for Pyramid {
+    fn from(p: PyramidArg) -> Pyramid {
+        match p {
+            PyramidArg::Csp => Pyramid::Csp,
+            PyramidArg::Riesz => Pyramid::Riesz,
+        }
+    }
+}
+
+/// The flags of every command that analyses a video's motion.
+#[derive(clap::Args, Clone, Debug)]
+pub struct VideoArgs {
+    /// Capture frame rate in Hz (containers such as MP4 often state the
+    /// playback rate of a high-speed clip instead).
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    pub fps: Option<f64>,
+    /// Region of the object: X,Y,W,H in pixels (default: the whole frame).
+    #[arg(long, value_name = "X,Y,W,H", value_parser = parse_roi)]
+    pub roi: Option<Roi>,
+    /// Region of the object as an image the size of the frame (PGM or
+    /// PNG; pixels > 0 count); with --roi, the overlap of both.
+    #[arg(long, value_name = "FILE")]
+    pub mask: Option<PathBuf>,
+    /// Pyramid: complex steerable (quality) or Riesz (speed).
+    #[arg(long, value_enum, default_value = "csp")]
+    pub pyramid: PyramidArg,
+}
+
+impl VideoArgs {
+    pub fn region(&self) -> Region {
+        Region {
+            roi: self.roi,
+            mask: self.mask.clone(),
+            pyramid: self.pyramid.into(),
+        }
+    }
+}
+
+/// Warns once when the frame rate will come from a container and looks
+/// like a playback rate.
+pub fn warn_playback_rate(video: &Path, fps: Option<f64>) {
+    if let Some(w) = vibroscope::pipeline::playback_rate_warning(video, fps) {
+        eprintln!("{w}");
+    }
+}
+
+/// `wrote PATH`.
+pub fn wrote(p: &Path) {
+    eprintln!("wrote {}", p.display());
+}
+
+/// Prints the per-stage table of a run (`--stats`), also when the run failed.
+pub fn stats<T>(
+    on: bool,
+    r: vibroscope::Result<T>,
+    table: impl Fn(&T) -> Option<String>,
+) -> vibroscope::Result<T> {
+    if on {
+        match &r {
+            Ok(v) => {
+                if let Some(t) = table(v) {
+                    eprint!("{t}");
+                }
+            }
+            Err(e) => {
+                if let Some(rep) = e.run_report() {
+                    eprint!("{}", rep.table());
+                }
+            }
+        }
+    }
+    r
+}
+
+/// `1234567` as `1,234,567`.
+pub fn thousands(n: u64) -> String {
+    let s = n.to_string();
+    let mut out = String::with_capacity(s.len() + s.len() / 3);
+    for (i, c) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// A progress bar over the frames of the runs a recipe makes (drawn on a
+/// terminal only), with a whole-number rate (`4,452/s`).
+pub struct Bar {
+    stop: Arc<AtomicBool>,
+    bar: indicatif::ProgressBar,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Bar {
+    /// Starts polling the library's progress; `None` when `on` is false.
+    pub fn start(on: bool) -> Option<Bar> {
+        if !on {
+            return None;
+        }
+        let bar = indicatif::ProgressBar::with_draw_target(
+            None,
+            indicatif::ProgressDrawTarget::stderr_with_hz(10),
+        );
+        let rate = |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+            let _ = write!(w, "{}/s", thousands(s.per_sec().round() as u64));
+        };
+        let known = indicatif::ProgressStyle::with_template(
+            "{prefix}{bar:40} {human_pos}/{human_len} frames  {rate}  eta {eta}",
+        )
+        .map(|s| s.with_key("rate", rate));
+        let unknown = indicatif::ProgressStyle::with_template(
+            "{prefix}{spinner} {human_pos} frames  {rate}  {elapsed}",
+        )
+        .map(|s| s.with_key("rate", rate));
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread = {
+            let (bar, stop) = (bar.clone(), Arc::clone(&stop));
+            std::thread::spawn(move || {
+                let mut runs = 0;
+                while !stop.load(Ordering::Relaxed) {
+                    let p = vibroscope::pipeline::progress();
+                    if p.runs != runs {
+                        runs = p.runs;
+                        bar.reset();
+                        match (p.total, &known, &unknown) {
+                            (Some(t), Ok(k), _) => {
+                                bar.set_style(k.clone());
+                                bar.set_length(t);
+                            }
+                            (None, _, Ok(u)) => {
+                                bar.set_style(u.clone());
+                                bar.unset_length();
+                            }
+                            _ => {}
+                        }
+                    }
+                    if runs > 0 {
+                        bar.set_position(p.frames);
+                    }
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+            })
+        };
+        Some(Bar {
+            stop,
+            bar,
+            thread: Some(thread),
+        })
+    }
+
+    /// A label before the bar (`spectrum 2/4 `).
+    pub fn set_prefix(&self, p: String) {
+        self.bar.set_prefix(p);
+    }
+}
+
+impl Drop for Bar {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+        self.bar.finish_and_clear();
+    }
+}
+
+/// A number for people: `n/a` when not finite.
+pub fn num(v: f64, decimals: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.decimals$}")
+    } else {
+        "n/a".into()
+    }
+}

@@ -1,0 +1,98 @@
+//! `vibroscope modes`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use vibroscope::modes::{self, ModesOptions, Motion};
+use vibroscope::pipeline::{Roi, RunSettings};
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum MotionArg {
+    /// Horizontal motion.
+    X,
+    /// Vertical motion.
+    Y,
+    /// Their sum.
+    Sum,
+}
+
+/// Modal image of a video at one frequency (PNG, optionally .npy).
+///
+/// Modal image of a video at one frequency (thesis ch. 3.5, Eq.
+/// 3.18-3.19): the A²-weighted, blurred and normalised motion spectrum
+/// slice, phase as hue and amplitude as brightness; optionally the
+/// complex image as .npy.
+#[derive(clap::Args)]
+#[command(after_help = "Example:\n  \
+    vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --npy e2.npy")]
+pub struct Args {
+    /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
+    video: PathBuf,
+    /// The frequency of the image, Hz (the exact Fourier sum at this
+    /// frequency, not the nearest FFT bin).
+    #[arg(long = "at", value_name = "HZ", allow_negative_numbers = true)]
+    at_hz: f64,
+    /// Output PNG: phase as hue, amplitude as brightness.
+    #[arg(short, long, value_name = "OUT.png")]
+    output: PathBuf,
+    /// Also write the complex image (complex64, shape (H, W), pixels of motion).
+    #[arg(long, value_name = "OUT.npy")]
+    npy: Option<PathBuf>,
+    /// Capture frame rate in Hz (containers often state the playback rate).
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    fps: Option<f64>,
+    /// Region: X,Y,W,H in pixels (the image covers it; default: the whole frame).
+    #[arg(long, value_name = "X,Y,W,H", value_parser = super::parse_roi)]
+    roi: Option<Roi>,
+    /// σ_b of the Gaussian blur, input pixels (0 = none).
+    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
+    sigma: Option<f64>,
+    /// Which motion: x, y or their sum.
+    #[arg(long, value_enum, default_value = "sum")]
+    motion: MotionArg,
+    /// Brightness = normalised amplitude to this power.
+    #[arg(long, value_name = "E", allow_negative_numbers = true)]
+    exponent: Option<f64>,
+    /// Pyramid scale (0 = finest, 4-pixel wavelength; each next one doubles;
+    /// default 1: the finest is noise-biased on smooth texture).
+    #[arg(long, value_name = "S")]
+    scale: Option<usize>,
+    /// Do not divide by the blurred weights (the images of thesis ch. 4-5:
+    /// texture acts as a mask).
+    #[arg(long)]
+    unnormalized: bool,
+    /// Print the per-stage summary at exit.
+    #[arg(long)]
+    stats: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let o = ModesOptions {
+        video: a.video,
+        at_hz: a.at_hz,
+        output: a.output,
+        npy: a.npy,
+        fps: a.fps,
+        roi: a.roi,
+        sigma: a.sigma,
+        motion: match a.motion {
+            MotionArg::X => Motion::X,
+            MotionArg::Y => Motion::Y,
+            MotionArg::Sum => Motion::Sum,
+        },
+        exponent: a.exponent,
+        scale: a.scale,
+        unnormalized: a.unnormalized,
+        run: RunSettings { progress: true },
+    };
+    super::warn_playback_rate(&o.video, o.fps);
+    let bar = super::Bar::start(true);
+    let r = modes::modes(&o);
+    drop(bar);
+    let (r, _) = super::stats(a.stats, r, |(_, run)| Some(run.table()))?;
+    super::wrote(&r.png);
+    if let Some(n) = &r.npy {
+        super::wrote(n);
+    }
+    eprintln!("modal image at {} Hz", r.freq_hz);
+    Ok(ExitCode::SUCCESS)
+}

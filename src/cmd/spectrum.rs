@@ -1,0 +1,139 @@
+//! `vibroscope spectrum`.
+
+use super::VideoArgs;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use vibroscope::pipeline::{short, RunSettings};
+use vibroscope::spectrum::{self, SpectrumOptions, SpectrumReport, SPECTROGRAM_WINDOW};
+
+/// Motion spectrum of a video and its resonances (frequency, damping, strength).
+///
+/// Motion spectrum of a video (thesis Eq. 3.17) and its resonances:
+/// frequency, damping ratio with its uncertainty and method, power and
+/// prominence of each peak, as JSON.
+#[derive(clap::Args, Clone)]
+#[command(after_help = "Examples:\n  \
+    vibroscope spectrum ../shared/data/guitar.mp4 --fps 600 -o guitar.json\n  \
+    vibroscope spectrum beam.y4m --json beam.json --peaks 3 --roi 0,0,64,64")]
+pub struct Args {
+    #[command(flatten)]
+    pub spectrum: SpectrumArgs,
+    /// Print the per-stage summary at exit.
+    #[arg(long)]
+    pub stats: bool,
+}
+
+/// The spectrum's flags (shared with `rod`).
+#[derive(clap::Args, Clone)]
+pub struct SpectrumArgs {
+    /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
+    pub video: PathBuf,
+    /// Output JSON (the main output; also spelled --json).
+    #[arg(
+        short = 'o',
+        long = "json",
+        visible_alias = "output",
+        value_name = "OUT.json"
+    )]
+    pub json: PathBuf,
+    #[command(flatten)]
+    pub video_args: VideoArgs,
+    /// Report at most this many peaks (the most prominent).
+    #[arg(long, default_value_t = 5, value_name = "N")]
+    pub peaks: usize,
+    /// Welch segments over the recording (more: less noise, coarser bins;
+    /// default one per 2048 frames, 1 to 64).
+    #[arg(long, value_name = "K")]
+    pub segments: Option<usize>,
+    /// Segment length in frames instead of --segments (even).
+    #[arg(long, value_name = "FRAMES")]
+    pub window: Option<usize>,
+    /// Only peaks above this frequency (Hz).
+    #[arg(long, value_name = "HZ")]
+    pub min_hz: Option<f64>,
+    /// Only peaks below this frequency (Hz).
+    #[arg(long, value_name = "HZ")]
+    pub max_hz: Option<f64>,
+    /// Also write the spectrum (dB) into the JSON.
+    #[arg(long)]
+    pub include_spectrum: bool,
+    /// Also plot the spectrum (dB, peaks marked) to this PNG.
+    #[arg(long, value_name = "OUT.png")]
+    pub png: Option<PathBuf>,
+    /// Also plot sliding spectra over time (a spectrogram) to this PNG.
+    #[arg(long, value_name = "OUT.png")]
+    pub spectrogram: Option<PathBuf>,
+    /// The spectrogram's window in frames (hop: an eighth of it).
+    #[arg(long, value_name = "FRAMES", default_value_t = SPECTROGRAM_WINDOW)]
+    pub spectrogram_window: usize,
+    /// Keep the extracted motion (bands aligned and summed) that the
+    /// time-domain damping (SSI-cov) ran on, as a WAV.
+    #[arg(long, value_name = "OUT.wav")]
+    pub motion_wav: Option<PathBuf>,
+}
+
+impl SpectrumArgs {
+    pub fn options(&self, progress: bool) -> SpectrumOptions {
+        SpectrumOptions {
+            fps: self.video_args.fps,
+            peaks: self.peaks,
+            region: self.video_args.region(),
+            segments: self.segments,
+            window: self.window,
+            min_hz: self.min_hz,
+            max_hz: self.max_hz,
+            include_spectrum: self.include_spectrum,
+            png: self.png.clone(),
+            spectrogram: self.spectrogram.clone(),
+            spectrogram_window: self.spectrogram_window,
+            motion_wav: self.motion_wav.clone(),
+            run: RunSettings { progress },
+            ..SpectrumOptions::new(&self.video, &self.json)
+        }
+    }
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let o = a.spectrum.options(true);
+    super::warn_playback_rate(&o.video, o.fps);
+    let bar = super::Bar::start(true);
+    let r = spectrum::spectrum(&o);
+    drop(bar);
+    let (r, _) = super::stats(a.stats, r, |(_, run)| Some(run.table()))?;
+    for p in &r.written {
+        super::wrote(p);
+    }
+    summary(&r);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The strongest peaks, most prominent first.
+fn summary(r: &SpectrumReport) {
+    if r.peaks.is_empty() {
+        eprintln!(
+            "no resonance stands out (resolution {:.3} Hz at {} Hz)",
+            r.resolution_hz,
+            short(r.sample_rate_hz)
+        );
+        return;
+    }
+    let mut peaks: Vec<_> = r.peaks.iter().collect();
+    peaks.sort_by(|a, b| b.prominence_db.total_cmp(&a.prominence_db));
+    eprintln!(
+        "{} peaks (resolution {:.3} Hz at {} Hz sampling):",
+        peaks.len(),
+        r.resolution_hz,
+        short(r.sample_rate_hz)
+    );
+    for p in peaks.iter().take(5) {
+        eprintln!(
+            "  {:>10} ± {} Hz  damping {} ± {} ({})  {} dB above its surroundings",
+            super::num(p.frequency_hz, 3),
+            super::num(p.frequency_std_hz, 3),
+            super::num(p.damping_ratio, 4),
+            super::num(p.damping_ratio_std, 4),
+            p.damping_method,
+            super::num(p.prominence_db, 1)
+        );
+    }
+}
