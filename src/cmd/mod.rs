@@ -112,18 +112,7 @@ pub fn stats<T>(
     r
 }
 
-/// `1234567` as `1,234,567`.
-pub fn thousands(n: u64) -> String {
-    let s = n.to_string();
-    let mut out = String::with_capacity(s.len() + s.len() / 3);
-    for (i, c) in s.chars().enumerate() {
-        if i > 0 && (s.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
-}
+pub use vibroscope::engine::thousands;
 
 /// A progress bar over the frames of the runs a recipe makes (drawn on a
 /// terminal only), with a whole-number rate (`4,452/s`).
