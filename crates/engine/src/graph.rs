@@ -5,86 +5,8 @@
 use super::config::{ConfigError, Origin, Params, PipelineDecl, StageDecl};
 use super::edge::Policy;
 use super::item::PortType;
-use super::spec::{InPort, OutPort, OutType, ParamSpec};
-use super::stage::{Node, StageError};
+pub use super::spec::{BuildCtx, KindSpec, Output, Plan};
 use std::collections::HashMap;
-
-/// What a stage gives downstream.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Output {
-    /// A sink.
-    None,
-    Fixed(PortType),
-    /// Whatever its input carries (pass-through stages).
-    SameAsInput,
-}
-
-/// A stage kind in the registry: the name used as `kind` in TOML, its
-/// named and typed ports, and its parameters declared as data (see
-/// [`crate::spec`]).
-pub struct KindSpec {
-    pub name: &'static str,
-    pub summary: &'static str,
-    /// Input ports; empty for sources. A stage's `input` edges all arrive
-    /// on its (single) input port.
-    pub inputs: &'static [InPort],
-    /// Output ports; empty for sinks.
-    pub outputs: &'static [OutPort],
-    /// Every parameter: name, type, default, range, unit, doc.
-    pub params: &'static [ParamSpec],
-    /// Validates the parameters ([`Params::resolve`] against `params`,
-    /// then any checks across fields); opens nothing.
-    pub plan: fn(&Params<'_>) -> Result<Box<dyn Plan>, ConfigError>,
-}
-
-impl KindSpec {
-    pub fn is_source(&self) -> bool {
-        self.inputs.is_empty()
-    }
-
-    /// Payload types accepted on the input port.
-    pub fn accepts(&self) -> &'static [PortType] {
-        self.inputs.first().map_or(&[], |p| p.accepts)
-    }
-
-    /// Edges the input port takes.
-    pub fn max_inputs(&self) -> usize {
-        self.inputs.iter().map(|p| p.max_edges).sum()
-    }
-
-    /// What the stage gives downstream.
-    pub fn output(&self) -> Output {
-        match self.outputs.first().map(|p| p.ty) {
-            None => Output::None,
-            Some(OutType::Fixed(t)) => Output::Fixed(t),
-            Some(OutType::SameAsInput) => Output::SameAsInput,
-        }
-    }
-}
-
-/// Everything a validated stage needs to become a running [`Node`].
-pub struct BuildCtx {
-    /// Frame buffers a source should put in its pool.
-    pub pool_frames: usize,
-    /// Types arriving on each input port.
-    pub input_types: Vec<PortType>,
-    /// The graph has a live source: sinks that pace themselves (a speaker)
-    /// drop rather than hold up the stream.
-    pub live: bool,
-}
-
-/// A stage whose parameters are valid; `build` opens files and devices.
-pub trait Plan: Send {
-    fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError>;
-    /// Live sources (cameras, real-time simulation) pace themselves.
-    fn is_live(&self) -> bool {
-        false
-    }
-    /// Frames this stage keeps beyond the one it is processing.
-    fn frames_held(&self) -> usize {
-        0
-    }
-}
 
 pub struct ResolvedInput {
     /// Index into [`Graph::nodes`] of the producer.

@@ -21,8 +21,8 @@
 //! ```
 
 use crate::config::{ConfigError, Origin, Param, Params};
-use crate::graph::KindSpec;
 use crate::item::PortType;
+use crate::stage::{Node, StageError};
 use serde::de::DeserializeOwned;
 use std::fmt::{self, Write as _};
 use toml::Value;
@@ -598,6 +598,83 @@ impl KindSpec {
 /// One line per kind: what `vibroscope kinds` prints.
 pub fn listing(registry: &[KindSpec]) -> String {
     registry.iter().map(|k| k.line() + "\n").collect()
+}
+
+/// What a stage gives downstream.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Output {
+    /// A sink.
+    None,
+    Fixed(PortType),
+    /// Whatever its input carries (pass-through stages).
+    SameAsInput,
+}
+
+/// A stage kind in the registry: the name used as `kind` in TOML, its
+/// named and typed ports, and its parameters declared as data (see
+/// this module).
+pub struct KindSpec {
+    pub name: &'static str,
+    pub summary: &'static str,
+    /// Input ports; empty for sources. A stage's `input` edges all arrive
+    /// on its (single) input port.
+    pub inputs: &'static [InPort],
+    /// Output ports; empty for sinks.
+    pub outputs: &'static [OutPort],
+    /// Every parameter: name, type, default, range, unit, doc.
+    pub params: &'static [ParamSpec],
+    /// Validates the parameters ([`Params::resolve`] against `params`,
+    /// then any checks across fields); opens nothing.
+    pub plan: fn(&Params<'_>) -> Result<Box<dyn Plan>, ConfigError>,
+}
+
+impl KindSpec {
+    pub fn is_source(&self) -> bool {
+        self.inputs.is_empty()
+    }
+
+    /// Payload types accepted on the input port.
+    pub fn accepts(&self) -> &'static [PortType] {
+        self.inputs.first().map_or(&[], |p| p.accepts)
+    }
+
+    /// Edges the input port takes.
+    pub fn max_inputs(&self) -> usize {
+        self.inputs.iter().map(|p| p.max_edges).sum()
+    }
+
+    /// What the stage gives downstream.
+    pub fn output(&self) -> Output {
+        match self.outputs.first().map(|p| p.ty) {
+            None => Output::None,
+            Some(OutType::Fixed(t)) => Output::Fixed(t),
+            Some(OutType::SameAsInput) => Output::SameAsInput,
+        }
+    }
+}
+
+/// Everything a validated stage needs to become a running [`Node`].
+pub struct BuildCtx {
+    /// Frame buffers a source should put in its pool.
+    pub pool_frames: usize,
+    /// Types arriving on each input port.
+    pub input_types: Vec<PortType>,
+    /// The graph has a live source: sinks that pace themselves (a speaker)
+    /// drop rather than hold up the stream.
+    pub live: bool,
+}
+
+/// A stage whose parameters are valid; `build` opens files and devices.
+pub trait Plan: Send {
+    fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError>;
+    /// Live sources (cameras, real-time simulation) pace themselves.
+    fn is_live(&self) -> bool {
+        false
+    }
+    /// Frames this stage keeps beyond the one it is processing.
+    fn frames_held(&self) -> usize {
+        0
+    }
 }
 
 #[cfg(test)]
