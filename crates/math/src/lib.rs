@@ -21,6 +21,7 @@ pub mod iir;
 pub mod kernels;
 pub mod metrics;
 pub mod modal;
+pub mod numeric;
 pub mod peaks;
 pub mod pyramid;
 pub mod riesz;

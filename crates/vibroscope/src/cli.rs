@@ -757,14 +757,6 @@ pub fn read_wav_mono(path: &Path) -> anyhow::Result<(u32, Vec<f64>)> {
     Ok(crate::io::wav::read_mono(path)?)
 }
 
-fn gcd(a: u64, b: u64) -> u64 {
-    if b == 0 {
-        a
-    } else {
-        gcd(b, a % b)
-    }
-}
-
 fn score(reference: &Path, test: &Path, max_lag_s: f64) -> anyhow::Result<ExitCode> {
     if !(max_lag_s.is_finite() && max_lag_s >= 0.0) {
         return Err(cfg_error(
@@ -776,7 +768,7 @@ fn score(reference: &Path, test: &Path, max_lag_s: f64) -> anyhow::Result<ExitCo
     let (fr, r) = read_wav_mono(reference)?;
     let (ft, mut t) = read_wav_mono(test)?;
     if fr != ft {
-        let g = gcd(fr as u64, ft as u64).max(1);
+        let g = crate::math::numeric::gcd(fr as u64, ft as u64).max(1);
         t = crate::math::metrics::resample(&t, fr as u64 / g, ft as u64 / g).with_context(
             || format!("cannot resample {} from {ft} Hz to {fr} Hz", test.display()),
         )?;
