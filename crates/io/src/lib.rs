@@ -18,6 +18,7 @@ use std::path::Path;
 pub mod atomic;
 mod cine;
 mod ffmpeg;
+pub mod image;
 mod mraw;
 pub mod plot;
 pub mod wav;
@@ -37,6 +38,16 @@ pub const MAX_PIXELS: u64 = 1 << 26;
 pub enum Depth {
     U8,
     U16,
+}
+
+impl Depth {
+    /// Largest `bits` this depth holds.
+    pub fn max_bits(self) -> u8 {
+        match self {
+            Depth::U8 => 8,
+            Depth::U16 => 16,
+        }
+    }
 }
 
 /// What a reader knows about its video, from the file's header.
