@@ -102,6 +102,23 @@ pub trait VideoReader: Send {
     fn read_frame(&mut self, dst: FrameDest<'_>) -> Result<Option<FrameRead>, VideoError>;
 }
 
+/// Every error of this crate, one variant per kind of file: video, WAV,
+/// whole-file writes, pictures, plots. Each function returns its own typed
+/// error; this enum gathers them for callers that handle any of them.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(transparent)]
+    Video(#[from] VideoError),
+    #[error(transparent)]
+    Wav(#[from] wav::WavError),
+    #[error(transparent)]
+    Write(#[from] atomic::WriteError),
+    #[error(transparent)]
+    Image(#[from] crate::image::ImageError),
+    #[error(transparent)]
+    Plot(#[from] plot::PlotError),
+}
+
 /// Everything that can go wrong reading video. Every message starts with the
 /// file's path (or `<stdin>`) and says what is wrong.
 #[derive(Debug, thiserror::Error)]

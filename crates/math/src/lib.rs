@@ -10,12 +10,15 @@
 //! - Resonances: spectral peaks and damping ([`peaks`]), modal images
 //!   ([`modal`]), stochastic subspace identification ([`ssi`]), rods
 //!   ([`rod`]), calibration against a known sound ([`calibrate`]).
-//! - [`rng`]: the deterministic PRNG shared with the simulator.
+//! - [`rng`]: the deterministic PRNG shared with the simulator; [`numeric`]:
+//!   small shared helpers (gcd, median, Bessel I0).
+//! - [`MathError`]: every module's typed error as one enum.
 
 pub mod ar_interp;
 pub mod calibrate;
 pub mod denoise;
 pub mod detmath;
+pub mod error;
 pub mod exposure;
 pub mod fastmath;
 pub mod iir;
@@ -31,4 +34,5 @@ pub mod rs_calibrate;
 pub mod ssi;
 pub mod truth;
 
+pub use error::MathError;
 pub use pyramid::{kernels, riesz};

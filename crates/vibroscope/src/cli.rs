@@ -1238,9 +1238,10 @@ fn rs_calibrate(a: &RsCalibrateArgs) -> anyhow::Result<ExitCode> {
         None => (0, 0, w, h),
     };
     let mut rp = match a.signal {
-        CalSignal::Motion => {
-            Some(RowPhase::new(w, x, x + rw, rh, &[8.0, 16.0]).map_err(|m| cfg_error("--roi", m))?)
-        }
+        CalSignal::Motion => Some(
+            RowPhase::new(w, x, x + rw, rh, &[8.0, 16.0])
+                .map_err(|m| cfg_error("--roi", m.to_string()))?,
+        ),
         CalSignal::Intensity => None,
     };
     let mut buf8 = vec![0u8; w * h];

@@ -189,8 +189,12 @@ pub struct Calibration {
 /// Why calibration cannot run.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum CalError {
-    #[error("{0}")]
-    Input(String),
+    #[error("rates must be > 0 (recovery {fs} Hz, reference {fr} Hz)")]
+    Rates { fs: f64, fr: f64 },
+    #[error("the recovery has {len} samples; calibration needs at least {min_len} ({:.2} s)", *.min_len as f64 / .fs)]
+    TooShort { len: usize, min_len: usize, fs: f64 },
+    #[error("non-finite samples")]
+    NonFinite,
 }
 
 /// A fitted correction with its uncertainty.
@@ -209,20 +213,18 @@ pub fn calibrate(
     opts: &Options,
 ) -> Result<Calibration, CalError> {
     if !(fs.is_finite() && fs > 0.0 && fr.is_finite() && fr > 0.0) {
-        return Err(CalError::Input(format!(
-            "rates must be > 0 (recovery {fs} Hz, reference {fr} Hz)"
-        )));
+        return Err(CalError::Rates { fs, fr });
     }
     let min_len = 4 * stft_len(fs);
     if y.len() < min_len {
-        return Err(CalError::Input(format!(
-            "the recovery has {} samples; calibration needs at least {min_len} ({:.2} s)",
-            y.len(),
-            min_len as f64 / fs
-        )));
+        return Err(CalError::TooShort {
+            len: y.len(),
+            min_len,
+            fs,
+        });
     }
     if y.iter().chain(r).any(|v| !v.is_finite()) {
-        return Err(CalError::Input("non-finite samples".into()));
+        return Err(CalError::NonFinite);
     }
     let m = Model { r, fr, fs, opts };
     let fit0 = m.fit_linear(y);
