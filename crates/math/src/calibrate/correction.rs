@@ -2,10 +2,10 @@
 //! how each applies to a recovery, and its parameters as reported.
 
 use super::frames::apply_frames;
+use super::report::{EventReport, LineReport, Parameters};
 use super::signal::{equalize, redo_highpass, sample_at, undo_highpass};
 use super::EffectKind;
 use realfft::num_complex::Complex;
-use serde_json::{json, Value};
 use std::f64::consts::PI;
 
 /// A narrowband line: `a cos(2π f n / fs) + b sin(2π f n / fs)`.
@@ -174,115 +174,55 @@ impl Correction {
         l
     }
 
-    /// The parameters as reported (and read back by [`Correction::from_json`]).
-    pub fn parameters(&self, fs: f64, gain: f64) -> Value {
+    /// The parameters as reported (and read back by
+    /// [`super::reusable_from_report`]).
+    pub fn parameters(&self, fs: f64, gain: f64) -> Parameters {
         match self {
-            Correction::TimeBase { ppm } => json!({
-                "clock_error_ppm": ppm,
-                "true_fps": fs * (1.0 + ppm * 1e-6),
-                "declared_fps": fs,
-            }),
-            Correction::Frames { events } => json!({
-                "events": events.iter().map(|e| json!({
-                    "frame": e.index,
-                    "kind": if e.delta > 0 { "dropped" } else { "duplicated" },
-                    "count": e.delta.unsigned_abs(),
-                })).collect::<Vec<_>>(),
-            }),
-            Correction::Exposure { exposure_s } => json!({
-                "exposure_us": exposure_s * 1e6,
-                "fraction_of_frame": exposure_s * fs,
-            }),
-            Correction::Interference { lines } => json!({
-                "lines": lines.iter().map(|l| json!({
-                    "freq_hz": l.freq_hz,
-                    "amplitude": l.a.hypot(l.b) / gain.abs().max(1e-300),
-                })).collect::<Vec<_>>(),
-            }),
+            Correction::TimeBase { ppm } => Parameters::TimeBase {
+                clock_error_ppm: *ppm,
+                declared_fps: fs,
+                true_fps: fs * (1.0 + ppm * 1e-6),
+            },
+            Correction::Frames { events } => Parameters::Frames {
+                events: events
+                    .iter()
+                    .map(|e| EventReport {
+                        count: e.delta.unsigned_abs(),
+                        frame: e.index,
+                        kind: if e.delta > 0 { "dropped" } else { "duplicated" },
+                    })
+                    .collect(),
+            },
+            Correction::Exposure { exposure_s } => Parameters::Exposure {
+                exposure_us: exposure_s * 1e6,
+                fraction_of_frame: exposure_s * fs,
+            },
+            Correction::Interference { lines } => Parameters::Interference {
+                lines: lines
+                    .iter()
+                    .map(|l| LineReport {
+                        amplitude: l.a.hypot(l.b) / gain.abs().max(1e-300),
+                        freq_hz: l.freq_hz,
+                    })
+                    .collect(),
+            },
             Correction::Transfer {
                 freqs_hz,
                 coef_db,
                 phase_deg,
                 k,
-            } => json!({
-                "k": k,
-                "frequencies_hz": freqs_hz,
-                "coefficients_db": coef_db,
-                "phase_deg": phase_deg,
-            }),
-            Correction::SoftClip { a3, a5, level, .. } => json!({
-                "level_in_reference_units": level,
-                "a3": a3,
-                "a5": a5,
-            }),
+            } => Parameters::Transfer {
+                coefficients_db: coef_db.clone(),
+                frequencies_hz: freqs_hz.clone(),
+                k: *k,
+                phase_deg: phase_deg.clone(),
+            },
+            Correction::SoftClip { a3, a5, level, .. } => Parameters::SoftClip {
+                a3: *a3,
+                a5: *a5,
+                level_in_reference_units: *level,
+            },
         }
-    }
-
-    /// A reusable correction back from a report's effect entry; `None` for
-    /// per-recording effects (frames, interference). Errors name the field.
-    pub fn from_json(name: &str, p: &Value) -> Result<Option<Correction>, String> {
-        let num = |key: &str| {
-            p.get(key)
-                .and_then(Value::as_f64)
-                .filter(|v| v.is_finite())
-                .ok_or_else(|| format!("effect `{name}`: parameters.{key} must be a finite number"))
-        };
-        let list = |key: &str| -> Result<Vec<f64>, String> {
-            p.get(key)
-                .and_then(Value::as_array)
-                .and_then(|a| a.iter().map(Value::as_f64).collect::<Option<Vec<_>>>())
-                .filter(|v| v.iter().all(|x| x.is_finite()))
-                .ok_or_else(|| {
-                    format!("effect `{name}`: parameters.{key} must be a list of numbers")
-                })
-        };
-        Ok(match name {
-            "time_base" => Some(Correction::TimeBase {
-                ppm: num("clock_error_ppm")?,
-            }),
-            "exposure" => {
-                let e = num("exposure_us")?;
-                if e <= 0.0 {
-                    return Err(format!(
-                        "effect `exposure`: parameters.exposure_us must be > 0, got {e}"
-                    ));
-                }
-                Some(Correction::Exposure {
-                    exposure_s: e * 1e-6,
-                })
-            }
-            "transfer_function" => {
-                let (f, c) = (list("frequencies_hz")?, list("coefficients_db")?);
-                if f.len() != c.len() || f.windows(2).any(|w| w[1] <= w[0]) {
-                    return Err(format!(
-                        "effect `{name}`: frequencies_hz ({}) must increase and match coefficients_db ({})",
-                        f.len(),
-                        c.len()
-                    ));
-                }
-                let phase = match p.get("phase_deg") {
-                    None => vec![0.0; f.len()],
-                    Some(_) => list("phase_deg")?,
-                };
-                if phase.len() != f.len() {
-                    return Err(format!(
-                        "effect `{name}`: phase_deg has {} entries, frequencies_hz {}",
-                        phase.len(),
-                        f.len()
-                    ));
-                }
-                Some(Correction::Transfer {
-                    freqs_hz: f,
-                    coef_db: c,
-                    phase_deg: phase,
-                    k: num("k")?,
-                })
-            }
-            // Per recording: the level is in the recovery's units, which
-            // depend on the texture and region as much as on the object.
-            "dropped_frames" | "interference" | "soft_clip" => None,
-            other => return Err(format!("unknown effect `{other}`")),
-        })
     }
 }
 

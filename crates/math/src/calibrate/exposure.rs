@@ -2,8 +2,7 @@
 
 use super::model::{eq_sse, Fit, Model};
 use super::signal::{curvature_sigma, gain_sse, golden};
-use super::{Candidate, Correction};
-use serde_json::json;
+use super::{Candidate, Correction, Uncertainty};
 
 pub(super) fn fit_exposure(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
     let period = 1.0 / m.fs;
@@ -40,6 +39,8 @@ pub(super) fn fit_exposure(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate>
     );
     Some(Candidate {
         correction: corr(e),
-        uncertainty: json!({ "exposure_us": sd * 1e6 }),
+        uncertainty: Uncertainty::Exposure {
+            exposure_us: sd * 1e6,
+        },
     })
 }

@@ -3,9 +3,8 @@
 
 use super::model::{Fit, Model};
 use super::signal::golden;
-use super::{Candidate, Correction, FrameEvent};
+use super::{Candidate, Correction, FrameEvent, Uncertainty};
 use crate::numeric::median;
-use serde_json::json;
 
 pub(super) fn apply_frames(z: &[f64], events: &[FrameEvent]) -> Vec<f64> {
     let mut out: Vec<f64> = Vec::with_capacity(z.len() + events.len());
@@ -197,6 +196,6 @@ pub(super) fn fit_frames(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
     }
     Some(Candidate {
         correction: Correction::Frames { events },
-        uncertainty: json!({ "frame": pos_sd }),
+        uncertainty: Uncertainty::Frames { frame: pos_sd },
     })
 }

@@ -2,10 +2,10 @@
 //! intermodulation products of its tones).
 
 use super::model::{Fit, Model};
+use super::report::LineUncertainty;
 use super::signal::{alias, golden, stft_len, welch};
-use super::{Candidate, Correction, Line};
+use super::{Candidate, Correction, Line, Uncertainty};
 use crate::numeric::median;
-use serde_json::{json, Value};
 use std::f64::consts::PI;
 
 /// Frequencies of the reference's tonal peaks (at most 3): bins 10 dB
@@ -147,16 +147,18 @@ pub(super) fn fit_interference(m: &Model, z: &[f64], fit: &Fit) -> Option<Candid
     }
     // Cramér-Rao bound on each frequency, σ² from what is left.
     let sigma2 = r.iter().map(|v| v * v).sum::<f64>() / nf as f64;
-    let sd: Vec<Value> = lines
+    let sd: Vec<LineUncertainty> = lines
         .iter()
         .map(|l| {
             let amp2 = l.a * l.a + l.b * l.b;
             let n3 = (nf as f64).powi(3);
-            json!({ "freq_hz": m.fs / (2.0 * PI) * (12.0 * sigma2 / (amp2 * n3)).sqrt() })
+            LineUncertainty {
+                freq_hz: m.fs / (2.0 * PI) * (12.0 * sigma2 / (amp2 * n3)).sqrt(),
+            }
         })
         .collect();
     Some(Candidate {
         correction: Correction::Interference { lines },
-        uncertainty: json!({ "lines": sd }),
+        uncertainty: Uncertainty::Interference { lines: sd },
     })
 }

@@ -55,6 +55,7 @@ mod exposure;
 mod frames;
 mod interference;
 mod model;
+mod report;
 mod residual;
 mod signal;
 mod soft_clip;
@@ -62,11 +63,14 @@ mod time_base;
 mod transfer;
 
 pub use correction::{Correction, FrameEvent, Line};
+pub use report::{
+    reusable_from_report, EventReport, LineReport, LineUncertainty, Parameters, ReportError,
+    Uncertainty, Unexplained, UnexplainedKind,
+};
 pub use signal::{alias, equalize, sample_at, stft_len};
 
 use model::{Fit, Model};
 use residual::unexplained;
-use serde_json::Value;
 
 /// Options of [`calibrate`].
 #[derive(Clone, Debug)]
@@ -150,8 +154,8 @@ pub struct Errors {
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct EffectReport {
     pub name: String,
-    pub parameters: Value,
-    pub uncertainty: Value,
+    pub parameters: Parameters,
+    pub uncertainty: Uncertainty,
     pub snr_gain_db: f64,
 }
 
@@ -161,14 +165,14 @@ pub struct Report {
     pub before: Errors,
     pub effects: Vec<EffectReport>,
     pub after: Errors,
-    pub unexplained: Vec<Value>,
+    pub unexplained: Vec<Unexplained>,
 }
 
 /// A candidate that was fitted but not kept (for logs).
 #[derive(Clone, Debug)]
 pub struct Rejected {
     pub name: &'static str,
-    pub parameters: Value,
+    pub parameters: Parameters,
     pub snr_gain_db: f64,
 }
 
@@ -200,7 +204,7 @@ pub enum CalError {
 /// A fitted correction with its uncertainty.
 struct Candidate {
     correction: Correction,
-    uncertainty: Value,
+    uncertainty: Uncertainty,
 }
 
 /// Calibrates the recovery `y` (at `fs`, the declared frame rate) against
@@ -370,28 +374,6 @@ pub fn apply_all(corrections: &[Correction], y: &[f64], fs: f64) -> Vec<f64> {
         z = c.apply(&z, fs);
     }
     z
-}
-
-/// The reusable corrections stored in a report (`effects` of `REPORT.json`).
-pub fn reusable_from_report(report: &Value) -> Result<Vec<Correction>, String> {
-    let effects = report
-        .get("effects")
-        .and_then(Value::as_array)
-        .ok_or("no `effects` list")?;
-    let mut out = Vec::new();
-    for (i, e) in effects.iter().enumerate() {
-        let name = e
-            .get("name")
-            .and_then(Value::as_str)
-            .ok_or_else(|| format!("effects[{i}]: no `name`"))?;
-        let p = e
-            .get("parameters")
-            .ok_or_else(|| format!("effects[{i}] ({name}): no `parameters`"))?;
-        if let Some(c) = Correction::from_json(name, p).map_err(|m| format!("effects[{i}]: {m}"))? {
-            out.push(c);
-        }
-    }
-    Ok(out)
 }
 
 #[cfg(test)]

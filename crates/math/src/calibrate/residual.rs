@@ -3,10 +3,10 @@
 
 use super::correlation::local_lags;
 use super::model::{Fit, Model};
+use super::report::{Unexplained, UnexplainedKind};
 use super::signal::{alias, stft, stft_len};
 use crate::numeric::median;
 use realfft::num_complex::Complex;
-use serde_json::{json, Value};
 
 /// Share of the residual's energy a structure must hold to be reported.
 pub(super) const NOTABLE: f64 = 0.05;
@@ -19,7 +19,7 @@ pub(super) fn round_to(v: f64, step: f64) -> f64 {
 /// reference, coherent energy where the reference has none (each reported
 /// when it holds at least 5% of the residual's energy), a lag that changes
 /// with frequency, a lag that changes over time.
-pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Value> {
+pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Unexplained> {
     let mut out = Vec::new();
     let g = if fit.g != 0.0 { fit.g } else { 1.0 };
     let zh: Vec<f64> = z.iter().map(|v| v / g).collect();
@@ -116,19 +116,19 @@ pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Value> {
         let mut fl: Vec<f64> = fs_.iter().map(|f| round_to(*f, df)).collect();
         fl.sort_by(|a, b| a.total_cmp(b));
         fl.dedup();
-        out.push(json!({
-            "kind": "harmonics",
-            "order": h,
-            "level_db": level,
-            "reference_hz": [rlo, rhi],
-            "frequencies_hz": fl,
-            "description": format!(
+        out.push(Unexplained::Harmonics {
+            kind: UnexplainedKind::Harmonics,
+            order: h,
+            level_db: level,
+            reference_hz: [rlo, rhi],
+            frequencies_hz: fl,
+            description: format!(
                 "energy at {h}x the reference's frequency ({:.0}-{:.0} Hz played, heard at {}), {:.1} dB relative to the signal: a nonlinear response of the object or the loudspeaker (or clipping); lower the level, or model it",
                 rlo, rhi,
                 if h as f64 * rhi > m.fs / 2.0 { "its aliases below fs/2" } else { "those multiples" },
                 level
             ),
-        }));
+        });
     }
     // Coherent energy with no reference: bands of excess energy.
     let total_other: f64 = other.iter().sum();
@@ -145,15 +145,16 @@ pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Value> {
             }
         }
         let freqs: Vec<f64> = picked.iter().map(|&k| k as f64 * df).collect();
-        out.push(json!({
-            "kind": "coherent_without_reference",
-            "level_db": 10.0 * (total_other / signal).log10(),
-            "frequencies_hz": freqs,
-            "description": format!(
+        let description = format!(
                 "energy 10 dB above the residual floor where the reference has none, strongest at {} Hz: vibration from another source (a machine, camera shake, a light's flicker) or aliases of content above fs/2",
                 freqs.iter().map(|f| format!("{f:.0}")).collect::<Vec<_>>().join(", ")
-            ),
-        }));
+            );
+        out.push(Unexplained::CoherentWithoutReference {
+            kind: UnexplainedKind::CoherentWithoutReference,
+            level_db: 10.0 * (total_other / signal).log10(),
+            frequencies_hz: freqs,
+            description,
+        });
     }
     // Lag against frequency: cross-spectral phase where coherent.
     let (mut sxy, mut sxx, mut syy) = (
@@ -187,17 +188,17 @@ pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Value> {
             .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
             .unwrap_or((0.0, 0.0));
         let (flo, fhi) = (bad[0].0, bad[bad.len() - 1].0);
-        out.push(json!({
-            "kind": "lag_vs_frequency",
-            "frequencies_hz": [flo, fhi],
-            "max_phase_deg": worst.1,
-            "at_hz": worst.0,
-            "lag_samples_at": worst.1 / 360.0 * m.fs / worst.0.max(1e-9),
-            "description": format!(
+        out.push(Unexplained::LagVsFrequency {
+            kind: UnexplainedKind::LagVsFrequency,
+            frequencies_hz: [flo, fhi],
+            max_phase_deg: worst.1,
+            at_hz: worst.0,
+            lag_samples_at: worst.1 / 360.0 * m.fs / worst.0.max(1e-9),
+            description: format!(
                 "phase error beyond 20 degrees at {:.0}-{:.0} Hz (worst {:.0} deg at {:.0} Hz): the delay changes with frequency, as across a resonance; a magnitude equaliser does not undo it (a complex transfer function or a minimum-phase model would)",
                 flo, fhi, worst.1, worst.0
             ),
-        }));
+        });
     }
     // Lag over time.
     let pre = 512;
@@ -209,16 +210,16 @@ pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Value> {
         if hi - lo > 0.3 {
             let pts: Vec<(f64, f64)> = lags.iter().map(|&(c, l, _)| (c, l)).collect();
             let slope = theil_sen(&pts).map_or(0.0, |p| p.0);
-            out.push(json!({
-                "kind": "lag_over_time",
-                "lag_range_samples": [lo, hi],
-                "drift_ppm": slope * 1e6,
-                "frequencies_hz": [],
-                "description": format!(
+            out.push(Unexplained::LagOverTime {
+                kind: UnexplainedKind::LagOverTime,
+                lag_range_samples: [lo, hi],
+                drift_ppm: slope * 1e6,
+                frequencies_hz: [],
+                description: format!(
                     "the delay moves by {:.2} samples over the recording (trend {:.0} ppm): a clock error, dropped frames or a changing path",
                     hi - lo, slope * 1e6
                 ),
-            }));
+            });
         }
     }
     out

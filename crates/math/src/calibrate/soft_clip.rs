@@ -2,8 +2,7 @@
 
 use super::model::{Fit, Model};
 use super::signal::{curvature_sigma, gain_sse, golden, redo_highpass, undo_highpass};
-use super::{Candidate, Correction};
-use serde_json::json;
+use super::{Candidate, Correction, Uncertainty};
 
 /// The odd-order inverse of a saturation, by linear least squares on the
 /// fit part: with `u` the recovery with its high-pass undone,
@@ -133,10 +132,10 @@ pub(super) fn fit_soft_clip(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate
             level,
             highpass: hp,
         },
-        uncertainty: json!({
-            "a3": var[1].sqrt() / b[0].abs() / peak.powi(2),
-            "a5": var[2].sqrt() / b[0].abs() / peak.powi(4),
-            "level_in_reference_units": level_sd,
-        }),
+        uncertainty: Uncertainty::SoftClip {
+            a3: var[1].sqrt() / b[0].abs() / peak.powi(2),
+            a5: var[2].sqrt() / b[0].abs() / peak.powi(4),
+            level_in_reference_units: level_sd,
+        },
     })
 }

@@ -3,8 +3,7 @@
 use super::correlation::corr_peak;
 use super::model::{Fit, Model};
 use super::signal::{curvature_sigma, gain_sse, golden};
-use super::{Candidate, Correction};
-use serde_json::json;
+use super::{Candidate, Correction, Uncertainty};
 
 /// The rate error: a grid over ±1% in steps that keep the drift over the
 /// fit part under half a sample, each point scored by the best correlation
@@ -46,6 +45,8 @@ pub(super) fn fit_time_base(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate
     let sd = curvature_sigma(sse_at, e, 0.05 / n as f64, sigma2);
     Some(Candidate {
         correction: Correction::TimeBase { ppm: e * 1e6 },
-        uncertainty: json!({ "clock_error_ppm": sd * 1e6 }),
+        uncertainty: Uncertainty::TimeBase {
+            clock_error_ppm: sd * 1e6,
+        },
     })
 }

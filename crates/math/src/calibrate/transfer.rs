@@ -2,9 +2,8 @@
 
 use super::model::{eq_sse, Fit, Model};
 use super::signal::{curvature_sigma, golden, stft, stft_len};
-use super::{Candidate, Correction};
+use super::{Candidate, Correction, Uncertainty};
 use realfft::num_complex::Complex;
-use serde_json::json;
 
 /// Transfer coefficients (thesis ch. 4.3.3): per STFT bin, the average of
 /// the recovery's magnitude over time weighted by the reference's short-
@@ -99,6 +98,6 @@ pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate>
     let sd = curvature_sigma(|k| eq_sse(m, z, fit, &corr(k)), k, 0.02, sse / nf as f64);
     Some(Candidate {
         correction: corr(k),
-        uncertainty: json!({ "k": sd }),
+        uncertainty: Uncertainty::Transfer { k: sd },
     })
 }

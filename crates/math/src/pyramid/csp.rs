@@ -48,21 +48,13 @@
 //! release: `analyze` about 0.73 ms (90 Mpix/s), `synthesize` about the same.
 
 use super::{
-    check_len, check_params, check_region, BandInfo, Complex32, PhaseBands, PyramidError,
-    DEFAULT_ORIENTATIONS, DEFAULT_SCALES,
+    check_len, check_params, check_region, layout_accessors, BandInfo, Complex32, LayoutKey,
+    PhaseBands, PyramidError, DEFAULT_ORIENTATIONS, DEFAULT_SCALES,
 };
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use rustfft::{Fft, FftPlanner};
 use std::f64::consts::PI;
 use std::sync::Arc;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct LayoutKey {
-    width: usize,
-    height: usize,
-    scales: usize,
-    orientations: usize,
-}
 
 /// One complex sub-band of a [`PyramidCoeffs`].
 #[derive(Clone, Debug)]
@@ -537,23 +529,8 @@ impl ComplexSteerablePyramid {
         })
     }
 
-    /// Same as `new(width, height, DEFAULT_SCALES, DEFAULT_ORIENTATIONS)`.
-    pub fn with_defaults(width: usize, height: usize) -> Result<Self, PyramidError> {
-        Self::new(width, height, DEFAULT_SCALES, DEFAULT_ORIENTATIONS)
-    }
+    layout_accessors!();
 
-    pub fn width(&self) -> usize {
-        self.key.width
-    }
-    pub fn height(&self) -> usize {
-        self.key.height
-    }
-    pub fn scales(&self) -> usize {
-        self.key.scales
-    }
-    pub fn orientations(&self) -> usize {
-        self.key.orientations
-    }
     /// Shapes of all bands, scale-major.
     pub fn band_infos(&self) -> &[BandInfo] {
         &self.infos
@@ -600,22 +577,10 @@ impl ComplexSteerablePyramid {
         let (w, h) = (self.key.width, self.key.height);
         check_len(w * h, frame.len())?;
         self.check_coeffs(out)?;
-        let half_w = self.half_w;
-        let spec_len = half_w * h;
         let norm = 1.0 / (w as f32 * h as f32);
 
         // Forward 2D FFT into the x-major half spectrum.
-        for (y, row) in frame.chunks_exact(w).enumerate() {
-            self.row_real.copy_from_slice(row);
-            self.r2c
-                .process_with_scratch(&mut self.row_real, &mut self.row_cplx, &mut self.scratch)
-                .map_err(|e| PyramidError::Fft(e.to_string()))?;
-            for (ux, v) in self.row_cplx.iter().enumerate() {
-                self.spec[ux * h + y] = *v;
-            }
-        }
-        self.col_fwd
-            .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
+        self.forward_2d(frame)?;
 
         if self.residuals {
             self.residuals_into(out)?;
@@ -668,22 +633,7 @@ impl ComplexSteerablePyramid {
         }
         self.col_inv
             .process_with_scratch(&mut self.work[..spec_len], &mut self.scratch);
-        let even_w = w.is_multiple_of(2);
-        for (y, row) in out.highpass.chunks_exact_mut(w).enumerate() {
-            for (ux, v) in self.row_cplx.iter_mut().enumerate() {
-                *v = self.work[ux * h + y];
-            }
-            self.row_cplx[0].im = 0.0;
-            if even_w {
-                self.row_cplx[half_w - 1].im = 0.0;
-            }
-            self.c2r
-                .process_with_scratch(&mut self.row_cplx, row, &mut self.scratch)
-                .map_err(|e| PyramidError::Fft(e.to_string()))?;
-            for v in row.iter_mut() {
-                *v *= norm;
-            }
-        }
+        self.inverse_rows(true, &mut out.highpass, norm)?;
 
         // Low-pass residual (real).
         let grid = &self.grids[self.key.scales];
@@ -715,17 +665,7 @@ impl ComplexSteerablePyramid {
         let wh = w as f32 * h as f32;
 
         // High-pass residual: its half spectrum times the mask starts the sum.
-        for (y, row) in coeffs.highpass.chunks_exact(w).enumerate() {
-            self.row_real.copy_from_slice(row);
-            self.r2c
-                .process_with_scratch(&mut self.row_real, &mut self.row_cplx, &mut self.scratch)
-                .map_err(|e| PyramidError::Fft(e.to_string()))?;
-            for (ux, v) in self.row_cplx.iter().enumerate() {
-                self.spec[ux * h + y] = *v;
-            }
-        }
-        self.col_fwd
-            .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
+        self.forward_2d(&coeffs.highpass)?;
         for (s, m) in self.spec.iter_mut().zip(&self.hi_mask) {
             *s *= *m;
         }
@@ -779,11 +719,44 @@ impl ComplexSteerablePyramid {
         // Inverse: columns, then real rows.
         self.col_inv
             .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
+        self.inverse_rows(false, out, 1.0 / wh)
+    }
+
+    /// The forward 2D FFT of the real image `rows` (`width x height`) into
+    /// the x-major half spectrum `spec`: real rows, then columns.
+    fn forward_2d(&mut self, rows: &[f32]) -> Result<(), PyramidError> {
+        let (w, h) = (self.key.width, self.key.height);
+        let spec_len = self.half_w * h;
+        for (y, row) in rows.chunks_exact(w).enumerate() {
+            self.row_real.copy_from_slice(row);
+            self.r2c
+                .process_with_scratch(&mut self.row_real, &mut self.row_cplx, &mut self.scratch)
+                .map_err(|e| PyramidError::Fft(e.to_string()))?;
+            for (ux, v) in self.row_cplx.iter().enumerate() {
+                self.spec[ux * h + y] = *v;
+            }
+        }
+        self.col_fwd
+            .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
+        Ok(())
+    }
+
+    /// The real rows of `out` (`width x height`) from an x-major half
+    /// spectrum whose columns are already inverted (`work` when
+    /// `from_work`, else `spec`), times `norm`.
+    fn inverse_rows(
+        &mut self,
+        from_work: bool,
+        out: &mut [f32],
+        norm: f32,
+    ) -> Result<(), PyramidError> {
+        let (w, h) = (self.key.width, self.key.height);
+        let half_w = self.half_w;
+        let src = if from_work { &self.work } else { &self.spec };
         let even_w = w.is_multiple_of(2);
-        let norm = 1.0 / wh;
         for (y, row) in out.chunks_exact_mut(w).enumerate() {
             for (ux, v) in self.row_cplx.iter_mut().enumerate() {
-                *v = self.spec[ux * h + y];
+                *v = src[ux * h + y];
             }
             self.row_cplx[0].im = 0.0;
             if even_w {

@@ -1,13 +1,8 @@
-use super::super::tests::{alloc_count, fft2, texture, Rng, Texture};
+use super::super::tests::{alloc_count, fft2, noise, texture, Texture};
 use super::super::MAX_SCALES;
 use super::*;
 use proptest::prelude::*;
 use rustfft::num_complex::Complex64;
-
-fn noise(n: usize, seed: u64) -> Vec<f32> {
-    let mut rng = Rng::new(seed);
-    (0..n).map(|_| rng.normal() as f32).collect()
-}
 
 fn rel_l2(a: &[f32], b: &[f32]) -> f64 {
     let num: f64 = a

@@ -47,6 +47,41 @@ pub enum PyramidError {
     Fft(String),
 }
 
+/// The shape a pyramid was built for; its coefficients carry it, so that a
+/// pyramid refuses another's.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct LayoutKey {
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    pub(crate) scales: usize,
+    pub(crate) orientations: usize,
+}
+
+/// `with_defaults` and the size getters, the same in both pyramids (each
+/// has a `key: LayoutKey` and a `new(width, height, scales, orientations)`).
+macro_rules! layout_accessors {
+    () => {
+        /// Same as `new(width, height, DEFAULT_SCALES, DEFAULT_ORIENTATIONS)`.
+        pub fn with_defaults(width: usize, height: usize) -> Result<Self, PyramidError> {
+            Self::new(width, height, DEFAULT_SCALES, DEFAULT_ORIENTATIONS)
+        }
+
+        pub fn width(&self) -> usize {
+            self.key.width
+        }
+        pub fn height(&self) -> usize {
+            self.key.height
+        }
+        pub fn scales(&self) -> usize {
+            self.key.scales
+        }
+        pub fn orientations(&self) -> usize {
+            self.key.orientations
+        }
+    };
+}
+pub(crate) use layout_accessors;
+
 /// Checks the common constructor arguments of both pyramids.
 pub(crate) fn check_params(
     width: usize,

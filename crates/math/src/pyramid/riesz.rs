@@ -46,18 +46,10 @@
 
 use super::kernels::quat_phase_delta;
 use super::{
-    check_len, check_params, BandInfo, PhaseBands, PyramidError, DEFAULT_ORIENTATIONS,
-    DEFAULT_SCALES,
+    check_len, check_params, layout_accessors, BandInfo, LayoutKey, PhaseBands, PyramidError,
+    DEFAULT_ORIENTATIONS, DEFAULT_SCALES,
 };
 use std::f32::consts::{FRAC_PI_2, PI};
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct LayoutKey {
-    width: usize,
-    height: usize,
-    scales: usize,
-    orientations: usize,
-}
 
 /// One level of a [`RieszCoeffs`]: the band, its Riesz pair, the local
 /// amplitude and one phase image per orientation, all `width x height`.
@@ -98,6 +90,14 @@ impl RieszLevel {
     /// Phase projected on orientation `k`, `φ·cos(θ - θk)`.
     pub fn phase(&self, k: usize) -> Option<&[f32]> {
         self.phases.get(k).map(Vec::as_slice)
+    }
+    /// The quadrature triple `(I, R1, R2)` on `span` (the kernels' input).
+    fn triple(&self, span: std::ops::Range<usize>) -> [&[f32]; 3] {
+        [
+            &self.band[span.clone()],
+            &self.r1[span.clone()],
+            &self.r2[span],
+        ]
     }
 }
 
@@ -216,16 +216,8 @@ impl PhaseBands for RieszCoeffs {
             let span = y * w + cols.start..y * w + cols.end;
             let mut acc = [0.0f32];
             super::kernels::riesz_row(
-                [
-                    &cur.band[span.clone()],
-                    &cur.r1[span.clone()],
-                    &cur.r2[span.clone()],
-                ],
-                [
-                    &prev.band[span.clone()],
-                    &prev.r1[span.clone()],
-                    &prev.r2[span.clone()],
-                ],
+                cur.triple(span.clone()),
+                prev.triple(span.clone()),
                 &[&weights[span]],
                 &[(ck, sk)],
                 &mut acc,
@@ -272,16 +264,8 @@ impl PhaseBands for RieszCoeffs {
             }
             acc[..k].iter_mut().for_each(|v| *v = 0.0);
             super::kernels::riesz_row(
-                [
-                    &cur.band[span.clone()],
-                    &cur.r1[span.clone()],
-                    &cur.r2[span.clone()],
-                ],
-                [
-                    &prev.band[span.clone()],
-                    &prev.r1[span.clone()],
-                    &prev.r2[span.clone()],
-                ],
+                cur.triple(span.clone()),
+                prev.triple(span.clone()),
                 &wrow[..k],
                 &self.dirs[..k],
                 &mut acc[..k],
@@ -388,23 +372,8 @@ impl RieszPyramid {
         })
     }
 
-    /// Same as `new(width, height, DEFAULT_SCALES, DEFAULT_ORIENTATIONS)`.
-    pub fn with_defaults(width: usize, height: usize) -> Result<Self, PyramidError> {
-        Self::new(width, height, DEFAULT_SCALES, DEFAULT_ORIENTATIONS)
-    }
+    layout_accessors!();
 
-    pub fn width(&self) -> usize {
-        self.key.width
-    }
-    pub fn height(&self) -> usize {
-        self.key.height
-    }
-    pub fn scales(&self) -> usize {
-        self.key.scales
-    }
-    pub fn orientations(&self) -> usize {
-        self.key.orientations
-    }
     /// Shapes of all (level, orientation) bands, scale-major.
     pub fn band_infos(&self) -> &[BandInfo] {
         &self.infos

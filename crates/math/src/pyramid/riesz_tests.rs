@@ -1,11 +1,6 @@
-use super::super::tests::{alloc_count, texture, Rng, Texture};
+use super::super::tests::{alloc_count, noise, texture, Texture};
 use super::*;
 use proptest::prelude::*;
-
-fn noise(n: usize, seed: u64) -> Vec<f32> {
-    let mut rng = Rng::new(seed);
-    (0..n).map(|_| rng.normal() as f32).collect()
-}
 
 // ----- slow reference: direct 5x5 convolution in f64 -----
 

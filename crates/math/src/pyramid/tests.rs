@@ -53,6 +53,12 @@ pub(crate) mod alloc_count {
     }
 }
 
+/// `n` seeded standard normal samples.
+pub(crate) fn noise(n: usize, seed: u64) -> Vec<f32> {
+    let mut rng = Rng::new(seed);
+    (0..n).map(|_| rng.normal() as f32).collect()
+}
+
 /// SplitMix64 with Box-Muller normals (seeded, reproducible).
 pub(crate) struct Rng(u64);
 impl Rng {

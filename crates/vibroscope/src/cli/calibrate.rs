@@ -214,9 +214,7 @@ pub fn run(a: &CalibrateArgs) -> anyhow::Result<ExitCode> {
         );
     }
     for u in &c.report.unexplained {
-        if let Some(d) = u.get("description").and_then(|d| d.as_str()) {
-            eprintln!("unexplained: {d}");
-        }
+        eprintln!("unexplained: {}", u.description());
     }
     if let Some(out) = &a.output {
         // Reference time of corrected sample n is n / fs - delay.
@@ -241,7 +239,7 @@ pub fn load_calibration(path: &Path) -> anyhow::Result<Vec<Correction>> {
         std::fs::read_to_string(path).map_err(|e| cfg_error(&name, format!("cannot read: {e}")))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| cfg_error(&name, format!("not JSON: {e}")))?;
-    cal::reusable_from_report(&v).map_err(|m| cfg_error(&name, m).into())
+    cal::reusable_from_report(&v).map_err(|m| cfg_error(&name, m.to_string()).into())
 }
 
 /// Applies `corrections` to the WAV at `path` in place (at its own rate).
