@@ -1,8 +1,7 @@
-//! The corrections calibrate fits: one variant per effect of the catalog,
-//! how each applies to a recovery, and its parameters as reported.
+//! The corrections calibrate fits, one variant per effect of the catalog,
+//! and how each applies to a recovery (its parameters as reported are in
+//! [`super::report`]).
 
-use super::frames::apply_frames;
-use super::report::{EventReport, LineReport, Parameters};
 use super::signal::{equalize, redo_highpass, sample_at, undo_highpass};
 use super::EffectKind;
 use realfft::num_complex::Complex;
@@ -173,57 +172,6 @@ impl Correction {
         }
         l
     }
-
-    /// The parameters as reported (and read back by
-    /// [`super::reusable_from_report`]).
-    pub fn parameters(&self, fs: f64, gain: f64) -> Parameters {
-        match self {
-            Correction::TimeBase { ppm } => Parameters::TimeBase {
-                clock_error_ppm: *ppm,
-                declared_fps: fs,
-                true_fps: fs * (1.0 + ppm * 1e-6),
-            },
-            Correction::Frames { events } => Parameters::Frames {
-                events: events
-                    .iter()
-                    .map(|e| EventReport {
-                        count: e.delta.unsigned_abs(),
-                        frame: e.index,
-                        kind: if e.delta > 0 { "dropped" } else { "duplicated" },
-                    })
-                    .collect(),
-            },
-            Correction::Exposure { exposure_s } => Parameters::Exposure {
-                exposure_us: exposure_s * 1e6,
-                fraction_of_frame: exposure_s * fs,
-            },
-            Correction::Interference { lines } => Parameters::Interference {
-                lines: lines
-                    .iter()
-                    .map(|l| LineReport {
-                        amplitude: l.a.hypot(l.b) / gain.abs().max(1e-300),
-                        freq_hz: l.freq_hz,
-                    })
-                    .collect(),
-            },
-            Correction::Transfer {
-                freqs_hz,
-                coef_db,
-                phase_deg,
-                k,
-            } => Parameters::Transfer {
-                coefficients_db: coef_db.clone(),
-                frequencies_hz: freqs_hz.clone(),
-                k: *k,
-                phase_deg: phase_deg.clone(),
-            },
-            Correction::SoftClip { a3, a5, level, .. } => Parameters::SoftClip {
-                a3: *a3,
-                a5: *a5,
-                level_in_reference_units: *level,
-            },
-        }
-    }
 }
 
 /// Linear interpolation in a table; 0 outside it.
@@ -237,4 +185,41 @@ pub(super) fn interp_table(xs: &[f64], ys: &[f64], x: f64) -> f64 {
             ys[i - 1] + t * (ys[i] - ys[i - 1])
         }
     }
+}
+
+/// Frame events undone: lost captures filled by AR interpolation, repeated
+/// ones merged.
+fn apply_frames(z: &[f64], events: &[FrameEvent]) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::with_capacity(z.len() + events.len());
+    let mut gaps: Vec<(usize, usize)> = Vec::new();
+    let mut ev = events.iter().peekable();
+    let mut merge = 0usize;
+    for (n, &v) in z.iter().enumerate() {
+        while let Some(e) = ev.peek().filter(|e| e.index == n) {
+            if e.delta > 0 {
+                let d = e.delta as usize;
+                gaps.push((out.len(), d));
+                out.extend(std::iter::repeat_n(0.0, d));
+            } else {
+                merge += e.delta.unsigned_abs() as usize;
+            }
+            ev.next();
+        }
+        if merge > 0 && !out.is_empty() {
+            // A repeat of the previous capture: average the two readings.
+            merge -= 1;
+            if let Some(last) = out.last_mut() {
+                *last = 0.5 * (*last + v);
+            }
+        } else {
+            out.push(v);
+        }
+    }
+    let mut ar = crate::ar_interp::ArInterpolator::new(16, 2);
+    for (left, missing) in gaps {
+        let lo = left.saturating_sub(256);
+        let hi = (left + missing + 256).min(out.len());
+        ar.fill(&mut out[lo..hi], left - lo, missing);
+    }
+    out
 }

@@ -6,41 +6,6 @@ use super::signal::golden;
 use super::{Candidate, Correction, FrameEvent, Uncertainty};
 use crate::numeric::median;
 
-pub(super) fn apply_frames(z: &[f64], events: &[FrameEvent]) -> Vec<f64> {
-    let mut out: Vec<f64> = Vec::with_capacity(z.len() + events.len());
-    let mut gaps: Vec<(usize, usize)> = Vec::new();
-    let mut ev = events.iter().peekable();
-    let mut merge = 0usize;
-    for (n, &v) in z.iter().enumerate() {
-        while let Some(e) = ev.peek().filter(|e| e.index == n) {
-            if e.delta > 0 {
-                let d = e.delta as usize;
-                gaps.push((out.len(), d));
-                out.extend(std::iter::repeat_n(0.0, d));
-            } else {
-                merge += e.delta.unsigned_abs() as usize;
-            }
-            ev.next();
-        }
-        if merge > 0 && !out.is_empty() {
-            // A repeat of the previous capture: average the two readings.
-            merge -= 1;
-            if let Some(last) = out.last_mut() {
-                *last = 0.5 * (*last + v);
-            }
-        } else {
-            out.push(v);
-        }
-    }
-    let mut ar = crate::ar_interp::ArInterpolator::new(16, 2);
-    for (left, missing) in gaps {
-        let lo = left.saturating_sub(256);
-        let hi = (left + missing + 256).min(out.len());
-        ar.fill(&mut out[lo..hi], left - lo, missing);
-    }
-    out
-}
-
 /// Opposite frame events closer than this (samples) cancel.
 pub(super) const MIN_EVENT_GAP: usize = 32;
 

@@ -223,6 +223,59 @@ impl Unexplained {
     }
 }
 
+impl Correction {
+    /// The parameters as reported (and read back by
+    /// [`super::reusable_from_report`]).
+    pub fn parameters(&self, fs: f64, gain: f64) -> Parameters {
+        match self {
+            Correction::TimeBase { ppm } => Parameters::TimeBase {
+                clock_error_ppm: *ppm,
+                declared_fps: fs,
+                true_fps: fs * (1.0 + ppm * 1e-6),
+            },
+            Correction::Frames { events } => Parameters::Frames {
+                events: events
+                    .iter()
+                    .map(|e| EventReport {
+                        count: e.delta.unsigned_abs(),
+                        frame: e.index,
+                        kind: if e.delta > 0 { "dropped" } else { "duplicated" },
+                    })
+                    .collect(),
+            },
+            Correction::Exposure { exposure_s } => Parameters::Exposure {
+                exposure_us: exposure_s * 1e6,
+                fraction_of_frame: exposure_s * fs,
+            },
+            Correction::Interference { lines } => Parameters::Interference {
+                lines: lines
+                    .iter()
+                    .map(|l| LineReport {
+                        amplitude: l.a.hypot(l.b) / gain.abs().max(1e-300),
+                        freq_hz: l.freq_hz,
+                    })
+                    .collect(),
+            },
+            Correction::Transfer {
+                freqs_hz,
+                coef_db,
+                phase_deg,
+                k,
+            } => Parameters::Transfer {
+                coefficients_db: coef_db.clone(),
+                frequencies_hz: freqs_hz.clone(),
+                k: *k,
+                phase_deg: phase_deg.clone(),
+            },
+            Correction::SoftClip { a3, a5, level, .. } => Parameters::SoftClip {
+                a3: *a3,
+                a5: *a5,
+                level_in_reference_units: *level,
+            },
+        }
+    }
+}
+
 /// Why a stored report gives no corrections.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReportError {
