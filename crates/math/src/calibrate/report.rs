@@ -331,14 +331,14 @@ enum Stored {
 
 #[derive(Deserialize)]
 struct StoredEffect {
-    name: Option<Stored2>,
+    name: Option<StoredName>,
     parameters: Option<BTreeMap<String, Stored>>,
 }
 
 /// A name: a string, or anything else (then missing).
 #[derive(Deserialize)]
 #[serde(untagged)]
-enum Stored2 {
+enum StoredName {
     Str(String),
     Other(serde::de::IgnoredAny),
 }
@@ -362,7 +362,7 @@ where
     let effects = stored.effects.ok_or(ReportError::NoEffects)?;
     let mut out = Vec::new();
     for (index, e) in effects.into_iter().enumerate() {
-        let Some(Stored2::Str(name)) = e.name else {
+        let Some(StoredName::Str(name)) = e.name else {
             return Err(ReportError::NoName { index });
         };
         let p = e.parameters.ok_or_else(|| ReportError::NoParameters {
