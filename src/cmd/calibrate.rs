@@ -89,9 +89,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         eprintln!("tried {name}: {} dB, not kept", db(*gain));
     }
     for u in &r.report.unexplained {
-        if let Some(d) = u.get("description").and_then(|d| d.as_str()) {
-            eprintln!("unexplained: {d}");
-        }
+        eprintln!("unexplained: {}", u.description());
     }
     for p in &r.written {
         super::wrote(p);

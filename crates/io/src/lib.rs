@@ -18,6 +18,7 @@ use std::path::Path;
 pub mod atomic;
 mod cine;
 mod ffmpeg;
+pub mod image;
 mod mraw;
 pub mod plot;
 pub mod wav;
@@ -37,6 +38,16 @@ pub const MAX_PIXELS: u64 = 1 << 26;
 pub enum Depth {
     U8,
     U16,
+}
+
+impl Depth {
+    /// Largest `bits` this depth holds.
+    pub fn max_bits(self) -> u8 {
+        match self {
+            Depth::U8 => 8,
+            Depth::U16 => 16,
+        }
+    }
 }
 
 /// What a reader knows about its video, from the file's header.
@@ -89,6 +100,23 @@ pub trait VideoReader: Send {
     /// Ok(None) at a clean end of stream. A frame cut short is an error (VideoError::Truncated), not None.
     /// After an error (other than a wrong `dst`) the reader is finished: later calls return Ok(None).
     fn read_frame(&mut self, dst: FrameDest<'_>) -> Result<Option<FrameRead>, VideoError>;
+}
+
+/// Every error of this crate, one variant per kind of file: video, WAV,
+/// whole-file writes, pictures, plots. Each function returns its own typed
+/// error; this enum gathers them for callers that handle any of them.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(transparent)]
+    Video(#[from] VideoError),
+    #[error(transparent)]
+    Wav(#[from] wav::WavError),
+    #[error(transparent)]
+    Write(#[from] atomic::WriteError),
+    #[error(transparent)]
+    Image(#[from] crate::image::ImageError),
+    #[error(transparent)]
+    Plot(#[from] plot::PlotError),
 }
 
 /// Everything that can go wrong reading video. Every message starts with the

@@ -29,7 +29,7 @@ pub struct Rgb {
 
 impl Rgb {
     /// PNG bytes.
-    pub fn png(&self) -> Result<Vec<u8>, String> {
+    pub fn png(&self) -> Result<Vec<u8>, PlotError> {
         let mut out = Vec::new();
         image::codecs::png::PngEncoder::new(&mut out)
             .write_image(
@@ -38,7 +38,7 @@ impl Rgb {
                 self.height,
                 image::ExtendedColorType::Rgb8,
             )
-            .map_err(|e| e.to_string())?;
+            .map_err(PlotError::Encode)?;
         Ok(out)
     }
 }
@@ -56,18 +56,36 @@ fn font() {
     });
 }
 
-fn draw_err<E: std::fmt::Debug>(e: E) -> String {
-    format!("plot: {e:?}")
+/// Why a plot was not drawn.
+#[derive(Debug, thiserror::Error)]
+pub enum PlotError {
+    /// The requested size is outside `MIN_SIDE..=8192` pixels a side.
+    #[error("plot size must be {MIN_SIDE}..=8192 pixels each, got {width}x{height}")]
+    Size { width: u32, height: u32 },
+    /// Fewer than two spectrum bins fall in the band.
+    #[error("fewer than 2 spectrum bins between {lo_hz} and {hi_hz} Hz")]
+    Band { lo_hz: f64, hi_hz: f64 },
+    /// A spectrogram of no spectra.
+    #[error("no spectra to draw")]
+    NoSpectra,
+    /// The drawing library failed.
+    #[error("plot: {0}")]
+    Draw(String),
+    /// The PNG encoder failed.
+    #[error("{0}")]
+    Encode(#[source] image::ImageError),
+}
+
+fn draw_err<E: std::fmt::Debug>(e: E) -> PlotError {
+    PlotError::Draw(format!("{e:?}"))
 }
 
 /// Smallest accepted plot side, pixels.
 pub const MIN_SIDE: u32 = 200;
 
-fn check_size(width: u32, height: u32) -> Result<(), String> {
+fn check_size(width: u32, height: u32) -> Result<(), PlotError> {
     if !(MIN_SIDE..=8192).contains(&width) || !(MIN_SIDE..=8192).contains(&height) {
-        return Err(format!(
-            "plot size must be {MIN_SIDE}..=8192 pixels each, got {width}x{height}"
-        ));
+        return Err(PlotError::Size { width, height });
     }
     Ok(())
 }
@@ -81,7 +99,7 @@ pub fn power_plot(
     band: (f64, f64),
     peaks: &[Peak],
     size: (u32, u32),
-) -> Result<(Rgb, PlotArea), String> {
+) -> Result<(Rgb, PlotArea), PlotError> {
     let (width, height) = size;
     check_size(width, height)?;
     font();
@@ -92,10 +110,10 @@ pub fn power_plot(
         .filter(|(f, _)| *f >= band.0 && *f <= band.1)
         .collect();
     if db.len() < 2 {
-        return Err(format!(
-            "fewer than 2 spectrum bins between {} and {} Hz",
-            band.0, band.1
-        ));
+        return Err(PlotError::Band {
+            lo_hz: band.0,
+            hi_hz: band.1,
+        });
     }
     let lo = db.iter().map(|v| v.1).fold(f64::INFINITY, f64::min);
     let hi = db.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max);
@@ -147,8 +165,8 @@ fn draw(
     size: (u32, u32),
     axes: &Axes,
     ranges: (std::ops::Range<f64>, std::ops::Range<f64>),
-    series: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), String>,
-) -> Result<(Rgb, PlotArea), String> {
+    series: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), PlotError>,
+) -> Result<(Rgb, PlotArea), PlotError> {
     let (width, height) = size;
     let mut buf = vec![255u8; (width * height * 3) as usize];
     let area;
@@ -213,21 +231,21 @@ pub fn spectrogram_plot(
     df: f64,
     band: (f64, f64),
     size: (u32, u32),
-) -> Result<(Rgb, PlotArea), String> {
+) -> Result<(Rgb, PlotArea), PlotError> {
     let (width, height) = size;
     check_size(width, height)?;
     font();
     if spectra.is_empty() {
-        return Err("no spectra to draw".into());
+        return Err(PlotError::NoSpectra);
     }
     let bins = spectra[0].power.len();
     let k0 = (((band.0 - f0) / df).ceil().max(0.0)) as usize;
     let k1 = ((((band.1 - f0) / df).floor()) as usize).min(bins.saturating_sub(1));
     if k1 <= k0 {
-        return Err(format!(
-            "fewer than 2 spectrum bins between {} and {} Hz",
-            band.0, band.1
-        ));
+        return Err(PlotError::Band {
+            lo_hz: band.0,
+            hi_hz: band.1,
+        });
     }
     let db = |p: f64| 10.0 * p.max(1e-300).log10();
     let top = spectra

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-/// A WAV file that could not be read, naming the file.
+/// A WAV file that could not be read or written, naming the file.
 #[derive(Debug, thiserror::Error)]
 pub enum WavError {
     #[error("{}: not a readable WAV file: {source}", path.display())]
@@ -17,6 +17,14 @@ pub enum WavError {
         #[source]
         source: hound::Error,
     },
+    #[error("{}: cannot encode WAV: {source}", path.display())]
+    Encode {
+        path: PathBuf,
+        #[source]
+        source: hound::Error,
+    },
+    #[error(transparent)]
+    Write(#[from] crate::atomic::WriteError),
 }
 
 /// Reads the first channel of a WAV file: integers scaled to [-1, 1),
@@ -58,7 +66,7 @@ pub fn read_mono(path: &Path) -> Result<(u32, Vec<f64>), WavError> {
 
 /// Writes a mono 32-bit float WAV atomically (a temporary sibling, then a
 /// rename), so an interrupted run never leaves half a file.
-pub fn write_mono_f32(path: &Path, rate: u32, x: &[f64]) -> Result<(), crate::atomic::WriteError> {
+pub fn write_mono_f32(path: &Path, rate: u32, x: &[f64]) -> Result<(), WavError> {
     let spec = hound::WavSpec {
         channels: 1,
         sample_rate: rate,
@@ -74,11 +82,11 @@ pub fn write_mono_f32(path: &Path, rate: u32, x: &[f64]) -> Result<(), crate::at
         w.finalize()?;
         Ok(bytes.into_inner())
     };
-    let bytes = encode().map_err(|e| crate::atomic::WriteError {
+    let bytes = encode().map_err(|source| WavError::Encode {
         path: path.to_path_buf(),
-        source: std::io::Error::other(e.to_string()),
+        source,
     })?;
-    crate::atomic::write_atomic(path, &bytes)
+    Ok(crate::atomic::write_atomic(path, &bytes)?)
 }
 
 #[cfg(test)]

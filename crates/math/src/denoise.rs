@@ -904,6 +904,37 @@ impl<R: GainRule> Engine<R> {
 // Public denoisers
 // ---------------------------------------------------------------------------------------
 
+/// The stream methods both denoisers share, forwarded to their `engine`.
+macro_rules! engine_methods {
+    () => {
+        /// Feeds any number of samples; appends every finished output sample to `out`.
+        pub fn process(&mut self, input: &[f32], out: &mut Vec<f32>) {
+            self.engine.process(input, out);
+        }
+
+        /// Flushes the tail (zero-padded) at end of stream, so that the total output length
+        /// equals the total input length, then resets for a new stream.
+        pub fn finish(&mut self, out: &mut Vec<f32>) {
+            self.engine.finish(out);
+        }
+
+        /// Fixed latency in samples: one frame.
+        pub fn latency_samples(&self) -> usize {
+            self.engine.latency()
+        }
+
+        /// Frame length in samples.
+        pub fn frame_len(&self) -> usize {
+            self.engine.frame
+        }
+
+        /// Hop between frames in samples.
+        pub fn hop_len(&self) -> usize {
+            self.engine.hop
+        }
+    };
+}
+
 /// Streaming magnitude spectral subtraction (Boll 1979) with over-subtraction and a
 /// spectral floor (Berouti et al. 1979): per bin `|S| = max(|Y| - alpha |N|, beta |Y|)`,
 /// where `|N|` is Boll's mean noise magnitude, `sqrt(pi / 4)` times the square root of
@@ -953,31 +984,7 @@ impl SpectralSubtraction {
         )
     }
 
-    /// Feeds any number of samples; appends every finished output sample to `out`.
-    pub fn process(&mut self, input: &[f32], out: &mut Vec<f32>) {
-        self.engine.process(input, out);
-    }
-
-    /// Flushes the tail (zero-padded) at end of stream, so that the total output length
-    /// equals the total input length, then resets for a new stream.
-    pub fn finish(&mut self, out: &mut Vec<f32>) {
-        self.engine.finish(out);
-    }
-
-    /// Fixed latency in samples: one frame.
-    pub fn latency_samples(&self) -> usize {
-        self.engine.latency()
-    }
-
-    /// Frame length in samples.
-    pub fn frame_len(&self) -> usize {
-        self.engine.frame
-    }
-
-    /// Hop between frames in samples.
-    pub fn hop_len(&self) -> usize {
-        self.engine.hop
-    }
+    engine_methods!();
 
     /// Tracked noise power per frequency bin `k = 0..=frame_len()/2` (bin `k` is at
     /// `k * rate / frame_len()` Hz), in units of the input variance: white noise of
@@ -1024,31 +1031,7 @@ impl SpeechEnhance {
         Self::new(rate_hz, &DenoiseConfig::default())
     }
 
-    /// Feeds any number of samples; appends every finished output sample to `out`.
-    pub fn process(&mut self, input: &[f32], out: &mut Vec<f32>) {
-        self.engine.process(input, out);
-    }
-
-    /// Flushes the tail (zero-padded) at end of stream, so that the total output length
-    /// equals the total input length, then resets for a new stream.
-    pub fn finish(&mut self, out: &mut Vec<f32>) {
-        self.engine.finish(out);
-    }
-
-    /// Fixed latency in samples: one frame.
-    pub fn latency_samples(&self) -> usize {
-        self.engine.latency()
-    }
-
-    /// Frame length in samples.
-    pub fn frame_len(&self) -> usize {
-        self.engine.frame
-    }
-
-    /// Hop between frames in samples.
-    pub fn hop_len(&self) -> usize {
-        self.engine.hop
-    }
+    engine_methods!();
 
     /// Tracked noise power per frequency bin; see [`SpectralSubtraction::noise_psd`].
     pub fn noise_psd(&self) -> &[f64] {
@@ -1095,7 +1078,12 @@ mod tests {
     /// On/off gate at `phase` in [0, 1) of a period of `period_s`: on for the first
     /// `duty` of the period, with 25 ms raised-cosine ramps inside the on part.
     fn gate(phase: f64, duty: f64, period_s: f64) -> f64 {
-        let ramp = (0.025 / period_s).min(duty / 2.0);
+        gate_with_ramp(phase, duty, period_s, 0.025)
+    }
+
+    /// [`gate`] with ramps of `ramp_s` seconds.
+    fn gate_with_ramp(phase: f64, duty: f64, period_s: f64, ramp_s: f64) -> f64 {
+        let ramp = (ramp_s / period_s).min(duty / 2.0);
         if phase < ramp {
             0.5 - 0.5 * (PI * phase / ramp).cos()
         } else if phase < duty - ramp {
@@ -1185,16 +1173,7 @@ mod tests {
 
     /// Like [`gate`] but with 20 ms ramps.
     fn gate_ramped(phase: f64, duty: f64, period_s: f64) -> f64 {
-        let ramp = (0.02 / period_s).min(duty / 2.0);
-        if phase < ramp {
-            0.5 - 0.5 * (PI * phase / ramp).cos()
-        } else if phase < duty - ramp {
-            1.0
-        } else if phase < duty {
-            0.5 + 0.5 * (PI * (phase - duty + ramp) / ramp).cos()
-        } else {
-            0.0
-        }
+        gate_with_ramp(phase, duty, period_s, 0.02)
     }
 
     fn rms(x: &[f64]) -> f64 {

@@ -1,7 +1,8 @@
 //! The mathematics of visual vibration analysis: no threads, no I/O.
 //!
-//! - Motion from video: complex steerable pyramids ([`pyramid`]), the Riesz
-//!   pyramid ([`riesz`]) and their shared filter kernels ([`kernels`]);
+//! - Motion from video: the complex steerable and Riesz pyramids and their
+//!   per-pixel phase kernels ([`pyramid`]; [`riesz`] and [`kernels`] are
+//!   also at the crate root, where other crates have used them);
 //!   rolling-shutter rows ([`row_phase`], [`rs_calibrate`]), exposure
 //!   ([`exposure`]), gap filling ([`ar_interp`]).
 //! - Signals: IIR filters ([`iir`]), denoising ([`denoise`]), quality
@@ -9,24 +10,29 @@
 //! - Resonances: spectral peaks and damping ([`peaks`]), modal images
 //!   ([`modal`]), stochastic subspace identification ([`ssi`]), rods
 //!   ([`rod`]), calibration against a known sound ([`calibrate`]).
-//! - [`rng`]: the deterministic PRNG shared with the simulator.
+//! - [`rng`]: the deterministic PRNG shared with the simulator; [`numeric`]:
+//!   small shared helpers (gcd, median, Bessel I0).
+//! - [`MathError`]: every module's typed error as one enum.
 
 pub mod ar_interp;
 pub mod calibrate;
 pub mod denoise;
 pub mod detmath;
+pub mod error;
 pub mod exposure;
 pub mod fastmath;
 pub mod iir;
-pub mod kernels;
 pub mod metrics;
 pub mod modal;
+pub mod numeric;
 pub mod peaks;
 pub mod pyramid;
-pub mod riesz;
 pub mod rng;
 pub mod rod;
 pub mod row_phase;
 pub mod rs_calibrate;
 pub mod ssi;
 pub mod truth;
+
+pub use error::MathError;
+pub use pyramid::{kernels, riesz};

@@ -21,6 +21,7 @@
 //! for STOI, ...) the function returns `f64::NAN` (and [`best_lag_gain`] returns a gain of
 //! `NaN`). Each function documents its own cases.
 
+use crate::numeric::{bessel_i0, gcd};
 use realfft::num_complex::Complex;
 use realfft::RealFftPlanner;
 
@@ -271,13 +272,6 @@ const MAX_PQ: u64 = 100_000;
 /// Largest resampled length accepted (about 60 hours at 10 kHz).
 const MAX_RESAMPLED_LEN: u64 = 1 << 31;
 
-fn gcd(mut a: u64, mut b: u64) -> u64 {
-    while b != 0 {
-        (a, b) = (b, a % b);
-    }
-    a
-}
-
 /// Rational `p / q ≈ to / from` in lowest terms with `max(p, q) <= MAX_PQ`: exact for
 /// integer rates, otherwise the last continued-fraction convergent within the bound
 /// (stopping early at relative error 1e-12, like MATLAB's `rat(x, 1e-12)`).
@@ -330,22 +324,6 @@ fn rational_ratio(to: f64, from: f64) -> Option<(u64, u64)> {
         let g = gcd(p, q);
         (p / g, q / g)
     })
-}
-
-/// Modified Bessel function of the first kind, order 0 (power series).
-fn bessel_i0(x: f64) -> f64 {
-    let half = x / 2.0;
-    let mut term = 1.0;
-    let mut sum = 1.0;
-    for k in 1..200 {
-        let f = half / k as f64;
-        term *= f * f;
-        sum += term;
-        if term < sum * 1e-17 {
-            break;
-        }
-    }
-    sum
 }
 
 fn sinc(x: f64) -> f64 {

@@ -77,7 +77,7 @@ pub struct ModalConfig {
 }
 
 /// Errors of the modal imager.
-#[derive(Debug, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ModalError {
     #[error("pyramid: {0}")]
     Pyramid(#[from] PyramidError),
@@ -497,11 +497,42 @@ pub fn npy_complex64(data: &[Complex32], width: usize, height: usize) -> Vec<u8>
     out
 }
 
+/// Why [`read_npy_complex64`] refused its input.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum NpyError {
+    #[error("not a .npy file (bad magic)")]
+    Magic,
+    #[error("unsupported .npy version {0}")]
+    Version(u8),
+    #[error("truncated .npy header")]
+    TruncatedHeader,
+    /// The header, which declares another dtype or Fortran order.
+    #[error("not a C-order complex64 array: {0}")]
+    Layout(String),
+    #[error("no shape in the .npy header")]
+    NoShape,
+    #[error("shape `{shape}`: {source}")]
+    BadShape {
+        shape: String,
+        #[source]
+        source: std::num::ParseIntError,
+    },
+    #[error("expected a 2-D shape, got ({0})")]
+    NotTwoD(String),
+    #[error("{got} data bytes for a {height}x{width} complex64 array (expected {expected})")]
+    DataLength {
+        got: usize,
+        height: usize,
+        width: usize,
+        expected: usize,
+    },
+}
+
 /// Reads back what [`npy_complex64`] writes (for tests and tools): the
 /// shape `(height, width)` and the values. Other `.npy` layouts are refused.
-pub fn read_npy_complex64(bytes: &[u8]) -> Result<(usize, usize, Vec<Complex32>), String> {
+pub fn read_npy_complex64(bytes: &[u8]) -> Result<(usize, usize, Vec<Complex32>), NpyError> {
     if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
-        return Err("not a .npy file (bad magic)".into());
+        return Err(NpyError::Magic);
     }
     let (len, start) = match bytes[6] {
         1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
@@ -509,39 +540,42 @@ pub fn read_npy_complex64(bytes: &[u8]) -> Result<(usize, usize, Vec<Complex32>)
             u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
             12,
         ),
-        v => return Err(format!("unsupported .npy version {v}")),
+        v => return Err(NpyError::Version(v)),
     };
     let header = bytes
         .get(start..start + len)
         .and_then(|h| std::str::from_utf8(h).ok())
-        .ok_or("truncated .npy header")?;
+        .ok_or(NpyError::TruncatedHeader)?;
     if !header.contains("'descr': '<c8'") || !header.contains("'fortran_order': False") {
-        return Err(format!("not a C-order complex64 array: {}", header.trim()));
+        return Err(NpyError::Layout(header.trim().to_string()));
     }
     let shape = header
         .split("'shape': (")
         .nth(1)
         .and_then(|s| s.split(')').next())
-        .ok_or("no shape in the .npy header")?;
+        .ok_or(NpyError::NoShape)?;
     let dims: Vec<usize> = shape
         .split(',')
         .map(str::trim)
         .filter(|s| !s.is_empty())
         .map(|s| {
-            s.parse::<usize>()
-                .map_err(|e| format!("shape `{shape}`: {e}"))
+            s.parse::<usize>().map_err(|source| NpyError::BadShape {
+                shape: shape.to_string(),
+                source,
+            })
         })
         .collect::<Result<_, _>>()?;
     let [h, w] = dims[..] else {
-        return Err(format!("expected a 2-D shape, got ({shape})"));
+        return Err(NpyError::NotTwoD(shape.to_string()));
     };
     let body = &bytes[start + len..];
     if body.len() != w * h * 8 {
-        return Err(format!(
-            "{} data bytes for a {h}x{w} complex64 array (expected {})",
-            body.len(),
-            w * h * 8
-        ));
+        return Err(NpyError::DataLength {
+            got: body.len(),
+            height: h,
+            width: w,
+            expected: w * h * 8,
+        });
     }
     let data = body
         .chunks_exact(8)

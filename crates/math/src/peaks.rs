@@ -485,7 +485,10 @@ fn lorentzian_fit(
         }
         jtj[3][3] = 1.0;
     }
-    let cov = invert4(&jtj)?;
+    let cov = nalgebra::Matrix4::from_fn(|r, c| jtj[r][c])
+        .lu()
+        .try_inverse()
+        .filter(|m| m.iter().all(|v| v.is_finite()))?;
     let f0 = q[0];
     let gamma = q[1].exp();
     if !(f0 >= freq(lo) && f0 <= freq(hi) && gamma.is_finite()) {
@@ -493,9 +496,9 @@ fn lorentzian_fit(
     }
     Some(LorentzFit {
         f0,
-        f0_std: (s2 * inflate * cov[0][0]).max(0.0).sqrt(),
+        f0_std: (s2 * inflate * cov[(0, 0)]).max(0.0).sqrt(),
         gamma,
-        ln_gamma_std: (s2 * inflate * cov[1][1]).max(0.0).sqrt(),
+        ln_gamma_std: (s2 * inflate * cov[(1, 1)]).max(0.0).sqrt(),
         amplitude: q[2].exp(),
         background: q[3].exp(),
         s: s2.sqrt(),
@@ -563,10 +566,13 @@ fn gauss_newton(
             for (a, row) in m.iter_mut().enumerate() {
                 row[a] += lambda * jtj[a][a].max(1e-12);
             }
-            let inv = invert4(&m)?;
+            let inv = nalgebra::Matrix4::from_fn(|r, c| m[r][c])
+                .lu()
+                .try_inverse()
+                .filter(|m| m.iter().all(|v| v.is_finite()))?;
             let mut step = [0.0; 4];
             for a in 0..4 {
-                step[a] = (0..4).map(|b| inv[a][b] * jtr[b]).sum();
+                step[a] = (0..4).map(|b| inv[(a, b)] * jtr[b]).sum();
             }
             // Keep the centre within a few bins per step.
             step[0] = step[0].clamp(-4.0 * df, 4.0 * df);
@@ -593,38 +599,6 @@ fn gauss_newton(
         }
     }
     q.iter().all(|v| v.is_finite()).then_some(q)
-}
-
-/// Inverse of a symmetric 4×4 matrix by Gauss-Jordan with pivoting.
-fn invert4(m: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
-    let mut a = *m;
-    let mut inv = [[0.0; 4]; 4];
-    for (i, row) in inv.iter_mut().enumerate() {
-        row[i] = 1.0;
-    }
-    for col in 0..4 {
-        let piv = (col..4).max_by(|&x, &y| a[x][col].abs().total_cmp(&a[y][col].abs()))?;
-        if a[piv][col].abs() < 1e-300 || !a[piv][col].is_finite() {
-            return None;
-        }
-        a.swap(col, piv);
-        inv.swap(col, piv);
-        let d = a[col][col];
-        for k in 0..4 {
-            a[col][k] /= d;
-            inv[col][k] /= d;
-        }
-        for r in 0..4 {
-            if r != col {
-                let f = a[r][col];
-                for k in 0..4 {
-                    a[r][k] -= f * a[col][k];
-                    inv[r][k] -= f * inv[col][k];
-                }
-            }
-        }
-    }
-    Some(inv)
 }
 
 #[cfg(test)]

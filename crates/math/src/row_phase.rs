@@ -57,6 +57,25 @@ pub struct RowPhase {
     resp_im: Vec<f32>,
 }
 
+/// Why [`RowPhase::new`] refused its geometry.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RowPhaseError {
+    #[error("columns {x0}..{x1} do not fit a row of {width} px")]
+    Columns { x0: usize, x1: usize, width: usize },
+    #[error("at least one wavelength is needed")]
+    NoWavelength,
+    #[error("wavelength {0} px is outside {MIN_WAVELENGTH_PX}..={MAX_WAVELENGTH_PX}")]
+    Wavelength(f64),
+    #[error(
+        "the region is {width} px wide; wavelength {wavelength} px needs more than {needed} px"
+    )]
+    TooNarrow {
+        width: usize,
+        wavelength: f64,
+        needed: usize,
+    },
+}
+
 impl RowPhase {
     /// Rows of `width` pixels, columns `[x0, x1)` used, `rows` rows, one
     /// Gabor filter per wavelength (σ = wavelength / 2, about one octave of
@@ -67,20 +86,18 @@ impl RowPhase {
         x1: usize,
         rows: usize,
         wavelengths_px: &[f64],
-    ) -> Result<Self, String> {
+    ) -> Result<Self, RowPhaseError> {
         if x1 > width || x0 >= x1 {
-            return Err(format!("columns {x0}..{x1} do not fit a row of {width} px"));
+            return Err(RowPhaseError::Columns { x0, x1, width });
         }
         if wavelengths_px.is_empty() {
-            return Err("at least one wavelength is needed".into());
+            return Err(RowPhaseError::NoWavelength);
         }
         let mut filters = Vec::with_capacity(wavelengths_px.len());
         let mut stride = 0;
         for &lambda in wavelengths_px {
             if !(MIN_WAVELENGTH_PX..=MAX_WAVELENGTH_PX).contains(&lambda) {
-                return Err(format!(
-                    "wavelength {lambda} px is outside {MIN_WAVELENGTH_PX}..={MAX_WAVELENGTH_PX}"
-                ));
+                return Err(RowPhaseError::Wavelength(lambda));
             }
             let sigma = 0.5 * lambda;
             let radius = (3.0 * sigma).ceil() as usize;
@@ -109,11 +126,11 @@ impl RowPhase {
             let lo = x0 + radius + 1;
             let hi = x1.saturating_sub(radius + 1);
             if hi <= lo {
-                return Err(format!(
-                    "the region is {} px wide; wavelength {lambda} px needs more than {} px",
-                    x1 - x0,
-                    2 * radius + 2
-                ));
+                return Err(RowPhaseError::TooNarrow {
+                    width: x1 - x0,
+                    wavelength: lambda,
+                    needed: 2 * radius + 2,
+                });
             }
             filters.push(Gabor {
                 re: re.iter().map(|&v| v as f32).collect(),

@@ -42,7 +42,14 @@ fn explained_energy(frames: &[Vec<f64>], kappa: f64, cs: &mut Vec<(f64, f64)>) -
             }
         }
     }
-    let Some(inv) = invert3(&g) else {
+    // Singular (or nearly: the tone too slow to tell from the offset): nothing.
+    let g = nalgebra::Matrix3::from_fn(|i, j| g[i][j]);
+    let scale = g[(0, 0)].abs().max(g[(1, 1)].abs()).max(g[(2, 2)].abs());
+    let det = g.determinant();
+    if !(det.is_finite() && det.abs() > 1e-12 * scale * scale * scale) {
+        return 0.0;
+    }
+    let Some(inv) = g.lu().try_inverse() else {
         return 0.0;
     };
     let mut total = 0.0;
@@ -56,30 +63,11 @@ fn explained_energy(frames: &[Vec<f64>], kappa: f64, cs: &mut Vec<(f64, f64)>) -
         // Projection energy b^T G^-1 b.
         for i in 0..3 {
             for j in 0..3 {
-                total += b[i] * inv[i][j] * b[j];
+                total += b[i] * inv[(i, j)] * b[j];
             }
         }
     }
     total
-}
-
-fn invert3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
-    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    let scale = m[0][0].abs().max(m[1][1].abs()).max(m[2][2].abs());
-    if !(det.is_finite() && det.abs() > 1e-12 * scale * scale * scale) {
-        return None;
-    }
-    let mut r = [[0.0; 3]; 3];
-    for (i, row) in r.iter_mut().enumerate() {
-        for (j, v) in row.iter_mut().enumerate() {
-            let (a0, a1) = ((j + 1) % 3, (j + 2) % 3);
-            let (b0, b1) = ((i + 1) % 3, (i + 2) % 3);
-            *v = (m[a0][b0] * m[a1][b1] - m[a0][b1] * m[a1][b0]) / det;
-        }
-    }
-    Some(r)
 }
 
 /// Estimates the line delay from per-row signals `frames[n][y]` (all of one

@@ -26,6 +26,7 @@
 //! estimate from T seconds); for a free decay after a strike (an energy
 //! signal) it is exact, where the unbiased 1/(N-k) form would bias σ by -1/T.
 
+use crate::numeric::median;
 use nalgebra::{DMatrix, Schur, SVD};
 use realfft::RealFftPlanner;
 
@@ -227,24 +228,11 @@ fn near(poles: &[Pole], target_hz: f64, tol_hz: f64) -> Option<(f64, f64, f64, u
     if best.is_empty() {
         return None;
     }
-    let f = median(best.iter().map(|p| p.frequency_hz).collect());
+    let f = median(&mut best.iter().map(|p| p.frequency_hz).collect::<Vec<_>>());
     let xs: Vec<f64> = best.iter().map(|p| p.damping_ratio).collect();
-    let xi = median(xs.clone());
-    let mad = median(xs.iter().map(|x| (x - xi).abs()).collect());
+    let xi = median(&mut xs.clone());
+    let mad = median(&mut xs.iter().map(|x| (x - xi).abs()).collect::<Vec<_>>());
     Some((f, xi, 1.4826 * mad, best.len()))
-}
-
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        return f64::NAN;
-    }
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// SSI-cov around one resonance: the mode nearest `target_hz` (within

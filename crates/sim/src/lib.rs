@@ -33,20 +33,14 @@ pub use modal::{ModalBeam, ModalSpec};
 pub use scene::{Depth, Dest, EdgeMode, Look, Scene, SceneSpec};
 pub use signal::{Resonance, Signal, SignalSpec};
 
-use std::path::PathBuf;
-
 /// Errors of the forward model: invalid parameters (naming the field) and
 /// unreadable WAV files.
 #[derive(Debug, thiserror::Error)]
 pub enum SimError {
     #[error("invalid {field}: {msg}")]
     Invalid { field: String, msg: String },
-    #[error("cannot read WAV file {}: {source}", path.display())]
-    Wav {
-        path: PathBuf,
-        #[source]
-        source: hound::Error,
-    },
+    #[error("cannot read WAV file {0}")]
+    Wav(#[from] vibroscope_io::wav::WavError),
 }
 
 impl SimError {
@@ -54,7 +48,7 @@ impl SimError {
     pub fn field(&self) -> &str {
         match self {
             SimError::Invalid { field, .. } => field,
-            SimError::Wav { .. } => "path",
+            SimError::Wav(_) => "path",
         }
     }
 }

@@ -63,22 +63,8 @@ const MAX_PIXELS: u64 = 1 << 28;
 /// statistics rather than their own.
 const MIN_PIXELS_FOR_EMPIRICAL_NORM: usize = 64;
 
-/// Storage depth of output pixels.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Depth {
-    U8,
-    U16,
-}
-
-impl Depth {
-    /// Largest `bits` this depth holds.
-    pub fn max_bits(self) -> u8 {
-        match self {
-            Depth::U8 => 8,
-            Depth::U16 => 16,
-        }
-    }
-}
+/// Storage depth of output pixels (the video crate's).
+pub use vibroscope_io::Depth;
 
 /// What happens at the object's outline (see the module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

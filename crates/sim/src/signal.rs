@@ -392,39 +392,22 @@ fn turns(f: f64, t: f64) -> f64 {
     p - p.floor()
 }
 
+/// A WAV file's first channel (read by [`vibroscope_io::wav::read_mono`]),
+/// stored as `f32` (non-finite samples as 0) and normalised to peak 1.
 fn load_wav(path: &Path) -> Result<Kind, SimError> {
-    let err = |source| SimError::Wav {
-        path: path.to_path_buf(),
-        source,
-    };
-    let mut reader = hound::WavReader::open(path).map_err(err)?;
-    let spec = reader.spec();
-    let channels = spec.channels.max(1) as usize;
-    if spec.sample_rate == 0 {
+    let (rate, mono) = vibroscope_io::wav::read_mono(path)?;
+    if rate == 0 {
         return Err(invalid(
             "path",
             format!("{}: sample rate is 0", path.display()),
         ));
     }
-    let mut samples: Vec<f32> = Vec::with_capacity(reader.len() as usize / channels);
-    match spec.sample_format {
-        hound::SampleFormat::Float => {
-            for (i, s) in reader.samples::<f32>().enumerate() {
-                let s = s.map_err(err)?;
-                if i % channels == 0 {
-                    samples.push(if s.is_finite() { s } else { 0.0 });
-                }
-            }
-        }
-        hound::SampleFormat::Int => {
-            for (i, s) in reader.samples::<i32>().enumerate() {
-                let s = s.map_err(err)?;
-                if i % channels == 0 {
-                    samples.push(s as f32);
-                }
-            }
-        }
-    }
+    // Integers are scaled by a power of two, which the normalisation below
+    // undoes exactly: the samples are those of the raw integers.
+    let mut samples: Vec<f32> = mono
+        .iter()
+        .map(|&v| if v.is_finite() { v as f32 } else { 0.0 })
+        .collect();
     if samples.is_empty() {
         return Err(invalid(
             "path",
@@ -439,7 +422,7 @@ fn load_wav(path: &Path) -> Result<Kind, SimError> {
         }
     }
     Ok(Kind::Wav {
-        rate: spec.sample_rate as f64,
+        rate: rate as f64,
         samples: samples.into(),
     })
 }

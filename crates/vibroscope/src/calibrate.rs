@@ -45,7 +45,7 @@ pub struct CalibrationReport {
     pub gain: f64,
     /// Effects fitted but not kept: name, SNR gain (dB), parameters.
     #[serde(skip)]
-    pub rejected: Vec<(String, f64, serde_json::Value)>,
+    pub rejected: Vec<(String, f64, cal::Parameters)>,
     /// Files written.
     #[serde(skip)]
     pub written: Vec<PathBuf>,

@@ -13,7 +13,7 @@ pub fn load_calibration(path: &Path) -> Result<Vec<Correction>> {
         .map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not JSON: {e}")))?;
-    cal::reusable_from_report(&v).map_err(|m| Error::input(path, m))
+    cal::reusable_from_report(&v).map_err(|m| Error::input(path, m.to_string()))
 }
 
 /// Applies `corrections` to the WAV at `path` in place (at its own rate).

@@ -83,7 +83,8 @@ pub fn rs_calibrate(a: &RsCalibrateOptions) -> Result<RsCalibrationReport> {
     };
     let mut rp = match a.signal {
         RowSignal::Motion => Some(
-            RowPhase::new(w, x, x + rw, rh, &[8.0, 16.0]).map_err(|m| Error::usage("--roi", m))?,
+            RowPhase::new(w, x, x + rw, rh, &[8.0, 16.0])
+                .map_err(|m| Error::usage("--roi", m.to_string()))?,
         ),
         RowSignal::Intensity => None,
     };

@@ -35,14 +35,6 @@ fn finite<S: Serializer>(v: &f64, s: S) -> std::result::Result<S::Ok, S::Error> 
     }
 }
 
-fn gcd(a: u64, b: u64) -> u64 {
-    if b == 0 {
-        a
-    } else {
-        gcd(b, a % b)
-    }
-}
-
 /// Scores `test` against `reference`, searching lags up to `max_lag_s`.
 pub fn score(reference: &Path, test: &Path, max_lag_s: f64) -> Result<ScoreReport> {
     if !(max_lag_s.is_finite() && max_lag_s >= 0.0) {
@@ -54,7 +46,7 @@ pub fn score(reference: &Path, test: &Path, max_lag_s: f64) -> Result<ScoreRepor
     let (fr, r) = crate::io::wav::read_mono(reference).map_err(anyhow::Error::new)?;
     let (ft, mut t) = crate::io::wav::read_mono(test).map_err(anyhow::Error::new)?;
     if fr != ft {
-        let g = gcd(fr as u64, ft as u64).max(1);
+        let g = crate::math::numeric::gcd(fr as u64, ft as u64).max(1);
         t = metrics::resample(&t, fr as u64 / g, ft as u64 / g).with_context(|| {
             format!("cannot resample {} from {ft} Hz to {fr} Hz", test.display())
         })?;

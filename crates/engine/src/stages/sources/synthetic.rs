@@ -237,10 +237,7 @@ impl SyntheticParams {
             amplitude_px: self.amplitude_px,
             direction_deg: self.direction_deg,
             noise_std: self.noise_std,
-            depth: match self.depth() {
-                vibroscope_io::Depth::U8 => sim::Depth::U8,
-                vibroscope_io::Depth::U16 => sim::Depth::U16,
-            },
+            depth: self.depth(),
             bits: self.bits,
             contrast: self.contrast.unwrap_or(0.15 * full),
             seed: self.seed,
@@ -517,8 +514,7 @@ fn texture_picture(
     w: u32,
     h: u32,
 ) -> Result<(Vec<f64>, usize, usize), String> {
-    let img =
-        crate::stages::transform::roi::read_gray16(path).map_err(|m| format!("texture: {m}"))?;
+    let img = vibroscope_io::image::read_gray16(path).map_err(|m| format!("texture: {m}"))?;
     let img = if img.dimensions() == (w, h) {
         img
     } else {
@@ -537,8 +533,7 @@ fn texture_picture(
 
 /// The object's silhouette, one coverage in [0, 1] per frame pixel.
 fn silhouette(path: &std::path::Path, w: u32, h: u32) -> Result<Vec<f32>, String> {
-    let img = crate::stages::transform::roi::read_gray16(path)
-        .map_err(|m| format!("object_mask: {m}"))?;
+    let img = vibroscope_io::image::read_gray16(path).map_err(|m| format!("object_mask: {m}"))?;
     if img.dimensions() != (w, h) {
         let (iw, ih) = img.dimensions();
         return Err(format!(

@@ -57,23 +57,10 @@ pub struct Mask {
     inside: Vec<bool>,
 }
 
-/// A PGM or PNG image as 16-bit gray; the message names the file.
-pub fn read_gray16(
-    path: &std::path::Path,
-) -> Result<image::ImageBuffer<image::Luma<u16>, Vec<u16>>, String> {
-    Ok(image::ImageReader::open(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?
-        .with_guessed_format()
-        .map_err(|e| format!("{}: {e}", path.display()))?
-        .decode()
-        .map_err(|e| format!("{}: not a readable PGM or PNG image: {e}", path.display()))?
-        .into_luma16())
-}
-
 impl Mask {
     /// Reads `path` (the error names it and what is wrong).
     pub fn load(path: &std::path::Path) -> Result<Mask, String> {
-        let img = read_gray16(path)?;
+        let img = vibroscope_io::image::read_gray16(path).map_err(|e| e.to_string())?;
         let (w, h) = img.dimensions();
         let inside: Vec<bool> = img.pixels().map(|p| p.0[0] > 0).collect();
         if !inside.iter().any(|&v| v) {

@@ -6,16 +6,16 @@
 //! the last bit on a given input; the sums are exact functions of the data,
 //! whatever the thread count.
 
-use super::pyramid::Complex32;
+use super::Complex32;
 use std::f32::consts::{FRAC_PI_2, PI};
 
 const L: usize = 8;
 
-/// The coefficients of [`super::fastmath::atan2`], lane by lane.
-const ATAN: [f32; 9] = super::fastmath::ATAN_COEFFS;
+/// The coefficients of [`crate::fastmath::atan2`], lane by lane.
+const ATAN: [f32; 9] = crate::fastmath::ATAN_COEFFS;
 
 /// atan2 on 8 lanes, branch-free; same result as
-/// [`super::fastmath::atan2`] lane by lane.
+/// [`crate::fastmath::atan2`] lane by lane.
 #[inline(always)]
 fn atan2_8(y: &[f32; L], x: &[f32; L]) -> [f32; L] {
     let mut r = [0.0f32; L];
@@ -65,7 +65,7 @@ fn csp_row_generic(cur: &[Complex32], reference: &[Complex32], w: &[f32]) -> f32
         let (c, r) = (cur[i], reference[i]);
         let re = c.re * r.re + c.im * r.im;
         let im = c.im * r.re - c.re * r.im;
-        tail += w[i] * super::fastmath::atan2(im, re);
+        tail += w[i] * crate::fastmath::atan2(im, re);
     }
     // Lanes added in a fixed order.
     acc.iter().sum::<f32>() + tail
@@ -76,7 +76,7 @@ pub const MAX_ORIENT: usize = 8;
 
 /// One row span of a Riesz level, every orientation at once: for each
 /// pixel the quaternion phase change from `prev` to `cur` (angle Δφ about
-/// the in-plane axis (vi, vj), see [`super::riesz::quat_phase_delta`]) is
+/// the in-plane axis (vi, vj), see [`quat_phase_delta`]) is
 /// computed once, then projected on each orientation `(ck, sk)` and
 /// weighted by that orientation's `w[k]`. Adds Σ into `acc[k]`.
 #[inline(always)]
@@ -140,7 +140,7 @@ fn riesz_row_generic(
         let mut tail = 0.0f32;
         for i in chunks * L..n {
             tail += wk[i]
-                * super::riesz::quat_phase_delta(
+                * quat_phase_delta(
                     [cur[0][i], cur[1][i], cur[2][i]],
                     [prev[0][i], prev[1][i], prev[2][i]],
                     ck,
@@ -205,6 +205,28 @@ pub fn riesz_row(
         return unsafe { riesz_row_avx2(cur, prev, w, dirs, acc) };
     }
     riesz_row_generic(cur, prev, w, dirs, acc)
+}
+
+/// Phase change from `q0 = (I, R1, R2)` to `q1`, projected on the
+/// orientation `(cos θk, sin θk)`: the quaternion `q1·conj(q0)` has angle
+/// `Δφ` about the axis `(vi, vj, vk)`; the in-plane part `(vi, vj)` gives the
+/// orientation along which the phase moved.
+#[inline]
+pub fn quat_phase_delta(q1: [f32; 3], q0: [f32; 3], ck: f32, sk: f32) -> f32 {
+    let [a, b, c] = q1;
+    let [d, e, f] = q0;
+    let re = a * d + b * e + c * f;
+    let vi = b * d - a * e;
+    let vj = c * d - a * f;
+    let vk = c * e - b * f;
+    let vn = (vi * vi + vj * vj + vk * vk).sqrt();
+    let dphi = crate::fastmath::atan2(vn, re);
+    let ij = (vi * vi + vj * vj).sqrt();
+    if ij > 0.0 {
+        dphi * (vi * ck + vj * sk) / ij
+    } else {
+        0.0
+    }
 }
 
 #[cfg(test)]
@@ -311,7 +333,7 @@ mod tests {
                 let want: f64 = (0..n)
                     .map(|i| {
                         w[k][i] as f64
-                            * crate::riesz::quat_phase_delta(
+                            * quat_phase_delta(
                                 [v[0][i], v[1][i], v[2][i]],
                                 [v[3][i], v[4][i], v[5][i]],
                                 dirs[k].0,

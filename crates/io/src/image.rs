@@ -1,0 +1,43 @@
+//! Grey pictures (masks, textures, silhouettes) read from PGM or PNG files.
+
+use std::path::{Path, PathBuf};
+
+/// A 16-bit grey picture.
+pub type Gray16 = image::ImageBuffer<image::Luma<u16>, Vec<u16>>;
+
+/// A picture that could not be read, naming the file.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    /// The file cannot be opened or its format sniffed.
+    #[error("{}: {source}", path.display())]
+    Open {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is not a picture this reader decodes.
+    #[error("{}: not a readable PGM or PNG image: {source}", path.display())]
+    Decode {
+        path: PathBuf,
+        #[source]
+        source: image::ImageError,
+    },
+}
+
+/// A PGM (P2 or P5, 8 or 16 bit) or PNG picture as 16-bit grey.
+pub fn read_gray16(path: &Path) -> Result<Gray16, ImageError> {
+    let open = |source| ImageError::Open {
+        path: path.to_path_buf(),
+        source,
+    };
+    Ok(image::ImageReader::open(path)
+        .map_err(open)?
+        .with_guessed_format()
+        .map_err(open)?
+        .decode()
+        .map_err(|source| ImageError::Decode {
+            path: path.to_path_buf(),
+            source,
+        })?
+        .into_luma16())
+}

@@ -1,0 +1,225 @@
+//! The corrections calibrate fits, one variant per effect of the catalog,
+//! and how each applies to a recovery (its parameters as reported are in
+//! [`super::report`]).
+
+use super::signal::{equalize, redo_highpass, sample_at, undo_highpass};
+use super::EffectKind;
+use realfft::num_complex::Complex;
+use std::f64::consts::PI;
+
+/// A narrowband line: `a cos(2π f n / fs) + b sin(2π f n / fs)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Line {
+    pub freq_hz: f64,
+    pub a: f64,
+    pub b: f64,
+}
+
+/// A frame event at delivered sample `index`: `+1` a capture was lost
+/// before it, `-1` it repeats the previous capture.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameEvent {
+    pub index: usize,
+    pub delta: i32,
+}
+
+/// One fitted correction, applied to a recovery at the frame rate.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Correction {
+    /// Resample from the true rate `fs (1 + ppm 1e-6)` onto the declared grid.
+    TimeBase { ppm: f64 },
+    /// Put samples back on the capture grid: fill lost ones (AR
+    /// interpolation), merge repeated ones.
+    Frames { events: Vec<FrameEvent> },
+    /// Inverse boxcar of `exposure_s` (at most 12 dB of boost).
+    Exposure { exposure_s: f64 },
+    /// Subtract lines (recovery units; phase from sample 0; applied first,
+    /// to the recovery as delivered).
+    Interference { lines: Vec<Line> },
+    /// Equalise by `coefficient^-k` (coefficients in dB at frequencies;
+    /// 0 dB outside the table), at most ±30 dB, and undo the phase of the
+    /// response (degrees at the same frequencies).
+    Transfer {
+        freqs_hz: Vec<f64>,
+        coef_db: Vec<f64>,
+        phase_deg: Vec<f64>,
+        k: f64,
+    },
+    /// Undo a soft saturation: `u + a3 u³ + a5 u⁵` (recovery units) on
+    /// `u`, the recovery with its high-pass undone, then high-passed again
+    /// (the saturation acts on the motion, before the pipeline's
+    /// high-pass; after it, the high-pass's phase has moved each harmonic
+    /// against its fundamental and no memoryless inverse fits).
+    SoftClip {
+        a3: f64,
+        a5: f64,
+        /// The saturation level `L` of `L tanh(x / L)` in the reference's
+        /// units, fitted by the forward model (reported, not applied).
+        level: f64,
+        highpass: Option<(usize, f64)>,
+    },
+}
+
+/// Most boost the exposure inverse applies (the `exposure` stage's -12 dB floor).
+pub(super) const EXPOSURE_MAX_GAIN: f64 = 4.0;
+/// Most boost or cut the transfer equaliser applies, dB.
+pub(super) const TRANSFER_MAX_DB: f64 = 30.0;
+
+impl Correction {
+    pub fn kind(&self) -> EffectKind {
+        match self {
+            Correction::TimeBase { .. } => EffectKind::TimeBase,
+            Correction::Frames { .. } => EffectKind::Frames,
+            Correction::Exposure { .. } => EffectKind::Exposure,
+            Correction::Interference { .. } => EffectKind::Interference,
+            Correction::Transfer { .. } => EffectKind::Transfer,
+            Correction::SoftClip { .. } => EffectKind::SoftClip,
+        }
+    }
+
+    /// A property of object and camera (worth reusing on a new recording),
+    /// rather than of one recording.
+    pub fn reusable(&self) -> bool {
+        matches!(
+            self,
+            Correction::TimeBase { .. } | Correction::Exposure { .. } | Correction::Transfer { .. }
+        )
+    }
+
+    /// Applies the correction to `z`, sampled at `fs`.
+    pub fn apply(&self, z: &[f64], fs: f64) -> Vec<f64> {
+        match self {
+            Correction::TimeBase { ppm } => {
+                let s = 1.0 + ppm * 1e-6;
+                let last = (z.len().saturating_sub(1)) as f64;
+                let m = (last / s).floor() as usize + 1;
+                sample_at(z, 1.0, (0..m.min(z.len() * 2)).map(|k| k as f64 * s))
+            }
+            Correction::Frames { events } => apply_frames(z, events),
+            Correction::SoftClip {
+                a3, a5, highpass, ..
+            } => {
+                let u = undo_highpass(z, fs, *highpass);
+                let p: Vec<f64> = u
+                    .iter()
+                    .map(|&v| {
+                        let v2 = v * v;
+                        v * (1.0 + v2 * (a3 + v2 * a5))
+                    })
+                    .collect();
+                redo_highpass(&p, fs, *highpass)
+            }
+            Correction::Exposure { .. } | Correction::Transfer { .. } => equalize(z, fs, |f| {
+                self.response(f).unwrap_or(Complex::new(1.0, 0.0))
+            }),
+            Correction::Interference { lines } => {
+                let mut out = z.to_vec();
+                for l in lines {
+                    let w = 2.0 * PI * l.freq_hz / fs;
+                    for (n, v) in out.iter_mut().enumerate() {
+                        let p = w * n as f64;
+                        *v -= l.a * p.cos() + l.b * p.sin();
+                    }
+                }
+                out
+            }
+        }
+    }
+
+    /// The complex gain at `f` of a correction that is a linear filter
+    /// (exposure, transfer function); `None` for the others.
+    pub fn response(&self, f: f64) -> Option<Complex<f64>> {
+        match self {
+            Correction::Exposure { exposure_s } => {
+                let g = (1.0 / crate::exposure::boxcar_gain(f, *exposure_s).max(1e-9))
+                    .min(EXPOSURE_MAX_GAIN);
+                Some(Complex::new(g, 0.0))
+            }
+            Correction::Transfer {
+                freqs_hz,
+                coef_db,
+                phase_deg,
+                k,
+            } => {
+                let c = interp_table(freqs_hz, coef_db, f);
+                let ph = interp_table(freqs_hz, phase_deg, f).to_radians();
+                let g = 10f64.powf((-k * c).clamp(-TRANSFER_MAX_DB, TRANSFER_MAX_DB) / 20.0);
+                Some(Complex::from_polar(g, -ph))
+            }
+            _ => None,
+        }
+    }
+
+    /// A line seen after the corrections `upstream` (applied in order) as
+    /// it is in the recovery before them: a time-base correction scales
+    /// frequencies by its rate ratio, a filter scales the line's phasor
+    /// `a - ib` by its gain; frame events are ignored (the phase jump
+    /// they cause is lost).
+    pub(super) fn line_before(line: Line, upstream: &[Correction], fs: f64) -> Line {
+        let mut l = line;
+        for c in upstream.iter().rev() {
+            if let Correction::TimeBase { ppm } = c {
+                l.freq_hz /= 1.0 + ppm * 1e-6;
+            } else if let Some(g) = c.response(l.freq_hz.abs().min(fs / 2.0)) {
+                let p = Complex::new(l.a, -l.b)
+                    / if g.norm() > 0.0 {
+                        g
+                    } else {
+                        Complex::new(1.0, 0.0)
+                    };
+                (l.a, l.b) = (p.re, -p.im);
+            }
+        }
+        l
+    }
+}
+
+/// Linear interpolation in a table; 0 outside it.
+pub(super) fn interp_table(xs: &[f64], ys: &[f64], x: f64) -> f64 {
+    match xs.iter().position(|&v| v >= x) {
+        None => 0.0,
+        Some(0) if xs.first() == Some(&x) => ys[0],
+        Some(0) => 0.0,
+        Some(i) => {
+            let t = (x - xs[i - 1]) / (xs[i] - xs[i - 1]);
+            ys[i - 1] + t * (ys[i] - ys[i - 1])
+        }
+    }
+}
+
+/// Frame events undone: lost captures filled by AR interpolation, repeated
+/// ones merged.
+fn apply_frames(z: &[f64], events: &[FrameEvent]) -> Vec<f64> {
+    let mut out: Vec<f64> = Vec::with_capacity(z.len() + events.len());
+    let mut gaps: Vec<(usize, usize)> = Vec::new();
+    let mut ev = events.iter().peekable();
+    let mut merge = 0usize;
+    for (n, &v) in z.iter().enumerate() {
+        while let Some(e) = ev.peek().filter(|e| e.index == n) {
+            if e.delta > 0 {
+                let d = e.delta as usize;
+                gaps.push((out.len(), d));
+                out.extend(std::iter::repeat_n(0.0, d));
+            } else {
+                merge += e.delta.unsigned_abs() as usize;
+            }
+            ev.next();
+        }
+        if merge > 0 && !out.is_empty() {
+            // A repeat of the previous capture: average the two readings.
+            merge -= 1;
+            if let Some(last) = out.last_mut() {
+                *last = 0.5 * (*last + v);
+            }
+        } else {
+            out.push(v);
+        }
+    }
+    let mut ar = crate::ar_interp::ArInterpolator::new(16, 2);
+    for (left, missing) in gaps {
+        let lo = left.saturating_sub(256);
+        let hi = (left + missing + 256).min(out.len());
+        ar.fill(&mut out[lo..hi], left - lo, missing);
+    }
+    out
+}

@@ -1,0 +1,468 @@
+//! The report's typed parts (each effect's parameters and uncertainty, the
+//! unexplained residual) as they serialise into `REPORT.json`, and the
+//! reusable corrections read back from a stored report.
+//!
+//! Fields are declared in alphabetical order: the JSON keys come out in the
+//! order they always had.
+
+use super::{Correction, EffectKind};
+use serde::{Deserialize, Deserializer, Serialize};
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// A frame event as reported.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct EventReport {
+    pub count: u32,
+    pub frame: usize,
+    /// `"dropped"` or `"duplicated"`.
+    pub kind: &'static str,
+}
+
+/// An interference line as reported (amplitude in reference units).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LineReport {
+    pub amplitude: f64,
+    pub freq_hz: f64,
+}
+
+/// One effect's parameters as reported (and read back by
+/// [`reusable_from_report`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Parameters {
+    TimeBase {
+        clock_error_ppm: f64,
+        declared_fps: f64,
+        true_fps: f64,
+    },
+    Frames {
+        events: Vec<EventReport>,
+    },
+    Exposure {
+        exposure_us: f64,
+        fraction_of_frame: f64,
+    },
+    Interference {
+        lines: Vec<LineReport>,
+    },
+    Transfer {
+        coefficients_db: Vec<f64>,
+        frequencies_hz: Vec<f64>,
+        k: f64,
+        phase_deg: Vec<f64>,
+    },
+    SoftClip {
+        a3: f64,
+        a5: f64,
+        level_in_reference_units: f64,
+    },
+}
+
+fn list(f: &mut fmt::Formatter<'_>, v: &[f64]) -> fmt::Result {
+    write!(f, "[")?;
+    for (i, x) in v.iter().enumerate() {
+        write!(f, "{}{x}", if i > 0 { ", " } else { "" })?;
+    }
+    write!(f, "]")
+}
+
+/// One line for logs: `key value` pairs.
+impl fmt::Display for Parameters {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Parameters::TimeBase {
+                clock_error_ppm,
+                declared_fps,
+                true_fps,
+            } => write!(
+                f,
+                "clock_error_ppm {clock_error_ppm}, declared_fps {declared_fps}, true_fps {true_fps}"
+            ),
+            Parameters::Frames { events } => {
+                write!(f, "events [")?;
+                for (i, e) in events.iter().enumerate() {
+                    let sep = if i > 0 { ", " } else { "" };
+                    write!(f, "{sep}{} {} at frame {}", e.count, e.kind, e.frame)?;
+                }
+                write!(f, "]")
+            }
+            Parameters::Exposure {
+                exposure_us,
+                fraction_of_frame,
+            } => write!(
+                f,
+                "exposure_us {exposure_us}, fraction_of_frame {fraction_of_frame}"
+            ),
+            Parameters::Interference { lines } => {
+                write!(f, "lines [")?;
+                for (i, l) in lines.iter().enumerate() {
+                    let sep = if i > 0 { ", " } else { "" };
+                    write!(f, "{sep}{} Hz amplitude {}", l.freq_hz, l.amplitude)?;
+                }
+                write!(f, "]")
+            }
+            Parameters::Transfer {
+                coefficients_db,
+                frequencies_hz,
+                k,
+                phase_deg,
+            } => {
+                write!(f, "k {k}, frequencies_hz ")?;
+                list(f, frequencies_hz)?;
+                write!(f, ", coefficients_db ")?;
+                list(f, coefficients_db)?;
+                write!(f, ", phase_deg ")?;
+                list(f, phase_deg)
+            }
+            Parameters::SoftClip {
+                a3,
+                a5,
+                level_in_reference_units,
+            } => write!(
+                f,
+                "a3 {a3}, a5 {a5}, level_in_reference_units {level_in_reference_units}"
+            ),
+        }
+    }
+}
+
+/// The uncertainty of a line's frequency.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LineUncertainty {
+    pub freq_hz: f64,
+}
+
+/// One standard deviation of each fitted parameter (keys as in
+/// [`Parameters`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Uncertainty {
+    TimeBase {
+        clock_error_ppm: f64,
+    },
+    /// Of each event's position, frames.
+    Frames {
+        frame: Vec<f64>,
+    },
+    Exposure {
+        exposure_us: f64,
+    },
+    Interference {
+        lines: Vec<LineUncertainty>,
+    },
+    Transfer {
+        k: f64,
+    },
+    SoftClip {
+        a3: f64,
+        a5: f64,
+        level_in_reference_units: f64,
+    },
+}
+
+/// A structure of the residual no accepted effect explains; `kind` names
+/// the variant in the JSON.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Unexplained {
+    /// Energy at a harmonic `order` of the reference's frequency.
+    Harmonics {
+        description: String,
+        frequencies_hz: Vec<f64>,
+        kind: UnexplainedKind,
+        level_db: f64,
+        order: usize,
+        reference_hz: [f64; 2],
+    },
+    /// Coherent energy where the reference has none.
+    CoherentWithoutReference {
+        description: String,
+        frequencies_hz: Vec<f64>,
+        kind: UnexplainedKind,
+        level_db: f64,
+    },
+    /// A lag that changes with frequency.
+    LagVsFrequency {
+        at_hz: f64,
+        description: String,
+        frequencies_hz: [f64; 2],
+        kind: UnexplainedKind,
+        lag_samples_at: f64,
+        max_phase_deg: f64,
+    },
+    /// A lag that changes over time.
+    LagOverTime {
+        description: String,
+        drift_ppm: f64,
+        frequencies_hz: [f64; 0],
+        kind: UnexplainedKind,
+        lag_range_samples: [f64; 2],
+    },
+}
+
+/// The `kind` key of an [`Unexplained`] entry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum UnexplainedKind {
+    Harmonics,
+    CoherentWithoutReference,
+    LagVsFrequency,
+    LagOverTime,
+}
+
+impl Unexplained {
+    /// What it is and what may cause it, in a sentence.
+    pub fn description(&self) -> &str {
+        match self {
+            Unexplained::Harmonics { description, .. }
+            | Unexplained::CoherentWithoutReference { description, .. }
+            | Unexplained::LagVsFrequency { description, .. }
+            | Unexplained::LagOverTime { description, .. } => description,
+        }
+    }
+}
+
+impl Correction {
+    /// The parameters as reported (and read back by
+    /// [`super::reusable_from_report`]).
+    pub fn parameters(&self, fs: f64, gain: f64) -> Parameters {
+        match self {
+            Correction::TimeBase { ppm } => Parameters::TimeBase {
+                clock_error_ppm: *ppm,
+                declared_fps: fs,
+                true_fps: fs * (1.0 + ppm * 1e-6),
+            },
+            Correction::Frames { events } => Parameters::Frames {
+                events: events
+                    .iter()
+                    .map(|e| EventReport {
+                        count: e.delta.unsigned_abs(),
+                        frame: e.index,
+                        kind: if e.delta > 0 { "dropped" } else { "duplicated" },
+                    })
+                    .collect(),
+            },
+            Correction::Exposure { exposure_s } => Parameters::Exposure {
+                exposure_us: exposure_s * 1e6,
+                fraction_of_frame: exposure_s * fs,
+            },
+            Correction::Interference { lines } => Parameters::Interference {
+                lines: lines
+                    .iter()
+                    .map(|l| LineReport {
+                        amplitude: l.a.hypot(l.b) / gain.abs().max(1e-300),
+                        freq_hz: l.freq_hz,
+                    })
+                    .collect(),
+            },
+            Correction::Transfer {
+                freqs_hz,
+                coef_db,
+                phase_deg,
+                k,
+            } => Parameters::Transfer {
+                coefficients_db: coef_db.clone(),
+                frequencies_hz: freqs_hz.clone(),
+                k: *k,
+                phase_deg: phase_deg.clone(),
+            },
+            Correction::SoftClip { a3, a5, level, .. } => Parameters::SoftClip {
+                a3: *a3,
+                a5: *a5,
+                level_in_reference_units: *level,
+            },
+        }
+    }
+}
+
+/// Why a stored report gives no corrections.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ReportError {
+    /// The text is not a report's shape (the parser's message).
+    #[error("{0}")]
+    Parse(String),
+    #[error("no `effects` list")]
+    NoEffects,
+    #[error("effects[{index}]: no `name`")]
+    NoName { index: usize },
+    #[error("effects[{index}] ({name}): no `parameters`")]
+    NoParameters { index: usize, name: String },
+    #[error("effects[{index}]: effect `{name}`: parameters.{key} must be {expected}")]
+    Field {
+        index: usize,
+        name: String,
+        key: &'static str,
+        /// `"a finite number"` or `"a list of numbers"`.
+        expected: &'static str,
+    },
+    #[error(
+        "effects[{index}]: effect `exposure`: parameters.exposure_us must be > 0, got {value}"
+    )]
+    Exposure { index: usize, value: f64 },
+    #[error("effects[{index}]: effect `{name}`: frequencies_hz ({freqs}) must increase and match coefficients_db ({coefs})")]
+    TransferTable {
+        index: usize,
+        name: String,
+        freqs: usize,
+        coefs: usize,
+    },
+    #[error(
+        "effects[{index}]: effect `{name}`: phase_deg has {phases} entries, frequencies_hz {freqs}"
+    )]
+    TransferPhase {
+        index: usize,
+        name: String,
+        phases: usize,
+        freqs: usize,
+    },
+    #[error("effects[{index}]: unknown effect `{name}`")]
+    UnknownEffect { index: usize, name: String },
+}
+
+/// A value in a stored report's `parameters`, as loosely as it may come.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum Stored {
+    Num(f64),
+    List(Vec<Stored>),
+    Other(serde::de::IgnoredAny),
+}
+
+#[derive(Deserialize)]
+struct StoredEffect {
+    name: Option<StoredName>,
+    parameters: Option<BTreeMap<String, Stored>>,
+}
+
+/// A name: a string, or anything else (then missing).
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum StoredName {
+    Str(String),
+    Other(serde::de::IgnoredAny),
+}
+
+#[derive(Deserialize)]
+struct StoredReport {
+    effects: Option<Vec<StoredEffect>>,
+}
+
+/// The reusable corrections stored in a report (`effects` of
+/// `REPORT.json`), from a parsed document any serde deserializer reads by
+/// reference (e.g. a `serde_json::Value`); per-recording effects (frames,
+/// interference, soft clipping) are skipped. Errors name the effect and the
+/// field.
+pub fn reusable_from_report<'de, D: ?Sized>(report: &'de D) -> Result<Vec<Correction>, ReportError>
+where
+    &'de D: Deserializer<'de>,
+{
+    let stored =
+        StoredReport::deserialize(report).map_err(|e| ReportError::Parse(e.to_string()))?;
+    let effects = stored.effects.ok_or(ReportError::NoEffects)?;
+    let mut out = Vec::new();
+    for (index, e) in effects.into_iter().enumerate() {
+        let Some(StoredName::Str(name)) = e.name else {
+            return Err(ReportError::NoName { index });
+        };
+        let p = e.parameters.ok_or_else(|| ReportError::NoParameters {
+            index,
+            name: name.clone(),
+        })?;
+        if let Some(c) = from_report(index, &name, &p)? {
+            out.push(c);
+        }
+    }
+    Ok(out)
+}
+
+/// A reusable correction back from effect `index` of a report; `None` for
+/// per-recording effects (frames, interference, soft clipping).
+fn from_report(
+    index: usize,
+    name: &str,
+    p: &BTreeMap<String, Stored>,
+) -> Result<Option<Correction>, ReportError> {
+    let field = |key: &'static str, expected: &'static str| ReportError::Field {
+        index,
+        name: name.to_string(),
+        key,
+        expected,
+    };
+    let num = |key: &'static str| match p.get(key) {
+        Some(Stored::Num(v)) if v.is_finite() => Ok(*v),
+        _ => Err(field(key, "a finite number")),
+    };
+    let list = |key: &'static str| -> Result<Vec<f64>, ReportError> {
+        match p.get(key) {
+            Some(Stored::List(a)) => a
+                .iter()
+                .map(|v| match v {
+                    Stored::Num(x) if x.is_finite() => Some(*x),
+                    _ => None,
+                })
+                .collect::<Option<Vec<f64>>>()
+                .ok_or_else(|| field(key, "a list of numbers")),
+            _ => Err(field(key, "a list of numbers")),
+        }
+    };
+    let kind = [
+        EffectKind::TimeBase,
+        EffectKind::Exposure,
+        EffectKind::Transfer,
+    ]
+    .into_iter()
+    .find(|k| k.name() == name);
+    Ok(match kind {
+        Some(EffectKind::TimeBase) => Some(Correction::TimeBase {
+            ppm: num("clock_error_ppm")?,
+        }),
+        Some(EffectKind::Exposure) => {
+            let e = num("exposure_us")?;
+            if e <= 0.0 {
+                return Err(ReportError::Exposure { index, value: e });
+            }
+            Some(Correction::Exposure {
+                exposure_s: e * 1e-6,
+            })
+        }
+        Some(EffectKind::Transfer) => {
+            let (f, c) = (list("frequencies_hz")?, list("coefficients_db")?);
+            if f.len() != c.len() || f.windows(2).any(|w| w[1] <= w[0]) {
+                return Err(ReportError::TransferTable {
+                    index,
+                    name: name.to_string(),
+                    freqs: f.len(),
+                    coefs: c.len(),
+                });
+            }
+            let phase = match p.get("phase_deg") {
+                None => vec![0.0; f.len()],
+                Some(_) => list("phase_deg")?,
+            };
+            if phase.len() != f.len() {
+                return Err(ReportError::TransferPhase {
+                    index,
+                    name: name.to_string(),
+                    phases: phase.len(),
+                    freqs: f.len(),
+                });
+            }
+            Some(Correction::Transfer {
+                freqs_hz: f,
+                coef_db: c,
+                phase_deg: phase,
+                k: num("k")?,
+            })
+        }
+        // Per recording: the level is in the recovery's units, which
+        // depend on the texture and region as much as on the object.
+        _ if ["dropped_frames", "interference", "soft_clip"].contains(&name) => None,
+        _ => {
+            return Err(ReportError::UnknownEffect {
+                index,
+                name: name.to_string(),
+            })
+        }
+    })
+}

@@ -1,0 +1,231 @@
+//! Signal tools of calibration: band-limited resampling, STFT
+//! equalisation, spectra, one-dimensional minimisation, the high-pass.
+
+use crate::numeric::bessel_i0;
+use realfft::num_complex::Complex;
+use realfft::RealFftPlanner;
+use std::f64::consts::PI;
+
+/// Half-width of the band-limited interpolator, in input samples.
+const SINC_HALF: isize = 32;
+
+/// `x` (sampled at `rate`) at arbitrary `times` (seconds; sample `i` is at
+/// `i / rate`), by a Kaiser-windowed sinc at `x`'s own Nyquist frequency
+/// (exact at sample instants); zero outside `x`.
+pub fn sample_at(x: &[f64], rate: f64, times: impl Iterator<Item = f64>) -> Vec<f64> {
+    const BETA: f64 = 8.0;
+    let i0b = bessel_i0(BETA);
+    let n = x.len() as isize;
+    times
+        .map(|t| {
+            let p = t * rate;
+            if !p.is_finite() || p < -(SINC_HALF as f64) || p > (n + SINC_HALF) as f64 {
+                return 0.0;
+            }
+            let c = p.floor() as isize;
+            let frac = p - c as f64;
+            if frac == 0.0 {
+                return if (0..n).contains(&c) {
+                    x[c as usize]
+                } else {
+                    0.0
+                };
+            }
+            let mut acc = 0.0;
+            for i in (c - SINC_HALF + 1)..=(c + SINC_HALF) {
+                if !(0..n).contains(&i) {
+                    continue;
+                }
+                let d = p - i as f64;
+                let r = d / SINC_HALF as f64;
+                let w = bessel_i0(BETA * (1.0 - r * r).max(0.0).sqrt()) / i0b;
+                let s = (PI * d).sin() / (PI * d);
+                acc += x[i as usize] * s * w;
+            }
+            acc
+        })
+        .collect()
+}
+
+/// STFT length for a rate: about 0.1 s, a power of two in 64..=4096.
+pub fn stft_len(fs: f64) -> usize {
+    ((0.1 * fs).max(64.0) as usize)
+        .next_power_of_two()
+        .clamp(64, 4096)
+}
+
+/// Periodic sqrt-Hann frames, hop N/2, zero-phase gain `gain(f)` per bin,
+/// weighted overlap-add (perfect reconstruction for gain 1).
+pub fn equalize(x: &[f64], fs: f64, gain: impl Fn(f64) -> Complex<f64>) -> Vec<f64> {
+    let nfft = stft_len(fs);
+    let hop = nfft / 2;
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fwd = planner.plan_fft_forward(nfft);
+    let inv = planner.plan_fft_inverse(nfft);
+    let win: Vec<f64> = (0..nfft)
+        .map(|i| (0.5 - 0.5 * (2.0 * PI * i as f64 / nfft as f64).cos()).sqrt())
+        .collect();
+    let g: Vec<Complex<f64>> = (0..=nfft / 2)
+        .map(|k| gain(k as f64 * fs / nfft as f64))
+        .collect();
+    // Padded by one frame on each side.
+    let len = x.len() + 2 * nfft;
+    let mut padded = vec![0.0; len];
+    padded[nfft..nfft + x.len()].copy_from_slice(x);
+    let mut out = vec![0.0; len];
+    let mut buf = fwd.make_input_vec();
+    let mut spec = fwd.make_output_vec();
+    let mut s = 0;
+    while s + nfft <= len {
+        for i in 0..nfft {
+            buf[i] = padded[s + i] * win[i];
+        }
+        let _ = fwd.process(&mut buf, &mut spec);
+        for (c, gk) in spec.iter_mut().zip(&g) {
+            *c *= *gk;
+        }
+        if let Some(c) = spec.first_mut() {
+            c.im = 0.0;
+        }
+        if let Some(c) = spec.last_mut() {
+            c.im = 0.0;
+        }
+        let _ = inv.process(&mut spec, &mut buf);
+        for i in 0..nfft {
+            out[s + i] += buf[i] * win[i] / nfft as f64;
+        }
+        s += hop;
+    }
+    out[nfft..nfft + x.len()].to_vec()
+}
+
+/// Hann-windowed STFT frames (hop N/2) of `x`: one spectrum per frame.
+pub(super) fn stft(x: &[f64], nfft: usize) -> Vec<Vec<Complex<f64>>> {
+    let hop = nfft / 2;
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fwd = planner.plan_fft_forward(nfft);
+    let win: Vec<f64> = (0..nfft)
+        .map(|i| 0.5 - 0.5 * (2.0 * PI * i as f64 / nfft as f64).cos())
+        .collect();
+    let mut frames = Vec::new();
+    let mut buf = fwd.make_input_vec();
+    let mut s = 0;
+    while s + nfft <= x.len() {
+        for i in 0..nfft {
+            buf[i] = x[s + i] * win[i];
+        }
+        let mut spec = fwd.make_output_vec();
+        let _ = fwd.process(&mut buf, &mut spec);
+        frames.push(spec);
+        s += hop;
+    }
+    frames
+}
+
+/// Welch power spectrum (mean of |STFT|²) with `nfft`.
+pub(super) fn welch(x: &[f64], nfft: usize) -> Vec<f64> {
+    let frames = stft(x, nfft);
+    let mut p = vec![0.0; nfft / 2 + 1];
+    for f in &frames {
+        for (a, c) in p.iter_mut().zip(f) {
+            *a += c.norm_sqr();
+        }
+    }
+    let k = frames.len().max(1) as f64;
+    p.iter_mut().for_each(|v| *v /= k);
+    p
+}
+
+/// Golden-section minimisation of `f` on `[a, b]`; returns `(x, f(x))`.
+pub(super) fn golden(
+    mut f: impl FnMut(f64) -> f64,
+    mut a: f64,
+    mut b: f64,
+    iters: usize,
+) -> (f64, f64) {
+    let r = 0.5 * (5f64.sqrt() - 1.0);
+    let mut c = b - r * (b - a);
+    let mut d = a + r * (b - a);
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..iters {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - r * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + r * (b - a);
+            fd = f(d);
+        }
+    }
+    if fc < fd {
+        (c, fc)
+    } else {
+        (d, fd)
+    }
+}
+
+/// One standard deviation of a parameter at a minimum `x` of `sse` by the
+/// Δχ² = 1 rule: the curvature of `sse` by central differences with step
+/// `h`, residual variance `sigma2`.
+pub(super) fn curvature_sigma(mut sse: impl FnMut(f64) -> f64, x: f64, h: f64, sigma2: f64) -> f64 {
+    let (a, b, c) = (sse(x - h), sse(x), sse(x + h));
+    let curv = (a + c - 2.0 * b) / (h * h);
+    if curv > 0.0 {
+        (2.0 * sigma2 / curv).sqrt()
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Least-squares gain of `z ≈ g t` and the squared error left.
+pub(super) fn gain_sse(t: &[f64], z: &[f64]) -> (f64, f64) {
+    let tt: f64 = t.iter().map(|v| v * v).sum();
+    let tz: f64 = t.iter().zip(z).map(|(a, b)| a * b).sum();
+    let zz: f64 = z.iter().map(|v| v * v).sum();
+    if tt <= 0.0 {
+        return (0.0, zz);
+    }
+    let g = tz / tt;
+    (g, (zz - g * tz).max(0.0))
+}
+
+/// Alias of frequency `f` sampled at `fs`, folded into `[0, fs/2]`.
+pub fn alias(f: f64, fs: f64) -> f64 {
+    let m = f.rem_euclid(fs);
+    if m > fs / 2.0 {
+        fs - m
+    } else {
+        m
+    }
+}
+
+/// `x` with the recovery's high-pass undone where it passes more than half
+/// the amplitude (below that, the band is left out: it holds drift and
+/// noise the inverse would lift).
+pub(super) fn undo_highpass(x: &[f64], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
+    let Some(sos) = hp.and_then(|(o, c)| crate::iir::Sos::butterworth_highpass(o, c, fs).ok())
+    else {
+        return x.to_vec();
+    };
+    equalize(x, fs, |f| {
+        let h = sos.response_at(f, fs);
+        if h.norm() > 0.5 {
+            h.inv()
+        } else {
+            Complex::new(0.0, 0.0)
+        }
+    })
+}
+
+/// `x` through the recovery's high-pass (the pipeline's IIR filter).
+pub(super) fn redo_highpass(x: &[f64], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
+    match hp.and_then(|(o, c)| crate::iir::Sos::butterworth_highpass(o, c, fs).ok()) {
+        Some(mut sos) => x.iter().map(|&v| sos.step(v)).collect(),
+        None => x.to_vec(),
+    }
+}

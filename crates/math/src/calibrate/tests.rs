@@ -1,0 +1,174 @@
+use super::*;
+use realfft::num_complex::Complex;
+use serde_json::{json, Value};
+use std::f64::consts::PI;
+
+fn chirp(fr: f64, secs: f64, f0: f64, f1: f64) -> Vec<f64> {
+    let n = (fr * secs) as usize;
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / fr;
+            (2.0 * PI * (f0 * t + (f1 - f0) * t * t / (2.0 * secs))).sin()
+        })
+        .collect()
+}
+
+#[test]
+fn sample_at_is_exact_on_samples_and_interpolates_a_tone() {
+    let fr = 8000.0;
+    let x: Vec<f64> = (0..800)
+        .map(|i| (2.0 * PI * 440.0 * i as f64 / fr).sin())
+        .collect();
+    let on = sample_at(&x, fr, (0..800).map(|i| i as f64 / fr));
+    assert_eq!(on, x);
+    let mid = sample_at(&x, fr, (100..700).map(|i| (i as f64 + 0.37) / fr));
+    for (k, v) in mid.iter().enumerate() {
+        let t = (k as f64 + 100.37) / fr;
+        assert!((v - (2.0 * PI * 440.0 * t).sin()).abs() < 1e-4, "{k}: {v}");
+    }
+}
+
+#[test]
+fn equalize_with_unit_gain_reconstructs() {
+    let x = chirp(2200.0, 1.0, 100.0, 900.0);
+    let y = equalize(&x, 2200.0, |_| Complex::new(1.0, 0.0));
+    let err: f64 = x
+        .iter()
+        .zip(&y)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(err < 1e-9, "{err}");
+    // A gain of 2 doubles.
+    let y = equalize(&x, 2200.0, |_| Complex::new(2.0, 0.0));
+    assert!((y[1000] - 2.0 * x[1000]).abs() < 1e-9);
+}
+
+#[test]
+fn alias_folds() {
+    assert_eq!(alias(1500.0, 2200.0), 700.0);
+    assert_eq!(alias(300.0, 2200.0), 300.0);
+    assert_eq!(alias(2500.0, 2200.0), 300.0);
+}
+
+fn opts() -> Options {
+    Options::for_rate(2200.0)
+}
+
+/// `0.3 x` plus deterministic white noise of std 0.003 (about 30 dB SNR).
+fn noisy(x: &[f64], seed: u64) -> Vec<f64> {
+    let mut s = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    x.iter()
+        .map(|v| {
+            let mut u = 0.0;
+            for _ in 0..12 {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                u += (s >> 11) as f64 / (1u64 << 53) as f64;
+            }
+            0.3 * v + 0.003 * (u - 6.0)
+        })
+        .collect()
+}
+
+/// A recovery made from the reference by a known time warp: the model
+/// finds the clock error, and plain data gets no effect.
+#[test]
+fn time_base_on_a_pure_signal() {
+    let fr = 8000.0;
+    let r = chirp(fr, 2.0, 100.0, 1000.0);
+    let fs = 2200.0;
+    let e = 3000e-6;
+    let m = Model {
+        r: &r,
+        fr,
+        fs,
+        opts: &opts(),
+    };
+    // Captured at the true rate fs (1 + e), high-passed, scaled.
+    let y = noisy(&m.target(4000, 0, 0.0, e * 1e6), 1);
+    let cal = calibrate(&y, fs, &r, fr, &opts()).unwrap();
+    let names: Vec<&str> = cal.report.effects.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(names, ["time_base"], "{:?}", cal.report);
+    let parameters = serde_json::to_value(&cal.report.effects[0].parameters).unwrap();
+    let ppm = parameters["clock_error_ppm"].as_f64().unwrap();
+    assert!((ppm - 3000.0).abs() < 50.0, "{ppm}");
+    assert!(cal.report.after.snr_db > cal.report.before.snr_db + 10.0);
+    // No warp: nothing to claim.
+    let y = noisy(&m.target(4000, 0, 0.0, 0.0), 2);
+    let cal = calibrate(&y, fs, &r, fr, &opts()).unwrap();
+    assert!(cal.report.effects.is_empty(), "{:?}", cal.report.effects);
+}
+
+#[test]
+fn frame_events_are_found_and_undone() {
+    let fr = 8000.0;
+    let r = chirp(fr, 2.0, 100.0, 1000.0);
+    let fs = 2200.0;
+    let o = Options {
+        effects: vec![EffectKind::Frames],
+        ..opts()
+    };
+    let m = Model {
+        r: &r,
+        fr,
+        fs,
+        opts: &o,
+    };
+    let clean = noisy(&m.target(4000, 0, 0.0, 0.0), 3);
+    // Drop capture 1500, repeat capture 3000.
+    let mut y: Vec<f64> = clean
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i != 1500)
+        .map(|(_, v)| *v)
+        .collect();
+    y.insert(2999, y[2998]);
+    let cal = calibrate(&y, fs, &r, fr, &o).unwrap();
+    assert_eq!(cal.report.effects.len(), 1, "{:?}", cal.report);
+    let parameters = serde_json::to_value(&cal.report.effects[0].parameters).unwrap();
+    let ev = &parameters["events"];
+    let ev = ev.as_array().unwrap();
+    assert_eq!(ev.len(), 2, "{ev:?}");
+    assert!(
+        (ev[0]["frame"].as_i64().unwrap() - 1500).abs() <= 2,
+        "{ev:?}"
+    );
+    assert_eq!(ev[0]["kind"], "dropped");
+    assert!(
+        (ev[1]["frame"].as_i64().unwrap() - 2999).abs() <= 2,
+        "{ev:?}"
+    );
+    assert_eq!(ev[1]["kind"], "duplicated");
+}
+
+#[test]
+fn report_round_trips_the_reusable_corrections() {
+    let c = [
+        Correction::TimeBase { ppm: 120.0 },
+        Correction::Exposure { exposure_s: 2e-4 },
+        Correction::Transfer {
+            freqs_hz: vec![100.0, 200.0],
+            coef_db: vec![3.0, -2.0],
+            phase_deg: vec![10.0, -20.0],
+            k: 1.2,
+        },
+    ];
+    let effects: Vec<Value> = c
+        .iter()
+        .map(|c| json!({"name": c.kind().name(), "parameters": c.parameters(2200.0, 1.0)}))
+        .collect();
+    let back = reusable_from_report(&json!({ "effects": effects })).unwrap();
+    assert_eq!(back.len(), 3);
+    assert_eq!(back[0], c[0]);
+    assert_eq!(back[2], c[2]);
+    match back[1] {
+        Correction::Exposure { exposure_s } => assert!((exposure_s - 2e-4).abs() < 1e-12),
+        _ => panic!("{back:?}"),
+    }
+    assert!(
+        reusable_from_report(&json!({"effects": [{"name": "nope", "parameters": {}}]})).is_err()
+    );
+}

@@ -1,0 +1,58 @@
+//! Small numeric helpers shared across the crate (and by the command line):
+//! the greatest common divisor, the median, the modified Bessel function
+//! `I0` (Kaiser windows).
+
+/// Greatest common divisor (`gcd(a, 0) = a`).
+pub fn gcd(mut a: u64, mut b: u64) -> u64 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
+}
+
+/// The median of `v` (sorted in place, `total_cmp` order; the mean of the
+/// two middle values for an even length); NaN when empty.
+pub fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Modified Bessel function of the first kind, order 0 (power series).
+pub fn bessel_i0(x: f64) -> f64 {
+    let half = x / 2.0;
+    let mut term = 1.0;
+    let mut sum = 1.0;
+    for k in 1..200 {
+        let f = half / k as f64;
+        term *= f * f;
+        sum += term;
+        if term < sum * 1e-17 {
+            break;
+        }
+    }
+    sum
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gcd_median_i0() {
+        assert_eq!(gcd(48_000, 2200), 200);
+        assert_eq!(gcd(7, 0), 7);
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
+        assert!(median(&mut []).is_nan());
+        assert_eq!(bessel_i0(0.0), 1.0);
+        assert!((bessel_i0(1.0) - 1.266_065_877_752_008_4).abs() < 1e-15);
+    }
+}

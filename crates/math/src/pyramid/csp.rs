@@ -1,0 +1,905 @@
+//! Complex steerable pyramid (CSP), frequency-domain construction.
+//!
+//! This is the pyramid of Portilla & Simoncelli as used by phase-based video
+//! processing (Wadhwa et al. 2013) and by the visual microphone (Davis 2016,
+//! thesis ch. 3.1, Eq. 3.1): every frame becomes, per scale `r` and
+//! orientation `θ`, a complex image `A·e^{iφ}` whose local phase `φ` moves
+//! with local translation and whose local amplitude `A` measures contrast.
+//!
+//! # Construction
+//!
+//! Frequencies are normalised so that the Nyquist frequency of the input is
+//! 1 along each axis (`u = 2k/N`, `k` the signed DFT index), `r = |u|`.
+//!
+//! * residual high-pass `H0(r) = cos(π/2·clamp(-log2 r, 0, 1))`, with
+//!   `L0 = sqrt(1 - H0²)` (transition between `r = 1/2` and `r = 1`);
+//! * scale `s` (0 = finest) uses the raised-cosine pair with transition
+//!   between `r = 2^-(s+2)` and `r = 2^-(s+1)`: `Hs` rises there, `Ls` falls;
+//!   the band of scale `s` is `L0·L0'..·L(s-1)·Hs` radially, so it peaks at
+//!   `r = 2^-(s+1)`, i.e. a centre frequency of `0.25/2^s` cycles/pixel;
+//! * orientation `b` of `K` has angle `θb = π·b/K` and angular mask
+//!   `2·sqrt(C)·cos(α)^(K-1)` on the half plane `|α| < π/2` (`α` = angle of
+//!   the frequency minus `θb`), zero on the other half, so each sub-band is
+//!   analytic (complex). `C = 2^(2(K-1))·((K-1)!)² / (K·(2(K-1))!)`.
+//! * the final low-pass residual is `L0·L0'..·L(S-1)`.
+//!
+//! The squared responses sum to one at every frequency once the one-sided
+//! bands are symmetrised (a tight frame), so [`ComplexSteerablePyramid::synthesize`]
+//! inverts [`ComplexSteerablePyramid::analyze`] to float precision; see
+//! [`ComplexSteerablePyramid::tight_frame_response`].
+//!
+//! # Sampling
+//!
+//! Bands are **downsampled per octave** by cropping the spectrum: scale `s`
+//! lives on a grid of `ceil(W/2^s) x ceil(H/2^s)` pixels (the iterated
+//! `ceil(n/2)`), which holds every frequency the band can contain, so the
+//! crop loses nothing. Band values are normalised so that they equal the
+//! full-resolution band sampled at input positions `x = x'·step_x`,
+//! `y = y'·step_y` ([`BandInfo::step_x`]); amplitudes therefore do not depend
+//! on the scale's sampling. The high-pass residual is real and full size, the
+//! low-pass residual real and of the size of grid `S`.
+//!
+//! # Cost
+//!
+//! All FFTs are planned in [`ComplexSteerablePyramid::new`]; all scratch
+//! lives in the pyramid or in [`PyramidCoeffs`] (from
+//! [`ComplexSteerablePyramid::alloc_coeffs`]), so `analyze` and `synthesize`
+//! allocate nothing. 256x256, 4 scales, 2 orientations, one Zen 4 core,
+//! release: `analyze` about 0.73 ms (90 Mpix/s), `synthesize` about the same.
+
+use super::{
+    check_len, check_params, check_region, layout_accessors, BandInfo, Complex32, LayoutKey,
+    PhaseBands, PyramidError, DEFAULT_ORIENTATIONS, DEFAULT_SCALES,
+};
+use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
+use rustfft::{Fft, FftPlanner};
+use std::f64::consts::PI;
+use std::sync::Arc;
+
+/// One complex sub-band of a [`PyramidCoeffs`].
+#[derive(Clone, Debug)]
+pub struct CspBand {
+    info: BandInfo,
+    data: Vec<Complex32>,
+}
+
+impl CspBand {
+    pub fn info(&self) -> &BandInfo {
+        &self.info
+    }
+    pub fn width(&self) -> usize {
+        self.info.width
+    }
+    pub fn height(&self) -> usize {
+        self.info.height
+    }
+    pub fn scale(&self) -> usize {
+        self.info.scale
+    }
+    /// Orientation angle in radians.
+    pub fn angle(&self) -> f32 {
+        self.info.angle
+    }
+    /// Complex coefficients, row-major `height x width`.
+    pub fn data(&self) -> &[Complex32] {
+        &self.data
+    }
+    /// Mutable coefficients (for processing before `synthesize`).
+    pub fn data_mut(&mut self) -> &mut [Complex32] {
+        &mut self.data
+    }
+    /// Local amplitudes `|c|`.
+    pub fn amplitude(&self) -> impl Iterator<Item = f32> + '_ {
+        self.data.iter().map(|c| c.norm())
+    }
+    /// Local phases `arg c` in `[-π, π]`.
+    pub fn phase(&self) -> impl Iterator<Item = f32> + '_ {
+        self.data.iter().map(|c| c.im.atan2(c.re))
+    }
+}
+
+/// Output of [`ComplexSteerablePyramid::analyze`]: complex bands plus the
+/// real residual high- and low-pass bands.
+#[derive(Clone, Debug)]
+pub struct PyramidCoeffs {
+    key: LayoutKey,
+    bands: Vec<CspBand>,
+    highpass: Vec<f32>,
+    lowpass: Vec<f32>,
+    low_width: usize,
+    low_height: usize,
+}
+
+impl PyramidCoeffs {
+    pub fn num_bands(&self) -> usize {
+        self.bands.len()
+    }
+    pub fn scales(&self) -> usize {
+        self.key.scales
+    }
+    pub fn orientations(&self) -> usize {
+        self.key.orientations
+    }
+    /// Band index of (scale, orientation).
+    pub fn band_index(&self, scale: usize, orientation: usize) -> Option<usize> {
+        (scale < self.key.scales && orientation < self.key.orientations)
+            .then_some(scale * self.key.orientations + orientation)
+    }
+    pub fn bands(&self) -> &[CspBand] {
+        &self.bands
+    }
+    pub fn band(&self, i: usize) -> Option<&CspBand> {
+        self.bands.get(i)
+    }
+    pub fn band_mut(&mut self, i: usize) -> Option<&mut CspBand> {
+        self.bands.get_mut(i)
+    }
+    /// Amplitudes of band `i` (`None` if out of range).
+    pub fn amplitude(&self, i: usize) -> Option<impl Iterator<Item = f32> + '_> {
+        self.bands.get(i).map(CspBand::amplitude)
+    }
+    /// Phases of band `i` (`None` if out of range).
+    pub fn phase(&self, i: usize) -> Option<impl Iterator<Item = f32> + '_> {
+        self.bands.get(i).map(CspBand::phase)
+    }
+    /// Real residual high-pass, full frame size, row-major.
+    pub fn highpass(&self) -> &[f32] {
+        &self.highpass
+    }
+    pub fn highpass_mut(&mut self) -> &mut [f32] {
+        &mut self.highpass
+    }
+    /// Real residual low-pass, `lowpass_size()`, row-major.
+    pub fn lowpass(&self) -> &[f32] {
+        &self.lowpass
+    }
+    pub fn lowpass_mut(&mut self) -> &mut [f32] {
+        &mut self.lowpass
+    }
+    /// (width, height) of the low-pass residual.
+    pub fn lowpass_size(&self) -> (usize, usize) {
+        (self.low_width, self.low_height)
+    }
+
+    fn band_checked(&self, i: usize) -> Result<&CspBand, PyramidError> {
+        self.bands.get(i).ok_or(PyramidError::BandOutOfRange {
+            index: i,
+            count: self.bands.len(),
+        })
+    }
+}
+
+impl PhaseBands for PyramidCoeffs {
+    fn num_bands(&self) -> usize {
+        self.bands.len()
+    }
+    fn band_info(&self, i: usize) -> Option<&BandInfo> {
+        self.bands.get(i).map(|b| &b.info)
+    }
+    fn amplitude_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
+        let b = self.band_checked(i)?;
+        check_len(b.data.len(), out.len())?;
+        for (o, c) in out.iter_mut().zip(&b.data) {
+            *o = c.norm();
+        }
+        Ok(())
+    }
+    fn phase_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
+        let b = self.band_checked(i)?;
+        check_len(b.data.len(), out.len())?;
+        for (o, c) in out.iter_mut().zip(&b.data) {
+            *o = c.im.atan2(c.re);
+        }
+        Ok(())
+    }
+    fn phase_delta_into(
+        &self,
+        reference: &Self,
+        i: usize,
+        out: &mut [f32],
+    ) -> Result<(), PyramidError> {
+        if reference.key != self.key {
+            return Err(PyramidError::LayoutMismatch);
+        }
+        let b = self.band_checked(i)?;
+        let r = reference.band_checked(i)?;
+        check_len(b.data.len(), out.len())?;
+        for ((o, c), c0) in out.iter_mut().zip(&b.data).zip(&r.data) {
+            let p = c * c0.conj();
+            *o = crate::fastmath::atan2(p.im, p.re);
+        }
+        Ok(())
+    }
+
+    fn weighted_phase_delta_sum(
+        &self,
+        reference: &Self,
+        i: usize,
+        weights: &[f32],
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+    ) -> Result<f64, PyramidError> {
+        if reference.key != self.key {
+            return Err(PyramidError::LayoutMismatch);
+        }
+        let b = self.band_checked(i)?;
+        let r = reference.band_checked(i)?;
+        check_region(&b.info, weights, &rows, &cols)?;
+        let w = b.info.width;
+        let mut sum = 0.0f64;
+        for y in rows {
+            let span = y * w + cols.start..y * w + cols.end;
+            sum += super::kernels::csp_row(
+                &b.data[span.clone()],
+                &r.data[span.clone()],
+                &weights[span],
+            ) as f64;
+        }
+        Ok(sum)
+    }
+
+    fn scale_phase_delta_sums(
+        &self,
+        reference: &Self,
+        scale: usize,
+        weights: &[&[f32]],
+        rows: std::ops::Range<usize>,
+        cols: std::ops::Range<usize>,
+        out: &mut [f64],
+    ) -> Result<(), PyramidError> {
+        let k = self.key.orientations;
+        if weights.len() != k || out.len() != k {
+            return Err(PyramidError::LayoutMismatch);
+        }
+        for (o, (wt, sum)) in weights.iter().zip(out.iter_mut()).enumerate() {
+            *sum = self.weighted_phase_delta_sum(
+                reference,
+                scale * k + o,
+                wt,
+                rows.clone(),
+                cols.clone(),
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Signed DFT index of storage index `i` on a grid of `m` bins:
+/// `[0, ceil(m/2))` are non-negative, the rest negative.
+pub(super) fn signed_index(i: usize, m: usize) -> isize {
+    if i < m.div_ceil(2) {
+        i as isize
+    } else {
+        i as isize - m as isize
+    }
+}
+
+/// Raised-cosine high-pass with its transition between `log2 r = p-1` and `p`.
+fn radial_hi(r: f64, p: f64) -> f64 {
+    if r <= 0.0 {
+        return 0.0;
+    }
+    let t = (p - r.log2()).clamp(0.0, 1.0);
+    (0.5 * PI * t).cos()
+}
+
+/// Complement of [`radial_hi`]: `hi² + lo² = 1`.
+fn radial_lo(r: f64, p: f64) -> f64 {
+    if r <= 0.0 {
+        return 1.0;
+    }
+    let t = (p - r.log2()).clamp(0.0, 1.0);
+    (0.5 * PI * t).sin()
+}
+
+/// Angular mask of orientation `theta` for `K = orientations`.
+fn angular(ux: f64, uy: f64, theta: f64, orientations: usize) -> f64 {
+    let order = orientations - 1;
+    let r = ux.hypot(uy);
+    if r <= 0.0 {
+        return 0.0;
+    }
+    let mut fact = 1.0f64; // order!
+    for i in 1..=order {
+        fact *= i as f64;
+    }
+    let mut fact2 = 1.0f64; // (2 order)!
+    for i in 1..=(2 * order) {
+        fact2 *= i as f64;
+    }
+    let c = 4f64.powi(order as i32) * fact * fact / (orientations as f64 * fact2);
+    let cosa = (ux * theta.cos() + uy * theta.sin()) / r;
+    if cosa > 1e-12 {
+        2.0 * c.sqrt() * cosa.powi(order as i32)
+    } else if cosa >= -1e-12 && order == 0 {
+        // On the dividing line of a single orientation, split evenly between
+        // the two sides so that the symmetrised response stays exactly one.
+        (2.0 * c).sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// One analysis grid: a centred crop of the input spectrum.
+struct Grid {
+    w: usize,
+    h: usize,
+    /// Signed x index per column of the grid.
+    kx: Vec<isize>,
+    /// Full-spectrum row index of `+ky` and of `-ky`, per grid row.
+    uy_pos: Vec<usize>,
+    uy_neg: Vec<usize>,
+    /// Full-spectrum column index of `+kx` and `-kx` (mod W), per grid column.
+    ux_pos: Vec<usize>,
+    ux_neg: Vec<usize>,
+    fwd_x: Arc<dyn Fft<f32>>,
+    inv_x: Arc<dyn Fft<f32>>,
+    fwd_y: Arc<dyn Fft<f32>>,
+    inv_y: Arc<dyn Fft<f32>>,
+}
+
+/// Complex steerable pyramid for one frame size; see the module docs.
+pub struct ComplexSteerablePyramid {
+    key: LayoutKey,
+    half_w: usize,
+    /// Whether `analyze` computes the high- and low-pass residuals (only
+    /// reconstruction needs them; the phase stage turns them off).
+    residuals: bool,
+    /// Grids of scales `0..S` and, last, the low-pass grid `S`.
+    grids: Vec<Grid>,
+    /// Product masks per band (scale-major), on the band's grid, layout
+    /// `[kx'][ky']` (x-major).
+    band_masks: Vec<Vec<f32>>,
+    /// Low-pass product mask on grid `S`, `[kx'][ky']`.
+    low_mask: Vec<f32>,
+    /// High-pass residual mask on the half spectrum, `[ux][uy]`.
+    hi_mask: Vec<f32>,
+    infos: Vec<BandInfo>,
+    r2c: Arc<dyn RealToComplex<f32>>,
+    c2r: Arc<dyn ComplexToReal<f32>>,
+    col_fwd: Arc<dyn Fft<f32>>,
+    col_inv: Arc<dyn Fft<f32>>,
+    /// Half spectrum `[ux in 0..=W/2][uy in 0..H]`.
+    spec: Vec<Complex32>,
+    work: Vec<Complex32>,
+    work2: Vec<Complex32>,
+    row_real: Vec<f32>,
+    row_cplx: Vec<Complex32>,
+    scratch: Vec<Complex32>,
+}
+
+impl std::fmt::Debug for ComplexSteerablePyramid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ComplexSteerablePyramid")
+            .field("width", &self.key.width)
+            .field("height", &self.key.height)
+            .field("scales", &self.key.scales)
+            .field("orientations", &self.key.orientations)
+            .finish_non_exhaustive()
+    }
+}
+
+impl ComplexSteerablePyramid {
+    /// Builds the pyramid for `width x height` frames with `scales` octave
+    /// scales and `orientations` orientations (defaults:
+    /// [`DEFAULT_SCALES`], [`DEFAULT_ORIENTATIONS`]). Any size >= 1x1 works;
+    /// scales whose grid shrinks to 1x1 simply hold (almost) nothing.
+    pub fn new(
+        width: usize,
+        height: usize,
+        scales: usize,
+        orientations: usize,
+    ) -> Result<Self, PyramidError> {
+        check_params(width, height, scales, orientations)?;
+        let (w, h) = (width, height);
+        let key = LayoutKey {
+            width,
+            height,
+            scales,
+            orientations,
+        };
+        let mut planner = FftPlanner::<f32>::new();
+        let mut rplanner = RealFftPlanner::<f32>::new();
+        let r2c = rplanner.plan_fft_forward(w);
+        let c2r = rplanner.plan_fft_inverse(w);
+        let col_fwd = planner.plan_fft_forward(h);
+        let col_inv = planner.plan_fft_inverse(h);
+        let half_w = w / 2 + 1;
+
+        let mut scratch_len = r2c.get_scratch_len().max(c2r.get_scratch_len());
+        scratch_len = scratch_len
+            .max(col_fwd.get_inplace_scratch_len())
+            .max(col_inv.get_inplace_scratch_len());
+
+        let mut grids = Vec::with_capacity(scales + 1);
+        let (mut gw, mut gh) = (w, h);
+        for _ in 0..=scales {
+            let kx: Vec<isize> = (0..gw).map(|i| signed_index(i, gw)).collect();
+            let ky: Vec<isize> = (0..gh).map(|i| signed_index(i, gh)).collect();
+            let wi = w as isize;
+            let hi = h as isize;
+            let grid = Grid {
+                w: gw,
+                h: gh,
+                uy_pos: ky.iter().map(|&k| k.rem_euclid(hi) as usize).collect(),
+                uy_neg: ky.iter().map(|&k| (-k).rem_euclid(hi) as usize).collect(),
+                ux_pos: kx.iter().map(|&k| k.rem_euclid(wi) as usize).collect(),
+                ux_neg: kx.iter().map(|&k| (-k).rem_euclid(wi) as usize).collect(),
+                kx,
+                fwd_x: planner.plan_fft_forward(gw),
+                inv_x: planner.plan_fft_inverse(gw),
+                fwd_y: planner.plan_fft_forward(gh),
+                inv_y: planner.plan_fft_inverse(gh),
+            };
+            for p in [&grid.fwd_x, &grid.inv_x, &grid.fwd_y, &grid.inv_y] {
+                scratch_len = scratch_len.max(p.get_inplace_scratch_len());
+            }
+            grids.push(grid);
+            gw = gw.div_ceil(2);
+            gh = gh.div_ceil(2);
+        }
+
+        // Normalised frequency of a grid bin, in units of the input Nyquist.
+        let uxy = |grid: &Grid, kxp: usize, kyp: usize| -> (f64, f64) {
+            let kx = grid.kx[kxp] as f64;
+            let ky = signed_index(kyp, grid.h) as f64;
+            (2.0 * kx / w as f64, 2.0 * ky / h as f64)
+        };
+        // Radial low-pass chain down to (not including) scale `s`.
+        let chain = |r: f64, s: usize| -> f64 {
+            let mut v = radial_lo(r, 0.0);
+            for j in 0..s {
+                v *= radial_lo(r, -(j as f64) - 1.0);
+            }
+            v
+        };
+
+        let mut band_masks = Vec::with_capacity(scales * orientations);
+        let mut infos = Vec::with_capacity(scales * orientations);
+        for (s, grid) in grids.iter().enumerate().take(scales) {
+            for b in 0..orientations {
+                let theta = PI * b as f64 / orientations as f64;
+                let mut m = vec![0.0f32; grid.w * grid.h];
+                for kxp in 0..grid.w {
+                    for kyp in 0..grid.h {
+                        let (ux, uy) = uxy(grid, kxp, kyp);
+                        let r = ux.hypot(uy);
+                        let v = chain(r, s)
+                            * radial_hi(r, -(s as f64) - 1.0)
+                            * angular(ux, uy, theta, orientations);
+                        m[kxp * grid.h + kyp] = v as f32;
+                    }
+                }
+                band_masks.push(m);
+                infos.push(BandInfo {
+                    scale: s,
+                    orientation: b,
+                    angle: theta as f32,
+                    width: grid.w,
+                    height: grid.h,
+                    step_x: w as f32 / grid.w as f32,
+                    step_y: h as f32 / grid.h as f32,
+                    centre_frequency: 0.25 / (1u64 << s) as f32,
+                });
+            }
+        }
+        let low_grid = &grids[scales];
+        let mut low_mask = vec![0.0f32; low_grid.w * low_grid.h];
+        for kxp in 0..low_grid.w {
+            for kyp in 0..low_grid.h {
+                let (ux, uy) = uxy(low_grid, kxp, kyp);
+                low_mask[kxp * low_grid.h + kyp] = chain(ux.hypot(uy), scales) as f32;
+            }
+        }
+        let mut hi_mask = vec![0.0f32; half_w * h];
+        for ux_i in 0..half_w {
+            let kx = if ux_i < w.div_ceil(2) {
+                ux_i as f64
+            } else {
+                ux_i as f64 - w as f64
+            };
+            for uy_i in 0..h {
+                let ky = signed_index(uy_i, h) as f64;
+                let r = (2.0 * kx / w as f64).hypot(2.0 * ky / h as f64);
+                hi_mask[ux_i * h + uy_i] = radial_hi(r, 0.0) as f32;
+            }
+        }
+
+        let full = w * h;
+        let spec_len = half_w * h;
+        Ok(Self {
+            residuals: true,
+            key,
+            half_w,
+            grids,
+            band_masks,
+            low_mask,
+            hi_mask,
+            infos,
+            r2c,
+            c2r,
+            col_fwd,
+            col_inv,
+            spec: vec![Complex32::default(); spec_len],
+            work: vec![Complex32::default(); full.max(spec_len)],
+            work2: vec![Complex32::default(); full.max(spec_len)],
+            row_real: vec![0.0; w],
+            row_cplx: vec![Complex32::default(); half_w],
+            scratch: vec![Complex32::default(); scratch_len],
+        })
+    }
+
+    layout_accessors!();
+
+    /// Shapes of all bands, scale-major.
+    pub fn band_infos(&self) -> &[BandInfo] {
+        &self.infos
+    }
+
+    /// Allocates coefficient storage for this pyramid (once; reuse it).
+    pub fn alloc_coeffs(&self) -> PyramidCoeffs {
+        let bands = self
+            .infos
+            .iter()
+            .map(|info| CspBand {
+                info: info.clone(),
+                data: vec![Complex32::default(); info.len()],
+            })
+            .collect();
+        let low = &self.grids[self.key.scales];
+        PyramidCoeffs {
+            key: self.key,
+            bands,
+            highpass: vec![0.0; self.key.width * self.key.height],
+            lowpass: vec![0.0; low.w * low.h],
+            low_width: low.w,
+            low_height: low.h,
+        }
+    }
+
+    fn check_coeffs(&self, c: &PyramidCoeffs) -> Result<(), PyramidError> {
+        let ok = c.key == self.key
+            && c.bands.len() == self.infos.len()
+            && c.bands.iter().all(|b| b.data.len() == b.info.len())
+            && c.highpass.len() == self.key.width * self.key.height
+            && c.lowpass.len() == c.low_width * c.low_height
+            && c.low_width == self.grids[self.key.scales].w
+            && c.low_height == self.grids[self.key.scales].h;
+        if ok {
+            Ok(())
+        } else {
+            Err(PyramidError::LayoutMismatch)
+        }
+    }
+
+    /// Decomposes `frame` (row-major `width x height`) into `out`.
+    pub fn analyze(&mut self, frame: &[f32], out: &mut PyramidCoeffs) -> Result<(), PyramidError> {
+        let (w, h) = (self.key.width, self.key.height);
+        check_len(w * h, frame.len())?;
+        self.check_coeffs(out)?;
+        let norm = 1.0 / (w as f32 * h as f32);
+
+        // Forward 2D FFT into the x-major half spectrum.
+        self.forward_2d(frame)?;
+
+        if self.residuals {
+            self.residuals_into(out)?;
+        }
+
+        // Complex bands.
+        let k = self.key.orientations;
+        for (bi, band) in out.bands.iter_mut().enumerate() {
+            let grid = &self.grids[bi / k];
+            let n = grid.w * grid.h;
+            gather(
+                &self.spec,
+                h,
+                grid,
+                &self.band_masks[bi],
+                &mut self.work[..n],
+            );
+            grid.inv_y
+                .process_with_scratch(&mut self.work[..n], &mut self.scratch);
+            transpose(&self.work[..n], grid.w, grid.h, &mut band.data);
+            grid.inv_x
+                .process_with_scratch(&mut band.data, &mut self.scratch);
+            for v in band.data.iter_mut() {
+                *v *= norm;
+            }
+        }
+        Ok(())
+    }
+
+    /// Skips (false) or computes (true, the default) the high- and
+    /// low-pass residuals in [`Self::analyze`]. Skipped, they keep whatever
+    /// they held: for analysis that reads only the complex bands.
+    pub fn set_residuals(&mut self, on: bool) {
+        self.residuals = on;
+    }
+
+    /// The residuals of the spectrum in `self.spec` (see `analyze`).
+    fn residuals_into(&mut self, out: &mut PyramidCoeffs) -> Result<(), PyramidError> {
+        let (w, h) = (self.key.width, self.key.height);
+        let half_w = self.half_w;
+        let spec_len = half_w * h;
+        let norm = 1.0 / (w as f32 * h as f32);
+        // High-pass residual (real): mask, inverse columns, inverse real rows.
+        for ((d, s), m) in self.work[..spec_len]
+            .iter_mut()
+            .zip(&self.spec)
+            .zip(&self.hi_mask)
+        {
+            *d = s * *m;
+        }
+        self.col_inv
+            .process_with_scratch(&mut self.work[..spec_len], &mut self.scratch);
+        self.inverse_rows(true, &mut out.highpass, norm)?;
+
+        // Low-pass residual (real).
+        let grid = &self.grids[self.key.scales];
+        let n = grid.w * grid.h;
+        gather(&self.spec, h, grid, &self.low_mask, &mut self.work[..n]);
+        grid.inv_y
+            .process_with_scratch(&mut self.work[..n], &mut self.scratch);
+        transpose(&self.work[..n], grid.w, grid.h, &mut self.work2[..n]);
+        grid.inv_x
+            .process_with_scratch(&mut self.work2[..n], &mut self.scratch);
+        for (o, v) in out.lowpass.iter_mut().zip(&self.work2[..n]) {
+            *o = v.re * norm;
+        }
+        Ok(())
+    }
+
+    /// Rebuilds a frame from `coeffs` into `out` (row-major
+    /// `width x height`): the exact inverse of [`Self::analyze`] (tight frame).
+    pub fn synthesize(
+        &mut self,
+        coeffs: &PyramidCoeffs,
+        out: &mut [f32],
+    ) -> Result<(), PyramidError> {
+        let (w, h) = (self.key.width, self.key.height);
+        check_len(w * h, out.len())?;
+        self.check_coeffs(coeffs)?;
+        let half_w = self.half_w;
+        let spec_len = half_w * h;
+        let wh = w as f32 * h as f32;
+
+        // High-pass residual: its half spectrum times the mask starts the sum.
+        self.forward_2d(&coeffs.highpass)?;
+        for (s, m) in self.spec.iter_mut().zip(&self.hi_mask) {
+            *s *= *m;
+        }
+
+        // Bands: forward FFT on their grid, times mask, symmetrised into the
+        // half spectrum (Re of the one-sided sum == the tight-frame inverse).
+        let k = self.key.orientations;
+        for (bi, band) in coeffs.bands.iter().enumerate() {
+            let grid = &self.grids[bi / k];
+            let n = grid.w * grid.h;
+            self.work2[..n].copy_from_slice(&band.data);
+            grid.fwd_x
+                .process_with_scratch(&mut self.work2[..n], &mut self.scratch);
+            transpose(&self.work2[..n], grid.h, grid.w, &mut self.work[..n]);
+            grid.fwd_y
+                .process_with_scratch(&mut self.work[..n], &mut self.scratch);
+            let scale = wh / n as f32 * 0.25;
+            scatter_sym(
+                &self.work[..n],
+                grid,
+                &self.band_masks[bi],
+                scale,
+                w,
+                h,
+                &mut self.spec,
+            );
+        }
+
+        // Low-pass residual (real, so its spectrum is already Hermitian).
+        let grid = &self.grids[self.key.scales];
+        let n = grid.w * grid.h;
+        for (d, s) in self.work2[..n].iter_mut().zip(&coeffs.lowpass) {
+            *d = Complex32::new(*s, 0.0);
+        }
+        grid.fwd_x
+            .process_with_scratch(&mut self.work2[..n], &mut self.scratch);
+        transpose(&self.work2[..n], grid.h, grid.w, &mut self.work[..n]);
+        grid.fwd_y
+            .process_with_scratch(&mut self.work[..n], &mut self.scratch);
+        let scale = wh / n as f32 * 0.5;
+        scatter_sym(
+            &self.work[..n],
+            grid,
+            &self.low_mask,
+            scale,
+            w,
+            h,
+            &mut self.spec,
+        );
+
+        // Inverse: columns, then real rows.
+        self.col_inv
+            .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
+        self.inverse_rows(false, out, 1.0 / wh)
+    }
+
+    /// The forward 2D FFT of the real image `rows` (`width x height`) into
+    /// the x-major half spectrum `spec`: real rows, then columns.
+    fn forward_2d(&mut self, rows: &[f32]) -> Result<(), PyramidError> {
+        let (w, h) = (self.key.width, self.key.height);
+        let spec_len = self.half_w * h;
+        for (y, row) in rows.chunks_exact(w).enumerate() {
+            self.row_real.copy_from_slice(row);
+            self.r2c
+                .process_with_scratch(&mut self.row_real, &mut self.row_cplx, &mut self.scratch)
+                .map_err(|e| PyramidError::Fft(e.to_string()))?;
+            for (ux, v) in self.row_cplx.iter().enumerate() {
+                self.spec[ux * h + y] = *v;
+            }
+        }
+        self.col_fwd
+            .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
+        Ok(())
+    }
+
+    /// The real rows of `out` (`width x height`) from an x-major half
+    /// spectrum whose columns are already inverted (`work` when
+    /// `from_work`, else `spec`), times `norm`.
+    fn inverse_rows(
+        &mut self,
+        from_work: bool,
+        out: &mut [f32],
+        norm: f32,
+    ) -> Result<(), PyramidError> {
+        let (w, h) = (self.key.width, self.key.height);
+        let half_w = self.half_w;
+        let src = if from_work { &self.work } else { &self.spec };
+        let even_w = w.is_multiple_of(2);
+        for (y, row) in out.chunks_exact_mut(w).enumerate() {
+            for (ux, v) in self.row_cplx.iter_mut().enumerate() {
+                *v = src[ux * h + y];
+            }
+            self.row_cplx[0].im = 0.0;
+            if even_w {
+                self.row_cplx[half_w - 1].im = 0.0;
+            }
+            self.c2r
+                .process_with_scratch(&mut self.row_cplx, row, &mut self.scratch)
+                .map_err(|e| PyramidError::Fft(e.to_string()))?;
+            for v in row.iter_mut() {
+                *v *= norm;
+            }
+        }
+        Ok(())
+    }
+
+    /// Tight-frame check: for every bin of the full `W x H` spectrum
+    /// (row-major `[ky][kx]`, storage order), the sum of the squared
+    /// responses of all filters, with the one-sided bands symmetrised
+    /// (`(|M(k)|² + |M(-k)|²)/4`). It is 1 everywhere for a tight frame.
+    /// Diagnostic; allocates.
+    pub fn tight_frame_response(&self) -> Vec<f64> {
+        let (w, h) = (self.key.width, self.key.height);
+        let mut resp = vec![0.0f64; w * h];
+        for ux in 0..self.half_w {
+            for uy in 0..h {
+                let v = f64::from(self.hi_mask[ux * h + uy]).powi(2);
+                resp[uy * w + ux] += v;
+                let mx = (w - ux) % w;
+                if mx >= self.half_w {
+                    resp[((h - uy) % h) * w + mx] += v;
+                }
+            }
+        }
+        let k = self.key.orientations;
+        let masks = self
+            .band_masks
+            .iter()
+            .enumerate()
+            .map(|(bi, m)| (&self.grids[bi / k], m))
+            .chain(std::iter::once((
+                &self.grids[self.key.scales],
+                &self.low_mask,
+            )));
+        for (grid, mask) in masks {
+            for kxp in 0..grid.w {
+                for kyp in 0..grid.h {
+                    let v = f64::from(mask[kxp * grid.h + kyp]).powi(2) * 0.25;
+                    resp[grid.uy_pos[kyp] * w + grid.ux_pos[kxp]] += v;
+                    resp[grid.uy_neg[kyp] * w + grid.ux_neg[kxp]] += v;
+                }
+            }
+        }
+        // The low-pass mask is not one-sided: it was counted as M²/4 at k and
+        // at -k, i.e. half of its (symmetric) energy. Add the other half.
+        let grid = &self.grids[self.key.scales];
+        for kxp in 0..grid.w {
+            for kyp in 0..grid.h {
+                let v = f64::from(self.low_mask[kxp * grid.h + kyp]).powi(2) * 0.25;
+                resp[grid.uy_pos[kyp] * w + grid.ux_pos[kxp]] += v;
+                resp[grid.uy_neg[kyp] * w + grid.ux_neg[kxp]] += v;
+            }
+        }
+        resp
+    }
+}
+
+/// Copies the crop of the half spectrum `spec` (`[ux][uy]`, `h` rows per
+/// column) that `grid` covers, times `mask`, into `dst` (`[kx'][ky']`).
+/// Negative x frequencies come from Hermitian symmetry.
+fn gather(spec: &[Complex32], h: usize, grid: &Grid, mask: &[f32], dst: &mut [Complex32]) {
+    let gh = grid.h;
+    for (kxp, (row, mrow)) in dst
+        .chunks_exact_mut(gh)
+        .zip(mask.chunks_exact(gh))
+        .enumerate()
+    {
+        let kx = grid.kx[kxp];
+        if kx >= 0 {
+            let col = &spec[kx as usize * h..(kx as usize + 1) * h];
+            for ((d, m), &uy) in row.iter_mut().zip(mrow).zip(&grid.uy_pos) {
+                *d = col[uy] * *m;
+            }
+        } else {
+            let c = (-kx) as usize;
+            let col = &spec[c * h..(c + 1) * h];
+            for ((d, m), &uy) in row.iter_mut().zip(mrow).zip(&grid.uy_neg) {
+                *d = col[uy].conj() * *m;
+            }
+        }
+    }
+}
+
+/// Adds `src * mask * scale` (grid layout `[kx'][ky']`) at `+k` and its
+/// conjugate at `-k` into the half spectrum `acc` (`[ux][uy]`), keeping only
+/// bins of the half plane `ux <= W/2`.
+fn scatter_sym(
+    src: &[Complex32],
+    grid: &Grid,
+    mask: &[f32],
+    scale: f32,
+    w: usize,
+    h: usize,
+    acc: &mut [Complex32],
+) {
+    let half = w / 2;
+    let gh = grid.h;
+    for (kxp, (row, mrow)) in src.chunks_exact(gh).zip(mask.chunks_exact(gh)).enumerate() {
+        let px = grid.ux_pos[kxp];
+        let nx = grid.ux_neg[kxp];
+        if px <= half {
+            let col = &mut acc[px * h..(px + 1) * h];
+            for ((v, m), &uy) in row.iter().zip(mrow).zip(&grid.uy_pos) {
+                col[uy] += v * (*m * scale);
+            }
+        }
+        if nx <= half {
+            let col = &mut acc[nx * h..(nx + 1) * h];
+            for ((v, m), &uy) in row.iter().zip(mrow).zip(&grid.uy_neg) {
+                col[uy] += v.conj() * (*m * scale);
+            }
+        }
+    }
+}
+
+/// Out-of-place transpose: `src` is `rows x cols` row-major, `dst` becomes
+/// `cols x rows`.
+fn transpose(src: &[Complex32], rows: usize, cols: usize, dst: &mut [Complex32]) {
+    const B: usize = 16;
+    for r0 in (0..rows).step_by(B) {
+        let r1 = (r0 + B).min(rows);
+        for c0 in (0..cols).step_by(B) {
+            let c1 = (c0 + B).min(cols);
+            for r in r0..r1 {
+                let srow = &src[r * cols..(r + 1) * cols];
+                for c in c0..c1 {
+                    dst[c * rows + r] = srow[c];
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+#[path = "csp_tests.rs"]
+mod tests;

@@ -1,0 +1,545 @@
+use super::super::tests::{alloc_count, fft2, noise, texture, Texture};
+use super::super::MAX_SCALES;
+use super::*;
+use proptest::prelude::*;
+use rustfft::num_complex::Complex64;
+
+fn rel_l2(a: &[f32], b: &[f32]) -> f64 {
+    let num: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (f64::from(*x) - f64::from(*y)).powi(2))
+        .sum();
+    let den: f64 = b.iter().map(|y| f64::from(*y).powi(2)).sum();
+    (num / den.max(1e-300)).sqrt()
+}
+
+fn roundtrip(w: usize, h: usize, scales: usize, k: usize, img: &[f32]) -> f64 {
+    let mut p = ComplexSteerablePyramid::new(w, h, scales, k).unwrap();
+    let mut c = p.alloc_coeffs();
+    p.analyze(img, &mut c).unwrap();
+    let mut out = vec![0.0f32; w * h];
+    p.synthesize(&c, &mut out).unwrap();
+    rel_l2(&out, img)
+}
+
+#[test]
+fn reconstruction_is_tight() {
+    let cases = [
+        (96, 64, 4, 2),
+        (100, 75, 4, 2),
+        (64, 64, 4, 4),
+        (100, 75, 3, 3),
+        (33, 17, 3, 1),
+        (256, 256, 5, 2),
+    ];
+    for (i, &(w, h, s, k)) in cases.iter().enumerate() {
+        for (j, kind) in [Texture::BandLimited, Texture::Natural]
+            .into_iter()
+            .enumerate()
+        {
+            let img = texture(w, h, 7 + i as u64 * 10 + j as u64, kind, 0.0, 0.0);
+            let e = roundtrip(w, h, s, k, &img);
+            println!("CSP reconstruction {w}x{h} S={s} K={k} {kind:?}: rel L2 error {e:.2e}");
+            assert!(e < 1e-4, "{w}x{h} S={s} K={k} {kind:?}: {e}");
+        }
+        let img = noise(w * h, 99 + i as u64);
+        let e = roundtrip(w, h, s, k, &img);
+        println!("CSP reconstruction {w}x{h} S={s} K={k} white noise: rel L2 error {e:.2e}");
+        assert!(e < 1e-4, "{w}x{h} noise: {e}");
+    }
+}
+
+#[test]
+fn tiny_and_odd_sizes_do_not_panic_and_reconstruct() {
+    for &(w, h) in &[(1, 1), (3, 7), (1, 5), (5, 1), (2, 2), (2, 3), (7, 3)] {
+        for s in [1, 4, MAX_SCALES] {
+            for k in [1, 2, 5] {
+                let img = noise(w * h, (w * 31 + h) as u64);
+                let e = roundtrip(w, h, s, k, &img);
+                assert!(e < 1e-4, "{w}x{h} S={s} K={k}: {e}");
+            }
+        }
+    }
+}
+
+#[test]
+fn bad_arguments_are_errors() {
+    assert!(matches!(
+        ComplexSteerablePyramid::new(0, 5, 4, 2),
+        Err(PyramidError::InvalidSize { .. })
+    ));
+    assert!(matches!(
+        ComplexSteerablePyramid::new(5, 0, 4, 2),
+        Err(PyramidError::InvalidSize { .. })
+    ));
+    assert!(matches!(
+        ComplexSteerablePyramid::new(usize::MAX, 2, 4, 2),
+        Err(PyramidError::InvalidSize { .. })
+    ));
+    assert_eq!(
+        ComplexSteerablePyramid::new(8, 8, 0, 2).unwrap_err(),
+        PyramidError::InvalidScales(0)
+    );
+    assert_eq!(
+        ComplexSteerablePyramid::new(8, 8, 2, 0).unwrap_err(),
+        PyramidError::InvalidOrientations(0)
+    );
+    let mut p = ComplexSteerablePyramid::new(8, 6, 2, 2).unwrap();
+    let mut c = p.alloc_coeffs();
+    assert_eq!(
+        p.analyze(&[0.0; 47], &mut c).unwrap_err(),
+        PyramidError::LengthMismatch {
+            expected: 48,
+            got: 47
+        }
+    );
+    let other = ComplexSteerablePyramid::new(6, 8, 2, 2).unwrap();
+    let mut c2 = other.alloc_coeffs();
+    assert_eq!(
+        p.analyze(&[0.0; 48], &mut c2).unwrap_err(),
+        PyramidError::LayoutMismatch
+    );
+    let mut out = vec![0.0; 10];
+    assert!(p.synthesize(&c, &mut out).is_err());
+    p.analyze(&[1.0; 48], &mut c).unwrap();
+    let mut a = vec![0.0; 3];
+    assert!(c.amplitude_into(0, &mut a).is_err());
+    assert!(c.phase_into(99, &mut a).is_err());
+    assert!(c.band(99).is_none());
+    assert_eq!(c.band_index(1, 1), Some(3));
+    assert_eq!(c.band_index(2, 0), None);
+}
+
+#[test]
+fn tight_frame_identity() {
+    for &(w, h) in &[(16, 16), (33, 17), (100, 75), (64, 48), (1, 1), (2, 5)] {
+        for k in 1..=4 {
+            let p = ComplexSteerablePyramid::new(w, h, 4, k).unwrap();
+            let r = p.tight_frame_response();
+            let worst = r.iter().map(|v| (v - 1.0).abs()).fold(0.0, f64::max);
+            assert!(worst < 2e-6, "{w}x{h} K={k}: max |sum - 1| = {worst}");
+        }
+    }
+    // The band masks alone are not trivially 1: the high-pass residual
+    // and the bands overlap in the transition r in [1/2, 1].
+    let p = ComplexSteerablePyramid::new(64, 64, 4, 2).unwrap();
+    assert!(p.hi_mask.iter().any(|&m| m > 0.1 && m < 0.9));
+}
+
+// ----- slow reference: direct DFT, masks from independent formulas -----
+
+struct RefCsp {
+    bands: Vec<Vec<Complex64>>,
+    highpass: Vec<f64>,
+    lowpass: Vec<f64>,
+}
+
+fn ref_signed(i: usize, n: usize) -> i64 {
+    // Signed index by the "centred crop" rule: [-floor(n/2), ceil(n/2)-1].
+    let half_up = n.div_ceil(2) as i64;
+    let i = i as i64;
+    if i < half_up {
+        i
+    } else {
+        i - n as i64
+    }
+}
+
+/// (hi, lo) of a raised cosine whose transition spans `[edge/2, edge]`.
+fn ref_pair(r: f64, edge: f64) -> (f64, f64) {
+    let hi = if r >= edge {
+        1.0
+    } else if r <= edge / 2.0 {
+        0.0
+    } else {
+        (std::f64::consts::FRAC_PI_2 * (edge / r).log2()).cos()
+    };
+    (hi, (1.0 - hi * hi).max(0.0).sqrt())
+}
+
+fn ref_angular(ux: f64, uy: f64, b: usize, k: usize) -> f64 {
+    use std::f64::consts::PI;
+    if ux == 0.0 && uy == 0.0 {
+        return 0.0;
+    }
+    let theta = PI * b as f64 / k as f64;
+    let mut a = uy.atan2(ux) - theta;
+    while a > PI {
+        a -= 2.0 * PI;
+    }
+    while a <= -PI {
+        a += 2.0 * PI;
+    }
+    let n = k - 1;
+    let fact = |m: usize| (1..=m).map(|i| i as f64).product::<f64>();
+    let c = 2f64.powi(2 * n as i32) * fact(n).powi(2) / (k as f64 * fact(2 * n));
+    if a.abs() < PI / 2.0 - 1e-12 {
+        2.0 * c.sqrt() * a.cos().powi(n as i32)
+    } else {
+        0.0
+    }
+}
+
+fn reference_csp(img: &[f32], w: usize, h: usize, scales: usize, k: usize) -> RefCsp {
+    use std::f64::consts::PI;
+    let e = |num: i64, pos: usize, n: usize, sign: f64| {
+        Complex64::from_polar(
+            1.0,
+            sign * 2.0 * PI * (num as f64) * (pos as f64) / n as f64,
+        )
+    };
+    // Direct DFT of the image, indexed by storage index (kx mod w).
+    let mut f = vec![Complex64::default(); w * h];
+    for ky in 0..h {
+        for kx in 0..w {
+            let mut acc = Complex64::default();
+            for y in 0..h {
+                for x in 0..w {
+                    acc += f64::from(img[y * w + x])
+                        * e(kx as i64, x, w, -1.0)
+                        * e(ky as i64, y, h, -1.0);
+                }
+            }
+            f[ky * w + kx] = acc;
+        }
+    }
+    let at = |kx: i64, ky: i64| {
+        f[ky.rem_euclid(h as i64) as usize * w + kx.rem_euclid(w as i64) as usize]
+    };
+    let norm = 1.0 / (w * h) as f64;
+    // Inverse direct DFT of a masked crop onto a gw x gh grid.
+    let synth = |gw: usize, gh: usize, mask: &dyn Fn(f64, f64) -> f64| -> Vec<Complex64> {
+        let mut out = vec![Complex64::default(); gw * gh];
+        for yp in 0..gh {
+            for xp in 0..gw {
+                let mut acc = Complex64::default();
+                for j in 0..gh {
+                    let ky = ref_signed(j, gh);
+                    for i in 0..gw {
+                        let kx = ref_signed(i, gw);
+                        let ux = 2.0 * kx as f64 / w as f64;
+                        let uy = 2.0 * ky as f64 / h as f64;
+                        let m = mask(ux, uy);
+                        if m != 0.0 {
+                            acc += at(kx, ky) * m * e(kx, xp, gw, 1.0) * e(ky, yp, gh, 1.0);
+                        }
+                    }
+                }
+                out[yp * gw + xp] = acc * norm;
+            }
+        }
+        out
+    };
+    let lowchain = |r: f64, s: usize| -> f64 {
+        // L0 (edge 1), then the low parts of scales 0..s (edges 2^-(j+1)).
+        let mut v = ref_pair(r, 1.0).1;
+        for j in 0..s {
+            v *= ref_pair(r, 0.5f64.powi(j as i32 + 1)).1;
+        }
+        v
+    };
+    let mut bands = Vec::new();
+    let (mut gw, mut gh) = (w, h);
+    for s in 0..scales {
+        for b in 0..k {
+            let mask = |ux: f64, uy: f64| {
+                let r = ux.hypot(uy);
+                lowchain(r, s)
+                    * ref_pair(r, 0.5f64.powi(s as i32 + 1)).0
+                    * ref_angular(ux, uy, b, k)
+            };
+            bands.push(synth(gw, gh, &mask));
+        }
+        gw = gw.div_ceil(2);
+        gh = gh.div_ceil(2);
+    }
+    let lowpass = synth(gw, gh, &|ux: f64, uy: f64| lowchain(ux.hypot(uy), scales))
+        .iter()
+        .map(|c| c.re)
+        .collect();
+    let highpass = synth(w, h, &|ux: f64, uy: f64| ref_pair(ux.hypot(uy), 1.0).0)
+        .iter()
+        .map(|c| c.re)
+        .collect();
+    RefCsp {
+        bands,
+        highpass,
+        lowpass,
+    }
+}
+
+fn max_abs_err<A: Copy, B: Copy>(
+    a: &[A],
+    b: &[B],
+    d: impl Fn(A, B) -> f64,
+    m: impl Fn(B) -> f64,
+) -> (f64, f64) {
+    let err = a.iter().zip(b).map(|(x, y)| d(*x, *y)).fold(0.0, f64::max);
+    let mag = b.iter().map(|y| m(*y)).fold(0.0, f64::max);
+    (err, mag)
+}
+
+#[test]
+fn fast_path_matches_direct_dft_reference() {
+    for &(w, h, s, k, seed) in &[
+        (16, 16, 3, 2, 1u64),
+        (32, 24, 3, 4, 2),
+        (15, 9, 2, 2, 3),
+        (7, 12, 3, 3, 4),
+    ] {
+        let img = noise(w * h, seed);
+        let r = reference_csp(&img, w, h, s, k);
+        let mut p = ComplexSteerablePyramid::new(w, h, s, k).unwrap();
+        let mut c = p.alloc_coeffs();
+        p.analyze(&img, &mut c).unwrap();
+        assert_eq!(c.num_bands(), r.bands.len());
+        let mut nonempty = 0;
+        for (i, (band, rb)) in c.bands().iter().zip(&r.bands).enumerate() {
+            assert_eq!(band.data().len(), rb.len());
+            let (err, mag) = max_abs_err(
+                band.data(),
+                rb,
+                |a, b| (Complex64::new(a.re.into(), a.im.into()) - b).norm(),
+                |b| b.norm(),
+            );
+            // Some coarse bands of tiny grids are legitimately empty
+            // (e.g. a 2-pixel-wide grid has no positive x frequency).
+            nonempty += usize::from(mag > 1e-3);
+            assert!(
+                err <= 1e-4 * mag + 1e-7,
+                "{w}x{h} band {i}: err {err:e} vs max {mag:e}"
+            );
+        }
+        assert!(
+            nonempty * 4 >= c.num_bands() * 3,
+            "{w}x{h}: {nonempty} non-empty bands"
+        );
+        let (err, mag) = max_abs_err(
+            c.highpass(),
+            &r.highpass,
+            |a, b| (f64::from(a) - b).abs(),
+            f64::abs,
+        );
+        assert!(err <= 1e-4 * mag, "{w}x{h} highpass: {err:e} vs {mag:e}");
+        let (err, mag) = max_abs_err(
+            c.lowpass(),
+            &r.lowpass,
+            |a, b| (f64::from(a) - b).abs(),
+            f64::abs,
+        );
+        assert!(
+            err <= 1e-4 * mag.max(1e-6),
+            "{w}x{h} lowpass: {err:e} vs {mag:e}"
+        );
+    }
+}
+
+#[test]
+fn band_metadata() {
+    let p = ComplexSteerablePyramid::new(100, 75, 4, 2).unwrap();
+    let c = p.alloc_coeffs();
+    let sizes: Vec<(usize, usize)> = c.bands().iter().map(|b| (b.width(), b.height())).collect();
+    assert_eq!(
+        sizes,
+        vec![
+            (100, 75),
+            (100, 75),
+            (50, 38),
+            (50, 38),
+            (25, 19),
+            (25, 19),
+            (13, 10),
+            (13, 10)
+        ]
+    );
+    assert_eq!(c.lowpass_size(), (7, 5));
+    let b = c.band(3).unwrap();
+    assert_eq!(b.scale(), 1);
+    assert!((b.angle() - std::f32::consts::FRAC_PI_2).abs() < 1e-6);
+    assert!((b.info().step_x - 2.0).abs() < 1e-6);
+    assert!((b.info().centre_frequency - 0.125).abs() < 1e-7);
+}
+
+/// Per band: amplitude-weighted mean local phase change / (2π · the
+/// band's |coefficient|²-weighted mean x frequency) = shift estimate.
+pub(crate) struct ShiftRow {
+    pub band: usize,
+    pub angle_deg: f32,
+    pub fx: f64,
+    pub nominal_fx: f64,
+    pub d_est: f64,
+    /// Same estimate with plain `A(t0)²` weights.
+    pub d_est_a0: f64,
+}
+
+/// |B(k)|²-weighted mean x frequency (cycles per input pixel) of a
+/// complex band on its grid.
+fn mean_fx(data: &[Complex32], gw: usize, gh: usize, step_x: f64) -> f64 {
+    let mut spec: Vec<Complex64> = data
+        .iter()
+        .map(|c| Complex64::new(c.re.into(), c.im.into()))
+        .collect();
+    fft2(&mut spec, gw, gh, false);
+    let (mut num, mut den) = (0.0, 0.0);
+    for y in 0..gh {
+        for x in 0..gw {
+            let p = spec[y * gw + x].norm_sqr();
+            num += p * signed_index(x, gw) as f64 / gw as f64 / step_x;
+            den += p;
+        }
+    }
+    num / den
+}
+
+fn csp_shift_rows(w: usize, h: usize, k: usize, d: f64, seed: u64) -> Vec<ShiftRow> {
+    let img0 = texture(w, h, seed, Texture::Natural, 0.0, 0.0);
+    let img1 = texture(w, h, seed, Texture::Natural, d, 0.0);
+    let mut p = ComplexSteerablePyramid::new(w, h, 4, k).unwrap();
+    let (mut c0, mut c1) = (p.alloc_coeffs(), p.alloc_coeffs());
+    p.analyze(&img0, &mut c0).unwrap();
+    p.analyze(&img1, &mut c1).unwrap();
+    let mut rows = Vec::new();
+    for i in 0..c0.num_bands() {
+        let info = c0.band_info(i).unwrap().clone();
+        let n = info.len();
+        let (mut dphi, mut a0, mut a1) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        c1.phase_delta_into(&c0, i, &mut dphi).unwrap();
+        c0.amplitude_into(i, &mut a0).unwrap();
+        c1.amplitude_into(i, &mut a1).unwrap();
+        // A² weighting (Eq. 3.3), with A² taken as A(t0)·A(t) so that the
+        // estimate is symmetric in the two frames.
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        let (mut num0, mut den0) = (0.0f64, 0.0f64);
+        for j in 0..n {
+            let wgt = f64::from(a0[j]) * f64::from(a1[j]);
+            num += wgt * f64::from(dphi[j]);
+            den += wgt;
+            let w0 = f64::from(a0[j]).powi(2);
+            num0 += w0 * f64::from(dphi[j]);
+            den0 += w0;
+        }
+        let fx = mean_fx(
+            c0.band(i).unwrap().data(),
+            info.width,
+            info.height,
+            info.step_x.into(),
+        );
+        let mean_dphi = num / den;
+        rows.push(ShiftRow {
+            band: i,
+            angle_deg: info.angle.to_degrees(),
+            fx,
+            nominal_fx: f64::from(info.centre_frequency) * f64::from(info.angle).cos(),
+            d_est: -mean_dphi / (2.0 * std::f64::consts::PI * fx),
+            d_est_a0: -(num0 / den0) / (2.0 * std::f64::consts::PI * fx),
+        });
+    }
+    rows
+}
+
+#[test]
+fn local_phase_tracks_subpixel_translation() {
+    for &(w, h, k) in &[(128, 128, 2), (128, 128, 4), (100, 75, 2)] {
+        for &d in &[0.05, 0.2, 0.5] {
+            let rows = csp_shift_rows(w, h, k, d, 1234);
+            let mut tested = 0;
+            for r in &rows {
+                let has_x = r.fx.abs() > 0.3 * r.nominal_fx.abs().max(0.25 * 0.25f64.powi(3));
+                let err = r.d_est / d - 1.0;
+                let err0 = r.d_est_a0 / d - 1.0;
+                println!(
+                    "CSP {w}x{h} K={k} d={d}: band {} ({:5.1} deg) mean fx {:.4} c/px (f_c cos θ = {:.4}) -> d_est {:.4} ({:+.3}%), A0²-weighted {:+.3}%",
+                    r.band,
+                    r.angle_deg,
+                    r.fx,
+                    r.nominal_fx,
+                    r.d_est,
+                    100.0 * err,
+                    100.0 * err0
+                );
+                if has_x && r.angle_deg.to_radians().cos().abs() > 0.1 {
+                    tested += 1;
+                    assert!(
+                        err.abs() < 0.02,
+                        "{w}x{h} K={k} d={d} band {}: {:+.3}%",
+                        r.band,
+                        100.0 * err
+                    );
+                    assert!(
+                        err0.abs() < 0.02,
+                        "{w}x{h} K={k} d={d} band {} (A0²): {:+.3}%",
+                        r.band,
+                        100.0 * err0
+                    );
+                }
+            }
+            assert!(tested >= 4, "too few bands tested: {tested}");
+        }
+    }
+}
+
+#[test]
+fn analyze_and_synthesize_allocate_nothing() {
+    let (w, h) = (100, 75);
+    let img = texture(w, h, 5, Texture::Natural, 0.0, 0.0);
+    let mut p = ComplexSteerablePyramid::new(w, h, 4, 2).unwrap();
+    let mut c = p.alloc_coeffs();
+    let mut out = vec![0.0f32; w * h];
+    let caps: Vec<usize> = c.bands().iter().map(|b| b.data.capacity()).collect();
+    p.analyze(&img, &mut c).unwrap();
+    p.synthesize(&c, &mut out).unwrap();
+    let before = alloc_count::allocations();
+    for _ in 0..5 {
+        p.analyze(&img, &mut c).unwrap();
+        p.synthesize(&c, &mut out).unwrap();
+    }
+    let after = alloc_count::allocations();
+    assert_eq!(after - before, 0, "allocations per call");
+    let caps2: Vec<usize> = c.bands().iter().map(|b| b.data.capacity()).collect();
+    assert_eq!(caps, caps2);
+}
+
+#[test]
+fn speed_report() {
+    let (w, h) = (256, 256);
+    let img = texture(w, h, 11, Texture::Natural, 0.0, 0.0);
+    let mut p = ComplexSteerablePyramid::new(w, h, 4, 2).unwrap();
+    let mut c = p.alloc_coeffs();
+    let mut out = vec![0.0f32; w * h];
+    let iters = if cfg!(debug_assertions) { 1 } else { 40 };
+    p.analyze(&img, &mut c).unwrap();
+    // Best of 9 batches: the machine is shared, the minimum is the cost.
+    let best = |f: &mut dyn FnMut()| {
+        (0..9)
+            .map(|_| {
+                let t = std::time::Instant::now();
+                for _ in 0..iters {
+                    f();
+                }
+                t.elapsed().as_secs_f64() / iters as f64
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let ta = best(&mut || p.analyze(&img, &mut c).unwrap());
+    let ts = best(&mut || p.synthesize(&c, &mut out).unwrap());
+    let mpix = (w * h) as f64 / 1e6;
+    println!(
+        "SPEED CSP 256x256 (4 scales, 2 orientations): analyze {:.3} ms = {:.1} Mpix/s, synthesize {:.3} ms = {:.1} Mpix/s{}",
+        ta * 1e3,
+        mpix / ta,
+        ts * 1e3,
+        mpix / ts,
+        if cfg!(debug_assertions) { " (debug build)" } else { "" }
+    );
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+    #[test]
+    fn any_size_roundtrips(w in 1usize..40, h in 1usize..40, s in 1usize..7, k in 1usize..7, seed in 0u64..1000) {
+        let img = noise(w * h, seed);
+        let e = roundtrip(w, h, s, k, &img);
+        prop_assert!(e < 1e-4, "{}x{} S={} K={}: {}", w, h, s, k, e);
+    }
+}
