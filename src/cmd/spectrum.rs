@@ -126,13 +126,29 @@ fn summary(r: &SpectrumReport) {
         short(r.sample_rate_hz)
     );
     for p in peaks.iter().take(5) {
+        // A frequency uncertainty wider than the band says the fit failed.
+        let f_std = if p.frequency_std_hz.is_finite() && p.frequency_std_hz < r.sample_rate_hz / 2.0
+        {
+            format!("± {}", super::num(p.frequency_std_hz, 3))
+        } else {
+            "(uncertainty n/a)".into()
+        };
+        let damping = if p.damping_method.starts_with("resolution_limit") {
+            format!(
+                "damping < {} (peak narrower than the bins: record longer to resolve it)",
+                super::num(p.damping_ratio, 4)
+            )
+        } else {
+            format!(
+                "damping {} ± {} ({})",
+                super::num(p.damping_ratio, 4),
+                super::num(p.damping_ratio_std, 4),
+                p.damping_method
+            )
+        };
         eprintln!(
-            "  {:>10} ± {} Hz  damping {} ± {} ({})  {} dB above its surroundings",
+            "  {:>10} {f_std} Hz  {damping}  {} dB above its surroundings",
             super::num(p.frequency_hz, 3),
-            super::num(p.frequency_std_hz, 3),
-            super::num(p.damping_ratio, 4),
-            super::num(p.damping_ratio_std, 4),
-            p.damping_method,
             super::num(p.prominence_db, 1)
         );
     }
