@@ -127,8 +127,7 @@ fn summary(r: &SpectrumReport) {
     );
     for p in peaks.iter().take(5) {
         // A frequency uncertainty wider than the band says the fit failed.
-        let f_std = if p.frequency_std_hz.is_finite() && p.frequency_std_hz < r.sample_rate_hz / 2.0
-        {
+        let f_std = if p.frequency_std_hz > 0.0 && p.frequency_std_hz < r.sample_rate_hz / 2.0 {
             format!("± {}", super::num(p.frequency_std_hz, 3))
         } else {
             "(uncertainty n/a)".into()
