@@ -168,7 +168,8 @@ impl Bar {
                     if runs > 0 {
                         bar.set_position(p.frames);
                     }
-                    std::thread::sleep(Duration::from_millis(100));
+                    // Woken at once by Drop, so a short run does not wait.
+                    std::thread::park_timeout(Duration::from_millis(100));
                 }
             })
         };
@@ -189,6 +190,7 @@ impl Drop for Bar {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         if let Some(t) = self.thread.take() {
+            t.thread().unpark();
             let _ = t.join();
         }
         self.bar.finish_and_clear();
