@@ -18,8 +18,6 @@ use std::time::{Duration, Instant};
 /// Options of one run.
 #[derive(Clone, Debug, Default)]
 pub struct RunOptions {
-    /// Show a progress bar for sources of known length (on a terminal).
-    pub progress: bool,
     /// Count the frames the sources give, for a caller's own progress
     /// display (read it from another thread while the run goes on).
     pub counter: Option<Arc<SourceProgress>>,
@@ -261,7 +259,6 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
         let errors = Arc::clone(&errors);
         let counters = Arc::clone(&counters[i]);
         let id = ids[i].clone();
-        let progress = opts.progress;
         let counter = opts.counter.clone();
         let h = std::thread::Builder::new()
             .name(format!("stage-{id}"))
@@ -269,7 +266,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
                 let emitter = Emitter::new(outs, Arc::clone(&ctl), Arc::clone(&counters.items_out));
                 let res = match node {
                     Node::Source(src) => {
-                        run_source(src, emitter, &ctl, &counters, progress, counter.as_deref())
+                        run_source(src, emitter, &ctl, &counters, counter.as_deref())
                     }
                     Node::Stage(st) => run_stage(st, emitter, ins, &ctl, &counters),
                 };
@@ -358,7 +355,6 @@ fn run_source(
     mut out: Emitter,
     control: &Control,
     c: &Counters,
-    progress: bool,
     counter: Option<&SourceProgress>,
 ) -> Result<(), StageError> {
     if let Some(k) = counter {
@@ -369,28 +365,11 @@ fn run_source(
             None => k.unknown.store(true, Ordering::Relaxed),
         }
     }
-    let bar = match (progress, src.total_hint()) {
-        (true, Some(total)) => {
-            let bar = indicatif::ProgressBar::new(total);
-            let rate = |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
-                let _ = write!(w, "{}/s", thousands(s.per_sec().round() as u64));
-            };
-            bar.set_style(
-                indicatif::ProgressStyle::with_template(
-                    "{bar:40} {human_pos}/{human_len} frames  {rate}  eta {eta}",
-                )
-                .map(|s| s.with_key("rate", rate))
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-            );
-            Some(bar)
-        }
-        _ => None,
-    };
     let ctx = SourceCtx {
         control,
         dropped: &c.source_dropped,
     };
-    let result = loop {
+    loop {
         if control.sources_should_stop() {
             break Ok(());
         }
@@ -401,9 +380,6 @@ fn run_source(
         match item {
             Ok(Some(item)) => match out.emit(item) {
                 Ok(()) => {
-                    if let Some(b) = &bar {
-                        b.inc(1);
-                    }
                     if let Some(k) = counter {
                         k.frames.fetch_add(1, Ordering::Relaxed);
                     }
@@ -413,11 +389,7 @@ fn run_source(
             Ok(None) => break Ok(()),
             Err(e) => break Err(e),
         }
-    };
-    if let Some(b) = bar {
-        b.finish_and_clear();
     }
-    result
 }
 
 fn run_stage(

@@ -439,17 +439,10 @@ pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> R
     if let Ok(mut g) = CURRENT.lock() {
         *g = Some(Arc::clone(&control));
     }
-    let report = engine::run(
-        graph,
-        Arc::clone(&control),
-        &engine::RunOptions {
-            progress: false,
-            counter,
-        },
-    )
-    .map_err(|e| {
-        anyhow::Error::new(e).context(format!("{}: cannot start the pipeline", decl.file))
-    });
+    let report =
+        engine::run(graph, Arc::clone(&control), &engine::RunOptions { counter }).map_err(|e| {
+            anyhow::Error::new(e).context(format!("{}: cannot start the pipeline", decl.file))
+        });
     if let Ok(mut g) = CURRENT.lock() {
         *g = None;
     }
