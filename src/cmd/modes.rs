@@ -1,9 +1,10 @@
 //! `vibroscope modes`.
 
+use super::VideoArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use vibroscope::modes::{self, ModesOptions, Motion};
-use vibroscope::pipeline::{Roi, RunSettings};
+use vibroscope::pipeline::RunSettings;
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 enum MotionArg {
@@ -22,8 +23,9 @@ enum MotionArg {
 /// slice, phase as hue and amplitude as brightness; optionally the
 /// complex image as .npy.
 #[derive(clap::Args)]
-#[command(after_help = "Example:\n  \
-    vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --npy e2.npy")]
+#[command(after_help = "Examples:\n  \
+    vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --npy e2.npy\n  \
+    vibroscope modes beam.y4m --at 58.3 --mask beam-mask.png --pyramid riesz -o m.png")]
 pub struct Args {
     /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
     video: PathBuf,
@@ -37,12 +39,8 @@ pub struct Args {
     /// Also write the complex image (complex64, shape (H, W), pixels of motion).
     #[arg(long, value_name = "OUT.npy")]
     npy: Option<PathBuf>,
-    /// Capture frame rate in Hz (containers often state the playback rate).
-    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
-    fps: Option<f64>,
-    /// Region: X,Y,W,H in pixels (the image covers it; default: the whole frame).
-    #[arg(long, value_name = "X,Y,W,H", value_parser = super::parse_roi)]
-    roi: Option<Roi>,
+    #[command(flatten)]
+    video_args: VideoArgs,
     /// σ_b of the Gaussian blur, input pixels (0 = none).
     #[arg(long, value_name = "PX", allow_negative_numbers = true)]
     sigma: Option<f64>,
@@ -71,8 +69,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         at_hz: a.at_hz,
         output: a.output,
         npy: a.npy,
-        fps: a.fps,
-        roi: a.roi,
+        fps: a.video_args.fps,
+        region: a.video_args.region(),
         sigma: a.sigma,
         motion: match a.motion {
             MotionArg::X => Motion::X,

@@ -5,14 +5,19 @@
 //!
 //! # What is computed
 //!
-//! Each frame goes through a complex steerable pyramid (two orientations:
-//! band 0 keeps frequencies along x and so sees x motion, band 1 along y).
+//! Each frame goes through a complex steerable pyramid or a Riesz pyramid
+//! ([`PyramidKind`]; two orientations: band 0 sees x motion, band 1 y).
 //! At one scale `s` and per band pixel, the local displacement in input
-//! pixels is u = -Δφ / (2π f) (Eq. 3.2 divided by the local spatial
-//! frequency): Δφ is the wrapped phase change against the first frame,
-//! f the band's A²-weighted mean spatial frequency along its axis, measured
-//! on the first frame as the argument of Σ c(p + 1)·conj(c(p)) (the lag-1
-//! autocorrelation along the axis, which weighs each pixel by A²).
+//! pixels is u = Δφ / g (Eq. 3.2 divided by the phase change per pixel of
+//! motion): Δφ is the wrapped phase change against the first frame, g the
+//! band's A²-weighted phase change for the first frame moved by one input
+//! pixel along the band's axis (about -2π f, f the local spatial frequency),
+//! measured once by analysing that shifted copy: arg Σ A² e^{iΔφ₁} over the
+//! band, which works the same for both pyramids.
+//!
+//! An optional mask ([`ModalImager::set_mask`]) limits the object: band
+//! pixels whose input position is outside it get no weight (in the
+//! frequency measurement and in the image), and the image is zero there.
 //!
 //! Per pixel the exact discrete-time Fourier transform of the tapered,
 //! mean-removed displacement is accumulated *at the requested frequency
@@ -38,7 +43,10 @@
 //! Memory: 7 f64 per band pixel and orientation; the pyramid's buffers.
 //! Nothing is allocated per frame.
 
-use crate::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError};
+use crate::pyramid::{
+    BandInfo, ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError, PyramidKind,
+};
+use crate::riesz::{RieszCoeffs, RieszPyramid};
 use rustfft::num_complex::{Complex32, Complex64};
 use std::f64::consts::TAU;
 
@@ -74,6 +82,8 @@ pub struct ModalConfig {
     pub motion: Motion,
     /// Divide by the blurred weights (ch. 3.5.2); otherwise by their maximum.
     pub normalize: bool,
+    /// The pyramid that measures local phase.
+    pub pyramid: PyramidKind,
 }
 
 /// Errors of the modal imager.
@@ -87,6 +97,127 @@ pub enum ModalError {
     TooShort(u64),
     #[error("frame times go backwards ({0} ns after {1} ns)")]
     TimeOrder(i64, i64),
+    #[error("the mask has {got} pixels, the frames {expected}")]
+    MaskSize { expected: usize, got: usize },
+    #[error("the mask selects no pixel")]
+    EmptyMask,
+    #[error("the mask must be set before the first frame")]
+    MaskTooLate,
+}
+
+/// A pyramid the imager analyses frames with.
+trait Analyze: Send {
+    type C: PhaseBands + Clone + Send;
+    fn infos(&self) -> &[BandInfo];
+    fn alloc(&self) -> Self::C;
+    fn run(&mut self, frame: &[f32], out: &mut Self::C) -> Result<(), PyramidError>;
+    /// Per band pixel, the share of the local energy oriented along the
+    /// band's axis (the pyramid's own orientation selectivity: 1 for the
+    /// steerable pyramid, whose bands are oriented filters).
+    fn orientation_share(_c: &Self::C, _band: usize, out: &mut [f32]) {
+        out.fill(1.0);
+    }
+}
+
+impl Analyze for ComplexSteerablePyramid {
+    type C = PyramidCoeffs;
+    fn infos(&self) -> &[BandInfo] {
+        self.band_infos()
+    }
+    fn alloc(&self) -> PyramidCoeffs {
+        self.alloc_coeffs()
+    }
+    fn run(&mut self, frame: &[f32], out: &mut PyramidCoeffs) -> Result<(), PyramidError> {
+        self.analyze(frame, out)
+    }
+}
+
+impl Analyze for RieszPyramid {
+    type C = RieszCoeffs;
+    fn infos(&self) -> &[BandInfo] {
+        self.band_infos()
+    }
+    fn alloc(&self) -> RieszCoeffs {
+        self.alloc_coeffs()
+    }
+    fn run(&mut self, frame: &[f32], out: &mut RieszCoeffs) -> Result<(), PyramidError> {
+        self.analyze(frame, out)
+    }
+    /// The Riesz pyramid's bands share one amplitude over all orientations:
+    /// cos²(θ - θk) = Rk² / (R1² + R2²), Rk the Riesz pair projected on the
+    /// band's axis (θ0 = 0: R1; θ1 = π/2: R2), so that texture oriented
+    /// across the axis, which does not see motion along it, gets no weight.
+    fn orientation_share(c: &RieszCoeffs, band: usize, out: &mut [f32]) {
+        let Some(level) = c.level(band / 2) else {
+            return out.fill(1.0);
+        };
+        let along_y = band % 2 == 1;
+        for ((o, &r1), &r2) in out.iter_mut().zip(level.r1()).zip(level.r2()) {
+            let e = r1 * r1 + r2 * r2;
+            let k = if along_y { r2 } else { r1 };
+            *o = if e > 0.0 { k * k / e } else { 0.5 };
+        }
+    }
+}
+
+/// A pyramid, the current frame's coefficients and the reference's.
+struct Analysis<P: Analyze> {
+    pyr: P,
+    coeffs: P::C,
+    reference: Option<P::C>,
+}
+
+impl<P: Analyze + 'static> Analysis<P> {
+    /// The analysis behind the imager's interface, and the shape of `band`.
+    fn boxed(pyr: P, band: usize) -> (Box<dyn Phases>, BandInfo) {
+        let info = pyr.infos()[band].clone();
+        let coeffs = pyr.alloc();
+        let a = Analysis {
+            pyr,
+            coeffs,
+            reference: None,
+        };
+        (Box::new(a), info)
+    }
+}
+
+/// What the imager needs of a pyramid, whichever it is.
+trait Phases: Send {
+    /// Analyses a frame into the current coefficients.
+    fn analyze(&mut self, frame: &[f32]) -> Result<(), PyramidError>;
+    /// The current coefficients become the reference.
+    fn keep_reference(&mut self);
+    fn has_reference(&self) -> bool;
+    /// Wrapped phase change of `band` from the reference to the current frame.
+    fn delta(&self, band: usize, out: &mut [f32]) -> Result<(), PyramidError>;
+    /// Amplitude of `band` in the current frame.
+    fn amplitude(&self, band: usize, out: &mut [f32]) -> Result<(), PyramidError>;
+    /// [`Analyze::orientation_share`] of the current frame.
+    fn orientation_share(&self, band: usize, out: &mut [f32]);
+}
+
+impl<P: Analyze> Phases for Analysis<P> {
+    fn analyze(&mut self, frame: &[f32]) -> Result<(), PyramidError> {
+        self.pyr.run(frame, &mut self.coeffs)
+    }
+    fn keep_reference(&mut self) {
+        self.reference = Some(self.coeffs.clone());
+    }
+    fn has_reference(&self) -> bool {
+        self.reference.is_some()
+    }
+    fn delta(&self, band: usize, out: &mut [f32]) -> Result<(), PyramidError> {
+        match &self.reference {
+            Some(r) => self.coeffs.phase_delta_into(r, band, out),
+            None => Err(PyramidError::LayoutMismatch),
+        }
+    }
+    fn amplitude(&self, band: usize, out: &mut [f32]) -> Result<(), PyramidError> {
+        self.coeffs.amplitude_into(band, out)
+    }
+    fn orientation_share(&self, band: usize, out: &mut [f32]) {
+        P::orientation_share(&self.coeffs, band, out)
+    }
 }
 
 /// One orientation band's accumulators on the band grid.
@@ -108,14 +239,19 @@ pub struct ModalImager {
     cfg: ModalConfig,
     width: usize,
     height: usize,
-    pyr: ComplexSteerablePyramid,
-    coeffs: PyramidCoeffs,
-    reference: Option<PyramidCoeffs>,
+    pyr: Box<dyn Phases>,
+    /// Input pixels inside the object (all when no mask is set).
+    inside: Option<Vec<bool>>,
+    /// Band pixels whose input position is inside the mask.
+    band_inside: Option<Vec<bool>>,
     delta: Vec<f32>,
     bands: Vec<BandAcc>,
     grid_w: usize,
     grid_h: usize,
     step: (f64, f64),
+    /// The scale's nominal frequency, cycles per input pixel: the fallback
+    /// when the texture gives no phase slope.
+    centre_frequency: f64,
     t0_ns: Option<i64>,
     last_ns: i64,
     frames: u64,
@@ -142,10 +278,17 @@ pub struct ModalImage {
 impl ModalImager {
     /// An imager for `width x height` frames.
     pub fn new(width: usize, height: usize, cfg: ModalConfig) -> Result<Self, ModalError> {
-        let mut pyr = ComplexSteerablePyramid::new(width, height, cfg.scale + 1, 2)?;
-        pyr.set_residuals(false);
-        let coeffs = pyr.alloc_coeffs();
-        let info = pyr.band_infos()[cfg.scale * 2].clone();
+        let band = cfg.scale * 2;
+        let (pyr, info) = match cfg.pyramid {
+            PyramidKind::Csp => {
+                let mut pyr = ComplexSteerablePyramid::new(width, height, cfg.scale + 1, 2)?;
+                pyr.set_residuals(false);
+                Analysis::boxed(pyr, band)
+            }
+            PyramidKind::Riesz => {
+                Analysis::boxed(RieszPyramid::new(width, height, cfg.scale + 1, 2)?, band)
+            }
+        };
         let n = info.len();
         let bands = cfg
             .motion
@@ -164,19 +307,54 @@ impl ModalImager {
             width,
             height,
             pyr,
-            coeffs,
-            reference: None,
+            inside: None,
+            band_inside: None,
             delta: vec![0.0; n],
             bands,
             grid_w: info.width,
             grid_h: info.height,
             step: (info.step_x as f64, info.step_y as f64),
+            centre_frequency: info.centre_frequency as f64,
             t0_ns: None,
             last_ns: 0,
             frames: 0,
             real_moments: [0.0; 3],
             moments: [Complex64::new(0.0, 0.0); 3],
         })
+    }
+
+    /// Limits the object to the input pixels where `inside` is true
+    /// (row-major `width x height`); call before the first frame.
+    pub fn set_mask(&mut self, inside: &[bool]) -> Result<(), ModalError> {
+        if self.frames > 0 {
+            return Err(ModalError::MaskTooLate);
+        }
+        if inside.len() != self.width * self.height {
+            return Err(ModalError::MaskSize {
+                expected: self.width * self.height,
+                got: inside.len(),
+            });
+        }
+        let (gw, gh) = (self.grid_w, self.grid_h);
+        let band: Vec<bool> = (0..gw * gh)
+            .map(|i| {
+                let (x, y) = self.band_to_input(i % gw, i / gw);
+                inside[y * self.width + x]
+            })
+            .collect();
+        if !band.iter().any(|&v| v) {
+            return Err(ModalError::EmptyMask);
+        }
+        self.inside = Some(inside.to_vec());
+        self.band_inside = Some(band);
+        Ok(())
+    }
+
+    /// The input pixel a band pixel sits on.
+    fn band_to_input(&self, bx: usize, by: usize) -> (usize, usize) {
+        let x = ((bx as f64 * self.step.0).round() as usize).min(self.width - 1);
+        let y = ((by as f64 * self.step.1).round() as usize).min(self.height - 1);
+        (x, y)
     }
 
     /// Frames accumulated so far.
@@ -195,24 +373,20 @@ impl ModalImager {
         if self.frames > 0 && t_ns < self.last_ns {
             return Err(ModalError::TimeOrder(t_ns, self.last_ns));
         }
-        self.pyr.analyze(frame, &mut self.coeffs)?;
+        self.pyr.analyze(frame)?;
         let t0 = *self.t0_ns.get_or_insert(t_ns);
         self.last_ns = t_ns;
         self.frames += 1;
-        if self.reference.is_none() {
-            self.set_reference()?;
+        if !self.pyr.has_reference() {
+            self.set_reference(frame)?;
             // Δφ = 0 on the reference frame: only the taper's sums move.
             self.add_moments(0.0);
             return Ok(());
         }
         let tau = (t_ns - t0) as f64 * 1e-9;
         let c = self.add_moments(tau);
-        let Some(reference) = &self.reference else {
-            return Ok(());
-        };
         for b in &mut self.bands {
-            self.coeffs
-                .phase_delta_into(reference, b.band, &mut self.delta)?;
+            self.pyr.delta(b.band, &mut self.delta)?;
             let k = b.px_per_rad;
             for ((a, s), &d) in b.acc.iter_mut().zip(b.sum.iter_mut()).zip(&self.delta) {
                 let u = (d * k) as f64;
@@ -239,41 +413,65 @@ impl ModalImager {
         c
     }
 
-    /// First frame: the reference phases, the A² weights and each band's
-    /// spatial frequency along its axis.
-    fn set_reference(&mut self) -> Result<(), ModalError> {
-        let (w, h) = (self.grid_w, self.grid_h);
+    /// First frame: the reference phases, the A² weights (times the
+    /// share of energy oriented along the band's axis; zero outside the
+    /// mask) and each band's phase change per pixel of motion along
+    /// its axis, from an analysis of the frame moved by one pixel.
+    fn set_reference(&mut self, frame: &[f32]) -> Result<(), ModalError> {
         for b in &mut self.bands {
-            self.coeffs.amplitude_into(b.band, &mut b.weight)?;
-            b.weight.iter_mut().for_each(|a| *a *= *a);
-            let Some(band) = self.coeffs.band(b.band) else {
-                continue;
-            };
-            let data = band.data();
-            let vertical = b.band % 2 == 1;
-            let (dx, dy, step) = if vertical {
-                (0, 1, self.step.1)
-            } else {
-                (1, 0, self.step.0)
-            };
-            let mut z = Complex64::new(0.0, 0.0);
-            for y in 0..h.saturating_sub(dy) {
-                for x in 0..w.saturating_sub(dx) {
-                    let p = data[y * w + x];
-                    let q = data[(y + dy) * w + x + dx];
-                    let v = q * p.conj();
-                    z += Complex64::new(v.re as f64, v.im as f64);
+            self.pyr.amplitude(b.band, &mut b.weight)?;
+            self.pyr.orientation_share(b.band, &mut self.delta);
+            b.weight
+                .iter_mut()
+                .zip(&self.delta)
+                .for_each(|(a, &s)| *a = *a * *a * s);
+            if let Some(inside) = &self.band_inside {
+                b.weight
+                    .iter_mut()
+                    .zip(inside)
+                    .filter(|(_, &i)| !i)
+                    .for_each(|(w, _)| *w = 0.0);
+            }
+        }
+        self.pyr.keep_reference();
+        let (w, h) = (self.width, self.height);
+        let mut moved = vec![0.0f32; w * h];
+        let (gw, gh) = (self.grid_w, self.grid_h);
+        for bi in 0..self.bands.len() {
+            let vertical = self.bands[bi].band % 2 == 1;
+            // The content moved by +1 pixel: moved(x) = frame(x - 1), the
+            // first column (row) repeated.
+            for y in 0..h {
+                for x in 0..w {
+                    let (sx, sy) = if vertical {
+                        (x, y.saturating_sub(1))
+                    } else {
+                        (x.saturating_sub(1), y)
+                    };
+                    moved[y * w + x] = frame[sy * w + sx];
                 }
             }
-            let measured = z.arg() / (TAU * step);
-            let f = if measured.is_finite() && measured > 1e-3 {
-                measured
+            self.pyr.analyze(&moved)?;
+            let b = &mut self.bands[bi];
+            self.pyr.delta(b.band, &mut self.delta)?;
+            // arg Σ A² e^{iΔφ}, skipping the band's first column (row),
+            // which sees the repeated edge.
+            let mut z = Complex64::new(0.0, 0.0);
+            for by in usize::from(vertical)..gh {
+                for bx in usize::from(!vertical)..gw {
+                    let p = by * gw + bx;
+                    z += Complex64::from_polar(b.weight[p] as f64, self.delta[p] as f64);
+                }
+            }
+            let g = z.arg();
+            let centre = -TAU * self.centre_frequency;
+            let g = if g.is_finite() && g < -1e-3 {
+                g
             } else {
-                band.info().centre_frequency as f64
+                centre
             };
-            b.px_per_rad = (-1.0 / (TAU * f)) as f32;
+            b.px_per_rad = (1.0 / g) as f32;
         }
-        self.reference = Some(self.coeffs.clone());
         Ok(())
     }
 
@@ -334,6 +532,11 @@ impl ModalImager {
         let mut confidence = Vec::with_capacity(fw * fh);
         for y in 0..fh {
             for x in 0..fw {
+                if self.inside.as_ref().is_some_and(|m| !m[y * fw + x]) {
+                    data.push(Complex32::new(0.0, 0.0));
+                    confidence.push(0.0);
+                    continue;
+                }
                 let (gx, gy) = (x as f64 / self.step.0, y as f64 / self.step.1);
                 let v = bilinear(&grid, w, h, gx, gy);
                 data.push(Complex32::new(v.re as f32, v.im as f32));

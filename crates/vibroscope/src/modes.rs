@@ -1,10 +1,11 @@
 //! A modal image of a recording at one frequency (thesis ch. 3.5, Eq.
-//! 3.18-3.19): the engine's `modes` sink fed by a file source.
+//! 3.18-3.19): the engine's `modes` sink fed by a file source, over a
+//! region or mask, with either pyramid.
 
 use crate::engine::config::{set_param, PipelineDecl};
 use crate::engine::RunReport;
 use crate::error::Result;
-use crate::pipeline::{self, by, int, path_value, Roi, RunSettings};
+use crate::pipeline::{self, by, int, path_value, Region, RunSettings};
 use serde::Serialize;
 use std::path::PathBuf;
 use toml::Value;
@@ -29,7 +30,8 @@ pub struct ModesOptions {
     /// Also the complex image as .npy.
     pub npy: Option<PathBuf>,
     pub fps: Option<f64>,
-    pub roi: Option<Roi>,
+    /// The object: a rectangle and/or a mask, and the pyramid.
+    pub region: Region,
     /// σ_b of the Gaussian blur, input pixels.
     pub sigma: Option<f64>,
     pub motion: Motion,
@@ -65,9 +67,6 @@ pub fn modes_pipeline(o: &ModesOptions) -> Result<PipelineDecl> {
     if let Some(n) = &o.npy {
         set_param(&mut st, "npy", path_value(n), by("--npy"));
     }
-    if let Some(r) = &o.roi {
-        set_param(&mut st, "roi", r.value(), by(&format!("--roi {r}")));
-    }
     if let Some(s) = o.sigma {
         set_param(&mut st, "sigma_px", Value::Float(s), by("--sigma"));
     }
@@ -92,6 +91,7 @@ pub fn modes_pipeline(o: &ModesOptions) -> Result<PipelineDecl> {
         );
     }
     decl.stages.push(st);
+    o.region.apply(&mut decl, "modes")?;
     Ok(decl)
 }
 

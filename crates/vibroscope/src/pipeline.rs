@@ -259,24 +259,9 @@ impl Roi {
     }
 }
 
-/// The pyramid of the local-phase stage.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Pyramid {
-    /// Complex steerable pyramid (quality).
-    #[default]
-    Csp,
-    /// Riesz pyramid (speed).
-    Riesz,
-}
-
-impl Pyramid {
-    pub fn name(self) -> &'static str {
-        match self {
-            Pyramid::Csp => "csp",
-            Pyramid::Riesz => "riesz",
-        }
-    }
-}
+/// The pyramid of the local-phase stage: complex steerable (quality) or
+/// Riesz (speed).
+pub use crate::math::pyramid::PyramidKind as Pyramid;
 
 /// Denoising after the high-pass.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

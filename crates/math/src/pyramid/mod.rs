@@ -15,6 +15,26 @@ pub mod riesz;
 pub use csp::{ComplexSteerablePyramid, CspBand, PyramidCoeffs};
 pub use riesz::{RieszCoeffs, RieszLevel, RieszPyramid};
 
+/// Which pyramid measures local phase: the complex steerable pyramid
+/// (quality, FFT-based) or the Riesz pyramid (speed, FFT-free).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PyramidKind {
+    #[default]
+    Csp,
+    Riesz,
+}
+
+impl PyramidKind {
+    /// The name used in pipelines and flags: `csp` or `riesz`.
+    pub fn name(self) -> &'static str {
+        match self {
+            PyramidKind::Csp => "csp",
+            PyramidKind::Riesz => "riesz",
+        }
+    }
+}
+
 /// Default number of octave scales.
 pub const DEFAULT_SCALES: usize = 4;
 /// Default number of orientations.

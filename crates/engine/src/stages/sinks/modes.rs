@@ -14,6 +14,8 @@
 //! path = "mode.png"
 //! npy = "mode.npy"      # optional
 //! roi = [0, 0, 200, 100] # optional
+//! mask = "strings.png"  # optional: pixels > 0 are the object (zero elsewhere)
+//! pyramid = "csp"       # or "riesz"
 //! sigma_px = 3.0        # σ_b of the blur, input pixels
 //! motion = "sum"        # "x", "y" or "sum"
 //! scale = 1             # pyramid scale (0 = finest, 4 px wavelength)
@@ -21,7 +23,8 @@
 //! normalize = true      # divide by the blurred weights (ch. 3.5.2)
 //! ```
 
-use crate::stages::transform::roi::{Roi, RoiParam};
+use crate::stages::transform::pyramid::PyramidKind;
+use crate::stages::transform::roi::{resolve_region, Mask, Roi, RoiParam};
 use crate::*;
 use image::ImageEncoder;
 use serde::Deserialize;
@@ -35,6 +38,8 @@ struct P {
     path: PathBuf,
     npy: Option<PathBuf>,
     roi: Option<RoiParam>,
+    mask: Option<PathBuf>,
+    pyramid: PyramidKind,
     sigma_px: f64,
     motion: Motion,
     scale: usize,
@@ -55,6 +60,8 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec::new("npy", ParamType::Path, Def::Optional)
         .doc("also write the complex image as .npy (complex64, pixels of motion)"),
     crate::stages::transform::reduce::ROI,
+    crate::stages::transform::roi::MASK,
+    crate::stages::transform::pyramid::PYRAMID,
     ParamSpec::new("sigma_px", ParamType::Float, Def::Float(DEFAULT_SIGMA_PX))
         .floats(0.0, 1000.0)
         .unit("px")
@@ -82,7 +89,7 @@ const PARAMS: &[ParamSpec] = &[
 
 pub const KIND: KindSpec = KindSpec {
     name: "modes",
-    summary: "modal image at freq_hz (Eq. 3.18-3.19): A²-weighted, blurred and normalised spectral-volume slice, as PNG (phase = hue) and .npy",
+    summary: "modal image at freq_hz (Eq. 3.18-3.19): A²-weighted, blurred and normalised spectral-volume slice of a region or mask, as PNG (phase = hue) and .npy",
     inputs: &[InPort::one(&[PortType::Frames])],
     outputs: NO_OUTPUTS,
     params: PARAMS,
@@ -91,16 +98,23 @@ pub const KIND: KindSpec = KindSpec {
         if let Some(r) = &v.roi {
             r.check().map_err(|m| p.error("roi", m))?;
         }
-        Ok(Box::new(ModesPlan(v)))
+        // Read once, here, so a bad mask is a configuration error.
+        let mask = match &v.mask {
+            Some(m) => Some((m.clone(), Mask::load(m).map_err(|e| p.error("mask", e))?)),
+            None => None,
+        };
+        Ok(Box::new(ModesPlan(v, mask)))
     },
 };
 
-struct ModesPlan(P);
+struct ModesPlan(P, Option<(PathBuf, Mask)>);
 
 impl Plan for ModesPlan {
     fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+        let ModesPlan(p, mask) = *self;
         Ok(Node::Stage(Box::new(Modes {
-            p: self.0,
+            p,
+            mask,
             imager: None,
             roi: None,
             buf: Vec::new(),
@@ -110,6 +124,8 @@ impl Plan for ModesPlan {
 
 struct Modes {
     p: P,
+    /// The mask until the first frame.
+    mask: Option<(PathBuf, Mask)>,
     imager: Option<ModalImager>,
     roi: Option<Roi>,
     buf: Vec<f32>,
@@ -136,15 +152,26 @@ impl Modes {
                 fps
             )));
         }
+        // The image covers the roi (or the frame), zero outside the mask;
+        // the mask must fit the frame and overlap the roi.
         let roi = Roi::resolve(self.p.roi.as_ref(), f.width(), f.height())?;
+        let (_, mask) =
+            resolve_region(self.p.roi.as_ref(), self.mask.take(), f.width(), f.height())?;
         let cfg = ModalConfig {
             freq_hz: self.p.freq_hz,
             scale: self.p.scale,
             sigma_px: self.p.sigma_px,
             motion: self.p.motion,
             normalize: self.p.normalize,
+            pyramid: self.p.pyramid,
         };
-        let im = ModalImager::new(roi.w, roi.h, cfg).map_err(|e| self.err(e))?;
+        let mut im = ModalImager::new(roi.w, roi.h, cfg).map_err(|e| self.err(e))?;
+        if let Some(m) = &mask {
+            let inside: Vec<bool> = (0..roi.w * roi.h)
+                .map(|i| m.at(roi.x + i % roi.w, roi.y + i / roi.w))
+                .collect();
+            im.set_mask(&inside).map_err(|e| self.err(e))?;
+        }
         self.buf = vec![0.0; roi.w * roi.h];
         self.roi = Some(roi);
         self.imager = Some(im);

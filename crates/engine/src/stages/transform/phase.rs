@@ -36,7 +36,7 @@ use super::pyramid::{
     pyramid_err as err, resolve_threads, spread, Analyzer, Carried, OnFrames, PyramidKind,
     FRAME_THREADS, ORIENTATIONS, PYRAMID, SCALES,
 };
-use super::roi::{Mask, Roi, RoiParam};
+use super::roi::{resolve_region, Mask, Roi, RoiParam};
 use crate::*;
 use serde::Deserialize;
 use vibroscope_math::kernels::MAX_ORIENT;
@@ -65,8 +65,7 @@ const PARAMS: &[ParamSpec] = &[
     SCALES,
     ORIENTATIONS,
     super::reduce::ROI,
-    ParamSpec::new("mask", ParamType::Path, Def::Optional)
-        .doc("region as an image the frame's size (PGM/PNG, > 0 inside); with roi, both"),
+    super::roi::MASK,
     ParamSpec::new("block", ParamType::Int, Def::Int(64))
         .ints(1, 65536)
         .unit("frames")
@@ -570,20 +569,7 @@ fn item_fps(item: &Item) -> f64 {
 impl Phase {
     fn init(&mut self, f: &Item) -> Result<(), StageError> {
         let (w, h) = item_size(f).ok_or_else(|| StageError::expected("frames or a pyramid"))?;
-        let mut roi = Roi::resolve(self.roi.as_ref(), w, h)?;
-        let mask = match self.mask.take() {
-            Some((path, m)) => {
-                m.check_size(&path, w, h)?;
-                roi = roi.intersect(&m.bounds()).ok_or_else(|| {
-                    StageError::config(
-                        "mask",
-                        format!("{} does not overlap the roi", path.display()),
-                    )
-                })?;
-                Some(m)
-            }
-            None => None,
-        };
+        let (roi, mask) = resolve_region(self.roi.as_ref(), self.mask.take(), w, h)?;
         let n = self.threads;
         let region = (roi, mask.as_ref());
         let engine: Box<dyn FrameSignals> = match f {

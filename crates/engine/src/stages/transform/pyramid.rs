@@ -33,21 +33,7 @@ use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeff
 use vibroscope_math::riesz::{RieszCoeffs, RieszPyramid};
 
 /// Which pyramid (`pyramid = "csp" | "riesz"` in `pyramid` and `phase`).
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
-#[serde(rename_all = "lowercase")]
-pub enum PyramidKind {
-    Csp,
-    Riesz,
-}
-
-impl PyramidKind {
-    pub fn name(self) -> &'static str {
-        match self {
-            PyramidKind::Csp => "csp",
-            PyramidKind::Riesz => "riesz",
-        }
-    }
-}
+pub use vibroscope_math::pyramid::PyramidKind;
 
 /// Pyramid settings shared by `pyramid` and `phase`.
 #[derive(Clone, Copy, Debug)]
@@ -58,7 +44,7 @@ pub struct PyramidSpec {
 }
 
 /// `pyramid`, shared by `pyramid` and `phase`.
-pub(super) const PYRAMID: ParamSpec = ParamSpec::new(
+pub const PYRAMID: ParamSpec = ParamSpec::new(
     "pyramid",
     ParamType::Choice(&["csp", "riesz"]),
     Def::Str("csp"),

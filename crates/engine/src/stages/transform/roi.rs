@@ -1,7 +1,11 @@
 //! Regions of interest shared by the analysis stages.
 
-use crate::StageError;
+use crate::{Def, ParamSpec, ParamType, StageError};
 use serde::Deserialize;
+
+/// `mask`, shared by the stages that take a region.
+pub const MASK: ParamSpec = ParamSpec::new("mask", ParamType::Path, Def::Optional)
+    .doc("region as an image the frame's size (PGM/PNG, > 0 inside); with roi, both");
 
 /// `[x, y, w, h]` in pixels, as written in TOML.
 #[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,6 +123,29 @@ impl Mask {
         }
         Ok(())
     }
+}
+
+/// The region of a `w x h` frame a stage analyses: `roi` (the whole frame
+/// without one) narrowed to the mask's bounding box, and the mask checked
+/// against the frame size. The errors name `roi` or `mask`.
+pub fn resolve_region(
+    roi: Option<&RoiParam>,
+    mask: Option<(std::path::PathBuf, Mask)>,
+    width: usize,
+    height: usize,
+) -> Result<(Roi, Option<Mask>), StageError> {
+    let roi = Roi::resolve(roi, width, height)?;
+    let Some((path, m)) = mask else {
+        return Ok((roi, None));
+    };
+    m.check_size(&path, width, height)?;
+    let roi = roi.intersect(&m.bounds()).ok_or_else(|| {
+        StageError::config(
+            "mask",
+            format!("{} does not overlap the roi", path.display()),
+        )
+    })?;
+    Ok((roi, Some(m)))
 }
 
 impl Roi {
