@@ -34,6 +34,7 @@ pub struct SimulateReport {
 /// Runs `simulate`.
 pub fn simulate(o: &SimulateOptions) -> Result<SimulateReport> {
     let scene = &o.scene;
+    crate::error::check_outputs(&[scene], &[&o.output])?;
     let text = std::fs::read_to_string(scene)
         .map_err(|e| Error::input(scene, format!("cannot read: {e}")))?;
     let table: toml::Table =
