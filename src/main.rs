@@ -168,7 +168,9 @@ fn interrupted_exit_code() -> u8 {
 /// What the first, second and third interruption do (Ctrl-C, SIGTERM and
 /// SIGHUP alike): stop the sources and drain, then stop at once (sinks
 /// still finalise), then exit. With no run under way the first one asks
-/// the recipe to stop at its next step (`vibroscope::pipeline::interrupt`).
+/// a recipe that checks between its steps to stop at the next one
+/// (`vibroscope::pipeline::Steps`), and otherwise exits at once (files are
+/// written whole by a rename, so none is left half written).
 fn on_interrupt(presses: usize) {
     match presses {
         0 if vibroscope::pipeline::stop_current() => {
@@ -176,8 +178,7 @@ fn on_interrupt(presses: usize) {
                 "\nstopping: draining queues and finalising outputs (interrupt again to stop at once)"
             );
         }
-        0 => {
-            vibroscope::pipeline::interrupt();
+        0 if vibroscope::pipeline::interrupt() => {
             eprintln!("\nstopping after the current step (interrupt again to exit at once)");
         }
         1 if vibroscope::pipeline::abort_current() => {}

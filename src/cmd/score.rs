@@ -39,6 +39,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         r.lag_samples,
         r.sample_rate_hz
     );
+    for n in &r.notes {
+        eprintln!("note: {n}");
+    }
     if let Some(p) = &a.json {
         vibroscope::io::atomic::write_atomic(p, (text + "\n").as_bytes())?;
         super::wrote(p);

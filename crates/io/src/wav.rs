@@ -27,6 +27,16 @@ pub enum WavError {
     Write(#[from] crate::atomic::WriteError),
 }
 
+/// A WAV file's sample rate (Hz) and length (samples per channel), from
+/// its header alone: to check them before reading or resampling.
+pub fn info(path: &Path) -> Result<(u32, u64), WavError> {
+    let r = hound::WavReader::open(path).map_err(|source| WavError::Open {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok((r.spec().sample_rate, u64::from(r.duration())))
+}
+
 /// Reads the first channel of a WAV file: integers scaled to [-1, 1),
 /// floats as stored. Returns the sample rate in Hz and the samples.
 pub fn read_mono(path: &Path) -> Result<(u32, Vec<f64>), WavError> {
@@ -41,7 +51,8 @@ pub fn read_mono(path: &Path) -> Result<(u32, Vec<f64>), WavError> {
     let mut r = hound::WavReader::open(path).map_err(open)?;
     let spec = r.spec();
     let ch = spec.channels.max(1) as usize;
-    let mut out = Vec::with_capacity(r.len() as usize / ch);
+    // The header's length is a claim: reserve at most 1 Mi samples for it.
+    let mut out = Vec::with_capacity((r.len() as usize / ch).min(1 << 20));
     match spec.sample_format {
         hound::SampleFormat::Float => {
             for (i, s) in r.samples::<f32>().enumerate() {

@@ -179,6 +179,7 @@ pub fn calibrate_video(
 
 /// Runs `calibrate`: writes the report (and the corrected recovery).
 pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
+    let _steps = pipeline::Steps::begin();
     let mut inputs = vec![o.video.as_path(), o.reference.as_path()];
     inputs.extend(o.region.mask.as_deref());
     let mut outputs = vec![o.json.as_path()];

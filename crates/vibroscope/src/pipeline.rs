@@ -417,12 +417,32 @@ pub fn abort_current() -> bool {
 }
 
 static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+static STEPS: AtomicU64 = AtomicU64::new(0);
 
-/// An interruption that arrived while no run was under way (between the
-/// runs of a recipe, or while it fits or writes): the next run or
-/// [`check_interrupt`] returns [`Error::Interrupted`].
-pub fn interrupt() {
+/// While alive, the recipe checks [`check_interrupt`] between its steps
+/// (calibrate: recovery, fit, writing), so an interruption with no run
+/// under way can wait for the step to end instead of exiting at once.
+pub struct Steps(());
+
+impl Steps {
+    pub fn begin() -> Steps {
+        STEPS.fetch_add(1, Ordering::SeqCst);
+        Steps(())
+    }
+}
+
+impl Drop for Steps {
+    fn drop(&mut self) {
+        STEPS.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// An interruption that arrived while no run was under way: the next run
+/// or [`check_interrupt`] returns [`Error::Interrupted`]. Returns whether a
+/// recipe will see it ([`Steps`]); when not, the caller should exit now.
+pub fn interrupt() -> bool {
     INTERRUPTED.store(true, Ordering::SeqCst);
+    STEPS.load(Ordering::SeqCst) > 0
 }
 
 /// `Err(Error::Interrupted)` once [`interrupt`] was called: recipes call it
