@@ -36,19 +36,17 @@ const SMALL: &[&str] = &[
     "cam.frames=40",
 ];
 
-/// Writes a mono f32 WAV.
-fn wav(p: &Path, rate: u32, x: &[f32]) {
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: rate,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(p, spec).unwrap();
-    for &v in x {
-        w.write_sample(v).unwrap();
-    }
-    w.finalize().unwrap();
+/// Runs the binary with a stdout whose reader is gone before it writes.
+fn with_closed_stdout(dir: &Path, args: &[&str]) -> std::process::Output {
+    let mut child = bin()
+        .current_dir(dir)
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    child.wait_with_output().unwrap()
 }
 
 /// Closed stdout ends quietly with exit 0 (what `| head` users expect);
@@ -64,16 +62,7 @@ fn closed_or_full_stdout() {
         &["kinds", "phase"][..],
         &["probe", "s.y4m"][..],
     ] {
-        // Closed: the reader is gone before we write.
-        let mut child = bin()
-            .current_dir(dir.path())
-            .args(args)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        drop(child.stdout.take());
-        let o = child.wait_with_output().unwrap();
+        let o = with_closed_stdout(dir.path(), args);
         no_panic(&o);
         assert_eq!(code(&o), 0, "{args:?}: {}", stderr(&o));
         if Path::new("/dev/full").exists() {
@@ -97,15 +86,7 @@ fn closed_or_full_stdout() {
         }
     }
     // The JSON file is still written when stdout is closed.
-    let mut child = bin()
-        .current_dir(dir.path())
-        .args(["probe", "s.y4m", "--json", "p.json"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    drop(child.stdout.take());
-    let o = child.wait_with_output().unwrap();
+    let o = with_closed_stdout(dir.path(), &["probe", "s.y4m", "--json", "p.json"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let v: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.path().join("p.json")).unwrap()).unwrap();
@@ -126,7 +107,7 @@ fn an_output_that_is_an_input_is_refused() {
         "width = 64\nheight = 48\nfps = 2200.0\nduration_s = 0.01\n",
     )
     .unwrap();
-    wav(&d.join("ref.wav"), 8000, &[0.1; 800]);
+    write_wav_f32(&d.join("ref.wav"), 8000, &[0.1; 800]);
     let files = ["same.y4m", "s.toml", "ref.wav"];
     let sums: Vec<u64> = files.iter().map(|f| checksum(&d.join(f))).collect();
     let cases: &[&[&str]] = &[
@@ -249,13 +230,13 @@ fn score_bounds_and_degenerate_references() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let tone: Vec<f32> = (0..16000).map(|i| (i as f32 * 0.07).sin()).collect();
-    wav(&d.join("t.wav"), 16000, &tone);
-    wav(&d.join("huge_rate.wav"), 1_000_000_000, &tone[..1000]);
-    wav(&d.join("empty.wav"), 16000, &[]);
-    wav(&d.join("one.wav"), 16000, &[0.5]);
-    wav(&d.join("nan.wav"), 16000, &[f32::NAN; 100]);
-    wav(&d.join("inf.wav"), 16000, &[f32::INFINITY; 100]);
-    wav(&d.join("silent.wav"), 16000, &[0.0; 16000]);
+    write_wav_f32(&d.join("t.wav"), 16000, &tone);
+    write_wav_f32(&d.join("huge_rate.wav"), 1_000_000_000, &tone[..1000]);
+    write_wav_f32(&d.join("empty.wav"), 16000, &[]);
+    write_wav_f32(&d.join("one.wav"), 16000, &[0.5]);
+    write_wav_f32(&d.join("nan.wav"), 16000, &[f32::NAN; 100]);
+    write_wav_f32(&d.join("inf.wav"), 16000, &[f32::INFINITY; 100]);
+    write_wav_f32(&d.join("silent.wav"), 16000, &[0.0; 16000]);
     // A header claiming 2^23 + 1 samples (the file holds 4): refused from
     // the header, before reading or allocating.
     let mut long = std::fs::read(d.join("one.wav")).unwrap();
@@ -308,34 +289,7 @@ fn score_bounds_and_degenerate_references() {
 fn signals_finalise_outputs_with_the_documented_exit_code() {
     for (sig, expected) in [("INT", 130), ("TERM", 143), ("HUP", 129)] {
         let dir = tempfile::tempdir().unwrap();
-        let child = bin()
-            .current_dir(dir.path())
-            .args([
-                "run",
-                "demo",
-                "--set",
-                "cam.realtime=true",
-                "--set",
-                "cam.duration_s=60",
-                "--set",
-                "cam.width=64",
-                "--set",
-                "cam.height=64",
-                "--set",
-                "cam.fps=500",
-                "--quiet",
-            ])
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        // Past the first second, so more than the header's periodic rewrite.
-        std::thread::sleep(std::time::Duration::from_millis(1500));
-        let st = std::process::Command::new("kill")
-            .args([&format!("-{sig}"), &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(st.success());
-        let o = child.wait_with_output().unwrap();
+        let o = interrupt_live_demo(dir.path(), sig);
         no_panic(&o);
         assert_eq!(code(&o), expected, "SIG{sig}: {}", stderr(&o));
         let p = dir.path().join("demo.wav");
