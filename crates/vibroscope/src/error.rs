@@ -7,6 +7,7 @@
 //! | 1    | `Runtime`       | a stage failed, a file could not be read or written         |
 //! | 2    | `Usage`         | a bad flag or value, a bad pipeline/scene file, a bad input |
 //! | 130  | `Interrupted`   | Ctrl-C: the outputs were finalised with what was processed  |
+//! | 143, 129 | `Interrupted` | SIGTERM, SIGHUP (the binary exits 128 + the signal)     |
 
 use crate::engine::config::ConfigError;
 use crate::engine::RunReport;
