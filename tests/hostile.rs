@@ -308,3 +308,41 @@ fn signals_finalise_outputs_with_the_documented_exit_code() {
         assert!(left.is_empty(), "{left:?}");
     }
 }
+
+/// A video with a header and no frames is an input error (exit 2), not a
+/// success that wrote nothing; no output is left behind.
+#[test]
+fn a_video_with_no_frames_exits_non_zero() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("zero.y4m"),
+        "YUV4MPEG2 W64 H48 F2200:1 Ip A1:1 Cmono\n",
+    )
+    .unwrap();
+    let sum = checksum(&d.join("zero.y4m"));
+    for args in [
+        &["listen", "zero.y4m", "-o", "zero.wav"][..],
+        &["spectrum", "zero.y4m", "-o", "zero.json"][..],
+        &[
+            "run",
+            "motion",
+            "--replay",
+            "zero.y4m",
+            "--set",
+            "out.path=zero.wav",
+        ][..],
+    ] {
+        let o = run_in(d, args);
+        no_panic(&o);
+        assert_eq!(code(&o), 2, "{args:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("zero.y4m: holds no frames"),
+            "{args:?}: {}",
+            stderr(&o)
+        );
+        assert!(!stderr(&o).contains("wrote "), "{}", stderr(&o));
+        assert!(!d.join("zero.wav").exists() && !d.join("zero.json").exists());
+    }
+    assert_eq!(checksum(&d.join("zero.y4m")), sum);
+}

@@ -505,6 +505,9 @@ pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> R
         *g = None;
     }
     let report = report?;
+    if !report.interrupted {
+        empty_sources(decl, &report)?;
+    }
     if !report.errors.is_empty() {
         return Err(Error::Stages {
             report: Box::new(report),
@@ -516,6 +519,31 @@ pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> R
         });
     }
     Ok(report)
+}
+
+/// A source that delivered no frame at all (a video with a header and no
+/// frames) is an input error: nothing was processed and the sinks wrote
+/// nothing, which must not look like success.
+fn empty_sources(decl: &PipelineDecl, report: &RunReport) -> Result<()> {
+    for s in decl.stages.iter().filter(|s| s.inputs.is_empty()) {
+        let Some(r) = report.stages.iter().find(|r| r.id == s.id) else {
+            continue;
+        };
+        if r.items_out > 0 {
+            continue;
+        }
+        let path = s
+            .params
+            .iter()
+            .find(|p| p.key == "path")
+            .and_then(|p| p.value.as_str())
+            .map_or_else(|| format!("stage `{}`", s.id), str::to_string);
+        return Err(Error::input(
+            path,
+            "holds no frames: nothing was processed and no output was written",
+        ));
+    }
+    Ok(())
 }
 
 /// [`run_with`], an interruption being an error.
