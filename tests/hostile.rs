@@ -346,3 +346,55 @@ fn a_video_with_no_frames_exits_non_zero() {
     }
     assert_eq!(checksum(&d.join("zero.y4m")), sum);
 }
+
+/// A full disk (a 64 KiB tmpfs the test mounts, when it may): the run
+/// fails naming the file (exit 1), the WAV's header matches the whole
+/// samples on disk, and no temporary file is left.
+#[test]
+fn disk_full_finalises_what_fits() {
+    let dir = tempfile::tempdir().unwrap();
+    let mnt = dir.path().join("full");
+    std::fs::create_dir(&mnt).unwrap();
+    let mounted = std::process::Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=64k", "tmpfs"])
+        .arg(&mnt)
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !mounted {
+        eprintln!("skipping: cannot mount a tmpfs here (needs root)");
+        return;
+    }
+    let o = run_in(
+        &mnt,
+        &[
+            "run",
+            "demo",
+            "--set",
+            "cam.width=32",
+            "--set",
+            "cam.height=32",
+            "--set",
+            "cam.frames=40000",
+            "--quiet",
+        ],
+    );
+    let names: Vec<String> = std::fs::read_dir(&mnt)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    let wav = std::fs::read(mnt.join("demo.wav"));
+    let _ = std::process::Command::new("umount").arg(&mnt).status();
+    no_panic(&o);
+    assert_eq!(code(&o), 1, "{}", stderr(&o));
+    assert!(stderr(&o).contains("demo.wav"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("No space left"), "{}", stderr(&o));
+    assert!(!names.iter().any(|n| n.ends_with(".partial")), "{names:?}");
+    let bytes = wav.unwrap();
+    let riff = u32::from_le_bytes(bytes[4..8].try_into().unwrap()) as usize;
+    assert_eq!(riff, bytes.len() - 8);
+    let at = bytes.windows(4).position(|w| w == b"data").unwrap();
+    let data = u32::from_le_bytes(bytes[at + 4..at + 8].try_into().unwrap()) as usize;
+    assert_eq!(data, bytes.len() - at - 8);
+    assert!(data > 10_000, "only {data} bytes of samples");
+}
