@@ -10,18 +10,22 @@
 //! | 0    | success                                                        |
 //! | 1    | runtime error (a stage failed, a file could not be read)       |
 //! | 2    | usage or configuration error (a flag, a value, a file's content) |
-//! | 130  | interrupted by Ctrl-C (outputs were finalised)                 |
+//! | 130  | interrupted by Ctrl-C / SIGINT (outputs were finalised)        |
+//! | 143  | interrupted by SIGTERM (outputs were finalised)                |
+//! | 129  | interrupted by SIGHUP (outputs were finalised)                 |
+//! | 0    | stdout closed early (`vibroscope pipelines \| head -1`)         |
 
 mod cmd;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicI32, Ordering};
 use vibroscope::ErrorKind;
 
 const EXIT_STATUS_HELP: &str = "Exit status: 0 success; 1 runtime error (a stage failed, a file \
     could not be read or written); 2 usage or configuration error (a flag, a value, a pipeline, \
-    scene or input file); 130 interrupted by Ctrl-C (outputs were finalised).";
+    scene or input file); 130, 143, 129 interrupted by Ctrl-C, SIGTERM, SIGHUP (outputs were \
+    finalised with what was processed).";
 
 #[derive(Parser)]
 #[command(
@@ -84,16 +88,28 @@ fn main() -> ExitCode {
         }
     };
     init_tracing(cli.verbose);
-    install_ctrlc();
-    match run(cli.command) {
+    install_signals();
+    let result = run(cli.command);
+    if let Some(e) = cmd::stdout_error() {
+        // A reader that closed the pipe (`| head -1`) has what it wanted:
+        // end quietly with the command's own status. Any other failure
+        // (a full disk, `> /dev/full`) lost output: say so and exit 1.
+        if e.kind() != std::io::ErrorKind::BrokenPipe {
+            eprintln!("error: cannot write to stdout: {e}");
+            if result.is_ok() {
+                return ExitCode::from(ErrorKind::Runtime.exit_code());
+            }
+        }
+    }
+    match result {
         Ok(code) => code,
         Err(e) => {
             let kind = vibroscope::error::kind_of(&e);
             if kind == ErrorKind::Interrupted {
                 eprintln!("{e:#}");
-            } else {
-                eprintln!("error: {e:#}");
+                return ExitCode::from(interrupted_exit_code());
             }
+            eprintln!("error: {e:#}");
             ExitCode::from(kind.exit_code())
         }
     }
@@ -136,17 +152,59 @@ fn init_tracing(verbose: u8) {
         .try_init();
 }
 
-/// First Ctrl-C: stop the sources and drain; second: stop at once (sinks
-/// still finalise); third: exit.
-fn install_ctrlc() {
-    static PRESSES: AtomicUsize = AtomicUsize::new(0);
-    let _ = ctrlc::set_handler(|| match PRESSES.fetch_add(1, Ordering::SeqCst) {
+/// The signal that interrupted the run (0: none), for the exit status
+/// 128 + signal (130 SIGINT, 143 SIGTERM, 129 SIGHUP).
+static SIGNAL: AtomicI32 = AtomicI32::new(0);
+
+/// Exit status of an interruption: 128 + the signal's number (130 when
+/// none was recorded, e.g. Ctrl-C on a platform without signal numbers).
+fn interrupted_exit_code() -> u8 {
+    match SIGNAL.load(Ordering::SeqCst) {
+        n @ 1..=127 => 128 + n as u8,
+        _ => ErrorKind::Interrupted.exit_code(),
+    }
+}
+
+/// What the first, second and third interruption do (Ctrl-C, SIGTERM and
+/// SIGHUP alike): stop the sources and drain, then stop at once (sinks
+/// still finalise), then exit. With no run under way the first one asks
+/// a recipe that checks between its steps to stop at the next one
+/// (`vibroscope::pipeline::Steps`), and otherwise exits at once (files are
+/// written whole by a rename, so none is left half written).
+fn on_interrupt(presses: usize) {
+    match presses {
         0 if vibroscope::pipeline::stop_current() => {
             eprintln!(
-                "\nstopping: draining queues and finalising outputs (Ctrl-C again to stop at once)"
+                "\nstopping: draining queues and finalising outputs (interrupt again to stop at once)"
             );
         }
+        0 if vibroscope::pipeline::interrupt() => {
+            eprintln!("\nstopping after the current step (interrupt again to exit at once)");
+        }
         1 if vibroscope::pipeline::abort_current() => {}
-        _ => std::process::exit(ErrorKind::Interrupted.exit_code().into()),
+        _ => std::process::exit(interrupted_exit_code().into()),
+    }
+}
+
+/// SIGINT, SIGTERM and SIGHUP go to [`on_interrupt`] from a thread of their
+/// own (signal-hook's self-pipe), so the handler may lock and print.
+#[cfg(unix)]
+fn install_signals() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+        eprintln!("warning: cannot install the signal handlers; an interruption will not finalise outputs");
+        return;
+    };
+    std::thread::spawn(move || {
+        for (presses, sig) in signals.forever().enumerate() {
+            let _ = SIGNAL.compare_exchange(0, sig, Ordering::SeqCst, Ordering::SeqCst);
+            on_interrupt(presses);
+        }
     });
+}
+
+#[cfg(not(unix))]
+fn install_signals() {
+    static PRESSES: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let _ = ctrlc::set_handler(|| on_interrupt(PRESSES.fetch_add(1, Ordering::SeqCst)));
 }

@@ -117,33 +117,7 @@ fn zero_or_negative_fps_on_the_command_line() {
 #[test]
 fn ctrl_c_finalises_the_wav() {
     let dir = tempfile::tempdir().unwrap();
-    let child = bin()
-        .current_dir(dir.path())
-        .args([
-            "run",
-            "demo",
-            "--set",
-            "cam.realtime=true",
-            "--set",
-            "cam.duration_s=60",
-            "--set",
-            "cam.width=64",
-            "--set",
-            "cam.height=64",
-            "--set",
-            "cam.fps=500",
-            "--quiet",
-        ])
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    let st = std::process::Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(st.success());
-    let o = child.wait_with_output().unwrap();
+    let o = interrupt_live_demo(dir.path(), "INT");
     assert_eq!(code(&o), 130, "{}", stderr(&o));
     let (rate, s) = read_wav(&dir.path().join("demo.wav"));
     assert_eq!(rate, 500);

@@ -6,20 +6,6 @@
 mod common;
 use common::*;
 
-fn write_wav(p: &std::path::Path, rate: u32, s: &[f32]) {
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: rate,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(p, spec).unwrap();
-    for &v in s {
-        w.write_sample(v).unwrap();
-    }
-    w.finalize().unwrap();
-}
-
 #[test]
 fn score_undoes_delay_sign_and_gain() {
     let dir = tempfile::tempdir().unwrap();
@@ -37,8 +23,8 @@ fn score_undoes_delay_sign_and_gain() {
     let mut y = vec![0.0f32; 120];
     y.extend(x.iter().map(|v| -0.3 * v));
     y.truncate(x.len());
-    write_wav(&dir.path().join("ref.wav"), fs, &x);
-    write_wav(&dir.path().join("test.wav"), fs, &y);
+    write_wav_f32(&dir.path().join("ref.wav"), fs, &x);
+    write_wav_f32(&dir.path().join("test.wav"), fs, &y);
     let o = run_in(dir.path(), &["score", "ref.wav", "test.wav"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();

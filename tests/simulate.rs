@@ -167,7 +167,10 @@ fn scene_errors_name_the_file_line_and_field() {
             &["s.toml", "resonances", "q"][..],
         ),
         ("clock_error_ppm = 1e9\n", &["clock_error_ppm"][..]),
-        ("width = \n", &["s.toml", "line 1"][..]),
+        (
+            "width = \n",
+            &["s.toml:1", "field `width`", "value is missing"][..],
+        ),
     ] {
         std::fs::write(d.path().join("s.toml"), text).unwrap();
         let o = run_in(d.path(), &["simulate", "s.toml", "-o", "s.y4m"]);

@@ -35,7 +35,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let r = demo::demo(&o);
     drop(bar);
     let r = r?;
-    println!(
+    super::outln!(
         "wrote {} ({} samples at {} Hz); SNR against the true motion: {:.1} dB; {:.1} Mpix/s",
         r.output.display(),
         r.samples,

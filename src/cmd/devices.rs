@@ -16,7 +16,7 @@ pub fn run(_: Args) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::from(vibroscope::ErrorKind::Runtime.exit_code()));
     }
     for d in list {
-        print!("{d}");
+        super::out!("{d}");
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -14,9 +14,9 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     match a.kind {
-        None => print!("{}", vibroscope::pipeline::kind_listing()),
+        None => super::out!("{}", vibroscope::pipeline::kind_listing()),
         Some(k) => match vibroscope::pipeline::kind_table(&k) {
-            Some(t) => print!("{t}"),
+            Some(t) => super::out!("{t}"),
             None => {
                 return Err(UsageError::new(
                     "KIND",

@@ -18,11 +18,47 @@ pub mod score;
 pub mod simulate;
 pub mod spectrum;
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use vibroscope::pipeline::{Pyramid, Region, Roi};
+
+/// The first error writing to stdout; later output is dropped.
+static STDOUT_ERROR: Mutex<Option<std::io::Error>> = Mutex::new(None);
+
+/// Writes to stdout and flushes; never panics. A closed pipe (`| head -1`)
+/// or a full device is recorded and later output dropped, so the command
+/// still does the rest of its work (its files); `main` reports it.
+pub fn write_stdout(args: std::fmt::Arguments) {
+    let Ok(mut failed) = STDOUT_ERROR.lock() else {
+        return;
+    };
+    if failed.is_some() {
+        return;
+    }
+    let mut o = std::io::stdout().lock();
+    if let Err(e) = o.write_fmt(args).and_then(|()| o.flush()) {
+        *failed = Some(e);
+    }
+}
+
+/// The first error writing to stdout, if any.
+pub fn stdout_error() -> Option<std::io::Error> {
+    STDOUT_ERROR.lock().ok().and_then(|mut g| g.take())
+}
+
+/// `print!` that never panics (see [`write_stdout`]).
+macro_rules! out {
+    ($($t:tt)*) => { $crate::cmd::write_stdout(format_args!($($t)*)) };
+}
+
+/// `println!` that never panics (see [`write_stdout`]).
+macro_rules! outln {
+    ($($t:tt)*) => { $crate::cmd::write_stdout(format_args!("{}\n", format_args!($($t)*))) };
+}
+pub(crate) use {out, outln};
 
 /// `--roi X,Y,W,H`.
 pub fn parse_roi(s: &str) -> Result<Roi, String> {
@@ -81,6 +117,15 @@ impl VideoArgs {
 pub fn warn_playback_rate(video: &Path, fps: Option<f64>) {
     if let Some(w) = vibroscope::pipeline::playback_rate_warning(video, fps) {
         eprintln!("{w}");
+    }
+}
+
+/// Refuses a `--json` path that is one of the inputs or cannot be
+/// written, before the work starts.
+pub fn check_json(inputs: &[&Path], json: Option<&Path>) -> vibroscope::Result<()> {
+    match json {
+        Some(j) => vibroscope::error::check_outputs(inputs, &[j]),
+        None => Ok(()),
     }
 }
 

@@ -8,7 +8,7 @@ pub struct Args {}
 
 pub fn run(_: Args) -> anyhow::Result<ExitCode> {
     for (name, description) in vibroscope::pipeline::shipped() {
-        println!("{name:<12} {description}");
+        super::outln!("{name:<12} {description}");
     }
     Ok(ExitCode::SUCCESS)
 }

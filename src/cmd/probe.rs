@@ -19,31 +19,34 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    super::check_json(&[&a.file], a.json.as_deref())?;
     let r = vibroscope::probe::probe(&a.file, a.fps)?;
-    println!("file:        {}", r.file.display());
-    println!("format:      {}", r.format);
-    println!("size:        {}x{}", r.width, r.height);
-    println!("bit depth:   {} bits", r.bits);
+    super::outln!("file:        {}", r.file.display());
+    super::outln!("format:      {}", r.format);
+    super::outln!("size:        {}x{}", r.width, r.height);
+    super::outln!("bit depth:   {} bits", r.bits);
     match r.frames {
-        Some(n) => println!("frames:      {n}"),
-        None => println!("frames:      unknown (stream)"),
+        Some(n) => super::outln!("frames:      {n}"),
+        None => super::outln!("frames:      unknown (stream)"),
     }
     match (r.fps_given, r.fps, r.fps_stated) {
-        (true, Some(f), Some(s)) => println!("frame rate:  {f} Hz (given; the file states {s} Hz)"),
-        (true, Some(f), None) => println!("frame rate:  {f} Hz (given)"),
-        (_, _, Some(s)) => println!("frame rate:  {s} Hz"),
-        _ => println!("frame rate:  not stated (pass --fps)"),
+        (true, Some(f), Some(s)) => {
+            super::outln!("frame rate:  {f} Hz (given; the file states {s} Hz)")
+        }
+        (true, Some(f), None) => super::outln!("frame rate:  {f} Hz (given)"),
+        (_, _, Some(s)) => super::outln!("frame rate:  {s} Hz"),
+        _ => super::outln!("frame rate:  not stated (pass --fps)"),
     }
     if let (Some(n), Some(rate)) = (r.frames, r.fps) {
-        println!("duration:    {:.3} s", n as f64 / rate);
+        super::outln!("duration:    {:.3} s", n as f64 / rate);
     }
     let ts = if r.timestamps { "present" } else { "absent" };
-    println!("timestamps:  {ts}");
+    super::outln!("timestamps:  {ts}");
     if let Some(e) = r.exposure_s {
-        println!("exposure:    {:.3} us", e * 1e6);
+        super::outln!("exposure:    {:.3} us", e * 1e6);
     }
     for n in &r.notes {
-        println!("note:        {n}");
+        super::outln!("note:        {n}");
     }
     super::warn_playback_rate(&a.file, a.fps);
     if let Some(p) = &a.json {

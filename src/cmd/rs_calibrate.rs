@@ -46,6 +46,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    super::check_json(&[&a.video], a.json.as_deref())?;
     super::warn_playback_rate(&a.video, a.fps);
     let r = rs_calibrate::rs_calibrate(&RsCalibrateOptions {
         video: a.video,
@@ -59,18 +60,19 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         max_frames: a.max_frames,
     })?;
     let period = 1.0 / r.fps;
-    println!(
+    super::outln!(
         "line delay:   {:.3} us  (one sample per row: {:.0} Hz)",
-        r.line_delay_us, r.row_rate_hz
+        r.line_delay_us,
+        r.row_rate_hz
     );
-    println!(
+    super::outln!(
         "frame delay:  {:.3} us  (frame period {:.3} ms, {} rows: {:.1}% of the time unseen)",
         r.frame_delay_us,
         period * 1e3,
         r.rows,
         100.0 * r.missing_fraction
     );
-    println!(
+    super::outln!(
         "fit:          the {} Hz tone explains {:.0}% of the per-row signal ({} frames)",
         a.tone_hz,
         100.0 * r.explained,

@@ -26,9 +26,10 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    super::check_json(&[&a.reference, &a.test], a.json.as_deref())?;
     let r = vibroscope::score::score(&a.reference, &a.test, a.max_lag_s)?;
     let text = serde_json::to_string_pretty(&r)?;
-    println!("{text}");
+    super::outln!("{text}");
     eprintln!(
         "SNR {} dB, segmental SNR {} dB, LLR {}, STOI {} (lag {} samples at {} Hz)",
         super::num(r.snr_db, 2),
@@ -38,6 +39,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         r.lag_samples,
         r.sample_rate_hz
     );
+    for n in &r.notes {
+        eprintln!("note: {n}");
+    }
     if let Some(p) = &a.json {
         vibroscope::io::atomic::write_atomic(p, (text + "\n").as_bytes())?;
         super::wrote(p);

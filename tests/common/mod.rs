@@ -58,6 +58,54 @@ pub fn read_wav(p: &Path) -> (u32, Vec<f32>) {
     (rate, s)
 }
 
+/// Writes a mono 32-bit float WAV.
+pub fn write_wav_f32(p: &Path, rate: u32, s: &[f32]) {
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: rate,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(p, spec).unwrap();
+    for &v in s {
+        w.write_sample(v).unwrap();
+    }
+    w.finalize().unwrap();
+}
+
+/// Runs the shipped `demo` pipeline live (a 64x64, 500 fps realtime
+/// synthetic camera, 60 s) in `dir`, sends `kill -SIG` after 1.5 s (past
+/// the WAV header's first periodic rewrite) and waits for it.
+pub fn interrupt_live_demo(dir: &Path, sig: &str) -> Output {
+    let child = bin()
+        .current_dir(dir)
+        .args([
+            "run",
+            "demo",
+            "--set",
+            "cam.realtime=true",
+            "--set",
+            "cam.duration_s=60",
+            "--set",
+            "cam.width=64",
+            "--set",
+            "cam.height=64",
+            "--set",
+            "cam.fps=500",
+            "--quiet",
+        ])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let st = Command::new("kill")
+        .args([&format!("-{sig}"), &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    child.wait_with_output().unwrap()
+}
+
 /// Renders the synthetic scene to `path` as Y4M through the engine itself.
 pub fn render_y4m(dir: &Path, path: &str, extra: &[&str]) {
     let mut args = vec!["run", "render", "--quiet", "--set"];

@@ -183,12 +183,36 @@ fn err(
     }
 }
 
+/// A TOML syntax error in `text` (the file `file`): its line, the key on
+/// that line as the field, and a message even where the parser gives none
+/// (a file ending in `key =`).
+pub fn toml_error(file: &str, text: &str, e: &toml::de::Error) -> ConfigError {
+    let at = e.span().map(|s| s.start.min(text.len()));
+    let origin = at.map(|p| Origin::Line(line_of(text, p)));
+    let entry = at.and_then(|p| {
+        let start = text[..p].rfind('\n').map_or(0, |i| i + 1);
+        let line = text[start..].lines().next().unwrap_or("");
+        let (k, v) = line.split_once('=')?;
+        let k = k.trim();
+        let bare = !k.is_empty()
+            && k.chars()
+                .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'));
+        bare.then(|| (k.to_string(), v.trim().is_empty()))
+    });
+    let mut message = e.message().trim().to_string();
+    if message.is_empty() || entry.as_ref().is_some_and(|(_, empty)| *empty) {
+        message = match &entry {
+            Some(_) => "the value is missing (nothing after `=`)".into(),
+            None => "the file ends in the middle of an entry".into(),
+        };
+    }
+    let key = entry.map(|(k, _)| k);
+    err(file, origin, None, key.as_deref(), message)
+}
+
 /// Parses pipeline text. `file` is how errors name it.
 pub fn parse(file: &str, text: &str) -> Result<PipelineDecl, ConfigError> {
-    let raw: RawFile = toml::from_str(text).map_err(|e| {
-        let origin = e.span().map(|s| Origin::Line(line_of(text, s.start)));
-        err(file, origin, None, None, e.message().trim().to_string())
-    })?;
+    let raw: RawFile = toml::from_str(text).map_err(|e| toml_error(file, text, &e))?;
     let meta = raw.pipeline.unwrap_or(RawMeta {
         name: None,
         description: None,

@@ -40,6 +40,27 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     })
 }
 
+/// Whether `a` and `b` name one existing file: the same device and inode on
+/// Unix (so hard links, symlinks and `./x` vs `x` all count), the same
+/// canonical path elsewhere. A path that does not exist is no file.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        match (std::fs::metadata(a), std::fs::metadata(b)) {
+            (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+            _ => false,
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        match (a.canonicalize(), b.canonicalize()) {
+            (Ok(x), Ok(y)) => x == y,
+            _ => false,
+        }
+    }
+}
+
 /// A scratch file in the system's temporary directory, removed on drop.
 pub struct TempPath(PathBuf);
 
@@ -75,6 +96,22 @@ mod tests {
         assert_eq!(std::fs::read(&p).expect("read"), b"{}");
         let left: Vec<_> = std::fs::read_dir(dir.path()).expect("dir").collect();
         assert_eq!(left.len(), 1);
+    }
+
+    #[test]
+    fn same_file_sees_through_links_and_spellings() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let a = dir.path().join("a.y4m");
+        std::fs::write(&a, b"x").expect("write");
+        let dotted = dir.path().join(".").join("a.y4m");
+        assert!(same_file(&a, &dotted));
+        let link = dir.path().join("link.y4m");
+        std::fs::hard_link(&a, &link).expect("link");
+        assert!(same_file(&a, &link));
+        let b = dir.path().join("b.y4m");
+        std::fs::write(&b, b"x").expect("write");
+        assert!(!same_file(&a, &b));
+        assert!(!same_file(&a, &dir.path().join("missing")));
     }
 
     #[test]

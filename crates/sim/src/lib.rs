@@ -30,7 +30,7 @@ pub mod signal;
 pub mod texture;
 
 pub use modal::{ModalBeam, ModalSpec};
-pub use scene::{Depth, Dest, EdgeMode, Look, Scene, SceneSpec};
+pub use scene::{Depth, Dest, EdgeMode, Look, Scene, SceneSpec, MAX_AMPLITUDE_PX};
 pub use signal::{Resonance, Signal, SignalSpec};
 
 /// Errors of the forward model: invalid parameters (naming the field) and

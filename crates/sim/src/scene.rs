@@ -419,6 +419,18 @@ impl Scene {
         // exceed the unit-peak signal).
         let amp_max = (spec.amplitude_px.abs() * signal.peak_bound().max(1.0))
             .max(modal.as_ref().map_or(0.0, |b| b.peak_bound()));
+        // The texture is padded by the largest excursion: bound it before
+        // allocating (a huge interference or resonance would need terabytes).
+        if !(amp_max.is_finite() && amp_max <= MAX_AMPLITUDE_PX) {
+            return Err(SimError::Invalid {
+                field: "amplitude_px".into(),
+                msg: format!(
+                    "the object's largest excursion, amplitude_px x the signal's peak \
+                     (with resonances and interference), is {amp_max:.3e} px; at most \
+                     {MAX_AMPLITUDE_PX} px"
+                ),
+            });
+        }
 
         // Object texture on its padded lattice, normalised over the object.
         let tex = match &look.texture {

@@ -168,6 +168,7 @@ pub fn calibrate_video(
     let opts = opts.unwrap_or_else(|| Options::for_rate(fs));
     let c =
         cal::calibrate(&y, fs, &r, fr, &opts).map_err(|e| Error::input(video, e.to_string()))?;
+    pipeline::check_interrupt()?;
     Ok(Calibrated {
         frame_rate_hz: fs,
         reference_rate_hz: fr,
@@ -178,6 +179,12 @@ pub fn calibrate_video(
 
 /// Runs `calibrate`: writes the report (and the corrected recovery).
 pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
+    let _steps = pipeline::Steps::begin();
+    let mut inputs = vec![o.video.as_path(), o.reference.as_path()];
+    inputs.extend(o.region.mask.as_deref());
+    let mut outputs = vec![o.json.as_path()];
+    outputs.extend(o.output.as_deref());
+    crate::error::check_outputs(&inputs, &outputs)?;
     let opts = match (&o.effects, frame_rate(&o.video, o.fps)) {
         (Some(e), Ok(fs)) => Some(Options {
             effects: e.clone(),

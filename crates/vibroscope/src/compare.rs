@@ -96,6 +96,9 @@ pub fn compare(
     o: &CompareOptions,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<CompareReport> {
+    let mut inputs = vec![o.a.as_path(), o.b.as_path()];
+    inputs.extend(o.masks.iter().map(PathBuf::as_path));
+    crate::error::check_outputs(&inputs, &[&o.json])?;
     if o.rois.is_empty() && o.masks.is_empty() {
         return Err(Error::usage(
             "--roi",

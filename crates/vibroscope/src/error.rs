@@ -7,11 +7,12 @@
 //! | 1    | `Runtime`       | a stage failed, a file could not be read or written         |
 //! | 2    | `Usage`         | a bad flag or value, a bad pipeline/scene file, a bad input |
 //! | 130  | `Interrupted`   | Ctrl-C: the outputs were finalised with what was processed  |
+//! | 143, 129 | `Interrupted` | SIGTERM, SIGHUP (the binary exits 128 + the signal)     |
 
 use crate::engine::config::ConfigError;
 use crate::engine::RunReport;
 use std::fmt;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// What kind of failure an error is; decides the exit status.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -120,6 +121,56 @@ impl Error {
     pub(crate) fn usage(option: impl Into<String>, message: impl Into<String>) -> Error {
         Error::Usage(UsageError::new(option, message))
     }
+}
+
+/// Refuses, before any work starts, an output that would destroy an input
+/// or cannot be written: an output that is the same file as an input
+/// ([`crate::io::atomic::same_file`]: device and inode), two outputs that
+/// are one file, an output that is a directory or whose directory does not
+/// exist. Each is a usage error naming the paths.
+pub fn check_outputs(inputs: &[&Path], outputs: &[&Path]) -> Result<()> {
+    for (k, out) in outputs.iter().enumerate() {
+        if out.as_os_str() == "-" {
+            continue;
+        }
+        if let Some(input) = inputs
+            .iter()
+            .find(|i| i.as_os_str() != "-" && crate::io::atomic::same_file(i, out))
+        {
+            return Err(Error::input(
+                out,
+                format!(
+                    "is the same file as the input {}; refusing to overwrite an input (choose another output path)",
+                    input.display()
+                ),
+            ));
+        }
+        if let Some(other) = outputs[..k]
+            .iter()
+            .find(|o| *o == out || crate::io::atomic::same_file(o, out))
+        {
+            return Err(Error::input(
+                out,
+                format!(
+                    "is also the path of another output ({}); give each output its own path",
+                    other.display()
+                ),
+            ));
+        }
+        if out.is_dir() {
+            return Err(Error::input(out, "is a directory; give a file path"));
+        }
+        let parent = out.parent().filter(|p| !p.as_os_str().is_empty());
+        if let Some(d) = parent {
+            if !d.is_dir() {
+                return Err(Error::input(
+                    out,
+                    format!("the directory {} does not exist", d.display()),
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The kind of any error chain: a recipe [`Error`], a [`ConfigError`] or a

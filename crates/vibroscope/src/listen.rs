@@ -75,6 +75,10 @@ pub struct ListenReport {
 
 /// Runs `listen`.
 pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
+    let mut inputs = vec![o.video.as_path()];
+    inputs.extend(o.calibration.as_deref());
+    inputs.extend(o.region.mask.as_deref());
+    crate::error::check_outputs(&inputs, &[&o.output])?;
     let corrections = match &o.calibration {
         Some(path) => {
             if o.rolling_shutter.is_some() || o.speaker.is_some() {

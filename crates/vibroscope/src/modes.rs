@@ -97,6 +97,9 @@ pub fn modes_pipeline(o: &ModesOptions) -> Result<PipelineDecl> {
 
 /// Runs `modes`.
 pub fn modes(o: &ModesOptions) -> Result<(ModalImagesReport, RunReport)> {
+    let mut outputs = vec![o.output.as_path()];
+    outputs.extend(o.npy.as_deref());
+    crate::error::check_outputs(&[&o.video], &outputs)?;
     let decl = modes_pipeline(o)?;
     let run = pipeline::run(&decl, o.run)?;
     Ok((

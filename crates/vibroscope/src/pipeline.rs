@@ -12,7 +12,7 @@ use crate::{io, pipelines};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use toml::Value;
 
@@ -401,6 +401,51 @@ pub fn abort_current() -> bool {
     current().map(|c| c.abort()).is_some()
 }
 
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+static STEPS: AtomicU64 = AtomicU64::new(0);
+
+/// While alive, the recipe checks [`check_interrupt`] between its steps
+/// (calibrate: recovery, fit, writing), so an interruption with no run
+/// under way can wait for the step to end instead of exiting at once.
+pub struct Steps(());
+
+impl Steps {
+    pub fn begin() -> Steps {
+        STEPS.fetch_add(1, Ordering::SeqCst);
+        Steps(())
+    }
+}
+
+impl Drop for Steps {
+    fn drop(&mut self) {
+        STEPS.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// An interruption that arrived while no run was under way: the next run
+/// or [`check_interrupt`] returns [`Error::Interrupted`]. Returns whether a
+/// recipe will see it ([`Steps`]); when not, the caller should exit now.
+pub fn interrupt() -> bool {
+    INTERRUPTED.store(true, Ordering::SeqCst);
+    STEPS.load(Ordering::SeqCst) > 0
+}
+
+/// `Err(Error::Interrupted)` once [`interrupt`] was called: recipes call it
+/// between their steps, before writing their outputs.
+pub fn check_interrupt() -> Result<()> {
+    if INTERRUPTED.load(Ordering::SeqCst) {
+        return Err(Error::Interrupted {
+            report: Box::new(engine::RunReport {
+                stages: Vec::new(),
+                errors: Vec::new(),
+                interrupted: true,
+                elapsed: std::time::Duration::ZERO,
+            }),
+        });
+    }
+    Ok(())
+}
+
 fn current() -> Option<Arc<Control>> {
     CURRENT.lock().ok().and_then(|g| g.clone())
 }
@@ -409,8 +454,17 @@ fn current() -> Option<Arc<Control>> {
 /// [`Error`] holding the run's report; with `allow_interrupt`, an
 /// interrupted run is returned (its `interrupted` set).
 pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> Result<RunReport> {
+    // No sink may overwrite a file the pipeline reads (nor its own file):
+    // checked before validation, which may open the sinks' files.
+    let inputs = input_files(decl);
+    let outs = outputs(decl);
+    crate::error::check_outputs(
+        &inputs.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
+        &outs.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
+    )?;
     // Errors name the stages the user's pipeline has: validate it first.
     let graph = engine::graph::validate(decl, REGISTRY)?;
+    check_interrupt()?;
     let counter = s
         .progress
         .then(|| Arc::new(engine::SourceProgress::default()));
@@ -424,6 +478,10 @@ pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> R
     if let Ok(mut g) = CURRENT.lock() {
         *g = Some(Arc::clone(&control));
     }
+    if INTERRUPTED.load(Ordering::SeqCst) {
+        // Interrupted between the check above and now: stop at once.
+        control.stop();
+    }
     let report =
         engine::run(graph, Arc::clone(&control), &engine::RunOptions { counter }).map_err(|e| {
             anyhow::Error::new(e).context(format!("{}: cannot start the pipeline", decl.file))
@@ -432,6 +490,9 @@ pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> R
         *g = None;
     }
     let report = report?;
+    if !report.interrupted {
+        empty_sources(decl, &report)?;
+    }
     if !report.errors.is_empty() {
         return Err(Error::Stages {
             report: Box::new(report),
@@ -443,6 +504,31 @@ pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> R
         });
     }
     Ok(report)
+}
+
+/// A source that delivered no frame at all (a video with a header and no
+/// frames) is an input error: nothing was processed and the sinks wrote
+/// nothing, which must not look like success.
+fn empty_sources(decl: &PipelineDecl, report: &RunReport) -> Result<()> {
+    for s in decl.stages.iter().filter(|s| s.inputs.is_empty()) {
+        let Some(r) = report.stages.iter().find(|r| r.id == s.id) else {
+            continue;
+        };
+        if r.items_out > 0 {
+            continue;
+        }
+        let path = s
+            .params
+            .iter()
+            .find(|p| p.key == "path")
+            .and_then(|p| p.value.as_str())
+            .map_or_else(|| format!("stage `{}`", s.id), str::to_string);
+        return Err(Error::input(
+            path,
+            "holds no frames: nothing was processed and no output was written",
+        ));
+    }
+    Ok(())
 }
 
 /// [`run_with`], an interruption being an error.
@@ -467,6 +553,33 @@ pub fn kind_listing() -> String {
 /// type, default, range, unit and doc; `None` for an unknown kind.
 pub fn kind_table(name: &str) -> Option<String> {
     stages::kind(name).map(|k| k.describe())
+}
+
+/// The existing files `decl` may read: the pipeline's own file and every
+/// string parameter naming an existing file (at any depth, e.g. a scene's
+/// `signal = { type = "wav", path = ... }`), except the sinks' `path`s.
+pub fn input_files(decl: &PipelineDecl) -> Vec<PathBuf> {
+    fn walk(v: &Value, out: &mut Vec<PathBuf>) {
+        match v {
+            Value::String(s) if s != "-" && Path::new(s).is_file() => out.push(PathBuf::from(s)),
+            Value::Array(a) => a.iter().for_each(|v| walk(v, out)),
+            Value::Table(t) => t.values().for_each(|v| walk(v, out)),
+            _ => {}
+        }
+    }
+    let mut out = Vec::new();
+    if Path::new(&decl.file).is_file() {
+        out.push(PathBuf::from(&decl.file));
+    }
+    for s in &decl.stages {
+        let sink = stages::kind(&s.kind).is_some_and(|k| k.output() == engine::Output::None);
+        for p in &s.params {
+            if !(sink && p.key == "path") {
+                walk(&p.value, &mut out);
+            }
+        }
+    }
+    out
 }
 
 /// The files the sinks of `decl` write (their `path`, not `-`).

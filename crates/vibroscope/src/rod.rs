@@ -121,6 +121,7 @@ fn check(o: &RodOptions) -> Result<()> {
 /// Runs `rod`: writes its JSON.
 pub fn rod(o: &RodOptions) -> Result<(RodReport, RunReport)> {
     check(o)?;
+    crate::spectrum::check_outputs(&o.spectrum)?;
     let mut so = o.spectrum.clone();
     so.include_spectrum = true;
     let (doc, run) = run_spectrum(&so, false)?;

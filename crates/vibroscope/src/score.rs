@@ -25,6 +25,9 @@ pub struct ScoreReport {
     #[serde(serialize_with = "finite")]
     pub gain: f64,
     pub sample_rate_hz: u32,
+    /// Why a metric is `null`, one line each (absent when all are numbers).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 fn finite<S: Serializer>(v: &f64, s: S) -> std::result::Result<S::Ok, S::Error> {
@@ -35,7 +38,72 @@ fn finite<S: Serializer>(v: &f64, s: S) -> std::result::Result<S::Ok, S::Error> 
     }
 }
 
+/// Sample rates `score` accepts (Hz), checked before reading or resampling.
+pub const RATES_HZ: std::ops::RangeInclusive<u32> = 1..=768_000;
+/// Longest signal `score` accepts, in samples at the reference's rate
+/// (each file, the test after resampling): 2^23, 3.2 minutes at 44.1 kHz.
+/// Scoring needs about 130 bytes per sample of the pair (137 MB peak for
+/// two 1,000,000-sample WAVs, `/usr/bin/time -f %M vibroscope score`), so
+/// about 1.1 GB at this bound.
+pub const MAX_SAMPLES: u64 = 1 << 23;
+
+/// Checks a WAV's header: a rate in [`RATES_HZ`], a length (at the
+/// reference's rate `at_hz`) within [`MAX_SAMPLES`].
+fn check_header(path: &Path, at_hz: Option<u32>) -> Result<u32> {
+    // A missing or unreadable file is a runtime error (exit 1), as before.
+    let (rate, n) = crate::io::wav::info(path).map_err(anyhow::Error::new)?;
+    if !RATES_HZ.contains(&rate) {
+        return Err(Error::input(
+            path,
+            format!(
+                "sample rate {rate} Hz is outside {}..={} Hz",
+                RATES_HZ.start(),
+                RATES_HZ.end()
+            ),
+        ));
+    }
+    let at = at_hz.unwrap_or(rate);
+    let len = (u128::from(n) * u128::from(at)).div_ceil(u128::from(rate));
+    if len > u128::from(MAX_SAMPLES) {
+        return Err(Error::input(
+            path,
+            format!(
+                "{n} samples at {rate} Hz ({len} at {at} Hz) is longer than score accepts ({MAX_SAMPLES} samples at the reference's rate); cut it first (sox IN OUT trim 0 SECONDS)"
+            ),
+        ));
+    }
+    Ok(rate)
+}
+
+/// Reads a WAV whose samples must be finite and at least `min` long.
+fn read_signal(path: &Path, what: &str, min: usize) -> Result<Vec<f64>> {
+    let (_, x) = crate::io::wav::read_mono(path).map_err(anyhow::Error::new)?;
+    if x.len() < min {
+        return Err(Error::input(
+            path,
+            format!(
+                "the {what} holds {} samples; scoring needs at least {min}",
+                x.len()
+            ),
+        ));
+    }
+    if let Some(i) = x.iter().position(|v| !v.is_finite()) {
+        return Err(Error::input(
+            path,
+            format!(
+                "the {what}'s sample {i} is {}: every sample must be finite",
+                x[i]
+            ),
+        ));
+    }
+    Ok(x)
+}
+
 /// Scores `test` against `reference`, searching lags up to `max_lag_s`.
+/// A reference that is empty, shorter than 2 samples, non-finite or silent,
+/// a test that is empty or non-finite, and rates or lengths out of bounds
+/// ([`RATES_HZ`], [`MAX_SAMPLES`]) are input errors; a metric that cannot
+/// be computed is `null` with a note saying why.
 pub fn score(reference: &Path, test: &Path, max_lag_s: f64) -> Result<ScoreReport> {
     if !(max_lag_s.is_finite() && max_lag_s >= 0.0) {
         return Err(Error::usage(
@@ -43,8 +111,16 @@ pub fn score(reference: &Path, test: &Path, max_lag_s: f64) -> Result<ScoreRepor
             format!("must be >= 0 seconds, got {max_lag_s}"),
         ));
     }
-    let (fr, r) = crate::io::wav::read_mono(reference).map_err(anyhow::Error::new)?;
-    let (ft, mut t) = crate::io::wav::read_mono(test).map_err(anyhow::Error::new)?;
+    let fr = check_header(reference, None)?;
+    let ft = check_header(test, Some(fr))?;
+    let r = read_signal(reference, "reference", 2)?;
+    if r.iter().all(|&v| v == 0.0) {
+        return Err(Error::input(
+            reference,
+            "the reference is silent (every sample is 0): there is nothing to score against",
+        ));
+    }
+    let mut t = read_signal(test, "test", 1)?;
     if fr != ft {
         let g = crate::math::numeric::gcd(fr as u64, ft as u64).max(1);
         t = metrics::resample(&t, fr as u64 / g, ft as u64 / g).with_context(|| {
@@ -54,7 +130,42 @@ pub fn score(reference: &Path, test: &Path, max_lag_s: f64) -> Result<ScoreRepor
     let max_lag = (max_lag_s * fr as f64).round() as usize;
     let (lag, gain) = metrics::best_lag_gain(&r, &t, max_lag);
     let s = metrics::score(&r, &t, fr as f64, max_lag);
+    let overlap = r.len().min(t.len());
+    let mut notes = Vec::new();
+    let mut why = |name: &str, v: f64, reason: String| {
+        if !v.is_finite() {
+            notes.push(format!("{name}: cannot be computed: {reason}"));
+        }
+    };
+    why(
+        "snr_db",
+        s.snr_db,
+        if gain.is_finite() && gain != 0.0 {
+            "the test equals the reference after gain and lag: zero error, an infinite SNR".into()
+        } else {
+            format!("no gain fits the test to the reference: the test is silent or too short over the {overlap}-sample overlap")
+        },
+    );
+    why(
+        "ssnr_db",
+        s.ssnr_db,
+        format!("the {overlap}-sample overlap is too short or too quiet for one 20 ms segment"),
+    );
+    why(
+        "llr",
+        s.llr,
+        format!("the {overlap}-sample overlap is too short or too quiet for a 10th-order LPC fit"),
+    );
+    why(
+        "stoi",
+        s.stoi,
+        format!(
+            "the overlap ({:.3} s) has fewer than 30 non-silent 25.6 ms frames (STOI needs about 0.4 s of speech-level signal)",
+            overlap as f64 / fr as f64
+        ),
+    );
     Ok(ScoreReport {
+        notes,
         snr_db: s.snr_db,
         ssnr_db: s.ssnr_db,
         llr: s.llr,

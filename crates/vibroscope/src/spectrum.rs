@@ -200,12 +200,17 @@ pub fn run_spectrum(o: &SpectrumOptions, damping: bool) -> Result<(SpectrumRepor
     Ok((report, run))
 }
 
-/// Runs `spectrum`: writes the JSON (and the plots).
-pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
-    let (mut report, run) = run_spectrum(o, true)?;
-    let bytes = serde_json::to_vec_pretty(&report).map_err(anyhow::Error::new)?;
-    crate::io::atomic::write_atomic(&o.json, &bytes).map_err(anyhow::Error::new)?;
-    report.written = [
+/// Refuses outputs that are an input or cannot be written, before the run.
+pub fn check_outputs(o: &SpectrumOptions) -> Result<()> {
+    let mut inputs = vec![o.video.as_path()];
+    inputs.extend(o.region.mask.as_deref());
+    let outputs: Vec<&Path> = outputs(o).map(PathBuf::as_path).collect();
+    crate::error::check_outputs(&inputs, &outputs)
+}
+
+/// The files `spectrum` writes: the JSON, then the optional plots and WAV.
+fn outputs(o: &SpectrumOptions) -> impl Iterator<Item = &PathBuf> {
+    [
         Some(&o.json),
         o.png.as_ref(),
         o.spectrogram.as_ref(),
@@ -213,7 +218,14 @@ pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
     ]
     .into_iter()
     .flatten()
-    .cloned()
-    .collect();
+}
+
+/// Runs `spectrum`: writes the JSON (and the plots).
+pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
+    check_outputs(o)?;
+    let (mut report, run) = run_spectrum(o, true)?;
+    let bytes = serde_json::to_vec_pretty(&report).map_err(anyhow::Error::new)?;
+    crate::io::atomic::write_atomic(&o.json, &bytes).map_err(anyhow::Error::new)?;
+    report.written = outputs(o).cloned().collect();
     Ok((report, run))
 }

@@ -152,7 +152,12 @@ impl Stage for Wav {
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
         match self.writer.take() {
-            Some(w) => w.finalize().map_err(|e| self.err(e)),
+            // A failed finalise (a full disk) still leaves a header that
+            // matches the whole samples on disk.
+            Some(w) => w.finalize().map_err(|e| {
+                let _ = vibroscope_io::wav::repair_header(&self.path);
+                self.err(e)
+            }),
             None => {
                 tracing::warn!(path = %self.path.display(), "no audio reached the WAV sink; no file written");
                 Ok(())

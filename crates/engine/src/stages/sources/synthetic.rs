@@ -71,6 +71,7 @@ pub const PARAMS: &[ParamSpec] = &[
         .unit("px")
         .doc("moving object [x, y, w, h]; default: the central half of the frame"),
     ParamSpec::new("amplitude_px", ParamType::Float, Def::Float(0.05))
+        .floats(-sim::MAX_AMPLITUDE_PX, sim::MAX_AMPLITUDE_PX)
         .unit("px")
         .doc("peak displacement of the object for a signal of 1"),
     ParamSpec::new("direction_deg", ParamType::Float, Def::Float(0.0))
@@ -242,6 +243,9 @@ impl SyntheticParams {
             contrast: self.contrast.unwrap_or(0.15 * full),
             seed: self.seed,
         };
+        // Frame, object and amplitudes first: a picture is resized to the
+        // object, so an object past the frame must fail before that.
+        spec.validate().map_err(|e| e.to_string())?;
         let look = sim::Look {
             texture: match &self.texture {
                 Some(p) => Some(texture_picture(p, object[2], object[3])?),
@@ -297,6 +301,27 @@ impl SyntheticParams {
                 format!("must be within ±100000 ppm, got {e}"),
             ));
         }
+        for (k, i) in self.interference.iter().enumerate() {
+            if !(i.freq_hz.is_finite() && i.freq_hz > 0.0) {
+                return Err((
+                    "interference",
+                    format!(
+                        "[{k}].freq_hz must be a finite frequency > 0 Hz, got {}",
+                        i.freq_hz
+                    ),
+                ));
+            }
+            let max = sim::MAX_AMPLITUDE_PX;
+            if !(i.amplitude_px.is_finite() && i.amplitude_px.abs() <= max) {
+                return Err((
+                    "interference",
+                    format!(
+                        "[{k}].amplitude_px must be finite and at most {max} px in magnitude, got {}",
+                        i.amplitude_px
+                    ),
+                ));
+            }
+        }
         if !self.interference.is_empty() && self.amplitude_px == 0.0 {
             return Err((
                 "interference",
@@ -316,7 +341,15 @@ impl SyntheticParams {
             ));
         }
         self.scene().map(|_| ()).map_err(|m| {
-            let field = if m.starts_with("texture") {
+            // The model names its field: `invalid FIELD: ...`.
+            let named = m
+                .strip_prefix("invalid ")
+                .and_then(|r| r.split([':', '[', '.', ' ']).next())
+                .and_then(|f| PARAMS.iter().find(|p| p.name == f))
+                .map(|p| p.name);
+            let field = if let Some(f) = named {
+                f
+            } else if m.starts_with("texture") {
                 "texture"
             } else if m.starts_with("object_mask") {
                 "object_mask"
