@@ -60,6 +60,7 @@ enum Command {
     Kinds(cmd::kinds::Args),
     Probe(cmd::probe::Args),
     Listen(cmd::listen::Args),
+    Magnify(cmd::magnify::Args),
     #[command(name = "rs-calibrate")]
     RsCalibrate(cmd::rs_calibrate::Args),
     Score(cmd::score::Args),
@@ -122,6 +123,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         Command::Kinds(a) => cmd::kinds::run(a),
         Command::Probe(a) => cmd::probe::run(a),
         Command::Listen(a) => cmd::listen::run(a),
+        Command::Magnify(a) => cmd::magnify::run(a),
         Command::RsCalibrate(a) => cmd::rs_calibrate::run(a),
         Command::Score(a) => cmd::score::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),

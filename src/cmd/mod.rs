@@ -7,6 +7,7 @@ pub mod demo;
 pub mod devices;
 pub mod kinds;
 pub mod listen;
+pub mod magnify;
 pub mod modes;
 pub mod pipelines;
 pub mod probe;

@@ -45,6 +45,10 @@ pub static SHIPPED: &[Shipped] = &[
         text: include_str!("../../../pipelines/live-spectrum.toml"),
     },
     Shipped {
+        name: "magnify",
+        text: include_str!("../../../pipelines/magnify.toml"),
+    },
+    Shipped {
         name: "passthrough",
         text: include_str!("../../../pipelines/passthrough.toml"),
     },

@@ -245,6 +245,20 @@ impl Emitter {
         !self.outs.is_empty()
     }
 
+    /// Takes a buffer from a stage's own output `pool` (a stage that makes
+    /// frames), sleeping while every buffer is in use downstream. `None`
+    /// once the run is aborted.
+    pub fn acquire(&self, pool: &FramePool) -> Option<FrameMut> {
+        loop {
+            if let Some(f) = pool.acquire_timeout(Duration::from_millis(50)) {
+                return Some(f);
+            }
+            if self.control.hard_stop.load(Ordering::Acquire) {
+                return None;
+            }
+        }
+    }
+
     pub fn emit(&mut self, item: Item) -> Result<(), EmitError> {
         if self.outs.is_empty() {
             return Ok(());

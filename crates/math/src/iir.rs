@@ -110,22 +110,31 @@ impl Sos {
 
     /// Complex response at `f_hz` for a stream at `rate_hz`.
     pub fn response_at(&self, f_hz: f64, rate_hz: f64) -> realfft::num_complex::Complex<f64> {
-        use realfft::num_complex::Complex;
-        let w = 2.0 * PI * f_hz / rate_hz;
-        let (z1, z2) = (
-            Complex::from_polar(1.0, -w),
-            Complex::from_polar(1.0, -2.0 * w),
-        );
-        self.sections
-            .iter()
-            .map(|s| (s.b[0] + z1 * s.b[1] + z2 * s.b[2]) / (1.0 + z1 * s.a[0] + z2 * s.a[1]))
-            .product()
+        cascade_response(self.sections.iter().map(|s| (s.b, s.a)), f_hz, rate_hz)
     }
 
     /// Forgets the past (zero state).
     pub fn reset(&mut self) {
         self.state.iter_mut().for_each(|s| *s = [0.0; 2]);
     }
+}
+
+/// Complex response at `f_hz` (stream at `rate_hz`) of a cascade of
+/// biquads given as `(b, a)`: `b0 + b1 z⁻¹ + b2 z⁻²` over `1 + a1 z⁻¹ + a2 z⁻²`.
+pub fn cascade_response(
+    sections: impl Iterator<Item = ([f64; 3], [f64; 2])>,
+    f_hz: f64,
+    rate_hz: f64,
+) -> realfft::num_complex::Complex<f64> {
+    use realfft::num_complex::Complex;
+    let w = 2.0 * PI * f_hz / rate_hz;
+    let (z1, z2) = (
+        Complex::from_polar(1.0, -w),
+        Complex::from_polar(1.0, -2.0 * w),
+    );
+    sections
+        .map(|(b, a)| (b[0] + z1 * b[1] + z2 * b[2]) / (1.0 + z1 * a[0] + z2 * a[1]))
+        .product()
 }
 
 /// The default high-pass cutoff for a stream at `rate_hz`: 1/40 of the

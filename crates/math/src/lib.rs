@@ -22,6 +22,7 @@ pub mod error;
 pub mod exposure;
 pub mod fastmath;
 pub mod iir;
+pub mod magnify;
 pub mod metrics;
 pub mod modal;
 pub mod numeric;

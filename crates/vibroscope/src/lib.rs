@@ -39,6 +39,7 @@ pub mod damping;
 pub mod demo;
 pub mod devices;
 pub mod listen;
+pub mod magnify;
 pub mod microphone;
 pub mod modes;
 pub mod peaks;

@@ -18,6 +18,7 @@ pub static REGISTRY: &[KindSpec] = &[
     transform::mean::KIND,
     transform::gradient_motion::KIND,
     transform::highpass::KIND,
+    transform::magnify::KIND,
     transform::pyramid::KIND,
     transform::phase::KIND,
     transform::align::KIND,

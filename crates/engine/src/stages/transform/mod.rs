@@ -5,6 +5,7 @@ pub mod exposure;
 pub mod gap_fill;
 pub mod gradient_motion;
 pub mod highpass;
+pub mod magnify;
 pub mod mean;
 pub mod passthrough;
 pub mod phase;
