@@ -64,27 +64,154 @@ pub fn read_mono(path: &Path) -> Result<(u32, Vec<f64>), WavError> {
     Ok((spec.sample_rate, out))
 }
 
+/// Sample encoding of a WAV the project writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Encoding {
+    /// 32-bit IEEE float: `WAVE_FORMAT_IEEE_FLOAT` with an 18-byte `fmt `
+    /// chunk (cbSize = 0) and the `fact` chunk that every non-PCM WAV must
+    /// carry (its sample count). sox warns about float WAVs without them
+    /// ("wave header missing extended part of fmt chunk").
+    F32,
+    /// 16-bit PCM (`WAVE_FORMAT_PCM`, 16-byte `fmt `), values clipped to [-1, 1].
+    I16,
+}
+
+/// A mono WAV written as it goes: the header's sizes are rewritten by
+/// [`MonoWavWriter::flush`] and [`MonoWavWriter::finalize`], so the file is
+/// a valid WAV after each (up to the samples flushed).
+pub struct MonoWavWriter<W: std::io::Write + std::io::Seek> {
+    w: W,
+    enc: Encoding,
+    frames: u64,
+}
+
+impl<W: std::io::Write + std::io::Seek> MonoWavWriter<W> {
+    /// Writes the header of an empty file at `rate` Hz.
+    pub fn new(mut w: W, rate: u32, enc: Encoding) -> std::io::Result<Self> {
+        let (tag, bytes, fmt_len): (u16, u16, u32) = match enc {
+            Encoding::F32 => (3, 4, 18),
+            Encoding::I16 => (1, 2, 16),
+        };
+        let mut h = Vec::with_capacity(58);
+        h.extend_from_slice(b"RIFF\0\0\0\0WAVEfmt ");
+        h.extend_from_slice(&fmt_len.to_le_bytes());
+        h.extend_from_slice(&tag.to_le_bytes());
+        h.extend_from_slice(&1u16.to_le_bytes());
+        h.extend_from_slice(&rate.to_le_bytes());
+        h.extend_from_slice(&(rate.saturating_mul(u32::from(bytes))).to_le_bytes());
+        h.extend_from_slice(&bytes.to_le_bytes());
+        h.extend_from_slice(&(8 * bytes).to_le_bytes());
+        if enc == Encoding::F32 {
+            h.extend_from_slice(&0u16.to_le_bytes());
+            h.extend_from_slice(b"fact\x04\0\0\0\0\0\0\0");
+        }
+        h.extend_from_slice(b"data\0\0\0\0");
+        w.write_all(&h)?;
+        let mut me = Self { w, enc, frames: 0 };
+        me.patch()?;
+        Ok(me)
+    }
+
+    fn header_len(&self) -> u64 {
+        match self.enc {
+            Encoding::F32 => 58,
+            Encoding::I16 => 44,
+        }
+    }
+
+    fn data_bytes(&self) -> u64 {
+        self.frames
+            * match self.enc {
+                Encoding::F32 => 4,
+                Encoding::I16 => 2,
+            }
+    }
+
+    /// Appends samples (`gain * x`; 16-bit clips at ±1).
+    pub fn write(&mut self, x: &[f32], gain: f32) -> std::io::Result<()> {
+        let per = match self.enc {
+            Encoding::F32 => 4,
+            Encoding::I16 => 2,
+        };
+        if self.header_len() + self.data_bytes() + per * x.len() as u64 > u64::from(u32::MAX) {
+            return Err(std::io::Error::other("a WAV file holds at most 4 GiB"));
+        }
+        for &v in x {
+            let v = v * gain;
+            match self.enc {
+                Encoding::F32 => self.w.write_all(&v.to_le_bytes())?,
+                Encoding::I16 => self
+                    .w
+                    .write_all(&(((v.clamp(-1.0, 1.0)) * 32767.0).round() as i16).to_le_bytes())?,
+            }
+        }
+        self.frames += x.len() as u64;
+        Ok(())
+    }
+
+    /// Samples written.
+    pub fn len(&self) -> u64 {
+        self.frames
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.frames == 0
+    }
+
+    /// Rewrites the sizes in the header (RIFF, `fact`, `data`).
+    fn patch(&mut self) -> std::io::Result<()> {
+        use std::io::SeekFrom;
+        let data = self.data_bytes() as u32;
+        let riff = (self.header_len() - 8) as u32 + data;
+        self.w.seek(SeekFrom::Start(4))?;
+        self.w.write_all(&riff.to_le_bytes())?;
+        if self.enc == Encoding::F32 {
+            self.w.seek(SeekFrom::Start(46))?;
+            self.w.write_all(&(self.frames as u32).to_le_bytes())?;
+        }
+        self.w.seek(SeekFrom::Start(self.header_len() - 4))?;
+        self.w.write_all(&data.to_le_bytes())?;
+        self.w.seek(SeekFrom::End(0))?;
+        Ok(())
+    }
+
+    /// Makes what is written so far a valid file on disk.
+    pub fn flush(&mut self) -> std::io::Result<()> {
+        self.patch()?;
+        self.w.flush()
+    }
+
+    /// Finishes the file, giving back the writer.
+    pub fn finalize(mut self) -> std::io::Result<W> {
+        self.flush()?;
+        Ok(self.w)
+    }
+}
+
+/// Encodes a whole mono WAV in memory.
+fn encode(rate: u32, x: &[f64], enc: Encoding, gain: f32) -> std::io::Result<Vec<u8>> {
+    let cur = std::io::Cursor::new(Vec::with_capacity(58 + 4 * x.len()));
+    let mut w = MonoWavWriter::new(cur, rate, enc)?;
+    let y: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+    w.write(&y, gain)?;
+    Ok(w.finalize()?.into_inner())
+}
+
 /// Writes a mono 32-bit float WAV atomically (a temporary sibling, then a
 /// rename), so an interrupted run never leaves half a file.
 pub fn write_mono_f32(path: &Path, rate: u32, x: &[f64]) -> Result<(), WavError> {
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: rate,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let encode = || -> Result<Vec<u8>, hound::Error> {
-        let mut bytes = std::io::Cursor::new(Vec::with_capacity(44 + 4 * x.len()));
-        let mut w = hound::WavWriter::new(&mut bytes, spec)?;
-        for &v in x {
-            w.write_sample(v as f32)?;
-        }
-        w.finalize()?;
-        Ok(bytes.into_inner())
-    };
-    let bytes = encode().map_err(|source| WavError::Encode {
+    let bytes = encode(rate, x, Encoding::F32, 1.0).map_err(|e| WavError::Encode {
         path: path.to_path_buf(),
-        source,
+        source: hound::Error::IoError(e),
+    })?;
+    Ok(crate::atomic::write_atomic(path, &bytes)?)
+}
+
+/// Writes a mono 16-bit PCM WAV of `gain * x` (clipped to ±1) atomically.
+pub fn write_mono_i16(path: &Path, rate: u32, x: &[f64], gain: f64) -> Result<(), WavError> {
+    let bytes = encode(rate, x, Encoding::I16, gain as f32).map_err(|e| WavError::Encode {
+        path: path.to_path_buf(),
+        source: hound::Error::IoError(e),
     })?;
     Ok(crate::atomic::write_atomic(path, &bytes)?)
 }
@@ -121,6 +248,36 @@ mod tests {
         write_mono_f32(&path, 2200, &[0.25, -0.5, 1.5]).expect("write");
         let (rate, x) = read_mono(&path).expect("read");
         assert_eq!((rate, x), (2200, vec![0.25, -0.5, 1.5]));
+    }
+
+    /// Both encodings: the header layout byte by byte (float: format 3,
+    /// an 18-byte fmt with cbSize 0, a fact chunk with the sample count;
+    /// PCM: format 1, 16-byte fmt), read back by hound.
+    #[test]
+    fn headers_are_laid_out_as_the_spec_says() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let f = dir.path().join("f.wav");
+        write_mono_f32(&f, 48000, &[0.5, -0.25, 0.125]).expect("write");
+        let b = std::fs::read(&f).expect("read");
+        assert_eq!(b.len(), 58 + 12);
+        assert_eq!(&b[0..4], b"RIFF");
+        assert_eq!(u32::from_le_bytes([b[4], b[5], b[6], b[7]]), 62);
+        assert_eq!(&b[12..16], b"fmt ");
+        assert_eq!(u32::from_le_bytes([b[16], b[17], b[18], b[19]]), 18);
+        assert_eq!(u16::from_le_bytes([b[20], b[21]]), 3);
+        assert_eq!(u16::from_le_bytes([b[36], b[37]]), 0, "cbSize");
+        assert_eq!(&b[38..42], b"fact");
+        assert_eq!(u32::from_le_bytes([b[46], b[47], b[48], b[49]]), 3);
+        assert_eq!(&b[50..54], b"data");
+        assert_eq!(u32::from_le_bytes([b[54], b[55], b[56], b[57]]), 12);
+        let p = dir.path().join("p.wav");
+        write_mono_i16(&p, 8000, &[0.5, -2.0, 1e-6], 1.0).expect("write");
+        let b = std::fs::read(&p).expect("read");
+        assert_eq!(b.len(), 44 + 6);
+        assert_eq!(u16::from_le_bytes([b[20], b[21]]), 1);
+        let (rate, x) = read_mono(&p).expect("read");
+        assert_eq!(rate, 8000);
+        assert_eq!(x, vec![16384.0 / 32768.0, -32767.0 / 32768.0, 0.0]);
     }
 
     #[test]
