@@ -44,7 +44,7 @@ pub const MODE: ParamSpec = ParamSpec::new(
 /// stream's rate.
 #[derive(Clone, Copy, Debug)]
 pub enum Design {
-    /// [`super::highpass::default_cutoff_hz`] of the rate.
+    /// [`vibroscope_math::iir::default_highpass_cutoff_hz`] of the rate.
     DefaultHighpass,
     Fixed(Shape),
 }
@@ -53,7 +53,7 @@ impl Design {
     fn shape(self, rate_hz: f64) -> Shape {
         match self {
             Design::DefaultHighpass => Shape::Highpass {
-                cutoff_hz: super::highpass::default_cutoff_hz(rate_hz),
+                cutoff_hz: vibroscope_math::iir::default_highpass_cutoff_hz(rate_hz),
             },
             Design::Fixed(s) => s,
         }
