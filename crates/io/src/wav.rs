@@ -216,6 +216,83 @@ pub fn write_mono_i16(path: &Path, rate: u32, x: &[f64], gain: f64) -> Result<()
     Ok(crate::atomic::write_atomic(path, &bytes)?)
 }
 
+/// Rewrites a mono WAV as 16-bit PCM scaled so its peak is at `peak_dbfs`,
+/// streaming (two passes over the file: the peak, then the samples, into a
+/// temporary sibling renamed over it): memory stays bounded whatever the
+/// length. A silent file is written unscaled.
+pub fn normalize_to_i16(path: &Path, peak_dbfs: f64) -> Result<(), WavError> {
+    let open = |source| WavError::Open {
+        path: path.to_path_buf(),
+        source,
+    };
+    let bad = |source| WavError::Samples {
+        path: path.to_path_buf(),
+        source,
+    };
+    let io_err = |e: std::io::Error| {
+        WavError::Write(crate::atomic::WriteError {
+            path: path.to_path_buf(),
+            source: e,
+        })
+    };
+    let mut peak = 0.0f64;
+    let rate = {
+        let mut r = hound::WavReader::open(path).map_err(open)?;
+        for s in samples_f64(&mut r) {
+            peak = peak.max(s.map_err(bad)?.abs());
+        }
+        r.spec().sample_rate
+    };
+    let gain = if peak > 0.0 {
+        10f64.powf(peak_dbfs / 20.0) / peak
+    } else {
+        1.0
+    } as f32;
+    let tmp = crate::atomic::temp_sibling(path);
+    let done = (|| -> Result<(), WavError> {
+        let mut r = hound::WavReader::open(path).map_err(open)?;
+        let file = std::fs::File::create(&tmp).map_err(io_err)?;
+        let mut w = MonoWavWriter::new(std::io::BufWriter::new(file), rate, Encoding::I16)
+            .map_err(io_err)?;
+        let mut buf = Vec::with_capacity(4096);
+        for s in samples_f64(&mut r) {
+            buf.push(s.map_err(bad)? as f32);
+            if buf.len() == buf.capacity() {
+                w.write(&buf, gain).map_err(io_err)?;
+                buf.clear();
+            }
+        }
+        w.write(&buf, gain).map_err(io_err)?;
+        w.finalize().map_err(io_err)?;
+        std::fs::rename(&tmp, path).map_err(io_err)
+    })();
+    if done.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    done
+}
+
+/// The first channel's samples as f64 (integers scaled to [-1, 1)).
+fn samples_f64<'a, R: std::io::Read + 'a>(
+    r: &'a mut hound::WavReader<R>,
+) -> Box<dyn Iterator<Item = Result<f64, hound::Error>> + 'a> {
+    let spec = r.spec();
+    let ch = spec.channels.max(1) as usize;
+    match spec.sample_format {
+        hound::SampleFormat::Float => {
+            Box::new(r.samples::<f32>().step_by(ch).map(|s| s.map(f64::from)))
+        }
+        hound::SampleFormat::Int => {
+            let scale = 1.0 / (1u64 << (spec.bits_per_sample.clamp(1, 32) - 1)) as f64;
+            Box::new(
+                r.samples::<i32>()
+                    .step_by(ch)
+                    .map(move |s| s.map(|v| v as f64 * scale)),
+            )
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -278,6 +355,33 @@ mod tests {
         let (rate, x) = read_mono(&p).expect("read");
         assert_eq!(rate, 8000);
         assert_eq!(x, vec![16384.0 / 32768.0, -32767.0 / 32768.0, 0.0]);
+    }
+
+    /// A float WAV normalised in place: 16-bit PCM, peak at -1 dBFS, same
+    /// shape, no temporary file left behind.
+    #[test]
+    fn normalizes_a_float_wav_to_16_bit() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let f = dir.path().join("n.wav");
+        let x: Vec<f64> = (0..10_000)
+            .map(|i| 0.01 * (i as f64 * 0.01).sin())
+            .collect();
+        write_mono_f32(&f, 600, &x).expect("write");
+        normalize_to_i16(&f, -1.0).expect("normalise");
+        let r = hound::WavReader::open(&f).expect("open");
+        assert_eq!((r.spec().bits_per_sample, r.spec().sample_rate), (16, 600));
+        let (_, y) = read_mono(&f).expect("read");
+        assert_eq!(y.len(), x.len());
+        let peak = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        assert!((20.0 * peak.log10() + 1.0).abs() < 0.01, "peak {peak}");
+        let g = peak / 0.01;
+        let err = x
+            .iter()
+            .zip(&y)
+            .map(|(a, b)| (a * g - b).abs())
+            .fold(0.0, f64::max);
+        assert!(err < 1.0 / 32768.0, "{err}");
+        assert_eq!(std::fs::read_dir(dir.path()).expect("dir").count(), 1);
     }
 
     #[test]

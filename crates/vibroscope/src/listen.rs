@@ -180,6 +180,9 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         }
         pipeline::insert_before(&mut decl, "out", st)?;
     }
+    if corrections.is_some() {
+        crate::microphone::causal_highpass(&mut decl)?;
+    }
     if let Some(dev) = &o.speaker {
         add_speaker(&mut decl, dev)?;
     }
@@ -220,12 +223,9 @@ pub const PEAK_DBFS: f64 = -1.0;
 /// 16-bit PCM peak-normalised to [`PEAK_DBFS`] unless `--float`; written
 /// atomically over it.
 fn finish_wav(o: &ListenOptions, resample: bool) -> Result<()> {
-    let resample = resample && o.rate != OutputRate::Native;
-    if !resample && o.float {
-        return Ok(());
-    }
-    let (rate, x) = crate::io::wav::read_mono(&o.output).map_err(anyhow::Error::new)?;
-    let (rate, x) = if resample {
+    if resample && o.rate != OutputRate::Native {
+        // After a calibration (which holds the whole signal anyway).
+        let (rate, x) = crate::io::wav::read_mono(&o.output).map_err(anyhow::Error::new)?;
         let to = match o.rate {
             OutputRate::Hz(r) => f64::from(r),
             _ => default_rate_hz(f64::from(rate)),
@@ -234,23 +234,13 @@ fn finish_wav(o: &ListenOptions, resample: bool) -> Result<()> {
             let x32: Vec<f32> = x.iter().map(|&v| v as f32).collect();
             let y = resample_all(&x32, f64::from(rate), to)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", o.output.display()))?;
-            (to as u32, y.iter().map(|&v| f64::from(v)).collect())
-        } else {
-            (rate, x)
+            let y: Vec<f64> = y.iter().map(|&v| f64::from(v)).collect();
+            crate::io::wav::write_mono_f32(&o.output, to as u32, &y).map_err(anyhow::Error::new)?;
         }
-    } else {
-        (rate, x)
-    };
-    if o.float {
-        crate::io::wav::write_mono_f32(&o.output, rate, &x).map_err(anyhow::Error::new)?;
-    } else {
-        let peak = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let gain = if peak > 0.0 {
-            10f64.powf(PEAK_DBFS / 20.0) / peak
-        } else {
-            1.0
-        };
-        crate::io::wav::write_mono_i16(&o.output, rate, &x, gain).map_err(anyhow::Error::new)?;
+    }
+    if !o.float {
+        // Streaming: bounded memory however long the recording.
+        crate::io::wav::normalize_to_i16(&o.output, PEAK_DBFS).map_err(anyhow::Error::new)?;
     }
     Ok(())
 }
