@@ -487,7 +487,14 @@ fn table_4_2_equalised_speech() {
         {
             let out = format!("s{i}-{k}.wav");
             let y4m = format!("s{i}.y4m");
-            let mut args = vec!["listen", y4m.as_str(), "-o", out.as_str()];
+            let mut args = vec![
+                "listen",
+                y4m.as_str(),
+                "-o",
+                out.as_str(),
+                "--rate",
+                "native",
+            ];
             args.extend_from_slice(extra);
             let o = run_in(d.path(), &args);
             assert_eq!(code(&o), 0, "{}", stderr(&o));

@@ -216,7 +216,19 @@ fn listen_with_denoising_improves_speech() {
     let mut scores = Vec::new();
     for mode in ["none", "subtract", "enhance"] {
         let out = format!("{mode}.wav");
-        let o = run_in(d, &["listen", "sp.y4m", "-o", &out, "--denoise", mode]);
+        let o = run_in(
+            d,
+            &[
+                "listen",
+                "sp.y4m",
+                "-o",
+                &out,
+                "--denoise",
+                mode,
+                "--rate",
+                "native",
+            ],
+        );
         assert_eq!(code(&o), 0, "{mode}: {}", stderr(&o));
         assert_eq!(
             read_wav(&d.join(&out)).1.len(),

@@ -288,7 +288,16 @@ fn listen_rolling_shutter_on_a_recording_and_the_global_shutter_view() {
     }
     run_ok(
         d,
-        &["listen", "rs.y4m", "--roi", "16,0,64,720", "-o", "g.wav"],
+        &[
+            "listen",
+            "rs.y4m",
+            "--roi",
+            "16,0,64,720",
+            "--rate",
+            "native",
+            "-o",
+            "g.wav",
+        ],
     );
     let (grate, g) = read_wav(&d.join("g.wav"));
     let (gp, gdf) = spectrum(&g, grate as f64);

@@ -67,7 +67,17 @@ fn replay_through_the_null_speaker_is_paced_and_complete() {
     let t = std::time::Instant::now();
     let o = run_in(
         d.path(),
-        &["listen", v, "-o", "s.wav", "--speaker", "null", "--stats"],
+        &[
+            "listen",
+            v,
+            "-o",
+            "s.wav",
+            "--speaker",
+            "null",
+            "--stats",
+            "--rate",
+            "native",
+        ],
     );
     let secs = t.elapsed().as_secs_f64();
     assert_eq!(code(&o), 0, "{}", stderr(&o));

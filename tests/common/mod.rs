@@ -50,12 +50,19 @@ pub fn shared_data(file: &str) -> Option<PathBuf> {
 pub fn read_wav(p: &Path) -> (u32, Vec<f32>) {
     let mut r = hound::WavReader::open(p)
         .unwrap_or_else(|e| panic!("{}: not a valid WAV: {e}", p.display()));
-    let rate = r.spec().sample_rate;
-    let s = r
-        .samples::<f32>()
-        .collect::<Result<Vec<_>, _>>()
-        .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
-    (rate, s)
+    let spec = r.spec();
+    // 16-bit PCM (listen's default) scaled to [-1, 1); float as stored.
+    let s = match spec.sample_format {
+        hound::SampleFormat::Float => r.samples::<f32>().collect::<Result<Vec<_>, _>>(),
+        hound::SampleFormat::Int => {
+            let scale = 1.0 / (1u64 << (spec.bits_per_sample - 1)) as f32;
+            r.samples::<i32>()
+                .map(|v| v.map(|v| v as f32 * scale))
+                .collect::<Result<Vec<_>, _>>()
+        }
+    }
+    .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    (spec.sample_rate, s)
 }
 
 /// Writes a mono 32-bit float WAV.

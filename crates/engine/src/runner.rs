@@ -74,6 +74,8 @@ pub struct StageReport {
     pub busy: Duration,
     /// Capture-to-arrival latency of what reached this sink (live runs only).
     pub latency: Option<LatencySummary>,
+    /// What the stage says about how it ran ([`super::stage::Stage::summary`]).
+    pub summary: Option<String>,
 }
 
 impl StageReport {
@@ -129,6 +131,11 @@ impl RunReport {
             );
         }
         for r in &self.stages {
+            if let Some(m) = &r.summary {
+                s += &format!("{}: {m}\n", r.id);
+            }
+        }
+        for r in &self.stages {
             if let Some(l) = r.latency {
                 s += &format!(
                     "latency capture -> {}: p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms ({} samples)\n",
@@ -175,6 +182,8 @@ struct Counters {
     capacity: u64,
     /// Sinks of live runs measure capture-to-arrival latency.
     latency: Option<Mutex<LatencyHist>>,
+    /// The stage's own summary, taken after `finish`.
+    summary: Mutex<Option<String>>,
 }
 
 /// Builds every stage (opening files and devices), then runs the graph to
@@ -230,6 +239,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
             capacity: cap,
             latency: (live && !has_consumer[i] && !node.inputs.is_empty())
                 .then(|| Mutex::new(LatencyHist::new())),
+            summary: Mutex::new(None),
         }));
     }
     // Build (opens files); nothing runs yet.
@@ -335,6 +345,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
                 .latency
                 .as_ref()
                 .and_then(|h| h.lock().unwrap_or_else(|e| e.into_inner()).summary()),
+            summary: c.summary.lock().unwrap_or_else(|e| e.into_inner()).take(),
         })
         .collect::<Vec<_>>();
     for r in &stages {
@@ -441,5 +452,6 @@ fn run_stage(
     let fin = st.finish(&mut out);
     c.busy_ns
         .fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
+    *c.summary.lock().unwrap_or_else(|e| e.into_inner()) = st.summary();
     result.and(fin)
 }

@@ -683,8 +683,9 @@ mod tests {
     use crate::config::parse;
     use crate::stages::REGISTRY;
 
-    /// A value for a required parameter, for the defaults test.
-    fn sample(spec: &ParamSpec) -> Value {
+    /// A value for a required parameter, for the defaults test; required
+    /// floats grow with their position `i` (a band's `lo_hz` < `hi_hz`).
+    fn sample(spec: &ParamSpec, i: usize) -> Value {
         match spec.ty {
             ParamType::Path => Value::String("/tmp/vibroscope-kinds-test/out.x".into()),
             ParamType::Str => Value::String("x".into()),
@@ -693,7 +694,7 @@ mod tests {
                 Range::Int(lo, _) => lo,
                 _ => 1,
             }),
-            ParamType::Float => Value::Float(1.0),
+            ParamType::Float => Value::Float(1.0 + i as f64),
             ParamType::Choice(c) => Value::String(c[0].into()),
             _ => Value::Array(Vec::new()),
         }
@@ -706,7 +707,7 @@ mod tests {
     fn declared_defaults_pass_validation() {
         for k in REGISTRY {
             let mut text = format!("[[stage]]\nid = \"s\"\nkind = \"{}\"\n", k.name);
-            for p in k.params {
+            for (i, p) in k.params.iter().enumerate() {
                 if let Some(v) = p.default.value() {
                     assert!(
                         p.check(&v).is_ok(),
@@ -717,7 +718,7 @@ mod tests {
                     assert!(!p.doc.is_empty(), "{}.{} has no doc", k.name, p.name);
                 }
                 if p.default == Def::Required {
-                    text.push_str(&format!("{} = {}\n", p.name, sample(p)));
+                    text.push_str(&format!("{} = {}\n", p.name, sample(p, i)));
                 }
             }
             let decl = parse("t.toml", &text).unwrap();

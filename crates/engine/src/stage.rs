@@ -207,6 +207,11 @@ pub trait Stage: Send {
     fn finish(&mut self, _out: &mut Emitter) -> Result<(), StageError> {
         Ok(())
     }
+    /// One line on how the stage ran (a mode it chose, its latency), read
+    /// after `finish` and printed by `--stats`; `None` says nothing.
+    fn summary(&self) -> Option<String> {
+        None
+    }
 }
 
 /// What a stage thread runs.

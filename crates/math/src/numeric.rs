@@ -41,6 +41,30 @@ pub fn bessel_i0(x: f64) -> f64 {
     sum
 }
 
+/// Least-squares fit of `y[n] ≈ a sin(w n) + b cos(w n)`, w = 2 pi f / rate,
+/// over the samples `range` of `y`: the amplitude and the phase (radians,
+/// positive = leads the sine). For tests and measurements of a tone.
+pub fn fit_tone(y: &[f32], f_hz: f64, rate_hz: f64, range: std::ops::Range<usize>) -> (f64, f64) {
+    let w = 2.0 * std::f64::consts::PI * f_hz / rate_hz;
+    let (mut ss, mut cc, mut sc, mut ys, mut yc) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let end = range.end.min(y.len());
+    for (n, &v) in y.iter().enumerate().take(end).skip(range.start) {
+        let (sn, cs) = (w * n as f64).sin_cos();
+        let v = f64::from(v);
+        ss += sn * sn;
+        cc += cs * cs;
+        sc += sn * cs;
+        ys += v * sn;
+        yc += v * cs;
+    }
+    let det = ss * cc - sc * sc;
+    if det <= 0.0 {
+        return (0.0, 0.0);
+    }
+    let (a, b) = ((ys * cc - yc * sc) / det, (yc * ss - ys * sc) / det);
+    (a.hypot(b), b.atan2(a))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -118,7 +118,8 @@ pub fn recover(
     }
     let fs = frame_rate(video, fps)?;
     let tmp = TempPath::new("calibrate.wav");
-    let decl = listen_pipeline(video, tmp.path(), fps, region, Denoise::None)?;
+    let mut decl = listen_pipeline(video, tmp.path(), fps, region, Denoise::None)?;
+    crate::microphone::causal_highpass(&mut decl)?;
     pipeline::run(&decl, run)?;
     let (_, y) = crate::io::wav::read_mono(tmp.path())
         .with_context(|| format!("{}: the recovery failed", video.display()))?;

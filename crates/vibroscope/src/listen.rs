@@ -1,15 +1,20 @@
 //! Recover sound from a video: the shipped visual-microphone pipeline
 //! (pyramid local phase, band alignment, high-pass, optional denoising)
-//! replayed on a recording, written to a WAV at the camera's frame rate;
-//! or, for rolling-shutter cameras, one sample per row.
+//! replayed on a recording; or, for rolling-shutter cameras, one sample
+//! per row. Optional band-pass and band-stop stages (`--band`, `--notch`)
+//! follow, then a `resample` stage to a standard audio rate, then the WAV:
+//! 16-bit PCM peak-normalised to -1 dBFS, or 32-bit float in the signal's
+//! units (pixels or radians of motion).
 
 use crate::corrections;
 use crate::engine::config::PipelineDecl;
 use crate::engine::RunReport;
 use crate::error::{Error, Result};
 use crate::microphone::listen_pipeline;
+pub use crate::pipeline::BandFilter;
 pub use crate::pipeline::Denoise;
 use crate::pipeline::{self, by, path_value, PipelineOptions, Region, RunSettings};
+use crate::stages::transform::resample::{default_rate_hz, resample_all};
 use serde::Serialize;
 use std::path::PathBuf;
 use toml::Value;
@@ -34,9 +39,22 @@ pub struct RollingShutter {
     /// Invert the exposure boxcar (needs `exposure_us`).
     pub compensate_exposure: bool,
     pub fill: Fill,
-    /// Output rate in Hz (needs `exposure_us`).
-    pub rate: Option<f64>,
 }
+
+/// The rate of the WAV `listen` writes.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum OutputRate {
+    /// The signal's own rate when it is a standard audio rate, else 48 kHz.
+    #[default]
+    Standard,
+    /// This rate, Hz (band-limited resampling).
+    Hz(u32),
+    /// The signal's own rate (the frame rate; 1/line delay for rows).
+    Native,
+}
+
+/// Output rates `--rate` takes, Hz (the `resample` stage's range).
+pub const RATE_RANGE: std::ops::RangeInclusive<u32> = 1000..=384_000;
 
 /// What `listen` is asked.
 #[derive(Clone, Debug, Default)]
@@ -54,6 +72,11 @@ pub struct ListenOptions {
     pub calibration: Option<PathBuf>,
     /// One sample per row instead of per frame.
     pub rolling_shutter: Option<RollingShutter>,
+    /// Band-pass and band-stop filters, applied in order.
+    pub filters: Vec<BandFilter>,
+    pub rate: OutputRate,
+    /// 32-bit float in the signal's units instead of normalised 16-bit PCM.
+    pub float: bool,
     pub run: RunSettings,
 }
 
@@ -67,6 +90,8 @@ pub struct ListenReport {
     /// Samples written and their rate (Hz).
     pub samples: u64,
     pub sample_rate_hz: u32,
+    /// "16-bit PCM, peak at -1 dBFS" or "32-bit float".
+    pub encoding: String,
     /// Notes worth telling the user (e.g. a missing exposure).
     pub notes: Vec<String>,
     #[serde(skip)]
@@ -117,17 +142,64 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         }
         None => listen_pipeline(&o.video, &o.output, o.fps, &o.region, o.denoise)?,
     };
+    if let OutputRate::Hz(r) = o.rate {
+        if !RATE_RANGE.contains(&r) {
+            return Err(Error::usage(
+                "--rate",
+                format!(
+                    "{r} Hz is outside {}-{} Hz",
+                    RATE_RANGE.start(),
+                    RATE_RANGE.end()
+                ),
+            ));
+        }
+    }
+    // The signal's rate, when known before the run: bands must lie below
+    // its Nyquist frequency (checked again by the stages once it is known).
+    let signal_rate = match &o.rolling_shutter {
+        Some(rs) => rs.line_delay_us.filter(|d| *d > 0.0).map(|d| 1e6 / d),
+        None => o.fps.or_else(|| {
+            crate::io::open(&o.video, crate::io::format_by_extension(&o.video))
+                .ok()
+                .and_then(|r| r.info().fps)
+        }),
+    };
+    for (i, f) in o.filters.iter().enumerate() {
+        if let Some(rate) = signal_rate {
+            f.check_rate(rate)?;
+        }
+        let id = format!("{}{}", f.stage().0, i + 1);
+        f.insert(&mut decl, &id, "out")?;
+    }
+    // A calibration is applied to the finished WAV at the signal's rate;
+    // it is resampled afterwards, by the same resampler.
+    if corrections.is_none() && o.rate != OutputRate::Native {
+        let origin = by(&match o.rate {
+            OutputRate::Hz(r) => format!("--rate {r}"),
+            _ => "listen's default output rate".into(),
+        });
+        let mut st = pipeline::new_stage("resample", "resample", &[], origin.clone());
+        if let OutputRate::Hz(r) = o.rate {
+            crate::engine::config::set_param(&mut st, "rate_hz", Value::Float(r.into()), origin);
+        }
+        pipeline::insert_before(&mut decl, "out", st)?;
+    }
+    if corrections.is_some() {
+        crate::microphone::causal_highpass(&mut decl)?;
+    }
     if let Some(dev) = &o.speaker {
         add_speaker(&mut decl, dev)?;
     }
-    let run = pipeline::run(&decl, o.run)?;
-    let calibration = match &corrections {
-        Some(c) => {
+    let run = pipeline::run(&decl, o.run);
+    // Ctrl-C: the WAV holds what was processed; finish it as well.
+    if matches!(run, Ok(_) | Err(Error::Interrupted { .. })) && o.output.exists() {
+        if let Some(c) = &corrections {
             corrections::apply_to_wav(&o.output, c, o.denoise)?;
-            Some(corrections::describe(c))
         }
-        None => None,
-    };
+        finish_wav(o, corrections.is_some())?;
+    }
+    let run = run?;
+    let calibration = corrections.as_ref().map(|c| corrections::describe(c));
     let (samples, sample_rate_hz) = match hound::WavReader::open(&o.output) {
         Ok(r) => (u64::from(r.duration()), r.spec().sample_rate),
         Err(_) => (0, 0),
@@ -136,10 +208,45 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         output: o.output.clone(),
         samples,
         sample_rate_hz,
+        encoding: if o.float {
+            "32-bit float".into()
+        } else {
+            format!("16-bit PCM, peak at {PEAK_DBFS} dBFS")
+        },
         calibration,
         notes,
         run: Some(run),
     })
+}
+
+/// Peak level of the 16-bit WAV, dBFS.
+pub const PEAK_DBFS: f64 = -1.0;
+
+/// The WAV the pipeline wrote (32-bit float) in its final form: resampled
+/// when the pipeline could not (`resample`: after a calibration), then
+/// 16-bit PCM peak-normalised to [`PEAK_DBFS`] unless `--float`; written
+/// atomically over it.
+fn finish_wav(o: &ListenOptions, resample: bool) -> Result<()> {
+    if resample && o.rate != OutputRate::Native {
+        // After a calibration (which holds the whole signal anyway).
+        let (rate, x) = crate::io::wav::read_mono(&o.output).map_err(anyhow::Error::new)?;
+        let to = match o.rate {
+            OutputRate::Hz(r) => f64::from(r),
+            _ => default_rate_hz(f64::from(rate)),
+        };
+        if (to - f64::from(rate)).abs() > 1e-9 {
+            let x32: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+            let y = resample_all(&x32, f64::from(rate), to)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", o.output.display()))?;
+            let y: Vec<f64> = y.iter().map(|&v| f64::from(v)).collect();
+            crate::io::wav::write_mono_f32(&o.output, to as u32, &y).map_err(anyhow::Error::new)?;
+        }
+    }
+    if !o.float {
+        // Streaming: bounded memory however long the recording.
+        crate::io::wav::normalize_to_i16(&o.output, PEAK_DBFS).map_err(anyhow::Error::new)?;
+    }
+    Ok(())
 }
 
 /// Adds a `speaker` sink fed by whatever feeds the `out` sink (fan-out:
@@ -236,24 +343,10 @@ fn rs_pipeline(
                     by("--compensate-exposure"),
                 )?;
             }
-            if let Some(r) = a.rate {
-                pipeline::set(
-                    &mut decl,
-                    "exposure",
-                    "rate_hz",
-                    f(r),
-                    by(&format!("--rate {r}")),
-                )?;
-            }
         }
         None => {
-            if a.compensate_exposure || a.rate.is_some() {
-                let flag = if a.rate.is_some() {
-                    "--rate"
-                } else {
-                    "--compensate-exposure"
-                };
-                return Err(Error::usage(flag, "needs --exposure-us"));
+            if a.compensate_exposure {
+                return Err(Error::usage("--compensate-exposure", "needs --exposure-us"));
             }
             notes.push(
                 "no --exposure-us: the output is not band-limited to the exposure's first null"

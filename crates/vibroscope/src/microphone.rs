@@ -8,6 +8,19 @@ use crate::error::Result;
 use crate::pipeline::{self, by, path_value, Denoise, PipelineOptions, Region};
 use std::path::Path;
 
+/// Sets the high-pass of a visual-microphone pipeline to the causal IIR:
+/// calibrations are fitted, and applied, on the causal recovery (their
+/// models and their tests were made with it).
+pub fn causal_highpass(decl: &mut PipelineDecl) -> Result<()> {
+    pipeline::set(
+        decl,
+        "highpass",
+        "mode",
+        toml::Value::String("causal".into()),
+        by("calibration (fitted on the causal high-pass)"),
+    )
+}
+
 /// The visual-microphone pipeline replayed on `video`, writing `output`.
 pub fn listen_pipeline(
     video: &Path,

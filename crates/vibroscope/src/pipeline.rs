@@ -204,6 +204,29 @@ pub fn rewire(decl: &mut PipelineDecl, consumer: &str, to: &str) -> Result<()> {
     Ok(())
 }
 
+/// Inserts `st` (its input and id already set) just before the stage
+/// `consumer`: it reads what `consumer` read, and `consumer` reads `st`.
+pub fn insert_before(decl: &mut PipelineDecl, consumer: &str, mut st: StageDecl) -> Result<()> {
+    let at = position(decl, consumer)?;
+    let inputs = std::mem::take(&mut decl.stages[at].inputs);
+    st.inputs = inputs
+        .into_iter()
+        .map(|mut i| {
+            i.origin = st.origin.clone();
+            i
+        })
+        .collect();
+    let id = st.id.clone();
+    decl.stages.insert(at, st);
+    decl.stages[at + 1].inputs = vec![InputDecl {
+        from: id,
+        capacity: None,
+        policy: None,
+        origin: decl.stages[at].origin.clone(),
+    }];
+    Ok(())
+}
+
 /// Integer parameter from a count.
 pub fn int(n: usize) -> Value {
     Value::Integer(i64::try_from(n).unwrap_or(i64::MAX))
@@ -256,6 +279,144 @@ impl Roi {
                 .map(|v| Value::Integer(v.into()))
                 .collect(),
         )
+    }
+}
+
+/// A Butterworth band filter asked for on the command line: `--band LO,HI`
+/// (band-pass) or `--notch F[,WIDTH]` (band-stop from F - WIDTH/2 to
+/// F + WIDTH/2; WIDTH defaults to F/10).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BandFilter {
+    Pass { lo_hz: f64, hi_hz: f64 },
+    Notch { f_hz: f64, width_hz: f64 },
+}
+
+fn numbers(flag: &str, text: &str, what: &str) -> Result<Vec<f64>, UsageError> {
+    text.split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<std::result::Result<Vec<f64>, _>>()
+        .ok()
+        .filter(|v| v.iter().all(|x| x.is_finite()))
+        .ok_or_else(|| {
+            UsageError::new(flag, format!("expected {what} (numbers, Hz), got `{text}`"))
+        })
+}
+
+impl BandFilter {
+    /// `--band LO,HI`: 0 < LO < HI.
+    pub fn band(text: &str) -> Result<BandFilter, UsageError> {
+        match numbers("--band", text, "LO,HI")?.as_slice() {
+            [lo, hi] if *lo > 0.0 && lo < hi => Ok(BandFilter::Pass {
+                lo_hz: *lo,
+                hi_hz: *hi,
+            }),
+            [lo, hi] => Err(UsageError::new(
+                "--band",
+                format!("LO,HI = `{text}`: need 0 < LO < HI (got LO {lo} Hz, HI {hi} Hz)"),
+            )),
+            _ => Err(UsageError::new(
+                "--band",
+                format!("expected LO,HI (two numbers, Hz), got `{text}`"),
+            )),
+        }
+    }
+
+    /// `--notch F[,WIDTH]`: F > 0, WIDTH > 0, F - WIDTH/2 > 0.
+    pub fn notch(text: &str) -> Result<BandFilter, UsageError> {
+        let v = numbers("--notch", text, "F[,WIDTH]")?;
+        let (f, w) = match v.as_slice() {
+            [f] => (*f, *f / 10.0),
+            [f, w] => (*f, *w),
+            _ => {
+                return Err(UsageError::new(
+                    "--notch",
+                    format!("expected F[,WIDTH] (one or two numbers, Hz), got `{text}`"),
+                ))
+            }
+        };
+        if f <= 0.0 {
+            return Err(UsageError::new(
+                "--notch",
+                format!("`{text}`: the frequency must be above 0 Hz, got {f}"),
+            ));
+        }
+        if w <= 0.0 {
+            return Err(UsageError::new(
+                "--notch",
+                format!("`{text}`: the width must be above 0 Hz, got {w}"),
+            ));
+        }
+        if f - w / 2.0 <= 0.0 {
+            return Err(UsageError::new(
+                "--notch",
+                format!(
+                    "`{text}`: the band {} to {} Hz reaches 0 Hz; use a narrower width or --band",
+                    f - w / 2.0,
+                    f + w / 2.0
+                ),
+            ));
+        }
+        Ok(BandFilter::Notch {
+            f_hz: f,
+            width_hz: w,
+        })
+    }
+
+    /// Its flag, as typed, for messages.
+    pub fn flag(&self) -> String {
+        match *self {
+            BandFilter::Pass { lo_hz, hi_hz } => {
+                format!("--band {},{}", short(lo_hz), short(hi_hz))
+            }
+            BandFilter::Notch { f_hz, width_hz } => {
+                format!("--notch {},{}", short(f_hz), short(width_hz))
+            }
+        }
+    }
+
+    /// Stage kind and edges (Hz).
+    pub fn stage(&self) -> (&'static str, f64, f64) {
+        match *self {
+            BandFilter::Pass { lo_hz, hi_hz } => ("bandpass", lo_hz, hi_hz),
+            BandFilter::Notch { f_hz, width_hz } => {
+                ("bandstop", f_hz - width_hz / 2.0, f_hz + width_hz / 2.0)
+            }
+        }
+    }
+
+    /// A usage error when the upper edge is not below the Nyquist frequency
+    /// of a signal at `rate_hz`.
+    pub fn check_rate(&self, rate_hz: f64) -> Result<(), UsageError> {
+        let (_, _, hi) = self.stage();
+        let nyq = rate_hz / 2.0;
+        if hi >= nyq {
+            let (flag, value) = self
+                .flag()
+                .split_once(' ')
+                .map_or((String::new(), String::new()), |(a, b)| {
+                    (a.to_string(), b.to_string())
+                });
+            return Err(UsageError::new(
+                flag,
+                format!(
+                    "{value}: the band reaches {} Hz, not below the Nyquist frequency {} Hz of a signal sampled at {} Hz",
+                    short(hi),
+                    short(nyq),
+                    short(rate_hz)
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Inserts this filter's stage, `id`, just before the stage `before`.
+    pub fn insert(&self, decl: &mut PipelineDecl, id: &str, before: &str) -> Result<()> {
+        let (kind, lo, hi) = self.stage();
+        let origin = by(&self.flag());
+        let mut st = new_stage(id, kind, &[], origin.clone());
+        set_param(&mut st, "lo_hz", Value::Float(lo), origin.clone());
+        set_param(&mut st, "hi_hz", Value::Float(hi), origin);
+        insert_before(decl, before, st)
     }
 }
 

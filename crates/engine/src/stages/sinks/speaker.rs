@@ -18,14 +18,10 @@
 //! on the wall clock and discards them: for machines without a sound card,
 //! and for tests of the pacing and resampling path.
 
+use crate::stages::transform::resample::Feed;
 use crate::*;
 use ringbuf::traits::{Consumer, Observer, Producer, Split};
 use ringbuf::{HeapCons, HeapProd, HeapRb};
-use rubato::audioadapter_buffers::direct::InterleavedSlice;
-use rubato::{
-    Async, FixedAsync, Resampler, SincInterpolationParameters, SincInterpolationType,
-    WindowFunction,
-};
 use serde::Deserialize;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
@@ -504,99 +500,6 @@ impl Agc {
     }
 }
 
-/// Resampling from the signal's rate to the device's, into the ring.
-pub struct Feed {
-    rs: Async<f32>,
-    chunk: usize,
-    staged: Vec<f32>,
-    out: Vec<f32>,
-}
-
-/// Input samples per resampler call: small, for latency.
-const CHUNK: usize = 32;
-
-impl Feed {
-    /// A sinc resampler from `rate_in` to `rate_out` (256-tap Blackman-Harris
-    /// windowed sinc, cutoff chosen by rubato for its sidelobe level).
-    pub fn new(rate_in: f64, rate_out: f64) -> Result<Feed, String> {
-        let params = SincInterpolationParameters::new(256, WindowFunction::BlackmanHarris2)
-            .oversampling_factor(128)
-            .interpolation(SincInterpolationType::Cubic);
-        let rs = Async::<f32>::new_sinc(
-            rate_out / rate_in,
-            1.02,
-            &params,
-            CHUNK,
-            1,
-            FixedAsync::Input,
-        )
-        .map_err(|e| format!("cannot resample {rate_in} Hz to {rate_out} Hz: {e}"))?;
-        let out = vec![0.0; rs.output_frames_max()];
-        Ok(Feed {
-            rs,
-            chunk: CHUNK,
-            staged: Vec::with_capacity(CHUNK),
-            out,
-        })
-    }
-
-    /// Output samples by which the resampler delays its input.
-    pub fn delay(&self) -> usize {
-        self.rs.output_delay()
-    }
-
-    /// Nudges the ratio by `rel` (1.0 = nominal; at most ±2%).
-    pub fn adjust(&mut self, rel: f64) {
-        if let Some(a) = self.rs.as_adjustable() {
-            let _ = a.set_resample_ratio_relative(rel.clamp(0.985, 1.015), true);
-        }
-    }
-
-    /// Feeds input samples; `sink` receives each resampled chunk.
-    pub fn push(&mut self, x: &[f32], mut sink: impl FnMut(&mut [f32])) -> Result<(), String> {
-        for &v in x {
-            self.staged.push(v);
-            if self.staged.len() == self.chunk {
-                self.run_chunk(&mut sink)?;
-            }
-        }
-        Ok(())
-    }
-
-    /// Pushes what is staged, padded with silence, and the resampler's tail.
-    pub fn flush(&mut self, mut sink: impl FnMut(&mut [f32])) -> Result<(), String> {
-        if !self.staged.is_empty() {
-            self.staged.resize(self.chunk, 0.0);
-            self.run_chunk(&mut sink)?;
-        }
-        let mut tail = self.delay();
-        while tail > 0 {
-            self.staged.resize(self.chunk, 0.0);
-            let n = self.run_chunk(&mut sink)?;
-            if n == 0 {
-                break;
-            }
-            tail = tail.saturating_sub(n);
-        }
-        Ok(())
-    }
-
-    fn run_chunk(&mut self, sink: &mut impl FnMut(&mut [f32])) -> Result<usize, String> {
-        let input = InterleavedSlice::new(&self.staged[..], 1, self.chunk)
-            .map_err(|e| format!("resampler input: {e}"))?;
-        let cap = self.out.len();
-        let mut output = InterleavedSlice::new_mut(&mut self.out[..], 1, cap)
-            .map_err(|e| format!("resampler output: {e}"))?;
-        let (_, produced) = self
-            .rs
-            .process_into_buffer(&input, &mut output, None)
-            .map_err(|e| format!("resampler: {e}"))?;
-        self.staged.clear();
-        sink(&mut self.out[..produced]);
-        Ok(produced)
-    }
-}
-
 struct Speaker {
     feed: Option<Feed>,
     gain: Agc,
@@ -723,59 +626,6 @@ impl Stage for Speaker {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A 440 Hz tone at 2200 Hz comes out of the resampler at 48 kHz as the
-    /// same tone: compared sample by sample with the exact sine, after the
-    /// resampler's reported delay.
-    #[test]
-    fn resampled_tone_matches_the_exact_tone() {
-        let (fin, fout, f) = (2200.0, 48000.0, 440.0);
-        let x: Vec<f32> = (0..4400)
-            .map(|n| (2.0 * std::f64::consts::PI * f * n as f64 / fin).sin() as f32)
-            .collect();
-        let mut feed = Feed::new(fin, fout).unwrap();
-        let mut y = Vec::new();
-        for block in x.chunks(100) {
-            feed.push(block, |c| y.extend_from_slice(c)).unwrap();
-        }
-        feed.flush(|c| y.extend_from_slice(c)).unwrap();
-        let d = feed.delay();
-        let expect_len = (x.len() as f64 * fout / fin) as usize;
-        assert!(y.len() >= expect_len, "{} < {expect_len}", y.len());
-        // The middle (past the filter's start-up), shifted by the reported
-        // delay: fit a sin + b cos at 440 Hz; the fit must have unit
-        // amplitude, a phase within one output sample of the reported delay
-        // (which is rounded), and a residual 60 dB down.
-        let w = 2.0 * std::f64::consts::PI * f / fout;
-        let idx: Vec<usize> = (4800..expect_len - 4800).collect();
-        let (mut ss, mut cc, mut sc, mut ys, mut yc) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for &m in &idx {
-            let (sn, cs) = ((w * m as f64).sin(), (w * m as f64).cos());
-            let v = y[m + d] as f64;
-            ss += sn * sn;
-            cc += cs * cs;
-            sc += sn * cs;
-            ys += v * sn;
-            yc += v * cs;
-        }
-        let det = ss * cc - sc * sc;
-        let (a, b) = ((ys * cc - yc * sc) / det, (yc * ss - ys * sc) / det);
-        let amp = a.hypot(b);
-        let lag_samples = -b.atan2(a) / w;
-        let (mut err, mut sig) = (0.0f64, 0.0f64);
-        for &m in &idx {
-            let fit = a * (w * m as f64).sin() + b * (w * m as f64).cos();
-            err += (y[m + d] as f64 - fit).powi(2);
-            sig += fit * fit;
-        }
-        let snr = 10.0 * (sig / err).log10();
-        assert!((amp - 1.0).abs() < 0.005, "gain {amp}");
-        assert!(
-            lag_samples.abs() < 1.0,
-            "delay off by {lag_samples} samples"
-        );
-        assert!(snr > 60.0, "resampled tone: residual {snr:.1} dB down");
-    }
 
     #[test]
     fn auto_gain_brings_a_tiny_signal_to_half_scale() {

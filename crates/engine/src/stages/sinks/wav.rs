@@ -1,7 +1,11 @@
 //! `wav`: writes an audio stream to a WAV file (hound).
 //!
 //! The file's sample rate is the signal's (the camera's frame rate for a
-//! per-frame signal). The header is rewritten every second of audio and on
+//! per-frame signal); put a `resample` stage before it for a standard audio
+//! rate. f32 files are `WAVE_FORMAT_IEEE_FLOAT` with a `fact` chunk, i16
+//! files plain PCM: headers sox, Python's `wave` (PCM) and
+//! `scipy.io.wavfile` read without a warning ([`vibroscope_io::wav::Encoding`]).
+//! The header is rewritten every second of audio and on
 //! finish, which the runner calls on end of stream, on Ctrl-C and on an
 //! error anywhere, so the file on disk is a valid WAV at all times.
 
@@ -9,6 +13,7 @@ use crate::*;
 use serde::Deserialize;
 use std::io::BufWriter;
 use std::path::PathBuf;
+use vibroscope_io::wav::{Encoding, MonoWavWriter};
 
 #[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
@@ -66,7 +71,7 @@ struct Wav {
     path: PathBuf,
     format: Format,
     gain: f32,
-    writer: Option<hound::WavWriter<BufWriter<std::fs::File>>>,
+    writer: Option<MonoWavWriter<BufWriter<std::fs::File>>>,
     rate: u32,
     since_flush: u32,
 }
@@ -78,11 +83,8 @@ impl Plan for Wav {
 }
 
 impl Wav {
-    fn err(&self, e: hound::Error) -> StageError {
-        match e {
-            hound::Error::IoError(e) => StageError::file("write", &self.path, e),
-            e => StageError::format(format!("{}: {e}", self.path.display())),
-        }
+    fn err(&self, e: std::io::Error) -> StageError {
+        StageError::file("write", &self.path, e)
     }
 }
 
@@ -104,18 +106,12 @@ impl Stage for Wav {
             if (a.rate_hz - rate as f64).abs() > 1e-6 {
                 tracing::warn!(path = %self.path.display(), rate_hz = a.rate_hz, written_hz = rate, "WAV sample rates are integers; rounding");
             }
-            let spec = hound::WavSpec {
-                channels: 1,
-                sample_rate: rate,
-                bits_per_sample: if self.format == Format::F32 { 32 } else { 16 },
-                sample_format: if self.format == Format::F32 {
-                    hound::SampleFormat::Float
-                } else {
-                    hound::SampleFormat::Int
-                },
+            let enc = match self.format {
+                Format::F32 => Encoding::F32,
+                Format::I16 => Encoding::I16,
             };
             let file = super::create(&self.path)?;
-            let w = hound::WavWriter::new(BufWriter::new(file), spec).map_err(|e| self.err(e))?;
+            let w = MonoWavWriter::new(BufWriter::new(file), rate, enc).map_err(|e| self.err(e))?;
             self.writer = Some(w);
             self.rate = rate;
         } else if rate != self.rate {
@@ -127,15 +123,10 @@ impl Stage for Wav {
             )));
         }
         let gain = self.gain;
-        let fmt = self.format;
         let Some(w) = self.writer.as_mut() else {
             return Ok(());
         };
-        let r = a.samples.iter().try_for_each(|&s| match fmt {
-            Format::F32 => w.write_sample(s * gain),
-            Format::I16 => w.write_sample(((s * gain).clamp(-1.0, 1.0) * 32767.0).round() as i16),
-        });
-        if let Err(e) = r {
+        if let Err(e) = w.write(&a.samples, gain) {
             return Err(self.err(e));
         }
         self.since_flush += a.samples.len() as u32;
@@ -154,7 +145,7 @@ impl Stage for Wav {
         match self.writer.take() {
             // A failed finalise (a full disk) still leaves a header that
             // matches the whole samples on disk.
-            Some(w) => w.finalize().map_err(|e| {
+            Some(w) => w.finalize().map(drop).map_err(|e| {
                 let _ = vibroscope_io::wav::repair_header(&self.path);
                 self.err(e)
             }),

@@ -1,5 +1,7 @@
 pub mod align;
 pub mod audio_out;
+pub mod band;
+pub mod butterworth;
 pub mod denoise;
 pub mod exposure;
 pub mod gap_fill;
@@ -11,6 +13,7 @@ pub mod passthrough;
 pub mod phase;
 pub mod pyramid;
 pub mod reduce;
+pub mod resample;
 pub mod roi;
 pub mod rows;
 pub mod spectrum;
