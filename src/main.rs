@@ -105,7 +105,7 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            let kind = vibroscope::error::kind_of(&e);
+            let kind = vibroscope::error::kind_of(e.as_ref());
             if kind == ErrorKind::Interrupted {
                 eprintln!("{e:#}");
                 return ExitCode::from(interrupted_exit_code());

@@ -302,7 +302,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
                 }
                 return Err(RunError {
                     stage: ids[i].clone(),
-                    source: StageError::msg(format!("cannot start thread: {e}")),
+                    source: StageError::thread("the stage thread", e),
                 });
             }
         }
@@ -314,7 +314,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
                 .unwrap_or_else(|e| e.into_inner())
                 .push(RunError {
                     stage: id.clone(),
-                    source: StageError::msg("the stage thread panicked"),
+                    source: StageError::Panicked,
                 });
         }
     }

@@ -94,14 +94,25 @@ pub enum StageError {
         message: String,
         hint: Option<String>,
     },
-    /// Anything else (a thread that cannot start, a broken invariant).
-    #[error("{0}")]
-    Msg(String),
+    /// A thread the stage needs could not be started (the system's limit
+    /// on threads or memory).
+    #[error("cannot start {what}: {message}")]
+    Thread { what: String, message: String },
+    /// The stage's thread panicked (a bug).
+    #[error("the stage thread panicked")]
+    Panicked,
+    /// A broken invariant inside the stage (a bug).
+    #[error("internal error: {0}")]
+    Internal(&'static str),
 }
 
 impl StageError {
-    pub fn msg(s: impl Into<String>) -> Self {
-        StageError::Msg(s.into())
+    /// A thread (`what`) that could not be started, and why.
+    pub fn thread(what: impl Into<String>, why: impl std::fmt::Display) -> Self {
+        StageError::Thread {
+            what: what.into(),
+            message: why.to_string(),
+        }
     }
     /// I/O on `path` failed while doing `op` ("create", "write", "read").
     pub fn file(op: &'static str, path: &Path, source: std::io::Error) -> Self {

@@ -9,7 +9,6 @@ use crate::math::calibrate::{self as cal, Calibration, Options};
 use crate::microphone::listen_pipeline;
 use crate::pipeline::Denoise;
 use crate::pipeline::{self, Region, RunSettings};
-use anyhow::Context;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -121,8 +120,7 @@ pub fn recover(
     let mut decl = listen_pipeline(video, tmp.path(), fps, region, Denoise::None)?;
     crate::microphone::causal_highpass(&mut decl)?;
     pipeline::run(&decl, run)?;
-    let (_, y) = crate::io::wav::read_mono(tmp.path())
-        .with_context(|| format!("{}: the recovery failed", video.display()))?;
+    let (_, y) = crate::io::wav::read_mono(tmp.path())?;
     Ok((fs, y))
 }
 
@@ -199,9 +197,7 @@ pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
         reference: r,
         calibration: c,
     } = calibrate_video(&o.video, &o.reference, o.fps, &o.region, opts, o.run)?;
-    let text = serde_json::to_string_pretty(&c.report).context("cannot serialise the report")?;
-    crate::io::atomic::write_atomic(&o.json, (text + "\n").as_bytes())
-        .map_err(anyhow::Error::new)?;
+    crate::json::write(&o.json, &c.report)?;
     let mut written = Vec::new();
     if let Some(out) = &o.output {
         // Reference time of corrected sample n is n / fs - delay.
@@ -212,7 +208,7 @@ pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
             fs,
             (0..count).map(|k| k as f64 / fr + c.delay_s),
         );
-        crate::io::wav::write_mono_f32(out, fr as u32, &x).map_err(anyhow::Error::new)?;
+        crate::io::wav::write_mono_f32(out, fr as u32, &x)?;
         written.push(out.clone());
     }
     written.push(o.json.clone());

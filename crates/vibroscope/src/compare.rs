@@ -154,7 +154,6 @@ pub fn compare(
         regions: out,
         written: o.json.clone(),
     };
-    let bytes = serde_json::to_vec_pretty(&report).map_err(anyhow::Error::new)?;
-    crate::io::atomic::write_atomic(&o.json, &bytes).map_err(anyhow::Error::new)?;
+    crate::json::write(&o.json, &report)?;
     Ok(report)
 }

@@ -4,7 +4,6 @@
 use crate::error::{Error, Result};
 use crate::math::calibrate::{self as cal, Correction};
 use crate::pipeline::Denoise;
-use anyhow::Context;
 use std::path::Path;
 
 /// The reusable corrections of a stored report (`listen --calibration`).
@@ -22,16 +21,15 @@ pub fn load_calibration(path: &Path) -> Result<Vec<Correction>> {
 /// boosts the noise in the bands it lifts, and that noise is removed
 /// again. Samples keep their times.
 pub fn apply_to_wav(path: &Path, corrections: &[Correction], denoise: Denoise) -> Result<()> {
-    let (rate, y) = crate::io::wav::read_mono(path).map_err(anyhow::Error::new)?;
+    let (rate, y) = crate::io::wav::read_mono(path)?;
     let mut z = cal::apply_all(corrections, &y, rate as f64);
-    z = denoise_again(&z, rate as f64, denoise)
-        .with_context(|| format!("denoising {} after the calibration", path.display()))?;
+    z = denoise_again(&z, rate as f64, denoise)?;
     let peak = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let ypeak = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     // Keep the recovery's scale (the equaliser's level is arbitrary).
     let s = if peak > 0.0 { ypeak / peak } else { 1.0 };
     let z: Vec<f64> = z.iter().map(|v| v * s).collect();
-    crate::io::wav::write_mono_f32(path, rate, &z).map_err(anyhow::Error::new)?;
+    crate::io::wav::write_mono_f32(path, rate, &z)?;
     Ok(())
 }
 
@@ -39,19 +37,20 @@ pub fn apply_to_wav(path: &Path, corrections: &[Correction], denoise: Denoise) -
 /// itself for [`Denoise::None`]. Output sample `k` is the estimate of input
 /// sample `k` (the denoisers' latency is only in when a sample is
 /// released), so the whole signal is fed and finished.
-fn denoise_again(x: &[f64], rate: f64, kind: Denoise) -> anyhow::Result<Vec<f64>> {
+fn denoise_again(x: &[f64], rate: f64, kind: Denoise) -> Result<Vec<f64>> {
     use crate::math::denoise::{SpectralSubtraction, SpeechEnhance};
+    use crate::math::MathError;
     let input: Vec<f32> = x.iter().map(|&v| v as f32).collect();
     let mut out = Vec::with_capacity(input.len());
     match kind {
         Denoise::None => return Ok(x.to_vec()),
         Denoise::Subtract => {
-            let mut d = SpectralSubtraction::with_defaults(rate)?;
+            let mut d = SpectralSubtraction::with_defaults(rate).map_err(MathError::from)?;
             d.process(&input, &mut out);
             d.finish(&mut out);
         }
         Denoise::Enhance => {
-            let mut d = SpeechEnhance::with_defaults(rate)?;
+            let mut d = SpeechEnhance::with_defaults(rate).map_err(MathError::from)?;
             d.process(&input, &mut out);
             d.finish(&mut out);
         }

@@ -13,7 +13,6 @@ use crate::io::atomic::TempPath;
 use crate::math::ssi::{identify, SsiOptions};
 use crate::peaks::{DampingEstimate, SpectrumReport, SsiDetail};
 use crate::pipeline::{self, path_value};
-use anyhow::Context;
 use std::path::{Path, PathBuf};
 
 /// Where the motion goes: a file the user keeps, or a scratch file.
@@ -50,8 +49,7 @@ impl MotionTap {
 
     /// Adds the SSI-cov estimates to the peaks of `report`.
     pub fn refine(&self, report: &mut SpectrumReport, opts: &SsiOptions) -> Result<()> {
-        let (_, y) = crate::io::wav::read_mono(self.path())
-            .with_context(|| format!("{}: cannot read the motion", self.path().display()))?;
+        let (_, y) = crate::io::wav::read_mono(self.path())?;
         add_ssi(report, &y, opts);
         Ok(())
     }

@@ -3,10 +3,9 @@
 
 use crate::engine::config::apply_set;
 use crate::engine::Params;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::pipeline::{self, by, path_value, RunSettings};
 use crate::stages::sources::synthetic::SyntheticParams;
-use anyhow::Context;
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -55,7 +54,7 @@ fn setup(o: &DemoOptions) -> Result<(crate::engine::PipelineDecl, SyntheticParam
         .stages
         .iter()
         .find(|s| s.id == "cam")
-        .context("the demo pipeline has no `cam` stage")?;
+        .ok_or_else(|| pipeline::no_stage(&decl.file, "cam"))?;
     let truth: SyntheticParams = Params {
         file: &decl.file,
         stage: cam,
@@ -102,9 +101,16 @@ pub fn describe_signal(s: &crate::sim::signal::SignalSpec) -> String {
 pub fn demo(o: &DemoOptions) -> Result<DemoReport> {
     let (decl, truth_params) = setup(o)?;
     let report = pipeline::run(&decl, o.run)?;
-    let (rate, est) = crate::io::wav::read_mono(&o.output)
-        .with_context(|| format!("cannot read back {}", o.output.display()))?;
-    let scene = truth_params.scene().map_err(|m| anyhow::anyhow!(m))?;
+    let (rate, est) = crate::io::wav::read_mono(&o.output)?;
+    let scene = truth_params.scene().map_err(|message| {
+        Error::Config(crate::engine::ConfigError {
+            file: decl.file.clone(),
+            origin: None,
+            stage: Some("cam".into()),
+            field: None,
+            message,
+        })
+    })?;
     let truth: Vec<f64> = (0..est.len())
         .map(|n| scene.displacement_px(n as f64 / truth_params.fps))
         .collect();

@@ -4,7 +4,8 @@
 //! | exit | [`ErrorKind`]   | when                                                        |
 //! |------|-----------------|-------------------------------------------------------------|
 //! | 0    | (success)       | the command did what it was asked                           |
-//! | 1    | `Runtime`       | a stage failed, a file could not be read or written         |
+//! | 1    | `Runtime`       | a stage failed, a file could not be read or written, a fit  |
+//! |      |                 | failed, a device or ffmpeg failed                           |
 //! | 2    | `Usage`         | a bad flag or value, a bad pipeline/scene file, a bad input |
 //! | 130  | `Interrupted`   | Ctrl-C: the outputs were finalised with what was processed  |
 //! | 143, 129 | `Interrupted` | SIGTERM, SIGHUP (the binary exits 128 + the signal)     |
@@ -79,9 +80,57 @@ pub enum Error {
     /// Ctrl-C; sinks finalised what reached them.
     #[error("interrupted: outputs were finalised with what was processed")]
     Interrupted { report: Box<RunReport> },
-    /// Anything else that failed at run time (I/O, a failed fit, ...).
+    /// A file could not be read or written: a video, a WAV, a whole-file
+    /// write, a picture or a plot (each message names the file).
     #[error(transparent)]
-    Runtime(#[from] anyhow::Error),
+    File(#[from] crate::io::Error),
+    /// A JSON document could not be encoded or read back.
+    #[error("{}: {message}", path.display())]
+    Document { path: PathBuf, message: String },
+    /// The mathematics refused its input or could not fit it.
+    #[error(transparent)]
+    Math(#[from] crate::math::MathError),
+    /// The forward model refused a parameter or its sound file.
+    #[error(transparent)]
+    Sim(#[from] crate::sim::SimError),
+    /// The analysis ran but found nothing it can report (said in words:
+    /// what is missing and why).
+    #[error("{0}")]
+    Analysis(String),
+    /// A capture device or sound card could not be listed or opened.
+    #[error("{0}")]
+    Device(String),
+    /// An external program (ffmpeg) could not run or failed.
+    #[error("{program}: {message}")]
+    Program {
+        program: &'static str,
+        message: String,
+    },
+    /// The engine could not start the pipeline: a stage failed to open.
+    #[error("{file}: cannot start the pipeline")]
+    Start {
+        file: String,
+        #[source]
+        source: Box<crate::engine::RunError>,
+    },
+}
+
+impl From<crate::io::VideoError> for Error {
+    fn from(e: crate::io::VideoError) -> Error {
+        Error::File(e.into())
+    }
+}
+
+impl From<crate::io::wav::WavError> for Error {
+    fn from(e: crate::io::wav::WavError) -> Error {
+        Error::File(e.into())
+    }
+}
+
+impl From<crate::io::atomic::WriteError> for Error {
+    fn from(e: crate::io::atomic::WriteError) -> Error {
+        Error::File(e.into())
+    }
 }
 
 fn stage_errors(r: &RunReport) -> String {
@@ -97,9 +146,18 @@ impl Error {
     pub fn kind(&self) -> ErrorKind {
         match self {
             Error::Usage(_) | Error::Config(_) | Error::Input { .. } => ErrorKind::Usage,
-            Error::Stages { .. } => ErrorKind::Runtime,
             Error::Interrupted { .. } => ErrorKind::Interrupted,
-            Error::Runtime(e) => kind_of(e),
+            // A stage that cannot open because of its configuration is the
+            // user's to fix; anything else failed while running.
+            Error::Start { source, .. } => kind_of(source.as_ref()),
+            Error::Stages { .. }
+            | Error::File(_)
+            | Error::Document { .. }
+            | Error::Math(_)
+            | Error::Sim(_)
+            | Error::Analysis(_)
+            | Error::Device(_)
+            | Error::Program { .. } => ErrorKind::Runtime,
         }
     }
 
@@ -173,18 +231,19 @@ pub fn check_outputs(inputs: &[&Path], outputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
-/// The kind of any error chain: a recipe [`Error`], a [`ConfigError`] or a
-/// [`UsageError`] anywhere in it decides; anything else is a runtime error.
-pub fn kind_of(e: &anyhow::Error) -> ErrorKind {
-    for cause in e.chain() {
-        if let Some(r) = cause.downcast_ref::<Error>() {
-            if !matches!(r, Error::Runtime(_)) {
-                return r.kind();
-            }
+/// The kind of any error and its chain of sources: a recipe [`Error`], a
+/// [`ConfigError`] or a [`UsageError`] anywhere in it decides; anything
+/// else is a runtime error.
+pub fn kind_of(e: &(dyn std::error::Error + 'static)) -> ErrorKind {
+    let mut cause = Some(e);
+    while let Some(c) = cause {
+        if let Some(r) = c.downcast_ref::<Error>() {
+            return r.kind();
         }
-        if cause.is::<ConfigError>() || cause.is::<UsageError>() {
+        if c.is::<ConfigError>() || c.is::<UsageError>() {
             return ErrorKind::Usage;
         }
+        cause = c.source();
     }
     ErrorKind::Runtime
 }

@@ -11,7 +11,8 @@
 //!   [`demo`], [`rs_calibrate`];
 //! - [`pipeline`]: load, edit (replay, frame rate, typed stage edits) and
 //!   run a pipeline;
-//! - [`error`]: the one error type and the exit-status table.
+//! - [`error`]: the one error type and the exit-status table;
+//! - [`json`]: the JSON documents written and read back.
 //!
 //! The layers, re-exported:
 //!
@@ -30,6 +31,7 @@ pub use vibroscope_math as math;
 pub use vibroscope_sim as sim;
 
 pub mod error;
+pub mod json;
 pub mod pipeline;
 
 pub mod calibrate;

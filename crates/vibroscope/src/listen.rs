@@ -229,22 +229,23 @@ pub const PEAK_DBFS: f64 = -1.0;
 fn finish_wav(o: &ListenOptions, resample: bool) -> Result<()> {
     if resample && o.rate != OutputRate::Native {
         // After a calibration (which holds the whole signal anyway).
-        let (rate, x) = crate::io::wav::read_mono(&o.output).map_err(anyhow::Error::new)?;
+        let (rate, x) = crate::io::wav::read_mono(&o.output)?;
         let to = match o.rate {
             OutputRate::Hz(r) => f64::from(r),
             _ => default_rate_hz(f64::from(rate)),
         };
         if (to - f64::from(rate)).abs() > 1e-9 {
             let x32: Vec<f32> = x.iter().map(|&v| v as f32).collect();
-            let y = resample_all(&x32, f64::from(rate), to)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", o.output.display()))?;
+            let y = resample_all(&x32, f64::from(rate), to).map_err(|e| {
+                Error::Analysis(format!("{}: cannot resample: {e}", o.output.display()))
+            })?;
             let y: Vec<f64> = y.iter().map(|&v| f64::from(v)).collect();
-            crate::io::wav::write_mono_f32(&o.output, to as u32, &y).map_err(anyhow::Error::new)?;
+            crate::io::wav::write_mono_f32(&o.output, to as u32, &y)?;
         }
     }
     if !o.float {
         // Streaming: bounded memory however long the recording.
-        crate::io::wav::normalize_to_i16(&o.output, PEAK_DBFS).map_err(anyhow::Error::new)?;
+        crate::io::wav::normalize_to_i16(&o.output, PEAK_DBFS)?;
     }
     Ok(())
 }

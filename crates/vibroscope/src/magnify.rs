@@ -75,7 +75,7 @@ fn check(o: &MagnifyOptions, fps: f64) -> Result<MagnifyParams> {
             };
             Error::usage(flag, message)
         }
-        MagnifyError::Pyramid(e) => Error::Runtime(e.into()),
+        MagnifyError::Pyramid(e) => Error::Math(e.into()),
     })?;
     Ok(p)
 }
@@ -173,7 +173,7 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
     }
     let info = {
         let reader = io::open(&o.video, io::Format::Auto).map_err(|e| match e {
-            io::VideoError::Io { .. } => Error::Runtime(e.into()),
+            io::VideoError::Io { .. } => Error::from(e),
             // A header, colour format or structure this reader cannot use.
             other => Error::input(&o.video, other.to_string()),
         })?;
@@ -221,8 +221,11 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
     let finished = if ffmpeg {
         let tmp = temp_with_ext(&o.output);
         let done = encode(&y4m, &tmp).and_then(|()| {
-            std::fs::rename(&tmp, &o.output).map_err(|e| {
-                Error::Runtime(anyhow::anyhow!("cannot write {}: {e}", o.output.display()))
+            std::fs::rename(&tmp, &o.output).map_err(|source| {
+                Error::from(io::atomic::WriteError {
+                    path: o.output.clone(),
+                    source,
+                })
             })
         });
         let _ = std::fs::remove_file(&y4m);
@@ -231,9 +234,12 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
         }
         done
     } else {
-        std::fs::rename(&y4m, &o.output).map_err(|e| {
+        std::fs::rename(&y4m, &o.output).map_err(|source| {
             let _ = std::fs::remove_file(&y4m);
-            Error::Runtime(anyhow::anyhow!("cannot write {}: {e}", o.output.display()))
+            Error::from(io::atomic::WriteError {
+                path: o.output.clone(),
+                source,
+            })
         })
     };
     finished?;
@@ -273,14 +279,16 @@ fn encode(y4m: &Path, out: &Path) -> Result<()> {
         .args(["-pix_fmt", "yuv420p"])
         .arg(out)
         .output()
-        .map_err(|e| Error::Runtime(anyhow::anyhow!("cannot run ffmpeg: {e}")))?;
+        .map_err(|e| Error::Program {
+            program: "ffmpeg",
+            message: format!("cannot run it: {e}"),
+        })?;
     if !o.status.success() {
         let msg = String::from_utf8_lossy(&o.stderr);
-        return Err(Error::Runtime(anyhow::anyhow!(
-            "ffmpeg could not write {}: {}",
-            out.display(),
-            msg.trim()
-        )));
+        return Err(Error::Program {
+            program: "ffmpeg",
+            message: format!("could not write {}: {}", out.display(), msg.trim()),
+        });
     }
     Ok(())
 }

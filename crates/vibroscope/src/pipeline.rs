@@ -145,16 +145,26 @@ pub fn stage_mut<'a>(decl: &'a mut PipelineDecl, id: &str) -> Result<&'a mut Sta
     decl.stages
         .iter_mut()
         .find(|s| s.id == id)
-        .ok_or_else(|| Error::Runtime(anyhow::anyhow!("{file}: the pipeline has no stage `{id}`")))
+        .ok_or_else(|| no_stage(&file, id))
 }
 
 /// Position of stage `id`.
 pub fn position(decl: &PipelineDecl, id: &str) -> Result<usize> {
-    decl.stages.iter().position(|s| s.id == id).ok_or_else(|| {
-        Error::Runtime(anyhow::anyhow!(
-            "{}: the pipeline has no stage `{id}`",
-            decl.file
-        ))
+    decl.stages
+        .iter()
+        .position(|s| s.id == id)
+        .ok_or_else(|| no_stage(&decl.file, id))
+}
+
+/// A pipeline that lacks a stage a recipe edits (a pipeline file given
+/// with `--pipeline` that is not shaped like the shipped one).
+pub fn no_stage(file: &str, id: &str) -> Error {
+    Error::Config(ConfigError {
+        file: file.to_string(),
+        origin: None,
+        stage: None,
+        field: None,
+        message: format!("the pipeline has no stage `{id}`, which this command edits"),
     })
 }
 
@@ -643,10 +653,12 @@ pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> R
         // Interrupted between the check above and now: stop at once.
         control.stop();
     }
-    let report =
-        engine::run(graph, Arc::clone(&control), &engine::RunOptions { counter }).map_err(|e| {
-            anyhow::Error::new(e).context(format!("{}: cannot start the pipeline", decl.file))
-        });
+    let report = engine::run(graph, Arc::clone(&control), &engine::RunOptions { counter }).map_err(
+        |source| Error::Start {
+            file: decl.file.clone(),
+            source: Box::new(source),
+        },
+    );
     if let Ok(mut g) = CURRENT.lock() {
         *g = None;
     }

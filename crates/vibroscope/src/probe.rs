@@ -1,7 +1,7 @@
 //! Describe a video file: format, size, bit depth, frames, frame rate,
 //! timestamps.
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::io;
 use crate::pipeline;
 use serde::Serialize;
@@ -30,7 +30,7 @@ pub struct ProbeReport {
 /// Probes `file`; `fps` replaces the file's stated rate.
 pub fn probe(file: &Path, fps: Option<f64>) -> Result<ProbeReport> {
     pipeline::check_fps(fps)?;
-    let reader = io::open(file, io::Format::Auto).map_err(|e| Error::Runtime(e.into()))?;
+    let reader = io::open(file, io::Format::Auto)?;
     let info = reader.info();
     Ok(ProbeReport {
         file: file.to_path_buf(),

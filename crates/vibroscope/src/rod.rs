@@ -128,7 +128,7 @@ pub fn rod(o: &RodOptions) -> Result<(RodReport, RunReport)> {
     let sp = doc
         .spectrum
         .as_ref()
-        .ok_or_else(|| anyhow::anyhow!("the spectrum graph gave no spectrum"))?;
+        .ok_or_else(|| Error::Analysis("the spectrum graph gave no spectrum".into()))?;
     let db = &sp.power_db;
     let s = SpectrumDb {
         db,
@@ -138,13 +138,13 @@ pub fn rod(o: &RodOptions) -> Result<(RodReport, RunReport)> {
     let ratios = &o.ratios;
     let video = o.spectrum.video.display();
     let fit = rod::vote(&s, ratios, o.ratio_tolerance).ok_or_else(|| {
-        anyhow::anyhow!(
+        Error::Analysis(format!(
             "{video}: no fundamental fits: the highest mode (ratio {}) must lie below the \
              Nyquist frequency ({} Hz bins, {} of them)",
             ratios[ratios.len() - 1],
             s.df_hz,
             db.len()
-        )
+        ))
     })?;
     let strongest = (3..db.len())
         .max_by(|&i, &j| db[i].total_cmp(&db[j]))
@@ -184,8 +184,7 @@ pub fn rod(o: &RodOptions) -> Result<(RodReport, RunReport)> {
         out.length_m = Some(m.value);
         out.length_std_m = Some(m.std);
     }
-    let bytes = serde_json::to_vec_pretty(&out).map_err(anyhow::Error::new)?;
-    crate::io::atomic::write_atomic(&o.spectrum.json, &bytes).map_err(anyhow::Error::new)?;
+    crate::json::write(&o.spectrum.json, &out)?;
     Ok((out, run))
 }
 

@@ -56,7 +56,7 @@ pub fn rs_calibrate(a: &RsCalibrateOptions) -> Result<RsCalibrationReport> {
         ));
     }
     pipeline::check_fps(a.fps)?;
-    let mut reader = io::open(&a.video, io::Format::Auto).map_err(anyhow::Error::new)?;
+    let mut reader = io::open(&a.video, io::Format::Auto)?;
     let info = reader.info().clone();
     let fps = a.fps.or(info.fps).ok_or_else(|| {
         Error::usage(
@@ -97,11 +97,7 @@ pub fn rs_calibrate(a: &RsCalibrateOptions) -> Result<RsCalibrationReport> {
             io::Depth::U8 => io::FrameDest::U8(&mut buf8),
             io::Depth::U16 => io::FrameDest::U16(&mut buf16),
         };
-        if reader
-            .read_frame(dst)
-            .map_err(anyhow::Error::new)?
-            .is_none()
-        {
+        if reader.read_frame(dst)?.is_none() {
             break;
         }
         let mut rows = Vec::with_capacity(rh);
@@ -133,7 +129,7 @@ pub fn rs_calibrate(a: &RsCalibrateOptions) -> Result<RsCalibrationReport> {
         }
     }
     if frames.len() < 2 {
-        return Err(Error::Runtime(anyhow::anyhow!(
+        return Err(Error::Analysis(format!(
             "{}: need at least 3 frames, got {}",
             a.video.display(),
             frames.len() + 1
@@ -142,10 +138,10 @@ pub fn rs_calibrate(a: &RsCalibrateOptions) -> Result<RsCalibrationReport> {
     remove_row_means(&mut frames);
     let period = 1.0 / fps;
     let est = estimate(&frames, a.tone_hz, period / h as f64).ok_or_else(|| {
-        anyhow::anyhow!(
+        Error::Analysis(format!(
             "{}: cannot fit: the tone must make at least a quarter cycle during the readout of {rh} rows",
             a.video.display()
-        )
+        ))
     })?;
     let d = est.line_delay_s;
     let gap = (period - h as f64 * d).max(0.0);

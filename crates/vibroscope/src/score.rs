@@ -5,7 +5,6 @@
 
 use crate::error::{Error, Result};
 use crate::math::metrics;
-use anyhow::Context;
 use serde::{Serialize, Serializer};
 use std::path::Path;
 
@@ -51,7 +50,7 @@ pub const MAX_SAMPLES: u64 = 1 << 23;
 /// reference's rate `at_hz`) within [`MAX_SAMPLES`].
 fn check_header(path: &Path, at_hz: Option<u32>) -> Result<u32> {
     // A missing or unreadable file is a runtime error (exit 1), as before.
-    let (rate, n) = crate::io::wav::info(path).map_err(anyhow::Error::new)?;
+    let (rate, n) = crate::io::wav::info(path)?;
     if !RATES_HZ.contains(&rate) {
         return Err(Error::input(
             path,
@@ -77,7 +76,7 @@ fn check_header(path: &Path, at_hz: Option<u32>) -> Result<u32> {
 
 /// Reads a WAV whose samples must be finite and at least `min` long.
 fn read_signal(path: &Path, what: &str, min: usize) -> Result<Vec<f64>> {
-    let (_, x) = crate::io::wav::read_mono(path).map_err(anyhow::Error::new)?;
+    let (_, x) = crate::io::wav::read_mono(path)?;
     if x.len() < min {
         return Err(Error::input(
             path,
@@ -123,8 +122,11 @@ pub fn score(reference: &Path, test: &Path, max_lag_s: f64) -> Result<ScoreRepor
     let mut t = read_signal(test, "test", 1)?;
     if fr != ft {
         let g = crate::math::numeric::gcd(fr as u64, ft as u64).max(1);
-        t = metrics::resample(&t, fr as u64 / g, ft as u64 / g).with_context(|| {
-            format!("cannot resample {} from {ft} Hz to {fr} Hz", test.display())
+        t = metrics::resample(&t, fr as u64 / g, ft as u64 / g).ok_or_else(|| {
+            Error::Analysis(format!(
+                "cannot resample {} from {ft} Hz to {fr} Hz",
+                test.display()
+            ))
         })?;
     }
     let max_lag = (max_lag_s * fr as f64).round() as usize;

@@ -190,10 +190,7 @@ pub fn run_spectrum(o: &SpectrumOptions, damping: bool) -> Result<(SpectrumRepor
         None
     };
     let run = pipeline::run(&decl, o.run)?;
-    let text = std::fs::read(tmp.path())
-        .map_err(|e| anyhow::anyhow!("{}: cannot read the peaks: {e}", tmp.path().display()))?;
-    let mut report: SpectrumReport = serde_json::from_slice(&text)
-        .map_err(|e| anyhow::anyhow!("{}: not the peaks document: {e}", tmp.path().display()))?;
+    let mut report: SpectrumReport = crate::json::read(tmp.path(), "the peaks document")?;
     if let Some(tap) = tap {
         tap.refine(&mut report, &Default::default())?;
     }
@@ -224,8 +221,7 @@ fn outputs(o: &SpectrumOptions) -> impl Iterator<Item = &PathBuf> {
 pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
     check_outputs(o)?;
     let (mut report, run) = run_spectrum(o, true)?;
-    let bytes = serde_json::to_vec_pretty(&report).map_err(anyhow::Error::new)?;
-    crate::io::atomic::write_atomic(&o.json, &bytes).map_err(anyhow::Error::new)?;
+    crate::json::write(&o.json, &report)?;
     report.written = outputs(o).cloned().collect();
     Ok((report, run))
 }

@@ -169,7 +169,7 @@ impl Device {
                     }
                 }
             })
-            .map_err(|e| StageError::msg(format!("cannot start the audio thread: {e}")))?;
+            .map_err(|e| StageError::thread("the audio thread", e))?;
         let who = format!("audio device \"{device}\"");
         let (rate, name, prod) = match ready_rx.recv() {
             Ok(Ok(v)) => v,

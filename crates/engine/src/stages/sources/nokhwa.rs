@@ -172,7 +172,7 @@ mod imp {
                 return Ok(None);
             };
             let PixelsMut::U8(px) = f.pixels_mut() else {
-                return Err(StageError::msg("internal: 8-bit pool expected"));
+                return Err(StageError::Internal("8-bit pool expected"));
             };
             // nokhwa 0.10 cannot decode YUYV or MJPEG into a caller's luma
             // buffer, so the raw frame is converted here, as for `v4l2`.

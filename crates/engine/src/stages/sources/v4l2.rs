@@ -736,7 +736,7 @@ mod imp {
                     return Ok(None);
                 };
                 let PixelsMut::U8(px) = f.pixels_mut() else {
-                    return Err(StageError::msg("internal: 8-bit pool expected"));
+                    return Err(StageError::Internal("8-bit pool expected"));
                 };
                 if let Err(m) = to_gray(
                     self.pixfmt,

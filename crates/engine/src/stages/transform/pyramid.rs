@@ -366,7 +366,7 @@ impl<A: FramePyramid> Analyse for Workers<A> {
                         to_f32(f, &mut w.input);
                         w.an.analyze_frame(&w.input, c).map_err(pyramid_err)
                     }
-                    None => Err(StageError::msg("internal: pyramid buffer still shared")),
+                    None => Err(StageError::Internal("pyramid buffer still shared")),
                 };
             };
             spread(pool, workers, batch, job);

@@ -45,7 +45,7 @@ pub fn thread_pool(threads: usize) -> Result<Option<rayon::ThreadPool>, StageErr
         .num_threads(threads)
         .build()
         .map(Some)
-        .map_err(|e| StageError::msg(format!("cannot start {threads} threads: {e}")))
+        .map_err(|e| StageError::thread(format!("{threads} threads"), e))
 }
 
 /// Row-chunked summation on an optional rayon pool.
