@@ -46,23 +46,33 @@ pub fn bessel_i0(x: f64) -> f64 {
 /// positive = leads the sine). For tests and measurements of a tone.
 pub fn fit_tone(y: &[f32], f_hz: f64, rate_hz: f64, range: std::ops::Range<usize>) -> (f64, f64) {
     let w = 2.0 * std::f64::consts::PI * f_hz / rate_hz;
-    let (mut ss, mut cc, mut sc, mut ys, mut yc) = (0.0, 0.0, 0.0, 0.0, 0.0);
     let end = range.end.min(y.len());
-    for (n, &v) in y.iter().enumerate().take(end).skip(range.start) {
-        let (sn, cs) = (w * n as f64).sin_cos();
-        let v = f64::from(v);
-        ss += sn * sn;
-        cc += cs * cs;
-        sc += sn * cs;
-        ys += v * sn;
-        yc += v * cs;
+    let samples = (range.start..end).map(|n| (n, f64::from(y[n])));
+    match fit_cos_sin(samples, w) {
+        Some((c, s)) => (s.hypot(c), c.atan2(s)),
+        None => (0.0, 0.0),
     }
-    let det = ss * cc - sc * sc;
-    if det <= 0.0 {
-        return (0.0, 0.0);
+}
+
+/// Least-squares fit of `y ≈ a cos(w n) + b sin(w n)` (w in radians per
+/// sample) to the samples `(n, y)`: `(a, b)`, or `None` when the samples
+/// cannot separate the two (too few, or w a multiple of pi).
+pub fn fit_cos_sin(samples: impl IntoIterator<Item = (usize, f64)>, w: f64) -> Option<(f64, f64)> {
+    let (mut cc, mut ss, mut cs, mut yc, mut ys) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for (n, v) in samples {
+        let (s, c) = (w * n as f64).sin_cos();
+        cc += c * c;
+        ss += s * s;
+        cs += c * s;
+        yc += v * c;
+        ys += v * s;
     }
-    let (a, b) = ((ys * cc - yc * sc) / det, (yc * ss - ys * sc) / det);
-    (a.hypot(b), b.atan2(a))
+    let det = cc * ss - cs * cs;
+    // Relative test: a sum of rounding errors is not a fit.
+    if det <= 1e-12 * (cc * ss).max(f64::MIN_POSITIVE) {
+        return None;
+    }
+    Some(((yc * ss - ys * cs) / det, (ys * cc - yc * cs) / det))
 }
 
 #[cfg(test)]

@@ -115,24 +115,10 @@ pub(super) fn fit_interference(m: &Model, z: &[f64], fit: &Fit) -> Option<Candid
         let (f, _) = golden(power, fb - fine, fb + fine, 20);
         // Least-squares amplitude and phase.
         let w = 2.0 * PI * f / m.fs;
-        let (mut cc, mut ss, mut cs, mut rc, mut rs) = (0.0, 0.0, 0.0, 0.0, 0.0);
-        for (n, v) in r.iter().enumerate() {
-            if !m.is_fit(n) {
-                continue;
-            }
-            let (s, c) = (w * n as f64).sin_cos();
-            cc += c * c;
-            ss += s * s;
-            cs += c * s;
-            rc += v * c;
-            rs += v * s;
-        }
-        let det = cc * ss - cs * cs;
-        if det <= 0.0 {
+        let fitted = r.iter().enumerate().filter(|&(n, _)| m.is_fit(n));
+        let Some((a, b)) = crate::numeric::fit_cos_sin(fitted.map(|(n, &v)| (n, v)), w) else {
             continue;
-        }
-        let a = (rc * ss - rs * cs) / det;
-        let b = (rs * cc - rc * cs) / det;
+        };
         for (n, v) in r.iter_mut().enumerate() {
             if m.is_fit(n) {
                 let p = w * n as f64;
