@@ -364,9 +364,9 @@ pub(crate) fn preview(bytes: &[u8]) -> String {
 pub(crate) mod test_util {
     use std::path::PathBuf;
 
-    /// The shared real recordings (`/work/shared/data` beside the crate), if present.
+    /// The shared real recordings (`shared/data` beside the repository), if present.
     pub fn data_file(name: &str) -> Option<PathBuf> {
-        let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/data")).join(name);
+        let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(name);
         if p.is_file() {
             Some(p)
         } else {
