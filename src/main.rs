@@ -64,6 +64,7 @@ enum Command {
     #[command(name = "rs-calibrate")]
     RsCalibrate(cmd::rs_calibrate::Args),
     Score(cmd::score::Args),
+    Pitch(cmd::pitch::Args),
     Simulate(cmd::simulate::Args),
     Devices(cmd::devices::Args),
     Record(cmd::record::Args),
@@ -126,6 +127,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         Command::Magnify(a) => cmd::magnify::run(a),
         Command::RsCalibrate(a) => cmd::rs_calibrate::run(a),
         Command::Score(a) => cmd::score::run(a),
+        Command::Pitch(a) => cmd::pitch::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Devices(a) => cmd::devices::run(a),
         Command::Record(a) => cmd::record::run(a),

@@ -10,6 +10,7 @@ pub mod listen;
 pub mod magnify;
 pub mod modes;
 pub mod pipelines;
+pub mod pitch;
 pub mod probe;
 pub mod record;
 pub mod rod;

@@ -366,7 +366,8 @@ pub(crate) mod test_util {
 
     /// The shared real recordings (`shared/data` beside the repository), if present.
     pub fn data_file(name: &str) -> Option<PathBuf> {
-        let p = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(name);
+        let p =
+            PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(name);
         if p.is_file() {
             Some(p)
         } else {

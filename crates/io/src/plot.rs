@@ -146,8 +146,8 @@ pub fn power_plot(
 }
 
 /// Titles of a plot.
-struct Axes {
-    caption: &'static str,
+struct Axes<'a> {
+    caption: &'a str,
     x_desc: &'static str,
     y_desc: &'static str,
     mesh: bool,
@@ -232,6 +232,31 @@ pub fn spectrogram_plot(
     band: (f64, f64),
     size: (u32, u32),
 ) -> Result<(Rgb, PlotArea), PlotError> {
+    spectrogram_with_track(spectra, f0, df, band, size, "spectrogram", &[])
+}
+
+/// A point of a frequency track drawn over a spectrogram (a pitch track):
+/// time, frequency, and whether it is confident (drawn bold) or not
+/// (drawn faint).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrackPoint {
+    pub t_s: f64,
+    pub f_hz: f64,
+    pub confident: bool,
+}
+
+/// [`spectrogram_plot`] with a `caption` and a frequency `track` drawn
+/// over it: confident points as filled cyan dots, the others as small
+/// grey ones (as the thesis' Fig. 4-11 marks voiced segments).
+pub fn spectrogram_with_track(
+    spectra: &[TimedSpectrum],
+    f0: f64,
+    df: f64,
+    band: (f64, f64),
+    size: (u32, u32),
+    caption: &str,
+    track: &[TrackPoint],
+) -> Result<(Rgb, PlotArea), PlotError> {
     let (width, height) = size;
     check_size(width, height)?;
     font();
@@ -264,7 +289,7 @@ pub fn spectrogram_plot(
     );
     let (fa, fb) = (f0 + (k0 as f64 - 0.5) * df, f0 + (k1 as f64 + 0.5) * df);
     let axes = Axes {
-        caption: "spectrogram",
+        caption,
         x_desc: "time (s)",
         y_desc: "frequency (Hz)",
         mesh: false,
@@ -284,6 +309,17 @@ pub fn spectrogram_plot(
             })
         });
         chart.draw_series(cells).map_err(draw_err)?;
+        let inside = |p: &&TrackPoint| p.f_hz >= fa && p.f_hz <= fb && p.t_s >= ta && p.t_s <= tb;
+        let faint = track.iter().filter(inside).filter(|p| !p.confident);
+        chart
+            .draw_series(
+                faint.map(|p| Circle::new((p.t_s, p.f_hz), 1, RGBColor(150, 150, 150).filled())),
+            )
+            .map_err(draw_err)?;
+        let bold = track.iter().filter(inside).filter(|p| p.confident);
+        chart
+            .draw_series(bold.map(|p| Circle::new((p.t_s, p.f_hz), 2, CYAN.filled())))
+            .map_err(draw_err)?;
         Ok(())
     })
 }

@@ -5,6 +5,7 @@ use crate::calibrate::CalError;
 use crate::denoise::DenoiseError;
 use crate::iir::DesignError;
 use crate::modal::{ModalError, NpyError};
+use crate::pitch::PitchError;
 use crate::pyramid::PyramidError;
 use crate::row_phase::RowPhaseError;
 
@@ -26,4 +27,6 @@ pub enum MathError {
     RowPhase(#[from] RowPhaseError),
     #[error(transparent)]
     Calibration(#[from] CalError),
+    #[error(transparent)]
+    Pitch(#[from] PitchError),
 }

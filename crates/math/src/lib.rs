@@ -6,7 +6,8 @@
 //!   rolling-shutter rows ([`row_phase`], [`rs_calibrate`]), exposure
 //!   ([`exposure`]), gap filling ([`ar_interp`]).
 //! - Signals: IIR filters ([`iir`]), denoising ([`denoise`]), quality
-//!   metrics ([`metrics`]), ground-truth comparison ([`truth`]).
+//!   metrics ([`metrics`]), ground-truth comparison ([`truth`]), pitch
+//!   ([`pitch`], YIN).
 //! - Resonances: spectral peaks and damping ([`peaks`]), modal images
 //!   ([`modal`]), stochastic subspace identification ([`ssi`]), rods
 //!   ([`rod`]), calibration against a known sound ([`calibrate`]).
@@ -27,6 +28,7 @@ pub mod metrics;
 pub mod modal;
 pub mod numeric;
 pub mod peaks;
+pub mod pitch;
 pub mod pyramid;
 pub mod rng;
 pub mod rod;

@@ -751,7 +751,10 @@ pub fn score(reference: &[f64], test: &[f64], fs: f64, max_lag: usize) -> Scores
 mod tests {
     use super::*;
 
-    const DATA_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/speech-metrics");
+    const DATA_DIR: &str = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../../shared/data/speech-metrics"
+    );
 
     /// Reads a mono WAV as f64 samples (float, or integer scaled to [-1, 1)).
     fn read_wav(name: &str) -> Option<(Vec<f64>, f64)> {

@@ -8,7 +8,7 @@
 //!
 //! - [`listen`], [`spectrum`] (+ [`damping`]), [`modes`], [`calibrate`],
 //!   [`rod`], [`compare`], [`simulate`], [`record`], [`probe`], [`score`],
-//!   [`demo`], [`rs_calibrate`];
+//!   [`demo`], [`rs_calibrate`], [`pitch`];
 //! - [`pipeline`]: load, edit (replay, frame rate, typed stage edits) and
 //!   run a pipeline;
 //! - [`error`]: the one error type and the exit-status table;
@@ -45,6 +45,7 @@ pub mod magnify;
 pub mod microphone;
 pub mod modes;
 pub mod peaks;
+pub mod pitch;
 pub mod probe;
 pub mod record;
 pub mod rod;
