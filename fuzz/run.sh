@@ -35,16 +35,17 @@ for t in "${targets[@]}"; do
       -artifact_prefix="artifacts/$t/" -print_final_stats=1 ${RUNS:+-runs=$RUNS} >"$log" 2>&1
     rc=$?
     # libFuzzer's timeout is wall-clock: on a loaded machine a process
-    # stalled for a second looks like a slow input. Run the input alone,
-    # three times; a timeout that does not come back is not a finding.
+    # starved of CPU for a second looks like a slow input. Run the input
+    # alone and count its CPU time (user + system, all threads); only 1 s
+    # or more of CPU (or any other failure) is a finding.
     art=$(grep -o "artifact_prefix='[^']*'; Test unit written to [^ ]*" "$log" | grep -o '[^ ]*$')
     [ "$rc" -ne 0 ] && grep -q 'ERROR: libFuzzer: timeout' "$log" && [ -f "$art" ] || break
-    again=0
-    for _ in 1 2 3; do
-      "target/x86_64-unknown-linux-gnu/release/$t" -timeout=1 -rss_limit_mb=1024 "$art" >/dev/null 2>&1 || again=1
-    done
-    [ "$again" -eq 1 ] && break
-    echo "fuzz $t: a timeout on $art did not reproduce alone (machine load); running again"
+    TIMEFORMAT='%U %S'
+    cpu=$( { time "target/x86_64-unknown-linux-gnu/release/$t" -timeout=60 -rss_limit_mb=1024 "$art" >/dev/null 2>&1 || echo failed; } 2>&1 | tail -1)
+    echo "fuzz $t: timeout on $art: alone it takes ${cpu} s CPU (user system)"
+    case "$cpu" in *failed*) break ;; esac
+    awk -v c="$cpu" 'BEGIN { split(c, a, " "); exit !(a[1] + a[2] >= 1) }' && break
+    echo "fuzz $t: under 1 s of CPU alone: the machine was loaded, not the input slow; running again"
     mv "$art" "work/$t.spurious-$(basename "$art")"
   done
   runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)

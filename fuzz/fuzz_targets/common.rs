@@ -36,8 +36,8 @@ pub fn read_frames(r: &mut dyn VideoReader, input_len: usize, max: usize) {
         return;
     }
     match info.depth {
-        Depth::U8 => frames::<u8>(r, n, max, FrameDest::U8),
-        Depth::U16 => frames::<u16>(r, n, max, FrameDest::U16),
+        Depth::U8 => frames::<u8>(r, n, max, |b| FrameDest::U8(b)),
+        Depth::U16 => frames::<u16>(r, n, max, |b| FrameDest::U16(b)),
     }
 }
 
