@@ -19,7 +19,7 @@ if [ "${#targets[@]}" -eq 0 ]; then
   targets=(y4m cine mraw wav mask calibration_json pipeline_toml scene_toml)
 fi
 # -a: debug assertions (integer overflow is a crash); -s none: no sanitizer
-# (safe Rust; the readers have no unsafe code), several times faster.
+# (the parsers are safe Rust: no unsafe in crates/io).
 flags=(-a -s none)
 cargo +nightly fuzz build "${flags[@]}" || exit 1
 failed=()
