@@ -21,6 +21,12 @@ fi
 # -a: debug assertions (integer overflow is a crash); -s none: no sanitizer
 # (the parsers are safe Rust: no unsafe in crates/io).
 flags=(-a -s none)
+# The targets that read paths write their input to a scratch file here.
+scratch_base=/dev/shm
+[ -d "$scratch_base" ] || scratch_base="${TMPDIR:-/tmp}"
+VIBROSCOPE_FUZZ_DIR=$(mktemp -d "$scratch_base/vibroscope-fuzz.XXXXXX") || exit 1
+export VIBROSCOPE_FUZZ_DIR
+trap 'rm -rf "$VIBROSCOPE_FUZZ_DIR"' EXIT
 cargo +nightly fuzz build "${flags[@]}" || exit 1
 failed=()
 for t in "${targets[@]}"; do

@@ -6,9 +6,12 @@
 use std::path::PathBuf;
 use vibroscope_io::{Depth, FrameDest, VideoReader};
 
-/// A per-process directory in RAM when there is one (`/dev/shm`).
+/// A per-process directory under `$VIBROSCOPE_FUZZ_DIR` (which `run.sh`
+/// makes and removes), else in RAM when there is one (`/dev/shm`).
 pub fn scratch_dir() -> PathBuf {
-    let base = if std::path::Path::new("/dev/shm").is_dir() {
+    let base = if let Some(d) = std::env::var_os("VIBROSCOPE_FUZZ_DIR") {
+        PathBuf::from(d)
+    } else if std::path::Path::new("/dev/shm").is_dir() {
         PathBuf::from("/dev/shm")
     } else {
         std::env::temp_dir()
