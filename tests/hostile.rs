@@ -296,16 +296,9 @@ fn signals_finalise_outputs_with_the_documented_exit_code() {
         let (rate, s) = read_wav(&p);
         assert_eq!(rate, 500);
         assert!(s.len() > 500, "SIG{sig}: only {} samples", s.len());
-        // The header's sizes match the file: RIFF = len - 8, data = 4 * n.
-        let bytes = std::fs::read(&p).unwrap();
-        let riff = u32::from_le_bytes(bytes[4..8].try_into().unwrap()) as usize;
-        assert_eq!(riff, bytes.len() - 8, "SIG{sig}");
-        let left: Vec<_> = std::fs::read_dir(dir.path())
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .filter(|n| n.ends_with(".partial"))
-            .collect();
-        assert!(left.is_empty(), "{left:?}");
+        // The header's sizes match the file: RIFF = len - 8, data to the end.
+        assert_whole_wav(&p, &format!("SIG{sig}"));
+        no_partial(dir.path(), &format!("SIG{sig}"));
     }
 }
 
@@ -347,13 +340,10 @@ fn a_video_with_no_frames_exits_non_zero() {
     assert_eq!(checksum(&d.join("zero.y4m")), sum);
 }
 
-/// A full disk (a 64 KiB tmpfs the test mounts, when it may): the run
-/// fails naming the file (exit 1), the WAV's header matches the whole
-/// samples on disk, and no temporary file is left.
-#[test]
-fn disk_full_finalises_what_fits() {
-    let dir = tempfile::tempdir().unwrap();
-    let mnt = dir.path().join("full");
+/// Mounts a 64 KiB tmpfs at `dir/full` (a disk that fills up), or None
+/// with a printed reason where the test may not mount (not root).
+fn small_tmpfs(dir: &Path) -> Option<std::path::PathBuf> {
+    let mnt = dir.join("full");
     std::fs::create_dir(&mnt).unwrap();
     let mounted = std::process::Command::new("mount")
         .args(["-t", "tmpfs", "-o", "size=64k", "tmpfs"])
@@ -363,8 +353,20 @@ fn disk_full_finalises_what_fits() {
         .is_ok_and(|s| s.success());
     if !mounted {
         eprintln!("skipping: cannot mount a tmpfs here (needs root)");
-        return;
+        return None;
     }
+    Some(mnt)
+}
+
+/// A full disk (a 64 KiB tmpfs the test mounts, when it may): the run
+/// fails naming the file (exit 1), the WAV's header matches the whole
+/// samples on disk, and no temporary file is left.
+#[test]
+fn disk_full_finalises_what_fits() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(mnt) = small_tmpfs(dir.path()) else {
+        return;
+    };
     let o = run_in(
         &mnt,
         &[
@@ -390,11 +392,502 @@ fn disk_full_finalises_what_fits() {
     assert!(stderr(&o).contains("demo.wav"), "{}", stderr(&o));
     assert!(stderr(&o).contains("No space left"), "{}", stderr(&o));
     assert!(!names.iter().any(|n| n.ends_with(".partial")), "{names:?}");
-    let bytes = wav.unwrap();
+    let copy = dir.path().join("copy.wav");
+    std::fs::write(&copy, wav.unwrap()).unwrap();
+    let n = assert_whole_wav(&copy, "full disk");
+    assert!(n > 2500, "only {n} samples");
+}
+
+/// Sends `sig` to a running child once `ready` says its work has begun
+/// (polled every 20 ms, for at most 60 s), then waits for it.
+fn interrupt_when(
+    mut child: std::process::Child,
+    sig: &str,
+    ready: impl Fn() -> bool,
+) -> std::process::Output {
+    let t0 = std::time::Instant::now();
+    while !ready() {
+        assert!(
+            t0.elapsed().as_secs() < 60,
+            "the command never started its work"
+        );
+        if let Ok(Some(st)) = child.try_wait() {
+            panic!("the command ended ({st}) before SIG{sig} was sent");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let st = std::process::Command::new("kill")
+        .args([&format!("-{sig}"), &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    child.wait_with_output().unwrap()
+}
+
+/// A WAV whose header agrees with the file: RIFF size = length - 8, the
+/// `data` chunk runs to the end, and it reads back. Returns its samples.
+fn assert_whole_wav(p: &Path, what: &str) -> usize {
+    let bytes = std::fs::read(p).unwrap_or_else(|e| panic!("{what}: {}: {e}", p.display()));
     let riff = u32::from_le_bytes(bytes[4..8].try_into().unwrap()) as usize;
-    assert_eq!(riff, bytes.len() - 8);
+    assert_eq!(riff, bytes.len() - 8, "{what}: RIFF size");
     let at = bytes.windows(4).position(|w| w == b"data").unwrap();
     let data = u32::from_le_bytes(bytes[at + 4..at + 8].try_into().unwrap()) as usize;
-    assert_eq!(data, bytes.len() - at - 8);
-    assert!(data > 10_000, "only {data} bytes of samples");
+    assert_eq!(data, bytes.len() - at - 8, "{what}: data size");
+    read_wav(p).1.len()
+}
+
+/// A Y4M file of whole frames: every frame reads back and the reader saw
+/// no frame cut short. Returns the frames.
+fn assert_whole_y4m(p: &Path, what: &str) -> u64 {
+    use vibroscope::io::{FrameDest, VideoReader};
+    let mut r = vibroscope::io::Y4mReader::open(p)
+        .unwrap_or_else(|e| panic!("{what}: {}: {e}", p.display()));
+    let info = r.info().clone();
+    assert!(
+        !info.notes.iter().any(|n| n.contains("ends inside")),
+        "{what}: {:?}",
+        info.notes
+    );
+    let mut buf = vec![0u16; info.width as usize * info.height as usize];
+    let mut b8 = vec![0u8; buf.len()];
+    let mut n = 0;
+    loop {
+        let dst = match info.depth {
+            vibroscope::io::Depth::U8 => FrameDest::U8(&mut b8),
+            vibroscope::io::Depth::U16 => FrameDest::U16(&mut buf),
+        };
+        match r.read_frame(dst) {
+            Ok(Some(_)) => n += 1,
+            Ok(None) => break,
+            Err(e) => panic!("{what}: {e}"),
+        }
+    }
+    assert_eq!(Some(n), info.frame_count, "{what}");
+    n
+}
+
+fn no_partial(d: &Path, what: &str) {
+    let left: Vec<_> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".partial"))
+        .collect();
+    assert!(left.is_empty(), "{what}: {left:?}");
+}
+
+const SIGNALS: [(&str, i32); 3] = [("INT", 130), ("TERM", 143), ("HUP", 129)];
+
+/// SIGINT, SIGTERM and SIGHUP while `listen` works (its video arrives on
+/// standard input, endlessly): the WAV of what was heard is whole, the exit
+/// code is 128 + the signal, no temporary file is left.
+#[test]
+fn signals_during_listen() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_y4m(
+        d,
+        "s.y4m",
+        &["--set", "cam.width=48", "--set", "cam.height=32"],
+    );
+    let video = std::fs::read(d.join("s.y4m")).unwrap();
+    let header = video.iter().position(|&b| b == b'\n').unwrap() + 1;
+    for (sig, expected) in SIGNALS {
+        let what = format!("listen, SIG{sig}");
+        let mut child = bin()
+            .current_dir(d)
+            .args(["listen", "-", "--fps", "2200", "-o", "l.wav"])
+            .stdin(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stdin = child.stdin.take().unwrap();
+        let fed = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+        let feeder = {
+            let (video, fed) = (video.clone(), fed.clone());
+            std::thread::spawn(move || {
+                use std::io::Write;
+                if stdin.write_all(&video).is_err() {
+                    return;
+                }
+                // The same frames again and again until listen stops reading.
+                while stdin.write_all(&video[header..]).is_ok() {
+                    fed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                }
+            })
+        };
+        let o = interrupt_when(child, sig, || {
+            fed.load(std::sync::atomic::Ordering::Relaxed) >= 2
+        });
+        feeder.join().unwrap();
+        no_panic(&o);
+        assert_eq!(code(&o), expected, "{what}: {}", stderr(&o));
+        let n = assert_whole_wav(&d.join("l.wav"), &what);
+        assert!(n > 1000, "{what}: {n} samples");
+        no_partial(d, &what);
+        std::fs::remove_file(d.join("l.wav")).unwrap();
+    }
+}
+
+/// The same during `simulate` and `run` writing Y4M: whole frames only.
+#[test]
+fn signals_during_simulate_and_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("scene.toml"),
+        "width = 64\nheight = 48\nfps = 2200.0\nduration_s = 600.0\n\
+         signal = { type = \"tone\", freq_hz = 440.0 }\n",
+    )
+    .unwrap();
+    let scene = checksum(&d.join("scene.toml"));
+    for (sig, expected) in SIGNALS {
+        for args in [
+            &["simulate", "scene.toml", "-o", "v.y4m"][..],
+            &[
+                "run",
+                "render",
+                "--quiet",
+                "--set",
+                "cam.duration_s=600",
+                "--set",
+                "out.path=v.y4m",
+            ][..],
+        ] {
+            let what = format!("{}, SIG{sig}", args[0]);
+            let child = bin()
+                .current_dir(d)
+                .args(args)
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap();
+            // Started: some frames are on disk (under the final or a temporary name).
+            let o = interrupt_when(child, sig, || {
+                std::fs::read_dir(d).unwrap().any(|e| {
+                    let e = e.unwrap();
+                    e.file_name().to_string_lossy().contains("v.y4m")
+                        && e.metadata().unwrap().len() > 100_000
+                })
+            });
+            no_panic(&o);
+            assert_eq!(code(&o), expected, "{what}: {}", stderr(&o));
+            let n = assert_whole_y4m(&d.join("v.y4m"), &what);
+            assert!(n > 10, "{what}: {n} frames");
+            no_partial(d, &what);
+            std::fs::remove_file(d.join("v.y4m")).unwrap();
+        }
+    }
+    assert_eq!(checksum(&d.join("scene.toml")), scene);
+}
+
+/// The same during `calibrate` (interrupted in its recovery): the exit
+/// code is 128 + the signal; the report and the corrected WAV are either
+/// absent or whole; the inputs are unchanged.
+#[test]
+fn signals_during_calibrate() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_y4m(
+        d,
+        "c.y4m",
+        &[
+            "--set",
+            "cam.width=64",
+            "--set",
+            "cam.height=48",
+            "--set",
+            "cam.duration_s=4",
+        ],
+    );
+    // A 5 s chirp at 8 kHz, longer than the 4 s video.
+    let rate = 8000u32;
+    let chirp: Vec<f32> = (0..5 * rate)
+        .map(|i| {
+            let t = i as f64 / rate as f64;
+            (std::f64::consts::TAU * (100.0 * t + 50.0 * t * t)).sin() as f32
+        })
+        .collect();
+    write_wav_f32(&d.join("ref.wav"), rate, &chirp);
+    let sums = (checksum(&d.join("c.y4m")), checksum(&d.join("ref.wav")));
+    for (sig, expected) in SIGNALS {
+        let what = format!("calibrate, SIG{sig}");
+        let child = bin()
+            .current_dir(d)
+            .args([
+                "calibrate",
+                "c.y4m",
+                "--reference",
+                "ref.wav",
+                "--json",
+                "r.json",
+                "-o",
+                "k.wav",
+            ])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let t0 = std::time::Instant::now();
+        let o = interrupt_when(child, sig, || t0.elapsed().as_millis() > 700);
+        no_panic(&o);
+        assert_eq!(code(&o), expected, "{what}: {}", stderr(&o));
+        if d.join("k.wav").exists() {
+            assert_whole_wav(&d.join("k.wav"), &what);
+            std::fs::remove_file(d.join("k.wav")).unwrap();
+        }
+        if d.join("r.json").exists() {
+            let t = std::fs::read_to_string(d.join("r.json")).unwrap();
+            serde_json::from_str::<serde_json::Value>(&t)
+                .unwrap_or_else(|e| panic!("{what}: r.json: {e}"));
+            std::fs::remove_file(d.join("r.json")).unwrap();
+        }
+        no_partial(d, &what);
+    }
+    assert_eq!(
+        (checksum(&d.join("c.y4m")), checksum(&d.join("ref.wav"))),
+        sums
+    );
+}
+
+/// A pipeline writing one video, its motion as WAV and as CSV (fan-out).
+fn three_sinks(width: u32, duration_s: f64, amplitude_px: f64) -> String {
+    format!(
+        "[pipeline]\nname = \"three\"\n\
+         [[stage]]\nid = \"cam\"\nkind = \"synthetic\"\nwidth = {width}\nheight = 32\nfps = 2200.0\n\
+         duration_s = {duration_s}\namplitude_px = {amplitude_px}\nsignal = {{ type = \"tone\", freq_hz = 440.0 }}\n\
+         [[stage]]\nid = \"motion\"\nkind = \"gradient_motion\"\ninput = \"cam\"\n\
+         [[stage]]\nid = \"wav\"\nkind = \"wav\"\ninput = \"motion\"\npath = \"same.wav\"\n\
+         [[stage]]\nid = \"csv\"\nkind = \"csv\"\ninput = \"motion\"\npath = \"same.csv\"\n\
+         [[stage]]\nid = \"y4m\"\nkind = \"y4m\"\ninput = \"cam\"\npath = \"same.y4m\"\n"
+    )
+}
+
+/// Two runs writing the same WAV, CSV and Y4M paths at once: both succeed
+/// and each file is whole and is one run's file, byte for byte (the
+/// streaming sinks write a unique temporary sibling and rename it), never
+/// a splice of both; no temporary file is left.
+#[test]
+fn two_concurrent_writers_of_one_path_cannot_splice() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Each run alone, in its own directory: what a whole file of it is.
+    let runs = [three_sinks(32, 1.0, 0.05), three_sinks(48, 1.0, 0.2)];
+    let mut alone = Vec::new();
+    for (i, p) in runs.iter().enumerate() {
+        let sub = d.join(format!("alone{i}"));
+        std::fs::create_dir(&sub).unwrap();
+        std::fs::write(sub.join("p.toml"), p).unwrap();
+        let o = run_in(&sub, &["run", "p.toml", "--quiet"]);
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        let files: Vec<Vec<u8>> = ["same.wav", "same.csv", "same.y4m"]
+            .iter()
+            .map(|f| std::fs::read(sub.join(f)).unwrap())
+            .collect();
+        alone.push(files);
+    }
+    for (i, p) in runs.iter().enumerate() {
+        std::fs::write(d.join(format!("p{i}.toml")), p).unwrap();
+    }
+    for round in 0..3 {
+        let children: Vec<_> = (0..2)
+            .map(|i| {
+                bin()
+                    .current_dir(d)
+                    .args(["run", &format!("p{i}.toml"), "--quiet"])
+                    .stderr(Stdio::piped())
+                    .spawn()
+                    .unwrap()
+            })
+            .collect();
+        for c in children {
+            let o = c.wait_with_output().unwrap();
+            no_panic(&o);
+            assert_eq!(code(&o), 0, "round {round}: {}", stderr(&o));
+        }
+        for (k, f) in ["same.wav", "same.csv", "same.y4m"].iter().enumerate() {
+            let got = std::fs::read(d.join(f)).unwrap();
+            assert!(
+                got == alone[0][k] || got == alone[1][k],
+                "round {round}: {f} ({} bytes) is neither run's file ({} or {} bytes)",
+                got.len(),
+                alone[0][k].len(),
+                alone[1][k].len()
+            );
+        }
+        assert_whole_wav(&d.join("same.wav"), "wav");
+        assert_whole_y4m(&d.join("same.y4m"), "y4m");
+        no_partial(d, &format!("round {round}"));
+    }
+}
+
+/// A full disk (a 64 KiB tmpfs the test mounts, when it may) under the
+/// streaming Y4M and CSV sinks: exit 1 naming the file, the Y4M holds
+/// whole frames only, the CSV whole rows only, no temporary file is left.
+#[test]
+fn disk_full_keeps_whole_frames_and_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let Some(mnt) = small_tmpfs(dir.path()) else {
+        return;
+    };
+    // Only one of the two sinks per run, so that it is the one that fills the disk.
+    let mut results = Vec::new();
+    for (sink, extra) in [
+        ("y4m", "[[stage]]\nid = \"y4m\"\nkind = \"y4m\"\ninput = \"cam\"\npath = \"same.y4m\"\n"),
+        ("csv", "[[stage]]\nid = \"motion\"\nkind = \"gradient_motion\"\ninput = \"cam\"\n[[stage]]\nid = \"csv\"\nkind = \"csv\"\ninput = \"motion\"\npath = \"same.csv\"\n"),
+    ] {
+        let p = format!(
+            "[pipeline]\nname = \"full\"\n[[stage]]\nid = \"cam\"\nkind = \"synthetic\"\n\
+             width = 33\nheight = 17\nfps = 2200.0\nduration_s = 20.0\n\
+             signal = {{ type = \"tone\", freq_hz = 440.0 }}\n{extra}"
+        );
+        std::fs::write(dir.path().join(format!("{sink}.toml")), p).unwrap();
+        let toml = dir.path().join(format!("{sink}.toml"));
+        let o = run_in(&mnt, &["run", toml.to_str().unwrap(), "--quiet"]);
+        let names: Vec<String> = std::fs::read_dir(&mnt)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        let file = mnt.join(format!("same.{sink}"));
+        let copy = dir.path().join(format!("copy.{sink}"));
+        let _ = std::fs::copy(&file, &copy);
+        let _ = std::fs::remove_file(&file);
+        results.push((sink, o, names, copy));
+    }
+    let _ = std::process::Command::new("umount").arg(&mnt).status();
+    for (sink, o, names, copy) in results {
+        no_panic(&o);
+        assert_eq!(code(&o), 1, "{sink}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!("same.{sink}")),
+            "{}",
+            stderr(&o)
+        );
+        assert!(stderr(&o).contains("No space left"), "{}", stderr(&o));
+        assert!(!names.iter().any(|n| n.ends_with(".partial")), "{names:?}");
+        match sink {
+            "y4m" => {
+                let n = assert_whole_y4m(&copy, "full disk");
+                assert!(n > 10, "only {n} frames");
+            }
+            _ => {
+                let t = std::fs::read_to_string(&copy).unwrap();
+                assert!(t.ends_with('\n'), "the CSV ends inside a row");
+                let rows: Vec<&str> = t.lines().collect();
+                assert_eq!(rows[0], "t_s,value");
+                assert!(rows.len() > 100, "only {} rows", rows.len());
+                for r in &rows[1..] {
+                    let (a, b) = r.split_once(',').unwrap();
+                    a.parse::<f64>().unwrap();
+                    b.parse::<f64>().unwrap();
+                }
+            }
+        }
+    }
+}
+
+/// A calibration report whose clock error is out of range (-1e6 ppm once
+/// gave a 0-sample WAV): `listen --calibration` refuses it before any work
+/// (exit 2, the field and value named), writes nothing, changes nothing.
+#[test]
+fn a_calibration_report_out_of_range_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_y4m(d, "s.y4m", SMALL);
+    std::fs::write(
+        d.join("r.json"),
+        r#"{"effects": [{"name": "time_base", "parameters": {"clock_error_ppm": -1e6}}]}"#,
+    )
+    .unwrap();
+    let sums = (checksum(&d.join("s.y4m")), checksum(&d.join("r.json")));
+    let o = run_in(
+        d,
+        &["listen", "s.y4m", "--calibration", "r.json", "-o", "l.wav"],
+    );
+    no_panic(&o);
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(
+        err.contains("r.json") && err.contains("clock_error_ppm") && err.contains("-1000000"),
+        "{err}"
+    );
+    assert!(!d.join("l.wav").exists());
+    no_partial(d, "listen --calibration");
+    assert_eq!(
+        (checksum(&d.join("s.y4m")), checksum(&d.join("r.json"))),
+        sums
+    );
+}
+
+/// Frame rates below 1 Hz, from a flag (`--fps 1e-300`), a Y4M header
+/// (`F1:4294967295`) or a `.cih` save step (99999999999), once panicked in
+/// the resampler or aborted allocating terabytes after the work had begun:
+/// each is refused before any frame is processed, naming the rate, and
+/// nothing is written. The flag is a usage error (exit 2); a file's rate is
+/// found when the pipeline starts its source (exit 1, as a file that
+/// states no rate).
+#[test]
+fn frame_rates_below_one_hertz_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_y4m(d, "s.y4m", SMALL);
+    let video = std::fs::read(d.join("s.y4m")).unwrap();
+    let nl = video.iter().position(|&b| b == b'\n').unwrap();
+    let header = String::from_utf8(video[..nl].to_vec()).unwrap();
+    let slow: String = header
+        .split(' ')
+        .map(|t| {
+            if t.starts_with('F') {
+                "F1:4294967295"
+            } else {
+                t
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ");
+    let mut f = slow.into_bytes();
+    f.extend_from_slice(&video[nl..]);
+    std::fs::write(d.join("slow.y4m"), &f).unwrap();
+    std::fs::write(
+        d.join("m.cih"),
+        "Record Rate(fps) : 20000\nTotal Frame : 2\nSave Step : 99999999999\n\
+         Image Width : 4\nImage Height : 2\nColor Type : Mono\nColor Bit : 8\nFile Format : MRaw\n",
+    )
+    .unwrap();
+    std::fs::write(d.join("m.mraw"), [7u8; 16]).unwrap();
+    let sums = [
+        checksum(&d.join("s.y4m")),
+        checksum(&d.join("slow.y4m")),
+        checksum(&d.join("m.cih")),
+    ];
+    for (args, needle, exit) in [
+        (
+            &["listen", "s.y4m", "--fps", "1e-300", "-o", "l.wav"][..],
+            "fps",
+            2,
+        ),
+        (
+            &["listen", "slow.y4m", "-o", "l.wav"][..],
+            "slow.y4m: frame rate must be at least 1 Hz",
+            1,
+        ),
+        (
+            &["listen", "m.cih", "-o", "l.wav"][..],
+            "frame rate must be at least 1 Hz",
+            1,
+        ),
+    ] {
+        let o = run_in(d, args);
+        no_panic(&o);
+        assert!(!stderr(&o).contains("memory allocation"), "{}", stderr(&o));
+        assert_eq!(code(&o), exit, "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{args:?}: {}", stderr(&o));
+        assert!(!d.join("l.wav").exists(), "{args:?}");
+        no_partial(d, &format!("{args:?}"));
+    }
+    assert_eq!(
+        [
+            checksum(&d.join("s.y4m")),
+            checksum(&d.join("slow.y4m")),
+            checksum(&d.join("m.cih")),
+        ],
+        sums
+    );
 }

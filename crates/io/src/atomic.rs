@@ -40,6 +40,66 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
     })
 }
 
+/// A file written as it goes under a unique temporary sibling
+/// ([`temp_sibling`]) and renamed to its final path by [`Pending::commit`]:
+/// two writers of one path each write their own file (the last rename
+/// wins, neither splices into the other), and a reader of the final path
+/// sees a previous whole file or the new whole file. Dropped without a
+/// commit, the temporary file is removed.
+#[derive(Debug)]
+pub struct Pending {
+    tmp: PathBuf,
+    path: PathBuf,
+    committed: bool,
+}
+
+impl Pending {
+    /// Creates the temporary sibling of `path` (create_new: never an
+    /// existing file) and returns it open for writing.
+    pub fn create(path: &Path) -> std::io::Result<(Pending, std::fs::File)> {
+        let tmp = temp_sibling(path);
+        let f = std::fs::OpenOptions::new()
+            .write(true)
+            .read(true)
+            .create_new(true)
+            .open(&tmp)?;
+        Ok((
+            Pending {
+                tmp,
+                path: path.to_path_buf(),
+                committed: false,
+            },
+            f,
+        ))
+    }
+
+    /// The temporary file being written.
+    pub fn temp_path(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// The final path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Renames the temporary file to the final path (replacing what was
+    /// there). On error the temporary file is removed.
+    pub fn commit(mut self) -> std::io::Result<()> {
+        let r = std::fs::rename(&self.tmp, &self.path);
+        self.committed = r.is_ok();
+        r
+    }
+}
+
+impl Drop for Pending {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
 /// Whether `a` and `b` name one existing file: the same device and inode on
 /// Unix (so hard links, symlinks and `./x` vs `x` all count), the same
 /// canonical path elsewhere. A path that does not exist is no file.
@@ -112,6 +172,32 @@ mod tests {
         std::fs::write(&b, b"x").expect("write");
         assert!(!same_file(&a, &b));
         assert!(!same_file(&a, &dir.path().join("missing")));
+    }
+
+    #[test]
+    fn pending_files_rename_on_commit_and_vanish_otherwise() {
+        use std::io::Write;
+        let dir = tempfile::tempdir().expect("tempdir");
+        let p = dir.path().join("a.wav");
+        std::fs::write(&p, b"old").expect("write");
+        let (a, mut fa) = Pending::create(&p).expect("a");
+        let (b, mut fb) = Pending::create(&p).expect("b");
+        assert_ne!(a.temp_path(), b.temp_path());
+        fa.write_all(b"first").expect("a");
+        fb.write_all(b"second").expect("b");
+        // Until a commit the final path keeps what it had.
+        assert_eq!(std::fs::read(&p).expect("read"), b"old");
+        a.commit().expect("commit a");
+        assert_eq!(std::fs::read(&p).expect("read"), b"first");
+        b.commit().expect("commit b");
+        assert_eq!(std::fs::read(&p).expect("read"), b"second");
+        let (c, _) = Pending::create(&p).expect("c");
+        let tmp = c.temp_path().to_path_buf();
+        assert!(tmp.exists());
+        drop(c);
+        assert!(!tmp.exists());
+        let left: Vec<_> = std::fs::read_dir(dir.path()).expect("dir").collect();
+        assert_eq!(left.len(), 1);
     }
 
     #[test]

@@ -26,14 +26,21 @@ pub enum ImageError {
 
 /// A PGM (P2 or P5, 8 or 16 bit) or PNG picture as 16-bit grey.
 pub fn read_gray16(path: &Path) -> Result<Gray16, ImageError> {
-    let open = |source| ImageError::Open {
+    let bytes = std::fs::read(path).map_err(|source| ImageError::Open {
         path: path.to_path_buf(),
         source,
-    };
-    Ok(image::ImageReader::open(path)
-        .map_err(open)?
+    })?;
+    decode_gray16(&bytes, path)
+}
+
+/// [`read_gray16`] of a picture's bytes; `path` names them in errors.
+pub fn decode_gray16(bytes: &[u8], path: &Path) -> Result<Gray16, ImageError> {
+    Ok(image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
-        .map_err(open)?
+        .map_err(|source| ImageError::Open {
+            path: path.to_path_buf(),
+            source,
+        })?
         .decode()
         .map_err(|source| ImageError::Decode {
             path: path.to_path_buf(),

@@ -24,7 +24,7 @@ pub mod plot;
 pub mod wav;
 mod y4m;
 
-pub use y4m::{Y4mReader, Y4mWriter};
+pub use y4m::{cut_to_whole_frames, Y4mReader, Y4mWriter};
 
 /// Longest header line (Y4M stream and frame headers, `.cih` lines) accepted.
 pub const MAX_HEADER_LINE: usize = 4096;

@@ -92,6 +92,15 @@ pub fn repair_header(path: &Path) -> std::io::Result<u64> {
 /// Reads the first channel of a WAV file: integers scaled to [-1, 1),
 /// floats as stored. Returns the sample rate in Hz and the samples.
 pub fn read_mono(path: &Path) -> Result<(u32, Vec<f64>), WavError> {
+    let f = std::fs::File::open(path).map_err(|e| WavError::Open {
+        path: path.to_path_buf(),
+        source: hound::Error::IoError(e),
+    })?;
+    read_mono_from(std::io::BufReader::new(f), path)
+}
+
+/// [`read_mono`] of WAV bytes from any reader; `path` names them in errors.
+pub fn read_mono_from<R: std::io::Read>(src: R, path: &Path) -> Result<(u32, Vec<f64>), WavError> {
     let open = |source| WavError::Open {
         path: path.to_path_buf(),
         source,
@@ -100,7 +109,7 @@ pub fn read_mono(path: &Path) -> Result<(u32, Vec<f64>), WavError> {
         path: path.to_path_buf(),
         source,
     };
-    let mut r = hound::WavReader::open(path).map_err(open)?;
+    let mut r = hound::WavReader::new(src).map_err(open)?;
     let spec = r.spec();
     let ch = spec.channels.max(1) as usize;
     // The header's length is a claim: reserve at most 1 Mi samples for it.

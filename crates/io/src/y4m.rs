@@ -277,10 +277,13 @@ impl Y4mReader<BufReader<File>> {
         Ok(r)
     }
 
-    /// Scans the frame headers of a seekable file, then returns to where it was.
-    fn count_frames(&mut self, file_len: u64) -> Result<(), VideoError> {
+    /// Scans the frame headers of a seekable file, then returns to where it
+    /// was. Returns where the last whole frame ends (the header's end when
+    /// there is none).
+    fn count_frames(&mut self, file_len: u64) -> Result<u64, VideoError> {
         let frame_bytes = self.layout.frame_bytes();
         let mut pos = self.header_len;
+        let mut end = self.header_len;
         let resume = match &self.peek {
             Peek::Frame(_) => {
                 pos += self.line.len() as u64 + 1;
@@ -289,7 +292,7 @@ impl Y4mReader<BufReader<File>> {
             _ => {
                 // Nothing to count beyond an end or a bad first frame header.
                 self.info.frame_count = Some(0);
-                return Ok(());
+                return Ok(end);
             }
         };
         let mut count = 0u64;
@@ -305,6 +308,7 @@ impl Y4mReader<BufReader<File>> {
             }
             count += 1;
             pos += frame_bytes;
+            end = pos;
             // Small direct reads: the buffered reader would fetch 64 KiB per frame.
             match line_at(self.src.get_mut(), pos, &mut line)
                 .map_err(|e| io_error(&self.name, e))?
@@ -323,8 +327,30 @@ impl Y4mReader<BufReader<File>> {
         self.src
             .seek(SeekFrom::Start(resume))
             .map_err(|e| io_error(&self.name, e))?;
-        Ok(())
+        Ok(end)
     }
+}
+
+/// Cuts a Y4M file after its last whole frame (a write that failed part way,
+/// on a full disk, may leave part of a frame): shortening a file needs no
+/// new space. Returns the whole frames kept.
+pub fn cut_to_whole_frames(path: &Path) -> Result<u64, VideoError> {
+    let name = display_name(path);
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)
+        .map_err(|e| io_error(&name, e))?;
+    let file_len = file.metadata().map_err(|e| io_error(&name, e))?.len();
+    let mut r = Y4mReader::from_reader(BufReader::with_capacity(CHUNK, file), &name)?;
+    let end = r.count_frames(file_len)?;
+    if end < file_len {
+        r.src
+            .get_mut()
+            .set_len(end)
+            .map_err(|e| io_error(&name, e))?;
+    }
+    Ok(r.info.frame_count.unwrap_or(0))
 }
 
 /// Reads the line starting at `pos` of a file (at most [`MAX_HEADER_LINE`] bytes).
@@ -767,6 +793,25 @@ mod tests {
                 None => return Ok(out),
             }
         }
+    }
+
+    /// A file cut inside its third frame (or its third frame's header)
+    /// keeps two whole frames; a whole file is left as it is.
+    #[test]
+    fn cut_to_whole_frames_drops_a_partial_frame() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let p = dir.path().join("a.y4m");
+        let whole =
+            b"YUV4MPEG2 W2 H1 F25:1 Cmono\nFRAME Xts=0\nabFRAME\ncdFRAME Xts=9\nef".to_vec();
+        for cut in [whole.len() - 1, whole.len() - 3, whole.len() - 8] {
+            std::fs::write(&p, &whole[..cut]).expect("write");
+            assert_eq!(cut_to_whole_frames(&p).expect("cut"), 2, "cut at {cut}");
+            let kept = std::fs::read(&p).expect("read");
+            assert_eq!(kept, &whole[..whole.len() - 14], "cut at {cut}");
+        }
+        std::fs::write(&p, &whole).expect("write");
+        assert_eq!(cut_to_whole_frames(&p).expect("cut"), 3);
+        assert_eq!(std::fs::read(&p).expect("read"), whole);
     }
 
     fn read_all_u16(r: &mut dyn VideoReader) -> Result<Frames<u16>, VideoError> {

@@ -318,7 +318,14 @@ pub enum ReportError {
     },
     #[error("effects[{index}]: unknown effect `{name}`")]
     UnknownEffect { index: usize, name: String },
+    #[error("effects[{index}]: effect `time_base`: parameters.clock_error_ppm must be within ±{MAX_CLOCK_ERROR_PPM} ppm, got {value}")]
+    ClockError { index: usize, value: f64 },
 }
+
+/// The largest clock error a stored report may hold: ten times the ±1%
+/// (10000 ppm) that `calibrate` searches. Beyond it a report is damaged or
+/// hand-made (-1e6 ppm would resample a recovery to nothing).
+pub const MAX_CLOCK_ERROR_PPM: f64 = 1e5;
 
 /// A value in a stored report's `parameters`, as loosely as it may come.
 #[derive(Deserialize)]
@@ -414,9 +421,13 @@ fn from_report(
     .into_iter()
     .find(|k| k.name() == name);
     Ok(match kind {
-        Some(EffectKind::TimeBase) => Some(Correction::TimeBase {
-            ppm: num("clock_error_ppm")?,
-        }),
+        Some(EffectKind::TimeBase) => {
+            let ppm = num("clock_error_ppm")?;
+            if ppm.abs() > MAX_CLOCK_ERROR_PPM {
+                return Err(ReportError::ClockError { index, value: ppm });
+            }
+            Some(Correction::TimeBase { ppm })
+        }
         Some(EffectKind::Exposure) => {
             let e = num("exposure_us")?;
             if e <= 0.0 {

@@ -172,3 +172,26 @@ fn report_round_trips_the_reusable_corrections() {
         reusable_from_report(&json!({"effects": [{"name": "nope", "parameters": {}}]})).is_err()
     );
 }
+
+/// Issue 20: a report claiming a -1e6 ppm clock error (a factor of zero)
+/// gave a 0-sample WAV; out of ±1e5 ppm it is refused, naming the field.
+#[test]
+fn report_clock_error_out_of_range_is_refused() {
+    for (ppm, ok) in [
+        (-1e6, false),
+        (1e5 + 1.0, false),
+        (-1e5, true),
+        (9999.0, true),
+    ] {
+        let r = reusable_from_report(&json!({"effects": [
+            {"name": "time_base", "parameters": {"clock_error_ppm": ppm}}
+        ]}));
+        match r {
+            Ok(c) => assert!(ok, "{ppm}: accepted {c:?}"),
+            Err(e) => {
+                assert!(!ok, "{ppm}: {e}");
+                assert!(e.to_string().contains("clock_error_ppm"), "{e}");
+            }
+        }
+    }
+}

@@ -3,13 +3,17 @@
 //! Audio: `t_s,value`; samples: `t_s,ch0,ch1,...`; spectra: one row per bin,
 //! `t_s,freq_hz,power`. The file is created on the first item (a run that
 //! fails before any data arrives leaves no empty file behind); rows are
-//! written as they arrive, and the buffer is
-//! flushed on finish (end of stream, Ctrl-C or an upstream error).
+//! written as they arrive to a unique temporary sibling
+//! (`.NAME.PID-N.partial`), flushed and renamed to the path on finish (end
+//! of stream, a signal or an error anywhere): two runs writing one path
+//! cannot splice; after a write error (a full disk) the partial last row is
+//! cut off first.
 
 use crate::*;
 use serde::Deserialize;
 use std::io::{BufWriter, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use vibroscope_io::atomic::Pending;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -35,6 +39,7 @@ pub const KIND: KindSpec = KindSpec {
         Ok(Box::new(Csv {
             path: v.path,
             out: None,
+            pending: None,
         }))
     },
 };
@@ -42,6 +47,8 @@ pub const KIND: KindSpec = KindSpec {
 struct Csv {
     path: PathBuf,
     out: Option<BufWriter<std::fs::File>>,
+    /// The temporary file `out` writes, renamed on finish.
+    pending: Option<Pending>,
 }
 
 impl Plan for Csv {
@@ -104,17 +111,48 @@ impl Stage for Csv {
     fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
         let header = self.out.is_none();
         if header {
-            self.out = Some(BufWriter::new(super::create(&self.path)?));
+            let (pending, file) = super::create_pending(&self.path)?;
+            self.pending = Some(pending);
+            self.out = Some(BufWriter::new(file));
         }
         self.write_rows(&item, header)
             .map_err(|e| StageError::file("write", &self.path, e))
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
-        if let Some(mut o) = self.out.take() {
-            o.flush()
-                .map_err(|e| StageError::file("write", &self.path, e))?;
+        let io = |e: std::io::Error| StageError::file("write", &self.path, e);
+        let flushed = match self.out.take() {
+            Some(mut o) => o.flush().map_err(io),
+            None => Ok(()),
+        };
+        let Some(pending) = self.pending.take() else {
+            return flushed;
+        };
+        if flushed.is_err() {
+            let _ = cut_to_whole_lines(pending.temp_path());
         }
-        Ok(())
+        flushed.and(pending.commit().map_err(io))
     }
+}
+
+/// Cuts a text file after its last `\n` (shortening needs no new space).
+fn cut_to_whole_lines(path: &Path) -> std::io::Result<()> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut f = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)?;
+    let mut end = f.metadata()?.len();
+    let mut buf = vec![0u8; 64 * 1024];
+    while end > 0 {
+        let start = end.saturating_sub(buf.len() as u64);
+        let chunk = &mut buf[..(end - start) as usize];
+        f.seek(SeekFrom::Start(start))?;
+        f.read_exact(chunk)?;
+        if let Some(i) = chunk.iter().rposition(|&b| b == b'\n') {
+            return f.set_len(start + i as u64 + 1);
+        }
+        end = start;
+    }
+    f.set_len(0)
 }

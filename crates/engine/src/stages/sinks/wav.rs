@@ -5,14 +5,19 @@
 //! rate. f32 files are `WAVE_FORMAT_IEEE_FLOAT` with a `fact` chunk, i16
 //! files plain PCM: headers sox, Python's `wave` (PCM) and
 //! `scipy.io.wavfile` read without a warning ([`vibroscope_io::wav::Encoding`]).
-//! The header is rewritten every second of audio and on
-//! finish, which the runner calls on end of stream, on Ctrl-C and on an
-//! error anywhere, so the file on disk is a valid WAV at all times.
+//! The file is written under a unique temporary sibling
+//! (`.NAME.PID-N.partial`, [`vibroscope_io::atomic::Pending`]) and renamed
+//! to its path on finish, which the runner calls on end of stream, on a
+//! signal (SIGINT, SIGTERM, SIGHUP) and on an error anywhere: two runs
+//! writing one path cannot splice, and the path holds a whole WAV (the
+//! header is rewritten to match the data first; after a write error, such
+//! as a full disk, to match the whole samples on disk).
 
 use crate::*;
 use serde::Deserialize;
 use std::io::BufWriter;
 use std::path::PathBuf;
+use vibroscope_io::atomic::Pending;
 use vibroscope_io::wav::{Encoding, MonoWavWriter};
 
 #[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
@@ -61,6 +66,7 @@ pub const KIND: KindSpec = KindSpec {
             format: v.format,
             gain: v.gain as f32,
             writer: None,
+            pending: None,
             rate: 0,
             since_flush: 0,
         }))
@@ -72,6 +78,8 @@ struct Wav {
     format: Format,
     gain: f32,
     writer: Option<MonoWavWriter<BufWriter<std::fs::File>>>,
+    /// The temporary file the writer writes, renamed on finish.
+    pending: Option<Pending>,
     rate: u32,
     since_flush: u32,
 }
@@ -110,7 +118,8 @@ impl Stage for Wav {
                 Format::F32 => Encoding::F32,
                 Format::I16 => Encoding::I16,
             };
-            let file = super::create(&self.path)?;
+            let (pending, file) = super::create_pending(&self.path)?;
+            self.pending = Some(pending);
             let w = MonoWavWriter::new(BufWriter::new(file), rate, enc).map_err(|e| self.err(e))?;
             self.writer = Some(w);
             self.rate = rate;
@@ -142,14 +151,18 @@ impl Stage for Wav {
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
-        match self.writer.take() {
+        match (self.writer.take(), self.pending.take()) {
             // A failed finalise (a full disk) still leaves a header that
-            // matches the whole samples on disk.
-            Some(w) => w.finalize().map(drop).map_err(|e| {
-                let _ = vibroscope_io::wav::repair_header(&self.path);
-                self.err(e)
-            }),
-            None => {
+            // matches the whole samples on disk; then the rename.
+            (Some(w), Some(pending)) => {
+                let done = w.finalize().map(drop).map_err(|e| {
+                    let _ = vibroscope_io::wav::repair_header(pending.temp_path());
+                    self.err(e)
+                });
+                let renamed = pending.commit().map_err(|e| self.err(e));
+                done.and(renamed)
+            }
+            _ => {
                 tracing::warn!(path = %self.path.display(), "no audio reached the WAV sink; no file written");
                 Ok(())
             }

@@ -3,11 +3,18 @@
 //! (`FRAME Xts=<ns> Xseq=<n>`), so a replay uses the true capture times and
 //! a camera's dropped frames show as gaps in `Xseq`. `path = "-"` writes to standard output
 //! (to pipe into another process).
+//!
+//! A file is written under a unique temporary sibling (`.NAME.PID-N.partial`)
+//! and renamed to its path on finish (end of stream, a signal, an error
+//! anywhere): two runs writing one path cannot splice, and the path holds
+//! whole frames only (after a write error, such as a full disk, the
+//! partial last frame is cut off first).
 
 use crate::*;
 use serde::Deserialize;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
+use vibroscope_io::atomic::Pending;
 use vibroscope_io::{FrameDestRef, Y4mWriter};
 
 #[derive(Deserialize)]
@@ -30,6 +37,7 @@ pub const KIND: KindSpec = KindSpec {
         Ok(Box::new(Rec {
             path: v.path,
             w: None,
+            pending: None,
         }))
     },
 };
@@ -37,6 +45,8 @@ pub const KIND: KindSpec = KindSpec {
 struct Rec {
     path: PathBuf,
     w: Option<Y4mWriter<BufWriter<Box<dyn Write + Send>>>>,
+    /// The temporary file (not for standard output), renamed on finish.
+    pending: Option<Pending>,
 }
 
 impl Plan for Rec {
@@ -57,7 +67,9 @@ impl Stage for Rec {
             let file: Box<dyn Write + Send> = if path.as_os_str() == "-" {
                 Box::new(std::io::stdout())
             } else {
-                Box::new(super::create(path)?)
+                let (pending, file) = super::create_pending(path)?;
+                self.pending = Some(pending);
+                Box::new(file)
             };
             self.w = Some(
                 Y4mWriter::new(
@@ -82,12 +94,18 @@ impl Stage for Rec {
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
-        if let Some(w) = self.w.take() {
-            let mut inner = w.into_inner();
-            inner
-                .flush()
-                .map_err(|e| StageError::file("write", &self.path, e))?;
+        let io = |e: std::io::Error| StageError::file("write", &self.path, e);
+        let flushed = match self.w.take() {
+            Some(w) => w.into_inner().flush().map_err(io),
+            None => Ok(()),
+        };
+        let Some(pending) = self.pending.take() else {
+            return flushed;
+        };
+        if flushed.is_err() {
+            // A full disk: keep the whole frames that fitted.
+            let _ = vibroscope_io::cut_to_whole_frames(pending.temp_path());
         }
-        Ok(())
+        flushed.and(pending.commit().map_err(io))
     }
 }

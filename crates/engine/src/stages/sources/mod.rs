@@ -55,10 +55,16 @@ pub fn nominal_time_ns(seq: u64, fps: f64) -> i64 {
 /// The largest frame rate accepted, Hz.
 pub const MAX_FPS: f64 = 1e7;
 
+/// The smallest frame rate accepted, Hz: one frame a second. Below it
+/// nothing audible or modal is left, and resampling to an audio rate needs
+/// buffers of the ratio's size (`--fps 1e-300`, a Y4M `F1:4294967295` or a
+/// `.cih` save step of 99999999999 once panicked or aborted there).
+pub const MIN_FPS: f64 = 1.0;
+
 /// A frame rate parameter (`fps`) with the range [`check_fps`] applies.
 pub const fn fps_param(default: crate::Def, doc: &'static str) -> crate::ParamSpec {
     crate::ParamSpec::new("fps", crate::ParamType::Float, default)
-        .above_upto(0.0, MAX_FPS)
+        .floats(MIN_FPS, MAX_FPS)
         .unit("Hz")
         .doc(doc)
 }
@@ -79,11 +85,11 @@ pub const BITS: crate::ParamSpec =
 
 /// Checks a frame rate given by a user or a file.
 pub fn check_fps(fps: f64) -> Result<f64, String> {
-    if fps.is_finite() && fps > 0.0 && fps <= MAX_FPS {
+    if (MIN_FPS..=MAX_FPS).contains(&fps) {
         Ok(fps)
     } else {
         Err(format!(
-            "frame rate must be > 0 and at most 1e7 Hz, got {fps}"
+            "frame rate must be at least {MIN_FPS} Hz and at most 1e7 Hz, got {fps}"
         ))
     }
 }

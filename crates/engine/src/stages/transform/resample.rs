@@ -257,6 +257,14 @@ impl Feed {
     /// A sinc resampler from `rate_in` to `rate_out` (256-tap Blackman-Harris
     /// windowed sinc, cutoff chosen by rubato for its sidelobe level).
     pub fn new(rate_in: f64, rate_out: f64) -> Result<Feed, String> {
+        // rubato sizes its buffers by the ratio (and panics when they
+        // overflow): refuse a ratio no signal needs.
+        let ratio = rate_out / rate_in;
+        if !(1e-5..=1e5).contains(&ratio) {
+            return Err(format!(
+                "cannot resample {rate_in} Hz to {rate_out} Hz: the ratio must be within 1e-5..1e5"
+            ));
+        }
         let params = SincInterpolationParameters::new(256, WindowFunction::BlackmanHarris2)
             .oversampling_factor(128)
             .interpolation(SincInterpolationType::Cubic);

@@ -64,7 +64,13 @@ pub struct Mask {
 impl Mask {
     /// Reads `path` (the error names it and what is wrong).
     pub fn load(path: &std::path::Path) -> Result<Mask, String> {
-        let img = vibroscope_io::image::read_gray16(path).map_err(|e| e.to_string())?;
+        let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        Self::decode(&bytes, path)
+    }
+
+    /// [`Mask::load`] of a picture's bytes; `path` names them in errors.
+    pub fn decode(bytes: &[u8], path: &std::path::Path) -> Result<Mask, String> {
+        let img = vibroscope_io::image::decode_gray16(bytes, path).map_err(|e| e.to_string())?;
         let (w, h) = img.dimensions();
         let inside: Vec<bool> = img.pixels().map(|p| p.0[0] > 0).collect();
         if !inside.iter().any(|&v| v) {

@@ -1,0 +1,36 @@
+//! A scene file (`vibroscope simulate SCENE.toml`): its fields fill the
+//! `synthetic` source of the shipped `render` pipeline, as `simulate`
+//! does, and the graph is validated (which builds the forward model).
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use vibroscope_engine::config::{self, set_param, Origin};
+use vibroscope_engine::{graph, pipelines, stages};
+
+fuzz_target!(|data: &[u8]| {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    let Ok(table) = toml::from_str::<toml::Table>(text) else {
+        return;
+    };
+    let render = pipelines::find("render").expect("shipped render pipeline");
+    let mut decl = config::parse("render.toml", render.text).expect("render parses");
+    let Some(cam) = decl.stages.iter_mut().find(|s| s.id == "cam") else {
+        panic!("render has no `cam` stage");
+    };
+    cam.params.clear();
+    for (k, v) in table {
+        set_param(cam, &k, v, Origin::Line(1));
+    }
+    // Output to /dev/null: validation must not write anything.
+    if let Some(out) = decl.stages.iter_mut().find(|s| s.id == "out") {
+        set_param(
+            out,
+            "path",
+            toml::Value::String("/dev/null".into()),
+            Origin::Line(1),
+        );
+    }
+    let _ = graph::validate(&decl, stages::REGISTRY);
+});

@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# Runs every fuzz target for SECONDS each (default 60), one after another:
+#   fuzz/run.sh [SECONDS] [TARGET...]
+# With RUNS=N in the environment a target also stops after N executions
+# (the issue's long run: RUNS=1000000 fuzz/run.sh 1800).
+# libFuzzer runs with -rss_limit_mb=1024 (an input that makes the reader
+# allocate over 1 GB is a crash) and -timeout=1 (over 1 s on one input is a
+# crash). The committed seeds (fuzz/corpus/TARGET, plus pipelines/*.toml for
+# pipeline_toml) are read only; what the fuzzer adds goes to fuzz/work/
+# (not committed), crash inputs to fuzz/artifacts/TARGET/. Prints one line
+# per target (executions, coverage) and exits 1 when any target failed.
+# Needs the nightly toolchain and cargo-fuzz (`cargo install --locked cargo-fuzz`).
+set -uo pipefail
+cd "$(dirname "$0")"
+secs="${1:-60}"
+shift || true
+targets=("$@")
+if [ "${#targets[@]}" -eq 0 ]; then
+  targets=(y4m cine mraw wav mask calibration_json pipeline_toml scene_toml)
+fi
+# -a: debug assertions (integer overflow is a crash); -s none: no sanitizer
+# (the parsers are safe Rust: no unsafe in crates/io).
+flags=(-a -s none)
+# The targets that read paths write their input to a scratch file here.
+scratch_base=/dev/shm
+[ -d "$scratch_base" ] || scratch_base="${TMPDIR:-/tmp}"
+VIBROSCOPE_FUZZ_DIR=$(mktemp -d "$scratch_base/vibroscope-fuzz.XXXXXX") || exit 1
+export VIBROSCOPE_FUZZ_DIR
+trap 'rm -rf "$VIBROSCOPE_FUZZ_DIR"' EXIT
+cargo +nightly fuzz build "${flags[@]}" || exit 1
+failed=()
+for t in "${targets[@]}"; do
+  work="work/$t"
+  mkdir -p "$work" "artifacts/$t"
+  seeds=("corpus/$t")
+  [ "$t" = pipeline_toml ] && seeds+=(../pipelines)
+  log="work/$t.log"
+  for attempt in 1 2 3; do
+    cargo +nightly fuzz run "${flags[@]}" "$t" "$work" "${seeds[@]}" -- \
+      -max_total_time="$secs" -rss_limit_mb=1024 -timeout=1 -max_len=65536 \
+      -artifact_prefix="artifacts/$t/" -print_final_stats=1 ${RUNS:+-runs=$RUNS} >"$log" 2>&1
+    rc=$?
+    # libFuzzer's timeout is wall-clock: on a loaded machine a process
+    # starved of CPU for a second looks like a slow input. Run the input
+    # alone and count its CPU time (user + system, all threads); only 1 s
+    # or more of CPU (or any other failure) is a finding.
+    art=$(grep -o "artifact_prefix='[^']*'; Test unit written to [^ ]*" "$log" | grep -o '[^ ]*$')
+    [ "$rc" -ne 0 ] && grep -q 'ERROR: libFuzzer: timeout' "$log" && [ -f "$art" ] || break
+    TIMEFORMAT='%U %S'
+    cpu=$( { time "target/x86_64-unknown-linux-gnu/release/$t" -timeout=60 -rss_limit_mb=1024 "$art" >/dev/null 2>&1 || echo failed; } 2>&1 | tail -1)
+    echo "fuzz $t: timeout on $art: alone it takes ${cpu} s CPU (user system)"
+    case "$cpu" in *failed*) break ;; esac
+    awk -v c="$cpu" 'BEGIN { split(c, a, " "); exit !(a[1] + a[2] >= 1) }' && break
+    echo "fuzz $t: under 1 s of CPU alone: the machine was loaded, not the input slow; running again"
+    mv "$art" "work/$t.spurious-$(basename "$art")"
+  done
+  runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
+  cov=$(grep -oE 'cov: [0-9]+ ft: [0-9]+' "$log" | tail -1)
+  if [ "$rc" -eq 0 ]; then
+    took=$(grep -o 'Done [0-9]* runs in [0-9]* second' "$log" | grep -o '[0-9]* second' | grep -o '[0-9]*')
+    rss=$(grep -o 'stat::peak_rss_mb: *[0-9]*' "$log" | grep -o '[0-9]*$')
+    slow=$(grep -o 'stat::slowest_unit_time_sec: *[0-9]*' "$log" | grep -o '[0-9]*$')
+    echo "fuzz $t: ok, ${runs:-?} runs in ${took:-$secs} s, ${cov:-no coverage line}, peak RSS ${rss:-?} MB, slowest input ${slow:-?} s"
+  else
+    echo "fuzz $t: FAILED (exit $rc), see fuzz/$log; crash input in fuzz/artifacts/$t/"
+    grep -E 'panicked|ERROR: libFuzzer|SUMMARY' "$log" | head -5
+    failed+=("$t")
+  fi
+done
+if [ "${#failed[@]}" -gt 0 ]; then
+  echo "fuzz: failed: ${failed[*]}"
+  exit 1
+fi
