@@ -1,10 +1,11 @@
 //! `vibroscope spectrum`.
 
-use super::VideoArgs;
+use super::{UnitArgs, VideoArgs};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use vibroscope::pipeline::{short, RunSettings};
 use vibroscope::spectrum::{self, SpectrumOptions, SpectrumReport, SPECTROGRAM_WINDOW};
+use vibroscope::units::Quantity;
 
 /// Motion spectrum of a video and its resonances (frequency, damping, strength).
 ///
@@ -18,6 +19,12 @@ use vibroscope::spectrum::{self, SpectrumOptions, SpectrumReport, SPECTROGRAM_WI
 pub struct Args {
     #[command(flatten)]
     pub spectrum: SpectrumArgs,
+    #[command(flatten)]
+    pub units: UnitArgs,
+    /// Report the peaks' amplitudes as displacement, velocity (ω·X) or
+    /// acceleration (ω²·X), in px/s... or, with a scale, µm/s, mm/s², ...
+    #[arg(long, value_enum, default_value = "displacement")]
+    pub quantity: QuantityArg,
     /// Print the per-stage summary at exit.
     #[arg(long)]
     pub stats: bool,
@@ -93,8 +100,28 @@ impl SpectrumArgs {
     }
 }
 
+#[derive(Clone, Copy, Debug, Default, clap::ValueEnum)]
+pub enum QuantityArg {
+    #[default]
+    Displacement,
+    Velocity,
+    Acceleration,
+}
+
+impl From<QuantityArg> for Quantity {
+    fn from(q: QuantityArg) -> Quantity {
+        match q {
+            QuantityArg::Displacement => Quantity::Displacement,
+            QuantityArg::Velocity => Quantity::Velocity,
+            QuantityArg::Acceleration => Quantity::Acceleration,
+        }
+    }
+}
+
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let o = a.spectrum.options(true);
+    let mut o = a.spectrum.options(true);
+    o.scale = a.units.scale();
+    o.quantity = a.quantity.into();
     super::warn_playback_rate(&o.video, o.fps);
     let bar = super::Bar::start(true);
     let r = spectrum::spectrum(&o);
@@ -125,6 +152,21 @@ fn summary(r: &SpectrumReport) {
         r.resolution_hz,
         short(r.sample_rate_hz)
     );
+    if let Some(m) = &r.motion {
+        let scale = match &m.scale {
+            None => "no scale given: pixels".to_string(),
+            Some(s) => match &s.known_length {
+                None => format!("{} mm/px", s.mm_per_px),
+                Some(k) => format!(
+                    "{:.6} mm/px from {} mm over {:.2} px",
+                    s.mm_per_px,
+                    k.length_mm,
+                    k.distance_px()
+                ),
+            },
+        };
+        eprintln!("  {} amplitudes in {} ({scale})", m.quantity.name(), m.unit);
+    }
     for p in peaks.iter().take(5) {
         // A frequency uncertainty wider than the band says the fit failed.
         let f_std = if p.frequency_std_hz > 0.0 && p.frequency_std_hz < r.sample_rate_hz / 2.0 {
@@ -145,10 +187,26 @@ fn summary(r: &SpectrumReport) {
                 p.damping_method
             )
         };
+        let amp = match (p.amplitude, &r.motion) {
+            (Some(a), Some(m)) => format!("  {} {}", significant(a), m.unit),
+            _ => String::new(),
+        };
         eprintln!(
-            "  {:>10} {f_std} Hz  {damping}  {} dB above its surroundings",
+            "  {:>10} {f_std} Hz{amp}  {damping}  {} dB above its surroundings",
             super::num(p.frequency_hz, 3),
             super::num(p.prominence_db, 1)
         );
     }
+}
+
+/// Four significant digits (`48.71`, `0.003125`), `n/a` when not finite.
+pub fn significant(v: f64) -> String {
+    if !v.is_finite() {
+        return "n/a".into();
+    }
+    if v == 0.0 {
+        return "0".into();
+    }
+    let decimals = (3 - v.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    format!("{v:.decimals$}")
 }

@@ -15,6 +15,7 @@ use crate::error::Result;
 use crate::io::atomic::TempPath;
 pub use crate::peaks::SpectrumReport;
 use crate::pipeline::{self, by, int, path_value, PipelineOptions, Region, RunSettings};
+use crate::units::{Quantity, Scale, ScaleArg};
 use std::path::{Path, PathBuf};
 use toml::Value;
 
@@ -47,6 +48,10 @@ pub struct SpectrumOptions {
     pub spectrogram_window: usize,
     /// Keep the extracted motion the SSI-cov damping ran on, as a WAV.
     pub motion_wav: Option<PathBuf>,
+    /// Pixels to millimetres (`--scale`, `--known-length`); none: pixels.
+    pub scale: Option<ScaleArg>,
+    /// Report displacement, velocity or acceleration amplitudes.
+    pub quantity: Quantity,
     pub run: RunSettings,
 }
 
@@ -68,6 +73,8 @@ impl SpectrumOptions {
             spectrogram: None,
             spectrogram_window: SPECTROGRAM_WINDOW,
             motion_wav: None,
+            scale: None,
+            quantity: Quantity::Displacement,
             run: RunSettings::default(),
         }
     }
@@ -182,6 +189,15 @@ fn add_plots(decl: &mut PipelineDecl, o: &SpectrumOptions) -> Result<()> {
 /// Runs the spectrum graph (peaks into a scratch file, read back once into
 /// the typed report) and, with `damping`, the SSI-cov refinement.
 pub fn run_spectrum(o: &SpectrumOptions, damping: bool) -> Result<(SpectrumReport, RunReport)> {
+    run_spectrum_with(o, damping, None)
+}
+
+/// [`run_spectrum`], and with `disp` the regions' displacement too (one pass).
+fn run_spectrum_with(
+    o: &SpectrumOptions,
+    damping: bool,
+    disp: Option<&DisplacementTap>,
+) -> Result<(SpectrumReport, RunReport)> {
     let tmp = TempPath::new("peaks.json");
     let mut decl = spectrum_pipeline(o, tmp.path())?;
     let tap = if damping {
@@ -189,6 +205,9 @@ pub fn run_spectrum(o: &SpectrumOptions, damping: bool) -> Result<(SpectrumRepor
     } else {
         None
     };
+    if let Some(d) = disp {
+        d.add(&mut decl)?;
+    }
     let run = pipeline::run(&decl, o.run)?;
     let text = std::fs::read(tmp.path())
         .map_err(|e| anyhow::anyhow!("{}: cannot read the peaks: {e}", tmp.path().display()))?;
@@ -222,10 +241,44 @@ fn outputs(o: &SpectrumOptions) -> impl Iterator<Item = &PathBuf> {
 
 /// Runs `spectrum`: writes the JSON (and the plots).
 pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
+    let scale = resolve_scale(&o.video, o.fps, o.scale.as_ref())?;
     check_outputs(o)?;
-    let (mut report, run) = run_spectrum(o, true)?;
+    let rois: Vec<[u32; 4]> = o.region.roi.iter().map(|r| [r.x, r.y, r.w, r.h]).collect();
+    let disp = DisplacementTap::new(rois);
+    let (mut report, run) = run_spectrum_with(o, true, Some(&disp))?;
+    let regions = disp.read()?;
+    if let Some(r) = regions.first() {
+        report.motion = Some(crate::motion::peak_amplitudes(
+            &mut report,
+            r,
+            scale.as_ref(),
+            o.quantity,
+        ));
+    }
     let bytes = serde_json::to_vec_pretty(&report).map_err(anyhow::Error::new)?;
     crate::io::atomic::write_atomic(&o.json, &bytes).map_err(anyhow::Error::new)?;
     report.written = outputs(o).cloned().collect();
     Ok((report, run))
 }
+
+/// The scale of `arg` for `video` (its frame size read when points are
+/// given): a usage error naming the flag when it is wrong.
+pub fn resolve_scale(
+    video: &Path,
+    fps: Option<f64>,
+    arg: Option<&ScaleArg>,
+) -> Result<Option<Scale>> {
+    let Some(arg) = arg else {
+        return Ok(None);
+    };
+    let (w, h) = match arg {
+        ScaleArg::MmPerPx(_) => (u32::MAX, u32::MAX),
+        ScaleArg::KnownLength(_) => {
+            let p = crate::probe::probe(video, fps)?;
+            (p.width, p.height)
+        }
+    };
+    Ok(Some(arg.resolve(w, h)?))
+}
+
+pub use crate::motion::DisplacementTap;
