@@ -85,6 +85,9 @@ pub struct SpectrumReport {
     /// The unit and method of the peaks' `amplitude` (`spectrum` only).
     #[serde(skip_deserializing, skip_serializing_if = "Option::is_none")]
     pub motion: Option<crate::motion::MotionSummary>,
+    /// The regions' waveform exports (`spectrum --waveform`).
+    #[serde(skip_deserializing, skip_serializing_if = "Vec::is_empty")]
+    pub waveforms: Vec<crate::motion::WaveformFiles>,
     /// Files written.
     #[serde(skip)]
     pub written: Vec<PathBuf>,

@@ -14,7 +14,9 @@ use crate::engine::RunReport;
 use crate::error::Result;
 use crate::io::atomic::TempPath;
 pub use crate::peaks::SpectrumReport;
-use crate::pipeline::{self, by, int, path_value, PipelineOptions, Region, RunSettings};
+use crate::pipeline::{
+    self, by, int, path_value, BandFilter, PipelineOptions, Region, Roi, RunSettings,
+};
 use crate::units::{Quantity, Scale, ScaleArg};
 use std::path::{Path, PathBuf};
 use toml::Value;
@@ -52,6 +54,14 @@ pub struct SpectrumOptions {
     pub scale: Option<ScaleArg>,
     /// Report displacement, velocity or acceleration amplitudes.
     pub quantity: Quantity,
+    /// Export each region's waveform and amplitude spectrum (CSV + PNG)
+    /// named after this path (see [`crate::motion::waveform_paths`]).
+    pub waveform: Option<PathBuf>,
+    /// The regions of the waveforms (default: `region`'s rectangle, or
+    /// the whole frame); measured in the same pass as the spectrum.
+    pub regions: Vec<Roi>,
+    /// Filters applied to the waveforms (zero-phase), in order.
+    pub filters: Vec<BandFilter>,
     pub run: RunSettings,
 }
 
@@ -75,6 +85,9 @@ impl SpectrumOptions {
             motion_wav: None,
             scale: None,
             quantity: Quantity::Displacement,
+            waveform: None,
+            regions: Vec::new(),
+            filters: Vec::new(),
             run: RunSettings::default(),
         }
     }
@@ -223,7 +236,14 @@ fn run_spectrum_with(
 pub fn check_outputs(o: &SpectrumOptions) -> Result<()> {
     let mut inputs = vec![o.video.as_path()];
     inputs.extend(o.region.mask.as_deref());
-    let outputs: Vec<&Path> = outputs(o).map(PathBuf::as_path).collect();
+    let mut outputs: Vec<PathBuf> = outputs(o).cloned().collect();
+    if let Some(base) = &o.waveform {
+        let n = o.regions.len().max(1);
+        for k in 1..=n {
+            outputs.extend(crate::motion::waveform_paths(base, k, n));
+        }
+    }
+    let outputs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
     crate::error::check_outputs(&inputs, &outputs)
 }
 
@@ -243,10 +263,25 @@ fn outputs(o: &SpectrumOptions) -> impl Iterator<Item = &PathBuf> {
 pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
     let scale = resolve_scale(&o.video, o.fps, o.scale.as_ref())?;
     check_outputs(o)?;
-    let rois: Vec<[u32; 4]> = o.region.roi.iter().map(|r| [r.x, r.y, r.w, r.h]).collect();
+    // Region 0 is the spectrum's own (its peaks' amplitudes); the
+    // waveforms' regions follow, all in one `displacement` stage.
+    let whole = |r: &Roi| [r.x, r.y, r.w, r.h];
+    let first = o.region.roi.as_ref().map(whole);
+    let mut rois: Vec<[u32; 4]> = Vec::new();
+    if !o.regions.is_empty() || first.is_some() {
+        let first = match first {
+            Some(r) => r,
+            None => {
+                let p = crate::probe::probe(&o.video, o.fps)?;
+                [0, 0, p.width, p.height]
+            }
+        };
+        rois.push(first);
+        rois.extend(o.regions.iter().map(whole));
+    }
     let disp = DisplacementTap::new(rois);
     let (mut report, run) = run_spectrum_with(o, true, Some(&disp))?;
-    let regions = disp.read()?;
+    let mut regions = disp.read()?;
     if let Some(r) = regions.first() {
         report.motion = Some(crate::motion::peak_amplitudes(
             &mut report,
@@ -255,9 +290,21 @@ pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
             o.quantity,
         ));
     }
+    if let Some(base) = &o.waveform {
+        if !o.regions.is_empty() {
+            regions.remove(0);
+        }
+        report.waveforms =
+            crate::motion::write_waveforms(&regions, base, scale.as_ref(), o.quantity, &o.filters)?;
+    }
     let bytes = serde_json::to_vec_pretty(&report).map_err(anyhow::Error::new)?;
     crate::io::atomic::write_atomic(&o.json, &bytes).map_err(anyhow::Error::new)?;
     report.written = outputs(o).cloned().collect();
+    for w in &report.waveforms {
+        report
+            .written
+            .extend([&w.csv, &w.png, &w.spectrum_csv, &w.spectrum_png].map(PathBuf::clone));
+    }
     Ok((report, run))
 }
 
