@@ -9,7 +9,6 @@ use crate::engine::Origin;
 use crate::error::Result;
 use crate::io::atomic::TempPath;
 use crate::math::iir::{Shape, Sos, ZeroPhase};
-use crate::peaks::SpectrumReport;
 use crate::pipeline::{self, path_value, BandFilter};
 use crate::units::{px_to, tone_amplitude, Quantity, Scale, Unit};
 use anyhow::Context;
@@ -131,20 +130,20 @@ pub struct MotionSummary {
 /// What [`MotionSummary::method`] says.
 pub const METHOD: &str = "2-D least-squares displacement of the region against the first frame (7-tap gradient); amplitude: the sinusoid fitted at the peak's frequency over the recording, x and y in quadrature";
 
-/// Sets each peak's `amplitude` (of `quantity`, in the unit chosen for the
-/// largest of them) from region `r`'s displacement.
+/// The amplitudes (of `quantity`, in the unit chosen for the largest of
+/// them) at the peaks' frequencies `freqs_hz` (each refined within
+/// `search_hz`) in region `r`'s displacement.
 pub fn peak_amplitudes(
-    report: &mut SpectrumReport,
+    freqs_hz: &[f64],
+    search_hz: f64,
     r: &RegionMotion,
     scale: Option<&Scale>,
     quantity: Quantity,
-) -> MotionSummary {
-    let search = report.resolution_hz;
-    let px: Vec<f64> = report
-        .peaks
+) -> (Vec<f64>, MotionSummary) {
+    let px: Vec<f64> = freqs_hz
         .iter()
-        .map(|p| {
-            let (a, f) = tone_amplitude(&[&r.x, &r.y], r.rate_hz, p.frequency_hz, search);
+        .map(|&f0| {
+            let (a, f) = tone_amplitude(&[&r.x, &r.y], r.rate_hz, f0, search_hz);
             a * quantity.gain(f)
         })
         .collect();
@@ -155,16 +154,14 @@ pub fn peak_amplitudes(
         .fold(0.0, f64::max);
     let unit = Scale::unit(scale, quantity, largest);
     let k = px_to(unit, scale);
-    for (p, a) in report.peaks.iter_mut().zip(px) {
-        p.amplitude = Some(a * k);
-    }
-    MotionSummary {
+    let summary = MotionSummary {
         unit,
         quantity,
         scale: scale.copied(),
         roi: r.roi,
         method: METHOD,
-    }
+    };
+    (px.iter().map(|a| a * k).collect(), summary)
 }
 
 /// The files of one region's waveform export, and their unit.

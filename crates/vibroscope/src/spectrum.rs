@@ -283,12 +283,18 @@ pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
     let (mut report, run) = run_spectrum_with(o, true, Some(&disp))?;
     let mut regions = disp.read()?;
     if let Some(r) = regions.first() {
-        report.motion = Some(crate::motion::peak_amplitudes(
-            &mut report,
+        let freqs: Vec<f64> = report.peaks.iter().map(|p| p.frequency_hz).collect();
+        let (amps, summary) = crate::motion::peak_amplitudes(
+            &freqs,
+            report.resolution_hz,
             r,
             scale.as_ref(),
             o.quantity,
-        ));
+        );
+        for (p, a) in report.peaks.iter_mut().zip(amps) {
+            p.amplitude = Some(a);
+        }
+        report.motion = Some(summary);
     }
     if let Some(base) = &o.waveform {
         if !o.regions.is_empty() {
