@@ -26,6 +26,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 use vibroscope::pipeline::{Pyramid, Region, Roi};
+use vibroscope::units::{KnownLength, ScaleArg};
 
 /// The first error writing to stdout; later output is dropped.
 static STDOUT_ERROR: Mutex<Option<std::io::Error>> = Mutex::new(None);
@@ -111,6 +112,40 @@ impl VideoArgs {
             mask: self.mask.clone(),
             pyramid: self.pyramid.into(),
         }
+    }
+}
+
+/// `--scale MM_PER_PX`.
+pub fn parse_scale(s: &str) -> Result<ScaleArg, String> {
+    ScaleArg::mm_per_px(s).map_err(|e| e.message)
+}
+
+/// `--known-length X1,Y1,X2,Y2=LENGTH_MM`.
+pub fn parse_known_length(s: &str) -> Result<ScaleArg, String> {
+    s.parse::<KnownLength>()
+        .map(ScaleArg::KnownLength)
+        .map_err(|e| e.message)
+}
+
+/// The flags that put motion into physical units (every command that
+/// reports motion).
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct UnitArgs {
+    /// Millimetres per pixel on the object: motion is then reported in µm
+    /// (below 1 mm) or mm instead of px.
+    #[arg(long, value_name = "MM_PER_PX", value_parser = parse_scale, allow_negative_numbers = true, conflicts_with = "known_length")]
+    pub scale: Option<ScaleArg>,
+    /// The scale from two points (pixels, as read off a frame) on a
+    /// feature of known length in mm: scale = LENGTH / distance. Points
+    /// rounded to whole pixels err by up to 1 px over the distance: pick
+    /// points 100 px or more apart for 1%.
+    #[arg(long, value_name = "X1,Y1,X2,Y2=LENGTH_MM", value_parser = parse_known_length, allow_negative_numbers = true)]
+    pub known_length: Option<ScaleArg>,
+}
+
+impl UnitArgs {
+    pub fn scale(&self) -> Option<ScaleArg> {
+        self.scale.or(self.known_length)
     }
 }
 

@@ -1,10 +1,12 @@
 //! `vibroscope spectrum`.
 
-use super::VideoArgs;
+use super::{UnitArgs, VideoArgs};
 use std::path::PathBuf;
 use std::process::ExitCode;
+use vibroscope::pipeline::BandFilter;
 use vibroscope::pipeline::{short, RunSettings};
 use vibroscope::spectrum::{self, SpectrumOptions, SpectrumReport, SPECTROGRAM_WINDOW};
+use vibroscope::units::Quantity;
 
 /// Motion spectrum of a video and its resonances (frequency, damping, strength).
 ///
@@ -18,6 +20,30 @@ use vibroscope::spectrum::{self, SpectrumOptions, SpectrumReport, SPECTROGRAM_WI
 pub struct Args {
     #[command(flatten)]
     pub spectrum: SpectrumArgs,
+    #[command(flatten)]
+    pub units: UnitArgs,
+    /// Report the peaks' amplitudes as displacement, velocity (ω·X) or
+    /// acceleration (ω²·X), in px/s... or, with a scale, µm/s, mm/s², ...
+    #[arg(long, value_enum, default_value = "displacement")]
+    pub quantity: QuantityArg,
+    /// Also write each region's motion: OUT.csv (t_s, x and y displacement
+    /// in px, µm or mm), OUT.png (its plot), OUT.spectrum.csv and
+    /// OUT.spectrum.png (amplitude spectrum of --quantity); with several
+    /// --region, OUT.roi1.csv, OUT.roi2.csv, ... (the list is printed).
+    #[arg(long, value_name = "OUT.csv")]
+    pub waveform: Option<PathBuf>,
+    /// A region for --waveform, X,Y,W,H in pixels; repeat for several
+    /// (all measured in the same pass; default: the --roi, or the whole frame).
+    #[arg(long = "region", value_name = "X,Y,W,H", value_parser = super::parse_roi, action = clap::ArgAction::Append)]
+    pub regions: Vec<vibroscope::pipeline::Roi>,
+    /// Band-pass the --waveform exports to LO,HI Hz (zero-phase
+    /// Butterworth, as listen --band); the peaks are not filtered.
+    #[arg(long, value_name = "LO,HI", value_parser = parse_band, action = clap::ArgAction::Append)]
+    pub band: Vec<BandFilter>,
+    /// Take out F Hz (band-stop F-WIDTH/2..F+WIDTH/2, WIDTH default F/10)
+    /// from the --waveform exports; repeat for several.
+    #[arg(long, value_name = "F[,WIDTH]", value_parser = parse_notch, action = clap::ArgAction::Append)]
+    pub notch: Vec<BandFilter>,
     /// Print the per-stage summary at exit.
     #[arg(long)]
     pub stats: bool,
@@ -93,8 +119,35 @@ impl SpectrumArgs {
     }
 }
 
+#[derive(Clone, Copy, Debug, Default, clap::ValueEnum)]
+pub enum QuantityArg {
+    #[default]
+    Displacement,
+    Velocity,
+    Acceleration,
+}
+
+impl From<QuantityArg> for Quantity {
+    fn from(q: QuantityArg) -> Quantity {
+        match q {
+            QuantityArg::Displacement => Quantity::Displacement,
+            QuantityArg::Velocity => Quantity::Velocity,
+            QuantityArg::Acceleration => Quantity::Acceleration,
+        }
+    }
+}
+
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    let o = a.spectrum.options(true);
+    let mut o = a.spectrum.options(true);
+    o.scale = a.units.scale();
+    o.quantity = a.quantity.into();
+    o.waveform = a.waveform.clone();
+    o.regions = a.regions.clone();
+    o.filters = a.band.iter().chain(&a.notch).copied().collect();
+    if o.waveform.is_none() && !(o.regions.is_empty() && o.filters.is_empty()) {
+        eprintln!("error: --region, --band and --notch apply to the --waveform exports: give --waveform OUT.csv");
+        return Ok(ExitCode::from(2));
+    }
     super::warn_playback_rate(&o.video, o.fps);
     let bar = super::Bar::start(true);
     let r = spectrum::spectrum(&o);
@@ -104,6 +157,22 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         super::wrote(p);
     }
     summary(&r);
+    for w in &r.waveforms {
+        let roi = w.roi.map_or("whole frame".to_string(), |[x, y, ww, hh]| {
+            format!("{x},{y},{ww},{hh}")
+        });
+        eprintln!(
+            "region {} ({roi}): waveform {} ({}), spectrum {} ({}; strongest {} {} at {} Hz)",
+            w.region,
+            w.csv.display(),
+            w.unit,
+            w.spectrum_csv.display(),
+            w.spectrum_unit,
+            significant(w.strongest_amplitude),
+            w.spectrum_unit,
+            super::num(w.strongest_hz, 2)
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -125,6 +194,21 @@ fn summary(r: &SpectrumReport) {
         r.resolution_hz,
         short(r.sample_rate_hz)
     );
+    if let Some(m) = &r.motion {
+        let scale = match &m.scale {
+            None => "no scale given: pixels".to_string(),
+            Some(s) => match &s.known_length {
+                None => format!("{} mm/px", s.mm_per_px),
+                Some(k) => format!(
+                    "{:.6} mm/px from {} mm over {:.2} px",
+                    s.mm_per_px,
+                    k.length_mm,
+                    k.distance_px()
+                ),
+            },
+        };
+        eprintln!("  {} amplitudes in {} ({scale})", m.quantity.name(), m.unit);
+    }
     for p in peaks.iter().take(5) {
         // A frequency uncertainty wider than the band says the fit failed.
         let f_std = if p.frequency_std_hz > 0.0 && p.frequency_std_hz < r.sample_rate_hz / 2.0 {
@@ -145,10 +229,34 @@ fn summary(r: &SpectrumReport) {
                 p.damping_method
             )
         };
+        let amp = match (p.amplitude, &r.motion) {
+            (Some(a), Some(m)) => format!("  {} {}", significant(a), m.unit),
+            _ => String::new(),
+        };
         eprintln!(
-            "  {:>10} {f_std} Hz  {damping}  {} dB above its surroundings",
+            "  {:>10} {f_std} Hz{amp}  {damping}  {} dB above its surroundings",
             super::num(p.frequency_hz, 3),
             super::num(p.prominence_db, 1)
         );
     }
+}
+
+/// Four significant digits (`48.71`, `0.003125`), `n/a` when not finite.
+pub fn significant(v: f64) -> String {
+    if !v.is_finite() {
+        return "n/a".into();
+    }
+    if v == 0.0 {
+        return "0".into();
+    }
+    let decimals = (3 - v.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    format!("{v:.decimals$}")
+}
+
+fn parse_band(s: &str) -> Result<BandFilter, String> {
+    BandFilter::band(s).map_err(|e| e.message)
+}
+
+fn parse_notch(s: &str) -> Result<BandFilter, String> {
+    BandFilter::notch(s).map_err(|e| e.message)
 }

@@ -145,11 +145,76 @@ pub fn power_plot(
     })
 }
 
+/// Lines against a common x axis (a waveform's x and y, a spectrum),
+/// each `(label, points)`, in the colours blue, red, green, ...; the
+/// axes' titles say the quantities and their units.
+pub fn line_plot(
+    lines: &[(&str, &[(f64, f64)])],
+    caption: &str,
+    x_desc: &str,
+    y_desc: &str,
+    size: (u32, u32),
+) -> Result<(Rgb, PlotArea), PlotError> {
+    check_size(size.0, size.1)?;
+    font();
+    let all = || {
+        lines
+            .iter()
+            .flat_map(|(_, p)| p.iter())
+            .filter(|p| p.0.is_finite() && p.1.is_finite())
+    };
+    let (mut xa, mut xb, mut lo, mut hi) = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
+    for &(x, y) in all() {
+        (xa, xb, lo, hi) = (xa.min(x), xb.max(x), lo.min(y), hi.max(y));
+    }
+    if xa >= xb {
+        return Err(PlotError::Draw(
+            "fewer than two distinct points to plot".into(),
+        ));
+    }
+    if lo >= hi {
+        (lo, hi) = (lo - 1.0, hi + 1.0);
+    }
+    let pad = 0.05 * (hi - lo);
+    let colours = [BLUE, RED, GREEN, MAGENTA, CYAN, BLACK];
+    const NAMES: [&str; 6] = ["blue", "red", "green", "magenta", "cyan", "black"];
+    let key: Vec<String> = lines
+        .iter()
+        .enumerate()
+        .map(|(k, (label, _))| format!("{label} {}", NAMES[k % NAMES.len()]))
+        .collect();
+    let caption = if lines.len() > 1 {
+        format!("{caption} ({})", key.join(", "))
+    } else {
+        caption.to_string()
+    };
+    let axes = Axes {
+        caption: &caption,
+        x_desc,
+        y_desc,
+        mesh: true,
+    };
+    draw(size, &axes, (xa..xb, lo - pad..hi + pad), |chart| {
+        for (k, (_, pts)) in lines.iter().enumerate() {
+            let c = colours[k % colours.len()];
+            chart
+                .draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(1)))
+                .map_err(draw_err)?;
+        }
+        Ok(())
+    })
+}
+
 /// Titles of a plot.
 struct Axes<'a> {
     caption: &'a str,
-    x_desc: &'static str,
-    y_desc: &'static str,
+    x_desc: &'a str,
+    y_desc: &'a str,
     mesh: bool,
 }
 
@@ -163,7 +228,7 @@ type Chart<'a, 'b> = ChartContext<
 /// the data. Returns the image and where its plotting area is.
 fn draw(
     size: (u32, u32),
-    axes: &Axes,
+    axes: &Axes<'_>,
     ranges: (std::ops::Range<f64>, std::ops::Range<f64>),
     series: impl FnOnce(&mut Chart<'_, '_>) -> Result<(), PlotError>,
 ) -> Result<(Rgb, PlotArea), PlotError> {

@@ -15,6 +15,7 @@
 //!   small shared helpers (gcd, median, Bessel I0).
 //! - [`MathError`]: every module's typed error as one enum.
 
+pub mod amplitude;
 pub mod ar_interp;
 pub mod calibrate;
 pub mod denoise;

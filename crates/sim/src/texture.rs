@@ -312,6 +312,51 @@ pub fn correlate(taps: &[f32; TAPS], src: &[f32], out: &mut [f32]) {
     }
 }
 
+/// A ruler-like picture for [`crate::Look::texture`], `width × height`
+/// (the object's size): across the top half, dark ticks (a Gaussian line
+/// profile, σ = 0.7 px, anti-aliased at any sub-pixel position) at
+/// object-local `x = ruler_tick_px(period_px, k)`, every fifth twice as
+/// long; the bottom half a random texture (so the object's 2-D motion can
+/// be measured). Once low-passed by the scene's σ = 2 px Gaussian, each
+/// tick stays centred where it was drawn: tick `k` is at frame
+/// `x = object_x + ruler_tick_px(period_px, k)`, a known length of
+/// `(k1 - k0) · period_px` pixels between ticks `k0` and `k1`.
+pub fn ruler_picture(width: usize, height: usize, period_px: f64, seed: u64) -> Vec<f64> {
+    let tex = Texture::new(seed ^ 0x5275_6c65, 2.0);
+    let top = height / 2;
+    let ticks = if period_px > 0.0 {
+        ((width as f64 - ruler_tick_px(period_px, 0)) / period_px).ceil() as usize + 1
+    } else {
+        0
+    };
+    let mut px = vec![0.0; width * height];
+    for y in 0..height {
+        for x in 0..width {
+            px[y * width + x] = if y < top {
+                let mut v = 1.0;
+                for k in 0..ticks {
+                    let long = k % 5 == 0;
+                    let reach = if long { top } else { top / 2 };
+                    if y + 1 > top.saturating_sub(reach) {
+                        let d = x as f64 - ruler_tick_px(period_px, k);
+                        v -= (-(d * d) / (2.0 * 0.7 * 0.7)).exp();
+                    }
+                }
+                v
+            } else {
+                0.5 + 0.15 * tex.raw_at(x as f64, y as f64)
+            };
+        }
+    }
+    px
+}
+
+/// Object-local x of tick `k` of [`ruler_picture`]: `period_px · (k + 0.5)
+/// + 0.37` (off the pixel grid, as a real ruler would be).
+pub fn ruler_tick_px(period_px: f64, k: usize) -> f64 {
+    period_px * (k as f64 + 0.5) + 0.37
+}
+
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {

@@ -9,6 +9,8 @@
 //! - [`listen`], [`spectrum`] (+ [`damping`]), [`modes`], [`calibrate`],
 //!   [`rod`], [`compare`], [`simulate`], [`record`], [`probe`], [`score`],
 //!   [`demo`], [`rs_calibrate`], [`pitch`];
+//! - [`units`]: pixels to µm/mm (a scale, or a known length), displacement,
+//!   velocity or acceleration, the unit that travels with the results;
 //! - [`pipeline`]: load, edit (replay, frame rate, typed stage edits) and
 //!   run a pipeline;
 //! - [`error`]: the one error type and the exit-status table;
@@ -44,6 +46,7 @@ pub mod listen;
 pub mod magnify;
 pub mod microphone;
 pub mod modes;
+pub mod motion;
 pub mod peaks;
 pub mod pitch;
 pub mod probe;
@@ -53,5 +56,6 @@ pub mod rs_calibrate;
 pub mod score;
 pub mod simulate;
 pub mod spectrum;
+pub mod units;
 
 pub use error::{Error, ErrorKind, Result, UsageError};

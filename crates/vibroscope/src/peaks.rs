@@ -59,6 +59,10 @@ pub struct Peak {
     #[serde(deserialize_with = "nan_f64")]
     pub prominence_db: f64,
     pub resolved: bool,
+    /// The motion's amplitude at this frequency, in the report's
+    /// `motion.unit` (`spectrum` only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub amplitude: Option<f64>,
 }
 
 /// The mean spectrum, in dB.
@@ -78,6 +82,12 @@ pub struct SpectrumReport {
     pub spectra_averaged: usize,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub spectrum: Option<SpectrumDb>,
+    /// The unit and method of the peaks' `amplitude` (`spectrum` only).
+    #[serde(skip_deserializing, skip_serializing_if = "Option::is_none")]
+    pub motion: Option<crate::motion::MotionSummary>,
+    /// The regions' waveform exports (`spectrum --waveform`).
+    #[serde(skip_deserializing, skip_serializing_if = "Vec::is_empty")]
+    pub waveforms: Vec<crate::motion::WaveformFiles>,
     /// Files written.
     #[serde(skip)]
     pub written: Vec<PathBuf>,

@@ -14,7 +14,10 @@ use crate::engine::RunReport;
 use crate::error::Result;
 use crate::io::atomic::TempPath;
 pub use crate::peaks::SpectrumReport;
-use crate::pipeline::{self, by, int, path_value, PipelineOptions, Region, RunSettings};
+use crate::pipeline::{
+    self, by, int, path_value, BandFilter, PipelineOptions, Region, Roi, RunSettings,
+};
+use crate::units::{Quantity, Scale, ScaleArg};
 use std::path::{Path, PathBuf};
 use toml::Value;
 
@@ -47,6 +50,18 @@ pub struct SpectrumOptions {
     pub spectrogram_window: usize,
     /// Keep the extracted motion the SSI-cov damping ran on, as a WAV.
     pub motion_wav: Option<PathBuf>,
+    /// Pixels to millimetres (`--scale`, `--known-length`); none: pixels.
+    pub scale: Option<ScaleArg>,
+    /// Report displacement, velocity or acceleration amplitudes.
+    pub quantity: Quantity,
+    /// Export each region's waveform and amplitude spectrum (CSV + PNG)
+    /// named after this path (see [`crate::motion::waveform_paths`]).
+    pub waveform: Option<PathBuf>,
+    /// The regions of the waveforms (default: `region`'s rectangle, or
+    /// the whole frame); measured in the same pass as the spectrum.
+    pub regions: Vec<Roi>,
+    /// Filters applied to the waveforms (zero-phase), in order.
+    pub filters: Vec<BandFilter>,
     pub run: RunSettings,
 }
 
@@ -68,6 +83,11 @@ impl SpectrumOptions {
             spectrogram: None,
             spectrogram_window: SPECTROGRAM_WINDOW,
             motion_wav: None,
+            scale: None,
+            quantity: Quantity::Displacement,
+            waveform: None,
+            regions: Vec::new(),
+            filters: Vec::new(),
             run: RunSettings::default(),
         }
     }
@@ -182,6 +202,15 @@ fn add_plots(decl: &mut PipelineDecl, o: &SpectrumOptions) -> Result<()> {
 /// Runs the spectrum graph (peaks into a scratch file, read back once into
 /// the typed report) and, with `damping`, the SSI-cov refinement.
 pub fn run_spectrum(o: &SpectrumOptions, damping: bool) -> Result<(SpectrumReport, RunReport)> {
+    run_spectrum_with(o, damping, None)
+}
+
+/// [`run_spectrum`], and with `disp` the regions' displacement too (one pass).
+fn run_spectrum_with(
+    o: &SpectrumOptions,
+    damping: bool,
+    disp: Option<&DisplacementTap>,
+) -> Result<(SpectrumReport, RunReport)> {
     let tmp = TempPath::new("peaks.json");
     let mut decl = spectrum_pipeline(o, tmp.path())?;
     let tap = if damping {
@@ -189,6 +218,9 @@ pub fn run_spectrum(o: &SpectrumOptions, damping: bool) -> Result<(SpectrumRepor
     } else {
         None
     };
+    if let Some(d) = disp {
+        d.add(&mut decl)?;
+    }
     let run = pipeline::run(&decl, o.run)?;
     let mut report: SpectrumReport = crate::json::read(tmp.path(), "the peaks document")?;
     if let Some(tap) = tap {
@@ -201,7 +233,14 @@ pub fn run_spectrum(o: &SpectrumOptions, damping: bool) -> Result<(SpectrumRepor
 pub fn check_outputs(o: &SpectrumOptions) -> Result<()> {
     let mut inputs = vec![o.video.as_path()];
     inputs.extend(o.region.mask.as_deref());
-    let outputs: Vec<&Path> = outputs(o).map(PathBuf::as_path).collect();
+    let mut outputs: Vec<PathBuf> = outputs(o).cloned().collect();
+    if let Some(base) = &o.waveform {
+        let n = o.regions.len().max(1);
+        for k in 1..=n {
+            outputs.extend(crate::motion::waveform_paths(base, k, n));
+        }
+    }
+    let outputs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
     crate::error::check_outputs(&inputs, &outputs)
 }
 
@@ -219,9 +258,76 @@ fn outputs(o: &SpectrumOptions) -> impl Iterator<Item = &PathBuf> {
 
 /// Runs `spectrum`: writes the JSON (and the plots).
 pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
+    let scale = resolve_scale(&o.video, o.fps, o.scale.as_ref())?;
     check_outputs(o)?;
-    let (mut report, run) = run_spectrum(o, true)?;
+    // Region 0 is the spectrum's own (its peaks' amplitudes); the
+    // waveforms' regions follow, all in one `displacement` stage.
+    let whole = |r: &Roi| [r.x, r.y, r.w, r.h];
+    let first = o.region.roi.as_ref().map(whole);
+    let mut rois: Vec<[u32; 4]> = Vec::new();
+    if !o.regions.is_empty() || first.is_some() {
+        let first = match first {
+            Some(r) => r,
+            None => {
+                let p = crate::probe::probe(&o.video, o.fps)?;
+                [0, 0, p.width, p.height]
+            }
+        };
+        rois.push(first);
+        rois.extend(o.regions.iter().map(whole));
+    }
+    let disp = DisplacementTap::new(rois);
+    let (mut report, run) = run_spectrum_with(o, true, Some(&disp))?;
+    let mut regions = disp.read()?;
+    if let Some(r) = regions.first() {
+        let freqs: Vec<f64> = report.peaks.iter().map(|p| p.frequency_hz).collect();
+        let (amps, summary) = crate::motion::peak_amplitudes(
+            &freqs,
+            report.resolution_hz,
+            r,
+            scale.as_ref(),
+            o.quantity,
+        );
+        for (p, a) in report.peaks.iter_mut().zip(amps) {
+            p.amplitude = Some(a);
+        }
+        report.motion = Some(summary);
+    }
+    if let Some(base) = &o.waveform {
+        if !o.regions.is_empty() {
+            regions.remove(0);
+        }
+        report.waveforms =
+            crate::motion::write_waveforms(&regions, base, scale.as_ref(), o.quantity, &o.filters)?;
+    }
     crate::json::write(&o.json, &report)?;
     report.written = outputs(o).cloned().collect();
+    for w in &report.waveforms {
+        report
+            .written
+            .extend([&w.csv, &w.png, &w.spectrum_csv, &w.spectrum_png].map(PathBuf::clone));
+    }
     Ok((report, run))
 }
+
+/// The scale of `arg` for `video` (its frame size read when points are
+/// given): a usage error naming the flag when it is wrong.
+pub fn resolve_scale(
+    video: &Path,
+    fps: Option<f64>,
+    arg: Option<&ScaleArg>,
+) -> Result<Option<Scale>> {
+    let Some(arg) = arg else {
+        return Ok(None);
+    };
+    let (w, h) = match arg {
+        ScaleArg::MmPerPx(_) => (u32::MAX, u32::MAX),
+        ScaleArg::KnownLength(_) => {
+            let p = crate::probe::probe(video, fps)?;
+            (p.width, p.height)
+        }
+    };
+    Ok(Some(arg.resolve(w, h)?))
+}
+
+pub use crate::motion::DisplacementTap;

@@ -17,6 +17,7 @@ pub static REGISTRY: &[KindSpec] = &[
     transform::passthrough::KIND,
     transform::mean::KIND,
     transform::gradient_motion::KIND,
+    transform::displacement::KIND,
     transform::highpass::KIND,
     transform::magnify::KIND,
     transform::band::BANDPASS_KIND,

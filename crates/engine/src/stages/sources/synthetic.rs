@@ -42,6 +42,7 @@ pub struct SyntheticParams {
     pub duplicate_frames: Vec<u64>,
     pub texture: Option<std::path::PathBuf>,
     pub object_mask: Option<std::path::PathBuf>,
+    pub ruler_period_px: Option<f64>,
     pub modal: Option<sim::ModalSpec>,
     pub soft_clip_px: Option<f64>,
 }
@@ -122,6 +123,10 @@ pub const PARAMS: &[ParamSpec] = &[
         .doc("a picture (PGM/PNG) for the object's texture, resized to the object"),
     ParamSpec::new("object_mask", ParamType::Path, Def::Optional)
         .doc("the object's silhouette (PGM/PNG, frame size; gray = fraction of object)"),
+    ParamSpec::new("ruler_period_px", ParamType::Float, Def::Optional)
+        .floats(2.0, 1e4)
+        .unit("px")
+        .doc("the object's texture is a ruler: ticks this far apart across its top half (at object x = P (k + 0.5) + 0.37), random texture below"),
     ParamSpec::new("modal", ParamType::Table, Def::Optional).doc(
         "the object as a vibrating cantilever: { modes = [{ freq_hz, amplitude_px, shape, ... }] }",
     ),
@@ -164,6 +169,7 @@ impl Default for SyntheticParams {
             duplicate_frames: Vec::new(),
             texture: None,
             object_mask: None,
+            ruler_period_px: None,
             modal: None,
             soft_clip_px: None,
         }
@@ -247,9 +253,13 @@ impl SyntheticParams {
         // object, so an object past the frame must fail before that.
         spec.validate().map_err(|e| e.to_string())?;
         let look = sim::Look {
-            texture: match &self.texture {
-                Some(p) => Some(texture_picture(p, object[2], object[3])?),
-                None => None,
+            texture: match (&self.texture, self.ruler_period_px) {
+                (Some(p), _) => Some(texture_picture(p, object[2], object[3])?),
+                (None, Some(period)) => {
+                    let (w, h) = (object[2] as usize, object[3] as usize);
+                    Some((sim::texture::ruler_picture(w, h, period, self.seed), w, h))
+                }
+                (None, None) => None,
             },
             mask: match &self.object_mask {
                 Some(p) => Some(silhouette(p, w, h)?),

@@ -77,7 +77,8 @@ struct Motion {
     out: AudioBatcher,
 }
 
-fn px(p: PixelsRef<'_>, i: usize) -> f32 {
+/// Pixel `i` of a frame as f32.
+pub(super) fn px(p: PixelsRef<'_>, i: usize) -> f32 {
     match p {
         PixelsRef::U8(d) => d[i] as f32,
         PixelsRef::U16(d) => d[i] as f32,

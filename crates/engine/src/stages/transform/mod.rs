@@ -3,6 +3,7 @@ pub mod audio_out;
 pub mod band;
 pub mod butterworth;
 pub mod denoise;
+pub mod displacement;
 pub mod exposure;
 pub mod gap_fill;
 pub mod gradient_motion;
