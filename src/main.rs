@@ -73,6 +73,7 @@ enum Command {
     Rod(cmd::rod::Args),
     Compare(cmd::compare::Args),
     Demo(cmd::demo::Args),
+    Learn(cmd::learn::Args),
 }
 
 fn main() -> ExitCode {
@@ -135,6 +136,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         Command::Rod(a) => cmd::rod::run(a),
         Command::Compare(a) => cmd::compare::run(a),
         Command::Demo(a) => cmd::demo::run(a),
+        Command::Learn(a) => cmd::learn::run(a),
     }
 }
 
