@@ -74,6 +74,7 @@ enum Command {
     Rod(cmd::rod::Args),
     Compare(cmd::compare::Args),
     Demo(cmd::demo::Args),
+    Learn(cmd::learn::Args),
 }
 
 fn main() -> ExitCode {
@@ -137,6 +138,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         Command::Rod(a) => cmd::rod::run(a),
         Command::Compare(a) => cmd::compare::run(a),
         Command::Demo(a) => cmd::demo::run(a),
+        Command::Learn(a) => cmd::learn::run(a),
     }
 }
 

@@ -6,6 +6,7 @@ pub mod compare;
 pub mod demo;
 pub mod devices;
 pub mod kinds;
+pub mod learn;
 pub mod listen;
 pub mod magnify;
 pub mod modes;

@@ -402,3 +402,88 @@ pub fn heat(v: f64) -> RGBColor {
     let c = |x: f64| (x.clamp(0.0, 1.0) * 255.0 + 0.5) as u8;
     RGBColor(c(r), c(g), c(b))
 }
+
+/// One panel of [`scatter_panels`]: points `(x[i], y[i])` coloured by
+/// `group[i]`, with the line y = x.
+#[derive(Clone, Debug)]
+pub struct Scatter {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    pub group: Vec<String>,
+}
+
+/// Correlation plots side by side (thesis Fig. 5-10): predicted against
+/// true, one colour per group (object), the diagonal dashed. PNG bytes.
+pub fn scatter_panels(panels: &[Scatter]) -> Result<Vec<u8>, PlotError> {
+    let n = panels.len().max(1) as u32;
+    let (width, height) = (480 * n, 480);
+    check_size(width, height)?;
+    font();
+    let mut buf = vec![255u8; (width * height * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let areas = root.split_evenly((1, n as usize));
+        for (p, area) in panels.iter().zip(areas) {
+            let vals = p.x.iter().chain(&p.y).copied().filter(|v| v.is_finite());
+            let lo = vals.clone().fold(f64::INFINITY, f64::min);
+            let hi = vals.fold(f64::NEG_INFINITY, f64::max);
+            let (lo, hi) = if lo.is_finite() && hi > lo {
+                let m = 0.05 * (hi - lo);
+                (lo - m, hi + m)
+            } else {
+                (0.0, 1.0)
+            };
+            let mut chart = ChartBuilder::on(&area)
+                .caption(&p.title, ("sans-serif", 15))
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(56)
+                .build_cartesian_2d(lo..hi, lo..hi)
+                .map_err(draw_err)?;
+            chart
+                .configure_mesh()
+                .x_desc(p.x_label.as_str())
+                .y_desc(p.y_label.as_str())
+                .label_style(("sans-serif", 13))
+                .draw()
+                .map_err(draw_err)?;
+            chart
+                .draw_series(DashedLineSeries::new(
+                    [(lo, lo), (hi, hi)],
+                    6,
+                    4,
+                    BLACK.mix(0.5).stroke_width(1),
+                ))
+                .map_err(draw_err)?;
+            let mut groups: Vec<&String> = p.group.iter().collect();
+            groups.sort();
+            groups.dedup();
+            let colour = |g: &String| {
+                let k = groups.iter().position(|x| *x == g).unwrap_or(0);
+                let v = 0.15 + 0.75 * k as f64 / groups.len().max(2) as f64;
+                let c = heat(v);
+                RGBColor(c.0, c.1, 255 - c.2 / 2)
+            };
+            chart
+                .draw_series(
+                    p.x.iter()
+                        .zip(&p.y)
+                        .zip(&p.group)
+                        .filter(|((x, y), _)| x.is_finite() && y.is_finite())
+                        .map(|((&x, &y), g)| Circle::new((x, y), 4, colour(g).stroke_width(2))),
+                )
+                .map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Rgb {
+        width,
+        height,
+        pixels: buf,
+    }
+    .png()
+}

@@ -23,12 +23,14 @@
 //! ~75 Mpix/s for a diagonal rolling-shutter frame with exposure averaging.
 
 pub use vibroscope_math::detmath;
+pub mod fabric;
 pub mod modal;
 pub use vibroscope_math::rng;
 pub mod scene;
 pub mod signal;
 pub mod texture;
 
+pub use fabric::{Excitation, Fabric, FabricSpec};
 pub use modal::{ModalBeam, ModalSpec};
 pub use scene::{Depth, Dest, EdgeMode, Look, Scene, SceneSpec, MAX_AMPLITUDE_PX};
 pub use signal::{Resonance, Signal, SignalSpec};

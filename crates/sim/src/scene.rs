@@ -347,6 +347,7 @@ struct Model {
     zig: Ziggurat,
     noise_key: u64,
     modal: Option<super::ModalBeam>,
+    fabric: Option<super::Fabric>,
 }
 
 /// Per-frame working memory, allocated once.
@@ -384,12 +385,12 @@ fn mean_std(values: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
 impl Scene {
     /// Validates `spec` and precomputes the textures.
     pub fn new(spec: SceneSpec, signal: Signal) -> Result<Scene, SimError> {
-        Self::build(spec, signal, None, Look::default())
+        Self::build(spec, signal, None, None, Look::default())
     }
 
     /// [`Scene::new`] with a picture for the texture and/or a silhouette.
     pub fn with_look(spec: SceneSpec, signal: Signal, look: Look) -> Result<Scene, SimError> {
-        Self::build(spec, signal, None, look)
+        Self::build(spec, signal, None, None, look)
     }
 
     /// A scene whose object vibrates as a modal beam instead of moving
@@ -401,13 +402,32 @@ impl Scene {
         look: Look,
     ) -> Result<Scene, SimError> {
         let beam = super::ModalBeam::new(modal, spec.object[2] as usize, spec.seed)?;
-        Self::build(spec, signal, Some(beam), look)
+        Self::build(spec, signal, Some(beam), None, look)
+    }
+
+    /// A scene whose object is a hanging fabric moving out of its plane,
+    /// seen as horizontal image motion (see [`super::fabric`]; global
+    /// shutter only).
+    pub fn with_fabric(
+        spec: SceneSpec,
+        signal: Signal,
+        fabric: &super::FabricSpec,
+        look: Look,
+    ) -> Result<Scene, SimError> {
+        let f = super::Fabric::new(
+            fabric,
+            spec.object[2] as usize,
+            spec.object[3] as usize,
+            spec.seed,
+        )?;
+        Self::build(spec, signal, None, Some(f), look)
     }
 
     fn build(
         spec: SceneSpec,
         signal: Signal,
         modal: Option<super::ModalBeam>,
+        fabric: Option<super::Fabric>,
         look: Look,
     ) -> Result<Scene, SimError> {
         spec.validate()?;
@@ -418,7 +438,8 @@ impl Scene {
         // Room for the largest excursion (a resonance or interference can
         // exceed the unit-peak signal).
         let amp_max = (spec.amplitude_px.abs() * signal.peak_bound().max(1.0))
-            .max(modal.as_ref().map_or(0.0, |b| b.peak_bound()));
+            .max(modal.as_ref().map_or(0.0, |b| b.peak_bound()))
+            .max(fabric.as_ref().map_or(0.0, |f| f.peak_bound()));
         // The texture is padded by the largest excursion: bound it before
         // allocating (a huge interference or resonance would need terabytes).
         if !(amp_max.is_finite() && amp_max <= MAX_AMPLITUDE_PX) {
@@ -492,7 +513,14 @@ impl Scene {
             covx: vec![1.0; ncols],
             line: vec![0.0; w],
             noise: vec![0.0; w],
-            modal_obj: vec![0.0; if modal.is_some() { ow * oh } else { 0 }],
+            modal_obj: vec![
+                0.0;
+                if modal.is_some() || fabric.is_some() {
+                    ow * oh
+                } else {
+                    0
+                }
+            ],
         };
         let m = Model {
             noise_key: hash2(spec.seed, 3),
@@ -522,6 +550,7 @@ impl Scene {
             interp: Interp::new(OBJECT_SIGMA_PX),
             zig: Ziggurat::new(),
             modal,
+            fabric,
         };
         Ok(Scene { m, s })
     }
@@ -661,10 +690,16 @@ impl Scene {
         self.m.modal.as_ref()
     }
 
+    /// The hanging fabric, if the object is one.
+    pub fn fabric(&self) -> Option<&super::Fabric> {
+        self.m.fabric.as_ref()
+    }
+
     fn timing(&self, t_s: f64) -> Timing {
-        match self.m.modal {
-            Some(_) => Timing::Modal(t_s),
-            None => Timing::Global(self.displacement_px(t_s)),
+        if self.m.modal.is_some() || self.m.fabric.is_some() {
+            Timing::Modal(t_s)
+        } else {
+            Timing::Global(self.displacement_px(t_s))
         }
     }
 
@@ -810,6 +845,8 @@ impl Model {
         };
         if let Some(b) = self.modal.as_mut() {
             b.render(t, &lat, self.oh, obj);
+        } else if let Some(f) = self.fabric.as_mut() {
+            f.render(t, &lat, self.oh, obj);
         }
     }
 

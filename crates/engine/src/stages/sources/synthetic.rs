@@ -44,6 +44,7 @@ pub struct SyntheticParams {
     pub object_mask: Option<std::path::PathBuf>,
     pub ruler_period_px: Option<f64>,
     pub modal: Option<sim::ModalSpec>,
+    pub fabric: Option<sim::FabricSpec>,
     pub soft_clip_px: Option<f64>,
 }
 
@@ -130,6 +131,9 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec::new("modal", ParamType::Table, Def::Optional).doc(
         "the object as a vibrating cantilever: { modes = [{ freq_hz, amplitude_px, shape, ... }] }",
     ),
+    ParamSpec::new("fabric", ParamType::Table, Def::Optional).doc(
+        "the object as a hanging fabric: { stiffness_nm, area_weight_kg_m2, excitation = \"ambient\" | \"sound\", ... } (docs/learning.md)",
+    ),
     ParamSpec::new("soft_clip_px", ParamType::Float, Def::Optional)
         .unit("px")
         .doc("excursion saturates softly: L tanh(d / L) with L = soft_clip_px"),
@@ -171,6 +175,7 @@ impl Default for SyntheticParams {
             object_mask: None,
             ruler_period_px: None,
             modal: None,
+            fabric: None,
             soft_clip_px: None,
         }
     }
@@ -266,9 +271,14 @@ impl SyntheticParams {
                 None => None,
             },
         };
-        match &self.modal {
-            Some(m) => Scene::with_modal(spec, signal, m, look),
-            None => Scene::with_look(spec, signal, look),
+        match (&self.modal, &self.fabric) {
+            (Some(_), Some(_)) => Err(sim::SimError::Invalid {
+                field: "fabric".into(),
+                msg: "a scene has either `modal` or `fabric`, not both".into(),
+            }),
+            (Some(m), None) => Scene::with_modal(spec, signal, m, look),
+            (None, Some(f)) => Scene::with_fabric(spec, signal, f, look),
+            (None, None) => Scene::with_look(spec, signal, look),
         }
         .map_err(|e| e.to_string())
     }
@@ -350,6 +360,12 @@ impl SyntheticParams {
                 "needs a global shutter (no line_delay_us or exposure_us)".into(),
             ));
         }
+        if self.fabric.is_some() && self.row_timing().is_some() {
+            return Err((
+                "fabric",
+                "needs a global shutter (no line_delay_us or exposure_us)".into(),
+            ));
+        }
         self.scene().map(|_| ()).map_err(|m| {
             // The model names its field: `invalid FIELD: ...`.
             let named = m
@@ -363,6 +379,8 @@ impl SyntheticParams {
                 "texture"
             } else if m.starts_with("object_mask") {
                 "object_mask"
+            } else if m.contains("fabric") {
+                "fabric"
             } else if m.contains("modal") {
                 "modal"
             } else if m.contains("soft_clip_px") {

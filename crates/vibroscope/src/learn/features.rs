@@ -1,0 +1,293 @@
+//! The feature vector of thesis 5.5.1: `n` uniform samples from `min_hz`
+//! to `max_hz` (0-15 Hz, N = 150) of the global motion power spectrum
+//! (Eq. 3.17, the `spectrum` recipe's), smoothed by a Gaussian of std
+//! `15 / (2 (N - 1))` Hz and normalised to unit sum over the band; stored
+//! as log10 so the weak higher modes count beside the fundamental
+//! (`docs/learning.md`).
+
+use crate::error::{Error, Result};
+use crate::peaks::SpectrumDb;
+use crate::pipeline::{Region, RunSettings};
+use crate::spectrum::{run_spectrum, SpectrumOptions, SpectrumReport};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Floor of the normalised power before the log (1e-12 of the band's total).
+const FLOOR: f64 = 1e-12;
+
+/// How features are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FeatureParams {
+    pub min_hz: f64,
+    pub max_hz: f64,
+    pub n: usize,
+    /// Gaussian std, Hz; `None` = the thesis's `(max - min) / (2 (n - 1))`.
+    pub sigma_hz: Option<f64>,
+    /// Welch segments of the spectrum (fewer: finer bins, noisier);
+    /// `None` = the `spectrum` recipe's default.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub segments: Option<usize>,
+}
+
+impl Default for FeatureParams {
+    fn default() -> Self {
+        Self {
+            min_hz: 0.0,
+            max_hz: 15.0,
+            n: 150,
+            sigma_hz: None,
+            segments: None,
+        }
+    }
+}
+
+impl FeatureParams {
+    pub fn sigma(&self) -> f64 {
+        self.sigma_hz
+            .unwrap_or((self.max_hz - self.min_hz) / (2.0 * (self.n.max(2) - 1) as f64))
+    }
+
+    /// The sample frequencies, Hz.
+    pub fn freqs(&self) -> Vec<f64> {
+        let step = (self.max_hz - self.min_hz) / (self.n.max(2) - 1) as f64;
+        (0..self.n).map(|i| self.min_hz + step * i as f64).collect()
+    }
+
+    /// Checks the fields; `what` names where they came from.
+    pub fn validate(&self, what: &str) -> Result<()> {
+        if !(self.min_hz.is_finite() && self.min_hz >= 0.0 && self.max_hz > self.min_hz) {
+            return Err(Error::usage(
+                what,
+                format!(
+                    "the band must be 0 <= min_hz < max_hz, got {}..{}",
+                    self.min_hz, self.max_hz
+                ),
+            ));
+        }
+        if !(2..=10_000).contains(&self.n) {
+            return Err(Error::usage(
+                what,
+                format!("n must be 2..=10000, got {}", self.n),
+            ));
+        }
+        if !(self.sigma().is_finite() && self.sigma() > 0.0) {
+            return Err(Error::usage(
+                what,
+                format!("sigma_hz must be > 0, got {}", self.sigma()),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The features of a spectrum in dB (bins `f0 + k · resolution`).
+    ///
+    /// Each sample is the Gaussian-weighted mean of the bins' power around
+    /// its frequency; when the bins are coarser than the Gaussian the
+    /// kernel widens to half a bin so every sample sees at least one bin.
+    pub fn from_spectrum(&self, s: &SpectrumDb) -> std::result::Result<Vec<f64>, String> {
+        if !(s.resolution_hz.is_finite() && s.resolution_hz > 0.0) || s.power_db.is_empty() {
+            return Err(format!(
+                "the spectrum is empty or its resolution ({} Hz) is not > 0",
+                s.resolution_hz
+            ));
+        }
+        let top = s.f0_hz + s.resolution_hz * (s.power_db.len() - 1) as f64;
+        if top + 0.5 * s.resolution_hz < self.max_hz {
+            return Err(format!(
+                "the spectrum ends at {top:.2} Hz, below the features' {} Hz (a higher frame rate is needed)",
+                self.max_hz
+            ));
+        }
+        let power: Vec<f64> = s
+            .power_db
+            .iter()
+            .map(|db| {
+                if db.is_finite() {
+                    10f64.powf(db / 10.0)
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let sigma = self.sigma().max(0.5 * s.resolution_hz);
+        let mut out: Vec<f64> = self
+            .freqs()
+            .iter()
+            .map(|&f| {
+                let (mut num, mut den) = (0.0, 0.0);
+                let c = (f - s.f0_hz) / s.resolution_hz;
+                let half = (4.0 * sigma / s.resolution_hz).ceil() as i64 + 1;
+                let k0 = (c.round() as i64 - half).max(0);
+                let k1 = (c.round() as i64 + half).min(power.len() as i64 - 1);
+                for k in k0..=k1 {
+                    let fk = s.f0_hz + k as f64 * s.resolution_hz;
+                    let w = (-0.5 * ((fk - f) / sigma).powi(2)).exp();
+                    num += w * power[k as usize];
+                    den += w;
+                }
+                if den > 0.0 {
+                    num / den
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let total: f64 = out.iter().sum();
+        if !(total.is_finite() && total > 0.0) {
+            return Err("the spectrum has no power in the band".into());
+        }
+        for v in out.iter_mut() {
+            *v = (*v / total).max(FLOOR).log10();
+        }
+        Ok(out)
+    }
+}
+
+/// Features of one video, with what they came from (the cache's content).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct VideoFeatures {
+    pub video: PathBuf,
+    pub params: FeatureParams,
+    /// Size (bytes) and modification time (s since the epoch) of the video.
+    pub video_bytes: u64,
+    pub video_mtime_s: f64,
+    pub fps: Option<f64>,
+    pub roi: Option<String>,
+    pub mask: Option<PathBuf>,
+    pub sample_rate_hz: f64,
+    pub resolution_hz: f64,
+    pub features: Vec<f64>,
+}
+
+fn stamp(p: &Path) -> Result<(u64, f64)> {
+    let m = std::fs::metadata(p).map_err(|e| Error::input(p, format!("cannot read: {e}")))?;
+    let t = m
+        .modified()
+        .ok()
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0.0, |d| d.as_secs_f64());
+    Ok((m.len(), t))
+}
+
+/// Computes the features of `video` (with `region`, at `fps`).
+pub fn from_video(
+    video: &Path,
+    fps: Option<f64>,
+    region: &Region,
+    params: &FeatureParams,
+    run: RunSettings,
+) -> Result<VideoFeatures> {
+    let (bytes, mtime) = stamp(video)?;
+    let mut o = SpectrumOptions::new(video, PathBuf::from("unused.json"));
+    o.fps = fps;
+    o.region = region.clone();
+    o.include_spectrum = true;
+    o.segments = params.segments;
+    o.peaks = 1;
+    o.run = run;
+    let (report, _) = run_spectrum(&o, false)?;
+    let features = spectrum_features(&report, params).map_err(|m| Error::input(video, m))?;
+    Ok(VideoFeatures {
+        video: video.to_path_buf(),
+        params: *params,
+        video_bytes: bytes,
+        video_mtime_s: mtime,
+        fps,
+        roi: region.roi.as_ref().map(|r| r.to_string()),
+        mask: region.mask.clone(),
+        sample_rate_hz: report.sample_rate_hz,
+        resolution_hz: report.resolution_hz,
+        features,
+    })
+}
+
+/// The features of a `spectrum` report (which must include its spectrum).
+pub fn spectrum_features(
+    report: &SpectrumReport,
+    params: &FeatureParams,
+) -> std::result::Result<Vec<f64>, String> {
+    match &report.spectrum {
+        Some(s) => params.from_spectrum(s),
+        None => Err("holds no spectrum (run `vibroscope spectrum --include-spectrum`)".into()),
+    }
+}
+
+/// The features of a stored spectrum JSON (`vibroscope spectrum --include-spectrum`).
+pub fn from_spectrum_json(path: &Path, params: &FeatureParams) -> Result<Vec<f64>> {
+    let text = std::fs::read(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+    let report: SpectrumReport = serde_json::from_slice(&text)
+        .map_err(|e| Error::input(path, format!("not a spectrum JSON: {e}")))?;
+    spectrum_features(&report, params).map_err(|m| Error::input(path, m))
+}
+
+/// The cache file beside a video: `VIDEO.features.json`.
+pub fn cache_path(video: &Path) -> PathBuf {
+    let mut s = video.as_os_str().to_owned();
+    s.push(".features.json");
+    PathBuf::from(s)
+}
+
+/// Features from the cache when it matches the video and the settings,
+/// else computed and cached (written atomically).
+pub fn cached(
+    video: &Path,
+    fps: Option<f64>,
+    region: &Region,
+    params: &FeatureParams,
+    run: RunSettings,
+) -> Result<VideoFeatures> {
+    let (bytes, mtime) = stamp(video)?;
+    let cache = cache_path(video);
+    if let Ok(text) = std::fs::read(&cache) {
+        if let Ok(f) = serde_json::from_slice::<VideoFeatures>(&text) {
+            if f.params == *params
+                && f.video_bytes == bytes
+                && f.video_mtime_s == mtime
+                && f.fps == fps
+                && f.roi == region.roi.as_ref().map(|r| r.to_string())
+                && f.mask == region.mask
+                && f.features.len() == params.n
+            {
+                return Ok(f);
+            }
+        }
+    }
+    let f = from_video(video, fps, region, params, run)?;
+    if let Ok(bytes) = serde_json::to_vec(&f) {
+        // A cache that cannot be written is only slower next time.
+        let _ = crate::io::atomic::write_atomic(&cache, &bytes);
+    }
+    Ok(f)
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_peak_lands_where_it_is_and_sums_to_one() {
+        let p = FeatureParams::default();
+        let mut db = vec![-80.0; 400];
+        db[100] = 0.0; // 5 Hz at 0.05 Hz bins
+        let s = SpectrumDb {
+            f0_hz: 0.0,
+            power_db: db,
+            resolution_hz: 0.05,
+        };
+        let f = p.from_spectrum(&s).unwrap();
+        assert_eq!(f.len(), 150);
+        let sum: f64 = f.iter().map(|v| 10f64.powf(*v)).sum();
+        assert!((sum - 1.0).abs() < 1e-9);
+        let imax = (0..150).max_by(|&a, &b| f[a].total_cmp(&f[b])).unwrap();
+        assert!((p.freqs()[imax] - 5.0).abs() < 0.06, "{}", p.freqs()[imax]);
+        // Too low a frame rate is refused.
+        let short = SpectrumDb {
+            f0_hz: 0.0,
+            power_db: vec![0.0; 100],
+            resolution_hz: 0.1,
+        };
+        assert!(p.from_spectrum(&short).unwrap_err().contains("below"));
+    }
+}

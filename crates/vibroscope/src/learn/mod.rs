@@ -1,0 +1,626 @@
+//! Learning material properties from motion spectra (thesis 5.5): a
+//! dataset of videos with known properties ([`Dataset`], a TOML file),
+//! the feature vectors ([`features`]), PLSR / PCR models ([`model`]) fitted
+//! with leave-one-object-out cross-validation, and the recipes
+//! [`generate`] (a synthetic fabric dataset from the simulator), [`fit`],
+//! [`predict`] and [`evaluate`] (Table 5.3's train/test conditions).
+//!
+//! Dataset file (paths relative to the file):
+//!
+//! ```toml
+//! version = 1
+//! [features]            # optional: 0-15 Hz, N = 150, thesis smoothing
+//! min_hz = 0.0
+//! max_hz = 15.0
+//! n = 150
+//! [[video]]
+//! path = "videos/m00-A-L-0.y4m"
+//! object = "m00"        # all videos of one object are held out together
+//! condition = "A/L"     # excitation/viewpoint label
+//! fps = 40.0            # optional: the capture rate when the file lies
+//! properties = { stiffness_nm = 1.2e-5, area_weight_kg_m2 = 0.11 }
+//! ```
+
+pub mod features;
+pub mod generate;
+pub mod model;
+
+use crate::error::{Error, Result};
+use crate::pipeline::{Region, Roi, RunSettings};
+pub use features::FeatureParams;
+use features::VideoFeatures;
+use model::{Distance, Linear, Method, Metrics};
+use ndarray::Array2;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The dataset file's format version.
+pub const DATASET_VERSION: u32 = 1;
+/// The model file's format name and version.
+pub const MODEL_FORMAT: &str = "vibroscope-learn-model";
+pub const MODEL_VERSION: u32 = 1;
+/// The prediction interval's coverage (normal quantile 1.96: 95%).
+pub const INTERVAL_Z: f64 = 1.96;
+
+/// One video of a dataset.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Entry {
+    pub path: PathBuf,
+    pub object: String,
+    pub condition: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fps: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub roi: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mask: Option<PathBuf>,
+    pub properties: BTreeMap<String, f64>,
+}
+
+/// A dataset file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Dataset {
+    pub version: u32,
+    #[serde(default)]
+    pub features: FeatureParams,
+    pub video: Vec<Entry>,
+    /// The directory paths are relative to (not in the file).
+    #[serde(skip)]
+    pub dir: PathBuf,
+}
+
+impl Dataset {
+    /// Reads and checks a dataset file: every entry's video exists, every
+    /// property is > 0 and every entry has the same properties.
+    pub fn load(path: &Path) -> Result<Dataset> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Error::input(path, format!("cannot read the dataset: {e}")))?;
+        let mut d: Dataset = toml::from_str(&text)
+            .map_err(|e| Error::input(path, format!("not a dataset file: {e}")))?;
+        if d.version != DATASET_VERSION {
+            return Err(Error::input(
+                path,
+                format!(
+                    "dataset version {} (this vibroscope reads version {DATASET_VERSION})",
+                    d.version
+                ),
+            ));
+        }
+        d.dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        d.features
+            .validate(&format!("{} [features]", path.display()))?;
+        if d.video.is_empty() {
+            return Err(Error::input(path, "lists no [[video]]"));
+        }
+        let names: Vec<String> = d.video[0].properties.keys().cloned().collect();
+        if names.is_empty() {
+            return Err(Error::input(path, "video[0] has no properties"));
+        }
+        for (i, e) in d.video.iter().enumerate() {
+            let at = format!("video[{i}] ({})", e.path.display());
+            let keys: Vec<&String> = e.properties.keys().collect();
+            if keys != names.iter().collect::<Vec<_>>() {
+                return Err(Error::input(
+                    path,
+                    format!("{at}: properties {keys:?}, video[0] has {names:?}"),
+                ));
+            }
+            for (k, v) in &e.properties {
+                if !(v.is_finite() && *v > 0.0) {
+                    return Err(Error::input(
+                        path,
+                        format!("{at}: property {k} = {v}: must be > 0 (its log is the target)"),
+                    ));
+                }
+            }
+            let p = d.resolve(&e.path);
+            if !p.is_file() {
+                return Err(Error::input(
+                    path,
+                    format!("{at}: the video {} does not exist", p.display()),
+                ));
+            }
+            if let Some(r) = &e.roi {
+                r.parse::<Roi>()
+                    .map_err(|m| Error::input(path, format!("{at}: roi: {m}")))?;
+            }
+        }
+        Ok(d)
+    }
+
+    pub fn resolve(&self, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.dir.join(p)
+        }
+    }
+
+    /// The property names (targets), sorted.
+    pub fn targets(&self) -> Vec<String> {
+        self.video
+            .first()
+            .map(|e| e.properties.keys().cloned().collect())
+            .unwrap_or_default()
+    }
+
+    /// The conditions present, sorted.
+    pub fn conditions(&self) -> Vec<String> {
+        let mut c: Vec<String> = self.video.iter().map(|e| e.condition.clone()).collect();
+        c.sort();
+        c.dedup();
+        c
+    }
+
+    /// Features of every entry (cached beside the videos), `progress(i, n, video)` before each.
+    pub fn features(
+        &self,
+        run: RunSettings,
+        progress: &mut dyn FnMut(usize, usize, &Path),
+    ) -> Result<Vec<VideoFeatures>> {
+        let n = self.video.len();
+        let mut out = Vec::with_capacity(n);
+        for (i, e) in self.video.iter().enumerate() {
+            let p = self.resolve(&e.path);
+            progress(i, n, &p);
+            let region = Region {
+                roi: match &e.roi {
+                    Some(r) => Some(r.parse::<Roi>().map_err(Error::Usage)?),
+                    None => None,
+                },
+                mask: e.mask.as_ref().map(|m| self.resolve(m)),
+                ..Region::default()
+            };
+            out.push(features::cached(&p, e.fps, &region, &self.features, run)?);
+        }
+        Ok(out)
+    }
+
+    /// The log targets, n × targets.
+    pub fn log_targets(&self) -> Array2<f64> {
+        let t = self.targets();
+        Array2::from_shape_fn((self.video.len(), t.len()), |(i, k)| {
+            self.video[i].properties[&t[k]].ln()
+        })
+    }
+}
+
+fn matrix(f: &[VideoFeatures]) -> Array2<f64> {
+    let p = f.first().map_or(0, |v| v.features.len());
+    Array2::from_shape_fn((f.len(), p), |(i, j)| f[i].features[j])
+}
+
+/// Rows whose condition is one of `conds` (all rows when empty).
+fn rows_of(d: &Dataset, conds: &[String]) -> Vec<usize> {
+    (0..d.video.len())
+        .filter(|&i| conds.is_empty() || conds.iter().any(|c| *c == d.video[i].condition))
+        .collect()
+}
+
+fn check_conditions(d: &Dataset, conds: &[String], flag: &str) -> Result<()> {
+    let have = d.conditions();
+    for c in conds {
+        if !have.contains(c) {
+            return Err(Error::usage(
+                flag,
+                format!("no video has condition {c:?}; the dataset has {have:?}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The cross-validated component sweep (Fig. 5-9): for each number of
+/// components, R of each target; and the chosen number.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Sweep {
+    pub components: Vec<usize>,
+    /// `r[a][k]`: R of target k with `components[a]` components (`null`: undefined).
+    pub r: Vec<Vec<Option<f64>>>,
+    pub chosen: usize,
+}
+
+/// Leave-one-object-out sweep over 1..=max components on `train` rows,
+/// tested on `test` rows; chooses the fewest components whose mean R is
+/// within 0.01 of the best.
+fn sweep(
+    method: Method,
+    max: usize,
+    x: &Array2<f64>,
+    y: &Array2<f64>,
+    objects: &[String],
+    train: &[usize],
+    test: &[usize],
+) -> Result<Sweep> {
+    let mut comps = Vec::new();
+    let mut r = Vec::new();
+    for a in 1..=max {
+        let held = model::leave_one_object_out(method, a, x, y, objects, train, test)
+            .map_err(|m| Error::Runtime(anyhow::anyhow!(m)))?;
+        let rs: Vec<f64> = (0..y.ncols())
+            .map(|k| {
+                let p: Vec<f64> = held.iter().map(|h| h.0[k]).collect();
+                let t: Vec<f64> = test.iter().map(|&i| y[[i, k]]).collect();
+                model::pearson(&p, &t)
+            })
+            .collect();
+        comps.push(a);
+        r.push(rs);
+    }
+    let mean = |v: &Vec<f64>| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let rr: Vec<Vec<Option<f64>>> = r
+        .iter()
+        .map(|v| v.iter().map(|x| x.is_finite().then_some(*x)).collect())
+        .collect();
+    let best = r.iter().map(mean).fold(f64::NEG_INFINITY, f64::max);
+    let chosen = comps
+        .iter()
+        .zip(&r)
+        .find(|(_, v)| mean(v) >= best - 0.01)
+        .map_or(1, |(a, _)| *a);
+    Ok(Sweep {
+        components: comps,
+        r: rr,
+        chosen,
+    })
+}
+
+/// Distinct objects among `rows`.
+fn n_objects(d: &Dataset, rows: &[usize]) -> usize {
+    let mut o: Vec<&String> = rows.iter().map(|&i| &d.video[i].object).collect();
+    o.sort();
+    o.dedup();
+    o.len()
+}
+
+/// What `learn fit` is asked.
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    pub dataset: PathBuf,
+    pub output: PathBuf,
+    pub method: Method,
+    /// Train on these conditions only (all when empty).
+    pub conditions: Vec<String>,
+    /// Largest number of components tried (`--components` fixes it instead).
+    pub max_components: usize,
+    pub components: Option<usize>,
+    pub run: RunSettings,
+}
+
+/// The model file.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ModelFile {
+    pub format: String,
+    pub version: u32,
+    pub features: FeatureParams,
+    pub targets: Vec<String>,
+    pub conditions: Vec<String>,
+    pub objects: usize,
+    pub videos: usize,
+    pub model: Linear,
+    pub sweep: Sweep,
+    /// Cross-validated metrics per target at the chosen components.
+    pub cv: Vec<Metrics>,
+    /// Limits of T² and Q (the held-out objects' 99th percentile in CV).
+    #[serde(deserialize_with = "model::nan_or")]
+    pub t2_limit: f64,
+    #[serde(deserialize_with = "model::nan_or")]
+    pub q_limit: f64,
+}
+
+fn percentile(mut v: Vec<f64>, p: f64) -> f64 {
+    v.retain(|x| x.is_finite());
+    if v.is_empty() {
+        return f64::INFINITY;
+    }
+    v.sort_by(f64::total_cmp);
+    let k = ((v.len() - 1) as f64 * p).round() as usize;
+    v[k.min(v.len() - 1)]
+}
+
+/// Fits a model on a dataset (see [`FitOptions`]).
+pub fn fit(o: &FitOptions, progress: &mut dyn FnMut(usize, usize, &Path)) -> Result<ModelFile> {
+    crate::error::check_outputs(&[&o.dataset], &[&o.output])?;
+    let d = Dataset::load(&o.dataset)?;
+    check_conditions(&d, &o.conditions, "--condition")?;
+    let rows = rows_of(&d, &o.conditions);
+    let objs = n_objects(&d, &rows);
+    let need = o.components.unwrap_or(1);
+    if objs < need + 2 {
+        return Err(Error::input(
+            &o.dataset,
+            format!(
+                "{objs} objects for {need} components: leave-one-object-out needs at least components + 2 objects"
+            ),
+        ));
+    }
+    let f = d.features(o.run, progress)?;
+    let x = matrix(&f);
+    let y = d.log_targets();
+    let objects: Vec<String> = d.video.iter().map(|e| e.object.clone()).collect();
+    let max = o
+        .components
+        .unwrap_or(o.max_components.min(objs - 2))
+        .min(x.ncols())
+        .max(1);
+    let mut sw = sweep(o.method, max, &x, &y, &objects, &rows, &rows)?;
+    if let Some(a) = o.components {
+        sw.chosen = a;
+    }
+    let held = model::leave_one_object_out(o.method, sw.chosen, &x, &y, &objects, &rows, &rows)
+        .map_err(|m| Error::Runtime(anyhow::anyhow!(m)))?;
+    let cv = (0..y.ncols())
+        .map(|k| {
+            let p: Vec<f64> = held.iter().map(|h| h.0[k]).collect();
+            let t: Vec<f64> = rows.iter().map(|&i| y[[i, k]]).collect();
+            model::metrics(&p, &t)
+        })
+        .collect();
+    let dist: Vec<Distance> = held.iter().map(|h| h.1).collect();
+    let xt = x.select(ndarray::Axis(0), &rows);
+    let yt = y.select(ndarray::Axis(0), &rows);
+    let m = model::fit(o.method, sw.chosen, &xt, &yt)
+        .map_err(|m| Error::Runtime(anyhow::anyhow!(m)))?;
+    let file = ModelFile {
+        format: MODEL_FORMAT.into(),
+        version: MODEL_VERSION,
+        features: d.features,
+        targets: d.targets(),
+        conditions: if o.conditions.is_empty() {
+            d.conditions()
+        } else {
+            o.conditions.clone()
+        },
+        objects: objs,
+        videos: rows.len(),
+        model: m,
+        sweep: sw,
+        cv,
+        t2_limit: percentile(dist.iter().map(|d| d.t2).collect(), 0.99),
+        q_limit: percentile(dist.iter().map(|d| d.q).collect(), 0.99),
+    };
+    let bytes = serde_json::to_vec_pretty(&file).map_err(anyhow::Error::new)?;
+    crate::io::atomic::write_atomic(&o.output, &bytes).map_err(anyhow::Error::new)?;
+    Ok(file)
+}
+
+/// Reads a model file, refusing another format or version.
+pub fn load_model(path: &Path) -> Result<ModelFile> {
+    let text = std::fs::read(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+    let v: serde_json::Value = serde_json::from_slice(&text)
+        .map_err(|e| Error::input(path, format!("not a model file (JSON): {e}")))?;
+    let format = v.get("format").and_then(|f| f.as_str()).unwrap_or("");
+    let version = v.get("version").and_then(|f| f.as_u64());
+    if format != MODEL_FORMAT || version != Some(MODEL_VERSION as u64) {
+        return Err(Error::input(
+            path,
+            format!(
+                "format {format:?} version {}: this vibroscope reads {MODEL_FORMAT:?} version {MODEL_VERSION} (refit with `vibroscope learn fit`)",
+                version.map_or("none".into(), |v| v.to_string())
+            ),
+        ));
+    }
+    serde_json::from_value(v).map_err(|e| Error::input(path, format!("not a model file: {e}")))
+}
+
+/// One property's prediction.
+#[derive(Clone, Debug, Serialize)]
+pub struct PropertyPrediction {
+    pub name: String,
+    pub value: f64,
+    /// 95% interval from the cross-validation residuals.
+    pub low: f64,
+    pub high: f64,
+}
+
+/// What `learn predict` found.
+#[derive(Clone, Debug, Serialize)]
+pub struct Prediction {
+    pub video: PathBuf,
+    pub properties: Vec<PropertyPrediction>,
+    pub t2: f64,
+    pub q: f64,
+    pub t2_limit: f64,
+    pub q_limit: f64,
+    /// Outside the training distribution (T² or Q above its limit).
+    pub out_of_distribution: bool,
+}
+
+/// What `learn predict` is asked.
+#[derive(Clone, Debug)]
+pub struct PredictOptions {
+    pub model: PathBuf,
+    /// A video, or a spectrum JSON (`vibroscope spectrum --include-spectrum`).
+    pub input: PathBuf,
+    pub fps: Option<f64>,
+    pub region: Region,
+    pub json: Option<PathBuf>,
+    pub run: RunSettings,
+}
+
+/// Predicts the properties of one video with the model.
+pub fn predict(o: &PredictOptions) -> Result<Prediction> {
+    let m = load_model(&o.model)?;
+    let is_json = o
+        .input
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let x = if is_json {
+        features::from_spectrum_json(&o.input, &m.features)?
+    } else {
+        features::from_video(&o.input, o.fps, &o.region, &m.features, o.run)?.features
+    };
+    let y = m.model.predict(&x);
+    let dist = m.model.distance(&x);
+    let properties = m
+        .targets
+        .iter()
+        .zip(&y)
+        .zip(&m.cv)
+        .map(|((name, v), cv)| PropertyPrediction {
+            name: name.clone(),
+            value: v.exp(),
+            low: (v - INTERVAL_Z * cv.resid_sd).exp(),
+            high: (v + INTERVAL_Z * cv.resid_sd).exp(),
+        })
+        .collect();
+    let p = Prediction {
+        video: o.input.clone(),
+        properties,
+        t2: dist.t2,
+        q: dist.q,
+        t2_limit: m.t2_limit,
+        q_limit: m.q_limit,
+        out_of_distribution: dist.t2 > m.t2_limit || dist.q > m.q_limit,
+    };
+    if let Some(j) = &o.json {
+        let bytes = serde_json::to_vec_pretty(&p).map_err(anyhow::Error::new)?;
+        crate::io::atomic::write_atomic(j, &bytes).map_err(anyhow::Error::new)?;
+    }
+    Ok(p)
+}
+
+/// What `learn evaluate` is asked.
+#[derive(Clone, Debug)]
+pub struct EvaluateOptions {
+    pub dataset: PathBuf,
+    pub train_on: Vec<String>,
+    pub test_on: Vec<String>,
+    pub methods: Vec<Method>,
+    pub max_components: usize,
+    pub png: Option<PathBuf>,
+    pub json: Option<PathBuf>,
+    pub run: RunSettings,
+}
+
+/// One method's evaluation.
+#[derive(Clone, Debug, Serialize)]
+pub struct MethodEvaluation {
+    pub method: Method,
+    /// Chosen by the sweep on the training condition alone.
+    pub components: usize,
+    pub sweep: Sweep,
+    pub metrics: Vec<Metrics>,
+    /// Held-out predictions (logs), per target, in test-row order.
+    pub predicted: Vec<Vec<f64>>,
+}
+
+/// What `learn evaluate` found.
+#[derive(Clone, Debug, Serialize)]
+pub struct Evaluation {
+    pub targets: Vec<String>,
+    pub train_on: Vec<String>,
+    pub test_on: Vec<String>,
+    pub objects: usize,
+    pub test_videos: usize,
+    /// True logs per target, in test-row order; the test rows' objects.
+    pub truth: Vec<Vec<f64>>,
+    pub test_objects: Vec<String>,
+    pub methods: Vec<MethodEvaluation>,
+    #[serde(skip)]
+    pub written: Vec<PathBuf>,
+}
+
+/// Leave-one-object-out evaluation: train on `train_on` rows without the
+/// held-out object, test on its `test_on` rows (Table 5.3's setting).
+pub fn evaluate(
+    o: &EvaluateOptions,
+    progress: &mut dyn FnMut(usize, usize, &Path),
+) -> Result<Evaluation> {
+    let mut outs: Vec<&Path> = Vec::new();
+    outs.extend(o.png.as_deref());
+    outs.extend(o.json.as_deref());
+    crate::error::check_outputs(&[&o.dataset], &outs)?;
+    let d = Dataset::load(&o.dataset)?;
+    check_conditions(&d, &o.train_on, "--train-on")?;
+    check_conditions(&d, &o.test_on, "--test-on")?;
+    let train = rows_of(&d, &o.train_on);
+    let test = rows_of(&d, &o.test_on);
+    let objs = n_objects(&d, &train);
+    if objs < 3 {
+        return Err(Error::input(
+            &o.dataset,
+            format!("{objs} objects in the training rows: leave-one-object-out needs at least 3"),
+        ));
+    }
+    let f = d.features(o.run, progress)?;
+    let x = matrix(&f);
+    let y = d.log_targets();
+    let objects: Vec<String> = d.video.iter().map(|e| e.object.clone()).collect();
+    let max = o.max_components.min(objs - 2).min(x.ncols()).max(1);
+    let mut methods = Vec::new();
+    for &method in &o.methods {
+        // Components chosen on the training condition only.
+        let sw = sweep(method, max, &x, &y, &objects, &train, &train)?;
+        let held = model::leave_one_object_out(method, sw.chosen, &x, &y, &objects, &train, &test)
+            .map_err(|m| Error::Runtime(anyhow::anyhow!(m)))?;
+        let predicted: Vec<Vec<f64>> = (0..y.ncols())
+            .map(|k| held.iter().map(|h| h.0[k]).collect())
+            .collect();
+        let metrics = (0..y.ncols())
+            .map(|k| {
+                let t: Vec<f64> = test.iter().map(|&i| y[[i, k]]).collect();
+                model::metrics(&predicted[k], &t)
+            })
+            .collect();
+        methods.push(MethodEvaluation {
+            method,
+            components: sw.chosen,
+            sweep: sw,
+            metrics,
+            predicted,
+        });
+    }
+    let mut e = Evaluation {
+        targets: d.targets(),
+        train_on: o.train_on.clone(),
+        test_on: o.test_on.clone(),
+        objects: objs,
+        test_videos: test.len(),
+        truth: (0..y.ncols())
+            .map(|k| test.iter().map(|&i| y[[i, k]]).collect())
+            .collect(),
+        test_objects: test.iter().map(|&i| objects[i].clone()).collect(),
+        methods,
+        written: Vec::new(),
+    };
+    if let Some(p) = &o.png {
+        let png = correlation_plot(&e).map_err(|m| Error::Runtime(anyhow::anyhow!(m)))?;
+        crate::io::atomic::write_atomic(p, &png).map_err(anyhow::Error::new)?;
+        e.written.push(p.clone());
+    }
+    if let Some(j) = &o.json {
+        let bytes = serde_json::to_vec_pretty(&e).map_err(anyhow::Error::new)?;
+        crate::io::atomic::write_atomic(j, &bytes).map_err(anyhow::Error::new)?;
+        e.written.push(j.clone());
+    }
+    Ok(e)
+}
+
+/// Fig. 5-10: predicted against true log property, one panel per target,
+/// of the first method; colour by object.
+fn correlation_plot(e: &Evaluation) -> std::result::Result<Vec<u8>, String> {
+    let m = e.methods.first().ok_or("no method")?;
+    let panels: Vec<crate::io::plot::Scatter> = e
+        .targets
+        .iter()
+        .enumerate()
+        .map(|(k, name)| crate::io::plot::Scatter {
+            title: format!(
+                "{name}: {} ({} comp.), R = {:.3}",
+                m.method.name(),
+                m.components,
+                m.metrics[k].r
+            ),
+            x_label: format!("true ln({name})"),
+            y_label: format!("predicted ln({name})"),
+            x: e.truth[k].clone(),
+            y: m.predicted[k].clone(),
+            group: e.test_objects.clone(),
+        })
+        .collect();
+    crate::io::plot::scatter_panels(&panels).map_err(|e| e.to_string())
+}

@@ -1,0 +1,290 @@
+//! `vibroscope learn`: material properties from motion spectra (thesis 5.5).
+
+use super::{num, VideoArgs};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use vibroscope::learn::generate::{self, GenerateOptions};
+use vibroscope::learn::model::Method;
+use vibroscope::learn::{self, EvaluateOptions, FitOptions, PredictOptions};
+use vibroscope::pipeline::RunSettings;
+
+/// Learn material properties (stiffness, area weight) from motion spectra.
+///
+/// Thesis 5.5: the feature vector is N = 150 samples of the normalised,
+/// Gaussian-smoothed global motion spectrum from 0 to 15 Hz; PLSR (or PCR)
+/// maps it to the logs of the properties; leave-one-object-out
+/// cross-validation chooses the number of components and measures Pearson
+/// R, mean % error and Kendall tau. Features are cached beside each video
+/// (VIDEO.features.json). See docs/learning.md.
+#[derive(clap::Args)]
+#[command(after_help = "Examples:\n  \
+    vibroscope learn generate -o fabrics --materials 30\n  \
+    vibroscope learn fit fabrics/DATASET.toml -o fabric-model.json --condition A/L\n  \
+    vibroscope learn predict fabric-model.json fabrics/videos/m000-AL-0.y4m\n  \
+    vibroscope learn evaluate fabrics/DATASET.toml --train-on A/L --test-on S/R --png corr.png")]
+pub struct Args {
+    #[command(subcommand)]
+    cmd: Sub,
+}
+
+#[derive(clap::Subcommand)]
+enum Sub {
+    Generate(GenerateArgs),
+    Fit(FitArgs),
+    Predict(PredictArgs),
+    Evaluate(EvaluateArgs),
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+enum MethodArg {
+    Pls,
+    Pcr,
+}
+
+impl From<MethodArg> for Method {
+    fn from(m: MethodArg) -> Method {
+        match m {
+            MethodArg::Pls => Method::Pls,
+            MethodArg::Pcr => Method::Pcr,
+        }
+    }
+}
+
+/// Render a dataset of simulated hanging fabrics with known properties.
+///
+/// Fabrics spread over bending rigidity 1e-6..1e-4 N m and area weight
+/// 30..400 g/m^2; conditions A/S (ambient air, sound) x L/R (viewpoints).
+/// Writes DIR/scenes/*.toml, DIR/videos/*.y4m, DIR/DATASET.toml and the
+/// feature cache.
+#[derive(clap::Args)]
+struct GenerateArgs {
+    /// Output directory.
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+    /// Number of fabrics.
+    #[arg(long, default_value_t = 30)]
+    materials: usize,
+    /// Videos per fabric per condition.
+    #[arg(long, default_value_t = 3)]
+    per_condition: usize,
+    /// Conditions to film (comma-separated; A/L, A/R, S/L, S/R).
+    #[arg(long, value_delimiter = ',', default_value = "A/L,A/R,S/L,S/R")]
+    conditions: Vec<String>,
+    /// Length of each video, s.
+    #[arg(long, default_value_t = 30.0)]
+    seconds: f64,
+    /// Frame side, px.
+    #[arg(long, default_value_t = 64)]
+    size: u32,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Welch segments of each spectrum (the dataset's [features] segments).
+    #[arg(long, default_value_t = 4)]
+    segments: usize,
+}
+
+/// Fit a model on a dataset (components by leave-one-object-out CV).
+#[derive(clap::Args)]
+struct FitArgs {
+    /// The dataset file (TOML; see docs/learning.md).
+    dataset: PathBuf,
+    /// The model file to write (JSON).
+    #[arg(short, long, value_name = "MODEL.json")]
+    output: PathBuf,
+    #[arg(long, value_enum, default_value = "pls")]
+    method: MethodArg,
+    /// Train on these conditions only (comma-separated; default all).
+    #[arg(long, value_delimiter = ',')]
+    condition: Vec<String>,
+    /// Try 1..=N components.
+    #[arg(long, default_value_t = 10)]
+    max_components: usize,
+    /// Use exactly this many components.
+    #[arg(long)]
+    components: Option<usize>,
+}
+
+/// Predict the properties of a video (or a spectrum JSON) with a model.
+#[derive(clap::Args)]
+struct PredictArgs {
+    /// The model file (from `learn fit`).
+    model: PathBuf,
+    /// A video, or a spectrum JSON written with `spectrum --include-spectrum`.
+    input: PathBuf,
+    #[command(flatten)]
+    video: VideoArgs,
+    /// Also write the prediction as JSON.
+    #[arg(long, value_name = "OUT.json")]
+    json: Option<PathBuf>,
+}
+
+/// Train on one condition, test on another (Table 5.3), leave-one-object-out.
+#[derive(clap::Args)]
+struct EvaluateArgs {
+    dataset: PathBuf,
+    /// Training conditions (comma-separated; default all).
+    #[arg(long, value_delimiter = ',')]
+    train_on: Vec<String>,
+    /// Test conditions (comma-separated; default all).
+    #[arg(long, value_delimiter = ',')]
+    test_on: Vec<String>,
+    /// Largest number of components tried (chosen on the training condition).
+    #[arg(long, default_value_t = 10)]
+    max_components: usize,
+    /// Correlation plot of the PLSR predictions (Fig. 5-10).
+    #[arg(long, value_name = "OUT.png")]
+    png: Option<PathBuf>,
+    /// Everything as JSON.
+    #[arg(long, value_name = "OUT.json")]
+    json: Option<PathBuf>,
+}
+
+fn labelled(bar: &Option<super::Bar>) -> impl FnMut(usize, usize, &Path) + '_ {
+    move |i, n, p| {
+        if let Some(b) = bar {
+            let name = p.file_name().map(|s| s.to_string_lossy().into_owned());
+            b.set_prefix(format!("{}/{} {} ", i + 1, n, name.unwrap_or_default()));
+        }
+    }
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let run = RunSettings { progress: true };
+    match a.cmd {
+        Sub::Generate(g) => {
+            let o = GenerateOptions {
+                dir: g.output,
+                materials: g.materials,
+                per_condition: g.per_condition,
+                conditions: g.conditions,
+                seconds: g.seconds,
+                size: g.size,
+                seed: g.seed,
+                segments: g.segments,
+                run,
+            };
+            let bar = super::Bar::start(true);
+            let r = generate::generate(&o, &mut labelled(&bar));
+            drop(bar);
+            eprintln!(
+                "wrote {} (videos in {})",
+                r?.display(),
+                o.dir.join("videos").display()
+            );
+        }
+        Sub::Fit(f) => {
+            let o = FitOptions {
+                dataset: f.dataset,
+                output: f.output,
+                method: f.method.into(),
+                conditions: f.condition,
+                max_components: f.max_components,
+                components: f.components,
+                run,
+            };
+            let bar = super::Bar::start(true);
+            let r = learn::fit(&o, &mut labelled(&bar));
+            drop(bar);
+            let m = r?;
+            println!(
+                "{} with {} components on {} videos of {} objects ({})",
+                m.model.method.name(),
+                m.model.components,
+                m.videos,
+                m.objects,
+                m.conditions.join(", ")
+            );
+            println!("leave-one-object-out:");
+            for (t, c) in m.targets.iter().zip(&m.cv) {
+                println!(
+                    "  {t:<20} R {}  error {}%  tau {}",
+                    num(c.r, 3),
+                    num(c.pct_error, 1),
+                    num(c.kendall_tau, 3)
+                );
+            }
+            eprintln!("wrote {}", o.output.display());
+        }
+        Sub::Predict(p) => {
+            let o = PredictOptions {
+                model: p.model,
+                input: p.input,
+                fps: p.video.fps,
+                region: p.video.region(),
+                json: p.json,
+                run,
+            };
+            let bar = super::Bar::start(true);
+            let r = learn::predict(&o);
+            drop(bar);
+            let r = r?;
+            for pp in &r.properties {
+                println!(
+                    "{:<20} {:.4e}  (95% interval {:.4e} .. {:.4e})",
+                    pp.name, pp.value, pp.low, pp.high
+                );
+            }
+            println!(
+                "T2 {} (limit {}), Q {} (limit {}){}",
+                num(r.t2, 2),
+                num(r.t2_limit, 2),
+                num(r.q, 4),
+                num(r.q_limit, 4),
+                if r.out_of_distribution {
+                    ": OUTSIDE the training distribution, the prediction is not to be trusted"
+                } else {
+                    ""
+                }
+            );
+            if let Some(j) = &o.json {
+                eprintln!("wrote {}", j.display());
+            }
+        }
+        Sub::Evaluate(e) => {
+            let o = EvaluateOptions {
+                dataset: e.dataset,
+                train_on: e.train_on,
+                test_on: e.test_on,
+                methods: vec![Method::Pls, Method::Pcr],
+                max_components: e.max_components,
+                png: e.png,
+                json: e.json,
+                run,
+            };
+            let bar = super::Bar::start(true);
+            let r = learn::evaluate(&o, &mut labelled(&bar));
+            drop(bar);
+            let r = r?;
+            let all = |v: &Vec<String>| {
+                if v.is_empty() {
+                    "all".to_string()
+                } else {
+                    v.join(",")
+                }
+            };
+            println!(
+                "train on {}, test on {} ({} objects, {} test videos), leave-one-object-out",
+                all(&r.train_on),
+                all(&r.test_on),
+                r.objects,
+                r.test_videos
+            );
+            for m in &r.methods {
+                for (t, c) in r.targets.iter().zip(&m.metrics) {
+                    println!(
+                        "  {:<5} {:>2} comp.  {t:<20} R {}  error {}%  tau {}",
+                        m.method.name(),
+                        m.components,
+                        num(c.r, 3),
+                        num(c.pct_error, 1),
+                        num(c.kendall_tau, 3)
+                    );
+                }
+            }
+            for w in &r.written {
+                eprintln!("wrote {}", w.display());
+            }
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,226 @@
+//! `vibroscope learn` (issue 19, thesis 5.5): material properties of
+//! simulated hanging fabrics from their motion spectra, and bad input.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+mod common;
+use common::*;
+use std::path::Path;
+use vibroscope::learn::model::pearson;
+
+/// Generates a small dataset in `dir/ds`.
+fn generate(dir: &Path, materials: &str, conditions: &str, seconds: &str) {
+    let o = run_in(
+        dir,
+        &[
+            "learn",
+            "generate",
+            "-o",
+            "ds",
+            "--materials",
+            materials,
+            "--per-condition",
+            "2",
+            "--conditions",
+            conditions,
+            "--seconds",
+            seconds,
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+}
+
+/// The figure `R x.xxx` of `target` on the PLSR line of `evaluate`'s output.
+fn r_of(out: &str, target: &str) -> f64 {
+    let line = out
+        .lines()
+        .find(|l| l.contains("PLSR") && l.contains(target))
+        .unwrap_or_else(|| panic!("no PLSR line for {target} in {out}"));
+    let after = line.split(" R ").nth(1).unwrap();
+    after.split_whitespace().next().unwrap().parse().unwrap()
+}
+
+fn evaluate_al(dir: &Path) -> std::process::Output {
+    let args = [
+        "learn",
+        "evaluate",
+        "ds/DATASET.toml",
+        "--train-on",
+        "A/L",
+        "--test-on",
+        "A/L",
+    ];
+    run_in(dir, &args)
+}
+
+/// Leave-one-fabric-out on unseen fabrics, same condition: the area
+/// weight is predicted (R >= 0.8 on 12 fabrics; issue 19 asks 0.9 for both
+/// properties, see docs/learning.md for where it stands).
+#[test]
+fn same_condition_leave_one_out_predicts_area_weight() {
+    let d = tempfile::tempdir().unwrap();
+    generate(d.path(), "12", "A/L", "30");
+    let o = evaluate_al(d.path());
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let out = stdout(&o);
+    println!("{out}");
+    assert!(r_of(&out, "area_weight") >= 0.8, "{out}");
+    // Cached features: a second run renders nothing and agrees.
+    let o2 = evaluate_al(d.path());
+    assert_eq!(stdout(&o2), out);
+}
+
+/// Thesis ch. 3: the motion spectrum is a property of the object, not of
+/// the view. Features of one fabric from two viewpoints correlate more
+/// than features of two fabrics from one viewpoint (averaged over pairs).
+#[test]
+fn features_are_more_alike_across_views_than_across_fabrics() {
+    let d = tempfile::tempdir().unwrap();
+    generate(d.path(), "6", "A/L,A/R", "20");
+    let ds = vibroscope::learn::Dataset::load(&d.path().join("ds/DATASET.toml")).unwrap();
+    let f = ds.features(Default::default(), &mut |_, _, _| {}).unwrap();
+    let pick = |obj: &str, cond: &str| -> Vec<f64> {
+        let i = ds
+            .video
+            .iter()
+            .position(|e| e.object == obj && e.condition == cond)
+            .unwrap();
+        f[i].features.clone()
+    };
+    let objs: Vec<String> = (0..6).map(|i| format!("m{i:03}")).collect();
+    let same: f64 = objs
+        .iter()
+        .map(|o| pearson(&pick(o, "A/L"), &pick(o, "A/R")))
+        .sum::<f64>()
+        / 6.0;
+    let mut diff = 0.0;
+    let mut n = 0.0;
+    for a in 0..6 {
+        for b in a + 1..6 {
+            diff += pearson(&pick(&objs[a], "A/L"), &pick(&objs[b], "A/L"));
+            n += 1.0;
+        }
+    }
+    let diff = diff / n;
+    println!("same fabric, two views: {same:.3}; two fabrics, one view: {diff:.3}");
+    assert!(same > diff, "{same} <= {diff}");
+}
+
+fn write(dir: &Path, name: &str, text: &str) {
+    std::fs::write(dir.join(name), text).unwrap();
+}
+
+/// A dataset of three tiny videos (rendered once), as TOML entries.
+fn tiny(dir: &Path) -> String {
+    let mut s = String::from("version = 1\n");
+    for i in 0..3 {
+        write(
+            dir,
+            &format!("s{i}.toml"),
+            &format!(
+                "width = 32\nheight = 32\nfps = 40.0\nduration_s = 3.0\nseed = {}\n\
+                 fabric = {{ stiffness_nm = 1e-5, area_weight_kg_m2 = 0.{} }}\n",
+                i + 1,
+                i + 1
+            ),
+        );
+        let o = run_in(
+            dir,
+            &[
+                "simulate",
+                &format!("s{i}.toml"),
+                "-o",
+                &format!("v{i}.y4m"),
+            ],
+        );
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        s.push_str(&format!(
+            "[[video]]\npath = \"v{i}.y4m\"\nobject = \"o{i}\"\ncondition = \"A/L\"\n\
+             properties = {{ stiffness_nm = 1e-5, area_weight_kg_m2 = 0.{} }}\n",
+            i + 1
+        ));
+    }
+    s
+}
+
+/// Bad input: a clear message naming the entry, exit 2, no panic.
+#[test]
+fn bad_datasets_and_models_are_refused_by_name() {
+    let d = tempfile::tempdir().unwrap();
+    let dir = d.path();
+    let good = tiny(dir);
+
+    write(dir, "missing.toml", &good.replace("v1.y4m", "nothere.y4m"));
+    let o = run_in(dir, &["learn", "fit", "missing.toml", "-o", "m.json"]);
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("video[1]") && stderr(&o).contains("nothere.y4m"),
+        "{}",
+        stderr(&o)
+    );
+
+    write(
+        dir,
+        "zero.toml",
+        &good.replace("area_weight_kg_m2 = 0.3", "area_weight_kg_m2 = 0.0"),
+    );
+    let o = run_in(dir, &["learn", "fit", "zero.toml", "-o", "m.json"]);
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("video[2]") && stderr(&o).contains("area_weight_kg_m2"),
+        "{}",
+        stderr(&o)
+    );
+
+    write(dir, "few.toml", &good);
+    let o = run_in(
+        dir,
+        &[
+            "learn",
+            "fit",
+            "few.toml",
+            "-o",
+            "m.json",
+            "--components",
+            "2",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("3 objects for 2 components"),
+        "{}",
+        stderr(&o)
+    );
+
+    // A model of another version.
+    let o = run_in(
+        dir,
+        &[
+            "learn",
+            "fit",
+            "few.toml",
+            "-o",
+            "m.json",
+            "--components",
+            "1",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let text = std::fs::read_to_string(dir.join("m.json")).unwrap();
+    write(
+        dir,
+        "old.json",
+        &text.replacen("\"version\": 1", "\"version\": 0", 1),
+    );
+    let o = run_in(dir, &["learn", "predict", "old.json", "v0.y4m"]);
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("old.json") && stderr(&o).contains("version 0"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!stderr(&o).contains("panicked"));
+    // The current model predicts, with an interval.
+    let o = run_in(dir, &["learn", "predict", "m.json", "v0.y4m"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    assert!(stdout(&o).contains("95% interval"), "{}", stdout(&o));
+}
