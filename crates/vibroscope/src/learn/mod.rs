@@ -239,7 +239,7 @@ fn sweep(
     let mut r = Vec::new();
     for a in 1..=max {
         let held = model::leave_one_object_out(method, a, x, y, objects, train, test)
-            .map_err(|m| Error::Runtime(anyhow::anyhow!(m)))?;
+            .map_err(Error::Analysis)?;
         let rs: Vec<f64> = (0..y.ncols())
             .map(|k| {
                 let p: Vec<f64> = held.iter().map(|h| h.0[k]).collect();
@@ -351,7 +351,7 @@ pub fn fit(o: &FitOptions, progress: &mut dyn FnMut(usize, usize, &Path)) -> Res
         sw.chosen = a;
     }
     let held = model::leave_one_object_out(o.method, sw.chosen, &x, &y, &objects, &rows, &rows)
-        .map_err(|m| Error::Runtime(anyhow::anyhow!(m)))?;
+        .map_err(Error::Analysis)?;
     let cv = (0..y.ncols())
         .map(|k| {
             let p: Vec<f64> = held.iter().map(|h| h.0[k]).collect();
@@ -362,8 +362,7 @@ pub fn fit(o: &FitOptions, progress: &mut dyn FnMut(usize, usize, &Path)) -> Res
     let dist: Vec<Distance> = held.iter().map(|h| h.1).collect();
     let xt = x.select(ndarray::Axis(0), &rows);
     let yt = y.select(ndarray::Axis(0), &rows);
-    let m = model::fit(o.method, sw.chosen, &xt, &yt)
-        .map_err(|m| Error::Runtime(anyhow::anyhow!(m)))?;
+    let m = model::fit(o.method, sw.chosen, &xt, &yt).map_err(Error::Analysis)?;
     let file = ModelFile {
         format: MODEL_FORMAT.into(),
         version: MODEL_VERSION,
@@ -382,8 +381,7 @@ pub fn fit(o: &FitOptions, progress: &mut dyn FnMut(usize, usize, &Path)) -> Res
         t2_limit: percentile(dist.iter().map(|d| d.t2).collect(), 0.99),
         q_limit: percentile(dist.iter().map(|d| d.q).collect(), 0.99),
     };
-    let bytes = serde_json::to_vec_pretty(&file).map_err(anyhow::Error::new)?;
-    crate::io::atomic::write_atomic(&o.output, &bytes).map_err(anyhow::Error::new)?;
+    crate::json::write(&o.output, &file)?;
     Ok(file)
 }
 
@@ -477,8 +475,7 @@ pub fn predict(o: &PredictOptions) -> Result<Prediction> {
         out_of_distribution: dist.t2 > m.t2_limit || dist.q > m.q_limit,
     };
     if let Some(j) = &o.json {
-        let bytes = serde_json::to_vec_pretty(&p).map_err(anyhow::Error::new)?;
-        crate::io::atomic::write_atomic(j, &bytes).map_err(anyhow::Error::new)?;
+        crate::json::write(j, &p)?;
     }
     Ok(p)
 }
@@ -556,7 +553,7 @@ pub fn evaluate(
         // Components chosen on the training condition only.
         let sw = sweep(method, max, &x, &y, &objects, &train, &train)?;
         let held = model::leave_one_object_out(method, sw.chosen, &x, &y, &objects, &train, &test)
-            .map_err(|m| Error::Runtime(anyhow::anyhow!(m)))?;
+            .map_err(Error::Analysis)?;
         let predicted: Vec<Vec<f64>> = (0..y.ncols())
             .map(|k| held.iter().map(|h| h.0[k]).collect())
             .collect();
@@ -588,13 +585,12 @@ pub fn evaluate(
         written: Vec::new(),
     };
     if let Some(p) = &o.png {
-        let png = correlation_plot(&e).map_err(|m| Error::Runtime(anyhow::anyhow!(m)))?;
-        crate::io::atomic::write_atomic(p, &png).map_err(anyhow::Error::new)?;
+        let png = correlation_plot(&e).map_err(Error::Analysis)?;
+        crate::io::atomic::write_atomic(p, &png)?;
         e.written.push(p.clone());
     }
     if let Some(j) = &o.json {
-        let bytes = serde_json::to_vec_pretty(&e).map_err(anyhow::Error::new)?;
-        crate::io::atomic::write_atomic(j, &bytes).map_err(anyhow::Error::new)?;
+        crate::json::write(j, &e)?;
         e.written.push(j.clone());
     }
     Ok(e)
