@@ -27,13 +27,28 @@ pub enum WavError {
     Write(#[from] crate::atomic::WriteError),
 }
 
+impl WavError {
+    /// `WavError::Open` for `path`, as a `map_err` argument.
+    fn open(path: &Path) -> impl Fn(hound::Error) -> WavError + Copy + '_ {
+        move |source| WavError::Open {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
+    /// `WavError::Samples` for `path`, as a `map_err` argument.
+    fn samples(path: &Path) -> impl Fn(hound::Error) -> WavError + Copy + '_ {
+        move |source| WavError::Samples {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}
+
 /// A WAV file's sample rate (Hz) and length (samples per channel), from
 /// its header alone: to check them before reading or resampling.
 pub fn info(path: &Path) -> Result<(u32, u64), WavError> {
-    let r = hound::WavReader::open(path).map_err(|source| WavError::Open {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let r = hound::WavReader::open(path).map_err(WavError::open(path))?;
     Ok((r.spec().sample_rate, u64::from(r.duration())))
 }
 
@@ -101,14 +116,8 @@ pub fn read_mono(path: &Path) -> Result<(u32, Vec<f64>), WavError> {
 
 /// [`read_mono`] of WAV bytes from any reader; `path` names them in errors.
 pub fn read_mono_from<R: std::io::Read>(src: R, path: &Path) -> Result<(u32, Vec<f64>), WavError> {
-    let open = |source| WavError::Open {
-        path: path.to_path_buf(),
-        source,
-    };
-    let bad = |source| WavError::Samples {
-        path: path.to_path_buf(),
-        source,
-    };
+    let open = WavError::open(path);
+    let bad = WavError::samples(path);
     let mut r = hound::WavReader::new(src).map_err(open)?;
     let spec = r.spec();
     let ch = spec.channels.max(1) as usize;
@@ -293,14 +302,8 @@ pub fn write_mono_i16(path: &Path, rate: u32, x: &[f64], gain: f64) -> Result<()
 /// temporary sibling renamed over it): memory stays bounded whatever the
 /// length. A silent file is written unscaled.
 pub fn normalize_to_i16(path: &Path, peak_dbfs: f64) -> Result<(), WavError> {
-    let open = |source| WavError::Open {
-        path: path.to_path_buf(),
-        source,
-    };
-    let bad = |source| WavError::Samples {
-        path: path.to_path_buf(),
-        source,
-    };
+    let open = WavError::open(path);
+    let bad = WavError::samples(path);
     let io_err = |e: std::io::Error| {
         WavError::Write(crate::atomic::WriteError {
             path: path.to_path_buf(),

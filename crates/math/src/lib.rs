@@ -36,6 +36,7 @@ pub mod rod;
 pub mod row_phase;
 pub mod rs_calibrate;
 pub mod ssi;
+pub mod stft;
 pub mod truth;
 
 pub use error::MathError;

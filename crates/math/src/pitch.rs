@@ -304,27 +304,14 @@ fn refine(d: &[f64], tau: usize) -> f64 {
 /// power per bin `k·rate/len`) for each window.
 pub fn spectrogram(x: &[f64], rate_hz: f64, len: usize, hop: usize) -> Vec<(f64, Vec<f64>)> {
     let len = len.max(4);
-    let hop = hop.max(1);
-    let mut planner = realfft::RealFftPlanner::<f64>::new();
-    let fft = planner.plan_fft_forward(len);
-    let window: Vec<f64> = (0..len)
-        .map(|i| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * i as f64 / len as f64).cos())
-        .collect();
-    let mut buf = fft.make_input_vec();
-    let mut out = fft.make_output_vec();
-    let mut spectra = Vec::new();
-    let mut start = 0;
-    while start + len <= x.len() {
-        for ((b, v), w) in buf.iter_mut().zip(&x[start..start + len]).zip(&window) {
-            *b = v * w;
-        }
-        if fft.process(&mut buf, &mut out).is_ok() {
-            let t = (start as f64 + len as f64 / 2.0) / rate_hz;
-            spectra.push((t, out.iter().map(|c| c.norm_sqr()).collect()));
-        }
-        start += hop;
-    }
-    spectra
+    crate::stft::stft(x, len, hop)
+        .into_iter()
+        .enumerate()
+        .map(|(k, spec)| {
+            let t = ((k * hop.max(1)) as f64 + len as f64 / 2.0) / rate_hz;
+            (t, spec.iter().map(|c| c.norm_sqr()).collect())
+        })
+        .collect()
 }
 
 /// Median relative error `|f / truth - 1|` over the frames voiced in

@@ -101,25 +101,7 @@ pub fn equalize(x: &[f64], fs: f64, gain: impl Fn(f64) -> Complex<f64>) -> Vec<f
 
 /// Hann-windowed STFT frames (hop N/2) of `x`: one spectrum per frame.
 pub(super) fn stft(x: &[f64], nfft: usize) -> Vec<Vec<Complex<f64>>> {
-    let hop = nfft / 2;
-    let mut planner = RealFftPlanner::<f64>::new();
-    let fwd = planner.plan_fft_forward(nfft);
-    let win: Vec<f64> = (0..nfft)
-        .map(|i| 0.5 - 0.5 * (2.0 * PI * i as f64 / nfft as f64).cos())
-        .collect();
-    let mut frames = Vec::new();
-    let mut buf = fwd.make_input_vec();
-    let mut s = 0;
-    while s + nfft <= x.len() {
-        for i in 0..nfft {
-            buf[i] = x[s + i] * win[i];
-        }
-        let mut spec = fwd.make_output_vec();
-        let _ = fwd.process(&mut buf, &mut spec);
-        frames.push(spec);
-        s += hop;
-    }
-    frames
+    crate::stft::stft(x, nfft, nfft / 2)
 }
 
 /// Welch power spectrum (mean of |STFT|²) with `nfft`.
