@@ -75,6 +75,7 @@ enum Command {
     Compare(cmd::compare::Args),
     Demo(cmd::demo::Args),
     Learn(cmd::learn::Args),
+    Studio(cmd::studio::Args),
 }
 
 fn main() -> ExitCode {
@@ -139,6 +140,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         Command::Compare(a) => cmd::compare::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Learn(a) => cmd::learn::run(a),
+        Command::Studio(a) => cmd::studio::run(a),
     }
 }
 

@@ -20,6 +20,7 @@ pub mod run;
 pub mod score;
 pub mod simulate;
 pub mod spectrum;
+pub mod studio;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};

@@ -205,8 +205,10 @@ pub fn run_spectrum(o: &SpectrumOptions, damping: bool) -> Result<(SpectrumRepor
     run_spectrum_with(o, damping, None)
 }
 
-/// [`run_spectrum`], and with `disp` the regions' displacement too (one pass).
-fn run_spectrum_with(
+/// [`run_spectrum`], and with `disp` the regions' displacement too (one
+/// pass): the studio's region view reads the waveform and the peaks of one
+/// run this way.
+pub fn run_spectrum_with(
     o: &SpectrumOptions,
     damping: bool,
     disp: Option<&DisplacementTap>,

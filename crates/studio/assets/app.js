@@ -1,0 +1,333 @@
+// vibroscope studio: the page. Plain JavaScript drawing on canvas; every
+// number comes from the server's API (the library's recipes).
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const TOKEN = new URLSearchParams(location.search).get("token");
+
+// Everything the page shows, readable by the end-to-end test.
+const S = {
+  video: null, fps: null, info: null, scale: 1, frameIndex: 0,
+  regions: [], sel: -1, motion: null, mode: null, grey: null,
+  motionSeq: 0, modeSeq: 0, errorSeq: 0, lastError: null, busy: 0,
+};
+window.studio = S;
+
+function url(path, params) {
+  const q = new URLSearchParams(params || {});
+  if (TOKEN) q.set("token", TOKEN);
+  const s = q.toString();
+  return s ? path + "?" + s : path;
+}
+
+function showError(msg) {
+  S.lastError = msg; S.errorSeq++;
+  const e = $("error"); e.textContent = msg; e.hidden = false;
+}
+function clearError() { $("error").hidden = true; }
+function status(msg) { $("status").textContent = msg; }
+
+async function api(path, params, body) {
+  S.busy++;
+  try {
+    const opts = body === undefined ? {} :
+      { method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(body) };
+    let r;
+    try { r = await fetch(url(path, params), opts); }
+    catch (e) { throw new Error("the studio server does not answer (" + e.message + ")"); }
+    if (!r.ok) {
+      let msg = r.status + " " + r.statusText;
+      try { const j = await r.json(); if (j.error) msg = j.error; } catch (_) { /* not JSON */ }
+      throw new Error(msg);
+    }
+    return r;
+  } finally { S.busy--; }
+}
+
+function fpsParam() {
+  const v = parseFloat($("fps").value);
+  return isFinite(v) && v > 0 ? v : null;
+}
+
+// ---- opening a video and scrubbing ----
+async function openVideo() {
+  clearError();
+  const video = $("video").value.trim();
+  const params = { video };
+  const fps = fpsParam();
+  if (fps) params.fps = fps;
+  try {
+    const info = await (await api("/api/info", params)).json();
+    S.video = video; S.fps = fps; S.info = info; S.regions = []; S.sel = -1; S.mode = null;
+    const w = info.width, h = info.height;
+    S.scale = Math.max(1, Math.min(8, Math.floor(560 / w)));
+    const cw = w * S.scale, ch = h * S.scale;
+    for (const id of ["frame", "modal"]) {
+      const c = $(id); c.width = w; c.height = h; c.style.width = cw + "px"; c.style.height = ch + "px";
+    }
+    const o = $("overlay"); o.width = cw; o.height = ch; o.style.width = cw + "px"; o.style.height = ch + "px";
+    $("modal").hidden = true; $("modepanel").hidden = true;
+    $("scrub").max = Math.max(0, (info.frames || 1) - 1); $("scrub").value = 0;
+    status(`${info.format} ${w}x${h}, ${info.frames ?? "?"} frames at ${info.fps ?? "?"} Hz`);
+    await loadFrame(0);
+    drawRegions();
+    await loadMotion();
+  } catch (e) { showError(e.message); }
+}
+
+async function loadFrame(i) {
+  const r = await api("/api/frame", { video: S.video, i });
+  const blob = await r.blob();
+  const bmp = await createImageBitmap(blob);
+  const c = $("frame"), g = c.getContext("2d");
+  g.drawImage(bmp, 0, 0);
+  const d = g.getImageData(0, 0, c.width, c.height).data;
+  S.grey = new Uint8ClampedArray(c.width * c.height);
+  for (let k = 0; k < S.grey.length; k++) S.grey[k] = d[4 * k];
+  S.frameIndex = i; $("frameno").textContent = "frame " + i;
+}
+
+// ---- regions ----
+let drag = null;
+function framePoint(ev) {
+  const o = $("overlay"), b = o.getBoundingClientRect();
+  const x = Math.floor((ev.clientX - b.left) / S.scale), y = Math.floor((ev.clientY - b.top) / S.scale);
+  return [Math.max(0, Math.min(S.info.width, x)), Math.max(0, Math.min(S.info.height, y))];
+}
+function dragRoi() {
+  const [x0, y0] = drag.a, [x1, y1] = drag.b;
+  return [Math.min(x0, x1), Math.min(y0, y1), Math.abs(x1 - x0), Math.abs(y1 - y0)];
+}
+function drawRegions() {
+  const o = $("overlay"), g = o.getContext("2d"), s = S.scale;
+  g.clearRect(0, 0, o.width, o.height);
+  g.lineWidth = 2; g.font = "12px sans-serif";
+  S.regions.forEach((r, k) => {
+    g.strokeStyle = k === S.sel ? "#ffcc33" : "#33ccff";
+    g.strokeRect(r[0] * s + 1, r[1] * s + 1, r[2] * s - 2, r[3] * s - 2);
+    g.fillStyle = g.strokeStyle; g.fillText("R" + (k + 1), r[0] * s + 4, r[1] * s + 14);
+  });
+  if (drag) {
+    const r = dragRoi(); g.strokeStyle = "#fff"; g.setLineDash([4, 3]);
+    g.strokeRect(r[0] * s, r[1] * s, r[2] * s, r[3] * s); g.setLineDash([]);
+  }
+  const box = $("regions"); box.innerHTML = "";
+  const add = (label, k) => {
+    const b = document.createElement("button"); b.className = "region" + (k === S.sel ? " sel" : "");
+    b.textContent = label; b.onclick = () => { S.sel = k; drawRegions(); loadMotion(); }; box.appendChild(b);
+  };
+  add("Whole frame", -1);
+  S.regions.forEach((r, k) => add(`R${k + 1} ${r.join(",")}`, k));
+  if (S.regions.length) {
+    const b = document.createElement("button"); b.textContent = "Clear regions";
+    b.onclick = () => { S.regions = []; S.sel = -1; drawRegions(); loadMotion(); }; box.appendChild(b);
+  }
+}
+function setupRegions() {
+  const o = $("overlay");
+  o.addEventListener("mousedown", (ev) => { if (S.info) { drag = { a: framePoint(ev), b: framePoint(ev) }; } });
+  o.addEventListener("mousemove", (ev) => { if (drag) { drag.b = framePoint(ev); drawRegions(); } });
+  window.addEventListener("mouseup", (ev) => {
+    if (!drag) return;
+    drag.b = framePoint(ev);
+    const r = dragRoi(); drag = null;
+    if (r[2] >= 8 && r[3] >= 8) { S.regions.push(r); S.sel = S.regions.length - 1; drawRegions(); loadMotion(); }
+    else drawRegions();
+  });
+}
+
+// ---- waveform, spectrum, peaks ----
+async function loadMotion() {
+  if (!S.video) return;
+  const roi = S.sel >= 0 ? S.regions[S.sel] : null;
+  $("plottitle").textContent = (roi ? `Region R${S.sel + 1} (${roi.join(",")})` : "Whole frame") + ": computing…";
+  const body = { video: S.video, roi };
+  if (S.fps) body.fps = S.fps;
+  try {
+    const m = await (await api("/api/motion", null, body)).json();
+    S.motion = m; S.motionSeq++;
+    clearError();
+    $("plottitle").textContent = (roi ? `Region R${S.sel + 1} (${roi.join(",")})` : "Whole frame") +
+      ` — ${m.peaks.length} peaks, resolution ${m.resolution_hz.toFixed(3)} Hz` + (m.cached ? " (cached)" : "");
+    drawWaveform(); drawSpectrum(); fillPeaks();
+  } catch (e) { $("plottitle").textContent = "Error"; showError(e.message); }
+}
+
+function axes(g, c, L, B, xlabel, ylabel) {
+  g.fillStyle = "#0e1014"; g.fillRect(0, 0, c.width, c.height);
+  g.strokeStyle = "#555"; g.strokeRect(L, 8, c.width - L - 10, c.height - B - 8);
+  g.fillStyle = "#aaa"; g.font = "11px sans-serif";
+  g.fillText(xlabel, c.width - 10 - g.measureText(xlabel).width, c.height - 4);
+  g.save(); g.translate(11, 8 + (c.height - B) / 2); g.rotate(-Math.PI / 2); g.fillText(ylabel, -20, 0); g.restore();
+}
+
+function drawWaveform() {
+  const c = $("waveform"), g = c.getContext("2d"), m = S.motion.waveform;
+  const L = 50, B = 22, W = c.width - L - 10, H = c.height - B - 8;
+  axes(g, c, L, B, "time (s)", "px");
+  const n = m.y_px.length; if (!n) return;
+  let lo = Infinity, hi = -Infinity;
+  for (const a of [m.x_px, m.y_px]) for (const v of a) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  if (hi <= lo) { hi = lo + 1e-3; }
+  const t0 = m.t_s[0], t1 = m.t_s[n - 1] || t0 + 1;
+  const X = (t) => L + (t - t0) / (t1 - t0 || 1) * W, Y = (v) => 8 + (hi - v) / (hi - lo) * H;
+  for (const [a, col] of [[m.x_px, "#77aaff"], [m.y_px, "#ffaa55"]]) {
+    g.strokeStyle = col; g.beginPath();
+    for (let k = 0; k < n; k++) { const x = X(m.t_s[k]), y = Y(a[k]); k ? g.lineTo(x, y) : g.moveTo(x, y); }
+    g.stroke();
+  }
+  g.fillStyle = "#aaa";
+  g.fillText(hi.toPrecision(3), 2, 16); g.fillText(lo.toPrecision(3), 2, 8 + H);
+  g.fillText(t0.toFixed(2), L, c.height - 4); g.fillText(t1.toFixed(2) + " s", L + W - 30, 8 + H + 12);
+  g.fillStyle = "#77aaff"; g.fillText("x", L + 6, 20); g.fillStyle = "#ffaa55"; g.fillText("y", L + 18, 20);
+}
+
+const SPEC = { L: 50, R: 10, T: 8, B: 22 };
+function nyquist() { return S.motion.sample_rate_hz / 2; }
+// Canvas x (pixels from the canvas's left edge) of frequency f, for the test.
+S.freqToX = (f) => { const c = $("spectrum"); return SPEC.L + f / nyquist() * (c.width - SPEC.L - SPEC.R); };
+function xToFreq(x) { const c = $("spectrum"); return (x - SPEC.L) / (c.width - SPEC.L - SPEC.R) * nyquist(); }
+
+function drawSpectrum() {
+  const c = $("spectrum"), g = c.getContext("2d"), sp = S.motion.spectrum;
+  axes(g, c, SPEC.L, SPEC.B, "frequency (Hz)", "power (dB)");
+  if (!sp) return;
+  const p = sp.power_db, H = c.height - SPEC.B - SPEC.T;
+  let lo = Infinity, hi = -Infinity;
+  for (const v of p) if (isFinite(v)) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  lo = Math.max(lo, hi - 80);
+  const Y = (v) => SPEC.T + (hi - Math.max(v, lo)) / (hi - lo || 1) * H;
+  g.strokeStyle = "#66dd88"; g.beginPath();
+  p.forEach((v, k) => { const x = S.freqToX(sp.f0_hz + k * sp.resolution_hz), y = Y(v); k ? g.lineTo(x, y) : g.moveTo(x, y); });
+  g.stroke();
+  g.fillStyle = "#aaa";
+  g.fillText(hi.toFixed(0), 4, SPEC.T + 10); g.fillText(lo.toFixed(0), 4, SPEC.T + H);
+  const ny = nyquist();
+  for (let k = 0; k <= 5; k++) { const f = ny * k / 5; g.fillText(f.toFixed(0), S.freqToX(f) - 8, c.height - 8); }
+  g.fillStyle = "#ff5555";
+  S.motion.peaks.forEach((pk, k) => { const x = S.freqToX(pk.frequency_hz); g.fillRect(x - 1, SPEC.T, 2, 6); g.fillText(String(k + 1), x + 2, SPEC.T + 12); });
+  if (S.mode) { g.strokeStyle = "#ffcc33"; const x = S.freqToX(S.mode.freq_hz); g.beginPath(); g.moveTo(x, SPEC.T); g.lineTo(x, SPEC.T + H); g.stroke(); }
+}
+
+function fillPeaks() {
+  const tb = document.querySelector("#peaks tbody"); tb.innerHTML = "";
+  S.motion.peaks.forEach((p) => {
+    const tr = document.createElement("tr");
+    const cells = [p.frequency_hz.toFixed(3), p.frequency_std_hz.toFixed(3), p.damping_ratio.toFixed(4),
+      p.damping_ratio_std.toFixed(4), p.prominence_db.toFixed(1), p.amplitude_px.toPrecision(3)];
+    tr.innerHTML = cells.map((v) => `<td>${v}</td>`).join("");
+    tr.title = "show the modal image at " + p.frequency_hz.toFixed(3) + " Hz";
+    tr.onclick = () => showMode(p.frequency_hz);
+    if (S.mode && Math.abs(S.mode.freq_hz - p.frequency_hz) < 1e-9) tr.className = "sel";
+    tb.appendChild(tr);
+  });
+}
+
+// ---- modal image ----
+async function showMode(f) {
+  const body = { video: S.video, freq_hz: f };
+  if (S.fps) body.fps = S.fps;
+  status(`modal image at ${f.toFixed(3)} Hz…`);
+  try {
+    const m = await (await api("/api/mode", null, body)).json();
+    const img = new Image();
+    await new Promise((ok, fail) => { img.onload = ok; img.onerror = () => fail(new Error("modal image PNG did not decode")); img.src = m.png; });
+    const c = $("modal"), g = c.getContext("2d");
+    g.clearRect(0, 0, c.width, c.height); g.drawImage(img, 0, 0);
+    c.hidden = false; c.style.opacity = $("opacity").value;
+    S.mode = m; S.modeSeq++;
+    clearError();
+    $("modepanel").hidden = false;
+    $("modetitle").textContent = `Modal image at ${f.toFixed(3)} Hz` + (m.cached ? " (cached)" : "") + ` — ${m.elapsed_ms.toFixed(0)} ms`;
+    $("amplabel").textContent = `0 … ${m.max_amplitude_px.toPrecision(3)} px (brightness = amplitude)`;
+    status(`modal image at ${f.toFixed(3)} Hz`);
+    drawSpectrum(); fillPeaks();
+  } catch (e) { status(""); showError(e.message); }
+}
+
+function hsv(h, s, v) {
+  const i = Math.floor(h * 6) % 6, f = h * 6 - Math.floor(h * 6);
+  const p = v * (1 - s), q = v * (1 - s * f), t = v * (1 - s * (1 - f));
+  return [[v, t, p], [q, v, p], [p, v, t], [p, q, v], [t, p, v], [v, p, q]][i];
+}
+function drawKeys() {
+  const w = $("wheel"), g = w.getContext("2d"), im = g.createImageData(w.width, w.height);
+  const cx = w.width / 2, cy = w.height / 2, R = cx - 2;
+  for (let y = 0; y < w.height; y++) for (let x = 0; x < w.width; x++) {
+    const dx = x - cx, dy = cy - y, r = Math.hypot(dx, dy), k = 4 * (y * w.width + x);
+    if (r > R) continue;
+    const h = ((Math.atan2(dy, dx) / (2 * Math.PI)) + 1) % 1, rgb = hsv(h, 1, r / R);
+    im.data[k] = rgb[0] * 255; im.data[k + 1] = rgb[1] * 255; im.data[k + 2] = rgb[2] * 255; im.data[k + 3] = 255;
+  }
+  g.putImageData(im, 0, 0);
+  g.fillStyle = "#fff"; g.font = "10px sans-serif"; g.fillText("0", w.width - 10, cy + 3); g.fillText("π", 2, cy + 3);
+  const a = $("ampscale"), ga = a.getContext("2d"), grad = ga.createLinearGradient(0, 0, a.width, 0);
+  grad.addColorStop(0, "#000"); grad.addColorStop(1, "#fff"); ga.fillStyle = grad; ga.fillRect(0, 0, a.width, a.height);
+}
+
+// The operating deflection shape: the frame warped along y by
+// gain x amplitude x cos(phase + θ(t)), θ turning once a second.
+function animate(ts) {
+  if ($("animate").checked && S.mode && S.grey && S.mode.width === S.info.width) {
+    const c = $("frame"), g = c.getContext("2d"), w = c.width, h = c.height;
+    const im = g.createImageData(w, h), gain = +$("gain").value, th = (ts / 1000) * 2 * Math.PI;
+    const A = S.mode.amplitude_px, P = S.mode.phase_rad;
+    for (let y = 0; y < h; y++) for (let x = 0; x < w; x++) {
+      const k = y * w + x, d = gain * A[k] * Math.cos(P[k] + th);
+      const sy = Math.max(0, Math.min(h - 1, Math.round(y - d)));
+      const v = S.grey[sy * w + x], o = 4 * k;
+      im.data[o] = im.data[o + 1] = im.data[o + 2] = v; im.data[o + 3] = 255;
+    }
+    g.putImageData(im, 0, 0);
+    S.animating = true;
+  } else if (S.animating) {
+    S.animating = false; loadFrame(S.frameIndex).catch((e) => showError(e.message));
+  }
+  requestAnimationFrame(animate);
+}
+
+// ---- export ----
+function download(name, href) { const a = document.createElement("a"); a.href = href; a.download = name; a.click(); }
+function downloadText(name, text, mime) { download(name, URL.createObjectURL(new Blob([text], { type: mime }))); }
+function base() { return (S.video || "studio").replace(/[^A-Za-z0-9_.-]+/g, "_"); }
+function setupExport() {
+  $("export-wave-png").onclick = () => download(base() + "-waveform.png", $("waveform").toDataURL("image/png"));
+  $("export-spec-png").onclick = () => download(base() + "-spectrum.png", $("spectrum").toDataURL("image/png"));
+  $("export-csv").onclick = () => {
+    if (!S.motion || !S.motion.spectrum) return showError("nothing to export yet");
+    const sp = S.motion.spectrum;
+    downloadText(base() + "-spectrum.csv", "frequency_hz,power_db\n" + sp.power_db.map((v, k) => `${sp.f0_hz + k * sp.resolution_hz},${v}`).join("\n") + "\n", "text/csv");
+  };
+  $("export-json").onclick = () => { if (S.motion) downloadText(base() + "-motion.json", JSON.stringify(S.motion), "application/json"); };
+  $("export-mode-png").onclick = () => { if (S.mode) download(base() + `-mode-${S.mode.freq_hz.toFixed(2)}Hz.png`, S.mode.png); };
+  $("export-mode-json").onclick = () => {
+    if (!S.mode) return;
+    const { png, ...rest } = S.mode;
+    downloadText(base() + `-mode-${S.mode.freq_hz.toFixed(2)}Hz.json`, JSON.stringify(rest), "application/json");
+  };
+}
+
+// ---- start ----
+async function main() {
+  drawKeys(); setupRegions(); setupExport();
+  $("open").onclick = openVideo;
+  $("video").addEventListener("keydown", (e) => { if (e.key === "Enter") openVideo(); });
+  $("scrub").addEventListener("input", () => loadFrame(+$("scrub").value).catch((e) => showError(e.message)));
+  $("spectrum").addEventListener("click", (ev) => {
+    if (!S.motion) return;
+    const b = $("spectrum").getBoundingClientRect(), x = (ev.clientX - b.left) * $("spectrum").width / b.width;
+    const f = xToFreq(x);
+    if (f > 0 && f <= nyquist()) showMode(f);
+  });
+  $("opacity").addEventListener("input", () => { $("modal").style.opacity = $("opacity").value; });
+  const gl = () => { $("gainlabel").textContent = "x" + $("gain").value; };
+  $("gain").addEventListener("input", gl); gl();
+  requestAnimationFrame(animate);
+  try {
+    const s = await (await api("/api/session")).json();
+    if (s.fps) $("fps").value = s.fps;
+    if (s.video) { $("video").value = s.video; await openVideo(); }
+    else status("root: " + s.root + " — name a video and press Open");
+  } catch (e) { showError(e.message); }
+}
+main();

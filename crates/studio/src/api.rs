@@ -1,0 +1,608 @@
+//! The studio's HTTP API: JSON in and out (frames and modal images as
+//! PNG), every answer computed by the recipes of the `vibroscope` crate.
+//!
+//! | request | answer |
+//! |---|---|
+//! | `GET /api/session` | the video opened at start, the root, whether a token is needed |
+//! | `GET /api/info?video=P[&fps=F]` | [`vibroscope::probe`]'s report |
+//! | `GET /api/frame?video=P&i=N` | frame N as an 8-bit grey PNG |
+//! | `POST /api/motion {video, roi?, fps?}` | the region's waveform (px), spectrum (dB) and peaks |
+//! | `POST /api/mode {video, freq_hz, roi?, fps?}` | the modal image: PNG (hue = phase, brightness = amplitude) and the amplitude/phase numbers |
+//!
+//! Errors come back as `{"error": MESSAGE}` with a 4xx (the request) or
+//! 5xx (the computation) status; nothing a request holds panics the server.
+
+use crate::guard::{self, Refusal};
+use axum::body::Bytes;
+use axum::extract::{DefaultBodyLimit, Query, Request, State};
+use axum::http::{header, HeaderValue, StatusCode};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::Router;
+use serde::Deserialize;
+use serde_json::{json, Value};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+use vibroscope::io::{FrameDest, VideoReader};
+use vibroscope::math::modal::{align_phase, read_npy_complex64};
+use vibroscope::modes::ModesOptions;
+use vibroscope::pipeline::{Region, Roi};
+use vibroscope::spectrum::{DisplacementTap, SpectrumOptions};
+
+const INDEX_HTML: &str = include_str!("../assets/index.html");
+const APP_JS: &str = include_str!("../assets/app.js");
+const STYLE_CSS: &str = include_str!("../assets/style.css");
+
+/// At most this many computed answers are kept (then the cache starts over).
+const CACHE_ENTRIES: usize = 64;
+
+/// The server's state.
+pub struct App {
+    root: PathBuf,
+    video: Option<String>,
+    fps: Option<f64>,
+    token: Option<String>,
+    cache: Mutex<HashMap<String, Arc<Value>>>,
+    /// The last frame reader, for scrubbing forward without reopening.
+    reader: Mutex<Option<OpenReader>>,
+}
+
+/// A reader left open: its file and the index of the next frame it gives.
+type OpenReader = (PathBuf, u64, Box<dyn VideoReader>);
+
+impl App {
+    pub fn new(
+        root: PathBuf,
+        video: Option<String>,
+        fps: Option<f64>,
+        token: Option<String>,
+    ) -> App {
+        App {
+            root,
+            video,
+            fps,
+            token,
+            cache: Mutex::new(HashMap::new()),
+            reader: Mutex::new(None),
+        }
+    }
+}
+
+/// An error answer: a status and a message the page shows.
+#[derive(Debug)]
+pub struct ApiError {
+    pub status: StatusCode,
+    pub message: String,
+}
+
+impl ApiError {
+    fn new(status: StatusCode, message: impl Into<String>) -> ApiError {
+        ApiError {
+            status,
+            message: message.into(),
+        }
+    }
+    fn bad(message: impl Into<String>) -> ApiError {
+        ApiError::new(StatusCode::BAD_REQUEST, message)
+    }
+    fn unprocessable(message: impl Into<String>) -> ApiError {
+        ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, message)
+    }
+}
+
+impl From<Refusal> for ApiError {
+    fn from(r: Refusal) -> ApiError {
+        match r {
+            Refusal::Bad(m) => ApiError::bad(m),
+            Refusal::Outside(m) => ApiError::new(StatusCode::FORBIDDEN, m),
+            Refusal::Missing(m) => ApiError::new(StatusCode::NOT_FOUND, m),
+        }
+    }
+}
+
+impl From<vibroscope::Error> for ApiError {
+    /// The recipe's message; a usage error (a bad value or file) is the
+    /// request's fault (422), anything else the computation's (500).
+    fn from(e: vibroscope::Error) -> ApiError {
+        let status = match e.kind() {
+            vibroscope::ErrorKind::Usage => StatusCode::UNPROCESSABLE_ENTITY,
+            _ => StatusCode::INTERNAL_SERVER_ERROR,
+        };
+        ApiError::new(status, e.to_string())
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.status, axum::Json(json!({ "error": self.message }))).into_response()
+    }
+}
+
+type ApiResult<T> = Result<T, ApiError>;
+
+/// The routes, behind the guard, with request bodies bounded to `max_body`.
+pub fn router(app: Arc<App>, max_body: usize) -> Router {
+    Router::new()
+        .route(
+            "/",
+            get(|| async { asset(INDEX_HTML, "text/html; charset=utf-8") }),
+        )
+        .route(
+            "/app.js",
+            get(|| async { asset(APP_JS, "text/javascript; charset=utf-8") }),
+        )
+        .route(
+            "/style.css",
+            get(|| async { asset(STYLE_CSS, "text/css; charset=utf-8") }),
+        )
+        .route("/api/session", get(session))
+        .route("/api/info", get(info))
+        .route("/api/frame", get(frame))
+        .route("/api/motion", post(motion))
+        .route("/api/mode", post(mode))
+        .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "no such page") })
+        .layer(DefaultBodyLimit::max(max_body))
+        .layer(middleware::from_fn_with_state(app.clone(), gate))
+        .with_state(app)
+}
+
+fn asset(body: &'static str, mime: &'static str) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static(mime)),
+            (header::CACHE_CONTROL, HeaderValue::from_static("no-store")),
+        ],
+        body,
+    )
+        .into_response()
+}
+
+/// Every request: no encoded separators in the path; the token when one
+/// is set (query `token=` or header `x-vibroscope-token`): missing 401,
+/// wrong 403.
+async fn gate(State(app): State<Arc<App>>, req: Request, next: Next) -> Response {
+    if guard::has_encoded_separator(req.uri().path()) {
+        return ApiError::bad("encoded slashes, backslashes or NULs are not allowed in a path")
+            .into_response();
+    }
+    if let Some(expected) = &app.token {
+        let from_query = req.uri().query().and_then(|q| {
+            q.split('&')
+                .find_map(|kv| kv.strip_prefix("token=").map(str::to_owned))
+        });
+        let given = from_query.or_else(|| {
+            req.headers()
+                .get("x-vibroscope-token")
+                .and_then(|v| v.to_str().ok())
+                .map(str::to_owned)
+        });
+        match given {
+            None => {
+                return ApiError::new(
+                    StatusCode::UNAUTHORIZED,
+                    "this studio needs the token printed in its URL",
+                )
+                .into_response()
+            }
+            Some(t) if !guard::same_token(&t, expected) => {
+                return ApiError::new(StatusCode::FORBIDDEN, "wrong token").into_response()
+            }
+            Some(_) => {}
+        }
+    }
+    let mut resp = next.run(req).await;
+    resp.headers_mut().insert(
+        "x-content-type-options",
+        HeaderValue::from_static("nosniff"),
+    );
+    resp
+}
+
+async fn session(State(app): State<Arc<App>>) -> axum::Json<Value> {
+    axum::Json(json!({
+        "video": app.video,
+        "fps": app.fps,
+        "root": app.root,
+        "token_required": app.token.is_some(),
+    }))
+}
+
+#[derive(Deserialize)]
+struct VideoQuery {
+    video: String,
+    fps: Option<f64>,
+    i: Option<u64>,
+}
+
+/// Query-string errors as JSON 400s (axum's own rejection is plain text).
+fn query<T: serde::de::DeserializeOwned>(
+    q: Result<Query<T>, axum::extract::rejection::QueryRejection>,
+) -> ApiResult<T> {
+    q.map(|Query(v)| v)
+        .map_err(|e| ApiError::bad(format!("query: {}", e.body_text())))
+}
+
+/// Runs a computation off the async threads; a panic in it becomes a 500.
+async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> ApiResult<T> + Send + 'static,
+) -> ApiResult<T> {
+    tokio::task::spawn_blocking(f).await.map_err(|e| {
+        ApiError::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            format!("internal error in the computation: {e}"),
+        )
+    })?
+}
+
+fn fps_of(app: &App, given: Option<f64>) -> ApiResult<Option<f64>> {
+    match given.or(app.fps) {
+        Some(f) if !(f.is_finite() && f > 0.0) => Err(ApiError::unprocessable(format!(
+            "fps {f}: must be a positive number"
+        ))),
+        f => Ok(f),
+    }
+}
+
+async fn info(
+    State(app): State<Arc<App>>,
+    q: Result<Query<VideoQuery>, axum::extract::rejection::QueryRejection>,
+) -> ApiResult<axum::Json<Value>> {
+    let q = query(q)?;
+    let path = guard::resolve(&app.root, &q.video)?;
+    let fps = fps_of(&app, q.fps)?;
+    let r = blocking(move || Ok(vibroscope::probe::probe(&path, fps)?)).await?;
+    let mut v = serde_json::to_value(&r).map_err(|e| ApiError::bad(e.to_string()))?;
+    v["video"] = json!(q.video);
+    Ok(axum::Json(v))
+}
+
+async fn frame(
+    State(app): State<Arc<App>>,
+    q: Result<Query<VideoQuery>, axum::extract::rejection::QueryRejection>,
+) -> ApiResult<Response> {
+    let q = query(q)?;
+    let path = guard::resolve(&app.root, &q.video)?;
+    let i = q.i.unwrap_or(0);
+    let png = blocking(move || read_frame_png(&app, &path, i)).await?;
+    Ok((
+        [(header::CONTENT_TYPE, HeaderValue::from_static("image/png"))],
+        png,
+    )
+        .into_response())
+}
+
+/// Frame `i` of `path` as an 8-bit grey PNG (16-bit frames scaled by their
+/// declared bit depth); reads forward from the last frame served.
+fn read_frame_png(app: &App, path: &Path, i: u64) -> ApiResult<Vec<u8>> {
+    let mut slot = app.reader.lock().unwrap_or_else(|p| p.into_inner());
+    let reuse = matches!(&*slot, Some((p, next, _)) if p == path && *next <= i);
+    if !reuse {
+        let r = vibroscope::io::open(path, vibroscope::io::Format::Auto)
+            .map_err(|e| ApiError::unprocessable(e.to_string()))?;
+        *slot = Some((path.to_path_buf(), 0, r));
+    }
+    let Some((_, next, reader)) = slot.as_mut() else {
+        return Err(ApiError::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            "no reader",
+        ));
+    };
+    let info = reader.info().clone();
+    let n = info.width as usize * info.height as usize;
+    let mut px8 = vec![0u8; n];
+    let mut px16 = vec![0u16; n];
+    loop {
+        let got = match info.depth {
+            vibroscope::io::Depth::U8 => reader.read_frame(FrameDest::U8(&mut px8)),
+            vibroscope::io::Depth::U16 => reader.read_frame(FrameDest::U16(&mut px16)),
+        };
+        let got = got.map_err(|e| {
+            *next = u64::MAX;
+            ApiError::unprocessable(e.to_string())
+        })?;
+        if got.is_none() {
+            let have = *next;
+            *next = u64::MAX;
+            return Err(ApiError::new(
+                StatusCode::NOT_FOUND,
+                format!("frame {i}: the video has {have} frames"),
+            ));
+        }
+        *next += 1;
+        if *next > i {
+            break;
+        }
+    }
+    if info.depth == vibroscope::io::Depth::U16 {
+        let shift = info.bits.saturating_sub(8).min(8);
+        for (d, &s) in px8.iter_mut().zip(&px16) {
+            *d = (s >> shift).min(255) as u8;
+        }
+    }
+    encode_png(&px8, info.width, info.height, image::ExtendedColorType::L8)
+}
+
+fn encode_png(px: &[u8], w: u32, h: u32, ty: image::ExtendedColorType) -> ApiResult<Vec<u8>> {
+    use image::ImageEncoder;
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(px, w, h, ty)
+        .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, format!("PNG: {e}")))?;
+    Ok(png)
+}
+
+/// A JSON body, or 400 naming what is wrong (bodies over the bound were
+/// refused with 413 before this).
+fn body<T: serde::de::DeserializeOwned>(b: &Bytes) -> ApiResult<T> {
+    serde_json::from_slice(b).map_err(|e| ApiError::bad(format!("request body: {e}")))
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MotionRequest {
+    video: String,
+    /// `[x, y, w, h]`; none: the whole frame.
+    roi: Option<[u32; 4]>,
+    fps: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ModeRequest {
+    video: String,
+    freq_hz: f64,
+    roi: Option<[u32; 4]>,
+    fps: Option<f64>,
+}
+
+/// The video's size and rate, and `roi` checked against the frame.
+fn check_roi(
+    path: &Path,
+    fps: Option<f64>,
+    roi: Option<[u32; 4]>,
+) -> ApiResult<(vibroscope::probe::ProbeReport, [u32; 4])> {
+    let p = vibroscope::probe::probe(path, fps)?;
+    let r = roi.unwrap_or([0, 0, p.width, p.height]);
+    let [x, y, w, h] = r.map(u64::from);
+    if w < 8 || h < 8 || x + w > u64::from(p.width) || y + h > u64::from(p.height) {
+        return Err(ApiError::unprocessable(format!(
+            "region {x},{y},{w},{h} is not inside the {}x{} frame (or smaller than 8x8)",
+            p.width, p.height
+        )));
+    }
+    Ok((p, r))
+}
+
+/// A cache key naming the file's identity (path, size, modification time).
+fn file_key(path: &Path) -> String {
+    let meta = std::fs::metadata(path).ok();
+    let len = meta.as_ref().map_or(0, |m| m.len());
+    let mtime = meta
+        .and_then(|m| m.modified().ok())
+        .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos());
+    format!("{}|{len}|{mtime}", path.display())
+}
+
+fn cached(app: &App, key: &str) -> Option<Arc<Value>> {
+    app.cache
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .get(key)
+        .cloned()
+}
+
+fn remember(app: &App, key: String, v: Value) -> Arc<Value> {
+    let v = Arc::new(v);
+    let mut c = app.cache.lock().unwrap_or_else(|p| p.into_inner());
+    if c.len() >= CACHE_ENTRIES {
+        c.clear();
+    }
+    c.insert(key, v.clone());
+    v
+}
+
+/// Answers from the cache, marking them so (`"cached": true`).
+fn answer(v: &Value, cached: bool, ms: f64) -> axum::Json<Value> {
+    let mut v = v.clone();
+    v["cached"] = json!(cached);
+    v["elapsed_ms"] = json!(ms);
+    axum::Json(v)
+}
+
+async fn motion(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
+    let t0 = Instant::now();
+    let r: MotionRequest = body(&b)?;
+    let path = guard::resolve(&app.root, &r.video)?;
+    let fps = fps_of(&app, r.fps)?;
+    let key = format!("motion|{}|{:?}|{fps:?}", file_key(&path), r.roi);
+    if let Some(v) = cached(&app, &key) {
+        return Ok(answer(&v, true, t0.elapsed().as_secs_f64() * 1e3));
+    }
+    let app2 = app.clone();
+    let v = blocking(move || {
+        let (_, roi) = check_roi(&path, fps, r.roi)?;
+        let v = region_motion(&path, fps, r.roi.map(|_| roi), roi)?;
+        Ok(remember(&app2, key, v))
+    })
+    .await?;
+    Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
+}
+
+/// The spectrum recipe (its peaks with damping and uncertainty) and the
+/// region's displacement, from one run over the recording.
+fn region_motion(
+    path: &Path,
+    fps: Option<f64>,
+    roi: Option<[u32; 4]>,
+    disp_roi: [u32; 4],
+) -> ApiResult<Value> {
+    let mut o = SpectrumOptions::new(path, "studio-unused.json");
+    o.fps = fps;
+    o.peaks = 8;
+    o.include_spectrum = true;
+    o.region = Region {
+        roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
+        ..Region::default()
+    };
+    let tap = DisplacementTap::new(vec![disp_roi]);
+    let (report, _run) = vibroscope::spectrum::run_spectrum_with(&o, true, Some(&tap))?;
+    let regions = tap.read()?;
+    let m = regions.into_iter().next().unwrap_or_default();
+    let freqs: Vec<f64> = report.peaks.iter().map(|p| p.frequency_hz).collect();
+    let (amps, _) = vibroscope::motion::peak_amplitudes(
+        &freqs,
+        report.resolution_hz,
+        &m,
+        None,
+        vibroscope::units::Quantity::Displacement,
+    );
+    let peaks: Vec<Value> = report
+        .peaks
+        .iter()
+        .zip(amps)
+        .map(|(p, a)| {
+            json!({
+                "frequency_hz": p.frequency_hz,
+                "frequency_std_hz": p.frequency_std_hz,
+                "damping_ratio": p.damping_ratio,
+                "damping_ratio_std": p.damping_ratio_std,
+                "damping_method": p.damping_method,
+                "prominence_db": p.prominence_db,
+                "power_db": p.power_db,
+                "resolved": p.resolved,
+                "amplitude_px": a,
+            })
+        })
+        .collect();
+    Ok(json!({
+        "roi": roi,
+        "sample_rate_hz": report.sample_rate_hz,
+        "resolution_hz": report.resolution_hz,
+        "spectrum": report.spectrum,
+        "peaks": peaks,
+        "waveform": { "rate_hz": m.rate_hz, "t_s": m.t_s, "x_px": m.x, "y_px": m.y },
+    }))
+}
+
+async fn mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
+    let t0 = Instant::now();
+    let r: ModeRequest = body(&b)?;
+    let path = guard::resolve(&app.root, &r.video)?;
+    let fps = fps_of(&app, r.fps)?;
+    if !(r.freq_hz.is_finite() && r.freq_hz > 0.0) {
+        return Err(ApiError::unprocessable(format!(
+            "frequency {} Hz: must be above 0",
+            r.freq_hz
+        )));
+    }
+    let key = format!(
+        "mode|{}|{:?}|{fps:?}|{}",
+        file_key(&path),
+        r.roi,
+        r.freq_hz.to_bits()
+    );
+    if let Some(v) = cached(&app, &key) {
+        return Ok(answer(&v, true, t0.elapsed().as_secs_f64() * 1e3));
+    }
+    let app2 = app.clone();
+    let v = blocking(move || {
+        let (p, roi) = check_roi(&path, fps, r.roi)?;
+        let rate = p
+            .fps
+            .ok_or_else(|| ApiError::unprocessable("the video states no frame rate: give fps"))?;
+        if r.freq_hz > rate / 2.0 {
+            return Err(ApiError::unprocessable(format!(
+                "frequency {} Hz is above the Nyquist frequency {} Hz (frame rate {rate} Hz)",
+                r.freq_hz,
+                rate / 2.0
+            )));
+        }
+        let v = modal_image(&path, fps, r.roi.map(|_| roi), r.freq_hz)?;
+        Ok(remember(&app2, key, v))
+    })
+    .await?;
+    Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
+}
+
+/// The modes recipe's PNG and complex image (phase aligned as the PNG's
+/// hue is), as base64 PNG and amplitude/phase arrays.
+fn modal_image(
+    path: &Path,
+    fps: Option<f64>,
+    roi: Option<[u32; 4]>,
+    freq_hz: f64,
+) -> ApiResult<Value> {
+    let png = vibroscope::io::atomic::TempPath::new("studio-mode.png");
+    let npy = vibroscope::io::atomic::TempPath::new("studio-mode.npy");
+    let o = ModesOptions {
+        video: path.to_path_buf(),
+        at_hz: freq_hz,
+        output: png.path().to_path_buf(),
+        npy: Some(npy.path().to_path_buf()),
+        fps,
+        region: Region {
+            roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
+            ..Region::default()
+        },
+        ..ModesOptions::default()
+    };
+    vibroscope::modes::modes(&o)?;
+    let internal = |m: String| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, m);
+    let png_bytes =
+        std::fs::read(png.path()).map_err(|e| internal(format!("modal image PNG: {e}")))?;
+    let npy_bytes =
+        std::fs::read(npy.path()).map_err(|e| internal(format!("modal image npy: {e}")))?;
+    let (h, w, data) =
+        read_npy_complex64(&npy_bytes).map_err(|e| internal(format!("modal image npy: {e}")))?;
+    let data = align_phase(&data);
+    let amplitude: Vec<f32> = data.iter().map(|c| c.norm()).collect();
+    let phase: Vec<f32> = data.iter().map(|c| c.arg()).collect();
+    let max = amplitude.iter().copied().fold(0.0f32, f32::max);
+    Ok(json!({
+        "freq_hz": freq_hz,
+        "roi": roi,
+        "width": w,
+        "height": h,
+        "max_amplitude_px": max,
+        "amplitude_px": amplitude,
+        "phase_rad": phase,
+        "png": format!("data:image/png;base64,{}", base64(&png_bytes)),
+    }))
+}
+
+/// Standard base64 with padding.
+pub fn base64(b: &[u8]) -> String {
+    const A: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::with_capacity(b.len().div_ceil(3) * 4);
+    for c in b.chunks(3) {
+        let n = (u32::from(c[0]) << 16)
+            | (u32::from(*c.get(1).unwrap_or(&0)) << 8)
+            | u32::from(*c.get(2).unwrap_or(&0));
+        for k in 0..4 {
+            if k <= c.len() {
+                s.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::base64;
+
+    #[test]
+    fn base64_matches_the_rfc_examples() {
+        assert_eq!(base64(b""), "");
+        assert_eq!(base64(b"f"), "Zg==");
+        assert_eq!(base64(b"fo"), "Zm8=");
+        assert_eq!(base64(b"foo"), "Zm9v");
+        assert_eq!(base64(b"foobar"), "Zm9vYmFy");
+    }
+}

@@ -1,0 +1,191 @@
+//! vibroscope studio (issue 16): a local web application over the typed
+//! recipes. The binary's `vibroscope studio` starts it; the page and its
+//! script are built into the binary (plain JavaScript drawing on canvas:
+//! no npm, no network at run time).
+//!
+//! - [`Studio::start`] binds (127.0.0.1 by default, port 0 = any free one),
+//!   serves on a thread of its own and returns the URL to print;
+//! - [`guard`]: files only under the root given at start; a token in every
+//!   request when bound beyond the loopback address;
+//! - [`api`]: the JSON API (video info, frames as PNG, a region's motion,
+//!   spectrum and peaks, the modal image at a frequency), each answer
+//!   computed by the recipes of the `vibroscope` crate and cached per video.
+
+pub mod api;
+pub mod guard;
+
+use std::net::{IpAddr, Ipv4Addr, SocketAddr};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// What `vibroscope studio` is asked.
+#[derive(Clone, Debug, Default)]
+pub struct StudioOptions {
+    /// The recording opened first (must be under `root`).
+    pub video: Option<PathBuf>,
+    /// Files are served only from under this directory (default: the
+    /// video's directory, else the current directory).
+    pub root: Option<PathBuf>,
+    /// Address to bind (default 127.0.0.1); any other one requires the
+    /// token printed in the URL.
+    pub bind: Option<IpAddr>,
+    /// Port (0: one the operating system gives).
+    pub port: u16,
+    /// The capture rate, when the file states the wrong one.
+    pub fps: Option<f64>,
+    /// Largest request body accepted, bytes (default [`MAX_BODY`]).
+    pub max_body: Option<usize>,
+}
+
+/// The default bound on request bodies (the API's requests are a few
+/// hundred bytes of JSON).
+pub const MAX_BODY: usize = 64 * 1024;
+
+/// Why the studio did not start.
+#[derive(Debug)]
+pub enum StartError {
+    /// A bad option (exit 2).
+    Usage(String),
+    /// The address could not be bound, or the runtime not built (exit 1).
+    Runtime(String),
+}
+
+impl std::error::Error for StartError {}
+
+impl std::fmt::Display for StartError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            StartError::Usage(m) | StartError::Runtime(m) => f.write_str(m),
+        }
+    }
+}
+
+impl StartError {
+    /// True for a usage error (bad path or option): exit status 2.
+    pub fn is_usage(&self) -> bool {
+        matches!(self, StartError::Usage(_))
+    }
+}
+
+/// A running studio.
+pub struct Studio {
+    /// The URL to open (with `?token=…` when one is needed).
+    pub url: String,
+    pub addr: SocketAddr,
+    /// The token every request needs (none on the loopback address).
+    pub token: Option<String>,
+    /// The directory files are served from (canonical).
+    pub root: PathBuf,
+    shutdown: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Studio {
+    /// Binds and starts serving on a thread of its own.
+    pub fn start(o: &StudioOptions) -> Result<Studio, StartError> {
+        let root_arg: PathBuf = match (&o.root, &o.video) {
+            (Some(r), _) => r.clone(),
+            (None, Some(v)) => v
+                .parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .map_or_else(|| PathBuf::from("."), Path::to_path_buf),
+            (None, None) => PathBuf::from("."),
+        };
+        let root = root_arg
+            .canonicalize()
+            .map_err(|e| StartError::Usage(format!("--root {}: {e}", root_arg.display())))?;
+        if !root.is_dir() {
+            return Err(StartError::Usage(format!(
+                "--root {}: not a directory",
+                root_arg.display()
+            )));
+        }
+        let video = match &o.video {
+            None => None,
+            Some(v) => {
+                let real = v
+                    .canonicalize()
+                    .map_err(|e| StartError::Usage(format!("{}: {e}", v.display())))?;
+                let rel = real.strip_prefix(&root).map_err(|_| {
+                    StartError::Usage(format!(
+                        "{}: not under the root {} (pass --root)",
+                        v.display(),
+                        root.display()
+                    ))
+                })?;
+                Some(rel.to_string_lossy().into_owned())
+            }
+        };
+        if let Some(f) = o.fps {
+            if !(f.is_finite() && f > 0.0) {
+                return Err(StartError::Usage(format!(
+                    "--fps {f}: must be a positive number of frames per second"
+                )));
+            }
+        }
+        let ip = o.bind.unwrap_or(IpAddr::V4(Ipv4Addr::LOCALHOST));
+        let token = (!ip.is_loopback()).then(guard::new_token);
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .map_err(|e| StartError::Runtime(format!("cannot start the server's runtime: {e}")))?;
+        let listener = rt
+            .block_on(tokio::net::TcpListener::bind(SocketAddr::new(ip, o.port)))
+            .map_err(|e| StartError::Runtime(format!("cannot bind {ip}:{}: {e}", o.port)))?;
+        let addr = listener
+            .local_addr()
+            .map_err(|e| StartError::Runtime(format!("bound address: {e}")))?;
+        let app = Arc::new(api::App::new(root.clone(), video, o.fps, token.clone()));
+        let router = api::router(app, o.max_body.unwrap_or(MAX_BODY));
+        let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+        let thread = std::thread::Builder::new()
+            .name("studio".into())
+            .spawn(move || {
+                rt.block_on(async move {
+                    let server = axum::serve(listener, router).with_graceful_shutdown(async {
+                        let _ = rx.await;
+                    });
+                    if let Err(e) = server.await {
+                        eprintln!("studio: server stopped: {e}");
+                    }
+                });
+            })
+            .map_err(|e| StartError::Runtime(format!("cannot start the server thread: {e}")))?;
+        let host = match ip {
+            IpAddr::V6(v6) => format!("[{v6}]"),
+            IpAddr::V4(v4) => v4.to_string(),
+        };
+        let mut url = format!("http://{host}:{}/", addr.port());
+        if let Some(t) = &token {
+            url.push_str(&format!("?token={t}"));
+        }
+        Ok(Studio {
+            url,
+            addr,
+            token,
+            root,
+            shutdown: Some(tx),
+            thread: Some(thread),
+        })
+    }
+
+    /// Serves until the process ends.
+    pub fn wait(mut self) {
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for Studio {
+    /// Stops serving (open connections finish) and waits for the thread.
+    fn drop(&mut self) {
+        if let Some(tx) = self.shutdown.take() {
+            let _ = tx.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}

@@ -1,0 +1,536 @@
+//! The studio end to end in headless Chromium (issue 16): a simulated
+//! cantilever beam whose mode frequencies and shapes the simulator knows is
+//! opened in the page; a click on the spectrum near each true mode
+//! frequency must show the modal image the library computes at the
+//! frequency clicked (the canvas's pixels read back through the page and
+//! compared with the `modes` recipe's PNG; the amplitudes the page holds
+//! with the recipe's `.npy`); a listed peak snaps; a region drawn with the
+//! mouse gets a spectrum whose top peak is the mode the simulator says
+//! dominates there. Screenshots go to `docs/img/studio-*.png`.
+//!
+//! Needs Debian's `chromium` and `chromium-driver`; skips with a printed
+//! reason when they are missing.
+//!
+//!     cargo test --release -p vibroscope-studio --test browser -- --nocapture
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
+use fantoccini::{Client, ClientBuilder, Locator};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+use vibroscope::math::modal::read_npy_complex64;
+use vibroscope::modes::ModesOptions;
+use vibroscope::sim::modal::cantilever_shape;
+use vibroscope_studio::{Studio, StudioOptions};
+
+const CHROMIUM: &str = "/usr/bin/chromium";
+const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
+
+const FPS: f64 = 300.0;
+const W: u32 = 160;
+const H: u32 = 64;
+/// The beam: x, y, w, h.
+const OBJECT: [u32; 4] = [16, 16, 128, 32];
+/// (frequency Hz, amplitude px, shape): thesis Table 5.5's frequencies.
+const MODES: [(f64, f64, u32); 3] = [(7.3, 0.3, 1), (58.3, 0.15, 2), (128.0, 0.1, 3)];
+
+fn scene() -> String {
+    format!(
+        "width = {W}\nheight = {H}\nfps = {FPS}\nframes = 600\nobject = {OBJECT:?}\n\
+         noise_std = 2.0\nseed = 7\nmodal = {{ modes = [\n\
+         {{ freq_hz = {}, amplitude_px = {}, shape = {}, damping = 0.02 }},\n\
+         {{ freq_hz = {}, amplitude_px = {}, shape = {}, drive = \"tone\" }},\n\
+         {{ freq_hz = {}, amplitude_px = {}, shape = {}, damping = 0.005 }},\n] }}\n",
+        MODES[0].0,
+        MODES[0].1,
+        MODES[0].2,
+        MODES[1].0,
+        MODES[1].1,
+        MODES[1].2,
+        MODES[2].0,
+        MODES[2].1,
+        MODES[2].2
+    )
+}
+
+/// chromedriver on a free port, killed when dropped.
+struct Driver {
+    child: Child,
+    port: u16,
+}
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn start_driver() -> Driver {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let child = Command::new(CHROMEDRIVER)
+        .arg(format!("--port={port}"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start chromedriver");
+    let d = Driver { child, port };
+    let t0 = Instant::now();
+    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "chromedriver did not listen"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    d
+}
+
+async fn connect(port: u16, profile: &Path) -> Client {
+    let caps = json!({
+        "goog:chromeOptions": {
+            "binary": CHROMIUM,
+            "args": [
+                "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                "--no-first-run", "--disable-quic", "--disable-component-update", "--disable-sync",
+                "--disable-dev-shm-usage", "--window-size=1400,1000",
+                format!("--user-data-dir={}", profile.display()),
+            ]
+        }
+    });
+    let Value::Object(caps) = caps else {
+        unreachable!()
+    };
+    let connector = hyper_util::client::legacy::connect::HttpConnector::new();
+    ClientBuilder::new(connector)
+        .capabilities(caps)
+        .connect(&format!("http://127.0.0.1:{port}"))
+        .await
+        .expect("a WebDriver session")
+}
+
+async fn js(c: &Client, script: &str) -> Value {
+    c.execute(script, vec![]).await.unwrap()
+}
+
+/// Waits until `window.studio[counter]` passes `after`; panics with the
+/// page's error message if the page shows one instead.
+async fn wait_for(c: &Client, counter: &str, after: u64, errors_before: u64) {
+    let t0 = Instant::now();
+    loop {
+        let v = js(
+            c,
+            &format!("return [window.studio ? window.studio.{counter} : 0, window.studio ? window.studio.errorSeq : 0, window.studio ? window.studio.lastError : null]"),
+        )
+        .await;
+        if v[0].as_u64().unwrap_or(0) > after {
+            return;
+        }
+        if v[1].as_u64().unwrap_or(0) > errors_before {
+            panic!("the page shows an error: {}", v[2]);
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "timed out waiting for {counter}"
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+async fn counter(c: &Client, name: &str) -> u64 {
+    js(c, &format!("return window.studio.{name}"))
+        .await
+        .as_u64()
+        .unwrap()
+}
+
+/// Clicks the element at an offset from its centre (CSS pixels).
+async fn click_at(c: &Client, el: &fantoccini::elements::Element, x: f64, y: f64) {
+    let m = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement {
+            element: el.clone(),
+            duration: None,
+            x,
+            y,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    c.perform_actions(m).await.unwrap();
+    c.release_actions().await.unwrap();
+}
+
+/// The library's modal image at `f`: the recipe's PNG (RGB) and the complex
+/// image's amplitudes.
+fn library_mode(video: &Path, dir: &Path, f: f64) -> (Vec<u8>, Vec<f32>) {
+    let png = dir.join(format!("lib-{f}.png"));
+    let npy = dir.join(format!("lib-{f}.npy"));
+    vibroscope::modes::modes(&ModesOptions {
+        video: video.to_path_buf(),
+        at_hz: f,
+        output: png.clone(),
+        npy: Some(npy.clone()),
+        ..ModesOptions::default()
+    })
+    .unwrap();
+    let rgb = image::open(&png).unwrap().to_rgb8().into_raw();
+    let (_, _, data) = read_npy_complex64(&std::fs::read(&npy).unwrap()).unwrap();
+    (rgb, data.iter().map(|c| c.norm()).collect())
+}
+
+fn img_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/img")
+}
+
+#[test]
+fn recording_view_modal_images_and_a_region_in_headless_chromium() {
+    for p in [CHROMIUM, CHROMEDRIVER] {
+        if !Path::new(p).exists() {
+            println!("skipped: {p} is missing (apt-get install chromium chromium-driver)");
+            return;
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = dir.path().join("beam.toml");
+    std::fs::write(&scene_path, scene()).unwrap();
+    let video = dir.path().join("beam.y4m");
+    vibroscope::simulate::simulate(&vibroscope::simulate::SimulateOptions {
+        scene: scene_path,
+        output: video.clone(),
+        ..Default::default()
+    })
+    .unwrap();
+    let studio = Studio::start(&StudioOptions {
+        video: Some(video.clone()),
+        ..StudioOptions::default()
+    })
+    .unwrap();
+    let driver = start_driver();
+    let profile = tempfile::tempdir().unwrap();
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let c = connect(driver.port, profile.path()).await;
+        let result = drive(&c, &studio, &video, dir.path()).await;
+        let _ = c.close().await;
+        result
+    });
+}
+
+async fn drive(c: &Client, studio: &Studio, video: &Path, dir: &Path) {
+    c.set_window_size(1400, 1000).await.unwrap();
+    c.goto(&studio.url).await.unwrap();
+    // The video opens from the session; the whole frame's spectrum arrives.
+    wait_for(c, "motionSeq", 0, 0).await;
+    let errors = counter(c, "errorSeq").await;
+    let spectrum = c.find(Locator::Css("#spectrum")).await.unwrap();
+    let spec_w = js(c, "return document.getElementById('spectrum').width")
+        .await
+        .as_f64()
+        .unwrap();
+    let spec_css_w = js(
+        c,
+        "return document.getElementById('spectrum').getBoundingClientRect().width",
+    )
+    .await
+    .as_f64()
+    .unwrap();
+    assert!(
+        (spec_w - spec_css_w).abs() < 0.5,
+        "the spectrum canvas is drawn 1:1"
+    );
+
+    for (k, &(f_true, _, shape)) in MODES.iter().enumerate() {
+        let x = js(c, &format!("return window.studio.freqToX({f_true})"))
+            .await
+            .as_f64()
+            .unwrap();
+        let before = counter(c, "modeSeq").await;
+        let t0 = Instant::now();
+        click_at(c, &spectrum, x.round() + 0.5 - spec_w / 2.0, 0.0).await;
+        wait_for(c, "modeSeq", before, errors).await;
+        let click_ms = t0.elapsed().as_secs_f64() * 1e3;
+        let m = js(c, "const m = window.studio.mode; return {freq_hz: m.freq_hz, width: m.width, height: m.height, amplitude: m.amplitude_px, elapsed_ms: m.elapsed_ms, cached: m.cached}").await;
+        let f = m["freq_hz"].as_f64().unwrap();
+        println!(
+            "mode {} ({f_true} Hz): clicked {f:.3} Hz; click to image shown {click_ms:.0} ms (server {:.0} ms, cached {})",
+            k + 1,
+            m["elapsed_ms"].as_f64().unwrap(),
+            m["cached"]
+        );
+        assert!(
+            (f - f_true).abs() < 0.75,
+            "the click landed at {f} Hz, not near {f_true} Hz"
+        );
+        assert_eq!(
+            (m["width"].as_u64(), m["height"].as_u64()),
+            (Some(W as u64), Some(H as u64))
+        );
+        // The canvas's pixels, read back through the page.
+        let px = js(c, "const c = document.getElementById('modal'); return Array.from(c.getContext('2d').getImageData(0, 0, c.width, c.height).data)").await;
+        let px: Vec<u8> = px
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_u64().unwrap() as u8)
+            .collect();
+        let (lib_rgb, lib_amp) = library_mode(video, dir, f);
+        assert_eq!(px.len(), lib_rgb.len() / 3 * 4);
+        let mut worst = 0i32;
+        for (p, l) in px.chunks_exact(4).zip(lib_rgb.chunks_exact(3)) {
+            for i in 0..3 {
+                worst = worst.max((p[i] as i32 - l[i] as i32).abs());
+            }
+        }
+        assert!(
+            worst <= 1,
+            "mode {}: the page's modal image differs from the library's by {worst} levels",
+            k + 1
+        );
+        let page_amp: Vec<f64> = m["amplitude"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let max = lib_amp.iter().copied().fold(0.0f32, f32::max) as f64;
+        let err = page_amp
+            .iter()
+            .zip(&lib_amp)
+            .map(|(a, b)| (a - *b as f64).abs())
+            .fold(0.0, f64::max);
+        assert!(err <= 1e-5 * max, "amplitudes differ by {err} (max {max})");
+        // And it is the mode: it is bright on the beam and dark away from
+        // it (beyond the blur's reach), and its profile along the beam
+        // follows the simulator's shape.
+        let [ox, oy, ow, oh] = OBJECT.map(|v| v as usize);
+        let far = 6usize;
+        let (mut on, mut n_on, mut off, mut n_off) = (0.0, 0usize, 0.0, 0usize);
+        let mut cols = vec![0.0f64; ow];
+        for y in 0..H as usize {
+            for x in 0..W as usize {
+                let a = page_amp[y * W as usize + x];
+                if (ox..ox + ow).contains(&x) && (oy + 8..oy + oh - 8).contains(&y) {
+                    on += a;
+                    n_on += 1;
+                    cols[x - ox] += a;
+                } else if !(ox.saturating_sub(far)..ox + ow + far).contains(&x)
+                    || !(oy.saturating_sub(far)..oy + oh + far).contains(&y)
+                {
+                    off += a;
+                    n_off += 1;
+                }
+            }
+        }
+        let contrast = (on / n_on as f64) / (off / n_off as f64);
+        let truth: Vec<f64> = (0..ow)
+            .map(|i| cantilever_shape(shape, (i as f64 + 0.5) / ow as f64).abs())
+            .collect();
+        let dot: f64 = cols.iter().zip(&truth).map(|(a, b)| a * b).sum();
+        let corr = dot
+            / (cols.iter().map(|a| a * a).sum::<f64>() * truth.iter().map(|b| b * b).sum::<f64>())
+                .sqrt();
+        println!(
+            "  mean amplitude on the beam / {far}+ px away from it {contrast:.1}; |profile| vs |shape {shape}| correlation {corr:.3}"
+        );
+        assert!(
+            contrast > 2.5,
+            "mode {}: the image is not brighter on the beam ({contrast:.2})",
+            k + 1
+        );
+        assert!(
+            corr > 0.8,
+            "mode {}: profile does not follow shape {shape} (corr {corr:.3})",
+            k + 1
+        );
+        if k == 1 {
+            std::fs::create_dir_all(img_dir()).unwrap();
+            let shot = c.screenshot().await.unwrap();
+            std::fs::write(img_dir().join("studio-mode.png"), shot).unwrap();
+        }
+    }
+
+    // A listed peak snaps: the image is at the peak's own frequency.
+    let peaks = js(
+        c,
+        "return window.studio.motion.peaks.map(p => p.frequency_hz)",
+    )
+    .await;
+    let peaks: Vec<f64> = peaks
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let (row, f_peak) = peaks
+        .iter()
+        .copied()
+        .enumerate()
+        .min_by(|a, b| {
+            (a.1 - MODES[1].0)
+                .abs()
+                .total_cmp(&(b.1 - MODES[1].0).abs())
+        })
+        .unwrap();
+    assert!(
+        (f_peak - MODES[1].0).abs() < 0.5,
+        "no listed peak near {} Hz: {peaks:?}",
+        MODES[1].0
+    );
+    let before = counter(c, "modeSeq").await;
+    let tr = c
+        .find(Locator::Css(&format!(
+            "#peaks tbody tr:nth-child({})",
+            row + 1
+        )))
+        .await
+        .unwrap();
+    tr.click().await.unwrap();
+    wait_for(c, "modeSeq", before, errors).await;
+    let f = js(c, "return window.studio.mode.freq_hz")
+        .await
+        .as_f64()
+        .unwrap();
+    assert_eq!(f, f_peak, "a listed peak snaps to its frequency");
+
+    // A region drawn with the mouse, where the simulator says mode 2
+    // dominates: the 24 object columns where its shape's share is largest.
+    let [ox, oy, ow, oh] = OBJECT;
+    let span = 24usize;
+    let dominance = |c0: usize| {
+        let amp = |(_, a, n): (f64, f64, u32)| {
+            a * ((c0..c0 + span)
+                .map(|i| cantilever_shape(n, (i as f64 + 0.5) / ow as f64).powi(2))
+                .sum::<f64>()
+                / span as f64)
+                .sqrt()
+        };
+        let a: Vec<f64> = MODES.iter().map(|&m| amp(m)).collect();
+        a[1] / a[0].max(a[2])
+    };
+    let c0 = (0..ow as usize - span)
+        .max_by(|&a, &b| dominance(a).total_cmp(&dominance(b)))
+        .unwrap();
+    println!(
+        "region: object columns {c0}..{} (mode 2 amplitude {:.1}x the others)",
+        c0 + span,
+        dominance(c0)
+    );
+    assert!(
+        dominance(c0) > 1.3,
+        "precondition: a region where mode 2 dominates"
+    );
+    let roi = [ox + c0 as u32, oy + 4, span as u32, oh - 8];
+    let overlay = c.find(Locator::Css("#overlay")).await.unwrap();
+    let scale = js(c, "return window.studio.scale").await.as_f64().unwrap();
+    let (ow_css, oh_css) = (W as f64 * scale, H as f64 * scale);
+    let at = |x: u32, y: u32| {
+        (
+            x as f64 * scale + scale / 2.0 - ow_css / 2.0,
+            y as f64 * scale + scale / 2.0 - oh_css / 2.0,
+        )
+    };
+    let (x0, y0) = at(roi[0], roi[1]);
+    let (x1, y1) = at(roi[0] + roi[2], roi[1] + roi[3]);
+    let before = counter(c, "motionSeq").await;
+    let m = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement {
+            element: overlay.clone(),
+            duration: None,
+            x: x0,
+            y: y0,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::MoveToElement {
+            element: overlay.clone(),
+            duration: Some(Duration::from_millis(200)),
+            x: x1,
+            y: y1,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    c.perform_actions(m).await.unwrap();
+    c.release_actions().await.unwrap();
+    wait_for(c, "motionSeq", before, errors).await;
+    let got = js(
+        c,
+        "return [window.studio.motion.roi, window.studio.motion.peaks]",
+    )
+    .await;
+    let page_roi: Vec<u64> = got[0]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    assert_eq!(page_roi, roi.map(u64::from).to_vec(), "the region drawn");
+    let top = got[1]
+        .as_array()
+        .unwrap()
+        .iter()
+        .max_by(|a, b| {
+            a["power_db"]
+                .as_f64()
+                .unwrap()
+                .total_cmp(&b["power_db"].as_f64().unwrap())
+        })
+        .expect("peaks in the region");
+    let f_top = top["frequency_hz"].as_f64().unwrap();
+    println!(
+        "region {roi:?}: top peak {f_top:.3} Hz ({:.1} dB)",
+        top["power_db"].as_f64().unwrap()
+    );
+    assert!(
+        (f_top - MODES[1].0).abs() < 0.5,
+        "the region's top peak is {f_top} Hz, not mode 2 ({} Hz)",
+        MODES[1].0
+    );
+    // The modal image over the frame with the region drawn, for the README.
+    let before = counter(c, "modeSeq").await;
+    click_at(
+        c,
+        &spectrum,
+        js(c, &format!("return window.studio.freqToX({})", MODES[0].0))
+            .await
+            .as_f64()
+            .unwrap()
+            .round()
+            + 0.5
+            - spec_w / 2.0,
+        0.0,
+    )
+    .await;
+    wait_for(c, "modeSeq", before, errors).await;
+    let shot = c.screenshot().await.unwrap();
+    std::fs::write(img_dir().join("studio-region.png"), shot).unwrap();
+    // Bad input on the page: a video the server cannot read shows an error.
+    let errors = counter(c, "errorSeq").await;
+    js(c, "document.getElementById('video').value = 'no-such-file.y4m'; document.getElementById('open').click(); return 0").await;
+    let t0 = Instant::now();
+    while counter(c, "errorSeq").await == errors {
+        assert!(t0.elapsed() < Duration::from_secs(30), "no error shown");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let shown = js(c, "return [document.getElementById('error').hidden, document.getElementById('error').textContent]").await;
+    assert_eq!(shown[0], json!(false));
+    assert!(
+        shown[1].as_str().unwrap().contains("no-such-file.y4m"),
+        "{shown}"
+    );
+    println!("screenshots: {}", img_dir().display());
+}

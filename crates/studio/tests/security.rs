@@ -1,0 +1,284 @@
+//! The studio's security cases (issue 16, item 7), over raw HTTP/1.1 so
+//! that paths reach the server exactly as written (no client normalises
+//! `..` or decodes `%2F`): path traversal by `..`, an absolute path, a
+//! symlink out of the root, encoded slashes; the token when bound beyond
+//! the loopback address; oversized and garbage bodies; and the server
+//! still answering after all of them.
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::io::{Read, Write};
+use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpStream};
+use std::path::Path;
+use std::time::Duration;
+use vibroscope_studio::{Studio, StudioOptions};
+
+/// One request; the status and the body.
+fn request(
+    addr: SocketAddr,
+    method: &str,
+    target: &str,
+    headers: &str,
+    body: &[u8],
+) -> (u16, String) {
+    let mut s = TcpStream::connect(("127.0.0.1", addr.port())).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    let head = format!(
+        "{method} {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n{headers}Content-Length: {}\r\n\r\n",
+        body.len()
+    );
+    s.write_all(head.as_bytes()).unwrap();
+    // The server may answer (413) and close before reading a large body.
+    let _ = s.write_all(body);
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out);
+    let text = String::from_utf8_lossy(&out).into_owned();
+    let status = text
+        .split(' ')
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or_else(|| panic!("no status line in {text:?}"));
+    let body = text
+        .split_once("\r\n\r\n")
+        .map_or("", |(_, b)| b)
+        .to_string();
+    (status, body)
+}
+
+fn get(addr: SocketAddr, target: &str) -> (u16, String) {
+    request(addr, "GET", target, "", b"")
+}
+
+fn post(addr: SocketAddr, target: &str, body: &str) -> (u16, String) {
+    request(
+        addr,
+        "POST",
+        target,
+        "Content-Type: application/json\r\n",
+        body.as_bytes(),
+    )
+}
+
+/// A small valid Y4M (mono, 16x16, 8 frames at 100 Hz).
+fn write_y4m(p: &Path) {
+    let mut v = b"YUV4MPEG2 W16 H16 F100:1 Ip A1:1 Cmono\n".to_vec();
+    for i in 0..8u8 {
+        v.extend_from_slice(b"FRAME\n");
+        v.extend((0..256u32).map(|k| (k as u8).wrapping_mul(7).wrapping_add(i)));
+    }
+    std::fs::write(p, v).unwrap();
+}
+
+/// A root with a video, a file that is not one, and a symlink to a video
+/// outside the root.
+fn setup() -> (tempfile::TempDir, std::path::PathBuf) {
+    let d = tempfile::tempdir().unwrap();
+    let root = d.path().join("root");
+    std::fs::create_dir_all(root.join("sub")).unwrap();
+    std::fs::create_dir_all(d.path().join("outside")).unwrap();
+    write_y4m(&root.join("sub/clip.y4m"));
+    write_y4m(&d.path().join("outside/secret.y4m"));
+    std::fs::write(root.join("notes.y4m"), b"this is not a video").unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(d.path().join("outside/secret.y4m"), root.join("link.y4m")).unwrap();
+    (d, root)
+}
+
+fn error_of(body: &str) -> String {
+    let v: serde_json::Value = serde_json::from_str(body).unwrap_or_else(|e| panic!("{e}: {body}"));
+    v["error"].as_str().expect("an error message").to_string()
+}
+
+#[test]
+fn paths_bodies_and_malformed_requests_get_the_right_status() {
+    let (_d, root) = setup();
+    let s = Studio::start(&StudioOptions {
+        root: Some(root.clone()),
+        ..StudioOptions::default()
+    })
+    .unwrap();
+    assert!(s.addr.ip().is_loopback(), "binds 127.0.0.1 by default");
+    assert!(s.token.is_none() && !s.url.contains("token"));
+    let a = s.addr;
+
+    // What is allowed works.
+    let (st, body) = get(a, "/api/info?video=sub/clip.y4m");
+    assert_eq!(st, 200, "{body}");
+    assert!(body.contains("\"width\":16"), "{body}");
+    assert_eq!(
+        get(a, "/api/info?video=sub%2Fclip.y4m").0,
+        200,
+        "an encoded slash in a query value is a value"
+    );
+    assert_eq!(get(a, "/api/frame?video=sub/clip.y4m&i=3").0, 200);
+    assert_eq!(get(a, "/").0, 200);
+
+    // Traversal, absolute paths, symlinks out: 403; encoded separators in the path: 400.
+    for (target, want) in [
+        ("/api/info?video=../outside/secret.y4m", 403),
+        ("/api/info?video=sub/../../outside/secret.y4m", 403),
+        ("/api/info?video=..%2Foutside%2Fsecret.y4m", 403),
+        ("/api/info?video=%2Fetc%2Fpasswd", 403),
+        ("/api/info?video=/etc/passwd", 403),
+        ("/api/info?video=link.y4m", 403),
+        ("/api/frame?video=link.y4m&i=0", 403),
+        ("/api%2Finfo?video=sub/clip.y4m", 400),
+        ("/api/..%2F..%2Fetc%2Fpasswd", 400),
+        ("/api/info?video=sub%5Cclip.y4m", 400),
+        ("/api/info?video=missing.y4m", 404),
+        ("/../../../etc/passwd", 404),
+        ("/api/info", 400),
+        ("/api/frame?video=sub/clip.y4m&i=minus-one", 400),
+        ("/api/frame?video=sub/clip.y4m&i=99", 404),
+    ] {
+        let (st, body) = get(a, target);
+        assert_eq!(st, want, "{target}: {body}");
+        assert!(!body.contains("root:"), "{target} leaked a file: {body}");
+        if st != 404 || target.starts_with("/api/") {
+            assert!(!error_of(&body).is_empty(), "{target}");
+        }
+    }
+
+    // Bodies: oversized 413, garbage 400, wrong fields 400, bad values 422.
+    let big = format!("{{\"video\":\"{}\"}}", "a".repeat(200_000));
+    assert_eq!(post(a, "/api/motion", &big).0, 413);
+    for (target, body, want) in [
+        ("/api/motion", "not json {", 400),
+        ("/api/motion", "", 400),
+        ("/api/motion", "[1,2,3]", 400),
+        (
+            "/api/motion",
+            "{\"video\":\"sub/clip.y4m\",\"extra\":1}",
+            400,
+        ),
+        ("/api/mode", "{\"video\":\"sub/clip.y4m\"}", 400),
+        (
+            "/api/mode",
+            "{\"video\":\"sub/clip.y4m\",\"freq_hz\":\"ten\"}",
+            400,
+        ),
+        (
+            "/api/mode",
+            "{\"video\":\"../outside/secret.y4m\",\"freq_hz\":10}",
+            403,
+        ),
+        (
+            "/api/mode",
+            "{\"video\":\"sub/clip.y4m\",\"freq_hz\":60}",
+            422,
+        ),
+        (
+            "/api/mode",
+            "{\"video\":\"sub/clip.y4m\",\"freq_hz\":-1}",
+            422,
+        ),
+        (
+            "/api/mode",
+            "{\"video\":\"sub/clip.y4m\",\"freq_hz\":10,\"roi\":[8,8,16,16]}",
+            422,
+        ),
+        (
+            "/api/motion",
+            "{\"video\":\"sub/clip.y4m\",\"roi\":[0,0,4000,9]}",
+            422,
+        ),
+        (
+            "/api/motion",
+            "{\"video\":\"sub/clip.y4m\",\"fps\":-3}",
+            422,
+        ),
+    ] {
+        let (st, b) = post(a, target, body);
+        assert_eq!(st, want, "{target} {body}: {b}");
+        assert!(!error_of(&b).is_empty());
+    }
+    // A file that is not a video: an error answer with a message, not a crash.
+    let (st, b) = get(a, "/api/info?video=notes.y4m");
+    assert!((400..600).contains(&st), "{st} {b}");
+    assert!(error_of(&b).contains("notes.y4m"), "{b}");
+    let (st, b) = get(a, "/api/frame?video=notes.y4m&i=0");
+    assert!((400..600).contains(&st), "{st} {b}");
+
+    // Still serving after all of that.
+    assert_eq!(get(a, "/api/session").0, 200);
+    assert_eq!(get(a, "/api/info?video=sub/clip.y4m").0, 200);
+}
+
+#[test]
+fn beyond_loopback_every_request_needs_the_token() {
+    let (_d, root) = setup();
+    let s = Studio::start(&StudioOptions {
+        root: Some(root),
+        bind: Some(IpAddr::V4(Ipv4Addr::UNSPECIFIED)),
+        ..StudioOptions::default()
+    })
+    .unwrap();
+    let token = s.token.clone().expect("a token when not on loopback");
+    assert_eq!(token.len(), 32);
+    assert!(s.url.ends_with(&format!("?token={token}")), "{}", s.url);
+    let a = s.addr;
+    let wrong = "0".repeat(32);
+    for path in [
+        "/",
+        "/app.js",
+        "/api/session",
+        "/api/info?video=sub/clip.y4m",
+        "/nothing",
+    ] {
+        let sep = if path.contains('?') { '&' } else { '?' };
+        assert_eq!(get(a, path).0, 401, "{path} without a token");
+        assert_eq!(
+            get(a, &format!("{path}{sep}token={wrong}")).0,
+            403,
+            "{path} wrong token"
+        );
+        assert_eq!(
+            get(a, &format!("{path}{sep}token=")).0,
+            403,
+            "{path} empty token"
+        );
+        let right = get(a, &format!("{path}{sep}token={token}")).0;
+        assert_eq!(
+            right,
+            if path == "/nothing" { 404 } else { 200 },
+            "{path} right token"
+        );
+    }
+    let h = format!("x-vibroscope-token: {token}\r\n");
+    assert_eq!(request(a, "GET", "/api/session", &h, b"").0, 200);
+    let h = format!("x-vibroscope-token: {wrong}\r\n");
+    assert_eq!(request(a, "GET", "/api/session", &h, b"").0, 403);
+    assert_eq!(post(a, "/api/motion", "{}").0, 401);
+    // The guard runs before the body is looked at.
+    let big = "x".repeat(200_000);
+    assert_eq!(post(a, "/api/motion", &big).0, 401);
+}
+
+#[test]
+fn a_root_that_does_not_exist_is_a_usage_error() {
+    let e = Studio::start(&StudioOptions {
+        root: Some("/nonexistent/studio-root".into()),
+        ..StudioOptions::default()
+    })
+    .err()
+    .expect("refused");
+    assert!(
+        e.is_usage() && e.to_string().contains("/nonexistent/studio-root"),
+        "{e}"
+    );
+    let d = tempfile::tempdir().unwrap();
+    let v = d.path().join("v.y4m");
+    write_y4m(&v);
+    let other = tempfile::tempdir().unwrap();
+    let e = Studio::start(&StudioOptions {
+        video: Some(v),
+        root: Some(other.path().to_path_buf()),
+        ..StudioOptions::default()
+    })
+    .err()
+    .expect("refused");
+    assert!(
+        e.is_usage() && e.to_string().contains("not under the root"),
+        "{e}"
+    );
+}

@@ -1,0 +1,74 @@
+//! `vibroscope studio`.
+
+use std::net::IpAddr;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use vibroscope_studio::{Studio, StudioOptions};
+
+/// Open a recording in the browser: frame, regions, waveform, spectrum,
+/// peaks and modal images (a local web application).
+///
+/// Starts a web server inside this process and prints its URL; open it in
+/// a browser. Draw a rectangle on the frame to see that region's motion
+/// waveform, its global power spectrum (Eq. 3.17) and the peak list
+/// (frequency, damping ± uncertainty, prominence); click the spectrum, or a
+/// listed peak to snap to it, to see the modal image at that frequency over
+/// the frame (hue = phase, brightness = amplitude, thesis ch. 3.5.5) and
+/// animate its mode shape. Each view exports PNG and CSV/JSON.
+///
+/// By default the server listens on 127.0.0.1 only, on a free port. With
+/// --bind ADDRESS it listens there and the printed URL carries a random
+/// token that every request must present. Only files under --root (by
+/// default the video's directory) can be opened. Stop with Ctrl-C.
+#[derive(clap::Args)]
+#[command(after_help = "Examples:\n  \
+    vibroscope studio beam.y4m\n  \
+    vibroscope studio ../shared/data/guitar.mp4 --fps 600 --port 8080\n  \
+    vibroscope studio --root recordings --bind 0.0.0.0 --port 8080")]
+pub struct Args {
+    /// The recording opened first (.y4m, .cine, .mraw/.cih, or anything
+    /// ffmpeg reads); others under --root can be opened from the page.
+    video: Option<PathBuf>,
+    /// Serve files only from under this directory (default: the video's
+    /// directory, else the current one).
+    #[arg(long, value_name = "DIR")]
+    root: Option<PathBuf>,
+    /// Listen on this address instead of 127.0.0.1 (then a token is
+    /// required: it is in the printed URL).
+    #[arg(long, value_name = "ADDRESS")]
+    bind: Option<IpAddr>,
+    /// Port to listen on (0: any free one).
+    #[arg(long, default_value_t = 0)]
+    port: u16,
+    /// Capture rate in Hz, when the file states the wrong one.
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    fps: Option<f64>,
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let o = StudioOptions {
+        video: a.video,
+        root: a.root,
+        bind: a.bind,
+        port: a.port,
+        fps: a.fps,
+        max_body: None,
+    };
+    let studio = Studio::start(&o).map_err(|e| -> anyhow::Error {
+        if e.is_usage() {
+            vibroscope::UsageError::new("studio", e.to_string()).into()
+        } else {
+            anyhow::anyhow!("{e}")
+        }
+    })?;
+    super::outln!("vibroscope studio: open {}", studio.url);
+    eprintln!(
+        "serving files under {} (Ctrl-C stops)",
+        studio.root.display()
+    );
+    if studio.token.is_some() {
+        eprintln!("listening beyond this machine: every request needs the token in the URL");
+    }
+    studio.wait();
+    Ok(ExitCode::SUCCESS)
+}
