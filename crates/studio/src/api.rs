@@ -160,26 +160,45 @@ fn asset(body: &'static str, mime: &'static str) -> Response {
         .into_response()
 }
 
+/// The cookie that carries the token for the page's own requests (its
+/// script and stylesheet are loaded by URLs without `?token=`).
+const TOKEN_COOKIE: &str = "vibroscope_token";
+
 /// Every request: no encoded separators in the path; the token when one
-/// is set (query `token=` or header `x-vibroscope-token`): missing 401,
-/// wrong 403.
+/// is set (query `token=`, header `x-vibroscope-token`, or the cookie set
+/// when the page was opened with it): missing 401, wrong 403.
 async fn gate(State(app): State<Arc<App>>, req: Request, next: Next) -> Response {
     if guard::has_encoded_separator(req.uri().path()) {
         return ApiError::bad("encoded slashes, backslashes or NULs are not allowed in a path")
             .into_response();
     }
+    let mut set_cookie = None;
     if let Some(expected) = &app.token {
         let from_query = req.uri().query().and_then(|q| {
             q.split('&')
                 .find_map(|kv| kv.strip_prefix("token=").map(str::to_owned))
         });
-        let given = from_query.or_else(|| {
+        let from_header = || {
             req.headers()
                 .get("x-vibroscope-token")
                 .and_then(|v| v.to_str().ok())
                 .map(str::to_owned)
-        });
-        match given {
+        };
+        let from_cookie = || {
+            req.headers()
+                .get_all(header::COOKIE)
+                .iter()
+                .filter_map(|v| v.to_str().ok())
+                .flat_map(|v| v.split(';'))
+                .find_map(|kv| {
+                    kv.trim()
+                        .strip_prefix(TOKEN_COOKIE)
+                        .and_then(|r| r.strip_prefix('='))
+                        .map(str::to_owned)
+                })
+        };
+        let in_query = from_query.is_some();
+        match from_query.or_else(from_header).or_else(from_cookie) {
             None => {
                 return ApiError::new(
                     StatusCode::UNAUTHORIZED,
@@ -190,14 +209,24 @@ async fn gate(State(app): State<Arc<App>>, req: Request, next: Next) -> Response
             Some(t) if !guard::same_token(&t, expected) => {
                 return ApiError::new(StatusCode::FORBIDDEN, "wrong token").into_response()
             }
+            Some(_) if in_query => {
+                set_cookie = HeaderValue::from_str(&format!(
+                    "{TOKEN_COOKIE}={expected}; HttpOnly; SameSite=Strict; Path=/"
+                ))
+                .ok();
+            }
             Some(_) => {}
         }
     }
     let mut resp = next.run(req).await;
-    resp.headers_mut().insert(
+    let h = resp.headers_mut();
+    h.insert(
         "x-content-type-options",
         HeaderValue::from_static("nosniff"),
     );
+    if let Some(c) = set_cookie {
+        h.insert(header::SET_COOKIE, c);
+    }
     resp
 }
 

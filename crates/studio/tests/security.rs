@@ -249,6 +249,25 @@ fn beyond_loopback_every_request_needs_the_token() {
     let h = format!("x-vibroscope-token: {wrong}\r\n");
     assert_eq!(request(a, "GET", "/api/session", &h, b"").0, 403);
     assert_eq!(post(a, "/api/motion", "{}").0, 401);
+    // The page opened with the token gets it as a cookie, which its script
+    // and stylesheet requests (URLs without the token) then carry.
+    let mut s2 = TcpStream::connect(("127.0.0.1", a.port())).unwrap();
+    write!(
+        s2,
+        "GET /?token={token} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut head = String::new();
+    let _ = s2.read_to_string(&mut head);
+    assert!(
+        head.to_ascii_lowercase()
+            .contains(&format!("set-cookie: vibroscope_token={token}")),
+        "{head}"
+    );
+    let h = format!("Cookie: other=1; vibroscope_token={token}\r\n");
+    assert_eq!(request(a, "GET", "/app.js", &h, b"").0, 200);
+    let h = format!("Cookie: vibroscope_token={wrong}\r\n");
+    assert_eq!(request(a, "GET", "/app.js", &h, b"").0, 403);
     // The guard runs before the body is looked at.
     let big = "x".repeat(200_000);
     assert_eq!(post(a, "/api/motion", &big).0, 401);
