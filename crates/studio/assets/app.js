@@ -213,10 +213,13 @@ function fillPeaks() {
   const tb = document.querySelector("#peaks tbody"); tb.innerHTML = "";
   S.motion.peaks.forEach((p) => {
     const tr = document.createElement("tr");
-    const cells = [p.frequency_hz.toFixed(3), p.frequency_std_hz.toFixed(3), p.damping_ratio.toFixed(4),
-      p.damping_ratio_std.toFixed(4), p.prominence_db.toFixed(1), p.amplitude_px.toPrecision(3)];
+    // A peak narrower than the bins gives only an upper bound on damping.
+    const bound = p.damping_method.startsWith("resolution_limit");
+    const cells = [p.frequency_hz.toFixed(3), p.frequency_std_hz.toFixed(3),
+      (bound ? "≤ " : "") + p.damping_ratio.toFixed(4), bound ? "–" : p.damping_ratio_std.toFixed(4),
+      p.prominence_db.toFixed(1), p.amplitude_px.toPrecision(3)];
     tr.innerHTML = cells.map((v) => `<td>${v}</td>`).join("");
-    tr.title = "show the modal image at " + p.frequency_hz.toFixed(3) + " Hz";
+    tr.title = `show the modal image at ${p.frequency_hz.toFixed(3)} Hz (damping: ${p.damping_method})`;
     tr.onclick = () => showMode(p.frequency_hz);
     if (S.mode && Math.abs(S.mode.freq_hz - p.frequency_hz) < 1e-9) tr.className = "sel";
     tb.appendChild(tr);
