@@ -891,3 +891,97 @@ fn frame_rates_below_one_hertz_are_refused() {
         sums
     );
 }
+
+/// A frame size whose pyramids would not fit in the memory the process
+/// may take is refused when the first frame arrives, before the
+/// pyramids are allocated: the message gives the bound and what to
+/// change, the exit is 1 (a resource, not a setting), and no output is
+/// written. `VIBROSCOPE_MAX_MEMORY` sets the limit; a value that is not a
+/// size is named.
+#[test]
+fn frames_too_large_for_the_memory_limit_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (w, h) = (1024usize, 1024usize);
+    let mut y4m = format!("YUV4MPEG2 W{w} H{h} F100:1 Ip A1:1 Cmono\n").into_bytes();
+    for i in 0..2u8 {
+        y4m.extend_from_slice(b"FRAME\n");
+        y4m.extend((0..w * h).map(|p| (p as u8).wrapping_mul(31).wrapping_add(i)));
+    }
+    std::fs::write(d.join("big.y4m"), &y4m).unwrap();
+    let sum = checksum(&d.join("big.y4m"));
+    let listen = |limit: &str| {
+        bin()
+            .current_dir(d)
+            .env("VIBROSCOPE_MAX_MEMORY", limit)
+            .args(["listen", "big.y4m", "-o", "big.wav"])
+            .output()
+            .unwrap()
+    };
+    // The bound for 1024² (steerable pyramid, 2 orientations) is at least
+    // 160 bytes a pixel, 168 MB: above a 64 MiB limit whatever the cores.
+    let o = listen("64M");
+    no_panic(&o);
+    assert_eq!(code(&o), 1, "{}", stderr(&o));
+    for want in [
+        "1024x1024 frames need up to",
+        "VIBROSCOPE_MAX_MEMORY",
+        "threads",
+    ] {
+        assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
+    }
+    assert!(!d.join("big.wav").exists());
+    let o = listen("12X");
+    no_panic(&o);
+    assert_ne!(code(&o), 0);
+    assert!(
+        stderr(&o).contains("VIBROSCOPE_MAX_MEMORY=\"12X\" is not a size"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("big.wav").exists());
+    // Raised, the same video runs.
+    let o = listen("0");
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    assert!(d.join("big.wav").exists());
+    assert_eq!(checksum(&d.join("big.y4m")), sum);
+}
+
+/// A reference WAV that is finite but huge (3e38, float) is refused with
+/// its peak named, before anything is computed: it once gave a corrected
+/// WAV mostly inf and NaN. No output is written.
+#[test]
+fn calibrate_refuses_a_huge_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_y4m(d, "v.y4m", &["--set", "cam.duration_s=0.2"]);
+    let rate = 8000u32;
+    let tone: Vec<f32> = (0..rate).map(|i| 3e38 * (i as f32 * 0.3).sin()).collect();
+    write_wav_f32(&d.join("ref.wav"), rate, &tone);
+    let sums = (checksum(&d.join("v.y4m")), checksum(&d.join("ref.wav")));
+    let o = run_in(
+        d,
+        &[
+            "calibrate",
+            "v.y4m",
+            "--reference",
+            "ref.wav",
+            "--json",
+            "r.json",
+            "-o",
+            "c.wav",
+        ],
+    );
+    no_panic(&o);
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("ref.wav: peaks at 3.000e38"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("r.json").exists() && !d.join("c.wav").exists());
+    assert_eq!(
+        sums,
+        (checksum(&d.join("v.y4m")), checksum(&d.join("ref.wav")))
+    );
+}

@@ -7,6 +7,7 @@ pub mod frame;
 pub mod graph;
 pub mod item;
 pub mod latency;
+pub mod memory;
 pub mod notify;
 pub mod runner;
 pub mod spec;

@@ -74,6 +74,9 @@ pub fn parse_effects(list: &str) -> Result<Vec<EffectKind>> {
 }
 
 /// Reads a WAV as an input error when it is missing or unreadable.
+/// Largest accepted peak of a reference WAV (full scale is 1).
+pub const MAX_REFERENCE_PEAK: f64 = 1e6;
+
 fn read_input_wav(p: &Path) -> Result<(f64, Vec<f64>)> {
     if !p.exists() {
         return Err(Error::input(p, "no such file"));
@@ -84,6 +87,18 @@ fn read_input_wav(p: &Path) -> Result<(f64, Vec<f64>)> {
     }
     if x.iter().any(|v| !v.is_finite()) {
         return Err(Error::input(p, "the WAV file holds non-finite samples"));
+    }
+    // The corrected recovery is written in the reference's units as 32-bit
+    // floats; a reference beyond this would overflow them (3e38 once gave
+    // a WAV mostly inf and NaN). A WAV's full scale is ±1.
+    let peak = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if peak > MAX_REFERENCE_PEAK {
+        return Err(Error::input(
+            p,
+            format!(
+                "peaks at {peak:.3e}, beyond ±{MAX_REFERENCE_PEAK:.0e} (a WAV's full scale is ±1): rescale it"
+            ),
+        ));
     }
     Ok((rate as f64, x))
 }

@@ -567,10 +567,45 @@ fn item_fps(item: &Item) -> f64 {
 }
 
 impl Phase {
+    /// Refuses, before allocating, a frame size whose pyramids would not
+    /// fit in the memory the process may take (`crate::memory`).
+    fn check_memory(&self, w: usize, h: usize) -> Result<(), StageError> {
+        let limit = crate::memory::limit().map_err(|message| StageError::Config {
+            field: "memory",
+            message,
+        })?;
+        let csp = matches!(self.kind, PyramidKind::Csp);
+        let need = crate::memory::phase_bound(w, h, self.orientations, self.threads, csp);
+        match limit {
+            Some(limit) if need > limit => Err(StageError::Config {
+                field: "memory",
+                message: format!(
+                    "{w}x{h} frames need up to {} with the {} pyramid, {} orientations and {} workers, and {} may be used ({}); \
+                     lower `threads` (workers), crop the frames before this stage (a `roi` stage), use the Riesz pyramid, or raise {}",
+                    crate::memory::human(need),
+                    if csp { "steerable" } else { "Riesz" },
+                    self.orientations,
+                    self.threads,
+                    crate::memory::human(limit),
+                    if std::env::var_os(crate::memory::ENV).is_some() {
+                        crate::memory::ENV
+                    } else {
+                        "the memory available now"
+                    },
+                    crate::memory::ENV,
+                ),
+            }),
+            _ => Ok(()),
+        }
+    }
+
     fn init(&mut self, f: &Item) -> Result<(), StageError> {
         let (w, h) = item_size(f).ok_or_else(|| StageError::expected("frames or a pyramid"))?;
         let (roi, mask) = resolve_region(self.roi.as_ref(), self.mask.take(), w, h)?;
         let n = self.threads;
+        if let Item::Frame(_) = f {
+            self.check_memory(w, h)?;
+        }
         let region = (roi, mask.as_ref());
         let engine: Box<dyn FrameSignals> = match f {
             // An upstream `pyramid` stage decides the pyramid and its layout.

@@ -1,0 +1,134 @@
+//! How much memory a stage may take for its per-frame buffers, and the
+//! measured bound of what the `phase` stage takes for a frame size.
+//!
+//! A stage whose buffers grow with the frame (the `phase` stage's
+//! pyramids, one set per worker) checks its need against [`limit`] when
+//! the first frame tells it the size, before allocating, and refuses
+//! with the figures and what to change. The limit is the memory the
+//! system reports available (`MemAvailable` in `/proc/meminfo`) when the
+//! process asks, or `VIBROSCOPE_MAX_MEMORY` (bytes, or with a `K`, `M`,
+//! `G` or `T` suffix in powers of 1024; `0` means no limit).
+
+/// The environment variable that sets the memory limit.
+pub const ENV: &str = "VIBROSCOPE_MAX_MEMORY";
+
+/// Memory the process may take for frame-sized buffers: `Ok(None)` for no
+/// limit (none set and none known), an error naming the variable when
+/// `VIBROSCOPE_MAX_MEMORY` does not parse.
+pub fn limit() -> Result<Option<u64>, String> {
+    match std::env::var(ENV) {
+        Ok(v) => match parse_size(&v) {
+            Some(0) => Ok(None),
+            Some(n) => Ok(Some(n)),
+            None => Err(format!(
+                "{ENV}={v:?} is not a size: give bytes, or a number with K, M, G or T (powers of 1024), or 0 for no limit"
+            )),
+        },
+        Err(_) => Ok(available()),
+    }
+}
+
+/// `MemAvailable` from `/proc/meminfo`, in bytes.
+fn available() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// `"12G"`, `"512M"`, `"1.5G"`, `"1000000"` as bytes.
+pub fn parse_size(s: &str) -> Option<u64> {
+    let s = s.trim();
+    let (num, mult) = match s.char_indices().last()? {
+        (i, c) if c.is_ascii_alphabetic() => {
+            let m: u64 = match c.to_ascii_uppercase() {
+                'K' => 1 << 10,
+                'M' => 1 << 20,
+                'G' => 1 << 30,
+                'T' => 1 << 40,
+                _ => return None,
+            };
+            (&s[..i], m)
+        }
+        _ => (s, 1),
+    };
+    let x: f64 = num.trim().parse().ok()?;
+    let bytes = x * mult as f64;
+    (x.is_finite() && x >= 0.0 && bytes < u64::MAX as f64).then_some(bytes as u64)
+}
+
+/// A size for people: "9.6 GB" (powers of 1000, as `free -h` does not;
+/// the figure is an estimate, not an address).
+pub fn human(bytes: u64) -> String {
+    let b = bytes as f64;
+    if b >= 1e9 {
+        format!("{:.1} GB", b / 1e9)
+    } else if b >= 1e6 {
+        format!("{:.0} MB", b / 1e6)
+    } else {
+        format!("{:.0} kB", b / 1e3)
+    }
+}
+
+/// Upper bound of the whole process's memory for the `phase` stage on
+/// `width` x `height` frames with `orientations` bands a scale and
+/// `workers` worker threads, for the steerable pyramid (`csp`) or the
+/// Riesz pyramid. Measured (peak RSS of `vibroscope run
+/// visual-microphone` on 512², 1024², 2048² and 4096² frames, 1 to 8
+/// workers, 2 and 4 orientations, up to 300 frames; docs/hostile-input.md)
+/// and rounded up by a quarter or more: the steerable pyramid took 130 MB
+/// for 1024² with one worker, 224 MB with two and 554 MB with eight.
+pub fn phase_bound(
+    width: usize,
+    height: usize,
+    orientations: usize,
+    workers: usize,
+    csp: bool,
+) -> u64 {
+    let (fixed, per_band, per_band_worker) = if csp { (32, 32, 32) } else { (40, 20, 24) };
+    let per_px = fixed + orientations as u64 * (per_band + per_band_worker * workers as u64);
+    (width as u64 * height as u64).saturating_mul(per_px) + (64 << 20)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sizes_parse_or_are_refused() {
+        assert_eq!(parse_size("1000"), Some(1000));
+        assert_eq!(parse_size("12G"), Some(12 << 30));
+        assert_eq!(parse_size("1.5k"), Some(1536));
+        assert_eq!(parse_size(" 512 M "), Some(512 << 20));
+        assert_eq!(parse_size("0"), Some(0));
+        for bad in ["", "G", "-1G", "12X", "nan", "inf", "1e30T"] {
+            assert_eq!(parse_size(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn the_bound_covers_the_measured_peaks() {
+        // (side, orientations, workers, csp, measured peak RSS in kB)
+        for (side, k, t, csp, kb) in [
+            (1024, 2, 1, true, 130_228u64),
+            (1024, 2, 2, true, 223_744),
+            (1024, 2, 8, true, 554_056),
+            (1024, 4, 2, true, 288_864),
+            (4096, 2, 2, true, 2_496_552),
+            (1024, 2, 1, false, 123_028),
+            (1024, 2, 2, false, 210_584),
+            (1024, 2, 4, false, 253_188),
+            (4096, 2, 2, false, 2_121_904),
+        ] {
+            let bound = phase_bound(side, side, k, t, csp);
+            assert!(
+                bound >= kb * 1024,
+                "{side}² k={k} t={t} csp={csp}: {bound} < {kb} kB"
+            );
+            assert!(
+                bound <= kb * 1024 * 2,
+                "{side}² k={k} t={t} csp={csp}: {bound} is loose"
+            );
+        }
+    }
+}
