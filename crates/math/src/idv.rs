@@ -18,7 +18,7 @@
 //!   more occlude those that move less (6.4.5), disocclusions filled by
 //!   sampling the rest frame back along the local displacement.
 
-use rustfft::num_complex::{Complex32, Complex64};
+pub use rustfft::num_complex::{Complex32, Complex64};
 
 /// One modal coordinate: a damped oscillator of unit modal mass.
 #[derive(Clone, Copy, Debug, PartialEq)]
