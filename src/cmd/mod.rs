@@ -5,6 +5,7 @@ pub mod calibrate;
 pub mod compare;
 pub mod demo;
 pub mod devices;
+pub mod idv;
 pub mod kinds;
 pub mod learn;
 pub mod listen;

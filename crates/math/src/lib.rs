@@ -9,7 +9,8 @@
 //!   metrics ([`metrics`]), ground-truth comparison ([`truth`]), pitch
 //!   ([`pitch`], YIN).
 //! - Resonances: spectral peaks and damping ([`peaks`]), modal images
-//!   ([`modal`]), stochastic subspace identification ([`ssi`]), rods
+//!   ([`modal`]) and their simulation as interactive dynamic video
+//!   ([`idv`]), stochastic subspace identification ([`ssi`]), rods
 //!   ([`rod`]), calibration against a known sound ([`calibrate`]).
 //! - [`rng`]: the deterministic PRNG shared with the simulator; [`numeric`]:
 //!   small shared helpers (gcd, median, Bessel I0).
@@ -23,6 +24,7 @@ pub mod detmath;
 pub mod error;
 pub mod exposure;
 pub mod fastmath;
+pub mod idv;
 pub mod iir;
 pub mod magnify;
 pub mod metrics;

@@ -42,6 +42,7 @@ pub mod corrections;
 pub mod damping;
 pub mod demo;
 pub mod devices;
+pub mod idv;
 pub mod learn;
 pub mod listen;
 pub mod magnify;

@@ -81,7 +81,7 @@ fn check(o: &MagnifyOptions, fps: f64) -> Result<MagnifyParams> {
 }
 
 /// Whether the output needs ffmpeg (anything but `.y4m`).
-fn needs_ffmpeg(output: &Path) -> bool {
+pub(crate) fn needs_ffmpeg(output: &Path) -> bool {
     !output
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("y4m"))
@@ -171,23 +171,9 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
             ),
         ));
     }
-    let info = {
-        let reader = io::open(&o.video, io::Format::Auto).map_err(|e| match e {
-            io::VideoError::Io { .. } => Error::from(e),
-            // A header, colour format or structure this reader cannot use.
-            other => Error::input(&o.video, other.to_string()),
-        })?;
-        reader.info().clone()
-    };
-    let Some(fps) = o.fps.or(info.fps) else {
-        return Err(Error::usage(
-            "--fps",
-            format!(
-                "{}: the file states no frame rate; give it with --fps",
-                o.video.display()
-            ),
-        ));
-    };
+    let (reader, fps) = open_video(&o.video, o.fps)?;
+    let info = reader.info().clone();
+    drop(reader);
     let params = check(o, fps)?;
     if let Some(r) = &o.roi {
         if r.w == 0 || r.h == 0 || r.x + r.w > info.width || r.y + r.h > info.height {
@@ -218,31 +204,7 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
             return Err(e);
         }
     };
-    let finished = if ffmpeg {
-        let tmp = temp_with_ext(&o.output);
-        let done = encode(&y4m, &tmp).and_then(|()| {
-            std::fs::rename(&tmp, &o.output).map_err(|source| {
-                Error::from(io::atomic::WriteError {
-                    path: o.output.clone(),
-                    source,
-                })
-            })
-        });
-        let _ = std::fs::remove_file(&y4m);
-        if done.is_err() {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        done
-    } else {
-        std::fs::rename(&y4m, &o.output).map_err(|source| {
-            let _ = std::fs::remove_file(&y4m);
-            Error::from(io::atomic::WriteError {
-                path: o.output.clone(),
-                source,
-            })
-        })
-    };
-    finished?;
+    finish_output(&y4m, &o.output, ffmpeg)?;
     let (w, h) = match &o.roi {
         Some(r) => (r.w, r.h),
         None => (info.width, info.height),
@@ -269,6 +231,60 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
         notes,
         run: Some(run),
     })
+}
+
+/// Opens `video` and its capture rate (`fps`, else the file's): an input
+/// error for a file the reader cannot use, a usage error naming `--fps`
+/// when the file states no rate.
+pub(crate) fn open_video(
+    video: &Path,
+    fps: Option<f64>,
+) -> Result<(Box<dyn io::VideoReader>, f64)> {
+    let reader = io::open(video, io::Format::Auto).map_err(|e| match e {
+        io::VideoError::Io { .. } => Error::from(e),
+        // A header, colour format or structure this reader cannot use.
+        other => Error::input(video, other.to_string()),
+    })?;
+    let Some(fps) = fps.or(reader.info().fps) else {
+        return Err(Error::usage(
+            "--fps",
+            format!(
+                "{}: the file states no frame rate; give it with --fps",
+                video.display()
+            ),
+        ));
+    };
+    Ok((reader, fps))
+}
+
+/// Moves the finished Y4M `y4m` to `output`: renamed, or with `ffmpeg`
+/// encoded into a temporary sibling that is then renamed; `y4m` is
+/// removed either way and a failed encode leaves nothing behind.
+pub(crate) fn finish_output(y4m: &Path, output: &Path, ffmpeg: bool) -> Result<()> {
+    if ffmpeg {
+        let tmp = temp_with_ext(output);
+        let done = encode(y4m, &tmp).and_then(|()| {
+            std::fs::rename(&tmp, output).map_err(|source| {
+                Error::from(io::atomic::WriteError {
+                    path: output.to_path_buf(),
+                    source,
+                })
+            })
+        });
+        let _ = std::fs::remove_file(y4m);
+        if done.is_err() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+        done
+    } else {
+        std::fs::rename(y4m, output).map_err(|source| {
+            let _ = std::fs::remove_file(y4m);
+            Error::from(io::atomic::WriteError {
+                path: output.to_path_buf(),
+                source,
+            })
+        })
+    }
 }
 
 /// `ffmpeg -i Y4M OUT` (yuv420p, which every player takes).

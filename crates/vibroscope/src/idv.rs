@@ -1,0 +1,884 @@
+//! Interactive dynamic video, the offline part (thesis ch. 6, issue 17):
+//! an image-space modal basis measured from a video, saved and loaded as
+//! a directory (see `docs/idv.md`), simulated under scripted pokes and
+//! rendered by warping the rest frame.
+//!
+//! - [`extract_basis`]: modes from the significant peaks of the video's
+//!   motion spectrum (`spectrum`'s graph, its SSI-cov damping) or from
+//!   the user's frequencies or ranges; per mode one pass of modal images
+//!   (Eq. 3.18-3.19) for x and y motion at its frequency, all modes and
+//!   both axes in a single read of the video; each shape rotated so its
+//!   dominant axis is real (6.4.2).
+//! - [`save_basis`] / [`load_basis`]: `basis.json` (format name, version,
+//!   size, modes) + `rest.pgm` + one complex64 `.npy` per mode and axis.
+//! - [`Simulation`]: one exact oscillator per mode (6.4.3) driven by
+//!   impulses (6.4.4, Eq. 6.6) at the pokes' times, so the state at any
+//!   time does not depend on the output frame rate.
+//! - [`idv`]: the command: basis, pokes, frames out (.y4m, or through
+//!   ffmpeg any container).
+
+use crate::error::{Error, Result, UsageError};
+use crate::io::{self, Depth, FrameDest, FrameDestRef};
+use crate::math::idv::{modal_force, Oscillator, Renderer, Shape};
+use crate::math::idv::{Complex32, Complex64};
+use crate::math::modal::{npy_complex64, read_npy_complex64, ModalConfig, ModalImager, Motion};
+use crate::pipeline::{Region, RunSettings};
+use crate::spectrum::{run_spectrum, SpectrumOptions};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The basis directory's format name and version ([`load_basis`] checks both).
+pub const BASIS_FORMAT: &str = "vibroscope-idv-basis";
+pub const BASIS_VERSION: u32 = 1;
+/// The manifest's file name inside a basis directory.
+pub const MANIFEST: &str = "basis.json";
+/// Modes kept by `--modes auto` at most.
+pub const DEFAULT_MAX_MODES: usize = 8;
+
+/// Which modes make the basis.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ModeChoice {
+    /// The significant peaks of the motion spectrum.
+    Auto,
+    /// A frequency each (Hz), or a range `[lo, hi]` whose most prominent
+    /// peak is taken.
+    Listed(Vec<[f64; 2]>),
+}
+
+impl std::str::FromStr for ModeChoice {
+    type Err = UsageError;
+    /// `auto` or `F1,F2,LO-HI,...` (Hz).
+    fn from_str(s: &str) -> std::result::Result<ModeChoice, UsageError> {
+        if s.trim().eq_ignore_ascii_case("auto") {
+            return Ok(ModeChoice::Auto);
+        }
+        let bad = |m: String| UsageError::new("--modes", m);
+        let num = |t: &str| -> std::result::Result<f64, UsageError> {
+            match t.trim().parse::<f64>() {
+                Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+                _ => Err(bad(format!(
+                    "`{t}` is not a frequency in Hz > 0 (give auto, or F1,F2,.. or LO-HI ranges)"
+                ))),
+            }
+        };
+        let mut v = Vec::new();
+        for part in s.split(',') {
+            match part.split_once('-') {
+                Some((lo, hi)) => {
+                    let (lo, hi) = (num(lo)?, num(hi)?);
+                    if lo >= hi {
+                        return Err(bad(format!("range `{part}` is empty (LO must be < HI)")));
+                    }
+                    v.push([lo, hi]);
+                }
+                None => {
+                    let f = num(part)?;
+                    v.push([f, f]);
+                }
+            }
+        }
+        Ok(ModeChoice::Listed(v))
+    }
+}
+
+/// How the basis is measured.
+#[derive(Clone, Debug)]
+pub struct BasisOptions {
+    pub video: PathBuf,
+    pub fps: Option<f64>,
+    /// The object: mask (and rectangle for the spectrum) and pyramid.
+    pub region: Region,
+    pub modes: ModeChoice,
+    /// At most this many modes with `Auto`.
+    pub max_modes: usize,
+    /// Pyramid scale of the shapes (0 = finest).
+    pub scale: usize,
+    /// σ_b of the shapes' blur, input pixels.
+    pub sigma_px: f64,
+    pub run: RunSettings,
+    /// Called with (frames read, frames expected) while reading the video.
+    pub progress: Option<fn(u64, Option<u64>)>,
+}
+
+impl BasisOptions {
+    pub fn new(video: impl Into<PathBuf>) -> BasisOptions {
+        BasisOptions {
+            video: video.into(),
+            fps: None,
+            region: Region::default(),
+            modes: ModeChoice::Auto,
+            max_modes: DEFAULT_MAX_MODES,
+            scale: 1,
+            sigma_px: crate::stages::sinks::modes::DEFAULT_SIGMA_PX,
+            run: RunSettings::default(),
+            progress: None,
+        }
+    }
+}
+
+/// One mode of a basis.
+#[derive(Clone, Debug)]
+pub struct Mode {
+    /// Damped frequency, Hz.
+    pub freq_hz: f64,
+    /// Damping ratio ξ.
+    pub damping: f64,
+    /// Where ξ came from (`lorentzian`, `ssi_cov`, `assumed`).
+    pub damping_method: String,
+    /// x and y displacement per pixel, px per unit modal coordinate.
+    pub shape: Shape,
+}
+
+/// An image-space modal basis: the rest frame and the modes.
+#[derive(Clone, Debug)]
+pub struct Basis {
+    pub width: usize,
+    pub height: usize,
+    /// The rest frame (the video's first frame, 8-bit grey).
+    pub rest: Vec<u8>,
+    /// The capture rate of the video it came from.
+    pub fps: f64,
+    pub modes: Vec<Mode>,
+    /// What was assumed or dropped while measuring it.
+    pub notes: Vec<String>,
+}
+
+/// A peak of the spectrum: frequency, damping, method.
+struct Picked {
+    freq_hz: f64,
+    damping: f64,
+    method: String,
+}
+
+/// The modes to measure, from the spectrum's peaks.
+fn pick_modes(o: &BasisOptions, notes: &mut Vec<String>) -> Result<Vec<Picked>> {
+    let mut so = SpectrumOptions::new(&o.video, PathBuf::new());
+    so.fps = o.fps;
+    so.region = o.region.clone();
+    so.run = o.run;
+    so.peaks = match &o.modes {
+        ModeChoice::Auto => o.max_modes,
+        ModeChoice::Listed(_) => 32,
+    };
+    let (report, _) = run_spectrum(&so, true)?;
+    let mut peaks: Vec<&crate::peaks::Peak> = report
+        .peaks
+        .iter()
+        .filter(|p| p.frequency_hz.is_finite() && p.frequency_hz > 0.0)
+        .collect();
+    // A broadband-driven mode can show as a split peak: of peaks closer
+    // than 4% (or 3 bins), only the most prominent is a mode (modes must
+    // be well spaced, 6.3).
+    peaks.sort_by(|a, b| b.prominence_db.total_cmp(&a.prominence_db));
+    let mut kept: Vec<&crate::peaks::Peak> = Vec::new();
+    for p in peaks {
+        let near = |q: &&crate::peaks::Peak| {
+            (q.frequency_hz - p.frequency_hz).abs()
+                <= (3.0 * report.resolution_hz).max(0.04 * p.frequency_hz)
+        };
+        if !kept.iter().any(near) {
+            kept.push(p);
+        }
+    }
+    let peaks = kept;
+    let damping = |p: &crate::peaks::Peak| -> (f64, String) {
+        if p.damping_ratio.is_finite() && p.damping_ratio > 0.0 && p.damping_ratio < 1.0 {
+            (p.damping_ratio, p.damping_method.clone())
+        } else {
+            (0.02, "assumed".into())
+        }
+    };
+    let mut out = Vec::new();
+    match &o.modes {
+        ModeChoice::Auto => {
+            if peaks.is_empty() {
+                return Err(Error::Analysis(format!(
+                    "{}: no significant peak in the motion spectrum: nothing vibrates \
+                     enough to make a basis (give --modes F1,F2,.. if you know the frequencies)",
+                    o.video.display()
+                )));
+            }
+            for p in peaks.iter().take(o.max_modes) {
+                let (d, m) = damping(p);
+                out.push(Picked {
+                    freq_hz: p.frequency_hz,
+                    damping: d,
+                    method: m,
+                });
+            }
+        }
+        ModeChoice::Listed(list) => {
+            let df = report.resolution_hz;
+            for &[lo, hi] in list {
+                let (a, b) = if lo == hi {
+                    let tol = (2.0 * df).max(0.02 * lo);
+                    (lo - tol, lo + tol)
+                } else {
+                    (lo, hi)
+                };
+                let best = peaks
+                    .iter()
+                    .filter(|p| p.frequency_hz >= a && p.frequency_hz <= b)
+                    .max_by(|x, y| x.prominence_db.total_cmp(&y.prominence_db));
+                match best {
+                    Some(p) => {
+                        let (d, m) = damping(p);
+                        out.push(Picked {
+                            freq_hz: if lo == hi { lo } else { p.frequency_hz },
+                            damping: d,
+                            method: m,
+                        });
+                    }
+                    None if lo == hi => {
+                        notes.push(format!(
+                            "no spectral peak near {lo} Hz: its damping is assumed 0.02"
+                        ));
+                        out.push(Picked {
+                            freq_hz: lo,
+                            damping: 0.02,
+                            method: "assumed".into(),
+                        });
+                    }
+                    None => {
+                        return Err(Error::Analysis(format!(
+                        "{}: no significant peak in the motion spectrum between {lo} and {hi} Hz",
+                        o.video.display()
+                    )))
+                    }
+                }
+            }
+        }
+    }
+    out.sort_by(|a, b| a.freq_hz.total_cmp(&b.freq_hz));
+    Ok(out)
+}
+
+/// The mask of `region` as booleans, checked against the frame size.
+fn read_mask(region: &Region, width: usize, height: usize) -> Result<Option<Vec<bool>>> {
+    let Some(path) = &region.mask else {
+        return Ok(None);
+    };
+    let img = io::image::read_gray16(path).map_err(|e| Error::File(e.into()))?;
+    if img.width() as usize != width || img.height() as usize != height {
+        return Err(Error::usage(
+            "--mask",
+            format!(
+                "{} is {}x{}, the video's frames are {width}x{height}",
+                path.display(),
+                img.width(),
+                img.height()
+            ),
+        ));
+    }
+    let mut m: Vec<bool> = img.pixels().map(|p| p.0[0] > 0).collect();
+    if let Some(r) = &region.roi {
+        for (i, v) in m.iter_mut().enumerate() {
+            let (x, y) = ((i % width) as u32, (i / width) as u32);
+            *v &= x >= r.x && x < r.x + r.w && y >= r.y && y < r.y + r.h;
+        }
+    }
+    Ok(Some(m))
+}
+
+/// Measures a basis from a video (see the module documentation).
+pub fn extract_basis(o: &BasisOptions) -> Result<Basis> {
+    let mut notes = Vec::new();
+    let (mut reader, fps) = crate::magnify::open_video(&o.video, o.fps)?;
+    let info = reader.info().clone();
+    let (w, h) = (info.width as usize, info.height as usize);
+    let mask = read_mask(&o.region, w, h)?;
+    let picked = pick_modes(o, &mut notes)?;
+    let mut imagers = Vec::with_capacity(picked.len() * 2);
+    for p in &picked {
+        for motion in [Motion::X, Motion::Y] {
+            let cfg = ModalConfig {
+                freq_hz: p.freq_hz,
+                scale: o.scale,
+                sigma_px: o.sigma_px,
+                motion,
+                normalize: true,
+                pyramid: o.region.pyramid,
+            };
+            let mut im = ModalImager::new(w, h, cfg).map_err(crate::math::MathError::from)?;
+            if let Some(m) = &mask {
+                im.set_mask(m)
+                    .map_err(|e| Error::usage("--mask", format!("{}", e)))?;
+            }
+            imagers.push(im);
+        }
+    }
+    let n = w * h;
+    let (mut buf8, mut buf16) = (vec![0u8; n], vec![0u16; n]);
+    let mut frame = vec![0f32; n];
+    let mut rest = Vec::new();
+    let mut k: u64 = 0;
+    let scale16 = 255.0 / ((1u32 << info.bits.clamp(1, 16)) - 1) as f32;
+    loop {
+        let got = match info.depth {
+            Depth::U8 => reader.read_frame(FrameDest::U8(&mut buf8))?,
+            Depth::U16 => reader.read_frame(FrameDest::U16(&mut buf16))?,
+        };
+        let Some(fr) = got else { break };
+        match info.depth {
+            Depth::U8 => frame
+                .iter_mut()
+                .zip(&buf8)
+                .for_each(|(f, &v)| *f = v as f32),
+            Depth::U16 => frame
+                .iter_mut()
+                .zip(&buf16)
+                .for_each(|(f, &v)| *f = v as f32 * scale16),
+        }
+        if k == 0 {
+            rest = frame
+                .iter()
+                .map(|&v| v.round().clamp(0.0, 255.0) as u8)
+                .collect();
+        }
+        let t_ns = match (o.fps, fr.timestamp_ns) {
+            (None, Some(t)) => t,
+            _ => (k as f64 / fps * 1e9).round() as i64,
+        };
+        for im in &mut imagers {
+            im.push(&frame, t_ns)
+                .map_err(crate::math::MathError::from)?;
+        }
+        k += 1;
+        if let Some(cb) = o.progress {
+            cb(k, info.frame_count);
+        }
+    }
+    let mut modes = Vec::with_capacity(picked.len());
+    for (p, pair) in picked.iter().zip(imagers.chunks_exact(2)) {
+        let x = pair[0].finish().map_err(crate::math::MathError::from)?;
+        let y = pair[1].finish().map_err(crate::math::MathError::from)?;
+        let mut shape = Shape {
+            x: x.data,
+            y: y.data,
+        };
+        shape.align();
+        modes.push(Mode {
+            freq_hz: p.freq_hz,
+            damping: p.damping,
+            damping_method: p.method.clone(),
+            shape,
+        });
+    }
+    Ok(Basis {
+        width: w,
+        height: h,
+        rest,
+        fps,
+        modes,
+        notes,
+    })
+}
+
+/// One mode in `basis.json`.
+#[derive(Serialize, Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct ModeEntry {
+    freq_hz: f64,
+    damping_ratio: f64,
+    damping_method: String,
+    x: String,
+    y: String,
+}
+
+/// `basis.json`.
+#[derive(Serialize, Deserialize, Debug)]
+#[serde(deny_unknown_fields)]
+struct Manifest {
+    format: String,
+    version: u32,
+    width: usize,
+    height: usize,
+    fps: f64,
+    rest: String,
+    modes: Vec<ModeEntry>,
+}
+
+/// Writes `basis` into the directory `dir` (created if missing): every
+/// file atomically, the manifest last. Returns the files written.
+pub fn save_basis(basis: &Basis, dir: &Path) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).map_err(|source| {
+        Error::from(io::atomic::WriteError {
+            path: dir.to_path_buf(),
+            source,
+        })
+    })?;
+    let mut written = Vec::new();
+    let mut put = |name: &str, bytes: &[u8]| -> Result<()> {
+        let p = dir.join(name);
+        io::atomic::write_atomic(&p, bytes)?;
+        written.push(p);
+        Ok(())
+    };
+    let mut pgm = format!("P5\n{} {}\n255\n", basis.width, basis.height).into_bytes();
+    pgm.extend_from_slice(&basis.rest);
+    put("rest.pgm", &pgm)?;
+    let mut entries = Vec::new();
+    for (k, m) in basis.modes.iter().enumerate() {
+        let (xn, yn) = (format!("mode{k}_x.npy"), format!("mode{k}_y.npy"));
+        put(&xn, &npy_complex64(&m.shape.x, basis.width, basis.height))?;
+        put(&yn, &npy_complex64(&m.shape.y, basis.width, basis.height))?;
+        entries.push(ModeEntry {
+            freq_hz: m.freq_hz,
+            damping_ratio: m.damping,
+            damping_method: m.damping_method.clone(),
+            x: xn,
+            y: yn,
+        });
+    }
+    let manifest = Manifest {
+        format: BASIS_FORMAT.into(),
+        version: BASIS_VERSION,
+        width: basis.width,
+        height: basis.height,
+        fps: basis.fps,
+        rest: "rest.pgm".into(),
+        modes: entries,
+    };
+    let p = dir.join(MANIFEST);
+    crate::json::write(&p, &manifest)?;
+    written.push(p);
+    Ok(written)
+}
+
+/// Reads a basis written by [`save_basis`], checking the format name and
+/// version, every array's shape against the manifest's size, and each
+/// mode's frequency and damping.
+pub fn load_basis(dir: &Path) -> Result<Basis> {
+    let mpath = dir.join(MANIFEST);
+    let bad = |path: &Path, m: String| Error::input(path, m);
+    let text = std::fs::read_to_string(&mpath).map_err(|e| bad(&mpath, e.to_string()))?;
+    let m: Manifest = serde_json::from_str(&text)
+        .map_err(|e| bad(&mpath, format!("not a basis manifest: {e}")))?;
+    if m.format != BASIS_FORMAT {
+        return Err(bad(
+            &mpath,
+            format!("format is `{}`, expected `{BASIS_FORMAT}`", m.format),
+        ));
+    }
+    if m.version != BASIS_VERSION {
+        return Err(bad(
+            &mpath,
+            format!(
+                "basis version {} is not supported (this vibroscope reads version {BASIS_VERSION}); \
+                 measure the basis again with --save-basis",
+                m.version
+            ),
+        ));
+    }
+    if m.width == 0 || m.height == 0 || m.width.saturating_mul(m.height) > 1 << 28 {
+        return Err(bad(
+            &mpath,
+            format!("frame size {}x{} is not usable", m.width, m.height),
+        ));
+    }
+    if m.modes.is_empty() {
+        return Err(bad(&mpath, "lists no mode".into()));
+    }
+    if !(m.fps.is_finite() && m.fps > 0.0) {
+        return Err(bad(&mpath, format!("fps {} must be > 0", m.fps)));
+    }
+    // Only plain file names inside the directory.
+    let inside = |name: &str| -> Result<PathBuf> {
+        if name.is_empty() || name.contains('/') || name.contains('\\') || name.starts_with('.') {
+            return Err(bad(
+                &mpath,
+                format!("`{name}` is not a file name in the basis directory"),
+            ));
+        }
+        Ok(dir.join(name))
+    };
+    let rp = inside(&m.rest)?;
+    let rest = io::image::read_gray16(&rp).map_err(|e| Error::File(e.into()))?;
+    if rest.width() as usize != m.width || rest.height() as usize != m.height {
+        return Err(bad(
+            &rp,
+            format!(
+                "is {}x{}, the manifest says {}x{}",
+                rest.width(),
+                rest.height(),
+                m.width,
+                m.height
+            ),
+        ));
+    }
+    let max = rest.pixels().map(|p| p.0[0]).max().unwrap_or(0);
+    let div = if max > 255 { 257.0 } else { 1.0 };
+    let rest: Vec<u8> = rest
+        .pixels()
+        .map(|p| (p.0[0] as f64 / div).round() as u8)
+        .collect();
+    let read = |name: &str| -> Result<Vec<Complex32>> {
+        let p = inside(name)?;
+        let bytes = std::fs::read(&p).map_err(|e| bad(&p, e.to_string()))?;
+        let (h, w, v) = read_npy_complex64(&bytes).map_err(|e| bad(&p, e.to_string()))?;
+        if (w, h) != (m.width, m.height) {
+            return Err(bad(
+                &p,
+                format!(
+                    "shape ({h}, {w}) does not match the manifest's frame ({}, {})",
+                    m.height, m.width
+                ),
+            ));
+        }
+        if v.iter().any(|c| !(c.re.is_finite() && c.im.is_finite())) {
+            return Err(bad(&p, "holds values that are not finite".into()));
+        }
+        Ok(v)
+    };
+    let mut modes = Vec::with_capacity(m.modes.len());
+    for (k, e) in m.modes.iter().enumerate() {
+        if !(e.freq_hz.is_finite() && e.freq_hz > 0.0) {
+            return Err(bad(
+                &mpath,
+                format!("modes[{k}].freq_hz must be > 0, got {}", e.freq_hz),
+            ));
+        }
+        if !(e.damping_ratio.is_finite() && e.damping_ratio >= 0.0 && e.damping_ratio < 1.0) {
+            return Err(bad(
+                &mpath,
+                format!(
+                    "modes[{k}].damping_ratio must be in [0, 1), got {}",
+                    e.damping_ratio
+                ),
+            ));
+        }
+        modes.push(Mode {
+            freq_hz: e.freq_hz,
+            damping: e.damping_ratio,
+            damping_method: e.damping_method.clone(),
+            shape: Shape {
+                x: read(&e.x)?,
+                y: read(&e.y)?,
+            },
+        });
+    }
+    Ok(Basis {
+        width: m.width,
+        height: m.height,
+        rest,
+        fps: m.fps,
+        modes,
+        notes: Vec::new(),
+    })
+}
+
+/// A scripted poke: an impulse at time `t_s` at pixel (`x`, `y`) in the
+/// direction (`dx`, `dy`) px, of relative `strength`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Poke {
+    pub t_s: f64,
+    pub x: f64,
+    pub y: f64,
+    pub dx: f64,
+    pub dy: f64,
+    pub strength: f64,
+}
+
+impl std::str::FromStr for Poke {
+    type Err = UsageError;
+    /// `T,X,Y,DX,DY[,STRENGTH]`.
+    fn from_str(s: &str) -> std::result::Result<Poke, UsageError> {
+        let v: Vec<&str> = s.split(',').collect();
+        let bad = |m: String| UsageError::new("--poke", format!("`{s}`: {m}"));
+        if !(5..=6).contains(&v.len()) {
+            return Err(bad(
+                "expected T,X,Y,DX,DY[,STRENGTH] (seconds, pixel, direction in px, strength)"
+                    .into(),
+            ));
+        }
+        let mut n = [0.0; 6];
+        n[5] = 1.0;
+        for (i, t) in v.iter().enumerate() {
+            n[i] = t
+                .trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| bad(format!("`{t}` is not a number")))?;
+        }
+        if n[0] < 0.0 {
+            return Err(bad(format!("time {} s is before the start", n[0])));
+        }
+        if n[3] == 0.0 && n[4] == 0.0 {
+            return Err(bad("the direction DX,DY is zero".into()));
+        }
+        Ok(Poke {
+            t_s: n[0],
+            x: n[1],
+            y: n[2],
+            dx: n[3],
+            dy: n[4],
+            strength: n[5],
+        })
+    }
+}
+
+impl Poke {
+    /// The pixel index of the poked point; a usage error when it is
+    /// outside a `width x height` frame.
+    pub fn pixel(&self, width: usize, height: usize) -> std::result::Result<usize, UsageError> {
+        let (x, y) = (self.x.round(), self.y.round());
+        if x < 0.0 || y < 0.0 || x >= width as f64 || y >= height as f64 {
+            return Err(UsageError::new(
+                "--poke",
+                format!(
+                    "point ({}, {}) at t = {} s is outside the {width}x{height} frame",
+                    self.x, self.y, self.t_s
+                ),
+            ));
+        }
+        Ok(y as usize * width + x as usize)
+    }
+}
+
+/// The modal coordinates over time: one exact oscillator per mode, kicked
+/// by impulses (Eq. 6.6) at the pokes' times.
+pub struct Simulation {
+    osc: Vec<Oscillator>,
+    /// (time, per-mode impulse), sorted by time.
+    kicks: Vec<(f64, Vec<f64>)>,
+    next: usize,
+    t: f64,
+    q: Vec<Complex64>,
+}
+
+impl Simulation {
+    /// `damping_scale` multiplies every mode's ξ. Each poke's impulse on
+    /// mode i is α Re(dᵀφ'_i(p)) (see [`modal_force`]), with α chosen so
+    /// that a poke of strength 1 moves the poked point by about |d| px
+    /// along d: α = strength |d| / Σ_i (d̂ᵀφ'_i(p))² / ω_i.
+    pub fn new(
+        basis: &Basis,
+        pokes: &[Poke],
+        damping_scale: f64,
+    ) -> std::result::Result<Simulation, UsageError> {
+        let osc: Vec<Oscillator> = basis
+            .modes
+            .iter()
+            .map(|m| Oscillator::new(m.freq_hz, m.damping * damping_scale))
+            .collect();
+        let mut kicks = Vec::with_capacity(pokes.len());
+        for pk in pokes {
+            let p = pk.pixel(basis.width, basis.height)?;
+            let len = pk.dx.hypot(pk.dy);
+            let dir = [pk.dx / len, pk.dy / len];
+            let reach: f64 = basis
+                .modes
+                .iter()
+                .zip(&osc)
+                .map(|(m, o)| modal_force(&m.shape, p, dir, 1.0).powi(2) / o.omega)
+                .sum();
+            let alpha = if reach > 0.0 {
+                pk.strength * len / reach
+            } else {
+                0.0
+            };
+            let j = basis
+                .modes
+                .iter()
+                .map(|m| modal_force(&m.shape, p, dir, alpha))
+                .collect();
+            kicks.push((pk.t_s, j));
+        }
+        kicks.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let n = osc.len();
+        Ok(Simulation {
+            osc,
+            kicks,
+            next: 0,
+            t: 0.0,
+            q: vec![Complex64::new(0.0, 0.0); n],
+        })
+    }
+
+    /// Advances to `t_s` (not before the current time) and returns the
+    /// complex modal coordinates there.
+    pub fn advance_to(&mut self, t_s: f64) -> &[Complex64] {
+        while self.next < self.kicks.len() && self.kicks[self.next].0 <= t_s {
+            let (tk, j) = &self.kicks[self.next];
+            let h = tk - self.t;
+            for (o, &j) in self.osc.iter_mut().zip(j) {
+                o.step(h, 0.0);
+                o.kick(j);
+            }
+            self.t = self.t.max(*tk);
+            self.next += 1;
+        }
+        let h = t_s - self.t;
+        for (o, q) in self.osc.iter_mut().zip(&mut self.q) {
+            o.step(h, 0.0);
+            *q = o.q();
+        }
+        self.t = self.t.max(t_s);
+        &self.q
+    }
+}
+
+/// What `idv` is asked.
+#[derive(Clone, Debug)]
+pub struct IdvOptions {
+    /// Measure the basis from a video, or load it (`basis_dir`).
+    pub basis: BasisOptions,
+    pub basis_dir: Option<PathBuf>,
+    pub save_basis: Option<PathBuf>,
+    pub pokes: Vec<Poke>,
+    /// Output frame rate (default: the video's).
+    pub rate_hz: Option<f64>,
+    /// Seconds rendered (default: the last poke + 1 s).
+    pub duration_s: Option<f64>,
+    pub damping_scale: f64,
+    /// `.y4m`, or anything ffmpeg writes.
+    pub output: PathBuf,
+}
+
+/// What `idv` did.
+#[derive(Clone, Debug, Serialize)]
+pub struct IdvReport {
+    pub output: PathBuf,
+    pub frames: u64,
+    pub rate_hz: f64,
+    pub width: usize,
+    pub height: usize,
+    /// (frequency Hz, damping ratio) per mode.
+    pub modes: Vec<(f64, f64)>,
+    pub basis_written: Vec<PathBuf>,
+    pub notes: Vec<String>,
+}
+
+/// Runs `idv`: basis (measured or loaded), simulation, frames.
+pub fn idv(o: &IdvOptions) -> Result<IdvReport> {
+    if o.pokes.is_empty() {
+        return Err(Error::usage(
+            "--poke",
+            "give at least one poke T,X,Y,DX,DY[,STRENGTH]",
+        ));
+    }
+    if !(o.damping_scale.is_finite() && o.damping_scale > 0.0) {
+        return Err(Error::usage(
+            "--damping-scale",
+            format!("must be > 0, got {}", o.damping_scale),
+        ));
+    }
+    let ffmpeg = crate::magnify::needs_ffmpeg(&o.output);
+    if ffmpeg
+        && std::process::Command::new("ffmpeg")
+            .arg("-version")
+            .output()
+            .is_err()
+    {
+        return Err(Error::usage(
+            "-o",
+            format!(
+                "{}: writing anything but .y4m needs ffmpeg, which is not installed (write a .y4m, or install ffmpeg)",
+                o.output.display()
+            ),
+        ));
+    }
+    let mut inputs: Vec<&Path> = Vec::new();
+    if o.basis_dir.is_none() {
+        inputs.push(&o.basis.video);
+    }
+    crate::error::check_outputs(&inputs, &[o.output.as_path()])?;
+    let basis = match &o.basis_dir {
+        Some(d) => load_basis(d)?,
+        None => extract_basis(&o.basis)?,
+    };
+    // Every poke inside the frame before any work is written.
+    for pk in &o.pokes {
+        pk.pixel(basis.width, basis.height)?;
+    }
+    let basis_written = match &o.save_basis {
+        Some(d) => save_basis(&basis, d)?,
+        None => Vec::new(),
+    };
+    let rate = o.rate_hz.unwrap_or(basis.fps);
+    if !(rate.is_finite() && rate > 0.0) {
+        return Err(Error::usage(
+            "--rate",
+            format!("must be > 0 Hz, got {rate}"),
+        ));
+    }
+    let last = o.pokes.iter().map(|p| p.t_s).fold(0.0, f64::max);
+    let duration = o.duration_s.unwrap_or(last + 1.0);
+    if !(duration.is_finite() && duration > 0.0 && duration * rate <= 1e7) {
+        return Err(Error::usage(
+            "--duration",
+            format!("must be > 0 s and at most 10 million frames, got {duration} s at {rate} Hz"),
+        ));
+    }
+    let frames = (duration * rate).round().max(1.0) as u64;
+    let mut sim = Simulation::new(&basis, &o.pokes, o.damping_scale)?;
+    let shapes: Vec<Shape> = basis.modes.iter().map(|m| m.shape.clone()).collect();
+    let mut notes = basis.notes.clone();
+    let y4m = if ffmpeg {
+        io::atomic::temp_sibling(&o.output.with_extension("y4m"))
+    } else {
+        io::atomic::temp_sibling(&o.output)
+    };
+    let written = render_to(&basis, &shapes, &mut sim, rate, frames, &y4m);
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&y4m);
+        return Err(e);
+    }
+    crate::magnify::finish_output(&y4m, &o.output, ffmpeg)?;
+    if basis.modes.iter().any(|m| m.freq_hz > rate / 2.0) {
+        notes.push(format!(
+            "modes above {} Hz (half the output rate) alias in the rendered video; raise --rate",
+            rate / 2.0
+        ));
+    }
+    Ok(IdvReport {
+        output: o.output.clone(),
+        frames,
+        rate_hz: rate,
+        width: basis.width,
+        height: basis.height,
+        modes: basis.modes.iter().map(|m| (m.freq_hz, m.damping)).collect(),
+        basis_written,
+        notes,
+    })
+}
+
+/// Renders `frames` frames at `rate` into the Y4M file `path`.
+fn render_to(
+    basis: &Basis,
+    shapes: &[Shape],
+    sim: &mut Simulation,
+    rate: f64,
+    frames: u64,
+    path: &Path,
+) -> Result<()> {
+    let werr = |source: std::io::Error| {
+        Error::from(io::atomic::WriteError {
+            path: path.to_path_buf(),
+            source,
+        })
+    };
+    let file = std::fs::File::create(path).map_err(werr)?;
+    let mut wr = io::Y4mWriter::new(
+        std::io::BufWriter::new(file),
+        basis.width as u32,
+        basis.height as u32,
+        Depth::U8,
+        rate,
+    )
+    .map_err(werr)?;
+    let mut r = Renderer::new(basis.width, basis.height);
+    let mut out = vec![0u8; basis.width * basis.height];
+    for k in 0..frames {
+        let t = k as f64 / rate;
+        let q = sim.advance_to(t);
+        r.displacement(shapes, q);
+        r.warp(&basis.rest, &mut out);
+        let ts = (t * 1e9).round() as i64;
+        wr.write_frame(FrameDestRef::U8(&out), Some(ts))
+            .map_err(werr)?;
+    }
+    wr.finish().map_err(werr)?;
+    Ok(())
+}
