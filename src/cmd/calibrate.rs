@@ -63,10 +63,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             b.set_prefix("recover ".into());
         }
     }
-    let rounds = indicatif::ProgressBar::with_draw_target(
-        Some(0),
-        indicatif::ProgressDrawTarget::stderr_with_hz(10),
-    );
+    // Hidden until the first candidate (drawn beside the frames bar, it
+    // would show an empty bar during the recovery).
+    let rounds = indicatif::ProgressBar::hidden();
     if let Ok(style) =
         indicatif::ProgressStyle::with_template("round {prefix} {bar:30} {pos}/{len} fitting {msg}")
     {
@@ -77,7 +76,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         StepHook(Arc::new(move |s: calibrate::Step| {
             // The recovery is over: its bar goes.
             if let Ok(mut g) = frames.lock() {
-                g.take();
+                if g.take().is_some() {
+                    rounds.set_draw_target(indicatif::ProgressDrawTarget::stderr_with_hz(10));
+                }
             }
             rounds.set_prefix(s.round.to_string());
             rounds.set_length(s.of as u64);
