@@ -10,33 +10,12 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::path::Path;
-use std::process::Command;
-use std::time::Instant;
+#[path = "util/timing.rs"]
+mod timing;
+use timing::{best_of, timed};
 
-const EXE: &str = env!("CARGO_BIN_EXE_vibroscope");
 const FRAMES: usize = 400;
 const PIX: f64 = 256.0 * 256.0;
-
-fn timed(dir: &Path, args: &[&str]) -> f64 {
-    let t = Instant::now();
-    let o = Command::new(EXE)
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("spawn vibroscope");
-    let secs = t.elapsed().as_secs_f64();
-    assert!(
-        o.status.success(),
-        "vibroscope {args:?} failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    secs
-}
-
-fn best_of(n: usize, mut f: impl FnMut() -> f64) -> f64 {
-    (0..n).map(|_| f()).fold(f64::INFINITY, f64::min)
-}
 
 fn main() {
     if std::env::args().any(|a| a == "--list") {

@@ -109,6 +109,7 @@ fn run_with(name: &str, noise: f64, extra: &str, effects: Option<Vec<EffectKind>
         &Default::default(),
         opts,
         Default::default(),
+        None,
     )
     .unwrap()
     .calibration;

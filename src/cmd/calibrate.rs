@@ -3,7 +3,8 @@
 use super::VideoArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use vibroscope::calibrate::{self, CalibrateOptions};
+use std::sync::{Arc, Mutex};
+use vibroscope::calibrate::{self, CalibrateOptions, StepHook};
 use vibroscope::pipeline::RunSettings;
 
 /// Calibrate against a known sound: which camera and object effects explain the error.
@@ -54,6 +55,37 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         .as_deref()
         .map(calibrate::parse_effects)
         .transpose()?;
+    // Progress: the recovery's frames bar, then one bar per greedy round
+    // over the candidate effects.
+    let frames = Arc::new(Mutex::new(super::Bar::start(true)));
+    if let Ok(g) = frames.lock() {
+        if let Some(b) = g.as_ref() {
+            b.set_prefix("recover ".into());
+        }
+    }
+    // Hidden until the first candidate (drawn beside the frames bar, it
+    // would show an empty bar during the recovery).
+    let rounds = indicatif::ProgressBar::hidden();
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("round {prefix} {bar:30} {pos}/{len} fitting {msg}")
+    {
+        rounds.set_style(style);
+    }
+    let on_step = {
+        let (frames, rounds) = (Arc::clone(&frames), rounds.clone());
+        StepHook(Arc::new(move |s: calibrate::Step| {
+            // The recovery is over: its bar goes.
+            if let Ok(mut g) = frames.lock() {
+                if g.take().is_some() {
+                    rounds.set_draw_target(indicatif::ProgressDrawTarget::stderr_with_hz(10));
+                }
+            }
+            rounds.set_prefix(s.round.to_string());
+            rounds.set_length(s.of as u64);
+            rounds.set_position(s.index as u64);
+            rounds.set_message(s.effect.name());
+        }))
+    };
     let o = CalibrateOptions {
         video: a.video,
         reference: a.reference,
@@ -63,11 +95,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         region: a.video_args.region(),
         effects,
         run: RunSettings { progress: true },
+        on_step: Some(on_step),
     };
     super::warn_playback_rate(&o.video, o.fps);
-    let bar = super::Bar::start(true);
+    let started = std::time::Instant::now();
     let r = calibrate::calibrate(&o);
-    drop(bar);
+    if let Ok(mut g) = frames.lock() {
+        g.take();
+    }
+    rounds.finish_and_clear();
     let r = r?;
     let (b, af) = (&r.report.before, &r.report.after);
     let db = |v: f64| super::num(v, 2);
@@ -82,17 +118,70 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         db(b.lsd_db),
         db(af.lsd_db)
     );
-    for e in &r.report.effects {
-        eprintln!("kept {}: +{:.2} dB", e.name, e.snr_gain_db);
-    }
-    for (name, gain, _) in &r.rejected {
-        eprintln!("tried {name}: {} dB, not kept", db(*gain));
-    }
     for u in &r.report.unexplained {
         eprintln!("unexplained: {}", u.description());
     }
+    // The summary: every effect fitted, kept or not, its held-out gain
+    // and parameters (± one standard deviation in REPORT.json).
+    eprintln!();
+    eprintln!(
+        "{:<18} {:<5} {:>14}  parameters",
+        "effect", "kept", "held-out gain"
+    );
+    for e in &r.report.effects {
+        eprintln!(
+            "{:<18} {:<5} {:>11} dB  {}",
+            e.name,
+            "yes",
+            format!("{:+.2}", e.snr_gain_db),
+            brief(&e.parameters)
+        );
+    }
+    for (name, gain, p) in &r.rejected {
+        eprintln!(
+            "{:<18} {:<5} {:>11} dB  {}",
+            name,
+            "no",
+            if gain.is_finite() {
+                format!("{gain:+.2}")
+            } else {
+                "n/a".into()
+            },
+            brief(p)
+        );
+    }
+    eprintln!(
+        "{:<18} {:<5} {:>11} dB  (SNR {} -> {} dB, in {:.1} s)",
+        "total",
+        "",
+        format!("{:+.2}", af.snr_db - b.snr_db),
+        db(b.snr_db),
+        db(af.snr_db),
+        started.elapsed().as_secs_f64()
+    );
     for p in &r.written {
         super::wrote(p);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The numeric parameters of an effect on one line (`key value`, four
+/// significant figures; lists as their length).
+fn brief(p: &vibroscope::math::calibrate::Parameters) -> String {
+    let Ok(serde_json::Value::Object(m)) = serde_json::to_value(p) else {
+        return String::new();
+    };
+    m.iter()
+        .map(|(k, v)| match v {
+            serde_json::Value::Number(n) => {
+                format!(
+                    "{k} {}",
+                    n.as_f64().map_or(n.to_string(), |x| format!("{x:.4}"))
+                )
+            }
+            serde_json::Value::Array(a) => format!("{k} [{}]", a.len()),
+            other => format!("{k} {other}"),
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }

@@ -12,7 +12,17 @@ use crate::pipeline::{self, Region, RunSettings};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
-pub use crate::math::calibrate::{EffectKind, CATALOG};
+pub use crate::math::calibrate::{EffectKind, Step, CATALOG};
+
+/// Called before each candidate effect is fitted (a progress display).
+#[derive(Clone)]
+pub struct StepHook(pub std::sync::Arc<dyn Fn(Step) + Send + Sync>);
+
+impl std::fmt::Debug for StepHook {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("StepHook")
+    }
+}
 
 /// What `calibrate` is asked.
 #[derive(Clone, Debug, Default)]
@@ -30,6 +40,8 @@ pub struct CalibrateOptions {
     /// The effects to try (`None`: the whole catalog).
     pub effects: Option<Vec<EffectKind>>,
     pub run: RunSettings,
+    /// Told of each candidate effect as it is fitted.
+    pub on_step: Option<StepHook>,
 }
 
 /// What `calibrate` found: serialises to the REPORT.json it writes.
@@ -148,8 +160,9 @@ pub struct Calibrated {
     pub calibration: Calibration,
 }
 
-/// Recovers `video` and calibrates it against `reference` (errors that are
-/// the user's are [`Error::Input`] or [`Error::Usage`]).
+/// Recovers `video` and calibrates it against `reference`, telling
+/// `on_step` of each candidate effect as it is fitted (errors that are the
+/// user's are [`Error::Input`] or [`Error::Usage`]).
 pub fn calibrate_video(
     video: &Path,
     reference: &Path,
@@ -157,6 +170,7 @@ pub fn calibrate_video(
     region: &Region,
     opts: Option<Options>,
     run: RunSettings,
+    on_step: Option<&StepHook>,
 ) -> Result<Calibrated> {
     let (fr, r) = read_input_wav(reference)?;
     let fs = frame_rate(video, fps)?;
@@ -180,8 +194,13 @@ pub fn calibrate_video(
         ));
     }
     let opts = opts.unwrap_or_else(|| Options::for_rate(fs));
-    let c =
-        cal::calibrate(&y, fs, &r, fr, &opts).map_err(|e| Error::input(video, e.to_string()))?;
+    let mut hook = |s: Step| {
+        if let Some(h) = on_step {
+            (h.0)(s)
+        }
+    };
+    let c = cal::calibrate_observed(&y, fs, &r, fr, &opts, &mut hook)
+        .map_err(|e| Error::input(video, e.to_string()))?;
     pipeline::check_interrupt()?;
     Ok(Calibrated {
         frame_rate_hz: fs,
@@ -211,7 +230,15 @@ pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
         reference_rate_hz: fr,
         reference: r,
         calibration: c,
-    } = calibrate_video(&o.video, &o.reference, o.fps, &o.region, opts, o.run)?;
+    } = calibrate_video(
+        &o.video,
+        &o.reference,
+        o.fps,
+        &o.region,
+        opts,
+        o.run,
+        o.on_step.as_ref(),
+    )?;
     crate::json::write(&o.json, &c.report)?;
     let mut written = Vec::new();
     if let Some(out) = &o.output {

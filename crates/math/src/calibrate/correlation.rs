@@ -76,10 +76,12 @@ pub(super) fn corr_peak(z: &[f64], t: &[f64], k: usize) -> (f64, f64) {
     let ki = k as isize;
     let vals: Vec<f64> = (-ki..=ki)
         .map(|l| {
-            let mut acc = 0.0;
-            for i in k..n.saturating_sub(k) {
-                acc += z[i] * t[(i as isize - l) as usize];
-            }
+            // Σ z[i] t[i - l] over i in k..n - k, as two slices.
+            let end = n.saturating_sub(k).max(k);
+            let zs = &z[k..end];
+            let from = (k as isize - l) as usize;
+            let ts = &t[from..from + zs.len()];
+            let acc: f64 = zs.iter().zip(ts).map(|(a, b)| a * b).sum();
             acc / norm
         })
         .collect();

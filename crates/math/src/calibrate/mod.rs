@@ -207,6 +207,17 @@ struct Candidate {
     uncertainty: Uncertainty,
 }
 
+/// A candidate effect about to be fitted (for a progress display).
+#[derive(Clone, Copy, Debug)]
+pub struct Step {
+    /// The greedy round (1-based).
+    pub round: usize,
+    pub effect: EffectKind,
+    /// This candidate's place in the round (0-based) and the round's size.
+    pub index: usize,
+    pub of: usize,
+}
+
 /// Calibrates the recovery `y` (at `fs`, the declared frame rate) against
 /// the reference `r` (at `fr`): see the module docs.
 pub fn calibrate(
@@ -215,6 +226,18 @@ pub fn calibrate(
     r: &[f64],
     fr: f64,
     opts: &Options,
+) -> Result<Calibration, CalError> {
+    calibrate_observed(y, fs, r, fr, opts, &mut |_| {})
+}
+
+/// [`calibrate`], calling `on_step` before each candidate is fitted.
+pub fn calibrate_observed(
+    y: &[f64],
+    fs: f64,
+    r: &[f64],
+    fr: f64,
+    opts: &Options,
+    on_step: &mut dyn FnMut(Step),
 ) -> Result<Calibration, CalError> {
     if !(fs.is_finite() && fs > 0.0 && fr.is_finite() && fr > 0.0) {
         return Err(CalError::Rates { fs, fr });
@@ -240,9 +263,17 @@ pub fn calibrate(
     // with the largest held-out gain, if it reaches `min_gain_db`.
     let mut left: Vec<EffectKind> = opts.effects.clone();
     let (mut z, mut fit, mut cur) = (y.to_vec(), fit0, before);
+    let mut round_no = 0;
     loop {
+        round_no += 1;
         let mut round: Vec<Tried> = Vec::new();
-        for &kind in &left {
+        for (index, &kind) in left.iter().enumerate() {
+            on_step(Step {
+                round: round_no,
+                effect: kind,
+                index,
+                of: left.len(),
+            });
             let Some(c) = fit_effect(kind, &m, &z, &fit) else {
                 continue;
             };
