@@ -12,6 +12,7 @@ pub mod notify;
 pub mod runner;
 pub mod spec;
 pub mod stage;
+pub mod wire;
 
 pub mod pipelines;
 pub mod stages;
