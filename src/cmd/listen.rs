@@ -15,8 +15,10 @@ enum DenoiseArg {
     None,
     /// Spectral subtraction.
     Subtract,
-    /// Speech enhancement.
+    /// Speech enhancement (perceptual: MMSE log-spectral amplitude).
     Enhance,
+    /// MMSE (Wiener) STFT gain: the least squared error, the highest SNR.
+    Wiener,
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -190,6 +192,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             DenoiseArg::None => Denoise::None,
             DenoiseArg::Subtract => Denoise::Subtract,
             DenoiseArg::Enhance => Denoise::Enhance,
+            DenoiseArg::Wiener => Denoise::Wiener,
         },
         speaker: a.speaker,
         calibration: a.calibration,

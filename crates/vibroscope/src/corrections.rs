@@ -38,7 +38,7 @@ pub fn apply_to_wav(path: &Path, corrections: &[Correction], denoise: Denoise) -
 /// sample `k` (the denoisers' latency is only in when a sample is
 /// released), so the whole signal is fed and finished.
 fn denoise_again(x: &[f64], rate: f64, kind: Denoise) -> Result<Vec<f64>> {
-    use crate::math::denoise::{SpectralSubtraction, SpeechEnhance};
+    use crate::math::denoise::{SpectralSubtraction, SpeechEnhance, Wiener};
     use crate::math::MathError;
     let input: Vec<f32> = x.iter().map(|&v| v as f32).collect();
     let mut out = Vec::with_capacity(input.len());
@@ -51,6 +51,11 @@ fn denoise_again(x: &[f64], rate: f64, kind: Denoise) -> Result<Vec<f64>> {
         }
         Denoise::Enhance => {
             let mut d = SpeechEnhance::with_defaults(rate).map_err(MathError::from)?;
+            d.process(&input, &mut out);
+            d.finish(&mut out);
+        }
+        Denoise::Wiener => {
+            let mut d = Wiener::with_defaults(rate).map_err(MathError::from)?;
             d.process(&input, &mut out);
             d.finish(&mut out);
         }

@@ -443,6 +443,8 @@ pub enum Denoise {
     Subtract,
     /// Speech enhancement.
     Enhance,
+    /// MMSE (Wiener) estimation: the least squared error.
+    Wiener,
 }
 
 impl Denoise {
@@ -452,6 +454,7 @@ impl Denoise {
             Denoise::None => None,
             Denoise::Subtract => Some("spectral_subtraction"),
             Denoise::Enhance => Some("speech_enhance"),
+            Denoise::Wiener => Some("wiener"),
         }
     }
 }

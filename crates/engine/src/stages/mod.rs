@@ -27,6 +27,7 @@ pub static REGISTRY: &[KindSpec] = &[
     transform::align::KIND,
     transform::denoise::SUBTRACT_KIND,
     transform::denoise::ENHANCE_KIND,
+    transform::denoise::WIENER_KIND,
     transform::rows::KIND,
     transform::gap_fill::KIND,
     transform::exposure::KIND,

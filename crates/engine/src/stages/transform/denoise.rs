@@ -1,6 +1,8 @@
-//! `spectral_subtraction` (Boll 1979) and `speech_enhance` (MMSE
-//! log-spectral amplitude, Ephraim & Malah 1985): streaming denoisers on an
-//! audio stream ([`vibroscope_math::denoise`]). Both track the noise floor as
+//! `spectral_subtraction` (Boll 1979), `speech_enhance` (MMSE
+//! log-spectral amplitude, Ephraim & Malah 1985) and `wiener` (MMSE of the
+//! STFT coefficients, gain xi/(1+xi), the same decision-directed a-priori
+//! SNR): streaming denoisers on an audio stream
+//! ([`vibroscope_math::denoise`]). All track the noise floor as
 //! they go (minimum statistics; no look at the whole recording) and delay
 //! the signal by one STFT frame; every output block carries the capture
 //! time of its first sample, taken from the input blocks.
@@ -10,7 +12,8 @@ use serde::Deserialize;
 use std::collections::VecDeque;
 use std::sync::Arc;
 use vibroscope_math::denoise::{
-    DenoiseConfig, DenoiseError, SpectralSubtraction, SpeechEnhance, DEFAULT_ALPHA, DEFAULT_BETA,
+    DenoiseConfig, DenoiseError, SpectralSubtraction, SpeechEnhance, Wiener, DEFAULT_ALPHA,
+    DEFAULT_BETA,
 };
 
 #[derive(Deserialize)]
@@ -57,10 +60,11 @@ const ENHANCE_PARAMS: &[ParamSpec] = &[FRAME_MS, OVERLAP, NOISE_WINDOW];
 enum Method {
     Subtract,
     Enhance,
+    Wiener,
 }
 
 fn plan(p: &Params<'_>, method: Method) -> Result<Box<dyn Plan>, ConfigError> {
-    if method == Method::Enhance {
+    if method != Method::Subtract {
         for k in ["alpha", "beta"] {
             if p.stage.params.iter().any(|q| q.key == k) {
                 return Err(p.error(k, "only `spectral_subtraction` takes this parameter"));
@@ -69,7 +73,7 @@ fn plan(p: &Params<'_>, method: Method) -> Result<Box<dyn Plan>, ConfigError> {
     }
     let v: P = p.resolve(match method {
         Method::Subtract => SUBTRACT_PARAMS,
-        Method::Enhance => ENHANCE_PARAMS,
+        Method::Enhance | Method::Wiener => ENHANCE_PARAMS,
     })?;
     let cfg = DenoiseConfig {
         frame_ms: v.frame_ms,
@@ -85,6 +89,7 @@ fn plan(p: &Params<'_>, method: Method) -> Result<Box<dyn Plan>, ConfigError> {
     let probe = match method {
         Method::Subtract => SpectralSubtraction::new(8000.0, &cfg, alpha, beta).map(|_| ()),
         Method::Enhance => SpeechEnhance::new(8000.0, &cfg).map(|_| ()),
+        Method::Wiener => Wiener::new(8000.0, &cfg).map(|_| ()),
     };
     if let Err(e) = probe {
         let field = match &e {
@@ -102,23 +107,46 @@ fn plan(p: &Params<'_>, method: Method) -> Result<Box<dyn Plan>, ConfigError> {
     }))
 }
 
-pub const SUBTRACT_KIND: KindSpec = KindSpec {
-    name: "spectral_subtraction",
-    summary: "streaming spectral subtraction (Boll 1979) with a tracked noise floor; alpha, beta, frame_ms, overlap",
-    inputs: &[InPort::one(&[PortType::Audio])],
-    outputs: &[OutPort::out(PortType::Audio)],
-    params: SUBTRACT_PARAMS,
-    plan: |p| plan(p, Method::Subtract),
-};
+const AUDIO_IN: &[InPort] = &[InPort::one(&[PortType::Audio])];
+const AUDIO_OUT: &[OutPort] = &[OutPort::out(PortType::Audio)];
 
-pub const ENHANCE_KIND: KindSpec = KindSpec {
-    name: "speech_enhance",
-    summary: "streaming MMSE log-spectral-amplitude speech enhancement (Ephraim-Malah) with a tracked noise floor",
-    inputs: &[InPort::one(&[PortType::Audio])],
-    outputs: &[OutPort::out(PortType::Audio)],
-    params: ENHANCE_PARAMS,
-    plan: |p| plan(p, Method::Enhance),
-};
+/// An audio-in, audio-out denoiser kind.
+const fn audio_kind(
+    name: &'static str,
+    summary: &'static str,
+    params: &'static [ParamSpec],
+    plan: fn(&Params<'_>) -> Result<Box<dyn Plan>, ConfigError>,
+) -> KindSpec {
+    KindSpec {
+        name,
+        summary,
+        inputs: AUDIO_IN,
+        outputs: AUDIO_OUT,
+        params,
+        plan,
+    }
+}
+
+pub const SUBTRACT_KIND: KindSpec = audio_kind(
+    "spectral_subtraction",
+    "streaming spectral subtraction (Boll 1979) with a tracked noise floor; alpha, beta, frame_ms, overlap",
+    SUBTRACT_PARAMS,
+    |p| plan(p, Method::Subtract),
+);
+
+pub const ENHANCE_KIND: KindSpec = audio_kind(
+    "speech_enhance",
+    "streaming MMSE log-spectral-amplitude speech enhancement (Ephraim-Malah) with a tracked noise floor",
+    ENHANCE_PARAMS,
+    |p| plan(p, Method::Enhance),
+);
+
+pub const WIENER_KIND: KindSpec = audio_kind(
+    "wiener",
+    "streaming MMSE (Wiener) STFT denoiser, decision-directed a-priori SNR, tracked noise floor: raises SNR, not only segmental SNR",
+    ENHANCE_PARAMS,
+    |p| plan(p, Method::Wiener),
+);
 
 struct DenoisePlan {
     method: Method,
@@ -142,6 +170,7 @@ impl Plan for DenoisePlan {
 enum Filter {
     Subtract(Box<SpectralSubtraction>),
     Enhance(Box<SpeechEnhance>),
+    Wiener(Box<Wiener>),
 }
 
 struct Denoise {
@@ -192,6 +221,9 @@ impl Stage for Denoise {
                 Method::Enhance => {
                     SpeechEnhance::new(a.rate_hz, &p.cfg).map(|f| Filter::Enhance(Box::new(f)))
                 }
+                Method::Wiener => {
+                    Wiener::new(a.rate_hz, &p.cfg).map(|f| Filter::Wiener(Box::new(f)))
+                }
             }
             .map_err(|e| StageError::dsp(format!("denoiser at {} Hz: {e}", a.rate_hz)))?;
             self.filter = Some(f);
@@ -206,6 +238,7 @@ impl Stage for Denoise {
         match self.filter.as_mut() {
             Some(Filter::Subtract(f)) => f.process(&a.samples, &mut self.out),
             Some(Filter::Enhance(f)) => f.process(&a.samples, &mut self.out),
+            Some(Filter::Wiener(f)) => f.process(&a.samples, &mut self.out),
             None => {}
         }
         self.emit(out);
@@ -216,6 +249,7 @@ impl Stage for Denoise {
         match self.filter.as_mut() {
             Some(Filter::Subtract(f)) => f.finish(&mut self.out),
             Some(Filter::Enhance(f)) => f.finish(&mut self.out),
+            Some(Filter::Wiener(f)) => f.finish(&mut self.out),
             None => {}
         }
         self.emit(out);
