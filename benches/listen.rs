@@ -28,25 +28,16 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
-const EXE: &str = env!("CARGO_BIN_EXE_vibroscope");
+#[path = "util/timing.rs"]
+#[allow(dead_code)] // `timed` and `best_of` serve the other benchmarks
+mod timing;
+use timing::{run_exe, EXE};
+
 const PIX: f64 = 256.0 * 256.0;
 const FRAMES: f64 = 2200.0;
 
 fn vibroscope(dir: &Path, args: &[&str]) -> (f64, String) {
     run_exe(EXE, dir, args)
-}
-
-fn run_exe(exe: &str, dir: &Path, args: &[&str]) -> (f64, String) {
-    let t = Instant::now();
-    let o = Command::new(exe)
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .expect("spawn vibroscope");
-    let secs = t.elapsed().as_secs_f64();
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(o.status.success(), "vibroscope {args:?} failed: {err}");
-    (secs, err)
 }
 
 fn best_of(n: usize, mut f: impl FnMut() -> f64) -> f64 {
