@@ -931,7 +931,8 @@ fn frames_too_large_for_the_memory_limit_are_refused() {
     no_panic(&o);
     assert_eq!(code(&o), 1, "{}", stderr(&o));
     for want in [
-        "1024x1024 frames need up to",
+        "1024x1024 frames",
+        "would need up to",
         "VIBROSCOPE_MAX_MEMORY",
         "threads",
     ] {
@@ -947,6 +948,19 @@ fn frames_too_large_for_the_memory_limit_are_refused() {
         stderr(&o)
     );
     assert!(!d.join("big.wav").exists());
+    // A modal image of the same frames: 120+ bytes a pixel, over 64 MiB.
+    let o = bin()
+        .current_dir(d)
+        .env("VIBROSCOPE_MAX_MEMORY", "64M")
+        .args(["modes", "big.y4m", "--at", "10", "-o", "m.png"])
+        .output()
+        .unwrap();
+    no_panic(&o);
+    assert_eq!(code(&o), 1, "{}", stderr(&o));
+    for want in ["modal image of 1024x1024 pixels", "would need up to", "roi"] {
+        assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
+    }
+    assert!(!d.join("m.png").exists());
     // Raised, the same video runs.
     let o = listen("0");
     assert_eq!(code(&o), 0, "{}", stderr(&o));

@@ -90,6 +90,40 @@ pub fn phase_bound(
     (width as u64 * height as u64).saturating_mul(per_px) + (64 << 20)
 }
 
+/// Upper bound of the whole process's memory for a modal image (the
+/// `modes` sink) of `width` x `height` pixels at pyramid `scale`, either
+/// pyramid and either motion. The imager keeps 7 numbers per band pixel
+/// and orientation (a quarter as many band pixels a scale down) beside the
+/// pyramid's full-size buffers; frames are streamed, so the length of the
+/// recording does not count. Measured (peak RSS of `vibroscope modes` on
+/// 512², 1024² and 2048² frames, 8 and 40 frames, scales 0, 1 and 3;
+/// docs/hostile-input.md) and rounded up: 2048² took 1.13 GB at scale 0
+/// and 584 MB at scale 1 (the default) with the steerable pyramid and
+/// `motion = "sum"`, the most of the combinations.
+pub fn modes_bound(width: usize, height: usize, scale: usize) -> u64 {
+    let band = 200u64 >> (2 * scale.min(16));
+    (width as u64 * height as u64).saturating_mul(120 + band) + (64 << 20)
+}
+
+/// Refuses `need` bytes when they exceed the limit ([`limit`]): `what`
+/// says what needs them, `instead` what the user can change. The error
+/// is a message for a configuration error on the `memory` field.
+pub fn check(need: u64, what: &str, instead: &str) -> Result<(), String> {
+    match limit()? {
+        Some(limit) if need > limit => Err(format!(
+            "{what} would need up to {} and {} may be used ({}); {instead}, or raise {ENV}",
+            human(need),
+            human(limit),
+            if std::env::var_os(ENV).is_some() {
+                ENV
+            } else {
+                "the memory available now"
+            },
+        )),
+        _ => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -103,6 +137,30 @@ mod tests {
         assert_eq!(parse_size("0"), Some(0));
         for bad in ["", "G", "-1G", "12X", "nan", "inf", "1e30T"] {
             assert_eq!(parse_size(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn the_modes_bound_covers_the_measured_peaks() {
+        // (side, scale, measured peak RSS in kB: CSP, motion = sum)
+        for (side, scale, kb) in [
+            (512, 1, 47_376u64),
+            (1024, 1, 155_296),
+            (2048, 0, 1_126_300),
+            (2048, 1, 583_700),
+            (2048, 3, 459_052),
+        ] {
+            let bound = modes_bound(side, side, scale);
+            assert!(
+                bound >= kb * 1024,
+                "{side}² scale {scale}: {bound} < {kb} kB"
+            );
+            if side >= 1024 {
+                assert!(
+                    bound <= kb * 1024 * 2,
+                    "{side}² scale {scale}: {bound} is loose"
+                );
+            }
         }
     }
 

@@ -155,6 +155,18 @@ impl Modes {
         // The image covers the roi (or the frame), zero outside the mask;
         // the mask must fit the frame and overlap the roi.
         let roi = Roi::resolve(self.p.roi.as_ref(), f.width(), f.height())?;
+        crate::memory::check(
+            crate::memory::modes_bound(roi.w, roi.h, self.p.scale),
+            &format!(
+                "a modal image of {}x{} pixels at pyramid scale {}",
+                roi.w, roi.h, self.p.scale
+            ),
+            "give a region (roi) or a coarser scale",
+        )
+        .map_err(|message| StageError::Config {
+            field: "memory",
+            message,
+        })?;
         let (_, mask) =
             resolve_region(self.p.roi.as_ref(), self.mask.take(), f.width(), f.height())?;
         let cfg = ModalConfig {

@@ -570,33 +570,21 @@ impl Phase {
     /// Refuses, before allocating, a frame size whose pyramids would not
     /// fit in the memory the process may take (`crate::memory`).
     fn check_memory(&self, w: usize, h: usize) -> Result<(), StageError> {
-        let limit = crate::memory::limit().map_err(|message| StageError::Config {
+        let csp = matches!(self.kind, PyramidKind::Csp);
+        crate::memory::check(
+            crate::memory::phase_bound(w, h, self.orientations, self.threads, csp),
+            &format!(
+                "{w}x{h} frames with the {} pyramid, {} orientations and {} workers",
+                if csp { "steerable" } else { "Riesz" },
+                self.orientations,
+                self.threads,
+            ),
+            "lower `threads` (workers), crop the frames before this stage (a `roi` stage) or use the Riesz pyramid",
+        )
+        .map_err(|message| StageError::Config {
             field: "memory",
             message,
-        })?;
-        let csp = matches!(self.kind, PyramidKind::Csp);
-        let need = crate::memory::phase_bound(w, h, self.orientations, self.threads, csp);
-        match limit {
-            Some(limit) if need > limit => Err(StageError::Config {
-                field: "memory",
-                message: format!(
-                    "{w}x{h} frames need up to {} with the {} pyramid, {} orientations and {} workers, and {} may be used ({}); \
-                     lower `threads` (workers), crop the frames before this stage (a `roi` stage), use the Riesz pyramid, or raise {}",
-                    crate::memory::human(need),
-                    if csp { "steerable" } else { "Riesz" },
-                    self.orientations,
-                    self.threads,
-                    crate::memory::human(limit),
-                    if std::env::var_os(crate::memory::ENV).is_some() {
-                        crate::memory::ENV
-                    } else {
-                        "the memory available now"
-                    },
-                    crate::memory::ENV,
-                ),
-            }),
-            _ => Ok(()),
-        }
+        })
     }
 
     fn init(&mut self, f: &Item) -> Result<(), StageError> {
