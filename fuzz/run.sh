@@ -16,7 +16,7 @@ secs="${1:-60}"
 shift || true
 targets=("$@")
 if [ "${#targets[@]}" -eq 0 ]; then
-  targets=(y4m cine mraw wav mask calibration_json pipeline_toml scene_toml)
+  targets=(y4m cine mraw wav mask calibration_json pipeline_toml scene_toml wire studio_http)
 fi
 # -a: debug assertions (integer overflow is a crash); -s none: no sanitizer
 # (the parsers are safe Rust: no unsafe in crates/io).

@@ -177,3 +177,52 @@ bits = 12
 noise_std = 0.5
 signal = { type = "chirp", f0_hz = 100.0, f1_hz = 1000.0, duration_s = 0.005 }
 """)
+
+
+# --- wire items (crates/engine/src/wire.rs, version 1) --------------------
+def vbw(kind, body):
+    return b"VBW" + bytes([1, kind]) + body
+
+
+def f32s(v):
+    return struct.pack("<I", len(v)) + struct.pack("<%df" % len(v), *v)
+
+
+put("wire", "audio", vbw(1, struct.pack("<qd", 5_000_000, 2200.0) + f32s([0.0, 0.5, -0.25])))
+put("wire", "samples-times", vbw(2, struct.pack("<qdI", 7, 600.0, 2) + f32s([1, 2, 3, 4])
+                                 + b"\x01" + struct.pack("<I2q", 2, 0, 1_666_667)))
+put("wire", "samples", vbw(2, struct.pack("<qdI", 0, 600.0, 1) + f32s([1, 2]) + b"\x00"))
+put("wire", "spectrum", vbw(3, struct.pack("<qdddIBI", 9, 0.0, 2.5, 600.0, 256, 0, 4)
+                            + f32s([1e-3, 2e-3, 5e-4])))
+put("wire", "peaks", vbw(4, struct.pack("<qI", 11, 2) + struct.pack("<6d", 81.0, 0.1, -20, 12, 0.01, 0.002)
+                         + struct.pack("<6d", 108.0, 0.2, -25, 9, 0.02, 0.004)))
+put("wire", "frame-u8", vbw(5, struct.pack("<QqIIBBdB", 3, 40, 3, 2, 8, 8, 600.0, 0) + bytes(range(6))))
+put("wire", "frame-u16-rs", vbw(5, struct.pack("<QqIIBBdBdd", 4, 50, 2, 1, 16, 12, 2200.0, 1, 1e4, 2e5)
+                                + struct.pack("<2H", 4000, 17)))
+
+
+# --- studio HTTP requests (fuzz_targets/studio_http.rs's layout) ----------
+# byte 0: bits 0-1 method (0 GET, 1 POST, 2 PUT, 3 DELETE), bit 2 token in
+# the query, bit 3 in a header, bit 4 in a cookie; the target up to "\n";
+# header lines up to an empty line; the body.
+def req(sel, target, body=b"", headers=()):
+    h = b"".join(k + b": " + v + b"\n" for k, v in headers)
+    return bytes([sel]) + target.encode() + b"\n" + h + b"\n" + body
+
+
+JSON = ((b"content-type", b"application/json"),)
+put("studio_http", "index", req(4, "/"))
+put("studio_http", "script", req(16, "/app.js"))
+put("studio_http", "no-token", req(0, "/api/session"))
+put("studio_http", "session", req(8, "/api/session"))
+put("studio_http", "info", req(4, "/api/info?video=v.y4m"))
+put("studio_http", "info-fps", req(4, "/api/info?video=v.y4m&fps=250"))
+put("studio_http", "frame", req(4, "/api/frame?video=v.y4m&i=3"))
+put("studio_http", "traversal", req(4, "/api/frame?video=../secret.y4m&i=0"))
+put("studio_http", "symlink", req(4, "/api/info?video=sub/out.y4m"))
+put("studio_http", "encoded", req(4, "/api/info%2f..%2fx?video=v.y4m"))
+put("studio_http", "motion", req(5, "/api/motion", b'{"video":"v.y4m"}', JSON))
+put("studio_http", "motion-roi", req(5, "/api/motion", b'{"video":"v.y4m","roi":[2,2,8,6],"fps":100}', JSON))
+put("studio_http", "mode", req(5, "/api/mode", b'{"video":"v.y4m","freq_hz":10}', JSON))
+put("studio_http", "mode-roi", req(5, "/api/mode", b'{"video":"v.y4m","freq_hz":12.5,"roi":[0,0,16,12]}', JSON))
+put("studio_http", "wrong-method", req(4, "/api/motion"))

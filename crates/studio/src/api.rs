@@ -145,6 +145,7 @@ pub fn router(app: Arc<App>, max_body: usize) -> Router {
         .route("/api/mode", post(mode))
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "no such page") })
         .layer(DefaultBodyLimit::max(max_body))
+        .layer(middleware::from_fn(json_errors))
         .layer(middleware::from_fn_with_state(app.clone(), gate))
         .with_state(app)
 }
@@ -158,6 +159,35 @@ fn asset(body: &'static str, mime: &'static str) -> Response {
         body,
     )
         .into_response()
+}
+
+/// Error answers that axum makes itself (405 for a wrong method, 413 for a
+/// body over the bound, 400/415 for a body it cannot read) come as plain
+/// text or empty; the page shows `{"error": ...}`, so they are rewritten
+/// into that JSON with their status and text kept.
+async fn json_errors(req: Request, next: Next) -> Response {
+    let resp = next.run(req).await;
+    let status = resp.status();
+    let is_json = resp
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.starts_with("application/json"));
+    if !(status.is_client_error() || status.is_server_error()) || is_json {
+        return resp;
+    }
+    let text = axum::body::to_bytes(resp.into_body(), 64 * 1024)
+        .await
+        .map(|b| String::from_utf8_lossy(&b).trim().to_owned())
+        .unwrap_or_default();
+    let message = match (text.is_empty(), status) {
+        (false, _) => text,
+        (true, StatusCode::METHOD_NOT_ALLOWED) => {
+            "method not allowed here (the API takes GET for info and frames, POST for motion and modes)".to_owned()
+        }
+        (true, s) => s.canonical_reason().unwrap_or("error").to_owned(),
+    };
+    ApiError::new(status, message).into_response()
 }
 
 /// The cookie that carries the token for the page's own requests (its

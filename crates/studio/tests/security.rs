@@ -141,7 +141,19 @@ fn paths_bodies_and_malformed_requests_get_the_right_status() {
 
     // Bodies: oversized 413, garbage 400, wrong fields 400, bad values 422.
     let big = format!("{{\"video\":\"{}\"}}", "a".repeat(200_000));
-    assert_eq!(post(a, "/api/motion", &big).0, 413);
+    let (st, body) = post(a, "/api/motion", &big);
+    assert_eq!(st, 413, "{body}");
+    assert!(
+        error_of(&body).contains("length limit"),
+        "413 as JSON: {body}"
+    );
+    // A wrong method gets the page's JSON error too.
+    let (st, body) = get(a, "/api/motion");
+    assert_eq!(st, 405, "{body}");
+    assert!(
+        error_of(&body).contains("method not allowed"),
+        "405 as JSON: {body}"
+    );
     for (target, body, want) in [
         ("/api/motion", "not json {", 400),
         ("/api/motion", "", 400),
