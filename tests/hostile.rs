@@ -961,6 +961,33 @@ fn frames_too_large_for_the_memory_limit_are_refused() {
         assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
     }
     assert!(!d.join("m.png").exists());
+    // A `pyramid` stage: its workers' pyramids and the coefficient sets
+    // its consumers can hold.
+    std::fs::write(
+        d.join("pyr.toml"),
+        "[pipeline]\nname = \"pyr\"\n\
+         [[stage]]\nid = \"src\"\nkind = \"file\"\npath = \"big.y4m\"\n\
+         [[stage]]\nid = \"pyr\"\nkind = \"pyramid\"\ninput = \"src\"\n\
+         [[stage]]\nid = \"phase\"\nkind = \"phase\"\ninput = \"pyr\"\n\
+         [[stage]]\nid = \"out\"\nkind = \"null\"\ninput = \"phase\"\n",
+    )
+    .unwrap();
+    let o = bin()
+        .current_dir(d)
+        .env("VIBROSCOPE_MAX_MEMORY", "64M")
+        .args(["run", "pyr.toml"])
+        .output()
+        .unwrap();
+    no_panic(&o);
+    assert_eq!(code(&o), 1, "{}", stderr(&o));
+    for want in [
+        "stage `pyr`",
+        "coefficient sets in flight",
+        "would need up to",
+        "capacity",
+    ] {
+        assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
+    }
     // Raised, the same video runs.
     let o = listen("0");
     assert_eq!(code(&o), 0, "{}", stderr(&o));

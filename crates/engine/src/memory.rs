@@ -90,6 +90,30 @@ pub fn phase_bound(
     (width as u64 * height as u64).saturating_mul(per_px) + (64 << 20)
 }
 
+/// Bytes of one set of pyramid coefficients as the `pyramid` stage sends
+/// it on: per scale (each half the size of the one before) and
+/// orientation, a complex band (8 bytes a pixel) for the steerable
+/// pyramid, with the full-size high-pass residual (4); for the Riesz
+/// pyramid, the band, its two Riesz components, the amplitude and one
+/// phase per orientation (4 bytes each).
+pub fn pyramid_item_bytes(
+    width: usize,
+    height: usize,
+    scales: usize,
+    orientations: usize,
+    csp: bool,
+) -> u64 {
+    let (w, h, k) = (width as u64, height as u64, orientations as u64);
+    let levels: u64 = (0..scales.min(32) as u32)
+        .map(|s| w.div_ceil(1 << s) * h.div_ceil(1 << s))
+        .sum();
+    if csp {
+        levels.saturating_mul(8 * k) + w * h * 4
+    } else {
+        levels.saturating_mul(4 * (4 + k))
+    }
+}
+
 /// Upper bound of the whole process's memory for a modal image (the
 /// `modes` sink) of `width` x `height` pixels at pyramid `scale`, either
 /// pyramid and either motion. The imager keeps 7 numbers per band pixel
@@ -161,6 +185,30 @@ mod tests {
                     "{side}² scale {scale}: {bound} is loose"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn the_pyramid_stage_bound_covers_the_measured_peaks() {
+        // `pyramid -> phase -> null` on a replay, 2 workers, 2
+        // orientations, 4 scales, default edges (23 sets in flight at
+        // most): (side, csp, measured peak RSS in kB).
+        for (side, csp, kb) in [
+            (1024, true, 235_604u64),
+            (1024, false, 243_924),
+            (2048, true, 1_078_720),
+            (2048, false, 1_158_836),
+        ] {
+            let item = pyramid_item_bytes(side, side, 4, 2, csp);
+            // A set is at least its finest band, at most twice the frame
+            // in complex numbers per orientation and a residual.
+            assert!(item >= (side * side * 4) as u64, "{side}² csp={csp}");
+            assert!(
+                item <= (side * side * (16 * 2 + 24)) as u64,
+                "{side}² csp={csp}"
+            );
+            let bound = phase_bound(side, side, 2, 2, csp) + 23 * item;
+            assert!(bound >= kb * 1024, "{side}² csp={csp}: {bound} < {kb} kB");
         }
     }
 

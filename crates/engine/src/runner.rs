@@ -216,6 +216,14 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
             frame_slots += 2 + node.plan.frames_held();
         }
     }
+    // What each node's output can have in flight: every edge's ring plus
+    // what its consumer holds while working.
+    let mut held_downstream = vec![0usize; n];
+    for node in &graph.nodes {
+        for inp in &node.inputs {
+            held_downstream[inp.from] += inp.capacity + 2 + node.plan.frames_held();
+        }
+    }
     // Edges, in node order then input order, so fan-out order is stable.
     let mut outs: Vec<Vec<_>> = (0..n).map(|_| Vec::new()).collect();
     let mut ins: Vec<Vec<EdgeRx>> = (0..n).map(|_| Vec::new()).collect();
@@ -246,10 +254,11 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
     let mut built = Vec::with_capacity(n);
     let mut ids = Vec::with_capacity(n);
     let mut kinds = Vec::with_capacity(n);
-    for node in graph.nodes {
+    for (i, node) in graph.nodes.into_iter().enumerate() {
         let ctx = BuildCtx {
             pool_frames: frame_slots,
-            input_types: node.inputs.iter().map(|i| i.port_type).collect(),
+            held_downstream: held_downstream[i],
+            input_types: node.inputs.iter().map(|inp| inp.port_type).collect(),
             live,
         };
         let built_node = node.plan.build(&ctx).map_err(|e| RunError {

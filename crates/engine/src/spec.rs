@@ -657,6 +657,12 @@ impl KindSpec {
 pub struct BuildCtx {
     /// Frame buffers a source should put in its pool.
     pub pool_frames: usize,
+    /// Items this stage's output can have in flight downstream at once:
+    /// on every edge leaving it, the ring's capacity plus what the
+    /// consumer holds while working (a stage that recycles its output
+    /// buffers, as `pyramid` does, never has more than this plus its own
+    /// workers' outstanding).
+    pub held_downstream: usize,
     /// Types arriving on each input port.
     pub input_types: Vec<PortType>,
     /// The graph has a live source: sinks that pace themselves (a speaker)

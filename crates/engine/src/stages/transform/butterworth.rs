@@ -287,6 +287,7 @@ mod tests {
     /// output and the blocks' times.
     fn run(plan: FilterPlan, live: bool, f: f64, fs: f64, n: usize) -> (Vec<f32>, Vec<i64>) {
         let ctx = BuildCtx {
+            held_downstream: 0,
             pool_frames: 0,
             input_types: vec![PortType::Audio],
             live,

@@ -242,11 +242,12 @@ struct PyramidPlan {
 }
 
 impl Plan for PyramidPlan {
-    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+    fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
         Ok(Node::Stage(Box::new(PyramidStage {
             pool: super::reduce::thread_pool(self.threads)?,
             spec: self.spec,
             threads: self.threads,
+            held_downstream: ctx.held_downstream,
             workers: None,
             pending: Vec::with_capacity(self.threads),
         })))
@@ -394,6 +395,8 @@ struct PyramidStage {
     pool: Option<rayon::ThreadPool>,
     spec: PyramidSpec,
     threads: usize,
+    /// Coefficient sets the consumers can hold at once (rings + working).
+    held_downstream: usize,
     workers: Option<Box<dyn Analyse>>,
     /// Frames waiting for a full batch (one per worker).
     pending: Vec<Frame>,
@@ -408,6 +411,30 @@ impl PyramidStage {
             orientations: k,
         } = self.spec;
         let n = self.threads;
+        // The workers' pyramids take what the `phase` stage's take; the
+        // coefficient sets in flight are recycled, so there are at most
+        // as many as the consumers can hold plus one per worker.
+        let csp = matches!(kind, PyramidKind::Csp);
+        let sets = (self.held_downstream + n + 1) as u64;
+        let need = crate::memory::phase_bound(w, h, k, n, csp).saturating_add(
+            sets.saturating_mul(crate::memory::pyramid_item_bytes(w, h, s, k, csp)),
+        );
+        crate::memory::check(
+            need,
+            &format!(
+                "{w}x{h} frames with the {} pyramid, {k} orientations, {n} workers and up to {sets} coefficient sets in flight",
+                if csp { "steerable" } else { "Riesz" },
+            ),
+            if csp {
+                "lower `threads` (workers) or the `capacity` of the edges after this stage, or crop the frames before it (a `roi` stage)"
+            } else {
+                "lower `threads` (workers) or the `capacity` of the edges after this stage, crop the frames before it (a `roi` stage) or use the steerable pyramid (`csp`)"
+            },
+        )
+        .map_err(|message| StageError::Config {
+            field: "memory",
+            message,
+        })?;
         self.workers = Some(match kind {
             PyramidKind::Csp => Box::new(Workers::new(
                 || {
