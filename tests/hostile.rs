@@ -961,6 +961,21 @@ fn frames_too_large_for_the_memory_limit_are_refused() {
         assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
     }
     assert!(!d.join("m.png").exists());
+    // Magnification of the same frames: 670 bytes a pixel by default.
+    let o = bin()
+        .current_dir(d)
+        .env("VIBROSCOPE_MAX_MEMORY", "300M")
+        .args([
+            "magnify", "big.y4m", "--band", "5,15", "--factor", "10", "-o", "mg.y4m",
+        ])
+        .output()
+        .unwrap();
+    no_panic(&o);
+    assert_eq!(code(&o), 1, "{}", stderr(&o));
+    for want in ["magnifying 1024x1024 pixels", "would need up to", "roi"] {
+        assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
+    }
+    assert!(!d.join("mg.y4m").exists());
     // A `pyramid` stage: its workers' pyramids and the coefficient sets
     // its consumers can hold.
     std::fs::write(

@@ -129,6 +129,35 @@ pub fn modes_bound(width: usize, height: usize, scale: usize) -> u64 {
     (width as u64 * height as u64).saturating_mul(120 + band) + (64 << 20)
 }
 
+/// Upper bound of the whole process's memory for the `magnify` stage on a
+/// `width` x `height` region with `orientations` bands a scale (the
+/// steerable pyramid keeps a filter state per band pixel and orientation;
+/// the Riesz pyramid one per band pixel, whatever the orientations), plus
+/// its output frames when they are twice as wide (`side_by_side`).
+/// Measured (peak RSS of `vibroscope run magnify --replay V.y4m` on 1024²
+/// and 2048² frames, 2, 4 and 8 orientations, 4 and 6 scales, both
+/// pyramids; docs/hostile-input.md) and rounded up: 2048² took 2.30 GB with
+/// the steerable pyramid and 8 orientations (the default), 995 MB with 2,
+/// and 831 MB with the Riesz pyramid; the scales barely count.
+pub fn magnify_bound(
+    width: usize,
+    height: usize,
+    orientations: usize,
+    csp: bool,
+    side_by_side_frames: usize,
+) -> u64 {
+    let px = width as u64 * height as u64;
+    let per_px = if csp {
+        160 + 64 * orientations as u64
+    } else {
+        240
+    };
+    let wide = (side_by_side_frames as u64).saturating_mul(px.saturating_mul(2));
+    px.saturating_mul(per_px)
+        .saturating_add(wide)
+        .saturating_add(64 << 20)
+}
+
 /// Refuses `need` bytes when they exceed the limit ([`limit`]): `what`
 /// says what needs them, `instead` what the user can change. The error
 /// is a message for a configuration error on the `memory` field.
@@ -209,6 +238,31 @@ mod tests {
             );
             let bound = phase_bound(side, side, 2, 2, csp) + 23 * item;
             assert!(bound >= kb * 1024, "{side}² csp={csp}: {bound} < {kb} kB");
+        }
+    }
+
+    #[test]
+    fn the_magnify_bound_covers_the_measured_peaks() {
+        // (side, orientations, csp, measured peak RSS in kB, 4 scales)
+        for (side, k, csp, kb) in [
+            (1024, 2, true, 191_636u64),
+            (1024, 8, true, 518_812),
+            (2048, 2, true, 995_472),
+            (2048, 4, true, 1_431_052),
+            (2048, 8, true, 2_301_620),
+            (1024, 8, false, 150_048),
+            (2048, 2, false, 830_900),
+            (2048, 8, false, 830_976),
+        ] {
+            let bound = magnify_bound(side, side, k, csp, 0);
+            assert!(
+                bound >= kb * 1024,
+                "{side}² k={k} csp={csp}: {bound} < {kb} kB"
+            );
+            assert!(
+                bound <= kb * 1024 * 5 / 2,
+                "{side}² k={k} csp={csp}: {bound} is loose"
+            );
         }
     }
 

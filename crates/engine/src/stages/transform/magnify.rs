@@ -140,6 +140,40 @@ impl Magnify {
     fn start(&self, f: &Frame) -> Result<Run, StageError> {
         let fmt = *f.format();
         let roi = Roi::resolve(self.p.roi.as_ref(), f.width(), f.height())?;
+        let csp = self.p.pyramid != "riesz";
+        crate::memory::check(
+            crate::memory::magnify_bound(
+                roi.w,
+                roi.h,
+                self.p.orientations,
+                csp,
+                if self.p.side_by_side {
+                    self.pool_frames.max(2)
+                } else {
+                    0
+                },
+            ),
+            &format!(
+                "magnifying {}x{} pixels with the {} pyramid{}",
+                roi.w,
+                roi.h,
+                if csp { "steerable" } else { "Riesz" },
+                if csp {
+                    format!(" and {} orientations", self.p.orientations)
+                } else {
+                    String::new()
+                }
+            ),
+            if csp {
+                "give a region (roi), fewer orientations or the Riesz pyramid"
+            } else {
+                "give a region (roi)"
+            },
+        )
+        .map_err(|message| StageError::Config {
+            field: "memory",
+            message,
+        })?;
         let params = MagnifyParams {
             fps: fmt.fps,
             lo_hz: self.p.lo_hz,
