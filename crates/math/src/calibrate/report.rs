@@ -297,9 +297,17 @@ pub enum ReportError {
         expected: &'static str,
     },
     #[error(
-        "effects[{index}]: effect `exposure`: parameters.exposure_us must be > 0, got {value}"
+        "effects[{index}]: effect `exposure`: parameters.exposure_us must be > 0 and at most {MAX_EXPOSURE_US} (one second: frame rates are at least 1 Hz), got {value}"
     )]
     Exposure { index: usize, value: f64 },
+    #[error("effects[{index}]: effect `{name}`: parameters.{key} must be {range}, got {value}")]
+    OutOfRange {
+        index: usize,
+        name: String,
+        key: &'static str,
+        range: &'static str,
+        value: f64,
+    },
     #[error("effects[{index}]: effect `{name}`: frequencies_hz ({freqs}) must increase and match coefficients_db ({coefs})")]
     TransferTable {
         index: usize,
@@ -326,6 +334,12 @@ pub enum ReportError {
 /// (10000 ppm) that `calibrate` searches. Beyond it a report is damaged or
 /// hand-made (-1e6 ppm would resample a recovery to nothing).
 pub const MAX_CLOCK_ERROR_PPM: f64 = 1e5;
+/// The longest exposure a stored report may hold, µs (a frame's exposure
+/// is at most its period, and frame rates below 1 Hz are refused).
+pub const MAX_EXPOSURE_US: f64 = 1e6;
+/// The largest transfer-function strength `k` a stored report may hold
+/// (the fit searches 0 to 3).
+pub const MAX_TRANSFER_K: f64 = 10.0;
 
 /// A value in a stored report's `parameters`, as loosely as it may come.
 #[derive(Deserialize)]
@@ -430,7 +444,7 @@ fn from_report(
         }
         Some(EffectKind::Exposure) => {
             let e = num("exposure_us")?;
-            if e <= 0.0 {
+            if !(e > 0.0 && e <= MAX_EXPOSURE_US) {
                 return Err(ReportError::Exposure { index, value: e });
             }
             Some(Correction::Exposure {
@@ -459,11 +473,25 @@ fn from_report(
                     freqs: f.len(),
                 });
             }
+            let out_of_range = |key, range, value| ReportError::OutOfRange {
+                index,
+                name: name.to_string(),
+                key,
+                range,
+                value,
+            };
+            if let Some(&lo) = f.iter().find(|&&v| v < 0.0) {
+                return Err(out_of_range("frequencies_hz", "0 Hz or more", lo));
+            }
+            let k = num("k")?;
+            if !(0.0..=MAX_TRANSFER_K).contains(&k) {
+                return Err(out_of_range("k", "within 0..=10", k));
+            }
             Some(Correction::Transfer {
                 freqs_hz: f,
                 coef_db: c,
                 phase_deg: phase,
-                k: num("k")?,
+                k,
             })
         }
         // Per recording: the level is in the recovery's units, which

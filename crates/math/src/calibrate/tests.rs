@@ -214,6 +214,38 @@ fn report_round_trips_the_reusable_corrections() {
     );
 }
 
+/// Issue 20: the other numbers of a stored report have ranges too: an
+/// exposure over a second, a transfer function at a negative frequency
+/// or with a strength outside 0..=10 is refused, naming the field.
+#[test]
+fn report_exposure_and_transfer_out_of_range_are_refused() {
+    let transfer = |f0: f64, k: f64| {
+        json!({"effects": [{"name": "transfer_function", "parameters": {
+            "frequencies_hz": [f0, 200.0, 400.0], "coefficients_db": [0.0, 1.0, 2.0], "k": k
+        }}]})
+    };
+    let exposure =
+        |us: f64| json!({"effects": [{"name": "exposure", "parameters": {"exposure_us": us}}]});
+    for (report, ok, key) in [
+        (exposure(400.0), true, "exposure_us"),
+        (exposure(1e6), true, "exposure_us"),
+        (exposure(1e6 + 1.0), false, "exposure_us"),
+        (exposure(0.0), false, "exposure_us"),
+        (transfer(50.0, 1.0), true, "k"),
+        (transfer(-1.0, 1.0), false, "frequencies_hz"),
+        (transfer(50.0, -0.5), false, "k"),
+        (transfer(50.0, 1e9), false, "k"),
+    ] {
+        match reusable_from_report(&report) {
+            Ok(c) => assert!(ok, "{report}: accepted {c:?}"),
+            Err(e) => {
+                assert!(!ok, "{report}: {e}");
+                assert!(e.to_string().contains(key), "{e}");
+            }
+        }
+    }
+}
+
 /// Issue 20: a report claiming a -1e6 ppm clock error (a factor of zero)
 /// gave a 0-sample WAV; out of ±1e5 ppm it is refused, naming the field.
 #[test]
