@@ -219,6 +219,39 @@ fn idv_bad_input() {
     let dir = tempfile::tempdir().unwrap();
     render_beam(dir.path(), 800);
     let d = dir.path();
+    // What only a measurement uses, given with --basis: refused, not
+    // silently ignored (the basis directory need not exist for that).
+    for extra in [
+        &["beam.y4m"][..],
+        &["--modes", "7.3"][..],
+        &["--max-modes", "2"][..],
+        &["--scale", "0"][..],
+        &["--sigma", "2"][..],
+        &["--fps", "400"][..],
+        &["--roi", "0,0,10,10"][..],
+        &["--mask", "m.pgm"][..],
+    ] {
+        let mut args = vec![
+            "idv",
+            "--basis",
+            "nb",
+            "--poke",
+            "0.1,5,5,0,1",
+            "-o",
+            "o.y4m",
+        ];
+        args.extend_from_slice(extra);
+        let o = run_in(d, &args);
+        assert_eq!(code(&o), 2, "{extra:?}: {}", stderr(&o));
+        let flag = extra[0].trim_start_matches('-');
+        assert!(
+            stderr(&o).contains("--basis")
+                && (stderr(&o).contains(flag) || stderr(&o).contains("VIDEO")),
+            "{extra:?}: {}",
+            stderr(&o)
+        );
+        assert!(!d.join("o.y4m").exists());
+    }
     // A poke outside the frame: usage error naming --poke.
     let o = run_in(
         d,

@@ -25,7 +25,7 @@ use vibroscope::pipeline::RunSettings;
 pub struct Args {
     /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads);
     /// not needed with --basis.
-    #[arg(required_unless_present = "basis")]
+    #[arg(required_unless_present = "basis", conflicts_with = "basis")]
     video: Option<PathBuf>,
     /// A poke: at T seconds, an impulse at pixel X,Y in direction DX,DY
     /// (pixels), times STRENGTH (default 1). Repeat for several.
@@ -39,10 +39,20 @@ pub struct Args {
     /// The modes: `auto` (the significant spectral peaks, at most
     /// --max-modes) or a list of frequencies and ranges in Hz (`7.3,58`,
     /// `75-90,100-115`: the most prominent peak of each range).
-    #[arg(long, value_name = "auto|F1,F2,..", default_value = "auto")]
+    #[arg(
+        long,
+        value_name = "auto|F1,F2,..",
+        default_value = "auto",
+        conflicts_with = "basis"
+    )]
     modes: ModeChoice,
     /// At most this many modes with --modes auto.
-    #[arg(long, value_name = "N", default_value_t = idv::DEFAULT_MAX_MODES)]
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = idv::DEFAULT_MAX_MODES,
+        conflicts_with = "basis"
+    )]
     max_modes: usize,
     /// Output video: .y4m, or any container ffmpeg writes (.mp4, ...).
     #[arg(short, long, value_name = "OUT.y4m|OUT.mp4")]
@@ -50,7 +60,10 @@ pub struct Args {
     /// Also save the measured basis into this directory.
     #[arg(long, value_name = "DIR", conflicts_with = "basis")]
     save_basis: Option<PathBuf>,
-    /// Load the basis from this directory instead of measuring it.
+    /// Load the basis from this directory instead of measuring it (what
+    /// only a measurement uses is refused with it: a VIDEO, --modes,
+    /// --max-modes, --scale, --sigma, --fps, --roi, --mask; --pyramid is
+    /// not used).
     #[arg(long, value_name = "DIR")]
     basis: Option<PathBuf>,
     /// Output frame rate, Hz (default: the recording's capture rate).
@@ -68,10 +81,15 @@ pub struct Args {
     )]
     damping_scale: f64,
     /// Pyramid scale of the shapes (0 = finest).
-    #[arg(long, value_name = "S", default_value_t = 1)]
+    #[arg(long, value_name = "S", default_value_t = 1, conflicts_with = "basis")]
     scale: usize,
     /// σ_b of the shapes' Gaussian blur, input pixels.
-    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "PX",
+        allow_negative_numbers = true,
+        conflicts_with = "basis"
+    )]
     sigma: Option<f64>,
     #[command(flatten)]
     video_args: VideoArgs,
@@ -87,6 +105,27 @@ fn progress(k: u64, total: Option<u64>) {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    if a.basis.is_some() {
+        let v = &a.video_args;
+        let given: Vec<&str> = [
+            (v.fps.is_some(), "--fps"),
+            (v.roi.is_some(), "--roi"),
+            (v.mask.is_some(), "--mask"),
+        ]
+        .into_iter()
+        .filter_map(|(g, name)| g.then_some(name))
+        .collect();
+        if !given.is_empty() {
+            return Err(vibroscope::error::UsageError::new(
+                "--basis",
+                format!(
+                    "{} cannot be used with it: they shape a basis measured from a video, and --basis loads one measured before (measure again without --basis, or drop them)",
+                    given.join(", ")
+                ),
+            )
+            .into());
+        }
+    }
     let mut b = BasisOptions::new(a.video.clone().unwrap_or_default());
     b.fps = a.video_args.fps;
     b.region = a.video_args.region();
