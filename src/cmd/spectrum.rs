@@ -74,6 +74,15 @@ pub struct SpectrumArgs {
     /// Segment length in frames instead of --segments (even).
     #[arg(long, value_name = "FRAMES")]
     pub window: Option<usize>,
+    /// Report only peaks that noise alone would put this high anywhere in
+    /// the band with at most this probability (against each peak's local
+    /// noise floor and the spectrum's averages; 0 < P <= 1).
+    #[arg(long, value_name = "P", default_value_t = vibroscope::math::peaks::DEFAULT_FALSE_ALARM)]
+    pub false_alarm: f64,
+    /// Report every prominent peak, significant or not (each with its
+    /// false-alarm probability): --false-alarm 1.
+    #[arg(long, conflicts_with = "false_alarm")]
+    pub all_peaks: bool,
     /// Only peaks above this frequency (Hz).
     #[arg(long, value_name = "HZ")]
     pub min_hz: Option<f64>,
@@ -108,6 +117,11 @@ impl SpectrumArgs {
             window: self.window,
             min_hz: self.min_hz,
             max_hz: self.max_hz,
+            false_alarm: if self.all_peaks {
+                1.0
+            } else {
+                self.false_alarm
+            },
             include_spectrum: self.include_spectrum,
             png: self.png.clone(),
             spectrogram: self.spectrogram.clone(),
@@ -176,7 +190,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The strongest peaks, most prominent first.
+/// The strongest peaks first.
 fn summary(r: &SpectrumReport) {
     if r.peaks.is_empty() {
         eprintln!(
@@ -187,9 +201,9 @@ fn summary(r: &SpectrumReport) {
         return;
     }
     let mut peaks: Vec<_> = r.peaks.iter().collect();
-    peaks.sort_by(|a, b| b.prominence_db.total_cmp(&a.prominence_db));
+    peaks.sort_by(|a, b| b.power_db.total_cmp(&a.power_db));
     eprintln!(
-        "{} peaks (resolution {:.3} Hz at {} Hz sampling):",
+        "{} peaks, strongest first (resolution {:.3} Hz at {} Hz sampling):",
         peaks.len(),
         r.resolution_hz,
         short(r.sample_rate_hz)
@@ -233,8 +247,21 @@ fn summary(r: &SpectrumReport) {
             (Some(a), Some(m)) => format!("  {} {}", significant(a), m.unit),
             _ => String::new(),
         };
+        let chance = if p.false_alarm.is_finite() {
+            let fa = if p.false_alarm < 1e-12 {
+                "< 1e-12".to_string()
+            } else {
+                format!("{:.1e}", p.false_alarm)
+            };
+            format!(
+                ", {} dB above the noise floor (false alarm {fa})",
+                super::num(p.power_db - p.floor_db, 1),
+            )
+        } else {
+            String::new()
+        };
         eprintln!(
-            "  {:>10} {f_std} Hz{amp}  {damping}  {} dB above its surroundings",
+            "  {:>10} {f_std} Hz{amp}  {damping}  {} dB above its surroundings{chance}",
             super::num(p.frequency_hz, 3),
             super::num(p.prominence_db, 1)
         );

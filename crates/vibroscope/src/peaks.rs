@@ -9,6 +9,10 @@ fn nan_f64<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<f64, D::Error
     Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }
 
+fn nan() -> f64 {
+    f64::NAN
+}
+
 fn nan_pair<'de, D: Deserializer<'de>>(d: D) -> std::result::Result<[f64; 2], D::Error> {
     let v = <[Option<f64>; 2]>::deserialize(d)?;
     Ok(v.map(|x| x.unwrap_or(f64::NAN)))
@@ -59,6 +63,14 @@ pub struct Peak {
     #[serde(deserialize_with = "nan_f64")]
     pub prominence_db: f64,
     pub resolved: bool,
+    /// The local noise floor under the peak, dB (absent in reports
+    /// written before it existed: NaN).
+    #[serde(default = "nan", deserialize_with = "nan_f64")]
+    pub floor_db: f64,
+    /// The probability that noise alone puts a peak this high anywhere in
+    /// the band searched.
+    #[serde(default = "nan", deserialize_with = "nan_f64")]
+    pub false_alarm: f64,
     /// The motion's amplitude at this frequency, in the report's
     /// `motion.unit` (`spectrum` only).
     #[serde(default, skip_serializing_if = "Option::is_none")]

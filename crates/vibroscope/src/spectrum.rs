@@ -41,6 +41,9 @@ pub struct SpectrumOptions {
     /// Only peaks in this band (Hz).
     pub min_hz: Option<f64>,
     pub max_hz: Option<f64>,
+    /// Only peaks that noise alone would put this high anywhere in the band
+    /// with at most this probability; 1 reports every prominent peak.
+    pub false_alarm: f64,
     /// Also write the spectrum (dB) into the JSON.
     pub include_spectrum: bool,
     /// Also plot the spectrum to this PNG.
@@ -77,6 +80,7 @@ impl SpectrumOptions {
             segments: None,
             window: None,
             min_hz: None,
+            false_alarm: crate::math::peaks::DEFAULT_FALSE_ALARM,
             max_hz: None,
             include_spectrum: false,
             png: None,
@@ -130,6 +134,12 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
     let st = pipeline::stage_mut(&mut decl, "out")?;
     set(st, "path", path_value(json), by("--json"));
     set(st, "peaks", int(o.peaks), by("--peaks"));
+    set(
+        st,
+        "false_alarm",
+        Value::Float(o.false_alarm),
+        by("--false-alarm"),
+    );
     band(st, o.min_hz, o.max_hz);
     if o.include_spectrum {
         set(

@@ -1,8 +1,9 @@
 //! `peaks`: resonances of a motion spectrum, written as one JSON document at
 //! the end (atomically). The spectra that arrive are averaged (one from
 //! `spectrum` in `mode = "whole"`; from a sliding `spectrum`, the mean over
-//! the run), then peaks are picked by prominence and their damping estimated
-//! ([`vibroscope_math::peaks`]). Each line is fitted as seen through the
+//! the run), then peaks are picked by prominence, kept when significant
+//! against their local noise floor (`false_alarm`), listed strongest first,
+//! and their damping estimated ([`vibroscope_math::peaks`]). Each line is fitted as seen through the
 //! spectral window of the taper the spectrum carries ([`Spectrum::taper`]),
 //! so the taper is not restated here.
 //!
@@ -10,9 +11,9 @@
 //! {"sample_rate_hz": 600.0, "resolution_hz": 0.29, "spectra_averaged": 1,
 //!  "peaks": [{"frequency_hz", "frequency_std_hz", "damping_ratio",
 //!             "damping_ratio_std", "damping_method", "power_db",
-//!             "prominence_db", "damping_estimates": [{"method",
-//!             "damping_ratio", "damping_ratio_std"}], "fit_range_hz",
-//!             "resolved"}]}
+//!             "prominence_db", "floor_db", "false_alarm",
+//!             "damping_estimates": [{"method", "damping_ratio",
+//!             "damping_ratio_std"}], "fit_range_hz", "resolved"}]}
 //! ```
 //! `include_spectrum = true` adds `"spectrum": {"f0_hz", "resolution_hz",
 //! "power_db": [...]}`.
@@ -31,6 +32,7 @@ struct P {
     min_prominence_db: f64,
     min_hz: Option<f64>,
     max_hz: Option<f64>,
+    false_alarm: f64,
     include_spectrum: bool,
 }
 
@@ -56,6 +58,9 @@ const PARAMS: &[ParamSpec] = &[
         .doc("a peak must stand this far above its surroundings"),
     MIN_HZ,
     MAX_HZ,
+    ParamSpec::new("false_alarm", ParamType::Float, Def::Float(vibroscope_math::peaks::DEFAULT_FALSE_ALARM))
+        .floats(1e-12, 1.0)
+        .doc("report only peaks that noise alone would put this high anywhere in the band with at most this probability (the spectrum's K averages and its local floor); 1 = every prominent peak, each with its probability"),
     ParamSpec::new("include_spectrum", ParamType::Bool, Def::Bool(false))
         .doc("add the mean spectrum (dB) to the JSON"),
 ];
@@ -151,6 +156,9 @@ impl Stage for Peaks {
             max_hz: self.p.max_hz,
             // The fit sees each line through the taper's spectral window.
             window_kernel: last.taper.power_kernel(last.window, 4),
+            // Welch segments times the spectra averaged here.
+            segments: last.segments.max(1).saturating_mul(self.count),
+            max_false_alarm: (self.p.false_alarm < 1.0).then_some(self.p.false_alarm),
         };
         let peaks = find_peaks(&mean, self.f0, self.df, &opts);
         for pk in &peaks {
