@@ -152,6 +152,15 @@ fn damping_within_15_percent_over_seeds() {
 /// Writes the beam's motion as a WAV, renders it through the forward model
 /// as video, and runs `vibroscope spectrum` on the video.
 fn beam_through_video(dir: &std::path::Path, seed: u64, seconds: f64) -> serde_json::Value {
+    beam_through_video_with(dir, seed, seconds, "riesz")
+}
+
+fn beam_through_video_with(
+    dir: &std::path::Path,
+    seed: u64,
+    seconds: f64,
+    pyramid: &str,
+) -> serde_json::Value {
     let n = (seconds * FPS) as usize;
     write_wav(&dir.join("beam.wav"), &beam_motion(seed, n), FPS as u32);
     let frames = format!("cam.frames={n}");
@@ -186,11 +195,46 @@ fn beam_through_video(dir: &std::path::Path, seed: u64, seconds: f64) -> serde_j
             "--peaks",
             "10",
             "--pyramid",
-            "riesz",
+            pyramid,
         ],
     );
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     serde_json::from_slice(&std::fs::read(dir.join("beam.json")).unwrap()).unwrap()
+}
+
+/// Issue 14: the steerable and the Riesz pyramid agree on the significant
+/// peaks of one recording (the simulated cantilever, 5 minutes; seeds 3
+/// and 4 measured, seed 3 here): the same three, each within three of its
+/// combined frequency uncertainties.
+#[test]
+fn csp_and_riesz_agree_on_the_significant_peaks() {
+    for seed in [3u64] {
+        let dir = tempfile::tempdir().unwrap();
+        let freqs = |doc: &serde_json::Value| {
+            let mut f: Vec<(f64, f64)> = doc["peaks"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|p| {
+                    (
+                        p["frequency_hz"].as_f64().unwrap(),
+                        p["frequency_std_hz"].as_f64().unwrap(),
+                    )
+                })
+                .collect();
+            f.sort_by(|a, b| a.0.total_cmp(&b.0));
+            f
+        };
+        let riesz = freqs(&beam_through_video_with(dir.path(), seed, 300.0, "riesz"));
+        let csp = freqs(&beam_through_video_with(dir.path(), seed, 300.0, "csp"));
+        eprintln!("seed {seed}: riesz {riesz:?}, csp {csp:?}");
+        assert_eq!(riesz.len(), 3, "seed {seed}: {riesz:?}");
+        assert_eq!(csp.len(), 3, "seed {seed}: {csp:?}");
+        for (r, c) in riesz.iter().zip(&csp) {
+            let tol = 3.0 * r.1.hypot(c.1);
+            assert!((r.0 - c.0).abs() <= tol, "seed {seed}: {r:?} vs {c:?}");
+        }
+    }
 }
 
 /// Thesis Table 5.5 beam under ambient (white) excitation, 40 minutes at
