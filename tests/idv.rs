@@ -40,7 +40,9 @@ fn beam_scene(frames: u64, seed: u64) -> String {
 
 /// Renders the beam scene into `dir/beam.y4m`.
 fn render_beam(dir: &std::path::Path, frames: u64) -> std::path::PathBuf {
-    std::fs::write(dir.join("beam.toml"), beam_scene(frames, 3)).unwrap();
+    // IDV_SEED=n renders another realisation (the figures in docs/idv.md).
+    let seed = std::env::var("IDV_SEED").map_or(3, |v| v.parse().unwrap());
+    std::fs::write(dir.join("beam.toml"), beam_scene(frames, seed)).unwrap();
     let o = run_in(dir, &["simulate", "beam.toml", "-o", "beam.y4m"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     dir.join("beam.y4m")
@@ -139,8 +141,13 @@ fn beam_basis_and_impulse_response_match_the_simulator() {
 
 /// Each mode's damping within 25% of the truth. NOT MET yet (issue 17):
 /// the spectrum's SSI-cov estimate of the 7.3 Hz mode (ξ 0.02, an
-/// unresolved peak) reads 0.0276 (38% off) on this 40 s recording; the
-/// other two modes are within 6%. Ignored so CI stays green; run with
+/// unresolved peak) reads 0.0276 (38% off) on this 40 s recording (seed
+/// 3); the other two modes are within 6%. Over seeds 1-6 (`IDV_SEED=n`)
+/// the 7.3 Hz mode reads 16, 4, 38, 11, 2 and 16% off: the spread of any
+/// estimate of its decay rate σ = 0.92/s from T = 40 s is at least
+/// √(2/σT) = 23%, so 25% needs a longer recording, not a tuned seed.
+/// (Welch segments long enough to resolve the peak, tried instead of
+/// SSI-cov, read 0-79% off: worse.) Ignored so CI stays green; run with
 /// `--ignored` to see the figures.
 #[test]
 #[ignore = "issue 17: the 7.3 Hz mode's damping is 38% off (acceptance: 25%)"]
