@@ -92,6 +92,7 @@ impl Plan for PlotPlan {
             f0: 0.0,
             df: 0.0,
             kernel: Vec::new(),
+            segments: 1,
         })))
     }
 }
@@ -103,6 +104,8 @@ struct SpectrumPng {
     df: f64,
     /// The spectral window of the spectra's taper (for the peak fits).
     kernel: Vec<f64>,
+    /// Welch segments of each spectrum (for the peaks' significance).
+    segments: usize,
 }
 
 impl SpectrumPng {
@@ -126,6 +129,7 @@ impl Stage for SpectrumPng {
             self.spectra.clear();
             self.f0 = s.f0_hz;
             self.df = s.resolution_hz;
+            self.segments = s.segments.max(1);
             self.kernel = if self.p.peaks > 0 {
                 s.taper.power_kernel(s.window, 4)
             } else {
@@ -168,6 +172,8 @@ impl Stage for SpectrumPng {
                         min_hz: self.p.min_hz,
                         max_hz: self.p.max_hz,
                         window_kernel: self.kernel.clone(),
+                        // As the `peaks` sink: segments times spectra.
+                        segments: self.segments.saturating_mul(self.spectra.len()),
                         ..Default::default()
                     };
                     find_peaks(&mean, self.f0, self.df, &opts)
