@@ -287,8 +287,11 @@ pub fn find_peaks(power: &[f64], f0_hz: f64, df_hz: f64, opts: &PeakOptions) -> 
     for c in &c {
         let (floor, _) = significance(power, c.bin, k, searched);
         let f = f0_hz + c.bin as f64 * df_hz;
+        // Within eight half widths: farther out the local median already
+        // holds a real skirt, and an unresolved line's γ is only a bound.
         let skirts: f64 = lines
             .iter()
+            .filter(|&&(fl, g, _)| (f - fl).abs() <= 8.0 * g)
             .map(|&(fl, g, h)| h / (1.0 + ((f - fl) / g).powi(2)))
             .sum();
         let r = power[c.bin] / (floor + skirts).max(f64::MIN_POSITIVE);
