@@ -7,13 +7,15 @@ src, out, col, n0, n = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[
 b = open(src, 'rb').read()
 hdr, rest = b.split(b'\n', 1)
 W = int([t for t in hdr.split() if t.startswith(b'W')][0][1:]); H = int([t for t in hdr.split() if t.startswith(b'H')][0][1:])
+C = ([t[1:] for t in hdr.split() if t.startswith(b'C')] or [b'420jpeg'])[0]
+# Bytes of one frame: the luma, then the chroma planes (colour output is 4:4:4).
+size = {b'mono': W*H, b'444': 3*W*H}.get(C, W*H + 2*((W+1)//2)*((H+1)//2))
 frames = []
 pos = 0
-while True:
-    i = rest.find(b'FRAME', pos)
-    if i < 0: break
-    j = rest.index(b'\n', i)
-    frames.append(rest[j+1:j+1+W*H]); pos = j+1+W*H
+while pos < len(rest):
+    j = rest.index(b'\n', pos)
+    assert rest[pos:j].startswith(b'FRAME'), 'not a frame header at byte %d' % pos
+    frames.append(rest[j+1:j+1+W*H]); pos = j+1+size
 half = W // 2
 # Space-time slices: rows = image rows at column `col`, columns = time; original | gap | magnified.
 cols = n

@@ -12,7 +12,7 @@ use std::f64::consts::PI;
 use std::path::Path;
 use vibroscope::magnify::{magnify, MagnifyOptions};
 use vibroscope::math::magnify::temporal;
-use vibroscope::pipeline::{self, PipelineOptions, Pyramid, RunSettings};
+use vibroscope::pipeline::{self, BandFilter, PipelineOptions, Pyramid, RunSettings};
 
 const FPS: f64 = 500.0;
 const BAND: (f64, f64) = (35.0, 45.0);
@@ -235,6 +235,18 @@ fn bad_input_exits_2_and_writes_nothing() {
             "--factor",
         ),
         (&["rgb.y4m", "--band", "5,10"], "colour space"),
+        (
+            &["scene.y4m", "--band", "35,45", "--notch", "300,20"],
+            "--notch 300,20",
+        ),
+        (
+            &["scene.y4m", "--band", "35,45", "--notch", "abc"],
+            "--notch",
+        ),
+        (
+            &["scene.y4m", "--band", "35,45", "--notch", "5,20"],
+            "--notch",
+        ),
     ];
     for (args, want) in cases {
         let mut a: Vec<&str> = vec!["magnify"];
@@ -254,5 +266,250 @@ fn bad_input_exits_2_and_writes_nothing() {
             .filter(|n| n != "scene.y4m" && n != "rgb.y4m")
             .collect();
         assert!(left.is_empty(), "{a:?} left {left:?}");
+    }
+}
+
+/// A 64x48, 500 fps scene of `frames` frames at `d/name`.
+fn render_small(d: &Path, name: &str, frames: usize) {
+    let frames = format!("cam.frames={frames}");
+    let sets = [
+        frames.as_str(),
+        "cam.fps=500",
+        "cam.width=64",
+        "cam.height=48",
+    ];
+    let args: Vec<&str> = sets.iter().flat_map(|s| ["--set", s]).collect();
+    render_y4m(d, name, &args);
+}
+
+/// A Y4M's header tags and its frames' planes (8-bit only).
+struct Y4m {
+    w: usize,
+    h: usize,
+    colour: String,
+    /// Per frame, the planes (luma, then chroma when there is any).
+    frames: Vec<Vec<Vec<u8>>>,
+}
+
+fn read_y4m(p: &Path) -> Y4m {
+    let bytes = std::fs::read(p).unwrap();
+    let end = bytes.iter().position(|&b| b == b'\n').unwrap();
+    let header = String::from_utf8_lossy(&bytes[..end]).into_owned();
+    let tag = |c: char| {
+        header
+            .split(' ')
+            .find_map(|t| t.strip_prefix(c).map(str::to_string))
+    };
+    let w: usize = tag('W').unwrap().parse().unwrap();
+    let h: usize = tag('H').unwrap().parse().unwrap();
+    let colour = tag('C').unwrap_or_else(|| "420jpeg".into());
+    let planes: Vec<usize> = match colour.as_str() {
+        "mono" => vec![w * h],
+        "444" => vec![w * h; 3],
+        c => panic!(
+            "{}: colour space C{c} not handled by this test",
+            p.display()
+        ),
+    };
+    let mut frames = Vec::new();
+    let mut at = end + 1;
+    while at < bytes.len() {
+        let line = at + bytes[at..].iter().position(|&b| b == b'\n').unwrap();
+        assert!(bytes[at..line].starts_with(b"FRAME"), "{}", p.display());
+        at = line + 1;
+        let mut f = Vec::new();
+        for &n in &planes {
+            f.push(bytes[at..at + n].to_vec());
+            at += n;
+        }
+        frames.push(f);
+    }
+    Y4m {
+        w,
+        h,
+        colour,
+        frames,
+    }
+}
+
+/// A colour input keeps its colour: the output's luma is what magnifying
+/// the grey video gives, bit for bit, and its chroma is the input's (of
+/// the region, twice side by side).
+#[test]
+fn colour_is_kept_beside_the_magnified_luma() {
+    if std::process::Command::new("ffmpeg")
+        .arg("-version")
+        .output()
+        .is_err()
+    {
+        eprintln!("skipping: ffmpeg is not installed (it puts the chroma back)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_small(d, "grey.y4m", 30);
+    // The same luma with chroma that varies across the frame and in time.
+    let st = std::process::Command::new("ffmpeg")
+        .current_dir(d)
+        .args(["-v", "error", "-nostdin", "-y", "-i", "grey.y4m", "-vf"])
+        .arg("format=yuv444p,geq=lum='p(X,Y)':cb='40+2*X+N':cr='200-3*Y'")
+        .args(["-f", "yuv4mpegpipe", "-pix_fmt", "yuv444p", "colour.y4m"])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let colour_in = read_y4m(&d.join("colour.y4m"));
+    assert_eq!(colour_in.colour, "444");
+    // Its luma alone, as a grey Y4M (ffmpeg moved the grey to video range).
+    let mut luma = format!(
+        "YUV4MPEG2 W{} H{} F500:1 Ip A1:1 Cmono\n",
+        colour_in.w, colour_in.h
+    )
+    .into_bytes();
+    for f in &colour_in.frames {
+        luma.extend_from_slice(b"FRAME\n");
+        luma.extend_from_slice(&f[0]);
+    }
+    std::fs::write(d.join("luma.y4m"), luma).unwrap();
+    for (roi, side) in [(None, false), (Some("9,7,40,30"), true)] {
+        let mut common = vec!["--band", "35,45", "--factor", "10", "--fps", "500"];
+        if let Some(r) = roi {
+            common.extend_from_slice(&["--roi", r]);
+        }
+        if side {
+            common.push("--side-by-side");
+        }
+        for (input, out) in [("luma.y4m", "g.y4m"), ("colour.y4m", "c.y4m")] {
+            let mut a = vec!["magnify", input];
+            a.extend_from_slice(&common);
+            a.extend_from_slice(&["-o", out]);
+            let o = run_in(d, &a);
+            assert_eq!(code(&o), 0, "{a:?}: {}", stderr(&o));
+            if input == "colour.y4m" {
+                assert!(stderr(&o).contains("colour kept"), "{}", stderr(&o));
+            }
+        }
+        let (g, c) = (read_y4m(&d.join("g.y4m")), read_y4m(&d.join("c.y4m")));
+        assert_eq!(g.colour, "mono");
+        assert_eq!(c.colour, "444", "{roi:?}");
+        assert_eq!((c.w, c.h, c.frames.len()), (g.w, g.h, g.frames.len()));
+        assert_eq!(g.frames.len(), 30);
+        let (x0, y0, rw) = match roi {
+            Some(_) => (9, 7, 40),
+            None => (0, 0, 64),
+        };
+        for (k, (gf, cf)) in g.frames.iter().zip(&c.frames).enumerate() {
+            assert_eq!(gf[0], cf[0], "{roi:?}: luma of frame {k} differs");
+            for (p, plane) in cf.iter().enumerate().skip(1) {
+                for y in 0..c.h {
+                    for x in 0..c.w {
+                        let xs = x0 + x % rw;
+                        let want = colour_in.frames[k][p][(y0 + y) * colour_in.w + xs];
+                        assert_eq!(
+                            plane[y * c.w + x],
+                            want,
+                            "{roi:?}: plane {p} of frame {k} at ({x}, {y})"
+                        );
+                    }
+                }
+            }
+        }
+        eprintln!(
+            "roi {roi:?} side by side {side}: {} frames of {}x{}, luma identical to the grey run, chroma the input's",
+            c.frames.len(),
+            c.w,
+            c.h
+        );
+    }
+}
+
+/// `--notch`: the out-of-band tone is removed (at least 20 dB) after the
+/// band is magnified, which keeps its gain; with `--side-by-side` the left
+/// half is the input and the right half what the plain run writes.
+#[test]
+fn a_notch_removes_its_tone_after_the_magnification() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render(d);
+    let scene = d.join("scene.y4m");
+    let orig = measured(d, &scene, ROI);
+    let run = |name: &str, side_by_side: bool| {
+        let out = d.join(name);
+        magnify(&MagnifyOptions {
+            video: scene.clone(),
+            output: out.clone(),
+            lo_hz: BAND.0,
+            hi_hz: BAND.1,
+            factor: 10.0,
+            fps: Some(FPS),
+            side_by_side,
+            notches: vec![BandFilter::notch(&format!("{OUT_HZ},20")).unwrap()],
+            ..Default::default()
+        })
+        .unwrap();
+        out
+    };
+    let plain = run("n.y4m", false);
+    let m = measured(d, &plain, ROI);
+    let (gain_in, db_out) = (m[0] / orig[0], 20.0 * (m[1] / orig[1]).log10());
+    eprintln!("factor 10, notch at {OUT_HZ} Hz: in-band x{gain_in:.3}, out-of-band {db_out:.1} dB");
+    assert!((gain_in / 10.0 - 1.0).abs() < 0.10, "in-band x{gain_in}");
+    assert!(db_out <= -20.0, "the notched tone only {db_out:.1} dB down");
+    let sb = read_y4m(&run("sb.y4m", true));
+    let (p, s) = (read_y4m(&plain), read_y4m(&scene));
+    assert_eq!(
+        (sb.w, sb.h, sb.frames.len()),
+        (2 * p.w, p.h, p.frames.len())
+    );
+    for (k, ((f, pf), sf)) in sb.frames.iter().zip(&p.frames).zip(&s.frames).enumerate() {
+        for y in 0..p.h {
+            let row = &f[0][y * sb.w..(y + 1) * sb.w];
+            assert_eq!(
+                &row[..p.w],
+                &sf[0][y * p.w..(y + 1) * p.w],
+                "left, frame {k} row {y}"
+            );
+            assert_eq!(
+                &row[p.w..],
+                &pf[0][y * p.w..(y + 1) * p.w],
+                "right, frame {k} row {y}"
+            );
+        }
+    }
+}
+
+/// The shipped live graph (`pipelines/live-magnify.toml`: camera ->
+/// magnify, side by side -> Y4M on standard output) replayed from a file:
+/// standard output is one Y4M stream of every frame, original left.
+#[test]
+fn the_live_graph_writes_a_side_by_side_stream_to_standard_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_small(d, "scene.y4m", 40);
+    let o = run_in(
+        d,
+        &[
+            "run",
+            "live-magnify",
+            "--replay",
+            "scene.y4m",
+            "--fps",
+            "500",
+            "--set",
+            "mag.lo_hz=35",
+            "--set",
+            "mag.hi_hz=45",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    std::fs::write(d.join("stdout.y4m"), &o.stdout).unwrap();
+    let (out, src) = (
+        read_y4m(&d.join("stdout.y4m")),
+        read_y4m(&d.join("scene.y4m")),
+    );
+    assert_eq!((out.w, out.h, out.frames.len()), (128, 48, 40));
+    for (f, s) in out.frames.iter().zip(&src.frames) {
+        for y in 0..48 {
+            assert_eq!(&f[0][y * 128..y * 128 + 64], &s[0][y * 64..(y + 1) * 64]);
+        }
     }
 }

@@ -430,3 +430,113 @@ fn waveform_filters_notch_and_band() {
     assert!(stderr(&o).contains("--band"), "{}", stderr(&o));
     assert!(!dir.path().join("q.json").exists() && !dir.path().join("q.csv").exists());
 }
+
+/// The complex modal image of a `.npy`.
+fn npy(p: &Path) -> Vec<vibroscope::math::pyramid::Complex32> {
+    vibroscope::math::modal::read_npy_complex64(&std::fs::read(p).unwrap())
+        .unwrap()
+        .2
+}
+
+/// `modes` in physical units: with a scale the `.npy` is the pixel image
+/// times the scale (µm below 1 mm), the printed peak says so and reads the
+/// simulated amplitude; an unnormalised image (A²-weighted, no length unit)
+/// refuses a scale; the pyramid scale has its own flag.
+#[test]
+fn modal_images_carry_the_unit() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let truth = render(d, "s.y4m", &[], TONE_HZ);
+    let at = TONE_HZ.to_string();
+    let o = run_in(
+        d,
+        &[
+            "modes", "s.y4m", "--at", &at, "--npy", "px.npy", "-o", "px.png",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let said_px = stderr(&o);
+    let o = run_in(
+        d,
+        &[
+            "modes", "s.y4m", "--at", &at, "--scale", "0.02", "--npy", "um.npy", "-o", "um.png",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let said_um = stderr(&o);
+    eprintln!("{said_px}{said_um}");
+    assert!(said_px.contains(" px at ("), "{said_px}");
+    assert!(
+        said_um.contains(" µm at (") && said_um.contains("the .npy is in µm"),
+        "{said_um}"
+    );
+    let (px, um) = (npy(&d.join("px.npy")), npy(&d.join("um.npy")));
+    assert_eq!(px.len(), um.len());
+    let peak = px.iter().map(|c| c.norm()).fold(0.0f32, f32::max);
+    assert!(peak > 0.0);
+    for (a, b) in px.iter().zip(&um) {
+        assert!(
+            (a * 20.0 - b).norm() <= 1e-5 * peak * 20.0,
+            "{a} px is not {b} µm / 20"
+        );
+    }
+    // The printed peak: the largest amplitude, in µm (the modal image reads
+    // low by up to about 16% on this texture, issue 14; a wrong unit or
+    // factor would be 1000x or 2x off).
+    let largest: f64 = said_um
+        .split("largest ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    let want_um = truth * 0.02 * 1000.0;
+    eprintln!("modal image peak {largest} µm, simulated {want_um:.4} µm");
+    assert!(
+        (largest / (f64::from(peak) * 20.0) - 1.0).abs() < 1e-3,
+        "{largest} µm printed, {} µm in the .npy",
+        peak * 20.0
+    );
+    assert!(
+        largest > 0.7 * want_um && largest < 1.3 * want_um,
+        "{largest} µm for a simulated {want_um} µm"
+    );
+    // No length unit for an unnormalised image: refused before any work.
+    let o = run_in(
+        d,
+        &[
+            "modes",
+            "s.y4m",
+            "--at",
+            &at,
+            "--unnormalized",
+            "--scale",
+            "0.02",
+            "-o",
+            "un.png",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("--scale"), "{}", stderr(&o));
+    assert!(!d.join("un.png").exists());
+    let o = run_in(
+        d,
+        &[
+            "modes",
+            "s.y4m",
+            "--at",
+            &at,
+            "--pyramid-scale",
+            "0",
+            "-o",
+            "s0.png",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let left: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("partial"))
+        .collect();
+    assert!(left.is_empty(), "left {left:?}");
+}

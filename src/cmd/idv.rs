@@ -62,7 +62,7 @@ pub struct Args {
     save_basis: Option<PathBuf>,
     /// Load the basis from this directory instead of measuring it (what
     /// only a measurement uses is refused with it: a VIDEO, --modes,
-    /// --max-modes, --scale, --sigma, --fps, --roi, --mask; --pyramid is
+    /// --max-modes, --pyramid-scale, --sigma, --fps, --roi, --mask; --pyramid is
     /// not used).
     #[arg(long, value_name = "DIR")]
     basis: Option<PathBuf>,
@@ -82,7 +82,7 @@ pub struct Args {
     damping_scale: f64,
     /// Pyramid scale of the shapes (0 = finest).
     #[arg(long, value_name = "S", default_value_t = 1, conflicts_with = "basis")]
-    scale: usize,
+    pyramid_scale: usize,
     /// σ_b of the shapes' Gaussian blur, input pixels.
     #[arg(
         long,
@@ -131,7 +131,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     b.region = a.video_args.region();
     b.modes = a.modes;
     b.max_modes = a.max_modes;
-    b.scale = a.scale;
+    b.scale = a.pyramid_scale;
     if let Some(s) = a.sigma {
         b.sigma_px = s;
     }

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 use vibroscope::magnify::{self, MagnifyOptions};
+use vibroscope::pipeline::BandFilter;
 use vibroscope::pipeline::{Roi, RunSettings};
 
 /// `--band LO,HI` in Hz.
@@ -24,12 +25,14 @@ fn parse_band(s: &str) -> Result<(f64, f64), String> {
 /// becomes FACTOR times larger (below 1 smaller; 0 removes it), other
 /// motion is left as it is. The magnified phase is limited to a quarter of
 /// each band's wavelength, so large factors saturate instead of tearing
-/// the image. Colour input is magnified on its luma and written as grey.
+/// the image. Colour input is magnified on its luma; its chroma is put
+/// back beside it by ffmpeg (Y4M 4:4:4, or yuv420p in other containers).
 #[derive(clap::Args)]
 #[command(after_help = "Examples:\n  \
     vibroscope magnify ../shared/data/guitar.mp4 --fps 600 --band 76,86 --factor 30 -o e2.y4m\n  \
     vibroscope magnify clip.y4m --band 35,45 --factor 0 -o still.mp4   # remove the motion in the band\n  \
-    vibroscope magnify clip.y4m --band 35,45 --factor 20 --side-by-side --roi 0,0,128,96 -o both.mp4")]
+    vibroscope magnify clip.y4m --band 35,45 --factor 20 --side-by-side --roi 0,0,128,96 -o both.mp4\n  \
+    vibroscope magnify clip.y4m --band 20,80 --factor 10 --notch 50,4 -o m.y4m   # all but 48-52 Hz")]
 pub struct Args {
     /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
     video: PathBuf,
@@ -58,6 +61,12 @@ pub struct Args {
     /// Write the original (left) and the magnified video (right) side by side.
     #[arg(long)]
     side_by_side: bool,
+    /// Then remove the motion at F Hz (F - WIDTH/2 to F + WIDTH/2; WIDTH
+    /// defaults to F/10), as a factor of 0 on that band would; repeatable
+    /// (e.g. magnify a structure's band but not the machine's running
+    /// speed inside it). Each notch costs as much as the magnification.
+    #[arg(long, value_name = "F[,WIDTH]", value_parser = parse_notch, action = clap::ArgAction::Append, allow_negative_numbers = true)]
+    notch: Vec<BandFilter>,
     /// Print the per-stage summary at exit.
     #[arg(long)]
     stats: bool,
@@ -75,6 +84,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         pyramid: a.pyramid.into(),
         scales: a.scales,
         side_by_side: a.side_by_side,
+        notches: a.notch,
         run: RunSettings { progress: true },
     };
     super::warn_playback_rate(&o.video, o.fps);
@@ -97,5 +107,19 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         o.factor,
         r.centre_hz
     );
+    for n in &o.notches {
+        if let BandFilter::Notch { f_hz, width_hz } = *n {
+            eprintln!(
+                "then motion in {}-{} Hz removed ({})",
+                vibroscope::pipeline::short(f_hz - width_hz / 2.0),
+                vibroscope::pipeline::short(f_hz + width_hz / 2.0),
+                n.flag()
+            );
+        }
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+fn parse_notch(s: &str) -> Result<BandFilter, String> {
+    BandFilter::notch(s).map_err(|e| e.message)
 }

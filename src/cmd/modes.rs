@@ -1,6 +1,6 @@
 //! `vibroscope modes`.
 
-use super::VideoArgs;
+use super::{UnitArgs, VideoArgs};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use vibroscope::modes::{self, ModesOptions, Motion};
@@ -25,7 +25,8 @@ enum MotionArg {
 #[derive(clap::Args)]
 #[command(after_help = "Examples:\n  \
     vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --npy e2.npy\n  \
-    vibroscope modes beam.y4m --at 58.3 --mask beam-mask.png --pyramid riesz -o m.png")]
+    vibroscope modes beam.y4m --at 58.3 --mask beam-mask.png --pyramid riesz -o m.png\n  \
+    vibroscope modes beam.y4m --at 58.3 --scale 0.02 --npy m.npy -o m.png   # .npy in µm")]
 pub struct Args {
     /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
     video: PathBuf,
@@ -36,7 +37,9 @@ pub struct Args {
     /// Output PNG: phase as hue, amplitude as brightness.
     #[arg(short, long, value_name = "OUT.png")]
     output: PathBuf,
-    /// Also write the complex image (complex64, shape (H, W), pixels of motion).
+    /// Also write the complex image (complex64, shape (H, W)): the mode's
+    /// amplitude (0-peak) and phase per pixel, in px, or in µm/mm with a
+    /// scale (--scale, --known-length).
     #[arg(long, value_name = "OUT.npy")]
     npy: Option<PathBuf>,
     #[command(flatten)]
@@ -53,7 +56,9 @@ pub struct Args {
     /// Pyramid scale (0 = finest, 4-pixel wavelength; each next one doubles;
     /// default 1: the finest is noise-biased on smooth texture).
     #[arg(long, value_name = "S")]
-    scale: Option<usize>,
+    pyramid_scale: Option<usize>,
+    #[command(flatten)]
+    units: UnitArgs,
     /// Do not divide by the blurred weights (the images of thesis ch. 4-5:
     /// texture acts as a mask).
     #[arg(long)]
@@ -78,7 +83,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             MotionArg::Sum => Motion::Sum,
         },
         exponent: a.exponent,
-        scale: a.scale,
+        pyramid_scale: a.pyramid_scale,
+        scale: a.units.scale(),
         unnormalized: a.unnormalized,
         run: RunSettings { progress: true },
     };
@@ -91,6 +97,37 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if let Some(n) = &r.npy {
         super::wrote(n);
     }
-    eprintln!("modal image at {} Hz", r.freq_hz);
+    match &r.peak {
+        Some(p) => eprintln!(
+            "modal image at {} Hz: largest {} {} at ({}, {}){}",
+            r.freq_hz,
+            sig4(p.amplitude),
+            if o.unnormalized {
+                "(A²-weighted, no unit)".to_string()
+            } else {
+                r.unit.to_string()
+            },
+            p.x,
+            p.y,
+            if r.npy.is_some() && !o.unnormalized {
+                format!("; the .npy is in {}", r.unit)
+            } else {
+                String::new()
+            }
+        ),
+        None => eprintln!(
+            "modal image at {} Hz: no motion at that frequency (all zero)",
+            r.freq_hz
+        ),
+    }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `v` to four significant digits.
+fn sig4(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let decimals = (3 - v.abs().log10().floor() as i32).max(0) as usize;
+    format!("{v:.decimals$}")
 }

@@ -49,6 +49,10 @@ pub static SHIPPED: &[Shipped] = &[
         text: include_str!("../../../pipelines/magnify.toml"),
     },
     Shipped {
+        name: "live-magnify",
+        text: include_str!("../../../pipelines/live-magnify.toml"),
+    },
+    Shipped {
         name: "passthrough",
         text: include_str!("../../../pipelines/passthrough.toml"),
     },

@@ -4,12 +4,22 @@
 //! renamed when complete; any other extension goes through `ffmpeg`
 //! (Y4M in, the container the name asks for out), also via a temporary
 //! sibling. Nothing is left behind on an error.
+//!
+//! Colour: the engine magnifies the luma (the motion is in it). When the
+//! input has colour and ffmpeg is installed, the chroma of the input (its
+//! region, twice side by side) is put back beside the magnified luma by
+//! ffmpeg, frame by frame (`extractplanes`, `mergeplanes`, 4:4:4, so the input's chroma is
+//! not resampled twice); the output is then colour (Y4M `C444`, or
+//! yuv420p in any other container). Without ffmpeg the output is grey and
+//! the report says so.
 
 use crate::engine::RunReport;
 use crate::error::{Error, Result};
 use crate::io;
 use crate::math::magnify::{MagnifyError, MagnifyParams};
-use crate::pipeline::{self, by, int, path_value, PipelineOptions, Pyramid, Roi, RunSettings};
+use crate::pipeline::{
+    self, by, int, path_value, BandFilter, PipelineOptions, Pyramid, Roi, RunSettings,
+};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -35,6 +45,9 @@ pub struct MagnifyOptions {
     pub scales: Option<usize>,
     /// Original (left) and magnified (right) in one frame.
     pub side_by_side: bool,
+    /// Motion removed after the magnification: `--notch F[,WIDTH]`, each
+    /// a further `magnify` stage with factor 0 on F ± WIDTH/2.
+    pub notches: Vec<BandFilter>,
     pub run: RunSettings,
 }
 
@@ -102,8 +115,16 @@ fn temp_with_ext(path: &Path) -> PathBuf {
     }
 }
 
-/// The graph `file -> magnify -> y4m` with the options set.
-pub fn magnify_pipeline(o: &MagnifyOptions, y4m: &Path) -> Result<crate::engine::PipelineDecl> {
+/// The graph `file -> magnify [-> notch1 -> ...] -> y4m` with the options
+/// set; `size` is the region's (or the frame's) width and height. Each
+/// notch is a `magnify` stage with factor 0 on its band after the first;
+/// with `--side-by-side` it works on the right half only (`roi` and
+/// `whole_frame`), so the left stays the original.
+pub fn magnify_pipeline(
+    o: &MagnifyOptions,
+    y4m: &Path,
+    size: (u32, u32),
+) -> Result<crate::engine::PipelineDecl> {
     let mut decl = pipeline::prepare(&PipelineOptions {
         pipeline: "magnify".into(),
         set: Vec::new(),
@@ -149,6 +170,48 @@ pub fn magnify_pipeline(o: &MagnifyOptions, y4m: &Path) -> Result<crate::engine:
             by("--side-by-side"),
         )?;
     }
+    let mut last = "mag".to_string();
+    for (i, n) in o.notches.iter().enumerate() {
+        let BandFilter::Notch { f_hz, width_hz } = *n else {
+            continue;
+        };
+        let id = format!("notch{}", i + 1);
+        let origin = by(&n.flag());
+        let mut st = pipeline::new_stage(&id, "magnify", &[&last], origin.clone());
+        let f = |v: f64| Value::Float(v);
+        for (k, v) in [
+            ("lo_hz", f(f_hz - width_hz / 2.0)),
+            ("hi_hz", f(f_hz + width_hz / 2.0)),
+            ("factor", f(0.0)),
+            ("pyramid", Value::String(o.pyramid.name().into())),
+        ] {
+            crate::engine::config::set_param(&mut st, k, v, origin.clone());
+        }
+        if let Some(sc) = o.scales {
+            crate::engine::config::set_param(&mut st, "scales", int(sc), origin.clone());
+        }
+        if o.side_by_side {
+            let (w, h) = (i64::from(size.0), i64::from(size.1));
+            let roi = Value::Array([w, 0, w, h].map(Value::Integer).to_vec());
+            crate::engine::config::set_param(&mut st, "roi", roi, origin.clone());
+            crate::engine::config::set_param(
+                &mut st,
+                "whole_frame",
+                Value::Boolean(true),
+                origin.clone(),
+            );
+        }
+        let at = decl
+            .stages
+            .iter()
+            .position(|s| s.id == "out")
+            .unwrap_or(decl.stages.len());
+        decl.stages.insert(at, st);
+        last = id;
+    }
+    if last != "mag" {
+        pipeline::stage_mut(&mut decl, "out")?.inputs[0].from = last;
+    }
     Ok(decl)
 }
 
@@ -187,15 +250,50 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
         }
     }
     let mut notes = Vec::new();
-    if info.notes.iter().any(|n| n.contains("luma plane only")) || info.format_name == "ffmpeg" {
-        notes.push("colour is not kept: the luma is magnified and written as grey".to_string());
+    let colour = has_colour(&o.video, &info);
+    let chroma = match colour {
+        Colour::Grey => None,
+        Colour::Yes { video_range } if info.depth == io::Depth::U8 && ffmpeg_present() => {
+            Some(Chroma {
+                video: o.video.clone(),
+                fps,
+                roi: o.roi,
+                side_by_side: o.side_by_side,
+                video_range,
+            })
+        }
+        Colour::Yes { .. } => {
+            notes.push(if info.depth == io::Depth::U8 {
+                "colour is not kept: keeping the chroma needs ffmpeg, which is not installed; the luma is magnified and written as grey".to_string()
+            } else {
+                "colour is not kept for inputs over 8 bits; the luma is magnified and written as grey".to_string()
+            });
+            None
+        }
+    };
+    if chroma.is_some() {
+        notes.push(
+            "colour kept: the luma is magnified, the input's chroma written beside it".to_string(),
+        );
     }
-    let y4m = if ffmpeg {
+    let y4m = if ffmpeg || chroma.is_some() {
         io::atomic::temp_sibling(&o.output.with_extension("y4m"))
     } else {
         io::atomic::temp_sibling(&o.output)
     };
-    let decl = magnify_pipeline(o, &y4m)?;
+    for n in &o.notches {
+        if let BandFilter::Notch { f_hz, width_hz } = *n {
+            let mut q = params;
+            (q.lo_hz, q.hi_hz, q.factor) = (f_hz - width_hz / 2.0, f_hz + width_hz / 2.0, 0.0);
+            q.check()
+                .map_err(|e| Error::usage("--notch", format!("{}: {e}", n.flag())))?;
+        }
+    }
+    let (rw, rh) = match &o.roi {
+        Some(r) => (r.w, r.h),
+        None => (info.width, info.height),
+    };
+    let decl = magnify_pipeline(o, &y4m, (rw, rh))?;
     let result = pipeline::run(&decl, o.run);
     let run = match result {
         Ok(r) => r,
@@ -204,7 +302,10 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
             return Err(e);
         }
     };
-    finish_output(&y4m, &o.output, ffmpeg)?;
+    match &chroma {
+        Some(c) => finish_colour(&y4m, &o.output, c)?,
+        None => finish_output(&y4m, &o.output, ffmpeg)?,
+    }
     let (w, h) = match &o.roi {
         Some(r) => (r.w, r.h),
         None => (info.width, info.height),
@@ -231,6 +332,173 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
         notes,
         run: Some(run),
     })
+}
+
+/// Whether an input has chroma worth keeping.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Colour {
+    Grey,
+    /// `video_range`: ffmpeg decoded it from video-range YUV (16-235), and
+    /// its grey (the luma the engine magnified) was stretched to 0-255.
+    Yes {
+        video_range: bool,
+    },
+}
+
+/// A Y4M whose reader kept only its luma, or a file ffmpeg decodes from a
+/// pixel format that is not grey (asked of `ffprobe`; when it cannot say,
+/// grey).
+fn has_colour(video: &Path, info: &io::VideoInfo) -> Colour {
+    if info.notes.iter().any(|n| n.contains("luma plane only")) {
+        // The Y4M reader reads the luma plane as it is.
+        return Colour::Yes { video_range: false };
+    }
+    if info.format_name != "ffmpeg" {
+        return Colour::Grey;
+    }
+    let probe = Command::new("ffprobe")
+        .args([
+            "-v",
+            "error",
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "stream=pix_fmt,color_range",
+            "-of",
+            "csv=p=0",
+        ])
+        .arg(ffmpeg_input(video))
+        .output();
+    match probe {
+        Ok(o) if o.status.success() => {
+            let out = String::from_utf8_lossy(&o.stdout).trim().to_string();
+            let mut f = out.split(',');
+            let (fmt, range) = (f.next().unwrap_or(""), f.next().unwrap_or(""));
+            if fmt.is_empty() || fmt.starts_with("gray") || fmt.starts_with("mono") {
+                Colour::Grey
+            } else {
+                Colour::Yes {
+                    video_range: !(fmt.starts_with("yuvj") || range == "pc"),
+                }
+            }
+        }
+        _ => Colour::Grey,
+    }
+}
+
+fn ffmpeg_present() -> bool {
+    Command::new("ffmpeg").arg("-version").output().is_ok()
+}
+
+/// A path as an ffmpeg input: a `:` in the name would read as a protocol.
+fn ffmpeg_input(path: &Path) -> std::ffi::OsString {
+    if path.as_os_str().as_encoded_bytes().contains(&b':') {
+        let mut s = std::ffi::OsString::from("file:");
+        s.push(path.as_os_str());
+        s
+    } else {
+        path.as_os_str().to_os_string()
+    }
+}
+
+/// Where the chroma of a colour input comes from.
+struct Chroma {
+    video: PathBuf,
+    fps: f64,
+    roi: Option<Roi>,
+    side_by_side: bool,
+    /// The magnified luma goes back from 0-255 to 16-235 (see [`Colour`]).
+    video_range: bool,
+}
+
+impl Chroma {
+    /// The ffmpeg filter graph: input 0 the magnified luma (grey Y4M),
+    /// input 1 the original; both re-timed to frame index / fps, so that
+    /// frame k meets frame k whatever rate the container states.
+    fn filter(&self) -> String {
+        let pts = format!("settb=AVTB,setpts=N/({}*TB),setsar=1", self.fps);
+        let crop = match &self.roi {
+            Some(r) => format!(",crop={}:{}:{}:{}:exact=1", r.w, r.h, r.x, r.y),
+            None => String::new(),
+        };
+        let stack = if self.side_by_side {
+            "[c0]split[c1][c2];[c1][c2]hstack,format=yuv444p"
+        } else {
+            "[c0]format=yuv444p"
+        };
+        // Three grey planes merged (mergeplanes negotiates a two-input
+        // luma-plus-chroma mapping to grey and fails).
+        let range = if self.video_range {
+            ",lut=c0='floor(16+val*219/255+0.5)'"
+        } else {
+            ""
+        };
+        format!(
+            "[0:v]format=gray{range},{pts}[y];[1:v]format=yuv444p{crop},{pts}[c0];{stack},extractplanes=u+v[u][v];[y][u][v]mergeplanes=0x001020:yuv444p[o]"
+        )
+    }
+}
+
+/// Writes `output` from the magnified luma `y4m` and the chroma of the
+/// input (see the module docs), through [`via_temporary`].
+fn finish_colour(y4m: &Path, output: &Path, c: &Chroma) -> Result<()> {
+    via_temporary(y4m, output, |tmp| {
+        let mut cmd = Command::new("ffmpeg");
+        cmd.args(["-v", "error", "-nostdin", "-y", "-i"])
+            .arg(y4m)
+            .arg("-i")
+            .arg(ffmpeg_input(&c.video))
+            .args(["-filter_complex", &c.filter(), "-map", "[o]"])
+            .args(["-r", &format!("{}", c.fps)]);
+        if needs_ffmpeg(output) {
+            cmd.args(["-pix_fmt", "yuv420p"]);
+        } else {
+            cmd.args(["-f", "yuv4mpegpipe", "-pix_fmt", "yuv444p"]);
+        }
+        run_ffmpeg(cmd.arg(tmp), || {
+            format!(
+                "could not put the colour of {} back into {}",
+                c.video.display(),
+                output.display()
+            )
+        })
+    })
+}
+
+/// Runs ffmpeg as `cmd` says; its error output, after `what`, on failure.
+fn run_ffmpeg(cmd: &mut Command, what: impl FnOnce() -> String) -> Result<()> {
+    let o = cmd.output().map_err(|e| Error::Program {
+        program: "ffmpeg",
+        message: format!("cannot run it: {e}"),
+    })?;
+    if o.status.success() {
+        Ok(())
+    } else {
+        Err(Error::Program {
+            program: "ffmpeg",
+            message: format!("{}: {}", what(), String::from_utf8_lossy(&o.stderr).trim()),
+        })
+    }
+}
+
+/// `write` fills a temporary sibling of `output` (keeping its extension,
+/// for ffmpeg) from the finished Y4M `y4m`; the sibling is then renamed to
+/// `output`. `y4m` is removed either way, and a failure leaves nothing.
+fn via_temporary(y4m: &Path, output: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let tmp = temp_with_ext(output);
+    let done = write(&tmp).and_then(|()| {
+        std::fs::rename(&tmp, output).map_err(|source| {
+            Error::from(io::atomic::WriteError {
+                path: output.to_path_buf(),
+                source,
+            })
+        })
+    });
+    let _ = std::fs::remove_file(y4m);
+    if done.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    done
 }
 
 /// Opens `video` and its capture rate (`fps`, else the file's): an input
@@ -262,20 +530,7 @@ pub(crate) fn open_video(
 /// removed either way and a failed encode leaves nothing behind.
 pub(crate) fn finish_output(y4m: &Path, output: &Path, ffmpeg: bool) -> Result<()> {
     if ffmpeg {
-        let tmp = temp_with_ext(output);
-        let done = encode(y4m, &tmp).and_then(|()| {
-            std::fs::rename(&tmp, output).map_err(|source| {
-                Error::from(io::atomic::WriteError {
-                    path: output.to_path_buf(),
-                    source,
-                })
-            })
-        });
-        let _ = std::fs::remove_file(y4m);
-        if done.is_err() {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        done
+        via_temporary(y4m, output, |tmp| encode(y4m, tmp))
     } else {
         std::fs::rename(y4m, output).map_err(|source| {
             let _ = std::fs::remove_file(y4m);
@@ -289,22 +544,12 @@ pub(crate) fn finish_output(y4m: &Path, output: &Path, ffmpeg: bool) -> Result<(
 
 /// `ffmpeg -i Y4M OUT` (yuv420p, which every player takes).
 fn encode(y4m: &Path, out: &Path) -> Result<()> {
-    let o = Command::new("ffmpeg")
-        .args(["-v", "error", "-nostdin", "-y", "-i"])
-        .arg(y4m)
-        .args(["-pix_fmt", "yuv420p"])
-        .arg(out)
-        .output()
-        .map_err(|e| Error::Program {
-            program: "ffmpeg",
-            message: format!("cannot run it: {e}"),
-        })?;
-    if !o.status.success() {
-        let msg = String::from_utf8_lossy(&o.stderr);
-        return Err(Error::Program {
-            program: "ffmpeg",
-            message: format!("could not write {}: {}", out.display(), msg.trim()),
-        });
-    }
-    Ok(())
+    run_ffmpeg(
+        Command::new("ffmpeg")
+            .args(["-v", "error", "-nostdin", "-y", "-i"])
+            .arg(y4m)
+            .args(["-pix_fmt", "yuv420p"])
+            .arg(out),
+        || format!("could not write {}", out.display()),
+    )
 }

@@ -220,24 +220,38 @@ impl WeightedBlur {
     }
 }
 
-/// Separable blur of `buf` (`w x h`) in place, edges clamped.
+/// Separable blur of `buf` (`w x h`) in place, edges clamped. Each pass
+/// runs tap by tap over whole rows (the interior without index clamping),
+/// which vectorises.
 fn blur(kernel: &[f32], buf: &mut [f32], tmp: &mut [f32], w: usize, h: usize) {
-    let r = (kernel.len() / 2) as isize;
+    let r = kernel.len() / 2;
     for y in 0..h {
         let row = &buf[y * w..(y + 1) * w];
-        for (x, o) in tmp[y * w..(y + 1) * w].iter_mut().enumerate() {
+        let out = &mut tmp[y * w..(y + 1) * w];
+        // Columns whose taps all fall inside the row.
+        let (lo, hi) = (r.min(w), w.saturating_sub(r).max(r.min(w)));
+        if hi > lo {
+            out[lo..hi].fill(0.0);
+            for (k, c) in kernel.iter().enumerate() {
+                for (o, v) in out[lo..hi].iter_mut().zip(&row[lo + k - r..hi + k - r]) {
+                    *o += c * v;
+                }
+            }
+        }
+        // The edges, clamped.
+        for x in (0..lo).chain(hi.max(lo)..w) {
             let mut acc = 0.0;
             for (k, c) in kernel.iter().enumerate() {
-                let xi = (x as isize + k as isize - r).clamp(0, w as isize - 1) as usize;
+                let xi = (x as isize + k as isize - r as isize).clamp(0, w as isize - 1) as usize;
                 acc += c * row[xi];
             }
-            *o = acc;
+            out[x] = acc;
         }
     }
     for (y, out) in buf.chunks_exact_mut(w).take(h).enumerate() {
         out.fill(0.0);
         for (k, c) in kernel.iter().enumerate() {
-            let yi = (y as isize + k as isize - r).clamp(0, h as isize - 1) as usize;
+            let yi = (y as isize + k as isize - r as isize).clamp(0, h as isize - 1) as usize;
             for (o, v) in out.iter_mut().zip(&tmp[yi * w..(yi + 1) * w]) {
                 *o += c * v;
             }
@@ -307,21 +321,62 @@ impl std::fmt::Debug for Magnifier {
 impl Magnifier {
     /// Builds the magnifier for `width x height` frames.
     pub fn new(width: usize, height: usize, params: MagnifyParams) -> Result<Self, MagnifyError> {
+        Self::new_part(width, height, params, 0..params.orientations, true)
+    }
+
+    /// A part of the steerable-pyramid magnifier: only the bands of
+    /// `orientations`, and the pyramid's residuals only when `residuals`.
+    /// Its output is that part's share of the magnified frame: parts over
+    /// disjoint orientation ranges covering them all, exactly one with the
+    /// residuals, sum to what [`Self::new`]'s magnifier gives (up to float
+    /// rounding), and can run on different threads. The Riesz pyramid
+    /// has no such parts: it takes the whole range, with residuals.
+    pub fn new_part(
+        width: usize,
+        height: usize,
+        params: MagnifyParams,
+        orientations: std::ops::Range<usize>,
+        residuals: bool,
+    ) -> Result<Self, MagnifyError> {
         params.check()?;
+        let whole = orientations == (0..params.orientations) && residuals;
+        if params.pyramid == PyramidKind::Riesz && !whole {
+            return Err(MagnifyError::Param {
+                field: "orientations",
+                message: "the Riesz magnifier cannot be split into parts".into(),
+            });
+        }
+        if orientations.start >= orientations.end || orientations.end > params.orientations {
+            return Err(MagnifyError::Param {
+                field: "orientations",
+                message: format!(
+                    "{}..{} is not a part of 0..{}",
+                    orientations.start, orientations.end, params.orientations
+                ),
+            });
+        }
         crate::pyramid::check_params(width, height, params.scales, params.orientations)?;
         let design = temporal::design(params.order, params.lo_hz, params.hi_hz, params.fps);
         let n = width * height;
         let blur = WeightedBlur::new(params.sigma, n);
         let state = match params.pyramid {
             PyramidKind::Csp => {
-                let pyr = ComplexSteerablePyramid::new(
+                let mut pyr = ComplexSteerablePyramid::new(
                     width,
                     height,
                     params.scales,
                     params.orientations,
                 )?;
+                pyr.set_orientations(orientations.clone());
+                pyr.set_residuals(residuals);
                 let coeffs = pyr.alloc_coeffs();
-                let lens: Vec<usize> = pyr.band_infos().iter().map(|b| b.len()).collect();
+                // Per-band state only for this part's bands.
+                let lens: Vec<usize> = pyr
+                    .band_infos()
+                    .iter()
+                    .enumerate()
+                    .map(|(bi, b)| if pyr.band_active(bi) { b.len() } else { 0 })
+                    .collect();
                 let max = lens.iter().copied().max().unwrap_or(0);
                 State::Csp(Box::new(CspState {
                     prev: lens
@@ -392,6 +447,9 @@ impl Magnifier {
             State::Csp(s) => {
                 s.pyr.analyze(frame, &mut s.coeffs)?;
                 for bi in 0..s.coeffs.num_bands() {
+                    if !s.pyr.band_active(bi) {
+                        continue;
+                    }
                     let Some(band) = s.coeffs.band_mut(bi) else {
                         continue;
                     };
@@ -410,17 +468,17 @@ impl Magnifier {
                     {
                         if !first {
                             let d = c * pv.conj();
-                            *a += d.im.atan2(d.re);
+                            *a += crate::fastmath::atan2(d.im, d.re);
                         }
                         *pv = *c;
                         *ph = *a;
-                        *am = c.norm();
+                        *am = (c.re * c.re + c.im * c.im).sqrt();
                     }
                     s.filters[bi].step(phase);
                     self.blur.apply(amp, &mut [phase], w, h);
                     for (c, &ph) in data.iter_mut().zip(phase.iter()) {
                         let psi = shift(ph, p.factor, p.max_phase);
-                        let (sn, cs) = psi.sin_cos();
+                        let (sn, cs) = crate::fastmath::sin_cos(psi);
                         *c *= Complex32::new(cs, sn);
                     }
                 }
@@ -448,7 +506,7 @@ impl Magnifier {
                             let vy = -iv * q2 + qi * x2;
                             let vn = (vx * vx + vy * vy).sqrt();
                             if vn > 0.0 {
-                                let d = vn.atan2(re) / vn;
+                                let d = crate::fastmath::atan2(vn, re) / vn;
                                 ac[i] += d * vx;
                                 as_[i] += d * vy;
                             }
@@ -470,7 +528,7 @@ impl Magnifier {
                         }
                         // Real part of q·exp(n·ψ), n the unit axis (c, s)/|φ|.
                         let psi = shift(mag, p.factor, p.max_phase);
-                        let (sp, cp) = psi.sin_cos();
+                        let (sp, cp) = crate::fastmath::sin_cos(psi);
                         band[i] = cp * band[i] - sp * (c * r1[i] + sn * r2[i]) / mag;
                     }
                 }

@@ -257,3 +257,69 @@ fn in_band_tone_is_scaled_by_the_factor() {
         assert!(ratios[2] > 4.0, "{kind:?}: {ratios:?}");
     }
 }
+
+/// The row-vectorised blur equals the plain clamped convolution, for rows
+/// shorter than, equal to and longer than the kernel.
+#[test]
+fn blur_matches_the_clamped_convolution() {
+    let kernel = WeightedBlur::new(1.5, 1).kernel;
+    let r = (kernel.len() / 2) as isize;
+    for (w, h) in [(1, 1), (3, 2), (9, 4), (10, 7), (33, 5)] {
+        let src: Vec<f32> = (0..w * h)
+            .map(|i| ((i * 7919) % 101) as f32 / 10.0)
+            .collect();
+        let mut want = vec![0.0f32; w * h];
+        for y in 0..h as isize {
+            for x in 0..w as isize {
+                let mut acc = 0.0f64;
+                for (ky, cy) in kernel.iter().enumerate() {
+                    for (kx, cx) in kernel.iter().enumerate() {
+                        let yi = (y + ky as isize - r).clamp(0, h as isize - 1) as usize;
+                        let xi = (x + kx as isize - r).clamp(0, w as isize - 1) as usize;
+                        acc += f64::from(cy * cx) * f64::from(src[yi * w + xi]);
+                    }
+                }
+                want[y as usize * w + x as usize] = acc as f32;
+            }
+        }
+        let (mut buf, mut tmp) = (src.clone(), vec![0.0f32; w * h]);
+        blur(&kernel, &mut buf, &mut tmp, w, h);
+        for (i, (a, b)) in buf.iter().zip(&want).enumerate() {
+            assert!((a - b).abs() < 1e-4, "{w}x{h} at {i}: {a} vs {b}");
+        }
+    }
+}
+
+/// Two parts of the steerable-pyramid magnifier (half the orientations
+/// each, one with the residuals) sum to the whole magnifier's frames.
+#[test]
+fn parts_sum_to_the_whole() {
+    let (w, h) = (48, 40);
+    let fps = 100.0;
+    let mut p = MagnifyParams::new(fps, 8.0, 12.0, 10.0);
+    p.scales = 3;
+    let mut whole = Magnifier::new(w, h, p).unwrap();
+    let k = p.orientations;
+    let mut a = Magnifier::new_part(w, h, p, 0..k / 2, true).unwrap();
+    let mut b = Magnifier::new_part(w, h, p, k / 2..k, false).unwrap();
+    let (mut o, mut oa, mut ob) = (vec![0.0; w * h], vec![0.0; w * h], vec![0.0; w * h]);
+    let mut worst = 0.0f32;
+    for t in 0..60 {
+        let s = (2.0 * std::f64::consts::PI * 10.0 * t as f64 / fps).sin();
+        let frame = texture_shifted(w, h, 3, (0.05 * s) as f32);
+        whole.process(&frame, &mut o).unwrap();
+        a.process(&frame, &mut oa).unwrap();
+        b.process(&frame, &mut ob).unwrap();
+        for ((v, x), y) in o.iter().zip(&oa).zip(&ob) {
+            worst = worst.max((v - (x + y)).abs());
+        }
+    }
+    // The texture spans about 0..255: float rounding only.
+    assert!(worst < 1e-3, "parts differ from the whole by {worst}");
+    // Bad parts are refused.
+    assert!(Magnifier::new_part(w, h, p, 3..3, true).is_err());
+    assert!(Magnifier::new_part(w, h, p, 0..k + 1, true).is_err());
+    let mut r = p;
+    r.pyramid = PyramidKind::Riesz;
+    assert!(Magnifier::new_part(w, h, r, 0..1, true).is_err());
+}

@@ -345,6 +345,9 @@ pub struct ComplexSteerablePyramid {
     /// Whether `analyze` computes the high- and low-pass residuals (only
     /// reconstruction needs them; the phase stage turns them off).
     residuals: bool,
+    /// The orientations `analyze` and `synthesize` compute (all by
+    /// default): a part of the pyramid, for work split across threads.
+    orient: std::ops::Range<usize>,
     /// Grids of scales `0..S` and, last, the low-pass grid `S`.
     grids: Vec<Grid>,
     /// Product masks per band (scale-major), on the band's grid, layout
@@ -520,6 +523,7 @@ impl ComplexSteerablePyramid {
             c2r,
             col_fwd,
             col_inv,
+            orient: 0..orientations,
             spec: vec![Complex32::default(); spec_len],
             work: vec![Complex32::default(); full.max(spec_len)],
             work2: vec![Complex32::default(); full.max(spec_len)],
@@ -589,6 +593,9 @@ impl ComplexSteerablePyramid {
         // Complex bands.
         let k = self.key.orientations;
         for (bi, band) in out.bands.iter_mut().enumerate() {
+            if !self.orient.contains(&(bi % k)) {
+                continue;
+            }
             let grid = &self.grids[bi / k];
             let n = grid.w * grid.h;
             gather(
@@ -615,6 +622,22 @@ impl ComplexSteerablePyramid {
     /// they held: for analysis that reads only the complex bands.
     pub fn set_residuals(&mut self, on: bool) {
         self.residuals = on;
+    }
+
+    /// Restricts [`Self::analyze`] and [`Self::synthesize`] to the bands
+    /// of orientations `range` (clamped to the pyramid's); the others'
+    /// coefficients are neither written nor read. With the residuals off
+    /// as well, `synthesize` returns only those bands' part of the frame:
+    /// the parts of disjoint ranges (one with the residuals) sum to the
+    /// whole synthesis, so they can run on different threads.
+    pub fn set_orientations(&mut self, range: std::ops::Range<usize>) {
+        let k = self.key.orientations;
+        self.orient = range.start.min(k)..range.end.min(k);
+    }
+
+    /// Whether band `bi` (scale-major) is among the orientations computed.
+    pub fn band_active(&self, bi: usize) -> bool {
+        self.orient.contains(&(bi % self.key.orientations))
     }
 
     /// The residuals of the spectrum in `self.spec` (see `analyze`).
@@ -664,16 +687,24 @@ impl ComplexSteerablePyramid {
         let spec_len = half_w * h;
         let wh = w as f32 * h as f32;
 
-        // High-pass residual: its half spectrum times the mask starts the sum.
-        self.forward_2d(&coeffs.highpass)?;
-        for (s, m) in self.spec.iter_mut().zip(&self.hi_mask) {
-            *s *= *m;
+        // High-pass residual: its half spectrum times the mask starts the
+        // sum (without the residuals, an empty spectrum does).
+        if self.residuals {
+            self.forward_2d(&coeffs.highpass)?;
+            for (s, m) in self.spec.iter_mut().zip(&self.hi_mask) {
+                *s *= *m;
+            }
+        } else {
+            self.spec.fill(Complex32::default());
         }
 
         // Bands: forward FFT on their grid, times mask, symmetrised into the
         // half spectrum (Re of the one-sided sum == the tight-frame inverse).
         let k = self.key.orientations;
         for (bi, band) in coeffs.bands.iter().enumerate() {
+            if !self.orient.contains(&(bi % k)) {
+                continue;
+            }
             let grid = &self.grids[bi / k];
             let n = grid.w * grid.h;
             self.work2[..n].copy_from_slice(&band.data);
@@ -695,9 +726,22 @@ impl ComplexSteerablePyramid {
         }
 
         // Low-pass residual (real, so its spectrum is already Hermitian).
+        if self.residuals {
+            self.add_lowpass(&coeffs.lowpass, w, h);
+        }
+
+        // Inverse: columns, then real rows.
+        self.col_inv
+            .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
+        self.inverse_rows(false, out, 1.0 / wh)
+    }
+
+    /// Adds the low-pass residual `lowpass` to the half spectrum `spec`.
+    fn add_lowpass(&mut self, lowpass: &[f32], w: usize, h: usize) {
+        let wh = w as f32 * h as f32;
         let grid = &self.grids[self.key.scales];
         let n = grid.w * grid.h;
-        for (d, s) in self.work2[..n].iter_mut().zip(&coeffs.lowpass) {
+        for (d, s) in self.work2[..n].iter_mut().zip(lowpass) {
             *d = Complex32::new(*s, 0.0);
         }
         grid.fwd_x
@@ -715,11 +759,6 @@ impl ComplexSteerablePyramid {
             h,
             &mut self.spec,
         );
-
-        // Inverse: columns, then real rows.
-        self.col_inv
-            .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
-        self.inverse_rows(false, out, 1.0 / wh)
     }
 
     /// The forward 2D FFT of the real image `rows` (`width x height`) into

@@ -30,6 +30,8 @@ struct P {
     max_phase_rad: f64,
     roi: Option<RoiParam>,
     side_by_side: bool,
+    whole_frame: bool,
+    threads: usize,
 }
 
 const PARAMS: &[ParamSpec] = &[
@@ -78,6 +80,11 @@ const PARAMS: &[ParamSpec] = &[
     ROI,
     ParamSpec::new("side_by_side", ParamType::Bool, Def::Bool(false))
         .doc("write the input (left) and the magnified frame (right) side by side"),
+    ParamSpec::new("whole_frame", ParamType::Bool, Def::Bool(false))
+        .doc("with roi: write the whole frame, the region magnified and the rest as it came (default: only the region)"),
+    ParamSpec::new("threads", ParamType::Int, Def::Int(0))
+        .ints(0, 16)
+        .doc("threads of the steerable pyramid (0 = one per core): its orientations are magnified in two halves, on two threads when there are two, bit-identical for any count; the Riesz pyramid uses one"),
 ];
 
 pub const KIND: KindSpec = KindSpec {
@@ -118,12 +125,24 @@ impl Plan for MagnifyPlan {
     }
 }
 
+/// The steerable pyramid's orientations are magnified in this many parts.
+const PARTS: usize = 2;
+
+/// One thread's share of the magnifier (its orientations) and its output.
+struct Part {
+    magnifier: Magnifier,
+    out: Vec<f32>,
+    result: Result<(), vibroscope_math::pyramid::PyramidError>,
+}
+
 /// What the first frame decides.
 struct Run {
     /// Input frame size.
     size: (usize, usize),
     roi: Roi,
-    magnifier: Magnifier,
+    /// The parts (one, or one per thread); the frame is their sum.
+    parts: Vec<Part>,
+    threads: Option<rayon::ThreadPool>,
     pool: FramePool,
     input: Vec<f32>,
     output: Vec<f32>,
@@ -137,6 +156,27 @@ struct Magnify {
 }
 
 impl Magnify {
+    /// The magnifier of `range` of the orientations (all, for Riesz).
+    fn magnifier(
+        roi: Roi,
+        params: MagnifyParams,
+        range: std::ops::Range<usize>,
+        residuals: bool,
+    ) -> Result<Magnifier, StageError> {
+        Magnifier::new_part(roi.w, roi.h, params, range, residuals).map_err(|e| match e {
+            MagnifyError::Param { field, message } => StageError::config(
+                match field {
+                    "band" => "hi_hz",
+                    "factor" => "factor",
+                    "fps" => "fps",
+                    _ => "magnify",
+                },
+                message,
+            ),
+            MagnifyError::Pyramid(e) => StageError::dsp(format!("magnify: {e}")),
+        })
+    }
+
     fn start(&self, f: &Frame) -> Result<Run, StageError> {
         let fmt = *f.format();
         let roi = Roi::resolve(self.p.roi.as_ref(), f.width(), f.height())?;
@@ -190,26 +230,41 @@ impl Magnify {
             scales: self.p.scales,
             orientations: self.p.orientations,
         };
-        let magnifier = Magnifier::new(roi.w, roi.h, params).map_err(|e| match e {
-            MagnifyError::Param { field, message } => StageError::config(
-                match field {
-                    "band" => "hi_hz",
-                    "factor" => "factor",
-                    "fps" => "fps",
-                    _ => "magnify",
-                },
-                message,
-            ),
-            MagnifyError::Pyramid(e) => StageError::dsp(format!("magnify: {e}")),
-        })?;
-        let out_w = if self.p.side_by_side {
-            2 * roi.w
+        // The steerable pyramid's orientations in two halves, whatever the
+        // threads (so the frames are bit-identical for any count), the
+        // first half with the residuals; each half on its own thread when
+        // there are two.
+        let n = if csp {
+            PARTS.min(self.p.orientations)
         } else {
-            roi.w
+            1
         };
+        let k = self.p.orientations;
+        let mut parts = Vec::with_capacity(n);
+        for i in 0..n {
+            let range = if csp {
+                i * k / n..(i + 1) * k / n
+            } else {
+                0..k
+            };
+            let magnifier = Self::magnifier(roi, params, range, i == 0)?;
+            parts.push(Part {
+                magnifier,
+                out: vec![0.0; if n > 1 { roi.w * roi.h } else { 0 }],
+                result: Ok(()),
+            });
+        }
+        let magnifier = &parts[0].magnifier;
+
+        let (w, h) = if self.p.whole_frame {
+            (f.width(), f.height())
+        } else {
+            (roi.w, roi.h)
+        };
+        let out_w = if self.p.side_by_side { 2 * w } else { w };
         let format = FrameFormat {
             width: out_w as u32,
-            height: roi.h as u32,
+            height: h as u32,
             row_timing: None,
             ..fmt
         };
@@ -225,10 +280,13 @@ impl Magnify {
             roi.x,
             roi.y
         );
+        let threads =
+            super::reduce::thread_pool(super::pyramid::resolve_threads(self.p.threads).min(n))?;
         Ok(Run {
             size: (f.width(), f.height()),
             roi,
-            magnifier,
+            parts,
+            threads,
             pool: FramePool::new(format, self.pool_frames.max(2)),
             input: vec![0.0; roi.w * roi.h],
             output: vec![0.0; roi.w * roi.h],
@@ -272,15 +330,36 @@ impl Stage for Magnify {
                     .for_each(|(o, v)| *o = *v as f32),
             }
         }
-        r.magnifier
-            .process(&r.input, &mut r.output)
-            .map_err(|e| StageError::dsp(format!("magnify: {e}")))?;
+        match r.parts.as_mut_slice() {
+            [one] => one.result = one.magnifier.process(&r.input, &mut r.output),
+            parts => {
+                let input = &r.input;
+                let job = |p: &mut Part| p.result = p.magnifier.process(input, &mut p.out);
+                match &r.threads {
+                    Some(pool) => {
+                        use rayon::prelude::*;
+                        pool.install(|| parts.par_iter_mut().for_each(job));
+                    }
+                    None => parts.iter_mut().for_each(job),
+                }
+                r.output.copy_from_slice(&parts[0].out);
+                for p in &parts[1..] {
+                    for (o, v) in r.output.iter_mut().zip(&p.out) {
+                        *o += v;
+                    }
+                }
+            }
+        }
+        for p in r.parts.iter_mut() {
+            std::mem::replace(&mut p.result, Ok(()))
+                .map_err(|e| StageError::dsp(format!("magnify: {e}")))?;
+        }
         let Some(mut o) = out.acquire(&r.pool) else {
             return Ok(());
         };
         *o.meta_mut() = *f.meta();
         let ow = o.format().width as usize;
-        let side = self.p.side_by_side;
+        let (side, whole) = (self.p.side_by_side, self.p.whole_frame);
         let max = r.max;
         // The magnified frame is dithered (uniform, ±½ DN) before rounding:
         // a change smaller than half a level would otherwise round back to
@@ -288,40 +367,74 @@ impl Stage for Magnify {
         // would vanish in a dead zone. Deterministic per frame and pixel.
         let key = mix64(f.meta().seq ^ 0x006d_6167_6e69_6679);
         let dither = |i: usize| (mix64(key ^ i as u64) >> 40) as f32 * (1.0 / 16_777_216.0) - 0.5;
-        for y in 0..roi.h {
-            let row = y * roi.w..(y + 1) * roi.w;
-            let base = y * ow;
-            let (mag_at, input) = (
-                if side { base + roi.w } else { base },
-                &r.input[row.clone()],
-            );
-            let output = &r.output[row.clone()];
-            match o.pixels_mut() {
-                PixelsMut::U8(p) => {
-                    if side {
-                        for (d, v) in p[base..base + roi.w].iter_mut().zip(input) {
-                            *d = *v as u8;
-                        }
-                    }
-                    for (k, (d, v)) in p[mag_at..mag_at + roi.w].iter_mut().zip(output).enumerate()
-                    {
-                        *d = (v + dither(row.start + k)).round().clamp(0.0, max) as u8;
-                    }
-                }
-                PixelsMut::U16(p) => {
-                    if side {
-                        for (d, v) in p[base..base + roi.w].iter_mut().zip(input) {
-                            *d = *v as u16;
-                        }
-                    }
-                    for (k, (d, v)) in p[mag_at..mag_at + roi.w].iter_mut().zip(output).enumerate()
-                    {
-                        *d = (v + dither(row.start + k)).round().clamp(0.0, max) as u16;
-                    }
-                }
+        let magnified = |i: usize| (r.output[i] + dither(i)).round().clamp(0.0, max);
+        match (o.pixels_mut(), src) {
+            (PixelsMut::U8(p), PixelsRef::U8(s)) => {
+                let cast = |v: f32| v as u8;
+                write_frame(p, s, fw, ow, roi, side, whole, &r.input, cast, |i| {
+                    magnified(i) as u8
+                });
+            }
+            (PixelsMut::U16(p), PixelsRef::U16(s)) => {
+                let cast = |v: f32| v as u16;
+                write_frame(p, s, fw, ow, roi, side, whole, &r.input, cast, |i| {
+                    magnified(i) as u16
+                });
+            }
+            _ => {
+                return Err(StageError::format(
+                    "the output's depth differs from the input's",
+                ))
             }
         }
         let _ = out.emit(Item::Frame(o.freeze()));
         Ok(())
+    }
+}
+
+/// Writes one output frame `p` (`ow` wide): the region's magnified pixels
+/// (`magnified(i)`, `i` the index in the region), after the input's own
+/// pixels where the output shows them: the whole input frame `src` (`fw`
+/// wide) around the region with `whole`, the input on the left with
+/// `side` (the region's `input` values, `cast` to pixels, or the whole
+/// frame).
+#[allow(clippy::too_many_arguments)]
+fn write_frame<T: Copy>(
+    p: &mut [T],
+    src: &[T],
+    fw: usize,
+    ow: usize,
+    roi: Roi,
+    side: bool,
+    whole: bool,
+    input: &[f32],
+    cast: impl Fn(f32) -> T,
+    magnified: impl Fn(usize) -> T,
+) {
+    let (w, h, ox, oy) = if whole {
+        (fw, src.len() / fw.max(1), roi.x, roi.y)
+    } else {
+        (roi.w, roi.h, 0, 0)
+    };
+    for y in 0..h {
+        let base = y * ow;
+        let main = if side { base + w } else { base };
+        if whole {
+            let row = &src[y * fw..(y + 1) * fw];
+            p[main..main + w].copy_from_slice(row);
+            if side {
+                p[base..base + w].copy_from_slice(row);
+            }
+        } else if side {
+            for (d, v) in p[base..base + w].iter_mut().zip(&input[y * w..(y + 1) * w]) {
+                *d = cast(*v);
+            }
+        }
+        if (oy..oy + roi.h).contains(&y) {
+            let ry = y - oy;
+            for (k, d) in p[main + ox..main + ox + roi.w].iter_mut().enumerate() {
+                *d = magnified(ry * roi.w + k);
+            }
+        }
     }
 }
