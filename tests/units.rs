@@ -540,3 +540,67 @@ fn modal_images_carry_the_unit() {
         .collect();
     assert!(left.is_empty(), "left {left:?}");
 }
+
+/// `--mask` on the displacement: with a mask over region A only, the whole
+/// frame's waveform is A's (its tone within 2%, B's under 5%); a region
+/// with no pixel inside the mask is refused (exit 1, naming it).
+#[test]
+fn a_mask_limits_the_displacement_to_its_pixels() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (ta, _) = two_regions(d);
+    // A binary PGM the frame's size: region A's interior inside.
+    let mut pgm = b"P5\n256 128\n255\n".to_vec();
+    for y in 0..128 {
+        for x in 0..256 {
+            let inside = (36..92).contains(&x) && (36..92).contains(&y);
+            pgm.push(if inside { 255 } else { 0 });
+        }
+    }
+    std::fs::write(d.join("a.pgm"), pgm).unwrap();
+    let o = run_in(
+        d,
+        &[
+            "spectrum",
+            "ab.y4m",
+            "--scale",
+            "0.02",
+            "--mask",
+            "a.pgm",
+            "--region",
+            "0,0,256,128",
+            "--waveform",
+            "w.csv",
+            "-o",
+            "m.json",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let (_, x, y) = waveform(&d.join("w.csv"));
+    let want = ta * 0.02 * 1000.0;
+    let (got, leak) = (amp_at(&x, &y, 80.0), amp_at(&x, &y, 150.0));
+    eprintln!("masked whole frame: {got:.4} µm at 80 Hz (true {want:.4}), {leak:.5} µm at 150 Hz");
+    assert!((got / want - 1.0).abs() < 0.02, "{got} against {want}");
+    assert!(leak < 0.05 * want, "B's tone through the mask: {leak}");
+    let o = run_in(
+        d,
+        &[
+            "spectrum",
+            "ab.y4m",
+            "--mask",
+            "a.pgm",
+            "--region",
+            "164,36,56,56",
+            "--waveform",
+            "b.csv",
+            "-o",
+            "b.json",
+        ],
+    );
+    // Found at the first frame, when the frame size is known: a stage
+    // error (exit 1), naming the region and the mask.
+    assert_eq!(code(&o), 1, "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("a.pgm") && e.contains("region 2"), "{e}");
+    assert!(!d.join("b.json").exists());
+}

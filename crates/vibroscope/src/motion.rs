@@ -18,6 +18,8 @@ use toml::Value;
 /// Adds `src -> displacement -> csv` to a graph and reads the result.
 pub struct DisplacementTap {
     rois: Vec<[u32; 4]>,
+    /// Only pixels inside this image count (`--mask`).
+    mask: Option<std::path::PathBuf>,
     temp: TempPath,
 }
 
@@ -40,8 +42,15 @@ impl DisplacementTap {
     pub fn new(rois: Vec<[u32; 4]>) -> DisplacementTap {
         DisplacementTap {
             rois,
+            mask: None,
             temp: TempPath::new("displacement.csv"),
         }
+    }
+
+    /// Measures only the pixels inside `mask` (every region).
+    pub fn with_mask(mut self, mask: Option<std::path::PathBuf>) -> DisplacementTap {
+        self.mask = mask;
+        self
     }
 
     /// Adds the stages, fed by the graph's `src`.
@@ -57,6 +66,9 @@ impl DisplacementTap {
                 .map(|&n| Value::Integer(i64::from(n)))
                 .collect();
             set_param(&mut st, "rois", Value::Array(v), pipeline::by("--roi"));
+        }
+        if let Some(m) = &self.mask {
+            set_param(&mut st, "mask", path_value(m), pipeline::by("--mask"));
         }
         decl.stages.push(st);
         let mut out = pipeline::new_stage("disp_out", "csv", &["disp"], origin.clone());

@@ -288,7 +288,7 @@ pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
         rois.push(first);
         rois.extend(o.regions.iter().map(whole));
     }
-    let disp = DisplacementTap::new(rois);
+    let disp = DisplacementTap::new(rois).with_mask(o.region.mask.clone());
     let (mut report, run) = run_spectrum_with(o, true, Some(&disp))?;
     let mut regions = disp.read()?;
     if let Some(r) = regions.first() {

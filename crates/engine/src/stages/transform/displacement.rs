@@ -24,6 +24,10 @@
 //! rois = [10, 10, 100, 80, 150, 10, 60, 60]   # x, y, w, h per region
 //! ```
 //!
+//! With `mask` (an image the frame's size, > 0 inside), only the pixels
+//! inside it count, in every region: the others' gradients are zero, so
+//! they add nothing to M or b (a region must keep texture inside it).
+//!
 //! The reference R is the mean of the first `reference_frames` frames
 //! (default 16), not the first frame alone: the gradient of a noisy
 //! reference has noise in the "known" variable of the fit, which shrinks
@@ -38,14 +42,16 @@
 
 use super::audio_out::Batcher;
 use super::gradient_motion::px;
-use super::roi::Roi;
+use super::roi::{Mask, Roi};
 use crate::*;
 use serde::Deserialize;
+use std::path::PathBuf;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
     rois: Option<Vec<u32>>,
+    mask: Option<PathBuf>,
     block: usize,
     reference_frames: usize,
 }
@@ -60,6 +66,8 @@ const PARAMS: &[ParamSpec] = &[
         .ints(0, u32::MAX as i64)
         .unit("px")
         .doc("regions, four numbers x, y, w, h each; the whole frame when absent"),
+    ParamSpec::new("mask", ParamType::Path, Def::Optional)
+        .doc("only pixels inside this image (the frame's size, PGM/PNG, > 0 inside) count, in every region"),
     ParamSpec::new("block", ParamType::Int, Def::Int(64))
         .ints(1, 1 << 20)
         .unit("samples")
@@ -82,10 +90,16 @@ pub const KIND: KindSpec = KindSpec {
             None => None,
             Some(r) => Some(parse_rois(r).map_err(|m| p.error("rois", m))?),
         };
+        // Read once, here, so a bad mask is a configuration error.
+        let mask = match &v.mask {
+            Some(m) => Some((m.clone(), Mask::load(m).map_err(|e| p.error("mask", e))?)),
+            None => None,
+        };
         Ok(Box::new(DisplacementPlan(
             rois,
             v.block,
             v.reference_frames,
+            mask,
         )))
     },
 };
@@ -115,7 +129,7 @@ fn parse_rois(r: &[u32]) -> Result<Vec<[u32; 4]>, String> {
         .collect()
 }
 
-struct DisplacementPlan(Option<Vec<[u32; 4]>>, usize, usize);
+struct DisplacementPlan(Option<Vec<[u32; 4]>>, usize, usize, Option<(PathBuf, Mask)>);
 
 impl Plan for DisplacementPlan {
     fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
@@ -126,6 +140,7 @@ impl Plan for DisplacementPlan {
             values: vec![0.0; 2 * n],
             out: Batcher::samples(self.1, 2 * n),
             reference_frames: self.2,
+            mask: self.3,
             held: Vec::new(),
             held_meta: Vec::new(),
             frame_w: 0,
@@ -149,6 +164,8 @@ struct Displacement {
     values: Vec<f32>,
     out: Batcher,
     reference_frames: usize,
+    /// Only pixels inside count (checked against the frame size first).
+    mask: Option<(PathBuf, Mask)>,
     /// The first frames' region pixels, frame after frame, region after
     /// region (until the reference is made).
     held: Vec<f32>,
@@ -161,6 +178,9 @@ impl Displacement {
     /// The regions of a `w`×`h` frame, clipped to keep [`MARGIN`] pixels
     /// from its edge.
     fn place(&mut self, w: usize, h: usize) -> Result<(), StageError> {
+        if let Some((path, m)) = &self.mask {
+            m.check_size(path, w, h)?;
+        }
         let whole = [[0, 0, w as u32, h as u32]];
         let rois: &[[u32; 4]] = self.rois.as_deref().unwrap_or(&whole);
         for (k, r) in rois.iter().enumerate() {
@@ -184,6 +204,20 @@ impl Displacement {
                 w: x1 - x0,
                 h: y1 - y0,
             };
+            if let Some((path, m)) = &self.mask {
+                let inside =
+                    (roi.y..roi.y + roi.h).any(|y| (roi.x..roi.x + roi.w).any(|x| m.at(x, y)));
+                if !inside {
+                    return Err(StageError::config(
+                        "mask",
+                        format!(
+                            "region {} {r:?} has no pixel inside {} ({MARGIN} or more from the frame's edge)",
+                            k + 1,
+                            path.display()
+                        ),
+                    ));
+                }
+            }
             // Room for the region with MARGIN pixels around it, for the
             // reference's gradient.
             let n = (roi.w + 2 * MARGIN) * (roi.h + 2 * MARGIN);
@@ -220,6 +254,7 @@ impl Displacement {
         let frames = self.held_meta.len().max(1);
         let per_frame: usize = self.regions.iter().map(|r| r.reference.len()).sum();
         let mut off = 0;
+        let mask = self.mask.as_ref().map(|(_, m)| m);
         for (k, r) in self.regions.iter_mut().enumerate() {
             let n = r.reference.len();
             for f in 0..frames {
@@ -238,7 +273,12 @@ impl Displacement {
             for yy in 0..r.roi.h {
                 for xx in 0..r.roi.w {
                     let i = (yy + MARGIN) * pw + xx + MARGIN;
-                    let (a, b) = (padded.deriv(i, 1), padded.deriv(i, pw));
+                    let inside = mask.is_none_or(|m| m.at(r.roi.x + xx, r.roi.y + yy));
+                    let (a, b) = if inside {
+                        (padded.deriv(i, 1), padded.deriv(i, pw))
+                    } else {
+                        (0.0, 0.0)
+                    };
                     r.gx.push(a);
                     r.gy.push(b);
                     sxx += (a as f64) * (a as f64);
