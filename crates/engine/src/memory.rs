@@ -133,7 +133,9 @@ pub fn modes_bound(width: usize, height: usize, scale: usize) -> u64 {
 /// `width` x `height` region with `orientations` bands a scale (the
 /// steerable pyramid keeps a filter state per band pixel and orientation;
 /// the Riesz pyramid one per band pixel, whatever the orientations), plus
-/// its output frames when they are twice as wide (`side_by_side`).
+/// `extra_output_px`: the pixels its pooled output frames hold beyond the
+/// region's (twice as wide with `side_by_side`, the whole frame with
+/// `whole_frame`), two bytes each.
 /// Measured (peak RSS of `vibroscope run magnify --replay V.y4m` on 1024²
 /// and 2048² frames, 2, 4 and 8 orientations, 4 and 6 scales, both
 /// pyramids; docs/hostile-input.md) and rounded up: 2048² took 2.77 GB with
@@ -145,7 +147,7 @@ pub fn magnify_bound(
     height: usize,
     orientations: usize,
     csp: bool,
-    side_by_side_frames: usize,
+    extra_output_px: u64,
 ) -> u64 {
     let px = width as u64 * height as u64;
     let per_px = if csp {
@@ -153,7 +155,7 @@ pub fn magnify_bound(
     } else {
         240
     };
-    let wide = (side_by_side_frames as u64).saturating_mul(px.saturating_mul(2));
+    let wide = extra_output_px.saturating_mul(2);
     px.saturating_mul(per_px)
         .saturating_add(wide)
         .saturating_add(64 << 20)

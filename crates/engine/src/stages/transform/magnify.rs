@@ -181,18 +181,17 @@ impl Magnify {
         let fmt = *f.format();
         let roi = Roi::resolve(self.p.roi.as_ref(), f.width(), f.height())?;
         let csp = self.p.pyramid != "riesz";
+        // The pooled output frames beyond the region's size.
+        let (w, h) = if self.p.whole_frame {
+            (f.width(), f.height())
+        } else {
+            (roi.w, roi.h)
+        };
+        let out_w = if self.p.side_by_side { 2 * w } else { w };
+        let extra = ((out_w * h).saturating_sub(roi.w * roi.h) as u64)
+            .saturating_mul(self.pool_frames.max(2) as u64);
         crate::memory::check(
-            crate::memory::magnify_bound(
-                roi.w,
-                roi.h,
-                self.p.orientations,
-                csp,
-                if self.p.side_by_side {
-                    self.pool_frames.max(2)
-                } else {
-                    0
-                },
-            ),
+            crate::memory::magnify_bound(roi.w, roi.h, self.p.orientations, csp, extra),
             &format!(
                 "magnifying {}x{} pixels with the {} pyramid{}",
                 roi.w,
@@ -255,13 +254,6 @@ impl Magnify {
             });
         }
         let magnifier = &parts[0].magnifier;
-
-        let (w, h) = if self.p.whole_frame {
-            (f.width(), f.height())
-        } else {
-            (roi.w, roi.h)
-        };
-        let out_w = if self.p.side_by_side { 2 * w } else { w };
         let format = FrameFormat {
             width: out_w as u32,
             height: h as u32,
