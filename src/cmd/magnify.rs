@@ -108,14 +108,13 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         r.centre_hz
     );
     for n in &o.notches {
-        if let BandFilter::Notch { f_hz, width_hz } = *n {
-            eprintln!(
-                "then motion in {}-{} Hz removed ({})",
-                vibroscope::pipeline::short(f_hz - width_hz / 2.0),
-                vibroscope::pipeline::short(f_hz + width_hz / 2.0),
-                n.flag()
-            );
-        }
+        let (_, lo_hz, hi_hz) = n.stage();
+        eprintln!(
+            "then motion in {}-{} Hz removed ({})",
+            vibroscope::pipeline::short(lo_hz),
+            vibroscope::pipeline::short(hi_hz),
+            n.flag()
+        );
     }
     Ok(ExitCode::SUCCESS)
 }

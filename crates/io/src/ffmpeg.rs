@@ -17,6 +17,18 @@ use std::thread::JoinHandle;
 /// How much of ffmpeg's standard error is kept for messages.
 const STDERR_KEEP: usize = 4096;
 
+/// `path` as an ffmpeg input argument: a ':' in the name would read as a
+/// protocol ("clip:1.mp4"), so such a name is said to be a file.
+pub fn input_arg(path: &Path) -> std::ffi::OsString {
+    if path.as_os_str().as_encoded_bytes().contains(&b':') {
+        let mut s = std::ffi::OsString::from("file:");
+        s.push(path.as_os_str());
+        s
+    } else {
+        path.as_os_str().to_os_string()
+    }
+}
+
 pub(crate) struct FfmpegReader {
     name: String,
     info: VideoInfo,
@@ -38,14 +50,7 @@ impl FfmpegReader {
         let name = display_name(path);
         // A missing input is reported like for the other readers, not as an ffmpeg failure.
         std::fs::metadata(path).map_err(|e| io_error(&name, e))?;
-        // A ':' in the name would read as a protocol ("clip:1.mp4"): say it is a file.
-        let input = if path.as_os_str().as_encoded_bytes().contains(&b':') {
-            let mut s = std::ffi::OsString::from("file:");
-            s.push(path.as_os_str());
-            s
-        } else {
-            path.as_os_str().to_os_string()
-        };
+        let input = input_arg(path);
         let mut child = Command::new(program)
             .args(["-v", "error", "-nostdin", "-i"])
             .arg(&input)

@@ -18,6 +18,7 @@ use std::path::Path;
 pub mod atomic;
 mod cine;
 mod ffmpeg;
+pub use ffmpeg::input_arg as ffmpeg_input;
 pub mod image;
 mod mraw;
 pub mod plot;

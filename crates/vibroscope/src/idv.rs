@@ -764,21 +764,7 @@ pub fn idv(o: &IdvOptions) -> Result<IdvReport> {
             format!("must be > 0, got {}", o.damping_scale),
         ));
     }
-    let ffmpeg = crate::magnify::needs_ffmpeg(&o.output);
-    if ffmpeg
-        && std::process::Command::new("ffmpeg")
-            .arg("-version")
-            .output()
-            .is_err()
-    {
-        return Err(Error::usage(
-            "-o",
-            format!(
-                "{}: writing anything but .y4m needs ffmpeg, which is not installed (write a .y4m, or install ffmpeg)",
-                o.output.display()
-            ),
-        ));
-    }
+    let ffmpeg = crate::magnify::output_needs_ffmpeg(&o.output, crate::magnify::ffmpeg_present)?;
     let mut inputs: Vec<&Path> = Vec::new();
     if o.basis_dir.is_none() {
         inputs.push(&o.basis.video);

@@ -172,7 +172,7 @@ pub fn magnify_pipeline(
     }
     let mut last = "mag".to_string();
     for (i, n) in o.notches.iter().enumerate() {
-        let BandFilter::Notch { f_hz, width_hz } = *n else {
+        let ("bandstop", lo_hz, hi_hz) = n.stage() else {
             continue;
         };
         let id = format!("notch{}", i + 1);
@@ -180,8 +180,8 @@ pub fn magnify_pipeline(
         let mut st = pipeline::new_stage(&id, "magnify", &[&last], origin.clone());
         let f = |v: f64| Value::Float(v);
         for (k, v) in [
-            ("lo_hz", f(f_hz - width_hz / 2.0)),
-            ("hi_hz", f(f_hz + width_hz / 2.0)),
+            ("lo_hz", f(lo_hz)),
+            ("hi_hz", f(hi_hz)),
             ("factor", f(0.0)),
             ("pyramid", Value::String(o.pyramid.name().into())),
         ] {
@@ -224,16 +224,8 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
             format!("must be a number >= 0, got {}", o.factor),
         ));
     }
-    let ffmpeg = needs_ffmpeg(&o.output);
-    if ffmpeg && Command::new("ffmpeg").arg("-version").output().is_err() {
-        return Err(Error::usage(
-            "-o",
-            format!(
-                "{}: writing anything but .y4m needs ffmpeg, which is not installed (write a .y4m, or install ffmpeg)",
-                o.output.display()
-            ),
-        ));
-    }
+    let have_ffmpeg = ffmpeg_present();
+    let ffmpeg = output_needs_ffmpeg(&o.output, || have_ffmpeg)?;
     let (reader, fps) = open_video(&o.video, o.fps)?;
     let info = reader.info().clone();
     drop(reader);
@@ -253,15 +245,13 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
     let colour = has_colour(&o.video, &info);
     let chroma = match colour {
         Colour::Grey => None,
-        Colour::Yes { video_range } if info.depth == io::Depth::U8 && ffmpeg_present() => {
-            Some(Chroma {
-                video: o.video.clone(),
-                fps,
-                roi: o.roi,
-                side_by_side: o.side_by_side,
-                video_range,
-            })
-        }
+        Colour::Yes { video_range } if info.depth == io::Depth::U8 && have_ffmpeg => Some(Chroma {
+            video: o.video.clone(),
+            fps,
+            roi: o.roi,
+            side_by_side: o.side_by_side,
+            video_range,
+        }),
         Colour::Yes { .. } => {
             notes.push(if info.depth == io::Depth::U8 {
                 "colour is not kept: keeping the chroma needs ffmpeg, which is not installed; the luma is magnified and written as grey".to_string()
@@ -282,18 +272,18 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
         io::atomic::temp_sibling(&o.output)
     };
     for n in &o.notches {
-        if let BandFilter::Notch { f_hz, width_hz } = *n {
+        if let ("bandstop", lo_hz, hi_hz) = n.stage() {
             let mut q = params;
-            (q.lo_hz, q.hi_hz, q.factor) = (f_hz - width_hz / 2.0, f_hz + width_hz / 2.0, 0.0);
+            (q.lo_hz, q.hi_hz, q.factor) = (lo_hz, hi_hz, 0.0);
             q.check()
                 .map_err(|e| Error::usage("--notch", format!("{}: {e}", n.flag())))?;
         }
     }
-    let (rw, rh) = match &o.roi {
+    let (w, h) = match &o.roi {
         Some(r) => (r.w, r.h),
         None => (info.width, info.height),
     };
-    let decl = magnify_pipeline(o, &y4m, (rw, rh))?;
+    let decl = magnify_pipeline(o, &y4m, (w, h))?;
     let result = pipeline::run(&decl, o.run);
     let run = match result {
         Ok(r) => r,
@@ -306,10 +296,6 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
         Some(c) => finish_colour(&y4m, &o.output, c)?,
         None => finish_output(&y4m, &o.output, ffmpeg)?,
     }
-    let (w, h) = match &o.roi {
-        Some(r) => (r.w, r.h),
-        None => (info.width, info.height),
-    };
     let frames = run
         .stages
         .iter()
@@ -367,7 +353,7 @@ fn has_colour(video: &Path, info: &io::VideoInfo) -> Colour {
             "-of",
             "csv=p=0",
         ])
-        .arg(ffmpeg_input(video))
+        .arg(io::ffmpeg_input(video))
         .output();
     match probe {
         Ok(o) if o.status.success() => {
@@ -386,19 +372,26 @@ fn has_colour(video: &Path, info: &io::VideoInfo) -> Colour {
     }
 }
 
-fn ffmpeg_present() -> bool {
+/// Whether ffmpeg runs here.
+pub(crate) fn ffmpeg_present() -> bool {
     Command::new("ffmpeg").arg("-version").output().is_ok()
 }
 
-/// A path as an ffmpeg input: a `:` in the name would read as a protocol.
-fn ffmpeg_input(path: &Path) -> std::ffi::OsString {
-    if path.as_os_str().as_encoded_bytes().contains(&b':') {
-        let mut s = std::ffi::OsString::from("file:");
-        s.push(path.as_os_str());
-        s
-    } else {
-        path.as_os_str().to_os_string()
+/// Whether writing `output` needs ffmpeg (anything but `.y4m`), refused
+/// with a usage error naming `-o` when it does and `present` says ffmpeg
+/// is missing (asked only then).
+pub(crate) fn output_needs_ffmpeg(output: &Path, present: impl FnOnce() -> bool) -> Result<bool> {
+    let ffmpeg = needs_ffmpeg(output);
+    if ffmpeg && !present() {
+        return Err(Error::usage(
+            "-o",
+            format!(
+                "{}: writing anything but .y4m needs ffmpeg, which is not installed (write a .y4m, or install ffmpeg)",
+                output.display()
+            ),
+        ));
     }
+    Ok(ffmpeg)
 }
 
 /// Where the chroma of a colour input comes from.
@@ -447,7 +440,7 @@ fn finish_colour(y4m: &Path, output: &Path, c: &Chroma) -> Result<()> {
         cmd.args(["-v", "error", "-nostdin", "-y", "-i"])
             .arg(y4m)
             .arg("-i")
-            .arg(ffmpeg_input(&c.video))
+            .arg(io::ffmpeg_input(&c.video))
             .args(["-filter_complex", &c.filter(), "-map", "[o]"])
             .args(["-r", &format!("{}", c.fps)]);
         if needs_ffmpeg(output) {

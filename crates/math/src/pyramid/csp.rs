@@ -593,7 +593,7 @@ impl ComplexSteerablePyramid {
         // Complex bands.
         let k = self.key.orientations;
         for (bi, band) in out.bands.iter_mut().enumerate() {
-            if !self.orient.contains(&(bi % k)) {
+            if !self.band_active(bi) {
                 continue;
             }
             let grid = &self.grids[bi / k];
@@ -702,7 +702,7 @@ impl ComplexSteerablePyramid {
         // half spectrum (Re of the one-sided sum == the tight-frame inverse).
         let k = self.key.orientations;
         for (bi, band) in coeffs.bands.iter().enumerate() {
-            if !self.orient.contains(&(bi % k)) {
+            if !self.band_active(bi) {
                 continue;
             }
             let grid = &self.grids[bi / k];
@@ -727,7 +727,7 @@ impl ComplexSteerablePyramid {
 
         // Low-pass residual (real, so its spectrum is already Hermitian).
         if self.residuals {
-            self.add_lowpass(&coeffs.lowpass, w, h);
+            self.add_lowpass(&coeffs.lowpass);
         }
 
         // Inverse: columns, then real rows.
@@ -737,7 +737,8 @@ impl ComplexSteerablePyramid {
     }
 
     /// Adds the low-pass residual `lowpass` to the half spectrum `spec`.
-    fn add_lowpass(&mut self, lowpass: &[f32], w: usize, h: usize) {
+    fn add_lowpass(&mut self, lowpass: &[f32]) {
+        let (w, h) = (self.key.width, self.key.height);
         let wh = w as f32 * h as f32;
         let grid = &self.grids[self.key.scales];
         let n = grid.w * grid.h;
