@@ -158,7 +158,10 @@ fn magnified_motion_is_the_factor_times_the_truth_in_band_only() {
             "estimator on the original: {orig:?}"
         );
     }
-    for (pyramid, factors) in [(Pyramid::Csp, &[0.5, 10.0][..])] {
+    for (pyramid, factors) in [
+        (Pyramid::Csp, &[0.5, 10.0, 20.0][..]),
+        (Pyramid::Riesz, &[0.5, 10.0][..]),
+    ] {
         for &factor in factors {
             let v = magnified(dir.path(), factor, pyramid, "m.y4m");
             let m = measured(dir.path(), &v, ROI);
@@ -168,16 +171,22 @@ fn magnified_motion_is_the_factor_times_the_truth_in_band_only() {
             eprintln!(
                 "{pyramid:?} factor {factor}: in-band x{gain_in:.3} (want {factor}), out-of-band x{gain_out:.3} (want 1)"
             );
-            if pyramid == Pyramid::Csp {
-                assert!(
-                    (gain_in / factor - 1.0).abs() < 0.10,
-                    "{pyramid:?} {factor}: in-band x{gain_in}"
-                );
-                assert!(
-                    (gain_out - 1.0).abs() < 0.10,
-                    "{pyramid:?} {factor}: out-of-band x{gain_out}"
-                );
-            }
+            // The Riesz magnifier is the fast approximation (its Laplacian
+            // levels span two octaves; README): held to its measured
+            // figures, x0.66 for 0.5 and x7.2 for 10, within 10%.
+            let want = match pyramid {
+                Pyramid::Csp => factor,
+                Pyramid::Riesz if factor < 1.0 => 0.66,
+                Pyramid::Riesz => 7.2,
+            };
+            assert!(
+                (gain_in / want - 1.0).abs() < 0.10,
+                "{pyramid:?} {factor}: in-band x{gain_in} (want x{want})"
+            );
+            assert!(
+                (gain_out - 1.0).abs() < 0.10,
+                "{pyramid:?} {factor}: out-of-band x{gain_out}"
+            );
         }
     }
 }
@@ -186,19 +195,26 @@ fn magnified_motion_is_the_factor_times_the_truth_in_band_only() {
 fn factor_zero_removes_the_in_band_motion() {
     let dir = tempfile::tempdir().unwrap();
     render(dir.path());
-    let v = magnified(dir.path(), 0.0, Pyramid::Csp, "still.y4m");
-    let m = measured(dir.path(), &v, ROI);
-    let db = 20.0 * (m[0] / TONE_PX).log10();
-    eprintln!(
-        "factor 0: in-band {db:.1} dB, out-of-band x{:.3}",
-        m[1] / TONE_PX
-    );
-    assert!(db <= -20.0, "in-band motion only {db:.1} dB down");
-    assert!(
-        (m[1] / TONE_PX - 1.0).abs() < 0.10,
-        "out-of-band x{}",
-        m[1] / TONE_PX
-    );
+    for pyramid in [Pyramid::Csp, Pyramid::Riesz] {
+        let v = magnified(dir.path(), 0.0, pyramid, "still.y4m");
+        let m = measured(dir.path(), &v, ROI);
+        let db = 20.0 * (m[0] / TONE_PX).log10();
+        eprintln!(
+            "{pyramid:?} factor 0: in-band {db:.1} dB, out-of-band x{:.3}",
+            m[1] / TONE_PX
+        );
+        // The Riesz magnifier's measured figure is -9.4 dB (README).
+        let want = if pyramid == Pyramid::Csp { -20.0 } else { -8.0 };
+        assert!(
+            db <= want,
+            "{pyramid:?}: in-band motion only {db:.1} dB down"
+        );
+        assert!(
+            (m[1] / TONE_PX - 1.0).abs() < 0.10,
+            "{pyramid:?}: out-of-band x{}",
+            m[1] / TONE_PX
+        );
+    }
 }
 
 /// Bad input: a clear message naming the flag or file, exit 2, no panic,

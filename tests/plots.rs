@@ -1,13 +1,16 @@
 //! PNG plots of motion spectra (issue 5): the power spectrum and the
 //! spectrogram put their peaks where the data have them, and `vibroscope
 //! spectrum --png --spectrogram` writes valid PNGs of the stated size whose
-//! brightest line sits at the tone that moved the object.
+//! highest line sits at the tone that moved the object (the `--png` plot:
+//! the displacement amplitude spectrum in its unit, issue 18).
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 use common::*;
-use vibroscope::io::plot::{power_plot, spectrogram_plot, PlotArea, Rgb, TimedSpectrum};
+use vibroscope::io::plot::{
+    amplitude_plot, power_plot, spectrogram_plot, PlotArea, Rgb, TimedSpectrum,
+};
 
 /// A Lorentzian line of half width `hw` at `f` over a floor of 1.
 fn line_spectrum(bins: usize, df: f64, f: f64, hw: f64, height: f64) -> Vec<f64> {
@@ -150,15 +153,31 @@ fn spectrum_command_writes_the_plots() {
     let df = json["resolution_hz"].as_f64().unwrap();
     let bins = (json["sample_rate_hz"].as_f64().unwrap() / 2.0 / df).round() as usize + 1;
     let flat = vec![1.0; bins];
-    let (_, area) = power_plot(&flat, 0.0, df, (0.0, 500.0), &[], (900, 450)).unwrap();
+    let (_, area) = amplitude_plot(&flat, df, (0.0, 500.0), &[], "", "", (900, 450)).unwrap();
     let img = image::open(dir.path().join("p.png")).unwrap().to_rgb8();
     let rgb = Rgb {
         width: img.width(),
         height: img.height(),
         pixels: img.into_raw(),
     };
-    let (x, _) = curve_top(&rgb, &area);
+    let (x, y) = curve_top(&rgb, &area);
     let px_hz = 500.0 / (area.x_px.1 - area.x_px.0) as f64;
-    eprintln!("power plot peak at {:.1} Hz", x_value(&area, x));
+    eprintln!("amplitude plot peak at {:.1} Hz", x_value(&area, x));
     assert!((x_value(&area, x) - 120.0).abs() <= 2.0 * px_hz + df);
+    // The peak's mark (its amplitude from the report, in the same unit as
+    // the axis) sits on the curve's top: the red circle's centre.
+    let (mut sy, mut n) = (0i64, 0i64);
+    for yy in area.y_px.0..area.y_px.1 {
+        for xx in area.x_px.0..area.x_px.1 {
+            let [r, g, b] = px(&rgb, xx, yy);
+            if r > 200 && g < 80 && b < 80 {
+                sy += i64::from(yy);
+                n += 1;
+            }
+        }
+    }
+    assert!(n > 0, "no peak mark drawn");
+    let mark_y = (sy / n) as i32;
+    eprintln!("peak mark at row {mark_y}, curve top at row {y}");
+    assert!((mark_y - y).abs() <= 6, "mark {mark_y} vs curve {y}");
 }

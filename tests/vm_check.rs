@@ -180,6 +180,7 @@ fn vm_live_camera_results() {
         ("record", 0),
         ("probe", 0),
         ("live", 0),
+        ("magnify", 0),
         ("missing", 1),
         ("unsupported", 1),
         ("busy", 1),
@@ -275,6 +276,32 @@ fn vm_live_camera_results() {
     eprintln!(
         "live: {cam_out} frames captured, {cam_dropped} dropped by the device, {phase_dropped} by the capture edge, {} samples in live.wav",
         samples.len()
+    );
+
+    // The live magnifier (`pipelines/live-magnify.toml`) on the camera:
+    // every captured frame magnified or counted as dropped (a live edge),
+    // and standard output a whole Y4M stream, the camera's frame on the
+    // left and the magnified one on the right, both showing its picture.
+    let mag = text("magnify.txt");
+    let (_, cam_out, cam_dropped) = stats_row(&mag, "cam");
+    let (mag_in, mag_out, mag_dropped) = stats_row(&mag, "mag");
+    let (out_in, ..) = stats_row(&mag, "out");
+    assert!(cam_out > 0 && mag_out > 0, "{mag}");
+    assert_eq!(mag_in + mag_dropped, cam_out, "{mag}");
+    assert_eq!(out_in, mag_out, "{mag}");
+    let m = read_y4m(&res.join("magnify.y4m"));
+    assert_eq!(m.ts.len() as u64, out_in, "frames on standard output");
+    assert_eq!((m.width, m.height), (640, 180), "side by side of 320x180");
+    assert!(
+        m.ts.windows(2).all(|p| p[1] > p[0]),
+        "capture times in order"
+    );
+    assert!(m.spread.iter().all(|&s| s > 5.0), "{:?}", m.spread);
+    eprintln!(
+        "live magnify: {cam_out} frames captured ({cam_dropped} dropped by the device), {mag_in} magnified, {mag_dropped} dropped by the magnifier's edge (emulated CPU), {} frames of {}x{} on standard output",
+        m.ts.len(),
+        m.width,
+        m.height
     );
 
     // Faults: a missing node named; Ctrl-C leaves a valid recording; an

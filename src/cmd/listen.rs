@@ -75,8 +75,11 @@ pub struct Args {
     /// the speaker's resampler, with its delay compensated.
     #[arg(long, value_name = "HZ|native", allow_negative_numbers = true)]
     rate: Option<String>,
-    /// Write 32-bit float samples in the signal's units (pixels or radians
-    /// of motion) instead of 16-bit PCM peak-normalised to -1 dBFS.
+    /// Write 32-bit float samples in the signal's own units instead of
+    /// 16-bit PCM peak-normalised to -1 dBFS: radians of local phase
+    /// (A²-weighted, aligned and summed over bands), or pixels along x with
+    /// --rolling-shutter. A sound, not a calibrated displacement: for one
+    /// in µm or mm use `spectrum --waveform OUT.csv --scale MM_PER_PX`.
     #[arg(long)]
     float: bool,
     /// Also play the sound on a speaker, in real time, resampled to the

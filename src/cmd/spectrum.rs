@@ -92,7 +92,9 @@ pub struct SpectrumArgs {
     /// Also write the spectrum (dB) into the JSON.
     #[arg(long)]
     pub include_spectrum: bool,
-    /// Also plot the spectrum (dB, peaks marked) to this PNG.
+    /// Also plot the amplitude spectrum of --quantity (logarithmic axis in
+    /// px, or µm/mm with --scale; peaks marked with their amplitudes) to
+    /// this PNG.
     #[arg(long, value_name = "OUT.png")]
     pub png: Option<PathBuf>,
     /// Also plot sliding spectra over time (a spectrogram) to this PNG.

@@ -59,6 +59,13 @@ vibroscope run live-microphone --set cam.duration_s=4 --set out.path=/out/live.w
 say "live rc=$?"
 sed 's/^/  /' live.txt
 
+# 3b. Live motion magnification, side by side, to standard output (where a
+# player such as ffplay would read it).
+vibroscope run live-magnify --set cam.duration_s=4 --stats --quiet \
+  > /out/magnify.y4m 2> magnify.txt
+say "magnify rc=$?"
+sed 's/^/  /' magnify.txt
+
 # 4. Faults on a real driver: a missing node, a format it does not offer.
 vibroscope record --device /dev/video99 -o /out/missing.y4m --seconds 1 > missing.txt 2>&1
 say "missing rc=$?"

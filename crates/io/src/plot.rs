@@ -90,6 +90,39 @@ fn check_size(width: u32, height: u32) -> Result<(), PlotError> {
     Ok(())
 }
 
+/// `(frequency, y(value))` of the bins `f0 + k·df` of `values` between
+/// `band.0` and `band.1` Hz (finite values only); at least two, or a band
+/// error.
+fn band_points(
+    values: &[f64],
+    f0: f64,
+    df: f64,
+    band: (f64, f64),
+    y: impl Fn(f64) -> f64,
+) -> Result<Vec<(f64, f64)>, PlotError> {
+    let pts: Vec<(f64, f64)> = values
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| (f0 + k as f64 * df, v))
+        .filter(|(f, v)| *f >= band.0 && *f <= band.1 && v.is_finite())
+        .map(|(f, v)| (f, y(v)))
+        .collect();
+    if pts.len() < 2 {
+        return Err(PlotError::Band {
+            lo_hz: band.0,
+            hi_hz: band.1,
+        });
+    }
+    Ok(pts)
+}
+
+/// The smallest and largest y of `pts`.
+fn y_extent(pts: &[(f64, f64)]) -> (f64, f64) {
+    let lo = pts.iter().map(|v| v.1).fold(f64::INFINITY, f64::min);
+    let hi = pts.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max);
+    (lo, hi)
+}
+
 /// The power spectrum `power` (density, bins `f0 + k·df`) in dB between
 /// `min_hz` and `max_hz`, with `peaks` marked (red circles, labelled).
 pub fn power_plot(
@@ -103,27 +136,16 @@ pub fn power_plot(
     let (width, height) = size;
     check_size(width, height)?;
     font();
-    let db: Vec<(f64, f64)> = power
-        .iter()
-        .enumerate()
-        .map(|(k, &p)| (f0 + k as f64 * df, 10.0 * p.max(1e-300).log10()))
-        .filter(|(f, _)| *f >= band.0 && *f <= band.1)
-        .collect();
-    if db.len() < 2 {
-        return Err(PlotError::Band {
-            lo_hz: band.0,
-            hi_hz: band.1,
-        });
-    }
-    let lo = db.iter().map(|v| v.1).fold(f64::INFINITY, f64::min);
-    let hi = db.iter().map(|v| v.1).fold(f64::NEG_INFINITY, f64::max);
+    let db = band_points(power, f0, df, band, |p| 10.0 * p.max(1e-300).log10())?;
+    let (lo, hi) = y_extent(&db);
     let (lo, hi) = (lo - 3.0, hi + 6.0);
     let (xa, xb) = (db[0].0, db[db.len() - 1].0);
     let axes = Axes {
         caption: "motion power spectrum",
         x_desc: "frequency (Hz)",
-        y_desc: "power (dB)",
+        y_desc: "power (dB, relative: phase units)",
         mesh: true,
+        y_ticks: None,
     };
     draw(size, &axes, (xa..xb, lo..hi), |chart| {
         chart
@@ -139,6 +161,66 @@ pub fn power_plot(
                 EmptyElement::at((f, p))
                     + Circle::new((0, 0), 5, RED.stroke_width(2))
                     + Text::new(format!("{f:.1} Hz"), (6, -16), ("sans-serif", 13))
+            }))
+            .map_err(draw_err)?;
+        Ok(())
+    })
+}
+
+/// An amplitude spectrum `amplitude` (bins `k·df`, in the unit that
+/// `y_desc` names) between `band.0` and `band.1` Hz on a logarithmic axis
+/// (ticks in that unit, the top six decades shown), with `peaks`
+/// (frequency, amplitude, label) marked (red circles, labelled).
+pub fn amplitude_plot(
+    amplitude: &[f64],
+    df: f64,
+    band: (f64, f64),
+    peaks: &[(f64, f64, String)],
+    caption: &str,
+    y_desc: &str,
+    size: (u32, u32),
+) -> Result<(Rgb, PlotArea), PlotError> {
+    check_size(size.0, size.1)?;
+    font();
+    let log = band_points(amplitude, 0.0, df, band, |a| a.max(1e-300).log10())?;
+    let (lo, hi) = y_extent(&log);
+    let (lo, hi) = (lo.max(hi - 6.0) - 0.2, hi + 0.5);
+    let log: Vec<(f64, f64)> = log.into_iter().map(|(f, v)| (f, v.max(lo))).collect();
+    let (xa, xb) = (log[0].0, log[log.len() - 1].0);
+    // Labels at whole decades only, unless the axis spans under two.
+    let decades_only = hi - lo >= 2.0;
+    let ticks = |v: &f64| {
+        if decades_only && (v - v.round()).abs() > 1e-6 {
+            return String::new();
+        }
+        let a = 10f64.powf(*v);
+        if (1e-3..1e4).contains(&a) {
+            format!("{}", (a * 1e4).round() / 1e4)
+        } else {
+            format!("{a:.0e}")
+        }
+    };
+    let axes = Axes {
+        caption,
+        x_desc: "frequency (Hz)",
+        y_desc,
+        mesh: true,
+        y_ticks: Some(&ticks),
+    };
+    draw(size, &axes, (xa..xb, lo..hi), |chart| {
+        chart
+            .draw_series(LineSeries::new(log.iter().copied(), BLUE.stroke_width(1)))
+            .map_err(draw_err)?;
+        let marks: Vec<(f64, f64, &str)> = peaks
+            .iter()
+            .filter(|p| p.0 >= xa && p.0 <= xb && p.1 > 0.0 && p.1.is_finite())
+            .map(|p| (p.0, p.1.log10().clamp(lo, hi), p.2.as_str()))
+            .collect();
+        chart
+            .draw_series(marks.iter().map(|&(f, v, label)| {
+                EmptyElement::at((f, v))
+                    + Circle::new((0, 0), 5, RED.stroke_width(2))
+                    + Text::new(label.to_string(), (6, -16), ("sans-serif", 13))
             }))
             .map_err(draw_err)?;
         Ok(())
@@ -198,6 +280,7 @@ pub fn line_plot(
         x_desc,
         y_desc,
         mesh: true,
+        y_ticks: None,
     };
     draw(size, &axes, (xa..xb, lo - pad..hi + pad), |chart| {
         for (k, (_, pts)) in lines.iter().enumerate() {
@@ -216,6 +299,8 @@ struct Axes<'a> {
     x_desc: &'a str,
     y_desc: &'a str,
     mesh: bool,
+    /// Tick labels of the y axis (default: plotters' numbers).
+    y_ticks: Option<&'a dyn Fn(&f64) -> String>,
 }
 
 type Chart<'a, 'b> = ChartContext<
@@ -251,6 +336,9 @@ fn draw(
         let mut mesh = chart.configure_mesh();
         if !axes.mesh {
             mesh.disable_mesh();
+        }
+        if let Some(f) = axes.y_ticks {
+            mesh.y_label_formatter(f);
         }
         mesh.x_desc(axes.x_desc)
             .y_desc(axes.y_desc)
@@ -358,6 +446,7 @@ pub fn spectrogram_with_track(
         x_desc: "time (s)",
         y_desc: "frequency (Hz)",
         mesh: false,
+        y_ticks: None,
     };
     draw(size, &axes, (ta..tb, fa..fb), |chart| {
         let cells = spectra.iter().flat_map(|s| {

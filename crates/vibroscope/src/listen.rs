@@ -4,7 +4,9 @@
 //! per row. Optional band-pass and band-stop stages (`--band`, `--notch`)
 //! follow, then a `resample` stage to a standard audio rate, then the WAV:
 //! 16-bit PCM peak-normalised to -1 dBFS, or 32-bit float in the signal's
-//! units (pixels or radians of motion).
+//! own units (radians of A²-weighted local phase on the frame path, pixels
+//! along x for rows): a sound, not a displacement with a length unit
+//! (that is `spectrum --waveform` with a scale).
 
 use crate::corrections;
 use crate::engine::config::PipelineDecl;
@@ -75,7 +77,8 @@ pub struct ListenOptions {
     /// Band-pass and band-stop filters, applied in order.
     pub filters: Vec<BandFilter>,
     pub rate: OutputRate,
-    /// 32-bit float in the signal's units instead of normalised 16-bit PCM.
+    /// 32-bit float in the signal's own units (radians of phase; px for
+    /// rows) instead of normalised 16-bit PCM.
     pub float: bool,
     pub run: RunSettings,
 }
@@ -90,7 +93,7 @@ pub struct ListenReport {
     /// Samples written and their rate (Hz).
     pub samples: u64,
     pub sample_rate_hz: u32,
-    /// "16-bit PCM, peak at -1 dBFS" or "32-bit float".
+    /// "16-bit PCM, peak at -1 dBFS" or "32-bit float, " and the unit.
     pub encoding: String,
     /// Notes worth telling the user (e.g. a missing exposure).
     pub notes: Vec<String>,
@@ -209,7 +212,12 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         samples,
         sample_rate_hz,
         encoding: if o.float {
-            "32-bit float".into()
+            let unit = if o.rolling_shutter.is_some() {
+                "pixels of motion along x"
+            } else {
+                "radians of local phase, A²-weighted over the bands"
+            };
+            format!("32-bit float, {unit}")
         } else {
             format!("16-bit PCM, peak at {PEAK_DBFS} dBFS")
         },

@@ -162,19 +162,12 @@ fn band(st: &mut crate::engine::config::StageDecl, min_hz: Option<f64>, max_hz: 
     }
 }
 
-/// Adds `plot` (power spectrum PNG, fed by `spectrum`) and
-/// `spectrogram_spectrum` -> `spectrogram` (sliding spectra from `phase`).
+/// Adds `spectrogram_spectrum` -> `spectrogram` (sliding spectra from
+/// `phase`). The `--png` plot is drawn after the run, from the measured
+/// displacement ([`amplitude_png`]), since its axis carries the unit.
 fn add_plots(decl: &mut PipelineDecl, o: &SpectrumOptions) -> Result<()> {
     let spec = pipeline::position(decl, "spectrum")?;
     let set = crate::engine::config::set_param;
-    if let Some(p) = &o.png {
-        let mut st = pipeline::new_stage("plot", "spectrum_png", &["spectrum"], by("--png"));
-        set(&mut st, "path", path_value(p), by("--png"));
-        let n = i64::try_from(o.peaks).unwrap_or(i64::MAX).min(100);
-        set(&mut st, "peaks", Value::Integer(n), by("--peaks"));
-        band(&mut st, o.min_hz, o.max_hz);
-        decl.stages.push(st);
-    }
     if let Some(p) = &o.spectrogram {
         let flag = "--spectrogram-window";
         let mut sp = decl.stages[spec].clone();
@@ -303,6 +296,9 @@ pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
         for (p, a) in report.peaks.iter_mut().zip(amps) {
             p.amplitude = Some(a);
         }
+        if let Some(png) = &o.png {
+            amplitude_png(png, o, r, &report, &summary, scale.as_ref())?;
+        }
         report.motion = Some(summary);
     }
     if let Some(base) = &o.waveform {
@@ -320,6 +316,68 @@ pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
             .extend([&w.csv, &w.png, &w.spectrum_csv, &w.spectrum_png].map(PathBuf::clone));
     }
     Ok((report, run))
+}
+
+/// The `--png` plot: the amplitude spectrum of the quantity asked in region
+/// `r` (x and y in quadrature, as the peaks' amplitudes) in the report's
+/// unit on a logarithmic axis, each peak marked with its frequency and
+/// amplitude.
+fn amplitude_png(
+    path: &Path,
+    o: &SpectrumOptions,
+    r: &crate::motion::RegionMotion,
+    report: &SpectrumReport,
+    summary: &crate::motion::MotionSummary,
+    scale: Option<&Scale>,
+) -> Result<()> {
+    let (amp, df) = crate::math::amplitude::amplitude_spectrum(&[&r.x, &r.y], r.rate_hz);
+    let k = crate::units::px_to(summary.unit, scale);
+    let q: Vec<f64> = amp
+        .iter()
+        .enumerate()
+        .map(|(i, &a)| a * o.quantity.gain(i as f64 * df) * k)
+        .collect();
+    let unit = summary.unit;
+    let peaks: Vec<(f64, f64, String)> = report
+        .peaks
+        .iter()
+        .filter_map(|p| {
+            let a = p.amplitude?;
+            Some((
+                p.frequency_hz,
+                a,
+                format!("{:.1} Hz, {} {unit}", p.frequency_hz, sig3(a)),
+            ))
+        })
+        .collect();
+    let band = (o.min_hz.unwrap_or(0.0), o.max_hz.unwrap_or(r.rate_hz / 2.0));
+    let name = match r.roi {
+        Some([x, y, w, h]) => format!("region ({x},{y},{w},{h})"),
+        None => "whole frame".to_string(),
+    };
+    let q_name = o.quantity.name();
+    let plot = crate::io::plot::amplitude_plot(
+        &q,
+        df,
+        band,
+        &peaks,
+        &format!("{q_name} amplitude spectrum, {name}"),
+        &format!("{q_name} amplitude ({unit})"),
+        (900, 450),
+    )
+    .map_err(crate::io::Error::from)?;
+    let png = plot.0.png().map_err(crate::io::Error::from)?;
+    crate::io::atomic::write_atomic(path, &png)?;
+    Ok(())
+}
+
+/// `v` with three significant digits.
+fn sig3(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let digits = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+    format!("{v:.digits$}")
 }
 
 /// The scale of `arg` for `video` (its frame size read when points are

@@ -6,7 +6,7 @@
 //! Wadhwa et al. (2014) build their Riesz pyramid on such a band-pass
 //! pyramid; the analysis-only [`crate::riesz::RieszPyramid`] has no
 //! low-pass residual to collapse with, so the magnifier uses this one and
-//! the same 3-tap Riesz pair on its levels.
+//! the exact Riesz pair on its levels (by FFT, [`super::riesz_fft`]).
 
 const TAPS: [f32; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16.0];
 

@@ -27,10 +27,12 @@
 //! allocates nothing.
 
 pub mod laplacian;
+mod riesz_fft;
 pub mod temporal;
 
 use crate::pyramid::{Complex32, ComplexSteerablePyramid, PyramidCoeffs, PyramidError};
 use laplacian::Laplacian;
+use riesz_fft::RieszFft;
 use temporal::{BandpassDesign, PixelFilter};
 
 /// Default σ of the amplitude-weighted phase smoothing, band pixels.
@@ -50,8 +52,8 @@ pub enum PyramidKind {
     /// Complex steerable pyramid: quality (octave bands, several
     /// orientations, FFT-based).
     Csp,
-    /// Riesz pyramid on a Laplacian pyramid: speed (no FFT, one quadrature
-    /// triple per level).
+    /// Riesz pyramid on a Laplacian pyramid: speed (one quadrature triple
+    /// per level, its pair by one FFT each way, [`riesz_fft`]).
     Riesz,
 }
 
@@ -280,6 +282,8 @@ struct CspState {
 /// Per-level state of the Riesz magnifier.
 struct RieszState {
     lap: Laplacian,
+    /// The exact Riesz pair per level ([`riesz_fft`]).
+    ffts: Vec<RieszFft>,
     /// Previous (I, R1, R2) per level.
     prev: Vec<[Vec<f32>; 3]>,
     /// Summed phase·cos θ and phase·sin θ per level.
@@ -405,6 +409,10 @@ impl Magnifier {
                         .iter()
                         .map(|&l| [PixelFilter::new(&design, l), PixelFilter::new(&design, l)])
                         .collect(),
+                    ffts: lap.dims[..params.scales]
+                        .iter()
+                        .map(|&(w, h)| RieszFft::new(w, h))
+                        .collect(),
                     r1: z(n),
                     r2: z(n),
                     amp: z(n),
@@ -491,7 +499,7 @@ impl Magnifier {
                     let len = w * h;
                     let band = &mut s.lap.bands[l];
                     let (r1, r2) = (&mut s.r1[..len], &mut s.r2[..len]);
-                    riesz_pair(band, w, h, r1, r2);
+                    s.ffts[l].pair(band, r1, r2);
                     let [pi, p1, p2] = &mut s.prev[l];
                     let [ac, as_] = &mut s.acc[l];
                     let (amp, pc, ps) = (&mut s.amp[..len], &mut s.pc[..len], &mut s.ps[..len]);
@@ -535,22 +543,6 @@ impl Magnifier {
                 s.lap.collapse(out);
                 Ok(())
             }
-        }
-    }
-}
-
-/// The 3-tap Riesz pair of a band: `R1 = (I[x-1] - I[x+1])/2`,
-/// `R2 = (I[y-1] - I[y+1])/2`, edges clamped (as [`crate::riesz`]).
-fn riesz_pair(band: &[f32], w: usize, h: usize, r1: &mut [f32], r2: &mut [f32]) {
-    for y in 0..h {
-        let row = &band[y * w..(y + 1) * w];
-        let up = &band[y.saturating_sub(1) * w..][..w];
-        let dn = &band[(y + 1).min(h - 1) * w..][..w];
-        for x in 0..w {
-            let l = row[x.saturating_sub(1)];
-            let r = row[(x + 1).min(w - 1)];
-            r1[y * w + x] = 0.5 * (l - r);
-            r2[y * w + x] = 0.5 * (up[x] - dn[x]);
         }
     }
 }
