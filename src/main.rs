@@ -59,6 +59,7 @@ enum Command {
     Pipelines(cmd::pipelines::Args),
     Kinds(cmd::kinds::Args),
     Probe(cmd::probe::Args),
+    Bound(cmd::bound::Args),
     Listen(cmd::listen::Args),
     Magnify(cmd::magnify::Args),
     #[command(name = "rs-calibrate")]
@@ -126,6 +127,7 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         Command::Pipelines(a) => cmd::pipelines::run(a),
         Command::Kinds(a) => cmd::kinds::run(a),
         Command::Probe(a) => cmd::probe::run(a),
+        Command::Bound(a) => cmd::bound::run(a),
         Command::Listen(a) => cmd::listen::run(a),
         Command::Magnify(a) => cmd::magnify::run(a),
         Command::RsCalibrate(a) => cmd::rs_calibrate::run(a),

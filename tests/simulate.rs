@@ -186,17 +186,6 @@ fn scene_errors_name_the_file_line_and_field() {
     assert!(stderr(&o).contains("missing.toml"));
 }
 
-/// Writes an 8-bit gray PGM.
-fn write_pgm(path: &Path, w: usize, h: usize, px: impl Fn(usize, usize) -> u8) {
-    let mut b = format!("P5\n{w} {h}\n255\n").into_bytes();
-    for y in 0..h {
-        for x in 0..w {
-            b.push(px(x, y));
-        }
-    }
-    std::fs::write(path, b).unwrap();
-}
-
 /// A picture as the object's texture and a silhouette (issue 6, item 1):
 /// the rendered object shows the picture (low-passed by the texture's
 /// Gaussian), sub-pixel shifts of it stay exact against the continuous

@@ -1,6 +1,7 @@
 //! One module per command: clap arguments → options → recipe → print.
 //! Shared here: the video flags, messages and the progress bar.
 
+pub mod bound;
 pub mod calibrate;
 pub mod compare;
 pub mod demo;

@@ -176,3 +176,14 @@ pub fn power_spectrum(x: &[f32], rate: f64, n: usize) -> (Vec<f64>, f64) {
         rate / n as f64,
     )
 }
+
+/// Writes an 8-bit gray PGM.
+pub fn write_pgm(path: &Path, w: usize, h: usize, px: impl Fn(usize, usize) -> u8) {
+    let mut b = format!("P5\n{w} {h}\n255\n").into_bytes();
+    for y in 0..h {
+        for x in 0..w {
+            b.push(px(x, y));
+        }
+    }
+    std::fs::write(path, b).unwrap();
+}

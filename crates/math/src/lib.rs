@@ -12,12 +12,15 @@
 //!   ([`modal`]) and their simulation as interactive dynamic video
 //!   ([`idv`]), stochastic subspace identification ([`ssi`]), rods
 //!   ([`rod`]), calibration against a known sound ([`calibrate`]).
+//! - The noise floor: the Cramér-Rao bound on sub-pixel motion from the
+//!   video itself ([`bound`]).
 //! - [`rng`]: the deterministic PRNG shared with the simulator; [`numeric`]:
 //!   small shared helpers (gcd, median, Bessel I0).
 //! - [`MathError`]: every module's typed error as one enum.
 
 pub mod amplitude;
 pub mod ar_interp;
+pub mod bound;
 pub mod calibrate;
 pub mod denoise;
 pub mod detmath;

@@ -36,6 +36,7 @@ pub mod error;
 pub mod json;
 pub mod pipeline;
 
+pub mod bound;
 pub mod calibrate;
 pub mod compare;
 pub mod corrections;
