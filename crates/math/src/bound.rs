@@ -38,7 +38,7 @@ const DERIV_ENERGY: f64 = 2.0 * (45.0 * 45.0 + 9.0 * 9.0 + 1.0) / 3600.0;
 /// Why a bound cannot be given.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum BoundError {
-    #[error("the video has {frames} frames; the bound needs at least {need} ({reference} for the reference, then two to measure the noise)")]
+    #[error("{frames} frames were read; the bound needs at least {need} ({reference} for the reference, then two to measure the noise)")]
     TooShort {
         frames: usize,
         need: usize,
