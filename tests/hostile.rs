@@ -948,6 +948,19 @@ fn frames_too_large_for_the_memory_limit_are_refused() {
         stderr(&o)
     );
     assert!(!d.join("big.wav").exists());
+    // The noise bound of the same frames: 32 bytes a pixel and 64 MiB.
+    let o = bin()
+        .current_dir(d)
+        .env("VIBROSCOPE_MAX_MEMORY", "64M")
+        .args(["bound", "big.y4m", "--json", "b.json"])
+        .output()
+        .unwrap();
+    no_panic(&o);
+    assert_ne!(code(&o), 0, "{}", stderr(&o));
+    for want in ["big.y4m", "1024x1024 frames", "would need up to"] {
+        assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
+    }
+    assert!(!d.join("b.json").exists());
     // A modal image of the same frames: 120+ bytes a pixel, over 64 MiB.
     let o = bin()
         .current_dir(d)

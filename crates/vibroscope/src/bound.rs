@@ -94,6 +94,17 @@ pub fn bound(o: &BoundOptions) -> Result<BoundReport> {
         .iter()
         .map(|r| [r.x as usize, r.y as usize, r.w as usize, r.h as usize])
         .collect();
+    // The sums (f64), reference, gradients, residuals and the frame: at most
+    // 32 bytes a pixel, checked before any of it is allocated.
+    let need = ((w as u64) * (h as u64))
+        .saturating_mul(32)
+        .saturating_add(64 << 20);
+    crate::engine::memory::check(
+        need,
+        &format!("the bound on {w}x{h} frames"),
+        "measure a smaller video",
+    )
+    .map_err(|m| Error::input(&o.video, m))?;
     let mut acc = BoundAccumulator::new(w, h, &rois, o.reference_frames)
         .map_err(|e| Error::usage("--region", e.to_string()))?;
     let n = w * h;
