@@ -263,7 +263,8 @@ fn write_csv(path: &Path, header: &str, rows: impl Iterator<Item = String>) -> R
     Ok(())
 }
 
-fn write_png(
+/// Writes a plot as a PNG (whole, or not at all).
+pub(crate) fn write_png(
     path: &Path,
     plot: std::result::Result<
         (crate::io::plot::Rgb, crate::io::plot::PlotArea),

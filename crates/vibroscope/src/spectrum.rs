@@ -356,19 +356,18 @@ fn amplitude_png(
         None => "whole frame".to_string(),
     };
     let q_name = o.quantity.name();
-    let plot = crate::io::plot::amplitude_plot(
-        &q,
-        df,
-        band,
-        &peaks,
-        &format!("{q_name} amplitude spectrum, {name}"),
-        &format!("{q_name} amplitude ({unit})"),
-        (900, 450),
+    crate::motion::write_png(
+        path,
+        crate::io::plot::amplitude_plot(
+            &q,
+            df,
+            band,
+            &peaks,
+            &format!("{q_name} amplitude spectrum, {name}"),
+            &format!("{q_name} amplitude ({unit})"),
+            (900, 450),
+        ),
     )
-    .map_err(crate::io::Error::from)?;
-    let png = plot.0.png().map_err(crate::io::Error::from)?;
-    crate::io::atomic::write_atomic(path, &png)?;
-    Ok(())
 }
 
 /// `v` with three significant digits.
