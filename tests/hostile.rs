@@ -185,6 +185,12 @@ fn scene_bounds_and_errors_at_the_right_place() {
             &["s.toml:5", "field `amplitude_px`", "excursion"],
         ),
         (
+            // Caught at validation (the resonance's steady-state gain),
+            // which does not filter the signal.
+            "amplitude_px = 100.0\nresonances = [{ freq_hz = 440.0, q = 10.0, gain_db = 40.0 }]\n",
+            &["s.toml:5", "field `amplitude_px`", "excursion"],
+        ),
+        (
             "texture = \"t.pgm\"\nobject = [0, 0, 8000, 8000]\n",
             &["s.toml:6", "field `object`", "extends past the 64x48 frame"],
         ),

@@ -423,18 +423,49 @@ impl Scene {
         Self::build(spec, signal, None, Some(f), look)
     }
 
-    fn build(
-        spec: SceneSpec,
-        signal: Signal,
-        modal: Option<super::ModalBeam>,
-        fabric: Option<super::Fabric>,
-        look: Look,
-    ) -> Result<Scene, SimError> {
+    /// Runs every check [`Scene::with_look`], [`Scene::with_modal`] or
+    /// [`Scene::with_fabric`] would, without precomputing the textures
+    /// (which cost time and memory in proportion to the frame and the
+    /// excursion): what a graph's validation needs. `modal` and `fabric`
+    /// are exclusive, as in the constructors.
+    pub fn check(
+        spec: &SceneSpec,
+        signal: &Signal,
+        modal: Option<&super::ModalSpec>,
+        fabric: Option<&super::FabricSpec>,
+        look: &Look,
+    ) -> Result<(), SimError> {
+        let beam = match modal {
+            Some(m) => Some(super::ModalBeam::new(
+                m,
+                spec.object[2] as usize,
+                spec.seed,
+            )?),
+            None => None,
+        };
+        let f = match fabric {
+            Some(f) => Some(super::Fabric::new(
+                f,
+                spec.object[2] as usize,
+                spec.object[3] as usize,
+                spec.seed,
+            )?),
+            None => None,
+        };
+        Self::checked(spec, signal, beam.as_ref(), f.as_ref(), look).map(|_| ())
+    }
+
+    /// The checks shared by [`Scene::check`] and the constructors; returns
+    /// the largest excursion and the object's texture.
+    fn checked(
+        spec: &SceneSpec,
+        signal: &Signal,
+        modal: Option<&super::ModalBeam>,
+        fabric: Option<&super::Fabric>,
+        look: &Look,
+    ) -> Result<(f64, Texture), SimError> {
         spec.validate()?;
         let (w, h) = (spec.width as usize, spec.height as usize);
-        let [ox, oy, ow, oh] = spec.object.map(|v| v as usize);
-        let full = spec.full_scale();
-        let (sin, cos) = detmath::sin_cos_turns(spec.direction_deg / 360.0);
         // Room for the largest excursion (a resonance or interference can
         // exceed the unit-peak signal).
         let amp_max = (spec.amplitude_px.abs() * signal.peak_bound().max(1.0))
@@ -470,6 +501,21 @@ impl Scene {
                 });
             }
         }
+        Ok((amp_max, tex))
+    }
+
+    fn build(
+        spec: SceneSpec,
+        signal: Signal,
+        modal: Option<super::ModalBeam>,
+        fabric: Option<super::Fabric>,
+        look: Look,
+    ) -> Result<Scene, SimError> {
+        let (amp_max, tex) = Self::checked(&spec, &signal, modal.as_ref(), fabric.as_ref(), &look)?;
+        let (w, h) = (spec.width as usize, spec.height as usize);
+        let [ox, oy, ow, oh] = spec.object.map(|v| v as usize);
+        let full = spec.full_scale();
+        let (sin, cos) = detmath::sin_cos_turns(spec.direction_deg / 360.0);
         let pad = PAD + amp_max.ceil() as usize + 1;
         let (gw, gh) = (ow + 2 * pad, oh + 2 * pad);
         let raw = tex.sample_grid(-(pad as i64), -(pad as i64), gw, gh);

@@ -52,6 +52,10 @@ pub struct Signal {
     extra: Vec<(f64, f64)>,
     /// Soft clipping level (signal units): `c tanh(x / c)` before the extra tones.
     clip: Option<f64>,
+    /// Factor on the waveform's peak in [`Signal::peak_bound`]: the
+    /// resonances' steady-state gain after [`Signal::through_checked`], 1
+    /// otherwise.
+    gain_bound: f64,
 }
 
 /// One resonance of an object's transfer function: a peaking section
@@ -175,6 +179,7 @@ impl Signal {
             kind,
             extra: Vec::new(),
             clip: None,
+            gain_bound: 1.0,
         })
     }
 
@@ -192,39 +197,7 @@ impl Signal {
         if res.is_empty() {
             return Ok(self);
         }
-        let n = (duration_s * rate_hz).ceil();
-        if !(n.is_finite() && (1.0..=1e9).contains(&n)) {
-            return Err(invalid(
-                "resonances",
-                format!("cannot sample {duration_s} s at {rate_hz} Hz"),
-            ));
-        }
-        let mut sections = Vec::with_capacity(res.len());
-        for (i, r) in res.iter().enumerate() {
-            if !(r.freq_hz.is_finite() && r.freq_hz > 0.0 && r.freq_hz < 0.45 * rate_hz) {
-                return Err(invalid(
-                    format!("resonances[{i}].freq_hz"),
-                    format!(
-                        "must be > 0 and below {:.0} Hz, got {}",
-                        0.45 * rate_hz,
-                        r.freq_hz
-                    ),
-                ));
-            }
-            if !(r.q.is_finite() && r.q > 0.0 && r.q <= 1000.0) {
-                return Err(invalid(
-                    format!("resonances[{i}].q"),
-                    format!("must be in (0, 1000], got {}", r.q),
-                ));
-            }
-            if !(r.gain_db.is_finite() && r.gain_db.abs() <= 60.0) {
-                return Err(invalid(
-                    format!("resonances[{i}].gain_db"),
-                    format!("must be within ±60 dB, got {}", r.gain_db),
-                ));
-            }
-            sections.push(peaking(r, rate_hz));
-        }
+        let (n, sections) = check_resonances(res, rate_hz, duration_s)?;
         let mut state = vec![[0.0f64; 2]; sections.len()];
         let samples: Vec<f32> = (0..n as usize)
             .map(|k| {
@@ -247,7 +220,32 @@ impl Signal {
             },
             extra: self.extra,
             clip: self.clip,
+            gain_bound: 1.0,
         })
+    }
+
+    /// [`Signal::through`]'s checks without its filtering (which costs
+    /// `duration_s * rate_hz` samples): the waveform is left as it is and
+    /// its [`Signal::peak_bound`] scaled by the sections' steady-state peak
+    /// gain (10^(gain_db / 20) for each boost), what a tone at the
+    /// resonances would reach. A transient can go further; the peak of
+    /// [`Signal::through`]'s samples is the exact one.
+    pub fn through_checked(
+        mut self,
+        res: &[Resonance],
+        rate_hz: f64,
+        duration_s: f64,
+    ) -> Result<Signal, SimError> {
+        // No resonances: nothing is sampled, so the length is not checked.
+        if !res.is_empty() {
+            check_resonances(res, rate_hz, duration_s)?;
+        }
+        let gain: f64 = res
+            .iter()
+            .map(|r| super::detmath::exp(r.gain_db.max(0.0) / 20.0 * std::f64::consts::LN_10))
+            .product();
+        self.gain_bound *= gain;
+        Ok(self)
     }
 
     /// Adds tones `(Hz, weight)` on top (narrowband interference such as
@@ -306,13 +304,15 @@ impl Signal {
     }
 
     /// An upper bound of |value|: 1 for the plain signals (unit peak), more
-    /// after a resonance or with interference added.
+    /// after a resonance or with interference added (after
+    /// [`Signal::through_checked`], the bound at the resonances' steady-state
+    /// gain).
     pub fn peak_bound(&self) -> f64 {
         let base = match &self.kind {
             Kind::Wav { samples, .. } => samples.iter().fold(0.0f64, |m, &v| m.max(v.abs() as f64)),
             _ => 1.0,
         };
-        base + self.extra.iter().map(|(_, w)| w.abs()).sum::<f64>()
+        base * self.gain_bound + self.extra.iter().map(|(_, w)| w.abs()).sum::<f64>()
     }
 
     /// Unit-peak waveform value at time `t_s` seconds (plus any
@@ -425,6 +425,48 @@ fn load_wav(path: &Path) -> Result<Kind, SimError> {
         rate: rate as f64,
         samples: samples.into(),
     })
+}
+
+/// The sample count and the biquad sections of `through`, checked.
+fn check_resonances(
+    res: &[Resonance],
+    rate_hz: f64,
+    duration_s: f64,
+) -> Result<(f64, Vec<[f64; 5]>), SimError> {
+    let n = (duration_s * rate_hz).ceil();
+    if !(n.is_finite() && (1.0..=1e9).contains(&n)) {
+        return Err(invalid(
+            "resonances",
+            format!("cannot sample {duration_s} s at {rate_hz} Hz"),
+        ));
+    }
+    let mut sections = Vec::with_capacity(res.len());
+    for (i, r) in res.iter().enumerate() {
+        if !(r.freq_hz.is_finite() && r.freq_hz > 0.0 && r.freq_hz < 0.45 * rate_hz) {
+            return Err(invalid(
+                format!("resonances[{i}].freq_hz"),
+                format!(
+                    "must be > 0 and below {:.0} Hz, got {}",
+                    0.45 * rate_hz,
+                    r.freq_hz
+                ),
+            ));
+        }
+        if !(r.q.is_finite() && r.q > 0.0 && r.q <= 1000.0) {
+            return Err(invalid(
+                format!("resonances[{i}].q"),
+                format!("must be in (0, 1000], got {}", r.q),
+            ));
+        }
+        if !(r.gain_db.is_finite() && r.gain_db.abs() <= 60.0) {
+            return Err(invalid(
+                format!("resonances[{i}].gain_db"),
+                format!("must be within ±60 dB, got {}", r.gain_db),
+            ));
+        }
+        sections.push(peaking(r, rate_hz));
+    }
+    Ok((n, sections))
 }
 
 #[cfg(test)]
@@ -760,5 +802,41 @@ mod transfer_tests {
             let db = 20.0 * peak.log10();
             assert!((db - want_db).abs() < 0.3, "{f} Hz: {db:.2} dB");
         }
+    }
+
+    /// The checked (unfiltered) signal bounds the peak at the sections'
+    /// steady-state gain: a cut adds nothing, boosts multiply, and a tone
+    /// at the boost, filtered for real, reaches that bound.
+    #[test]
+    fn checked_peak_bound_is_the_steady_state_gain() {
+        let tone = || {
+            Signal::new(&SignalSpec::Tone {
+                freq_hz: 500.0,
+                phase_rad: 0.0,
+            })
+            .unwrap()
+        };
+        let r = |freq_hz, gain_db| Resonance {
+            freq_hz,
+            q: 3.0,
+            gain_db,
+        };
+        let res = [r(500.0, 12.0), r(3000.0, -20.0), r(9000.0, 6.0)];
+        let checked = tone().through_checked(&res, 96_000.0, 2.0).unwrap();
+        let want = 10f64.powf(18.0 / 20.0);
+        assert!((checked.peak_bound() - want).abs() < 1e-9 * want);
+        // The waveform itself is untouched.
+        assert_eq!(checked.value(0.37), tone().value(0.37));
+        let exact = tone()
+            .through(&res[..1], 96_000.0, 2.0)
+            .unwrap()
+            .peak_bound();
+        let steady = 10f64.powf(12.0 / 20.0);
+        assert!((exact / steady - 1.0).abs() < 0.05, "{exact} vs {steady}");
+        // Arguments are checked as `through` checks them.
+        assert!(tone()
+            .through_checked(&[r(60_000.0, 6.0)], 96_000.0, 2.0)
+            .is_err());
+        assert!(tone().through_checked(&res, 96_000.0, 1e9).is_err());
     }
 }

@@ -215,6 +215,45 @@ impl SyntheticParams {
 
     /// The forward model for these parameters.
     pub fn scene(&self) -> Result<Scene, String> {
+        let (spec, signal, look) = self.parts(true)?;
+        match (&self.modal, &self.fabric) {
+            (Some(m), _) => Scene::with_modal(spec, signal, m, look),
+            (None, Some(f)) => Scene::with_fabric(spec, signal, f, look),
+            (None, None) => Scene::with_look(spec, signal, look),
+        }
+        .map_err(|e| e.to_string())
+    }
+
+    /// Every check [`SyntheticParams::scene`] makes, without its work in
+    /// proportion to the frame, the excursion and the length (textures,
+    /// a ruler picture, a resonance's filtered signal): validating a graph
+    /// costs the same for a 64x64 second and a 4096x4096 hour. The
+    /// excursion with resonances is checked at their steady-state gain
+    /// here; the filtered signal's exact peak, when a transient exceeds
+    /// that, is checked by `scene`.
+    fn check_model(&self) -> Result<(), String> {
+        let (spec, signal, look) = self.parts(false)?;
+        Scene::check(
+            &spec,
+            &signal,
+            self.modal.as_ref(),
+            self.fabric.as_ref(),
+            &look,
+        )
+        .map_err(|e| e.to_string())
+    }
+
+    /// The model's spec, signal and look; with `sampled` false the
+    /// resonances are checked (and bound the peak) but not applied, and a
+    /// ruler is not drawn.
+    fn parts(&self, sampled: bool) -> Result<(SceneSpec, Signal, sim::Look), String> {
+        if self.modal.is_some() && self.fabric.is_some() {
+            return Err(sim::SimError::Invalid {
+                field: "fabric".into(),
+                msg: "a scene has either `modal` or `fabric`, not both".into(),
+            }
+            .to_string());
+        }
         let span = (self.frame_count() + 2) as f64 / self.true_fps()
             + self.exposure_us.unwrap_or(0.0) * 1e-6
             + 0.01;
@@ -230,7 +269,13 @@ impl SyntheticParams {
             .map(|i| (i.freq_hz, i.amplitude_px * unit))
             .collect();
         let signal = Signal::new(&self.signal)
-            .and_then(|s| s.through(&self.resonances, rate, span))
+            .and_then(|s| {
+                if sampled {
+                    s.through(&self.resonances, rate, span)
+                } else {
+                    s.through_checked(&self.resonances, rate, span)
+                }
+            })
             .and_then(|s| match self.soft_clip_px {
                 Some(l) => s.soft_clipped(l * unit),
                 None => Ok(s),
@@ -260,33 +305,24 @@ impl SyntheticParams {
         let look = sim::Look {
             texture: match (&self.texture, self.ruler_period_px) {
                 (Some(p), _) => Some(texture_picture(p, object[2], object[3])?),
-                (None, Some(period)) => {
+                (None, Some(period)) if sampled => {
                     let (w, h) = (object[2] as usize, object[3] as usize);
                     Some((sim::texture::ruler_picture(w, h, period, self.seed), w, h))
                 }
-                (None, None) => None,
+                (None, _) => None,
             },
             mask: match &self.object_mask {
                 Some(p) => Some(silhouette(p, w, h)?),
                 None => None,
             },
         };
-        match (&self.modal, &self.fabric) {
-            (Some(_), Some(_)) => Err(sim::SimError::Invalid {
-                field: "fabric".into(),
-                msg: "a scene has either `modal` or `fabric`, not both".into(),
-            }),
-            (Some(m), None) => Scene::with_modal(spec, signal, m, look),
-            (None, Some(f)) => Scene::with_fabric(spec, signal, f, look),
-            (None, None) => Scene::with_look(spec, signal, look),
-        }
-        .map_err(|e| e.to_string())
+        Ok((spec, signal, look))
     }
 
     /// Checks every field; the message names the field.
     ///
-    /// (`texture` and `object_mask` are read by [`SyntheticParams::scene`],
-    /// which `check` calls last.)
+    /// (`texture` and `object_mask` are read by the model's checks, which
+    /// `check` runs last; they do not build the model.)
     pub fn check(&self) -> Result<(), (&'static str, String)> {
         check_fps(self.fps).map_err(|m| ("fps", m))?;
         if !(self.duration_s.is_finite() && self.duration_s >= 0.0) {
@@ -366,7 +402,7 @@ impl SyntheticParams {
                 "needs a global shutter (no line_delay_us or exposure_us)".into(),
             ));
         }
-        self.scene().map(|_| ()).map_err(|m| {
+        self.check_model().map_err(|m| {
             // The model names its field: `invalid FIELD: ...`.
             let named = m
                 .strip_prefix("invalid ")
