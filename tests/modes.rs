@@ -217,7 +217,7 @@ fn modes_command_writes_png_and_npy() {
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let args = [
         "modes", "beam.y4m", "--at", "58.3", "-o", "m.png", "--npy", "m.npy", "--motion", "y",
-        "--sigma", "1.5",
+        "--sigma", "1.5", "--figure", "f.png",
     ];
     let o = run_in(dir.path(), &args);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
@@ -229,12 +229,20 @@ fn modes_command_writes_png_and_npy() {
     let c = corr(&profile(&data), &truth(2)).abs();
     eprintln!("npy profile vs φ2: {c:.4}");
     assert!(c > 0.95, "{c}");
+    // The largest amplitude's pixel, as printed, is the .npy's (x across
+    // the 96 columns, y down the 48 rows).
+    let i = (0..data.len())
+        .max_by(|&a, &b| data[a].norm().total_cmp(&data[b].norm()))
+        .unwrap();
+    let at = format!(" at ({}, {})", i % w, i / w);
+    assert!(stderr(&o).contains(&at), "want{at}: {}", stderr(&o));
     // Deterministic: the same command again gives identical files.
     let args2: Vec<&str> = args
         .iter()
         .map(|a| match *a {
             "m.png" => "m2.png",
             "m.npy" => "m2.npy",
+            "f.png" => "f2.png",
             a => a,
         })
         .collect();
@@ -245,6 +253,57 @@ fn modes_command_writes_png_and_npy() {
         std::fs::read(dir.path().join("m.png")).unwrap(),
         std::fs::read(dir.path().join("m2.png")).unwrap()
     );
+    assert_eq!(
+        std::fs::read(dir.path().join("f.png")).unwrap(),
+        std::fs::read(dir.path().join("f2.png")).unwrap()
+    );
+    check_figure(dir.path(), &data, &png.to_rgb8());
+}
+
+/// The `--figure`: the image enlarged by a whole factor of at least 4 (a
+/// 16 px margin, a 36 px title band, a 190 px key panel), the brightest
+/// pixel of the mode at its place in the same colour as in the plain PNG
+/// (full brightness covers the frame), the frame showing through where
+/// the mode is dark, and the phase wheel's hues in place.
+fn check_figure(
+    d: &std::path::Path,
+    data: &[rustfft::num_complex::Complex32],
+    plain: &image::RgbImage,
+) {
+    let fig = image::open(d.join("f.png")).unwrap().to_rgb8();
+    let (w, h) = (plain.width(), plain.height());
+    let dw = fig.width() - 16 - 16 - 190;
+    assert_eq!(dw % w, 0, "figure {}x{}", fig.width(), fig.height());
+    let z = dw / w;
+    assert!(z >= 4, "enlarged only {z}x");
+    assert!(fig.height() >= 36 + h * z, "figure height {}", fig.height());
+    let (i, _) = data
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.norm().total_cmp(&b.1.norm()))
+        .unwrap();
+    let (x, y) = ((i % w as usize) as u32, (i / w as usize) as u32);
+    let at = |x: u32, y: u32| fig.get_pixel(16 + x * z + z / 2, 36 + y * z + z / 2).0;
+    assert_eq!(at(x, y), plain.get_pixel(x, y).0, "peak ({x}, {y})");
+    // Where the plain image is darkest, the figure is lighter: the frame.
+    let dark = plain
+        .enumerate_pixels()
+        .min_by_key(|(_, _, p)| p.0.iter().copied().max())
+        .unwrap();
+    let v = |p: [u8; 3]| p.iter().copied().max().unwrap();
+    assert!(
+        v(at(dark.0, dark.1)) >= v(dark.2 .0) + 40,
+        "no frame under the dark pixel ({}, {})",
+        dark.0,
+        dark.1
+    );
+    // The wheel (centre 100 px below the title band, mid-panel): red at
+    // 0° on its right, cyan at 180° on its left.
+    let (cx, cy) = (16 + dw + 16 + 95, 36 + 100);
+    let red = fig.get_pixel(cx + 36, cy).0;
+    let cyan = fig.get_pixel(cx - 36, cy).0;
+    assert!(red[0] > 240 && red[1] < 20 && red[2] < 20, "{red:?}");
+    assert!(cyan[0] < 20 && cyan[1] > 240 && cyan[2] > 240, "{cyan:?}");
 }
 
 /// `--mask` and `--pyramid riesz` end to end on the beam: with a mask

@@ -25,6 +25,7 @@ enum MotionArg {
 #[derive(clap::Args)]
 #[command(after_help = "Examples:\n  \
     vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --npy e2.npy\n  \
+    vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --figure e2-figure.png\n  \
     vibroscope modes beam.y4m --at 58.3 --mask beam-mask.png --pyramid riesz -o m.png\n  \
     vibroscope modes beam.y4m --at 58.3 --scale 0.02 --npy m.npy -o m.png   # .npy in µm")]
 pub struct Args {
@@ -42,6 +43,12 @@ pub struct Args {
     /// scale (--scale, --known-length).
     #[arg(long, value_name = "OUT.npy")]
     npy: Option<PathBuf>,
+    /// Also write a figure to read: the image enlarged (to about 1280x960)
+    /// and laid over the recording's first frame, titled with the file,
+    /// frequency, motion and pyramid, with a wheel of the phase hues and a
+    /// key of brightness against amplitude in px (µm or mm with a scale).
+    #[arg(long, value_name = "OUT.png")]
+    figure: Option<PathBuf>,
     #[command(flatten)]
     video_args: VideoArgs,
     /// σ_b of the Gaussian blur, input pixels (0 = none).
@@ -74,6 +81,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         at_hz: a.at_hz,
         output: a.output,
         npy: a.npy,
+        figure: a.figure,
         fps: a.video_args.fps,
         region: a.video_args.region(),
         sigma: a.sigma,
@@ -96,6 +104,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     super::wrote(&r.png);
     if let Some(n) = &r.npy {
         super::wrote(n);
+    }
+    if let Some(f) = &r.figure {
+        super::wrote(f);
     }
     match &r.peak {
         Some(p) => eprintln!(

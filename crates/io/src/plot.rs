@@ -478,6 +478,146 @@ pub fn spectrogram_with_track(
     })
 }
 
+/// What a modal figure's brightness key says.
+#[derive(Clone, Copy, Debug)]
+pub struct AmplitudeKey<'a> {
+    /// The amplitudes shown at brightness 0 and 1.
+    pub lo: f64,
+    pub hi: f64,
+    /// Brightness = ((a - lo) / (hi - lo))^exponent.
+    pub exponent: f64,
+    /// What the amplitude is, with its unit: "amplitude (px)".
+    pub label: &'a str,
+}
+
+/// Width of a modal figure's key panel, pixels.
+const KEY_W: usize = 190;
+/// Height of a modal figure's title band, pixels.
+const TITLE_H: usize = 36;
+
+/// A modal image people can read (thesis Fig. 3-6): `img` (the image, as a
+/// rule laid over a frame of the scene) enlarged by a whole factor to about
+/// 1280x960 (shrunk to fit if larger), under `caption`, beside a wheel of
+/// the phase hues (hue = phase, counter-clockwise from 0° at the right, as
+/// the image renders it) and a key of brightness against amplitude.
+pub fn modal_figure(img: &Rgb, caption: &str, key: &AmplitudeKey<'_>) -> Result<Rgb, PlotError> {
+    let (w, h) = (img.width as usize, img.height as usize);
+    if w == 0 || h == 0 || img.pixels.len() != w * h * 3 {
+        return Err(PlotError::Size {
+            width: img.width,
+            height: img.height,
+        });
+    }
+    font();
+    let fit = (1280.0 / w as f64).min(960.0 / h as f64);
+    let z = if fit >= 1.0 { fit.floor() } else { fit };
+    let (dw, dh) = (
+        ((w as f64 * z).round() as usize).max(1),
+        ((h as f64 * z).round() as usize).max(1),
+    );
+    let margin = 16;
+    // Room for the title beside a narrow image.
+    let width = (margin + dw + margin + KEY_W).max(760);
+    let height = TITLE_H + dh.max(330) + margin;
+    let mut buf = vec![255u8; width * height * 3];
+    let put = |buf: &mut [u8], x: usize, y: usize, c: [u8; 3]| {
+        let i = (y * width + x) * 3;
+        buf[i..i + 3].copy_from_slice(&c);
+    };
+    // The image, nearest-neighbour (each pixel stays a flat square).
+    for y in 0..dh {
+        let sy = ((y as f64 / z) as usize).min(h - 1);
+        for x in 0..dw {
+            let sx = ((x as f64 / z) as usize).min(w - 1);
+            let i = (sy * w + sx) * 3;
+            let c = [img.pixels[i], img.pixels[i + 1], img.pixels[i + 2]];
+            put(&mut buf, margin + x, TITLE_H + y, c);
+        }
+    }
+    // The phase wheel: a ring, hue by angle.
+    let x0 = margin + dw + margin;
+    let (cx, cy) = (x0 + KEY_W / 2, TITLE_H + 100);
+    let (r_out, r_in) = (50.0, 22.0);
+    for y in cy - 51..=cy + 51 {
+        for x in cx - 51..=cx + 51 {
+            let (dx, dy) = (x as f64 - cx as f64, cy as f64 - y as f64);
+            let r = dx.hypot(dy);
+            if r <= r_out && r >= r_in {
+                let hue = dy.atan2(dx).rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU;
+                let c = vibroscope_math::modal::hsv_to_rgb(hue, 1.0, 1.0)
+                    .map(|v| (v * 255.0).round() as u8);
+                put(&mut buf, x, y, c);
+            }
+        }
+    }
+    // The amplitude key: brightness from 0 (bottom) to 1 (top), as it
+    // shows over a mid-grey frame in the hue of phase 0.
+    let (bar_x, bar_top, bar_h) = (x0 + 12, TITLE_H + 210, 110usize);
+    for j in 0..=bar_h {
+        let v = 1.0 - j as f64 / bar_h as f64;
+        let grey = 128.0 * (1.0 - v);
+        let c = [
+            (grey + 255.0 * v).round() as u8,
+            grey.round() as u8,
+            grey.round() as u8,
+        ];
+        for x in bar_x..bar_x + 24 {
+            put(&mut buf, x, bar_top + j, c);
+        }
+    }
+    {
+        let root =
+            BitMapBackend::with_buffer(&mut buf, (width as u32, height as u32)).into_drawing_area();
+        let text = |s: &str, x: usize, y: usize, size: u32| {
+            root.draw(&Text::new(
+                s.to_string(),
+                (x as i32, y as i32),
+                ("sans-serif", size),
+            ))
+            .map_err(draw_err)
+        };
+        text(caption, margin, 9, 17)?;
+        text("phase", x0 + 4, TITLE_H + 14, 14)?;
+        text("0°", cx + 54, cy - 8, 13)?;
+        text("90°", cx - 10, cy - 68, 13)?;
+        text("180°", cx - 88, cy - 8, 13)?;
+        text("270°", cx - 14, cy + 54, 13)?;
+        text(key.label, x0 + 4, bar_top - 26, 14)?;
+        let span = (key.hi - key.lo).abs();
+        let decimals = if span > 0.0 {
+            ((-(span / 4.0).log10()).ceil() + 1.0).clamp(0.0, 8.0) as usize
+        } else {
+            3
+        };
+        for i in 0..=4 {
+            let f = i as f64 / 4.0;
+            let a = key.lo + (key.hi - key.lo) * f;
+            let v = f.powf(key.exponent);
+            let y = bar_top + bar_h - (v * bar_h as f64).round() as usize;
+            root.draw(&PathElement::new(
+                vec![
+                    ((bar_x + 24) as i32, y as i32),
+                    ((bar_x + 30) as i32, y as i32),
+                ],
+                BLACK,
+            ))
+            .map_err(draw_err)?;
+            text(
+                &format!("{a:.decimals$}"),
+                bar_x + 34,
+                y.saturating_sub(7),
+                13,
+            )?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Ok(Rgb {
+        width: width as u32,
+        height: height as u32,
+        pixels: buf,
+    })
+}
+
 /// Black → purple → orange → light yellow, monotone in brightness.
 pub fn heat(v: f64) -> RGBColor {
     let v = v.clamp(0.0, 1.0);

@@ -47,7 +47,7 @@ use crate::pyramid::{
     BandInfo, ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError, PyramidKind,
 };
 use crate::riesz::{RieszCoeffs, RieszPyramid};
-use rustfft::num_complex::{Complex32, Complex64};
+pub use rustfft::num_complex::{Complex32, Complex64};
 use std::f64::consts::TAU;
 
 /// Which motion the image shows.
@@ -641,7 +641,12 @@ pub fn align_phase(data: &[Complex32]) -> Vec<Complex32> {
 /// RGB8 pixels of the visualisation (ch. 3.5.3): hue = phase (0 = red,
 /// ±π = cyan), value = normalised amplitude to the exponent, full saturation.
 pub fn render_rgb(img: &ModalImage, vis: Visual) -> Vec<u8> {
-    let data = align_phase(&img.data);
+    render_rgb_data(&img.data, vis)
+}
+
+/// [`render_rgb`] of a complex image's values (row-major).
+pub fn render_rgb_data(data: &[Complex32], vis: Visual) -> Vec<u8> {
+    let data = align_phase(data);
     let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
     for c in &data {
         let a = c.norm();
@@ -657,6 +662,28 @@ pub fn render_rgb(img: &ModalImage, vis: Visual) -> Vec<u8> {
         let hue = (c.arg() as f64).rem_euclid(TAU) / TAU;
         let rgb = hsv_to_rgb(hue, 1.0, v);
         out.extend(rgb.map(|x| (x * 255.0 + 0.5).clamp(0.0, 255.0) as u8));
+    }
+    out
+}
+
+/// A rendered modal image (`rgb`, from [`render_rgb`]) laid over a
+/// grayscale frame of the scene (`gray`, 0-255, the same pixels): the
+/// mode's colour where it is bright, the frame (dimmed to 25-75% grey)
+/// where the mode is dark, in proportion to the brightness v = max(r, g, b):
+/// out = frame (1 - v) + rgb. Without a frame (`gray` of another length)
+/// the image is returned as it is.
+pub fn overlay_rgb(rgb: &[u8], gray: &[u8]) -> Vec<u8> {
+    if gray.len() * 3 != rgb.len() {
+        return rgb.to_vec();
+    }
+    let mut out = Vec::with_capacity(rgb.len());
+    for (px, &g) in rgb.chunks_exact(3).zip(gray) {
+        let v = f32::from(px[0].max(px[1]).max(px[2])) / 255.0;
+        let base = (64.0 + f32::from(g) * (128.0 / 255.0)) * (1.0 - v);
+        out.extend(
+            px.iter()
+                .map(|&c| (base + f32::from(c)).round().min(255.0) as u8),
+        );
     }
     out
 }
@@ -841,5 +868,21 @@ mod tests {
         assert_eq!(hsv_to_rgb(0.0, 1.0, 1.0), [1.0, 0.0, 0.0]);
         let c = hsv_to_rgb(0.5, 1.0, 1.0);
         assert!(c[0].abs() < 1e-12 && (c[1] - 1.0).abs() < 1e-12 && (c[2] - 1.0).abs() < 1e-12);
+    }
+
+    /// The overlay shows the frame where the mode is dark (dimmed to
+    /// 25-75% grey), the mode's colour where it is bright, and a mix
+    /// between; a frame of the wrong size leaves the image alone.
+    #[test]
+    fn overlay_mixes_by_brightness() {
+        // Black (v = 0), full red (v = 1), half cyan (v = 0.5).
+        let rgb = [0, 0, 0, 255, 0, 0, 0, 128, 128];
+        let gray = [255, 0, 0];
+        let out = overlay_rgb(&rgb, &gray);
+        assert_eq!(&out[..3], &[192, 192, 192]);
+        assert_eq!(&out[3..6], &[255, 0, 0]);
+        let base = (64.0f32 * (1.0 - 128.0 / 255.0)).round() as u8;
+        assert_eq!(&out[6..9], &[base, base + 128, base + 128]);
+        assert_eq!(overlay_rgb(&rgb, &gray[..2]), rgb.to_vec());
     }
 }

@@ -37,6 +37,10 @@ pub struct ModesOptions {
     pub output: PathBuf,
     /// Also the complex image as .npy.
     pub npy: Option<PathBuf>,
+    /// Also a figure to read: the image enlarged and laid over the
+    /// recording's first frame, with a title, a phase wheel and an
+    /// amplitude key ([`crate::io::plot::modal_figure`]).
+    pub figure: Option<PathBuf>,
     pub fps: Option<f64>,
     /// The object: a rectangle and/or a mask, and the pyramid.
     pub region: Region,
@@ -60,6 +64,8 @@ pub struct ModalImagesReport {
     pub png: PathBuf,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub npy: Option<PathBuf>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub figure: Option<PathBuf>,
     /// The pixel of the largest amplitude and its amplitude, in `unit`
     /// (the `.npy`'s unit); none for an all-zero image.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -125,6 +131,7 @@ pub fn modes_pipeline(o: &ModesOptions) -> Result<PipelineDecl> {
 pub fn modes(o: &ModesOptions) -> Result<(ModalImagesReport, RunReport)> {
     let mut outputs = vec![o.output.as_path()];
     outputs.extend(o.npy.as_deref());
+    outputs.extend(o.figure.as_deref());
     crate::error::check_outputs(&[&o.video], &outputs)?;
     if o.unnormalized && o.scale.is_some() {
         return Err(Error::usage(
@@ -155,7 +162,7 @@ pub fn modes(o: &ModesOptions) -> Result<(ModalImagesReport, RunReport)> {
         let _ = std::fs::remove_file(&npy);
     }
     let (run, bytes) = read?;
-    let (w, _h, mut data) = crate::math::modal::read_npy_complex64(&bytes)
+    let (h, w, mut data) = crate::math::modal::read_npy_complex64(&bytes)
         .map_err(|e| Error::input(&npy, format!("cannot read the modal image back: {e}")))?;
     let peak = data
         .iter()
@@ -171,11 +178,18 @@ pub fn modes(o: &ModesOptions) -> Result<(ModalImagesReport, RunReport)> {
         Scale::unit(scale.as_ref(), Quantity::Displacement, largest)
     };
     let k = px_to(unit, scale.as_ref());
+    if let Some(f) = &o.figure {
+        let label = if o.unnormalized {
+            "A²-weighted motion (no unit)".to_string()
+        } else {
+            format!("amplitude ({unit})")
+        };
+        write_figure(f, o, &data, w, k, &label)?;
+    }
     if let (Some(n), true) = (&o.npy, k != 1.0) {
         for c in data.iter_mut() {
             *c *= k as f32;
         }
-        let (w, h) = (w, data.len() / w.max(1));
         crate::io::atomic::write_atomic(n, &crate::math::modal::npy_complex64(&data, w, h))?;
     }
     Ok((
@@ -183,6 +197,7 @@ pub fn modes(o: &ModesOptions) -> Result<(ModalImagesReport, RunReport)> {
             freq_hz: o.at_hz,
             png: o.output.clone(),
             npy: o.npy.clone(),
+            figure: o.figure.clone(),
             peak: peak.map(|(i, a)| ModePeak {
                 x: i % w.max(1),
                 y: i / w.max(1),
@@ -193,4 +208,102 @@ pub fn modes(o: &ModesOptions) -> Result<(ModalImagesReport, RunReport)> {
         },
         run,
     ))
+}
+
+/// Writes `modes --figure`: the image (`data`, `w` wide, in px; `k` to the
+/// key's unit) over the recording's first frame, titled and keyed.
+fn write_figure(
+    path: &std::path::Path,
+    o: &ModesOptions,
+    data: &[crate::math::modal::Complex32],
+    w: usize,
+    k: f64,
+    label: &str,
+) -> Result<()> {
+    use crate::io::plot::{modal_figure, AmplitudeKey, Rgb};
+    use crate::math::modal::{overlay_rgb, render_rgb_data, Visual};
+    let h = data.len() / w.max(1);
+    let exponent = o.exponent.unwrap_or(1.0);
+    let rgb = render_rgb_data(data, Visual { exponent });
+    let frame = first_frame_gray(&o.video)?;
+    let pixels = match frame {
+        Some((fw, fh, gray)) if (fw, fh) == (w, h) => overlay_rgb(&rgb, &gray),
+        _ => rgb,
+    };
+    let (lo, hi) = data
+        .iter()
+        .map(|c| f64::from(c.norm()))
+        .filter(|a| a.is_finite())
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), a| {
+            (lo.min(a), hi.max(a))
+        });
+    let lo = if lo.is_finite() { lo } else { 0.0 };
+    let motion = match o.motion {
+        Motion::X => "x",
+        Motion::Y => "y",
+        Motion::Sum => "x + y",
+    };
+    let mut name = o
+        .video
+        .file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    if name.chars().count() > 40 {
+        name = name.chars().take(39).chain(['…']).collect();
+    }
+    let caption = format!(
+        "{name}: mode at {} Hz, {motion} motion ({} pyramid)",
+        o.at_hz,
+        o.region.pyramid.name()
+    );
+    let img = Rgb {
+        width: w as u32,
+        height: h as u32,
+        pixels,
+    };
+    let key = AmplitudeKey {
+        lo: lo * k,
+        hi: hi * k,
+        exponent,
+        label,
+    };
+    let fig = modal_figure(&img, &caption, &key).map_err(crate::io::Error::from)?;
+    let png = fig.png().map_err(crate::io::Error::from)?;
+    crate::io::atomic::write_atomic(path, &png)?;
+    Ok(())
+}
+
+/// The recording's first frame as 8-bit gray, stretched to its own range;
+/// none for a recording with no frame.
+fn first_frame_gray(video: &std::path::Path) -> Result<Option<(usize, usize, Vec<u8>)>> {
+    use crate::io::{self, Depth, FrameDest};
+    let mut reader = io::open(video, io::Format::Auto).map_err(|e| match e {
+        io::VideoError::Io { .. } => Error::from(e),
+        other => Error::input(video, other.to_string()),
+    })?;
+    let info = reader.info().clone();
+    let (w, h) = (info.width as usize, info.height as usize);
+    let values: Vec<f32> = match info.depth {
+        Depth::U8 => {
+            let mut b = vec![0u8; w * h];
+            if reader.read_frame(FrameDest::U8(&mut b))?.is_none() {
+                return Ok(None);
+            }
+            b.iter().map(|&v| f32::from(v)).collect()
+        }
+        Depth::U16 => {
+            let mut b = vec![0u16; w * h];
+            if reader.read_frame(FrameDest::U16(&mut b))?.is_none() {
+                return Ok(None);
+            }
+            b.iter().map(|&v| f32::from(v)).collect()
+        }
+    };
+    let lo = values.iter().copied().fold(f32::INFINITY, f32::min);
+    let hi = values.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let range = (hi - lo).max(1.0);
+    let gray = values
+        .iter()
+        .map(|v| ((v - lo) / range * 255.0).round() as u8)
+        .collect();
+    Ok(Some((w, h, gray)))
 }
