@@ -257,7 +257,35 @@ fn modes_command_writes_png_and_npy() {
         std::fs::read(dir.path().join("f.png")).unwrap(),
         std::fs::read(dir.path().join("f2.png")).unwrap()
     );
-    check_figure(dir.path(), &data, &png.to_rgb8());
+    check_figure(&dir.path().join("f.png"), &data, &png.to_rgb8());
+    // With --roi the image is the region's, over the frame cropped to it.
+    let o = run_in(
+        dir.path(),
+        &[
+            "modes",
+            "beam.y4m",
+            "--at",
+            "58.3",
+            "-o",
+            "r.png",
+            "--npy",
+            "r.npy",
+            "--motion",
+            "y",
+            "--sigma",
+            "1.5",
+            "--roi",
+            "8,8,80,32",
+            "--figure",
+            "rf.png",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let bytes = std::fs::read(dir.path().join("r.npy")).unwrap();
+    let (h, w, data) = read_npy_complex64(&bytes).unwrap();
+    assert_eq!((h, w), (32, 80));
+    let plain = image::open(dir.path().join("r.png")).unwrap().to_rgb8();
+    check_figure(&dir.path().join("rf.png"), &data, &plain);
 }
 
 /// The `--figure`: the image enlarged by a whole factor of at least 4 (a
@@ -266,11 +294,11 @@ fn modes_command_writes_png_and_npy() {
 /// (full brightness covers the frame), the frame showing through where
 /// the mode is dark, and the phase wheel's hues in place.
 fn check_figure(
-    d: &std::path::Path,
+    path: &std::path::Path,
     data: &[rustfft::num_complex::Complex32],
     plain: &image::RgbImage,
 ) {
-    let fig = image::open(d.join("f.png")).unwrap().to_rgb8();
+    let fig = image::open(path).unwrap().to_rgb8();
     let (w, h) = (plain.width(), plain.height());
     let dw = fig.width() - 16 - 16 - 190;
     assert_eq!(dw % w, 0, "figure {}x{}", fig.width(), fig.height());
@@ -304,6 +332,81 @@ fn check_figure(
     let cyan = fig.get_pixel(cx - 36, cy).0;
     assert!(red[0] > 240 && red[1] < 20 && red[2] < 20, "{red:?}");
     assert!(cyan[0] < 20 && cyan[1] > 240 && cyan[2] > 240, "{cyan:?}");
+}
+
+/// Several `--at` in one pass: each frequency's PNG and `.npy` named
+/// after it, each `.npy` the bytes a run at that frequency alone writes,
+/// each the shape of its mode, and one `--figure` sheet of one figure per
+/// frequency, one under the other.
+#[test]
+fn modes_several_frequencies_in_one_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = format!(
+        "width = 96\nheight = 48\nfps = {FPS}\nframes = {FRAMES}\nobject = {OBJECT:?}\nnoise_std = 2.0\n{MODES}\n"
+    );
+    std::fs::write(d.join("beam.toml"), scene).unwrap();
+    let o = run_in(d, &["simulate", "beam.toml", "-o", "beam.y4m"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let common = ["modes", "beam.y4m", "--motion", "y", "--sigma", "1.5"];
+    let mut args = common.to_vec();
+    args.extend([
+        "--at",
+        "7.3",
+        "--at",
+        "58.3",
+        "--at",
+        "128",
+        "-o",
+        "m.png",
+        "--npy",
+        "m.npy",
+        "--figure",
+        "sheet.png",
+    ]);
+    let o = run_in(d, &args);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let mut args = common.to_vec();
+    args.extend([
+        "--at",
+        "58.3",
+        "-o",
+        "one.png",
+        "--npy",
+        "one.npy",
+        "--figure",
+        "one-fig.png",
+    ]);
+    let o = run_in(d, &args);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(d.join("m-58.3hz.npy")).unwrap(),
+        std::fs::read(d.join("one.npy")).unwrap()
+    );
+    assert_eq!(
+        std::fs::read(d.join("m-58.3hz.png")).unwrap(),
+        std::fs::read(d.join("one.png")).unwrap()
+    );
+    for (f, shape) in [("7.3", 1), ("58.3", 2), ("128", 3)] {
+        let png = image::open(d.join(format!("m-{f}hz.png"))).unwrap();
+        assert_eq!((png.width(), png.height()), (96, 48));
+        let bytes = std::fs::read(d.join(format!("m-{f}hz.npy"))).unwrap();
+        let (_, _, data) = read_npy_complex64(&bytes).unwrap();
+        let c = corr(&profile(&data), &truth(shape)).abs();
+        eprintln!("{f} Hz: profile vs φ{shape}: {c:.4}");
+        assert!(c > 0.9, "{f} Hz: {c}");
+    }
+    assert!(!d.join("m.png").exists() && !d.join("m.npy").exists());
+    let sheet = image::open(d.join("sheet.png")).unwrap().to_rgb8();
+    let one = image::open(d.join("one-fig.png")).unwrap().to_rgb8();
+    assert_eq!(sheet.width(), one.width());
+    assert_eq!(sheet.height(), 3 * one.height());
+    // The middle figure is the 58.3 Hz one.
+    for y in 0..one.height() {
+        for x in 0..one.width() {
+            assert_eq!(sheet.get_pixel(x, one.height() + y), one.get_pixel(x, y));
+        }
+    }
 }
 
 /// `--mask` and `--pyramid riesz` end to end on the beam: with a mask
@@ -393,7 +496,24 @@ fn modes_bad_input() {
     std::fs::write(dir.path().join("s.toml"), scene).unwrap();
     let o = run_in(dir.path(), &["simulate", "s.toml", "-o", "s.y4m"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
-    let cases: [(&[&str], i32, &str); 5] = [
+    let nine: Vec<String> = (1..=9)
+        .flat_map(|f| ["--at".into(), f.to_string()])
+        .collect();
+    let mut nine: Vec<&str> = nine.iter().map(String::as_str).collect();
+    nine.extend(["modes", "s.y4m", "-o", "x.png"]);
+    nine.rotate_right(4);
+    let cases: [(&[&str], i32, &str); 8] = [
+        (&nine, 2, "at most 8 frequencies"),
+        (
+            &["modes", "s.y4m", "--at", "10", "--at", "10", "-o", "x.png"],
+            2,
+            "10 Hz is given twice",
+        ),
+        (
+            &["modes", "s.y4m", "--at", "10", "--at", "60", "-o", "x.png"],
+            1,
+            "Nyquist",
+        ),
         (&["modes", "s.y4m", "--at", "-3", "-o", "x.png"], 2, "--at"),
         (
             &[

@@ -25,16 +25,24 @@ enum MotionArg {
 #[derive(clap::Args)]
 #[command(after_help = "Examples:\n  \
     vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --npy e2.npy\n  \
-    vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --figure e2-figure.png\n  \
+    vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 --at 108.6 -o m.png --figure modes.png\n  \
     vibroscope modes beam.y4m --at 58.3 --mask beam-mask.png --pyramid riesz -o m.png\n  \
     vibroscope modes beam.y4m --at 58.3 --scale 0.02 --npy m.npy -o m.png   # .npy in µm")]
 pub struct Args {
     /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
     video: PathBuf,
     /// The frequency of the image, Hz (the exact Fourier sum at this
-    /// frequency, not the nearest FFT bin).
-    #[arg(long = "at", value_name = "HZ", allow_negative_numbers = true)]
-    at_hz: f64,
+    /// frequency, not the nearest FFT bin). Repeat for several (at most 8)
+    /// in one pass over the video: -o and --npy then get -FREQhz before
+    /// their extension (m.png -> m-80.8hz.png), and --figure is one sheet
+    /// of all.
+    #[arg(
+        long = "at",
+        value_name = "HZ",
+        allow_negative_numbers = true,
+        required = true
+    )]
+    at_hz: Vec<f64>,
     /// Output PNG: phase as hue, amplitude as brightness.
     #[arg(short, long, value_name = "OUT.png")]
     output: PathBuf,
@@ -78,7 +86,8 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let o = ModesOptions {
         video: a.video,
-        at_hz: a.at_hz,
+        at_hz: a.at_hz[0],
+        also_at_hz: a.at_hz[1..].to_vec(),
         output: a.output,
         npy: a.npy,
         figure: a.figure,
@@ -98,38 +107,42 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     super::warn_playback_rate(&o.video, o.fps);
     let bar = super::Bar::start(true);
-    let r = modes::modes(&o);
+    let r = modes::modes_all(&o);
     drop(bar);
-    let (r, _) = super::stats(a.stats, r, |(_, run)| Some(run.table()))?;
-    super::wrote(&r.png);
-    if let Some(n) = &r.npy {
-        super::wrote(n);
+    let (images, _) = super::stats(a.stats, r, |(_, run)| Some(run.table()))?;
+    for r in &images {
+        super::wrote(&r.png);
+        if let Some(n) = &r.npy {
+            super::wrote(n);
+        }
     }
-    if let Some(f) = &r.figure {
+    if let Some(f) = &o.figure {
         super::wrote(f);
     }
-    match &r.peak {
-        Some(p) => eprintln!(
-            "modal image at {} Hz: largest {} {} at ({}, {}){}",
-            r.freq_hz,
-            sig4(p.amplitude),
-            if o.unnormalized {
-                "(A²-weighted, no unit)".to_string()
-            } else {
-                r.unit.to_string()
-            },
-            p.x,
-            p.y,
-            if r.npy.is_some() && !o.unnormalized {
-                format!("; the .npy is in {}", r.unit)
-            } else {
-                String::new()
-            }
-        ),
-        None => eprintln!(
-            "modal image at {} Hz: no motion at that frequency (all zero)",
-            r.freq_hz
-        ),
+    for r in &images {
+        match &r.peak {
+            Some(p) => eprintln!(
+                "modal image at {} Hz: largest {} {} at ({}, {}){}",
+                r.freq_hz,
+                sig4(p.amplitude),
+                if o.unnormalized {
+                    "(A²-weighted, no unit)".to_string()
+                } else {
+                    r.unit.to_string()
+                },
+                p.x,
+                p.y,
+                if r.npy.is_some() && !o.unnormalized {
+                    format!("; the .npy is in {}", r.unit)
+                } else {
+                    String::new()
+                }
+            ),
+            None => eprintln!(
+                "modal image at {} Hz: no motion at that frequency (all zero)",
+                r.freq_hz
+            ),
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -618,6 +618,35 @@ pub fn modal_figure(img: &Rgb, caption: &str, key: &AmplitudeKey<'_>) -> Result<
     })
 }
 
+/// Images one under the other on white, left-aligned (a contact sheet of
+/// figures); at most 8192 pixels a side.
+pub fn stack(images: &[Rgb]) -> Result<Rgb, PlotError> {
+    let width = images.iter().map(|i| i.width).max().unwrap_or(0);
+    let height: u64 = images.iter().map(|i| u64::from(i.height)).sum();
+    if width == 0 || height == 0 || width > 8192 || height > 8192 {
+        return Err(PlotError::Size {
+            width,
+            height: height.min(u64::from(u32::MAX)) as u32,
+        });
+    }
+    let row = width as usize * 3;
+    let mut pixels = vec![255u8; row * height as usize];
+    let mut y0 = 0usize;
+    for img in images {
+        let r = img.width as usize * 3;
+        for (y, src) in img.pixels.chunks_exact(r).enumerate() {
+            let at = (y0 + y) * row;
+            pixels[at..at + r].copy_from_slice(src);
+        }
+        y0 += img.height as usize;
+    }
+    Ok(Rgb {
+        width,
+        height: height as u32,
+        pixels,
+    })
+}
+
 /// Black → purple → orange → light yellow, monotone in brightness.
 pub fn heat(v: f64) -> RGBColor {
     let v = v.clamp(0.0, 1.0);

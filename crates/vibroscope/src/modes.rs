@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::pipeline::{self, by, int, path_value, Region, RunSettings};
 use crate::units::{px_to, Quantity, Scale, ScaleArg, Unit};
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use toml::Value;
 
 /// Which motion the image shows.
@@ -37,6 +37,10 @@ pub struct ModesOptions {
     pub output: PathBuf,
     /// Also the complex image as .npy.
     pub npy: Option<PathBuf>,
+    /// Further frequencies imaged in the same pass ([`modes_all`]); each
+    /// image's files are then named after its frequency
+    /// ([`per_frequency`]).
+    pub also_at_hz: Vec<f64>,
     /// Also a figure to read: the image enlarged and laid over the
     /// recording's first frame, with a title, a phase wheel and an
     /// amplitude key ([`crate::io::plot::modal_figure`]).
@@ -84,8 +88,44 @@ pub struct ModePeak {
     pub amplitude: f64,
 }
 
-/// The graph `file -> modes` with the options set (each names its flag in errors).
+/// Every frequency imaged: `at_hz`, then `also_at_hz`.
+pub fn frequencies(o: &ModesOptions) -> Vec<f64> {
+    std::iter::once(o.at_hz)
+        .chain(o.also_at_hz.iter().copied())
+        .collect()
+}
+
+/// Where frequency `f`'s file goes: `path` itself when one frequency is
+/// imaged, else `STEM-{f}hz.EXT` beside it (`m.png` -> `m-80.8hz.png`).
+pub fn per_frequency(path: &Path, f: f64, many: bool) -> PathBuf {
+    if !many {
+        return path.to_path_buf();
+    }
+    let stem = path
+        .file_stem()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    let name = match path.extension() {
+        Some(e) => format!("{stem}-{f}hz.{}", e.to_string_lossy()),
+        None => format!("{stem}-{f}hz"),
+    };
+    path.with_file_name(name)
+}
+
+/// The graph `file -> modes` with the options set (each names its flag in
+/// errors): one `modes` stage per frequency (`modes`, `modes2`, ...), all
+/// fed by one decoding of the recording.
 pub fn modes_pipeline(o: &ModesOptions) -> Result<PipelineDecl> {
+    let freqs = frequencies(o);
+    let many = freqs.len() > 1;
+    let npys: Vec<Option<PathBuf>> = freqs
+        .iter()
+        .map(|&f| o.npy.as_deref().map(|n| per_frequency(n, f, many)))
+        .collect();
+    pipeline_with(o, &npys)
+}
+
+/// [`modes_pipeline`] with each frequency's `.npy` given.
+fn pipeline_with(o: &ModesOptions, npys: &[Option<PathBuf>]) -> Result<PipelineDecl> {
     let mut decl = pipeline::empty("modes", "recording -> modal image (vibroscope modes)");
     let mut src = pipeline::new_stage("src", "file", &[], by("VIDEO"));
     set_param(&mut src, "path", path_value(&o.video), by("VIDEO"));
@@ -93,44 +133,101 @@ pub fn modes_pipeline(o: &ModesOptions) -> Result<PipelineDecl> {
     if let Some(f) = o.fps {
         pipeline::apply_fps(&mut decl, f)?;
     }
-    let mut st = pipeline::new_stage("modes", "modes", &["src"], by("vibroscope modes"));
-    set_param(&mut st, "freq_hz", Value::Float(o.at_hz), by("--at"));
-    set_param(&mut st, "path", path_value(&o.output), by("-o"));
-    if let Some(n) = &o.npy {
-        set_param(&mut st, "npy", path_value(n), by("--npy"));
+    let freqs = frequencies(o);
+    let many = freqs.len() > 1;
+    for (k, (&f, npy)) in freqs.iter().zip(npys).enumerate() {
+        let id = stage_id(k);
+        let mut st = pipeline::new_stage(&id, "modes", &["src"], by("vibroscope modes"));
+        set_param(&mut st, "freq_hz", Value::Float(f), by("--at"));
+        let png = per_frequency(&o.output, f, many);
+        set_param(&mut st, "path", path_value(&png), by("-o"));
+        if let Some(n) = npy {
+            set_param(&mut st, "npy", path_value(n), by("--npy"));
+        }
+        if let Some(s) = o.sigma {
+            set_param(&mut st, "sigma_px", Value::Float(s), by("--sigma"));
+        }
+        let m = match o.motion {
+            Motion::X => "x",
+            Motion::Y => "y",
+            Motion::Sum => "sum",
+        };
+        set_param(&mut st, "motion", Value::String(m.into()), by("--motion"));
+        if let Some(e) = o.exponent {
+            set_param(&mut st, "exponent", Value::Float(e), by("--exponent"));
+        }
+        if let Some(s) = o.pyramid_scale {
+            set_param(&mut st, "scale", int(s), by("--pyramid-scale"));
+        }
+        if o.unnormalized {
+            set_param(
+                &mut st,
+                "normalize",
+                Value::Boolean(false),
+                by("--unnormalized"),
+            );
+        }
+        decl.stages.push(st);
+        o.region.apply(&mut decl, &id)?;
     }
-    if let Some(s) = o.sigma {
-        set_param(&mut st, "sigma_px", Value::Float(s), by("--sigma"));
-    }
-    let m = match o.motion {
-        Motion::X => "x",
-        Motion::Y => "y",
-        Motion::Sum => "sum",
-    };
-    set_param(&mut st, "motion", Value::String(m.into()), by("--motion"));
-    if let Some(e) = o.exponent {
-        set_param(&mut st, "exponent", Value::Float(e), by("--exponent"));
-    }
-    if let Some(s) = o.pyramid_scale {
-        set_param(&mut st, "scale", int(s), by("--pyramid-scale"));
-    }
-    if o.unnormalized {
-        set_param(
-            &mut st,
-            "normalize",
-            Value::Boolean(false),
-            by("--unnormalized"),
-        );
-    }
-    decl.stages.push(st);
-    o.region.apply(&mut decl, "modes")?;
     Ok(decl)
 }
 
-/// Runs `modes`.
+/// The `modes` stage of the `k`-th frequency.
+fn stage_id(k: usize) -> String {
+    if k == 0 {
+        "modes".into()
+    } else {
+        format!("modes{}", k + 1)
+    }
+}
+
+/// Runs `modes` at `at_hz` only (`also_at_hz` must be empty; see
+/// [`modes_all`]).
 pub fn modes(o: &ModesOptions) -> Result<(ModalImagesReport, RunReport)> {
-    let mut outputs = vec![o.output.as_path()];
-    outputs.extend(o.npy.as_deref());
+    if !o.also_at_hz.is_empty() {
+        return Err(Error::usage(
+            "--at",
+            "several frequencies give several images: use modes_all",
+        ));
+    }
+    let (mut images, run) = modes_all(o)?;
+    match images.pop() {
+        Some(r) => Ok((r, run)),
+        None => Err(Error::usage("--at", "no frequency")),
+    }
+}
+
+/// Runs `modes` at every frequency in one pass over the recording: one
+/// report per frequency, in order; with `figure`, one figure, or for
+/// several frequencies one sheet of figures, one under the other.
+pub fn modes_all(o: &ModesOptions) -> Result<(Vec<ModalImagesReport>, RunReport)> {
+    let freqs = frequencies(o);
+    let many = freqs.len() > 1;
+    if freqs.len() > MAX_FREQUENCIES {
+        return Err(Error::usage(
+            "--at",
+            format!(
+                "at most {MAX_FREQUENCIES} frequencies in one run (each images every frame), got {}",
+                freqs.len()
+            ),
+        ));
+    }
+    for (k, f) in freqs.iter().enumerate() {
+        if freqs[..k].contains(f) {
+            return Err(Error::usage("--at", format!("{f} Hz is given twice")));
+        }
+    }
+    let pngs: Vec<PathBuf> = freqs
+        .iter()
+        .map(|&f| per_frequency(&o.output, f, many))
+        .collect();
+    let user_npys: Vec<Option<PathBuf>> = freqs
+        .iter()
+        .map(|&f| o.npy.as_deref().map(|n| per_frequency(n, f, many)))
+        .collect();
+    let mut outputs: Vec<&Path> = pngs.iter().map(PathBuf::as_path).collect();
+    outputs.extend(user_npys.iter().flatten().map(PathBuf::as_path));
     outputs.extend(o.figure.as_deref());
     crate::error::check_outputs(&[&o.video], &outputs)?;
     if o.unnormalized && o.scale.is_some() {
@@ -142,93 +239,128 @@ pub fn modes(o: &ModesOptions) -> Result<(ModalImagesReport, RunReport)> {
     let scale = crate::spectrum::resolve_scale(&o.video, o.fps, o.scale.as_ref())?;
     // The complex image is always written, to read its peak: to the
     // user's --npy, else to a temporary sibling of the PNG.
-    let npy = match &o.npy {
-        Some(n) => n.clone(),
-        None => crate::io::atomic::temp_sibling(&o.output.with_extension("npy")),
-    };
-    let mut with_npy = o.clone();
-    with_npy.npy = Some(npy.clone());
-    let decl = modes_pipeline(&with_npy)?;
+    let npys: Vec<PathBuf> = user_npys
+        .iter()
+        .zip(&pngs)
+        .map(|(n, png)| match n {
+            Some(n) => n.clone(),
+            None => crate::io::atomic::temp_sibling(&png.with_extension("npy")),
+        })
+        .collect();
+    let decl = pipeline_with(o, &npys.iter().cloned().map(Some).collect::<Vec<_>>())?;
     let run = pipeline::run(&decl, o.run);
     let read = run.and_then(|run| {
-        Ok((
-            run,
-            std::fs::read(&npy).map_err(|e| {
-                Error::input(&npy, format!("cannot read the modal image back: {e}"))
-            })?,
-        ))
+        let bytes = npys
+            .iter()
+            .map(|n| {
+                std::fs::read(n)
+                    .map_err(|e| Error::input(n, format!("cannot read the modal image back: {e}")))
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok((run, bytes))
     });
     if o.npy.is_none() {
-        let _ = std::fs::remove_file(&npy);
+        for n in &npys {
+            let _ = std::fs::remove_file(n);
+        }
     }
     let (run, bytes) = read?;
-    let (h, w, mut data) = crate::math::modal::read_npy_complex64(&bytes)
-        .map_err(|e| Error::input(&npy, format!("cannot read the modal image back: {e}")))?;
-    let peak = data
-        .iter()
-        .enumerate()
-        .map(|(i, c)| (i, c.norm()))
-        .filter(|(_, a)| a.is_finite())
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .filter(|(_, a)| *a > 0.0);
-    let largest = peak.map_or(0.0, |(_, a)| f64::from(a));
-    let unit = if o.unnormalized {
-        Unit::default()
-    } else {
-        Scale::unit(scale.as_ref(), Quantity::Displacement, largest)
+    let frame = match &o.figure {
+        Some(_) => first_frame_gray(&o.video)?,
+        None => None,
     };
-    let k = px_to(unit, scale.as_ref());
-    if let Some(f) = &o.figure {
-        let label = if o.unnormalized {
-            "A²-weighted motion (no unit)".to_string()
+    let mut reports = Vec::with_capacity(freqs.len());
+    let mut figures = Vec::new();
+    for (k, &f) in freqs.iter().enumerate() {
+        let (h, w, mut data) = crate::math::modal::read_npy_complex64(&bytes[k]).map_err(|e| {
+            Error::input(&npys[k], format!("cannot read the modal image back: {e}"))
+        })?;
+        let peak = data
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (i, c.norm()))
+            .filter(|(_, a)| a.is_finite())
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .filter(|(_, a)| *a > 0.0);
+        let largest = peak.map_or(0.0, |(_, a)| f64::from(a));
+        let unit = if o.unnormalized {
+            Unit::default()
         } else {
-            format!("amplitude ({unit})")
+            Scale::unit(scale.as_ref(), Quantity::Displacement, largest)
         };
-        write_figure(f, o, &data, w, k, &label)?;
-    }
-    if let (Some(n), true) = (&o.npy, k != 1.0) {
-        for c in data.iter_mut() {
-            *c *= k as f32;
+        let kk = px_to(unit, scale.as_ref());
+        if o.figure.is_some() {
+            let label = if o.unnormalized {
+                "A²-weighted motion (no unit)".to_string()
+            } else {
+                format!("amplitude ({unit})")
+            };
+            figures.push(figure(o, f, &data, w, kk, &label, frame.as_ref())?);
         }
-        crate::io::atomic::write_atomic(n, &crate::math::modal::npy_complex64(&data, w, h))?;
-    }
-    Ok((
-        ModalImagesReport {
-            freq_hz: o.at_hz,
-            png: o.output.clone(),
-            npy: o.npy.clone(),
+        if let (Some(n), true) = (&user_npys[k], kk != 1.0) {
+            for c in data.iter_mut() {
+                *c *= kk as f32;
+            }
+            crate::io::atomic::write_atomic(n, &crate::math::modal::npy_complex64(&data, w, h))?;
+        }
+        reports.push(ModalImagesReport {
+            freq_hz: f,
+            png: pngs[k].clone(),
+            npy: user_npys[k].clone(),
             figure: o.figure.clone(),
             peak: peak.map(|(i, a)| ModePeak {
                 x: i % w.max(1),
                 y: i / w.max(1),
-                amplitude: f64::from(a) * k,
+                amplitude: f64::from(a) * kk,
             }),
             unit,
             scale,
-        },
-        run,
-    ))
+        });
+    }
+    if let Some(path) = &o.figure {
+        let sheet = crate::io::plot::stack(&figures).map_err(crate::io::Error::from)?;
+        let png = sheet.png().map_err(crate::io::Error::from)?;
+        crate::io::atomic::write_atomic(path, &png)?;
+    }
+    Ok((reports, run))
 }
 
-/// Writes `modes --figure`: the image (`data`, `w` wide, in px; `k` to the
-/// key's unit) over the recording's first frame, titled and keyed.
-fn write_figure(
-    path: &std::path::Path,
+/// Most frequencies in one `modes` run.
+pub const MAX_FREQUENCIES: usize = 8;
+
+/// The `--figure` of one frequency: the image (`data`, `w` wide, in px;
+/// `k` to the key's unit) over the recording's first frame (`frame`: its
+/// size and gray values), titled and keyed.
+fn figure(
     o: &ModesOptions,
+    freq_hz: f64,
     data: &[crate::math::modal::Complex32],
     w: usize,
     k: f64,
     label: &str,
-) -> Result<()> {
+    frame: Option<&(usize, usize, Vec<u8>)>,
+) -> Result<crate::io::plot::Rgb> {
     use crate::io::plot::{modal_figure, AmplitudeKey, Rgb};
     use crate::math::modal::{overlay_rgb, render_rgb_data, Visual};
     let h = data.len() / w.max(1);
     let exponent = o.exponent.unwrap_or(1.0);
     let rgb = render_rgb_data(data, Visual { exponent });
-    let frame = first_frame_gray(&o.video)?;
-    let pixels = match frame {
-        Some((fw, fh, gray)) if (fw, fh) == (w, h) => overlay_rgb(&rgb, &gray),
-        _ => rgb,
+    // The image covers the frame, or the --roi (the frame cropped to it).
+    let under = frame.and_then(|(fw, fh, gray)| {
+        if (*fw, *fh) == (w, h) {
+            return Some(gray.clone());
+        }
+        let r = o.region.roi.as_ref()?;
+        let (x, y) = (r.x as usize, r.y as usize);
+        ((r.w as usize, r.h as usize) == (w, h) && x + w <= *fw && y + h <= *fh).then(|| {
+            (y..y + h)
+                .flat_map(|row| gray[row * fw + x..row * fw + x + w].iter().copied())
+                .collect()
+        })
+    });
+    let pixels = match under {
+        Some(gray) => overlay_rgb(&rgb, &gray),
+        None => rgb,
     };
     let (lo, hi) = data
         .iter()
@@ -250,9 +382,12 @@ fn write_figure(
     if name.chars().count() > 40 {
         name = name.chars().take(39).chain(['…']).collect();
     }
+    let region = match &o.region.roi {
+        Some(r) => format!(", region {},{},{},{}", r.x, r.y, r.w, r.h),
+        None => String::new(),
+    };
     let caption = format!(
-        "{name}: mode at {} Hz, {motion} motion ({} pyramid)",
-        o.at_hz,
+        "{name}: mode at {freq_hz} Hz, {motion} motion ({} pyramid){region}",
         o.region.pyramid.name()
     );
     let img = Rgb {
@@ -266,10 +401,7 @@ fn write_figure(
         exponent,
         label,
     };
-    let fig = modal_figure(&img, &caption, &key).map_err(crate::io::Error::from)?;
-    let png = fig.png().map_err(crate::io::Error::from)?;
-    crate::io::atomic::write_atomic(path, &png)?;
-    Ok(())
+    Ok(modal_figure(&img, &caption, &key).map_err(crate::io::Error::from)?)
 }
 
 /// The recording's first frame as 8-bit gray, stretched to its own range;
