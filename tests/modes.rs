@@ -203,18 +203,24 @@ fn beam_modal_images(pyramid: PyramidKind, min_corr: f64) {
     assert!(off < 0.1 * weakest, "off-mode rms {off} vs {weakest}");
 }
 
+/// `vibroscope simulate` of the beam scene, `frames` long, to
+/// `d/beam.y4m`.
+fn beam_video(d: &std::path::Path, frames: u64) {
+    let scene = format!(
+        "width = 96\nheight = 48\nfps = {FPS}\nframes = {frames}\nobject = {OBJECT:?}\nnoise_std = 2.0\n{MODES}\n"
+    );
+    std::fs::write(d.join("beam.toml"), scene).unwrap();
+    let o = run_in(d, &["simulate", "beam.toml", "-o", "beam.y4m"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+}
+
 /// `vibroscope simulate` renders the beam, `vibroscope modes` images it:
 /// a PNG of the frame's size and a `.npy` (complex64, (H, W)) whose profile
 /// is mode 2's shape; the same input gives the same bytes.
 #[test]
 fn modes_command_writes_png_and_npy() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = format!(
-        "width = 96\nheight = 48\nfps = {FPS}\nframes = 300\nobject = {OBJECT:?}\nnoise_std = 2.0\n{MODES}\n"
-    );
-    std::fs::write(dir.path().join("beam.toml"), scene).unwrap();
-    let o = run_in(dir.path(), &["simulate", "beam.toml", "-o", "beam.y4m"]);
-    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    beam_video(dir.path(), 300);
     let args = [
         "modes", "beam.y4m", "--at", "58.3", "-o", "m.png", "--npy", "m.npy", "--motion", "y",
         "--sigma", "1.5", "--figure", "f.png",
@@ -342,12 +348,7 @@ fn check_figure(
 fn modes_several_frequencies_in_one_pass() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let scene = format!(
-        "width = 96\nheight = 48\nfps = {FPS}\nframes = {FRAMES}\nobject = {OBJECT:?}\nnoise_std = 2.0\n{MODES}\n"
-    );
-    std::fs::write(d.join("beam.toml"), scene).unwrap();
-    let o = run_in(d, &["simulate", "beam.toml", "-o", "beam.y4m"]);
-    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    beam_video(d, FRAMES);
     let common = ["modes", "beam.y4m", "--motion", "y", "--sigma", "1.5"];
     let mut args = common.to_vec();
     args.extend([
@@ -409,6 +410,100 @@ fn modes_several_frequencies_in_one_pass() {
     }
 }
 
+/// `--animate`: the first frame warped by mode 2's image along y through
+/// its cycle (four cycles of 24 frames, enlarged like the figure, even
+/// sides), periodic, and moving where the mode moves: between opposite
+/// phases (frames 0 and 12) the object's column of largest |U| changes
+/// several times as much as its column of smallest |U| (the node).
+/// `--motion sum` and a bad `--animate-px` are refused.
+#[test]
+fn modes_animate_moves_the_mode_shape() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    beam_video(d, FRAMES);
+    let args = [
+        "modes",
+        "beam.y4m",
+        "--at",
+        "58.3",
+        "--motion",
+        "y",
+        "--sigma",
+        "1.5",
+        "-o",
+        "m.png",
+        "--npy",
+        "m.npy",
+        "--animate",
+        "a.y4m",
+    ];
+    let o = run_in(d, &args);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    assert!(stderr(&o).contains("wrote a.y4m"), "{}", stderr(&o));
+    let mut rd = vibroscope::io::open(&d.join("a.y4m"), vibroscope::io::Format::Auto).unwrap();
+    let (w, h) = (rd.info().width as usize, rd.info().height as usize);
+    // 96x48 enlarged 13 times (1280 / 96 = 13.3, 960 / 48 = 20).
+    assert_eq!((w, h), (96 * 13, 48 * 13));
+    let mut frames = Vec::new();
+    let mut buf = vec![0u8; w * h];
+    while rd
+        .read_frame(vibroscope::io::FrameDest::U8(&mut buf))
+        .unwrap()
+        .is_some()
+    {
+        frames.push(buf.clone());
+    }
+    assert_eq!(frames.len(), 96);
+    for k in 0..72 {
+        assert_eq!(frames[k], frames[k + 24], "frame {k} vs {}", k + 24);
+    }
+    let bytes = std::fs::read(d.join("m.npy")).unwrap();
+    let (_, _, data) = read_npy_complex64(&bytes).unwrap();
+    let amp: Vec<f64> = profile(&data).iter().map(|v| v.abs()).collect();
+    let by = |f: fn(f64, f64) -> bool| {
+        (0..amp.len())
+            .reduce(|a, b| if f(amp[b], amp[a]) { b } else { a })
+            .unwrap()
+    };
+    let (most, least) = (by(|a, b| a > b), by(|a, b| a < b));
+    // Mean |frame 0 - frame 12| over an object column (video pixels).
+    let change = |col: usize| {
+        let x0 = (OBJECT[0] as usize + col) * 13;
+        let rows = OBJECT[1] as usize * 13..(OBJECT[1] + OBJECT[3]) as usize * 13;
+        let n = (rows.len() * 13) as f64;
+        rows.flat_map(|y| (x0..x0 + 13).map(move |x| y * w + x))
+            .map(|i| (frames[0][i] as f64 - frames[12][i] as f64).abs())
+            .sum::<f64>()
+            / n
+    };
+    let (a, b) = (change(most), change(least));
+    eprintln!(
+        "column {most} (|U| {:.4}): {a:.2} levels; column {least} (|U| {:.4}): {b:.2}",
+        amp[most], amp[least]
+    );
+    assert!(a > 3.0 * b && a > 2.0, "{a} vs {b}");
+    for (extra, needle) in [
+        (&["--motion", "sum"][..], "--animate"),
+        (&["--motion", "y", "--animate-px", "0"][..], "--animate-px"),
+    ] {
+        let mut args = vec![
+            "modes",
+            "beam.y4m",
+            "--at",
+            "58.3",
+            "-o",
+            "x.png",
+            "--animate",
+            "x.y4m",
+        ];
+        args.extend(extra);
+        let o = run_in(d, &args);
+        assert_eq!(code(&o), 2, "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{}", stderr(&o));
+        assert!(!d.join("x.y4m").exists() && !d.join("x.png").exists());
+    }
+}
+
 /// `--mask` and `--pyramid riesz` end to end on the beam: with a mask
 /// over the beam's left half the image is zero outside the mask and, away
 /// from the mask's edge, what the unmasked image shows; the Riesz
@@ -417,12 +512,7 @@ fn modes_several_frequencies_in_one_pass() {
 #[test]
 fn modes_mask_and_riesz() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = format!(
-        "width = 96\nheight = 48\nfps = {FPS}\nframes = {FRAMES}\nobject = {OBJECT:?}\nnoise_std = 2.0\n{MODES}\n"
-    );
-    std::fs::write(dir.path().join("beam.toml"), scene).unwrap();
-    let o = run_in(dir.path(), &["simulate", "beam.toml", "-o", "beam.y4m"]);
-    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    beam_video(dir.path(), FRAMES);
     // Left half of the frame, x < 48.
     const CUT: usize = 48;
     let mask = image::GrayImage::from_fn(96, 48, |x, _| {

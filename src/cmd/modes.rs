@@ -27,7 +27,8 @@ enum MotionArg {
     vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 -o e2.png --npy e2.npy\n  \
     vibroscope modes ../shared/data/guitar.mp4 --fps 600 --at 80.8 --at 108.6 -o m.png --figure modes.png\n  \
     vibroscope modes beam.y4m --at 58.3 --mask beam-mask.png --pyramid riesz -o m.png\n  \
-    vibroscope modes beam.y4m --at 58.3 --scale 0.02 --npy m.npy -o m.png   # .npy in µm")]
+    vibroscope modes beam.y4m --at 58.3 --scale 0.02 --npy m.npy -o m.png   # .npy in µm\n  \
+    vibroscope modes beam.y4m --at 58.3 --motion y -o m.png --animate mode2.mp4")]
 pub struct Args {
     /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads).
     video: PathBuf,
@@ -57,6 +58,16 @@ pub struct Args {
     /// key of brightness against amplitude in px (µm or mm with a scale).
     #[arg(long, value_name = "OUT.png")]
     figure: Option<PathBuf>,
+    /// Also write the mode shape moving (the operating deflection shape):
+    /// the first frame warped by the image along --motion x or y through
+    /// its cycle, 24 frames a cycle, four cycles at 24 fps, enlarged like
+    /// --figure. .y4m, or .mp4 and anything else ffmpeg writes.
+    #[arg(long, value_name = "OUT.mp4")]
+    animate: Option<PathBuf>,
+    /// The motion in the --animate video, pixels of the video: the image's
+    /// 99.5th percentile of amplitude is scaled to it (default 2).
+    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
+    animate_px: Option<f64>,
     #[command(flatten)]
     video_args: VideoArgs,
     /// σ_b of the Gaussian blur, input pixels (0 = none).
@@ -91,6 +102,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         output: a.output,
         npy: a.npy,
         figure: a.figure,
+        animate: a.animate,
+        animate_px: a.animate_px,
         fps: a.video_args.fps,
         region: a.video_args.region(),
         sigma: a.sigma,
@@ -114,6 +127,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         super::wrote(&r.png);
         if let Some(n) = &r.npy {
             super::wrote(n);
+        }
+        if let Some(a) = &r.animation {
+            super::wrote(a);
         }
     }
     if let Some(f) = &o.figure {

@@ -37,6 +37,12 @@ pub struct ModesOptions {
     pub output: PathBuf,
     /// Also the complex image as .npy.
     pub npy: Option<PathBuf>,
+    /// Also a video of the mode shape moving (`.y4m`, or `.mp4` and what
+    /// else ffmpeg writes): the first frame warped by the image along
+    /// `motion` (x or y) through its cycle, the largest motion
+    /// `animate_px` (default [`DEFAULT_ANIMATE_PX`]).
+    pub animate: Option<PathBuf>,
+    pub animate_px: Option<f64>,
     /// Further frequencies imaged in the same pass ([`modes_all`]); each
     /// image's files are then named after its frequency
     /// ([`per_frequency`]).
@@ -70,6 +76,8 @@ pub struct ModalImagesReport {
     pub npy: Option<PathBuf>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub figure: Option<PathBuf>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub animation: Option<PathBuf>,
     /// The pixel of the largest amplitude and its amplitude, in `unit`
     /// (the `.npy`'s unit); none for an all-zero image.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -226,10 +234,34 @@ pub fn modes_all(o: &ModesOptions) -> Result<(Vec<ModalImagesReport>, RunReport)
         .iter()
         .map(|&f| o.npy.as_deref().map(|n| per_frequency(n, f, many)))
         .collect();
+    let animations: Vec<Option<PathBuf>> = freqs
+        .iter()
+        .map(|&f| o.animate.as_deref().map(|a| per_frequency(a, f, many)))
+        .collect();
     let mut outputs: Vec<&Path> = pngs.iter().map(PathBuf::as_path).collect();
     outputs.extend(user_npys.iter().flatten().map(PathBuf::as_path));
     outputs.extend(o.figure.as_deref());
+    outputs.extend(animations.iter().flatten().map(PathBuf::as_path));
     crate::error::check_outputs(&[&o.video], &outputs)?;
+    let ffmpeg = match &o.animate {
+        Some(a) => {
+            if o.motion == Motion::Sum {
+                return Err(Error::usage(
+                    "--animate",
+                    "needs --motion x or y: the sum of both has no direction to move along",
+                ));
+            }
+            let px = o.animate_px.unwrap_or(DEFAULT_ANIMATE_PX);
+            if !(px.is_finite() && px > 0.0 && px <= 100.0) {
+                return Err(Error::usage(
+                    "--animate-px",
+                    format!("must be in (0, 100] px, got {px}"),
+                ));
+            }
+            crate::magnify::output_needs_ffmpeg(a, crate::magnify::ffmpeg_present)?
+        }
+        None => false,
+    };
     if o.unnormalized && o.scale.is_some() {
         return Err(Error::usage(
             "--scale",
@@ -265,9 +297,9 @@ pub fn modes_all(o: &ModesOptions) -> Result<(Vec<ModalImagesReport>, RunReport)
         }
     }
     let (run, bytes) = read?;
-    let frame = match &o.figure {
-        Some(_) => first_frame_gray(&o.video)?,
-        None => None,
+    let frame = match (&o.figure, &o.animate) {
+        (None, None) => None,
+        _ => first_frame_gray(&o.video)?,
     };
     let mut reports = Vec::with_capacity(freqs.len());
     let mut figures = Vec::new();
@@ -297,6 +329,16 @@ pub fn modes_all(o: &ModesOptions) -> Result<(Vec<ModalImagesReport>, RunReport)
             };
             figures.push(figure(o, f, &data, w, kk, &label, frame.as_ref())?);
         }
+        if let Some(a) = &animations[k] {
+            let rest = frame_under(o, frame.as_ref(), w, h).ok_or_else(|| {
+                Error::input(
+                    &o.video,
+                    "cannot animate: its first frame could not be read at the image's size",
+                )
+            })?;
+            let px = o.animate_px.unwrap_or(DEFAULT_ANIMATE_PX);
+            animate(a, ffmpeg, &data, (w, h), &rest, o.motion, px)?;
+        }
         if let (Some(n), true) = (&user_npys[k], kk != 1.0) {
             for c in data.iter_mut() {
                 *c *= kk as f32;
@@ -308,6 +350,7 @@ pub fn modes_all(o: &ModesOptions) -> Result<(Vec<ModalImagesReport>, RunReport)
             png: pngs[k].clone(),
             npy: user_npys[k].clone(),
             figure: o.figure.clone(),
+            animation: animations[k].clone(),
             peak: peak.map(|(i, a)| ModePeak {
                 x: i % w.max(1),
                 y: i / w.max(1),
@@ -345,20 +388,7 @@ fn figure(
     let h = data.len() / w.max(1);
     let exponent = o.exponent.unwrap_or(1.0);
     let rgb = render_rgb_data(data, Visual { exponent });
-    // The image covers the frame, or the --roi (the frame cropped to it).
-    let under = frame.and_then(|(fw, fh, gray)| {
-        if (*fw, *fh) == (w, h) {
-            return Some(gray.clone());
-        }
-        let r = o.region.roi.as_ref()?;
-        let (x, y) = (r.x as usize, r.y as usize);
-        ((r.w as usize, r.h as usize) == (w, h) && x + w <= *fw && y + h <= *fh).then(|| {
-            (y..y + h)
-                .flat_map(|row| gray[row * fw + x..row * fw + x + w].iter().copied())
-                .collect()
-        })
-    });
-    let pixels = match under {
+    let pixels = match frame_under(o, frame, w, h) {
         Some(gray) => overlay_rgb(&rgb, &gray),
         None => rgb,
     };
@@ -402,6 +432,148 @@ fn figure(
         label,
     };
     Ok(modal_figure(&img, &caption, &key).map_err(crate::io::Error::from)?)
+}
+
+/// The part of the first frame (`frame`: size and gray values) a `w` x
+/// `h` image covers: the whole frame, or the `--roi` cropped from it.
+fn frame_under(
+    o: &ModesOptions,
+    frame: Option<&(usize, usize, Vec<u8>)>,
+    w: usize,
+    h: usize,
+) -> Option<Vec<u8>> {
+    let (fw, fh, gray) = frame?;
+    if (*fw, *fh) == (w, h) {
+        return Some(gray.clone());
+    }
+    let r = o.region.roi.as_ref()?;
+    let (x, y) = (r.x as usize, r.y as usize);
+    ((r.w as usize, r.h as usize) == (w, h) && x + w <= *fw && y + h <= *fh).then(|| {
+        (y..y + h)
+            .flat_map(|row| gray[row * fw + x..row * fw + x + w].iter().copied())
+            .collect()
+    })
+}
+
+/// Frames per cycle and cycles of a `--animate` video (played at 24 fps:
+/// one cycle a second, four seconds).
+const ANIMATION_FRAMES: usize = 24;
+const ANIMATION_CYCLES: usize = 4;
+
+/// The default largest displacement of a `--animate` video, px of the
+/// video.
+pub const DEFAULT_ANIMATE_PX: f64 = 2.0;
+
+/// Writes `--animate`: the first frame (`rest`, `w` x `h`) warped by the
+/// mode shape (`data`, along `motion`) through one cycle of phase, four
+/// times: D(θ) = g Re{U e^{-iθ}} with g making the 99.5th percentile of
+/// |U| `px` pixels, rendered as interactive dynamic video renders (thesis 6.4,
+/// [`crate::math::idv::Renderer`]), enlarged by a whole factor like the
+/// figure; `.y4m`, or through ffmpeg anything else.
+fn animate(
+    path: &Path,
+    ffmpeg: bool,
+    data: &[crate::math::modal::Complex32],
+    (w, h): (usize, usize),
+    rest: &[u8],
+    motion: Motion,
+    px: f64,
+) -> Result<()> {
+    use crate::io::{Depth, FrameDestRef, Y4mWriter};
+    use crate::math::idv::{Complex64, Renderer, Shape};
+    use crate::math::modal::{align_phase, Complex32};
+    // The scale's reference is the 99.5th percentile of |U|, not its
+    // largest value: a few outliers (at the frame's border, say) would
+    // otherwise set it and leave the object still.
+    let mut amps: Vec<f32> = data
+        .iter()
+        .map(|c| c.norm())
+        .filter(|a| a.is_finite())
+        .collect();
+    let peak = if amps.is_empty() {
+        0.0
+    } else {
+        let k = ((amps.len() - 1) as f64 * 0.995).round() as usize;
+        *amps.select_nth_unstable_by(k, f32::total_cmp).1
+    };
+    if !(peak > 0.0 && peak.is_finite()) {
+        return Err(Error::usage(
+            "--animate",
+            "the image has no motion at that frequency to animate",
+        ));
+    }
+    // Enlarged like the figure; even sides for ffmpeg's 4:2:0.
+    let z = ((1280.0 / w as f64).min(960.0 / h as f64)).floor().max(1.0) as usize;
+    let (dw, dh) = ((w * z) & !1, (h * z) & !1);
+    if dw == 0 || dh == 0 {
+        return Err(Error::usage(
+            "--animate",
+            format!("a {w}x{h} image is too small to animate"),
+        ));
+    }
+    let g = (px * z as f64 / f64::from(peak)) as f32;
+    let aligned = align_phase(data);
+    let zero = vec![Complex32::new(0.0, 0.0); dw * dh];
+    let mut along = zero.clone();
+    let mut big = vec![0u8; dw * dh];
+    for y in 0..dh {
+        for x in 0..dw {
+            let i = (y / z) * w + x / z;
+            along[y * dw + x] = aligned[i] * g;
+            big[y * dw + x] = rest[i];
+        }
+    }
+    let shape = match motion {
+        Motion::X => Shape { x: along, y: zero },
+        Motion::Y => Shape { x: zero, y: along },
+        Motion::Sum => {
+            return Err(Error::usage(
+                "--animate",
+                "needs --motion x or y: the sum of both has no direction to move along",
+            ))
+        }
+    };
+    let werr = |source: std::io::Error| {
+        Error::from(crate::io::atomic::WriteError {
+            path: path.to_path_buf(),
+            source,
+        })
+    };
+    let y4m = if ffmpeg {
+        crate::io::atomic::temp_sibling(&path.with_extension("y4m"))
+    } else {
+        crate::io::atomic::temp_sibling(path)
+    };
+    let rate = ANIMATION_FRAMES as f64;
+    let written = (|| -> Result<()> {
+        let file = std::fs::File::create(&y4m).map_err(werr)?;
+        let mut wr = Y4mWriter::new(
+            std::io::BufWriter::new(file),
+            dw as u32,
+            dh as u32,
+            Depth::U8,
+            rate,
+        )
+        .map_err(werr)?;
+        let mut r = Renderer::new(dw, dh);
+        let mut out = vec![0u8; dw * dh];
+        let shapes = [shape];
+        for k in 0..ANIMATION_FRAMES * ANIMATION_CYCLES {
+            let theta = std::f64::consts::TAU * k as f64 / ANIMATION_FRAMES as f64;
+            r.displacement(&shapes, &[Complex64::from_polar(1.0, -theta)]);
+            r.warp(&big, &mut out);
+            let ts = (k as f64 / rate * 1e9).round() as i64;
+            wr.write_frame(FrameDestRef::U8(&out), Some(ts))
+                .map_err(werr)?;
+        }
+        wr.finish().map_err(werr)?;
+        Ok(())
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&y4m);
+        return Err(e);
+    }
+    crate::magnify::finish_output(&y4m, path, ffmpeg)
 }
 
 /// The recording's first frame as 8-bit gray, stretched to its own range;
