@@ -39,8 +39,8 @@ pub struct ModesOptions {
     pub npy: Option<PathBuf>,
     /// Also a video of the mode shape moving (`.y4m`, or `.mp4` and what
     /// else ffmpeg writes): the first frame warped by the image along
-    /// `motion` (x or y) through its cycle, the largest motion
-    /// `animate_px` (default [`DEFAULT_ANIMATE_PX`]).
+    /// `motion` (x or y) through its cycle, the image's 99.5th percentile
+    /// of amplitude scaled to `animate_px` (default [`DEFAULT_ANIMATE_PX`]).
     pub animate: Option<PathBuf>,
     pub animate_px: Option<f64>,
     /// Further frequencies imaged in the same pass ([`modes_all`]); each
