@@ -34,9 +34,9 @@ pub struct Args {
     video: PathBuf,
     /// The frequency of the image, Hz (the exact Fourier sum at this
     /// frequency, not the nearest FFT bin). Repeat for several (at most 8)
-    /// in one pass over the video: -o and --npy then get -FREQhz before
-    /// their extension (m.png -> m-80.8hz.png), and --figure is one sheet
-    /// of all.
+    /// in one pass over the video: -o, --npy and --animate then get
+    /// -FREQhz before their extension (m.png -> m-80.8hz.png), and
+    /// --figure is one sheet of all.
     #[arg(
         long = "at",
         value_name = "HZ",
