@@ -254,7 +254,7 @@ impl SyntheticParams {
             }
             .to_string());
         }
-        let span = (self.frame_count() + 2) as f64 / self.true_fps()
+        let span = self.frame_count().saturating_add(2) as f64 / self.true_fps()
             + self.exposure_us.unwrap_or(0.0) * 1e-6
             + 0.01;
         let rate = (16.0 * self.fps).max(96_000.0);
