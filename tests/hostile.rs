@@ -483,6 +483,36 @@ fn no_partial(d: &Path, what: &str) {
 
 const SIGNALS: [(&str, i32); 3] = [("INT", 130), ("TERM", 143), ("HUP", 129)];
 
+/// SIGINT, SIGTERM and SIGHUP while the studio runs a live pipeline: the
+/// pipeline stops, its WAV is finalised whole, the studio exits 128 + the
+/// signal, and no temporary file is left.
+#[test]
+fn signals_during_studio_live() {
+    for (sig, expected) in SIGNALS {
+        let dir = tempfile::tempdir().unwrap();
+        let child = bin()
+            .current_dir(dir.path())
+            .args(["studio", "--pipeline", "demo"])
+            .args(LIVE_DEMO)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let t0 = std::time::Instant::now();
+        let o = interrupt_when(child, sig, || t0.elapsed().as_millis() > 2000);
+        no_panic(&o);
+        assert_eq!(code(&o), expected, "SIG{sig}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains("finalising outputs"),
+            "SIG{sig}: {}",
+            stderr(&o)
+        );
+        let n = assert_whole_wav(&dir.path().join("demo.wav"), &format!("SIG{sig}"));
+        assert!(n > 500, "SIG{sig}: only {n} samples");
+        no_partial(dir.path(), &format!("SIG{sig}"));
+    }
+}
+
 /// SIGINT, SIGTERM and SIGHUP while `listen` works (its video arrives on
 /// standard input, endlessly): the WAV of what was heard is whole, the exit
 /// code is 128 + the signal, no temporary file is left.

@@ -16,14 +16,25 @@ use vibroscope_studio::{Studio, StudioOptions};
 /// the frame (hue = phase, brightness = amplitude, thesis ch. 3.5.5) and
 /// animate its mode shape. Each view exports PNG and CSV/JSON.
 ///
+/// With --pipeline (a shipped live pipeline such as live-spectrum, or a
+/// pipeline file with a sliding `spectrum` stage) the studio runs it and
+/// shows it live: the latest frame, the sliding spectrum and spectrogram,
+/// the peaks, a level meter and every stage's counters (drops, queue
+/// depth), updated over a WebSocket as they come. The page never slows the
+/// pipeline: the studio keeps only the latest of each and drops what the
+/// page has not taken.
+///
 /// By default the server listens on 127.0.0.1 only, on a free port. With
 /// --bind ADDRESS it listens there and the printed URL carries a random
 /// token that every request must present. Only files under --root (by
-/// default the video's directory) can be opened. Stop with Ctrl-C.
+/// default the video's directory) can be opened. Stop with Ctrl-C (with a
+/// live pipeline, the first Ctrl-C stops it, its outputs are finalised and
+/// the studio exits; a second exits at once).
 #[derive(clap::Args)]
 #[command(after_help = "Examples:\n  \
     vibroscope studio beam.y4m\n  \
     vibroscope studio ../shared/data/guitar.mp4 --fps 600 --port 8080\n  \
+    vibroscope studio --pipeline live-spectrum --set src.duration_s=60\n  \
     vibroscope studio --root recordings --bind 0.0.0.0 --port 8080")]
 pub struct Args {
     /// The recording opened first (.y4m, .cine, .mraw/.cih, or anything
@@ -43,6 +54,14 @@ pub struct Args {
     /// Capture rate in Hz, when the file states the wrong one.
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     fps: Option<f64>,
+    /// Run this live pipeline and show it (a shipped name, see `vibroscope
+    /// pipelines`, or a file); it needs a sliding `spectrum` stage.
+    #[arg(long, value_name = "PIPELINE")]
+    pipeline: Option<String>,
+    /// Change a parameter of --pipeline: STAGE.KEY=VALUE (VALUE is TOML);
+    /// repeatable.
+    #[arg(long = "set", value_name = "STAGE.KEY=VALUE")]
+    set: Vec<String>,
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -53,7 +72,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         port: a.port,
         fps: a.fps,
         max_body: None,
+        pipeline: a.pipeline,
+        set: a.set,
     };
+    let o_pipeline = o.pipeline.clone();
     let studio = Studio::start(&o).map_err(|e| -> anyhow::Error {
         if e.is_usage() {
             vibroscope::UsageError::new("studio", e.to_string()).into()
@@ -66,9 +88,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         "serving files under {} (Ctrl-C stops)",
         studio.root.display()
     );
+    if let Some(p) = &o_pipeline {
+        eprintln!("running the live pipeline {p}: its view is on the page");
+    }
     if studio.token.is_some() {
         eprintln!("listening beyond this machine: every request needs the token in the URL");
     }
-    studio.wait();
+    if studio.serve() {
+        // Ctrl-C stopped the live pipeline; its sinks finalised.
+        return Err(vibroscope::pipeline::interrupted().into());
+    }
     Ok(ExitCode::SUCCESS)
 }

@@ -80,27 +80,30 @@ pub fn write_wav_f32(p: &Path, rate: u32, s: &[f32]) {
     w.finalize().unwrap();
 }
 
+/// The shipped `demo` pipeline's camera made live: 64x64 at 500 fps in
+/// real time, for 60 s.
+pub const LIVE_DEMO: [&str; 10] = [
+    "--set",
+    "cam.realtime=true",
+    "--set",
+    "cam.duration_s=60",
+    "--set",
+    "cam.width=64",
+    "--set",
+    "cam.height=64",
+    "--set",
+    "cam.fps=500",
+];
+
 /// Runs the shipped `demo` pipeline live (a 64x64, 500 fps realtime
 /// synthetic camera, 60 s) in `dir`, sends `kill -SIG` after 1.5 s (past
 /// the WAV header's first periodic rewrite) and waits for it.
 pub fn interrupt_live_demo(dir: &Path, sig: &str) -> Output {
     let child = bin()
         .current_dir(dir)
-        .args([
-            "run",
-            "demo",
-            "--set",
-            "cam.realtime=true",
-            "--set",
-            "cam.duration_s=60",
-            "--set",
-            "cam.width=64",
-            "--set",
-            "cam.height=64",
-            "--set",
-            "cam.fps=500",
-            "--quiet",
-        ])
+        .args(["run", "demo"])
+        .args(LIVE_DEMO)
+        .arg("--quiet")
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();

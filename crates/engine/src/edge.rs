@@ -237,6 +237,26 @@ impl EdgeRx {
     /// Waits (sleeping, not spinning) for the next item, the end of the
     /// stream, or `stop`.
     pub fn recv(&mut self, stop: &AtomicBool) -> Recv {
+        self.recv_with(stop, |rx| {
+            let shared = Arc::clone(&rx.shared);
+            let cons = &rx.cons;
+            shared.data.wait_until(WAIT_SLICE, || {
+                cons.occupied() > 0 || shared.producer_done.load(Ordering::Acquire)
+            });
+        })
+    }
+
+    /// [`EdgeRx::recv`] for a consumer that does not want to be woken per
+    /// item: when the ring is empty it sleeps `period` and looks again, so
+    /// the producer never signals it (a cheap watcher of a fast stream
+    /// costs the producer nothing but the push).
+    pub fn recv_polling(&mut self, stop: &AtomicBool, period: std::time::Duration) -> Recv {
+        self.recv_with(stop, |_| std::thread::sleep(period))
+    }
+
+    /// The next item, the end of the stream or `stop`, calling `wait`
+    /// whenever the ring is empty.
+    fn recv_with(&mut self, stop: &AtomicBool, wait: impl Fn(&EdgeRx)) -> Recv {
         loop {
             if let Some(it) = self.try_recv() {
                 return Recv::Item(it);
@@ -251,11 +271,7 @@ impl EdgeRx {
             if stop.load(Ordering::Acquire) {
                 return Recv::Stopped;
             }
-            let shared = Arc::clone(&self.shared);
-            let cons = &self.cons;
-            shared.data.wait_until(WAIT_SLICE, || {
-                cons.occupied() > 0 || shared.producer_done.load(Ordering::Acquire)
-            });
+            wait(self);
         }
     }
 }

@@ -9,6 +9,7 @@ pub mod item;
 pub mod latency;
 pub mod memory;
 pub mod notify;
+pub mod observe;
 pub mod runner;
 pub mod spec;
 pub mod stage;
@@ -27,6 +28,7 @@ pub use item::{
     AudioBlock, Item, PortType, PyramidData, PyramidFrame, SampleBlock, Spectrum, Taper,
 };
 pub use latency::{LatencyHist, LatencySummary};
+pub use observe::{Latest, Observer, Snapshot, StageLive, TapFrame, TapSlot};
 pub use runner::{
     error_chain, run, thousands, RunError, RunOptions, RunReport, SourceProgress, StageReport,
 };

@@ -10,6 +10,7 @@ use super::edge::{edge, EdgeRx, EdgeStats, Recv};
 use super::graph::{BuildCtx, Graph};
 use super::item::PortType;
 use super::latency::{LatencyHist, LatencySummary};
+use super::observe::{Counted, Observer, StageLive, Watched};
 use super::stage::{Control, EmitError, Emitter, Node, SourceCtx, StageError};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -21,6 +22,9 @@ pub struct RunOptions {
     /// Count the frames the sources give, for a caller's own progress
     /// display (read it from another thread while the run goes on).
     pub counter: Option<Arc<SourceProgress>>,
+    /// Watch the run while it goes on: its stages' counters and the latest
+    /// item of each `tap` stage (see [`crate::observe`]).
+    pub observer: Option<Arc<Observer>>,
 }
 
 /// Frames the sources of a run have given, and how many they will give.
@@ -186,6 +190,30 @@ struct Counters {
     summary: Mutex<Option<String>>,
 }
 
+impl Counted for Counters {
+    fn live(&self, id: &str, kind: &'static str) -> StageLive {
+        let edge = |f: fn(&EdgeStats) -> &AtomicU64| -> u64 {
+            self.inputs
+                .iter()
+                .map(|e| f(e).load(Ordering::Relaxed))
+                .sum()
+        };
+        let pushed = edge(|e| &e.pushed);
+        let popped = edge(|e| &e.popped);
+        let evicted = edge(|e| &e.dropped);
+        StageLive {
+            id: id.to_owned(),
+            kind,
+            items_in: self.items_in.load(Ordering::Relaxed),
+            items_out: self.items_out.load(Ordering::Relaxed),
+            dropped: evicted + self.source_dropped.load(Ordering::Relaxed),
+            queued: pushed.saturating_sub(popped + evicted),
+            queue_capacity: self.capacity,
+            busy_s: self.busy_ns.load(Ordering::Relaxed) as f64 * 1e-9,
+        }
+    }
+}
+
 /// Builds every stage (opening files and devices), then runs the graph to
 /// completion. Errors while building are returned before any thread starts.
 pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<RunReport, RunError> {
@@ -260,6 +288,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
             held_downstream: held_downstream[i],
             input_types: node.inputs.iter().map(|inp| inp.port_type).collect(),
             live,
+            observer: opts.observer.clone(),
         };
         let built_node = node.plan.build(&ctx).map_err(|e| RunError {
             stage: node.id.clone(),
@@ -272,6 +301,19 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
     let errors: Arc<Mutex<Vec<RunError>>> = Arc::new(Mutex::new(Vec::new()));
     // Live capture times count from here.
     control.start_clock();
+    if let Some(o) = &opts.observer {
+        let watched = ids
+            .iter()
+            .zip(&kinds)
+            .zip(&counters)
+            .map(|((id, kind), c)| Watched {
+                id: id.clone(),
+                kind,
+                counters: Arc::clone(c) as Arc<dyn Counted>,
+            })
+            .collect();
+        o.attach(&control, watched);
+    }
     let mut handles = Vec::with_capacity(n);
     for (i, ((node, outs), ins)) in built.into_iter().zip(outs).zip(ins).enumerate() {
         let ctl = Arc::clone(&control);
@@ -429,12 +471,17 @@ fn run_stage(
         .latency
         .as_ref()
         .map(|h| h.lock().unwrap_or_else(|e| e.into_inner()));
+    let poll = st.poll_period();
     'outer: while open.iter().any(|&o| o) {
         if !open[port] {
             port = (port + 1) % ins.len();
             continue;
         }
-        match ins[port].recv(&control.hard_stop) {
+        let got = match poll {
+            Some(period) => ins[port].recv_polling(&control.hard_stop, period),
+            None => ins[port].recv(&control.hard_stop),
+        };
+        match got {
             Recv::Item(item) => {
                 c.items_in.fetch_add(1, Ordering::Relaxed);
                 if let Some(h) = latency.as_mut() {

@@ -668,6 +668,9 @@ pub struct BuildCtx {
     /// The graph has a live source: sinks that pace themselves (a speaker)
     /// drop rather than hold up the stream.
     pub live: bool,
+    /// Who watches the run (the `tap` stages publish to it); none for a
+    /// plain run.
+    pub observer: Option<std::sync::Arc<crate::observe::Observer>>,
 }
 
 /// A stage whose parameters are valid; `build` opens files and devices.

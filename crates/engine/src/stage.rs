@@ -223,6 +223,12 @@ pub trait Stage: Send {
     fn summary(&self) -> Option<String> {
         None
     }
+    /// `Some(period)`: the stage is not woken per item; when its inputs are
+    /// empty it sleeps `period` and looks again (a watcher that keeps the
+    /// latest of a fast stream, so the producer never pays for waking it).
+    fn poll_period(&self) -> Option<std::time::Duration> {
+        None
+    }
 }
 
 /// What a stage thread runs.

@@ -310,6 +310,158 @@ function setupExport() {
   };
 }
 
+
+// ---- the live view (a pipeline run by the studio) ----
+// Each update comes over a WebSocket; the server sends only the latest, so
+// a slow page sees fewer updates, never old ones. Counters for the test.
+const LIVE = {
+  updates: 0, spectra: 0, specSeq: 0, firstMs: null, lastMs: null,
+  closed: 0, last: null, frameSeq: 0, frameBusy: false, framesShown: 0, hiDb: null,
+};
+S.live = LIVE;
+
+function connectLive() {
+  const proto = location.protocol === "https:" ? "wss:" : "ws:";
+  let ws;
+  try { ws = new WebSocket(proto + "//" + location.host + url("/api/live/ws")); }
+  catch (e) { showError("live: " + e.message); return; }
+  LIVE.ws = ws;
+  ws.onopen = () => { if (LIVE.closed) clearError(); };
+  ws.onmessage = (ev) => {
+    let u;
+    try { u = JSON.parse(ev.data); } catch (_) { showError("live: an update that is not JSON"); return; }
+    onLive(u);
+  };
+  ws.onclose = () => {
+    LIVE.closed++;
+    if (LIVE.last && LIVE.last.state !== "running") return; // the pipeline ended: nothing more comes
+    showError("the live connection was lost; reconnecting…");
+    setTimeout(connectLive, 1000);
+  };
+}
+
+function onLive(u) {
+  LIVE.updates++; LIVE.last = u;
+  const sp = u.spectrum;
+  if (sp && sp.seq !== LIVE.specSeq) {
+    const now = performance.now();
+    LIVE.specSeq = sp.seq; LIVE.spectra++;
+    if (LIVE.firstMs === null) LIVE.firstMs = now;
+    LIVE.lastMs = now;
+    drawLiveSpectrum(sp); pushSpectrogram(sp); fillLivePeaks(sp);
+    const hop = LIVE.prevT != null ? sp.t_s - LIVE.prevT : null;
+    LIVE.prevT = sp.t_s;
+    if (hop > 0) {
+      $("gramcaption").textContent = `spectrogram: 0 Hz at the bottom, ${(sp.rate_hz / 2).toFixed(0)} Hz at the top, ` +
+        `newest on the right, ${($("spectrogram").width / 2 * hop).toFixed(1)} s across; colour over the top 60 dB`;
+    }
+  }
+  if (u.level) drawLevel(u.level);
+  if (u.frame && u.frame.seq !== LIVE.frameSeq && !LIVE.frameBusy) loadLiveFrame(u.frame);
+  fillLiveStats(u);
+  const age = sp && sp.age_ms != null ? `, newest sample ${sp.age_ms.toFixed(0)} ms old` : "";
+  $("livetitle").textContent = `Live: ${u.pipeline} — ${u.state}` +
+    (u.now_s != null ? ` at ${u.now_s.toFixed(1)} s` : "") + (sp ? ` — spectrum ${sp.seq}${age}` : "");
+  if (u.state === "failed") showError(u.message || "the live pipeline failed");
+  else if (u.state === "finished") status(u.message || "the live pipeline ended");
+}
+
+function loadLiveFrame(f) {
+  LIVE.frameBusy = true;
+  const img = $("liveframe");
+  const done = () => { LIVE.frameBusy = false; };
+  img.onload = () => { LIVE.frameSeq = f.seq; LIVE.framesShown++; done(); };
+  img.onerror = done;
+  const sc = Math.max(1, Math.min(4, Math.floor(320 / f.width)));
+  img.width = f.width * sc; img.height = f.height * sc;
+  img.src = url("/api/live/frame", { n: f.seq });
+  img.title = `frame ${f.frame} at ${f.t_s.toFixed(3)} s`;
+}
+
+const LSPEC = { L: 50, R: 10, T: 8, B: 22 };
+function drawLiveSpectrum(sp) {
+  const c = $("livespec"), g = c.getContext("2d");
+  axes(g, c, LSPEC.L, LSPEC.B, "frequency (Hz)", "power (dB)");
+  const p = sp.db, H = c.height - LSPEC.B - LSPEC.T, W = c.width - LSPEC.L - LSPEC.R;
+  let hi = -Infinity;
+  for (const v of p) if (isFinite(v)) hi = Math.max(hi, v);
+  LIVE.hiDb = LIVE.hiDb === null ? hi : Math.max(hi, LIVE.hiDb - 0.5); // slow fall, fast rise
+  const top = LIVE.hiDb + 3, lo = top - 70;
+  const ny = sp.rate_hz / 2;
+  const X = (f) => LSPEC.L + f / ny * W, Y = (v) => LSPEC.T + (top - Math.max(v, lo)) / (top - lo) * H;
+  g.strokeStyle = "#66dd88"; g.beginPath();
+  p.forEach((v, k) => { const x = X(sp.f0_hz + k * sp.bin_hz), y = Y(v); k ? g.lineTo(x, y) : g.moveTo(x, y); });
+  g.stroke();
+  g.fillStyle = "#aaa";
+  g.fillText(top.toFixed(0), 4, LSPEC.T + 10); g.fillText(lo.toFixed(0), 4, LSPEC.T + H);
+  for (let k = 0; k <= 5; k++) { const f = ny * k / 5; g.fillText(f.toFixed(0), X(f) - 8, c.height - 8); }
+  g.fillStyle = "#ff5555";
+  sp.peaks.forEach((pk, k) => { const x = X(pk.frequency_hz); g.fillRect(x - 1, LSPEC.T, 2, 6); g.fillText(`${k + 1}: ${pk.frequency_hz.toFixed(1)}`, x + 3, LSPEC.T + 12 + 12 * k); });
+}
+
+function pushSpectrogram(sp) {
+  const c = $("spectrogram"), g = c.getContext("2d"), col = 2;
+  g.drawImage(c, -col, 0);
+  const top = (LIVE.hiDb ?? 0) + 3, lo = top - 60, n = sp.db.length;
+  for (let y = 0; y < c.height; y++) {
+    const k = Math.min(n - 1, Math.floor((c.height - 1 - y) / c.height * n));
+    const t = Math.max(0, Math.min(1, (sp.db[k] - lo) / (top - lo)));
+    g.fillStyle = `hsl(${240 - 240 * t}, 90%, ${10 + 50 * t}%)`;
+    g.fillRect(c.width - col, y, col, 1);
+  }
+}
+
+function drawLevel(l) {
+  const c = $("level"), g = c.getContext("2d");
+  g.fillStyle = "#0e1014"; g.fillRect(0, 0, c.width, c.height);
+  LIVE.levelHi = LIVE.levelHi == null ? l.db : Math.max(l.db, LIVE.levelHi - 0.2);
+  const top = LIVE.levelHi + 6, lo = top - 60;
+  const t = Math.max(0, Math.min(1, (l.db - lo) / (top - lo)));
+  g.fillStyle = t > 0.9 ? "#ff5555" : "#66dd88";
+  g.fillRect(6, c.height * (1 - t), c.width - 12, c.height * t);
+  $("leveltext").textContent = `${l.db.toFixed(1)} dB`;
+}
+
+function fillLivePeaks(sp) {
+  const tb = document.querySelector("#livepeaks tbody"); tb.innerHTML = "";
+  for (const p of sp.peaks) {
+    const tr = document.createElement("tr");
+    for (const v of [p.frequency_hz.toFixed(2), p.frequency_std_hz.toFixed(2), p.prominence_db.toFixed(1),
+      p.damping_ratio.toExponential(2)]) {
+      const td = document.createElement("td"); td.textContent = v; tr.appendChild(td);
+    }
+    tb.appendChild(tr);
+  }
+}
+
+function fillLiveStats(u) {
+  const tb = document.querySelector("#livestats tbody"); tb.innerHTML = "";
+  for (const st of u.stages) {
+    const tr = document.createElement("tr");
+    for (const v of [st.id, st.kind, st.items_in, st.items_out, st.dropped,
+      st.queue_capacity ? `${st.queued}/${st.queue_capacity}` : "-", st.busy_s.toFixed(2)]) {
+      const td = document.createElement("td"); td.textContent = String(v); tr.appendChild(td);
+    }
+    if (st.dropped > 0) tr.className = "sel";
+    tb.appendChild(tr);
+  }
+  const k = u.skipped;
+  $("liveinfo").textContent = `updates received ${LIVE.updates}, spectra ${LIVE.spectra}; ` +
+    `the taps kept the latest and skipped ${k.spectrum} spectra, ${k.frame} frames, ${k.samples} sample blocks (never waiting)`;
+}
+
+function setupLiveExport() {
+  const name = () => (LIVE.last ? LIVE.last.pipeline : "live").replace(/[^A-Za-z0-9_.-]+/g, "_");
+  $("export-live-png").onclick = () => download(name() + "-spectrum.png", $("livespec").toDataURL("image/png"));
+  $("export-live-gram").onclick = () => download(name() + "-spectrogram.png", $("spectrogram").toDataURL("image/png"));
+  $("export-live-json").onclick = () => { if (LIVE.last) downloadText(name() + "-update.json", JSON.stringify(LIVE.last), "application/json"); };
+  $("export-live-csv").onclick = () => {
+    const sp = LIVE.last && LIVE.last.spectrum;
+    if (!sp) return showError("no live spectrum yet");
+    downloadText(name() + "-spectrum.csv", "frequency_hz,power_db\n" + sp.db.map((v, k) => `${sp.f0_hz + k * sp.bin_hz},${v}`).join("\n") + "\n", "text/csv");
+  };
+}
+
 // ---- start ----
 async function main() {
   drawKeys(); setupRegions(); setupExport();
@@ -328,9 +480,16 @@ async function main() {
   requestAnimationFrame(animate);
   try {
     const s = await (await api("/api/session")).json();
+    if (s.live) {
+      $("live").hidden = false; setupLiveExport(); connectLive();
+      if (!s.live.has_spectrum) {
+        for (const id of ["livespec", "spectrogram", "livepeaks", "export-live-png", "export-live-gram", "export-live-csv"]) $(id).hidden = true;
+        $("gramcaption").textContent = "this pipeline has no spectrum stage: the live view shows its frames, level and stages";
+      }
+    }
     if (s.fps) $("fps").value = s.fps;
     if (s.video) { $("video").value = s.video; await openVideo(); }
-    else status("root: " + s.root + " — name a video and press Open");
+    else if (!s.live) status("root: " + s.root + " — name a video and press Open");
   } catch (e) { showError(e.message); }
 }
 main();

@@ -8,12 +8,17 @@
 //! | `GET /api/frame?video=P&i=N` | frame N as an 8-bit grey PNG |
 //! | `POST /api/motion {video, roi?, fps?}` | the region's waveform (px), spectrum (dB) and peaks |
 //! | `POST /api/mode {video, freq_hz, roi?, fps?}` | the modal image: PNG (hue = phase, brightness = amplitude) and the amplitude/phase numbers |
+//! | `GET /api/live` | the live pipeline's latest update (spectrum in dB, peaks, level, frame number, stage counters) |
+//! | `GET /api/live/frame` | its latest frame as an 8-bit grey PNG |
+//! | `GET /api/live/ws` | a WebSocket carrying each new update as it comes (at most 50 a second; stale ones are replaced, never queued) |
 //!
 //! Errors come back as `{"error": MESSAGE}` with a 4xx (the request) or
 //! 5xx (the computation) status; nothing a request holds panics the server.
 
 use crate::guard::{self, Refusal};
+use crate::live::Live;
 use axum::body::Bytes;
+use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{DefaultBodyLimit, Query, Request, State};
 use axum::http::{header, HeaderValue, StatusCode};
 use axum::middleware::{self, Next};
@@ -48,6 +53,10 @@ pub struct App {
     cache: Mutex<HashMap<String, Arc<Value>>>,
     /// The last frame reader, for scrubbing forward without reopening.
     reader: Mutex<Option<OpenReader>>,
+    /// The live pipeline, when started with one.
+    live: Option<Arc<Live>>,
+    /// Raised when the studio stops: open WebSockets close.
+    closing: tokio::sync::watch::Sender<bool>,
 }
 
 /// A reader left open: its file and the index of the next frame it gives.
@@ -67,6 +76,27 @@ impl App {
             token,
             cache: Mutex::new(HashMap::new()),
             reader: Mutex::new(None),
+            live: None,
+            closing: tokio::sync::watch::Sender::new(false),
+        }
+    }
+
+    /// Serves `live`'s updates too.
+    pub fn with_live(mut self, live: Option<Arc<Live>>) -> App {
+        self.live = live;
+        self
+    }
+
+    /// The live pipeline was stopped by a signal (see [`Live::interrupted`]).
+    pub fn live_interrupted(&self) -> bool {
+        self.live.as_ref().is_some_and(|l| l.interrupted())
+    }
+
+    /// Closes the WebSockets and stops the live pipeline.
+    pub fn close(&self) {
+        self.closing.send_replace(true);
+        if let Some(l) = &self.live {
+            l.stop();
         }
     }
 }
@@ -143,6 +173,9 @@ pub fn router(app: Arc<App>, max_body: usize) -> Router {
         .route("/api/frame", get(frame))
         .route("/api/motion", post(motion))
         .route("/api/mode", post(mode))
+        .route("/api/live", get(live_update))
+        .route("/api/live/frame", get(live_frame))
+        .route("/api/live/ws", get(live_ws))
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "no such page") })
         .layer(DefaultBodyLimit::max(max_body))
         .layer(middleware::from_fn(json_errors))
@@ -266,7 +299,94 @@ async fn session(State(app): State<Arc<App>>) -> axum::Json<Value> {
         "fps": app.fps,
         "root": app.root,
         "token_required": app.token.is_some(),
+        "live": app.live.as_ref().map(|l| json!({ "pipeline": l.name, "has_spectrum": l.has_spectrum })),
     }))
+}
+
+fn live_of(app: &App) -> ApiResult<Arc<Live>> {
+    app.live.clone().ok_or_else(|| {
+        ApiError::new(
+            StatusCode::NOT_FOUND,
+            "no live pipeline: start the studio with --pipeline (for example --pipeline live-spectrum)",
+        )
+    })
+}
+
+async fn live_update(State(app): State<Arc<App>>) -> ApiResult<axum::Json<Value>> {
+    let live = live_of(&app)?;
+    blocking(move || Ok(axum::Json(live.update()))).await
+}
+
+async fn live_frame(State(app): State<Arc<App>>) -> ApiResult<Response> {
+    let live = live_of(&app)?;
+    let png = blocking(move || match live.frame_png() {
+        None => Err(ApiError::new(
+            StatusCode::NOT_FOUND,
+            "no frame yet: the live pipeline has not delivered one",
+        )),
+        Some(r) => r.map_err(|m| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, m)),
+    })
+    .await?;
+    Ok((
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static("image/png")),
+            (header::CACHE_CONTROL, HeaderValue::from_static("no-store")),
+        ],
+        png,
+    )
+        .into_response())
+}
+
+async fn live_ws(
+    State(app): State<Arc<App>>,
+    ws: Result<WebSocketUpgrade, axum::extract::ws::rejection::WebSocketUpgradeRejection>,
+) -> ApiResult<Response> {
+    let live = live_of(&app)?;
+    let ws = ws.map_err(|e| ApiError::bad(format!("WebSocket: {}", e.body_text())))?;
+    let closing = app.closing.subscribe();
+    Ok(ws
+        .max_message_size(64 * 1024)
+        .on_upgrade(move |socket| live_socket(socket, live, closing)))
+}
+
+/// Sends an update whenever a tap has something new, checking every 20 ms:
+/// while a send waits on a slow page, newer items replace older ones in
+/// the taps, so the page gets the latest, never a backlog.
+async fn live_socket(
+    mut socket: WebSocket,
+    live: Arc<Live>,
+    mut closing: tokio::sync::watch::Receiver<bool>,
+) {
+    let mut tick = tokio::time::interval(std::time::Duration::from_millis(20));
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut last = None;
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {
+                let v = live.version();
+                if last == Some(v) {
+                    continue;
+                }
+                last = Some(v);
+                let l = live.clone();
+                let Ok(update) = tokio::task::spawn_blocking(move || l.update()).await else {
+                    break;
+                };
+                live.sent.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                if socket.send(Message::Text(update.to_string().into())).await.is_err() {
+                    break;
+                }
+            }
+            m = socket.recv() => match m {
+                None | Some(Err(_)) | Some(Ok(Message::Close(_))) => break,
+                Some(Ok(_)) => {}
+            },
+            _ = closing.changed() => {
+                let _ = socket.send(Message::Close(None)).await;
+                break;
+            }
+        }
+    }
 }
 
 #[derive(Deserialize)]

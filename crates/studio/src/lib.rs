@@ -13,6 +13,7 @@
 
 pub mod api;
 pub mod guard;
+pub mod live;
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::path::{Path, PathBuf};
@@ -35,6 +36,11 @@ pub struct StudioOptions {
     pub fps: Option<f64>,
     /// Largest request body accepted, bytes (default [`MAX_BODY`]).
     pub max_body: Option<usize>,
+    /// A live pipeline to run and show (a shipped name or a file): its
+    /// latest frame, sliding spectrum, level and stage counters.
+    pub pipeline: Option<String>,
+    /// `STAGE.KEY=VALUE` changes to that pipeline.
+    pub set: Vec<String>,
 }
 
 /// The default bound on request bodies (the API's requests are a few
@@ -67,6 +73,19 @@ impl StartError {
     }
 }
 
+/// The server's threads yield to the pipeline's: each runs at nice +10
+/// (Linux keeps a nice value per thread), so on a machine the live
+/// pipeline keeps busy, answering the page takes time from idle cores
+/// only, never from the frame path.
+fn lower_priority() {
+    // SAFETY: setpriority on the calling thread (who = 0) only reads its
+    // arguments; a failure leaves the priority as it was.
+    #[cfg(target_os = "linux")]
+    unsafe {
+        libc::setpriority(libc::PRIO_PROCESS, 0, 10);
+    }
+}
+
 /// A running studio.
 pub struct Studio {
     /// The URL to open (with `?token=…` when one is needed).
@@ -78,6 +97,7 @@ pub struct Studio {
     pub root: PathBuf,
     shutdown: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<std::thread::JoinHandle<()>>,
+    app: Arc<api::App>,
 }
 
 impl Studio {
@@ -123,10 +143,20 @@ impl Studio {
                 )));
             }
         }
+        if o.pipeline.is_none() && !o.set.is_empty() {
+            return Err(StartError::Usage(
+                "--set changes a --pipeline: give one".into(),
+            ));
+        }
+        let live_decl = match &o.pipeline {
+            None => None,
+            Some(p) => Some(live::prepare(p, &o.set).map_err(StartError::Usage)?),
+        };
         let ip = o.bind.unwrap_or(IpAddr::V4(Ipv4Addr::LOCALHOST));
         let token = (!ip.is_loopback()).then(guard::new_token);
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)
+            .on_thread_start(lower_priority)
             .enable_all()
             .build()
             .map_err(|e| StartError::Runtime(format!("cannot start the server's runtime: {e}")))?;
@@ -136,8 +166,13 @@ impl Studio {
         let addr = listener
             .local_addr()
             .map_err(|e| StartError::Runtime(format!("bound address: {e}")))?;
-        let app = Arc::new(api::App::new(root.clone(), video, o.fps, token.clone()));
-        let router = api::router(app, o.max_body.unwrap_or(MAX_BODY));
+        let live = match (live_decl, &o.pipeline) {
+            (Some(d), Some(name)) => Some(live::Live::start(name, d).map_err(StartError::Runtime)?),
+            _ => None,
+        };
+        let app =
+            Arc::new(api::App::new(root.clone(), video, o.fps, token.clone()).with_live(live));
+        let router = api::router(app.clone(), o.max_body.unwrap_or(MAX_BODY));
         let (tx, rx) = tokio::sync::oneshot::channel::<()>();
         let thread = std::thread::Builder::new()
             .name("studio".into())
@@ -167,6 +202,7 @@ impl Studio {
             root,
             shutdown: Some(tx),
             thread: Some(thread),
+            app,
         })
     }
 
@@ -176,11 +212,31 @@ impl Studio {
             let _ = t.join();
         }
     }
+
+    /// Serves until the process ends, or until a signal (Ctrl-C) stopped
+    /// the live pipeline: then its outputs are finalised, the server stops
+    /// and this returns true (the caller exits with the signal's status).
+    pub fn serve(mut self) -> bool {
+        loop {
+            if self.app.live_interrupted() {
+                return true;
+            }
+            if self.thread.as_ref().is_none_or(|t| t.is_finished()) {
+                if let Some(t) = self.thread.take() {
+                    let _ = t.join();
+                }
+                return false;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+    }
 }
 
 impl Drop for Studio {
-    /// Stops serving (open connections finish) and waits for the thread.
+    /// Stops serving (open connections finish, WebSockets close, the live
+    /// pipeline stops) and waits for the thread.
     fn drop(&mut self) {
+        self.app.close();
         if let Some(tx) = self.shutdown.take() {
             let _ = tx.send(());
         }

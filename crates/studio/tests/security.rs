@@ -235,6 +235,7 @@ fn beyond_loopback_every_request_needs_the_token() {
         "/app.js",
         "/api/session",
         "/api/info?video=sub/clip.y4m",
+        "/api/live/ws",
         "/nothing",
     ] {
         let sep = if path.contains('?') { '&' } else { '?' };
@@ -250,11 +251,13 @@ fn beyond_loopback_every_request_needs_the_token() {
             "{path} empty token"
         );
         let right = get(a, &format!("{path}{sep}token={token}")).0;
-        assert_eq!(
-            right,
-            if path == "/nothing" { 404 } else { 200 },
-            "{path} right token"
-        );
+        // No live pipeline here: its routes are 404 once the token passes.
+        let want = if path == "/nothing" || path.starts_with("/api/live") {
+            404
+        } else {
+            200
+        };
+        assert_eq!(right, want, "{path} right token");
     }
     let h = format!("x-vibroscope-token: {token}\r\n");
     assert_eq!(request(a, "GET", "/api/session", &h, b"").0, 200);
@@ -312,4 +315,128 @@ fn a_root_that_does_not_exist_is_a_usage_error() {
         e.is_usage() && e.to_string().contains("not under the root"),
         "{e}"
     );
+}
+
+/// A WebSocket upgrade request for `target`: the status, and the body
+/// when it is not a 101 (a 101 keeps the connection open for the socket).
+fn upgrade(addr: SocketAddr, target: &str) -> (u16, String) {
+    let mut s = TcpStream::connect(("127.0.0.1", addr.port())).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    write!(
+        s,
+        "GET {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n"
+    )
+    .unwrap();
+    let mut out = Vec::new();
+    let mut b = [0u8; 1];
+    while !out.ends_with(b"\r\n\r\n") && s.read(&mut b).unwrap_or(0) == 1 {
+        out.push(b[0]);
+    }
+    let head = String::from_utf8_lossy(&out).into_owned();
+    let status: u16 = head
+        .split(' ')
+        .nth(1)
+        .and_then(|c| c.parse().ok())
+        .unwrap_or_else(|| panic!("no status line in {head:?}"));
+    // The connection stays open after the answer: read just its body.
+    let len: usize = head
+        .lines()
+        .find_map(|l| {
+            let (k, v) = l.split_once(':')?;
+            k.eq_ignore_ascii_case("content-length")
+                .then(|| v.trim().parse().ok())?
+        })
+        .unwrap_or(0);
+    let mut body = vec![0u8; if status == 101 { 0 } else { len }];
+    s.read_exact(&mut body).unwrap();
+    (status, String::from_utf8_lossy(&body).into_owned())
+}
+
+#[test]
+fn live_routes_without_and_with_a_pipeline() {
+    let (_d, root) = setup();
+    // Without --pipeline: 404 naming the option, for every live route.
+    let s = Studio::start(&StudioOptions {
+        root: Some(root.clone()),
+        ..StudioOptions::default()
+    })
+    .unwrap();
+    for path in ["/api/live", "/api/live/frame", "/api/live/ws"] {
+        let (st, body) = get(s.addr, path);
+        assert_eq!(st, 404, "{path}: {body}");
+        assert!(error_of(&body).contains("--pipeline"), "{path}: {body}");
+    }
+    let (st, body) = upgrade(s.addr, "/api/live/ws");
+    assert_eq!(st, 404, "{body}");
+    drop(s);
+    // Bad pipelines are refused at start, naming what is wrong.
+    for (p, set, want) in [
+        ("no-such-pipeline", vec![], "no such file"),
+        ("live-spectrum", vec!["spectrum.hop=0".to_owned()], "hop"),
+        ("live-spectrum", vec!["nostage.x=1".to_owned()], "nostage"),
+    ] {
+        let e = Studio::start(&StudioOptions {
+            root: Some(root.clone()),
+            pipeline: Some(p.into()),
+            set,
+            ..StudioOptions::default()
+        })
+        .err()
+        .expect("refused");
+        assert!(e.is_usage() && e.to_string().contains(want), "{e}");
+    }
+    let e = Studio::start(&StudioOptions {
+        root: Some(root.clone()),
+        set: vec!["src.fps=10.0".into()],
+        ..StudioOptions::default()
+    })
+    .err()
+    .expect("--set without --pipeline");
+    assert!(e.is_usage() && e.to_string().contains("--pipeline"), "{e}");
+    // With a live pipeline: the update, the frame, the WebSocket upgrade
+    // (101), a plain GET of the socket route (400), and the token guard.
+    let s = Studio::start(&StudioOptions {
+        root: Some(root.clone()),
+        pipeline: Some("live-spectrum".into()),
+        set: vec![
+            "src.fps=200.0".into(),
+            "src.width=32".into(),
+            "src.height=32".into(),
+            "src.duration_s=60.0".into(),
+            "spectrum.window=64".into(),
+            "spectrum.hop=16".into(),
+            format!("out.path=\"{}\"", root.join("live.json").display()),
+        ],
+        bind: Some(IpAddr::V4(Ipv4Addr::UNSPECIFIED)),
+        ..StudioOptions::default()
+    })
+    .unwrap();
+    let t = s.token.clone().unwrap();
+    let a = s.addr;
+    assert_eq!(get(a, "/api/live").0, 401);
+    assert_eq!(upgrade(a, "/api/live/ws").0, 401);
+    let t0 = std::time::Instant::now();
+    let u = loop {
+        let (st, body) = get(a, &format!("/api/live?token={t}"));
+        assert_eq!(st, 200, "{body}");
+        let u: serde_json::Value = serde_json::from_str(&body).unwrap();
+        if !u["spectrum"].is_null() && !u["frame"].is_null() {
+            break u;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(30), "no update: {u}");
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    assert_eq!(u["state"], "running", "{u}");
+    assert_eq!(u["frame"]["width"], 32);
+    assert!(u["stages"].as_array().unwrap().len() >= 7, "{u}");
+    let (st, body) = get(a, &format!("/api/live/frame?token={t}"));
+    assert_eq!(st, 200);
+    assert!(body.len() > 8, "a PNG");
+    assert_eq!(upgrade(a, &format!("/api/live/ws?token={t}")).0, 101);
+    let (st, body) = get(a, &format!("/api/live/ws?token={t}"));
+    assert_eq!(st, 400, "{body}");
+    assert!(error_of(&body).contains("WebSocket"), "{body}");
+    // Stopping the studio stops the pipeline; its sink finalises.
+    drop(s);
+    assert!(root.join("live.json").exists());
 }

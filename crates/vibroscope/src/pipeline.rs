@@ -608,28 +608,32 @@ pub fn interrupt() -> bool {
 /// between their steps, before writing their outputs.
 pub fn check_interrupt() -> Result<()> {
     if INTERRUPTED.load(Ordering::SeqCst) {
-        return Err(Error::Interrupted {
-            report: Box::new(engine::RunReport {
-                stages: Vec::new(),
-                errors: Vec::new(),
-                interrupted: true,
-                elapsed: std::time::Duration::ZERO,
-            }),
-        });
+        return Err(interrupted());
     }
     Ok(())
+}
+
+/// The error of an interruption with no run report of its own (exit 130,
+/// 143 or 129 by the signal).
+pub fn interrupted() -> Error {
+    Error::Interrupted {
+        report: Box::new(engine::RunReport {
+            stages: Vec::new(),
+            errors: Vec::new(),
+            interrupted: true,
+            elapsed: std::time::Duration::ZERO,
+        }),
+    }
 }
 
 fn current() -> Option<Arc<Control>> {
     CURRENT.lock().ok().and_then(|g| g.clone())
 }
 
-/// Validates and runs `decl`. A stage error or an interruption is an
-/// [`Error`] holding the run's report; with `allow_interrupt`, an
-/// interrupted run is returned (its `interrupted` set).
-pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> Result<RunReport> {
-    // No sink may overwrite a file the pipeline reads (nor its own file):
-    // checked before validation, which may open the sinks' files.
+/// `decl` as a graph, once no sink would overwrite a file the pipeline
+/// reads (nor its own file), checked before validation, which may open the
+/// sinks' files.
+fn checked(decl: &PipelineDecl) -> Result<engine::Graph> {
     let inputs = input_files(decl);
     let outs = outputs(decl);
     crate::error::check_outputs(
@@ -637,7 +641,23 @@ pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> R
         &outs.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
     )?;
     // Errors name the stages the user's pipeline has: validate it first.
-    let graph = engine::graph::validate(decl, REGISTRY)?;
+    Ok(engine::graph::validate(decl, REGISTRY)?)
+}
+
+/// Validates and runs `decl`. A stage error or an interruption is an
+/// [`Error`] holding the run's report; with `allow_interrupt`, an
+/// interrupted run is returned (its `interrupted` set).
+pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> Result<RunReport> {
+    run_inner(decl, s, allow_interrupt, None)
+}
+
+fn run_inner(
+    decl: &PipelineDecl,
+    s: RunSettings,
+    allow_interrupt: bool,
+    observer: Option<Arc<engine::Observer>>,
+) -> Result<RunReport> {
+    let graph = checked(decl)?;
     check_interrupt()?;
     let counter = s
         .progress
@@ -656,12 +676,15 @@ pub fn run_with(decl: &PipelineDecl, s: RunSettings, allow_interrupt: bool) -> R
         // Interrupted between the check above and now: stop at once.
         control.stop();
     }
-    let report = engine::run(graph, Arc::clone(&control), &engine::RunOptions { counter }).map_err(
-        |source| Error::Start {
-            file: decl.file.clone(),
-            source: Box::new(source),
-        },
-    );
+    let report = engine::run(
+        graph,
+        Arc::clone(&control),
+        &engine::RunOptions { counter, observer },
+    )
+    .map_err(|source| Error::Start {
+        file: decl.file.clone(),
+        source: Box::new(source),
+    });
     if let Ok(mut g) = CURRENT.lock() {
         *g = None;
     }
@@ -705,6 +728,21 @@ fn empty_sources(decl: &PipelineDecl, report: &RunReport) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// Runs `decl` watched by `observer` (its stages' counters and the latest
+/// item of each `tap` stage, read from other threads while it runs); the
+/// run stops early through [`engine::Observer::stop`]. It is the process's
+/// run under way, as [`run_with`]'s: Ctrl-C stops it, its sinks finalise,
+/// and the report says `interrupted` (which [`engine::Observer::stop`]
+/// sets too: the caller knows which it asked for).
+pub fn run_observed(decl: &PipelineDecl, observer: &Arc<engine::Observer>) -> Result<RunReport> {
+    run_inner(
+        decl,
+        RunSettings::default(),
+        true,
+        Some(Arc::clone(observer)),
+    )
 }
 
 /// [`run_with`], an interruption being an error.

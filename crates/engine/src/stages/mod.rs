@@ -41,6 +41,7 @@ pub static REGISTRY: &[KindSpec] = &[
     sinks::modes::KIND,
     sinks::spectrum_png::KIND,
     sinks::y4m::KIND,
+    sinks::tap::KIND,
     sinks::null::KIND,
 ];
 

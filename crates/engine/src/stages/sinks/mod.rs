@@ -5,6 +5,7 @@ pub mod null;
 pub mod peaks;
 pub mod speaker;
 pub mod spectrum_png;
+pub mod tap;
 pub mod wav;
 pub mod y4m;
 

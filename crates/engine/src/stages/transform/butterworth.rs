@@ -291,6 +291,7 @@ mod tests {
             pool_frames: 0,
             input_types: vec![PortType::Audio],
             live,
+            observer: None,
         };
         let Ok(Node::Stage(mut st)) = Box::new(plan).build(&ctx) else {
             panic!("not a stage");

@@ -1,0 +1,293 @@
+//! Watching a run from outside while it goes on (the studio's live view):
+//! the latest item of each `tap` stage, and each stage's counters.
+//!
+//! An [`Observer`] is handed to [`crate::run`] through
+//! [`crate::RunOptions::observer`]. The run registers its stages' counters
+//! with it, and every `tap` stage publishes into the observer's slot of its
+//! `name`. Publishing never waits: a tap keeps only the latest item, and
+//! when a reader is copying it out at that moment the new item is skipped
+//! and counted, so a slow reader costs the frame path nothing. Frames are
+//! copied (8-bit grey) into a buffer the slot reuses, so a tap never holds
+//! a pooled frame buffer.
+
+use crate::frame::PixelsRef;
+use crate::item::{AudioBlock, Item, SampleBlock, Spectrum};
+use crate::stage::Control;
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, TryLockError};
+use std::time::Instant;
+
+/// The live state of one run, readable from any thread.
+#[derive(Default)]
+pub struct Observer {
+    slots: Mutex<HashMap<String, Arc<TapSlot>>>,
+    stages: Mutex<Vec<Watched>>,
+    /// The run's control, and whether [`Observer::stop`] was called.
+    control: Mutex<(Option<Arc<Control>>, bool)>,
+}
+
+impl std::fmt::Debug for Observer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Observer").finish_non_exhaustive()
+    }
+}
+
+/// A stage's counters, as the runner keeps them.
+pub(crate) trait Counted: Send + Sync {
+    /// The counts now.
+    fn live(&self, id: &str, kind: &'static str) -> StageLive;
+}
+
+/// A stage's counters, shared with the runner.
+pub(crate) struct Watched {
+    pub id: String,
+    pub kind: &'static str,
+    pub counters: Arc<dyn Counted>,
+}
+
+/// One stage as it runs.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct StageLive {
+    pub id: String,
+    pub kind: &'static str,
+    pub items_in: u64,
+    pub items_out: u64,
+    /// Items evicted from its input rings, plus (a source) frames the
+    /// device dropped.
+    pub dropped: u64,
+    /// Items queued on its input rings now, and their largest capacity.
+    pub queued: u64,
+    pub queue_capacity: u64,
+    /// Seconds spent working (not waiting).
+    pub busy_s: f64,
+}
+
+impl Observer {
+    pub fn new() -> Arc<Observer> {
+        Arc::new(Observer::default())
+    }
+
+    /// The slot a `tap` stage of this name publishes into (made on first use).
+    pub fn slot(&self, name: &str) -> Arc<TapSlot> {
+        let mut m = self.slots.lock().unwrap_or_else(|e| e.into_inner());
+        Arc::clone(m.entry(name.to_owned()).or_default())
+    }
+
+    /// Every stage of the run, in the graph's order (empty before it starts).
+    pub fn stages(&self) -> Vec<StageLive> {
+        let w = self.stages.lock().unwrap_or_else(|e| e.into_inner());
+        w.iter().map(|w| w.counters.live(&w.id, w.kind)).collect()
+    }
+
+    /// Nanoseconds on the run's clock (the one live capture times use);
+    /// none before the run starts.
+    pub fn now_ns(&self) -> Option<i64> {
+        self.control().map(|c| c.now_ns())
+    }
+
+    /// The instant the run's capture times count from.
+    pub fn epoch(&self) -> Option<Instant> {
+        self.control().map(|c| c.epoch())
+    }
+
+    /// Stops the run gracefully (sources end, queues drain, sinks finalise);
+    /// a run not started yet stops as soon as it starts. Returns false when
+    /// no run had started.
+    pub fn stop(&self) -> bool {
+        let mut g = self.control.lock().unwrap_or_else(|e| e.into_inner());
+        g.1 = true;
+        g.0.as_ref().map(|c| c.stop()).is_some()
+    }
+
+    fn control(&self) -> Option<Arc<Control>> {
+        self.control
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .0
+            .clone()
+    }
+
+    pub(crate) fn attach(&self, control: &Arc<Control>, stages: Vec<Watched>) {
+        *self.stages.lock().unwrap_or_else(|e| e.into_inner()) = stages;
+        let mut g = self.control.lock().unwrap_or_else(|e| e.into_inner());
+        g.0 = Some(Arc::clone(control));
+        if g.1 {
+            control.stop();
+        }
+    }
+}
+
+/// The latest item a tap saw, as a reader gets it.
+#[derive(Clone, Debug)]
+pub enum Latest {
+    Spectrum(Spectrum),
+    Samples(SampleBlock),
+    Audio(AudioBlock),
+    Frame(TapFrame),
+}
+
+impl Latest {
+    /// Capture time of the item.
+    pub fn t_ns(&self) -> i64 {
+        match self {
+            Latest::Spectrum(s) => s.t_ns,
+            Latest::Samples(s) => s.t0_ns,
+            Latest::Audio(a) => a.t0_ns,
+            Latest::Frame(f) => f.t_ns,
+        }
+    }
+}
+
+/// A frame copied out of the pool: 8-bit grey, row-major.
+#[derive(Clone, Debug, Default)]
+pub struct TapFrame {
+    pub t_ns: i64,
+    pub seq: u64,
+    pub width: u32,
+    pub height: u32,
+    pub gray: Vec<u8>,
+}
+
+/// What one slot holds: the latest item, its number, when it arrived.
+#[derive(Default)]
+struct Held {
+    latest: Option<Latest>,
+    /// Items published into this slot so far (0: none yet).
+    seq: u64,
+    arrived: Option<Instant>,
+}
+
+/// The latest item of one `tap` stage.
+#[derive(Default)]
+pub struct TapSlot {
+    held: Mutex<Held>,
+    /// Items the tap saw but did not keep: a reader held the slot, or the
+    /// item came sooner than the tap's interval after the last one kept.
+    skipped: AtomicU64,
+}
+
+/// A reader's copy of a slot.
+#[derive(Clone, Debug)]
+pub struct Snapshot {
+    pub latest: Latest,
+    /// Items kept by the slot so far, this one included.
+    pub seq: u64,
+    /// When the tap stage received it.
+    pub arrived: Instant,
+}
+
+impl TapSlot {
+    /// A copy of the latest item, if any (the tap skips what arrives
+    /// while this copies).
+    pub fn snapshot(&self) -> Option<Snapshot> {
+        let h = self.held.lock().unwrap_or_else(|e| e.into_inner());
+        Some(Snapshot {
+            latest: h.latest.clone()?,
+            seq: h.seq,
+            arrived: h.arrived?,
+        })
+    }
+
+    /// Items kept so far (changes when a new one arrives).
+    pub fn seq(&self) -> u64 {
+        self.held.lock().unwrap_or_else(|e| e.into_inner()).seq
+    }
+
+    /// Items seen and not kept.
+    pub fn skipped(&self) -> u64 {
+        self.skipped.load(Ordering::Relaxed)
+    }
+
+    pub(crate) fn count_skip(&self) {
+        self.skipped.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Keeps `item` unless a reader holds the slot (then counts it
+    /// skipped). Never waits. Frames are copied into the slot's own buffer.
+    pub(crate) fn publish(&self, item: &Item) -> bool {
+        let mut h = match self.held.try_lock() {
+            Ok(h) => h,
+            Err(TryLockError::Poisoned(p)) => p.into_inner(),
+            Err(TryLockError::WouldBlock) => {
+                self.count_skip();
+                return false;
+            }
+        };
+        let next = match item {
+            Item::Spectrum(s) => Latest::Spectrum(s.clone()),
+            Item::Samples(s) => Latest::Samples(s.clone()),
+            Item::Audio(a) => Latest::Audio(a.clone()),
+            Item::Frame(f) => {
+                // Reuse the buffer of the frame held before.
+                let mut tf = match h.latest.take() {
+                    Some(Latest::Frame(tf)) => tf,
+                    _ => TapFrame::default(),
+                };
+                tf.t_ns = f.meta().t_ns;
+                tf.seq = f.meta().seq;
+                tf.width = f.width() as u32;
+                tf.height = f.height() as u32;
+                let n = f.width() * f.height();
+                tf.gray.resize(n, 0);
+                match f.pixels() {
+                    PixelsRef::U8(p) => tf.gray.copy_from_slice(&p[..n]),
+                    PixelsRef::U16(p) => {
+                        let shift = f.format().bits.saturating_sub(8).min(8);
+                        for (d, &s) in tf.gray.iter_mut().zip(p) {
+                            *d = (s >> shift).min(255) as u8;
+                        }
+                    }
+                }
+                Latest::Frame(tf)
+            }
+            Item::Pyramid(_) => {
+                self.count_skip();
+                return false;
+            }
+        };
+        h.latest = Some(next);
+        h.seq += 1;
+        h.arrived = Some(Instant::now());
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::item::Taper;
+
+    fn spectrum(t_ns: i64) -> Item {
+        Item::Spectrum(Spectrum {
+            t_ns,
+            f0_hz: 0.0,
+            resolution_hz: 1.0,
+            rate_hz: 100.0,
+            window: 100,
+            taper: Taper::Hann,
+            segments: 1,
+            power: vec![1.0f32; 51].into(),
+        })
+    }
+
+    #[test]
+    fn a_slot_keeps_the_latest_and_skips_while_read() {
+        let o = Observer::new();
+        let s = o.slot("live");
+        assert!(s.snapshot().is_none());
+        assert!(s.publish(&spectrum(1)));
+        assert!(s.publish(&spectrum(2)));
+        let got = s.snapshot().expect("an item");
+        assert_eq!((got.seq, got.latest.t_ns()), (2, 2));
+        // A reader holding the slot: the tap skips rather than waits.
+        let guard = s.held.lock().unwrap();
+        assert!(!s.publish(&spectrum(3)));
+        drop(guard);
+        assert_eq!(s.skipped(), 1);
+        assert_eq!(s.seq(), 2);
+        // The same name is the same slot.
+        assert!(Arc::ptr_eq(&s, &o.slot("live")));
+        assert!(o.stages().is_empty() && o.now_ns().is_none() && !o.stop());
+    }
+}

@@ -1,0 +1,127 @@
+//! `tap`: keeps the latest item for a program watching the run (the
+//! studio's live view reads it; see [`crate::observe`]).
+//!
+//! It never holds the stream up: it is not woken per item (it looks at its
+//! ring every 5 ms, so give its input a ring that holds 5 ms of items and
+//! some: the studio gives 64 slots), it keeps at most one item per `every_ms`
+//! of capture time, skips (and counts) an item that arrives while the
+//! reader is copying the last one, and copies frames into its own 8-bit
+//! buffer instead of holding a pooled one. In a run that nobody watches
+//! (`vibroscope run`), it discards what it receives.
+//!
+//! ```toml
+//! [[stage]]
+//! id = "live"
+//! kind = "tap"
+//! input = "spectrum"
+//! name = "spectrum"   # the slot the watcher reads
+//! every_ms = 40       # at most 25 items a second
+//! ```
+
+use crate::observe::TapSlot;
+use crate::*;
+use serde::Deserialize;
+use std::sync::Arc;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct P {
+    name: String,
+    every_ms: f64,
+}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("name", ParamType::Str, Def::Required).doc(
+        "the slot a watching program reads (the studio reads `frame`, `samples` and `spectrum`)",
+    ),
+    ParamSpec::new("every_ms", ParamType::Float, Def::Float(40.0))
+        .floats(0.0, 60_000.0)
+        .unit("ms")
+        .doc("keep at most one item per this much capture time (0: every item)"),
+];
+
+pub const KIND: KindSpec = KindSpec {
+    name: "tap",
+    summary: "keeps the latest item for a program watching the run (the studio's live view); never holds the stream up",
+    inputs: &[InPort::one(&[
+        PortType::Frames,
+        PortType::Samples,
+        PortType::Audio,
+        PortType::Spectrum,
+    ])],
+    outputs: NO_OUTPUTS,
+    params: PARAMS,
+    plan: |p| {
+        let v: P = p.resolve(PARAMS)?;
+        if v.name.trim().is_empty() {
+            return Err(p.error("name", "must not be empty"));
+        }
+        Ok(Box::new(TapPlan(v)))
+    },
+};
+
+/// How often a tap looks at its input ring (it is never woken per item).
+const POLL: std::time::Duration = std::time::Duration::from_millis(5);
+
+struct TapPlan(P);
+
+impl Plan for TapPlan {
+    fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
+        let slot = ctx.observer.as_ref().map(|o| o.slot(&self.0.name));
+        Ok(Node::Stage(Box::new(Tap {
+            slot,
+            every_ns: (self.0.every_ms * 1e6) as i64,
+            last_ns: None,
+            kept: 0,
+            seen: 0,
+        })))
+    }
+}
+
+struct Tap {
+    slot: Option<Arc<TapSlot>>,
+    every_ns: i64,
+    last_ns: Option<i64>,
+    kept: u64,
+    seen: u64,
+}
+
+impl Stage for Tap {
+    fn process(&mut self, _: usize, item: Item, _: &mut Emitter) -> Result<(), StageError> {
+        self.seen += 1;
+        let Some(slot) = &self.slot else {
+            return Ok(());
+        };
+        let t = item.t_ns();
+        if let Some(last) = self.last_ns {
+            if t >= last && t - last < self.every_ns {
+                slot.count_skip();
+                return Ok(());
+            }
+        }
+        if slot.publish(&item) {
+            self.last_ns = Some(t);
+            self.kept += 1;
+        }
+        Ok(())
+    }
+
+    /// Not woken per item: at 2200 frames a second, a wake-up per frame
+    /// cost the source measurable time; looking every 5 ms costs nothing
+    /// upstream (the ring holds what arrives meanwhile).
+    fn poll_period(&self) -> Option<std::time::Duration> {
+        Some(POLL)
+    }
+
+    fn summary(&self) -> Option<String> {
+        Some(match &self.slot {
+            Some(s) => format!(
+                "kept {} of {} items for the watcher ({} skipped)",
+                self.kept,
+                self.seen,
+                s.skipped()
+            ),
+            None => format!("nobody watches this run: {} items discarded", self.seen),
+        })
+    }
+}

@@ -1,0 +1,429 @@
+//! The live view (issue 16, item 5): a pipeline run inside the studio,
+//! watched through `tap` stages the studio adds to it.
+//!
+//! - `frame`: the source's frames, at most 10 a second, copied to 8 bits;
+//! - `samples`: what feeds the spectrum (the level meter);
+//! - `spectrum`: every sliding spectrum.
+//!
+//! The taps never hold the stream up (see `vibroscope::engine::observe`),
+//! so the frame path is the same with or without the studio: the server
+//! reads the latest of each when it sends an update, and an update the
+//! page has not taken yet is replaced by the next (stale ones are dropped,
+//! never queued).
+
+use serde_json::{json, Value};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+use vibroscope::engine::config::{self, Origin, PipelineDecl};
+use vibroscope::engine::{Latest, Observer, PortType, TapSlot};
+use vibroscope::math::peaks::{find_peaks, PeakOptions};
+use vibroscope::pipeline::{self as pl, PipelineOptions};
+
+/// Largest number of spectrum values sent per update: longer spectra are
+/// reduced to this many by keeping each group's largest value (a peak
+/// stays visible).
+pub const MAX_BINS: usize = 1024;
+
+/// Ring slots on each tap's input.
+const TAP_CAPACITY: i64 = 64;
+
+/// The ids the studio gives its tap stages.
+const TAP_FRAME: &str = "studio_frame";
+const TAP_SAMPLES: &str = "studio_samples";
+const TAP_SPECTRUM: &str = "studio_spectrum";
+
+/// A live pipeline and what watches it.
+pub struct Live {
+    /// The pipeline as given (a shipped name or a file).
+    pub name: String,
+    /// It has a spectrum stage the studio taps.
+    pub has_spectrum: bool,
+    observer: Arc<Observer>,
+    frame: Arc<TapSlot>,
+    samples: Arc<TapSlot>,
+    spectrum: Arc<TapSlot>,
+    state: Arc<Mutex<RunState>>,
+    thread: Mutex<Option<std::thread::JoinHandle<()>>>,
+    /// Updates the server has sent to pages.
+    pub sent: AtomicU64,
+    /// Peaks of the last spectrum analysed, by its sequence number.
+    peaks: Mutex<(u64, Value)>,
+    /// [`Live::stop`] was called (the studio stopped it, not a signal).
+    stopping: Arc<std::sync::atomic::AtomicBool>,
+}
+
+#[derive(Clone, Debug)]
+enum RunState {
+    Running,
+    /// How it ended, the run's `--stats` table (drops, latency), and
+    /// whether a signal (Ctrl-C) stopped it.
+    Finished(String, String, bool),
+    Failed(String),
+}
+
+/// The pipeline with the studio's taps, or why it cannot be watched: taps
+/// on the source's frames, on what feeds the first spectrum stage (or, with
+/// none, on the last stage giving samples or audio: the level meter), and
+/// on that spectrum stage's output when there is one.
+pub fn prepare(pipeline: &str, set: &[String]) -> Result<PipelineDecl, String> {
+    let mut decl = pl::prepare(&PipelineOptions {
+        pipeline: pipeline.to_owned(),
+        set: set.to_vec(),
+        ..PipelineOptions::default()
+    })
+    .map_err(|e| e.to_string())?;
+    // The user's pipeline first: errors name its own stages and fields.
+    let g = vibroscope::engine::graph::validate(&decl, vibroscope::stages::REGISTRY)
+        .map_err(|e| e.to_string())?;
+    let id = |i: usize| g.nodes[i].id.clone();
+    let source = g
+        .nodes
+        .iter()
+        .position(|n| n.inputs.is_empty())
+        .map(id)
+        .ok_or_else(|| format!("{}: the pipeline has no source stage", decl.file))?;
+    let spectrum = g
+        .nodes
+        .iter()
+        .position(|n| n.output == Some(PortType::Spectrum));
+    let feeds = match spectrum {
+        Some(i) => g.nodes[i].inputs.first().map(|inp| id(inp.from)),
+        None => g
+            .nodes
+            .iter()
+            .rposition(|n| matches!(n.output, Some(PortType::Samples | PortType::Audio)))
+            .map(id),
+    };
+    let spectrum_id = spectrum.map(id);
+    drop(g);
+    for id in [TAP_FRAME, TAP_SAMPLES, TAP_SPECTRUM] {
+        if decl.stages.iter().any(|s| s.id == id) {
+            return Err(format!(
+                "{}: a stage is called `{id}`, the name the studio gives its own",
+                decl.file
+            ));
+        }
+    }
+    let origin = Origin::Builtin("vibroscope studio's live view".into());
+    // A tap never waits, but its thread can be descheduled for a while on
+    // a busy machine: its ring holds more than a plain stage's.
+    let mut tap = |id: &str, from: &str, name: &str, every_ms: f64| {
+        let mut st = pl::new_stage(id, "tap", &[from], origin.clone());
+        st.capacity = Some((TAP_CAPACITY, origin.clone()));
+        config::set_param(&mut st, "name", name.into(), origin.clone());
+        config::set_param(&mut st, "every_ms", every_ms.into(), origin.clone());
+        decl.stages.push(st);
+    };
+    tap(TAP_FRAME, &source, "frame", 100.0);
+    if let Some(f) = &feeds {
+        tap(TAP_SAMPLES, f, "samples", 40.0);
+    }
+    if let Some(sp) = &spectrum_id {
+        tap(TAP_SPECTRUM, sp, "spectrum", 0.0);
+    }
+    // Errors naming the user's stages and fields, before anything runs.
+    vibroscope::engine::graph::validate(&decl, vibroscope::stages::REGISTRY)
+        .map_err(|e| e.to_string())?;
+    Ok(decl)
+}
+
+impl Live {
+    /// Starts `decl` (from [`prepare`]) on a thread of its own.
+    pub fn start(name: &str, decl: PipelineDecl) -> Result<Arc<Live>, String> {
+        let observer = Observer::new();
+        let has_spectrum = decl.stages.iter().any(|s| s.id == TAP_SPECTRUM);
+        let state = Arc::new(Mutex::new(RunState::Running));
+        let stopping = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let by_studio = Arc::clone(&stopping);
+        let live = Arc::new(Live {
+            name: name.to_owned(),
+            has_spectrum,
+            frame: observer.slot("frame"),
+            samples: observer.slot("samples"),
+            spectrum: observer.slot("spectrum"),
+            observer: Arc::clone(&observer),
+            state: Arc::clone(&state),
+            thread: Mutex::new(None),
+            sent: AtomicU64::new(0),
+            peaks: Mutex::new((0, Value::Array(Vec::new()))),
+            stopping,
+        });
+        let t = std::thread::Builder::new()
+            .name("studio-live".into())
+            .spawn(move || {
+                let r = pl::run_observed(&decl, &observer);
+                let next = match r {
+                    Ok(rep) => RunState::Finished(
+                        format!(
+                            "the pipeline {} after {:.1} s",
+                            if rep.interrupted {
+                                "was stopped"
+                            } else {
+                                "ended"
+                            },
+                            rep.elapsed.as_secs_f64()
+                        ),
+                        rep.table(),
+                        rep.interrupted && !by_studio.load(Ordering::SeqCst),
+                    ),
+                    Err(e) => RunState::Failed(e.to_string()),
+                };
+                *state.lock().unwrap_or_else(|p| p.into_inner()) = next;
+            })
+            .map_err(|e| format!("cannot start the live pipeline's thread: {e}"))?;
+        *live.thread.lock().unwrap_or_else(|p| p.into_inner()) = Some(t);
+        Ok(live)
+    }
+
+    /// Stops the pipeline (its sinks finalise) and waits for it.
+    pub fn stop(&self) {
+        self.stopping.store(true, Ordering::SeqCst);
+        self.observer.stop();
+        let t = self.thread.lock().unwrap_or_else(|p| p.into_inner()).take();
+        if let Some(t) = t {
+            let _ = t.join();
+        }
+    }
+
+    /// Sequence numbers of the three taps: the server sends an update when
+    /// they change.
+    pub fn version(&self) -> (u64, u64, u64, bool) {
+        let running = matches!(
+            *self.state.lock().unwrap_or_else(|p| p.into_inner()),
+            RunState::Running
+        );
+        (
+            self.spectrum.seq(),
+            self.frame.seq(),
+            self.samples.seq(),
+            running,
+        )
+    }
+
+    /// The run ended because a signal (Ctrl-C) stopped it: its outputs are
+    /// finalised and the process should exit.
+    pub fn interrupted(&self) -> bool {
+        matches!(
+            *self.state.lock().unwrap_or_else(|p| p.into_inner()),
+            RunState::Finished(_, _, true)
+        )
+    }
+
+    /// The latest frame as an 8-bit grey PNG.
+    pub fn frame_png(&self) -> Option<Result<Vec<u8>, String>> {
+        let s = self.frame.snapshot()?;
+        let Latest::Frame(f) = s.latest else {
+            return None;
+        };
+        use image::ImageEncoder;
+        let mut png = Vec::new();
+        Some(
+            image::codecs::png::PngEncoder::new(&mut png)
+                .write_image(&f.gray, f.width, f.height, image::ExtendedColorType::L8)
+                .map(|()| png)
+                .map_err(|e| format!("PNG: {e}")),
+        )
+    }
+
+    /// One update: the latest spectrum (dB) and its peaks, the level, the
+    /// latest frame's number, and every stage's counters.
+    pub fn update(&self) -> Value {
+        let epoch = self.observer.epoch();
+        let age_ms = |arrived: Instant, t_ns: i64| -> Option<f64> {
+            let captured = epoch? + Duration::from_nanos(u64::try_from(t_ns).ok()?);
+            Some(arrived.saturating_duration_since(captured).as_secs_f64() * 1e3)
+        };
+        let (state, message, report) = match &*self.state.lock().unwrap_or_else(|p| p.into_inner())
+        {
+            RunState::Running => ("running", Value::Null, Value::Null),
+            RunState::Finished(m, t, _) => ("finished", json!(m), json!(t)),
+            RunState::Failed(m) => ("failed", json!(m), Value::Null),
+        };
+        let spectrum = self.spectrum.snapshot().and_then(|s| match s.latest {
+            Latest::Spectrum(sp) => {
+                // The window's last sample: how old the newest data is.
+                let end_ns = sp.t_ns + (sp.window as f64 / sp.rate_hz * 0.5e9) as i64;
+                let peaks = self.peaks_of(s.seq, &sp);
+                let (db, step) = reduce_db(&sp.power);
+                Some(json!({
+                    "seq": s.seq,
+                    "t_s": sp.t_ns as f64 * 1e-9,
+                    "f0_hz": sp.f0_hz,
+                    "resolution_hz": sp.resolution_hz,
+                    "bin_hz": sp.resolution_hz * step as f64,
+                    "rate_hz": sp.rate_hz,
+                    "window": sp.window,
+                    "segments": sp.segments,
+                    "db": db,
+                    "peaks": peaks,
+                    "age_ms": age_ms(s.arrived, end_ns),
+                }))
+            }
+            _ => None,
+        });
+        let level = self.samples.snapshot().and_then(|s| {
+            let data: &[f32] = match &s.latest {
+                Latest::Samples(b) => &b.data,
+                Latest::Audio(a) => &a.samples,
+                _ => return None,
+            };
+            let n = data.iter().filter(|v| v.is_finite()).count().max(1);
+            let ms = data
+                .iter()
+                .filter(|v| v.is_finite())
+                .map(|&v| f64::from(v) * f64::from(v))
+                .sum::<f64>()
+                / n as f64;
+            let peak = data
+                .iter()
+                .filter(|v| v.is_finite())
+                .fold(0.0f32, |m, &v| m.max(v.abs()));
+            Some(json!({
+                "seq": s.seq,
+                "rms": ms.sqrt(),
+                "db": 10.0 * ms.max(1e-30).log10(),
+                "peak": peak,
+            }))
+        });
+        let frame = self.frame.snapshot().and_then(|s| match &s.latest {
+            Latest::Frame(f) => Some(json!({
+                "seq": s.seq,
+                "frame": f.seq,
+                "t_s": f.t_ns as f64 * 1e-9,
+                "width": f.width,
+                "height": f.height,
+                "age_ms": age_ms(s.arrived, f.t_ns),
+            })),
+            _ => None,
+        });
+        json!({
+            "pipeline": self.name,
+            "has_spectrum": self.has_spectrum,
+            "state": state,
+            "message": message,
+            "report": report,
+            "now_s": self.observer.now_ns().map(|t| t as f64 * 1e-9),
+            "spectrum": spectrum,
+            "level": level,
+            "frame": frame,
+            "stages": self.observer.stages(),
+            "skipped": {
+                "spectrum": self.spectrum.skipped(),
+                "frame": self.frame.skipped(),
+                "samples": self.samples.skipped(),
+            },
+            "sent": self.sent.load(Ordering::Relaxed),
+        })
+    }
+
+    /// The peaks of spectrum `seq` (computed once per spectrum).
+    fn peaks_of(&self, seq: u64, sp: &vibroscope::engine::Spectrum) -> Value {
+        let mut g = self.peaks.lock().unwrap_or_else(|p| p.into_inner());
+        if g.0 != seq {
+            let power: Vec<f64> = sp.power.iter().map(|&v| f64::from(v)).collect();
+            let o = PeakOptions {
+                max_peaks: 5,
+                segments: sp.segments.max(1),
+                ..PeakOptions::default()
+            };
+            let peaks = find_peaks(&power, sp.f0_hz, sp.resolution_hz, &o);
+            let v = peaks
+                .iter()
+                .map(|p| {
+                    json!({
+                        "frequency_hz": p.frequency_hz,
+                        "frequency_std_hz": p.frequency_std_hz,
+                        "power_db": p.power_db,
+                        "prominence_db": p.prominence_db,
+                        "damping_ratio": p.damping_ratio,
+                        "damping_ratio_std": p.damping_ratio_std,
+                    })
+                })
+                .collect();
+            *g = (seq, Value::Array(v));
+        }
+        g.1.clone()
+    }
+}
+
+impl Drop for Live {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+/// Power in dB (10 log10), reduced to at most [`MAX_BINS`] values by the
+/// largest of each group of `step` bins; returns the values and `step`.
+pub fn reduce_db(power: &[f32]) -> (Vec<f32>, usize) {
+    let step = power.len().div_ceil(MAX_BINS).max(1);
+    let db = power
+        .chunks(step)
+        .map(|c| {
+            let m = c
+                .iter()
+                .copied()
+                .filter(|v| v.is_finite())
+                .fold(0.0f32, f32::max);
+            if m > 0.0 {
+                10.0 * m.log10()
+            } else {
+                -300.0
+            }
+        })
+        .collect();
+    (db, step)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reduction_keeps_each_groups_largest_value() {
+        let mut p = vec![1.0f32; 4096];
+        p[1001] = 100.0;
+        let (db, step) = reduce_db(&p);
+        assert_eq!((db.len(), step), (1024, 4));
+        assert_eq!(db[250], 20.0);
+        assert_eq!(db[0], 0.0);
+        let (db, step) = reduce_db(&[0.0, 10.0]);
+        assert_eq!((db, step), (vec![-300.0, 10.0], 1));
+    }
+
+    #[test]
+    fn taps_go_on_the_source_the_signal_and_the_spectrum() {
+        let taps = |d: &PipelineDecl| -> Vec<(String, String)> {
+            d.stages
+                .iter()
+                .filter(|s| s.kind == "tap")
+                .map(|s| (s.id.clone(), s.inputs[0].from.clone()))
+                .collect()
+        };
+        let d = prepare("live-spectrum", &[]).expect("the shipped live pipeline");
+        let want = |v: &[(&str, &str)]| -> Vec<(String, String)> {
+            v.iter()
+                .map(|(a, b)| (a.to_string(), b.to_string()))
+                .collect()
+        };
+        assert_eq!(
+            taps(&d),
+            want(&[
+                (TAP_FRAME, "src"),
+                (TAP_SAMPLES, "phase"),
+                (TAP_SPECTRUM, "spectrum")
+            ])
+        );
+        // No spectrum: the level comes from the last stage giving audio.
+        let d = prepare("live-microphone", &[]).expect("the shipped live microphone");
+        let t = taps(&d);
+        assert_eq!(t.len(), 2, "{t:?}");
+        assert_eq!(t[0], (TAP_FRAME.to_string(), "cam".to_string()));
+        assert_eq!(t[1], (TAP_SAMPLES.to_string(), "highpass".to_string()));
+        // The user's errors come first, naming the user's stage.
+        let e = prepare("live-spectrum", &["spectrum.hop=0".to_owned()]).unwrap_err();
+        assert!(e.contains("hop"), "{e}");
+        let e = prepare("no-such-pipeline", &[]).unwrap_err();
+        assert!(e.contains("no such file"), "{e}");
+    }
+}
