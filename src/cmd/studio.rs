@@ -14,7 +14,8 @@ use vibroscope_studio::{Studio, StudioOptions};
 /// (frequency, damping ± uncertainty, prominence); click the spectrum, or a
 /// listed peak to snap to it, to see the modal image at that frequency over
 /// the frame (hue = phase, brightness = amplitude, thesis ch. 3.5.5) and
-/// animate its mode shape. Each view exports PNG and CSV/JSON.
+/// animate its mode shape. "Listen" plays the region's recovered sound in
+/// the browser. Each view exports PNG and CSV/JSON (and the sound as WAV).
 ///
 /// With --pipeline (a shipped live pipeline such as live-spectrum, or a
 /// pipeline file with a sliding `spectrum` stage) the studio runs it and

@@ -10,6 +10,7 @@ const S = {
   video: null, fps: null, info: null, scale: 1, frameIndex: 0,
   regions: [], sel: -1, motion: null, mode: null, grey: null,
   motionSeq: 0, modeSeq: 0, errorSeq: 0, lastError: null, busy: 0,
+  sound: null, soundSeq: 0, soundBuffer: null, soundStarted: false, audioCtx: null,
 };
 window.studio = S;
 
@@ -289,6 +290,49 @@ function animate(ts) {
   requestAnimationFrame(animate);
 }
 
+// ---- listening (the listen recipe on the region, played through Web Audio) ----
+async function listenRegion() {
+  if (!S.video) return showError("open a video first");
+  const roi = S.sel >= 0 ? S.regions[S.sel] : null;
+  const body = { video: S.video, roi };
+  if (S.fps) body.fps = S.fps;
+  // The click starts the audio context (browsers allow sound after a gesture).
+  if (!S.audioCtx) S.audioCtx = new AudioContext();
+  $("listenstatus").textContent = "recovering the sound…";
+  try {
+    const r = await (await api("/api/listen", null, body)).json();
+    const data = await (await fetch(r.wav)).arrayBuffer();
+    const buf = await S.audioCtx.decodeAudioData(data);
+    S.sound = r; S.soundBuffer = buf;
+    $("audio").src = r.wav;
+    drawSoundgram(r.spectrogram);
+    if (S.audioCtx.state === "suspended") await S.audioCtx.resume();
+    const src = S.audioCtx.createBufferSource();
+    src.buffer = buf; src.connect(S.audioCtx.destination); src.start();
+    S.soundStarted = true; S.soundSeq++;
+    clearError();
+    $("listenstatus").textContent = (roi ? `R${S.sel + 1}` : "whole frame") +
+      `: ${r.duration_s.toFixed(2)} s, ${r.sample_rate_hz} Hz, ${r.encoding}` + (r.cached ? " (cached)" : "");
+  } catch (e) { $("listenstatus").textContent = ""; showError(e.message); }
+}
+
+function drawSoundgram(sg) {
+  const c = $("soundgram"), g = c.getContext("2d");
+  c.hidden = false;
+  g.fillStyle = "#0e1014"; g.fillRect(0, 0, c.width, c.height);
+  const cols = sg.db, n = cols.length; if (!n) return;
+  let hi = -Infinity;
+  for (const col of cols) for (const v of col) hi = Math.max(hi, v);
+  const lo = hi - 60, bins = cols[0].length, w = c.width / n, h = c.height / bins;
+  cols.forEach((col, k) => col.forEach((v, b) => {
+    const t = Math.max(0, Math.min(1, (v - lo) / (hi - lo)));
+    g.fillStyle = `hsl(${240 - 240 * t}, 90%, ${10 + 50 * t}%)`;
+    g.fillRect(k * w, c.height - (b + 1) * h, Math.ceil(w), Math.ceil(h));
+  }));
+  g.fillStyle = "#ddd"; g.font = "11px sans-serif";
+  g.fillText(`${sg.top_hz.toFixed(0)} Hz`, 4, 12); g.fillText("0 Hz", 4, c.height - 4);
+}
+
 // ---- export ----
 function download(name, href) { const a = document.createElement("a"); a.href = href; a.download = name; a.click(); }
 function downloadText(name, text, mime) { download(name, URL.createObjectURL(new Blob([text], { type: mime }))); }
@@ -302,6 +346,10 @@ function setupExport() {
     downloadText(base() + "-spectrum.csv", "frequency_hz,power_db\n" + sp.power_db.map((v, k) => `${sp.f0_hz + k * sp.resolution_hz},${v}`).join("\n") + "\n", "text/csv");
   };
   $("export-json").onclick = () => { if (S.motion) downloadText(base() + "-motion.json", JSON.stringify(S.motion), "application/json"); };
+  $("export-wav").onclick = () => {
+    if (!S.sound) return showError("press Listen first");
+    download(base() + (S.sound.roi ? `-R${S.sound.roi.join("_")}` : "") + ".wav", S.sound.wav);
+  };
   $("export-mode-png").onclick = () => { if (S.mode) download(base() + `-mode-${S.mode.freq_hz.toFixed(2)}Hz.png`, S.mode.png); };
   $("export-mode-json").onclick = () => {
     if (!S.mode) return;
@@ -466,6 +514,7 @@ function setupLiveExport() {
 async function main() {
   drawKeys(); setupRegions(); setupExport();
   $("open").onclick = openVideo;
+  $("listen").onclick = listenRegion;
   $("video").addEventListener("keydown", (e) => { if (e.key === "Enter") openVideo(); });
   $("scrub").addEventListener("input", () => loadFrame(+$("scrub").value).catch((e) => showError(e.message)));
   $("spectrum").addEventListener("click", (ev) => {

@@ -8,6 +8,7 @@
 //! | `GET /api/frame?video=P&i=N` | frame N as an 8-bit grey PNG |
 //! | `POST /api/motion {video, roi?, fps?}` | the region's waveform (px), spectrum (dB) and peaks |
 //! | `POST /api/mode {video, freq_hz, roi?, fps?}` | the modal image: PNG (hue = phase, brightness = amplitude) and the amplitude/phase numbers |
+//! | `POST /api/listen {video, roi?, fps?}` | the region's recovered sound (the `listen` recipe, 16-bit WAV at 8 kHz) and its spectrogram |
 //! | `GET /api/live` | the live pipeline's latest update (spectrum in dB, peaks, level, frame number, stage counters) |
 //! | `GET /api/live/frame` | its latest frame as an 8-bit grey PNG |
 //! | `GET /api/live/ws` | a WebSocket carrying each new update as it comes (at most 50 a second; stale ones are replaced, never queued) |
@@ -173,6 +174,7 @@ pub fn router(app: Arc<App>, max_body: usize) -> Router {
         .route("/api/frame", get(frame))
         .route("/api/motion", post(motion))
         .route("/api/mode", post(mode))
+        .route("/api/listen", post(listen))
         .route("/api/live", get(live_update))
         .route("/api/live/frame", get(live_frame))
         .route("/api/live/ws", get(live_ws))
@@ -705,6 +707,98 @@ async fn mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Val
     })
     .await?;
     Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
+}
+
+/// The playback rate of a region's sound: a standard rate every browser
+/// decodes, well above twice any frame rate a region's motion is sampled at
+/// by the cameras we read (up to 4 kHz of motion).
+const LISTEN_RATE_HZ: u32 = 8000;
+
+async fn listen(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
+    let t0 = Instant::now();
+    let r: MotionRequest = body(&b)?;
+    let path = guard::resolve(&app.root, &r.video)?;
+    let fps = fps_of(&app, r.fps)?;
+    let key = format!("listen|{}|{:?}|{fps:?}", file_key(&path), r.roi);
+    if let Some(v) = cached(&app, &key) {
+        return Ok(answer(&v, true, t0.elapsed().as_secs_f64() * 1e3));
+    }
+    let app2 = app.clone();
+    let v = blocking(move || {
+        let (p, roi) = check_roi(&path, fps, r.roi)?;
+        let v = region_sound(&path, fps, r.roi.map(|_| roi), p.fps)?;
+        Ok(remember(&app2, key, v))
+    })
+    .await?;
+    Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
+}
+
+/// The `listen` recipe on a region (16-bit WAV at [`LISTEN_RATE_HZ`]), and
+/// the sound's spectrogram up to half the frame rate (where the motion's
+/// content ends) in dB.
+fn region_sound(
+    path: &Path,
+    fps: Option<f64>,
+    roi: Option<[u32; 4]>,
+    frame_rate: Option<f64>,
+) -> ApiResult<Value> {
+    let wav = vibroscope::io::atomic::TempPath::new("studio-listen.wav");
+    let o = vibroscope::listen::ListenOptions {
+        video: path.to_path_buf(),
+        output: wav.path().to_path_buf(),
+        fps,
+        region: Region {
+            roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
+            ..Region::default()
+        },
+        denoise: Default::default(),
+        speaker: None,
+        calibration: None,
+        rolling_shutter: None,
+        filters: Vec::new(),
+        rate: vibroscope::listen::OutputRate::Hz(LISTEN_RATE_HZ),
+        float: false,
+        run: Default::default(),
+    };
+    let report = vibroscope::listen::listen(&o)?;
+    let internal = |m: String| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, m);
+    let bytes = std::fs::read(wav.path()).map_err(|e| internal(format!("the sound's WAV: {e}")))?;
+    let (rate, x) = vibroscope::io::wav::read_mono(wav.path())
+        .map_err(|e| internal(format!("the sound's WAV: {e}")))?;
+    let rate = f64::from(rate);
+    // Bins up to half the frame rate, about 64 of them; windows overlap 3/4.
+    let top = frame_rate.map_or(rate / 2.0, |f| (f / 2.0).min(rate / 2.0));
+    let nfft = ((rate / top * 64.0).ceil() as usize)
+        .next_power_of_two()
+        .clamp(64, 1 << 16);
+    let hop = (nfft / 4).max(1);
+    let bin_hz = rate / nfft as f64;
+    let bins = ((top / bin_hz).floor() as usize + 1).min(nfft / 2 + 1);
+    let columns: Vec<Vec<f32>> = vibroscope::math::stft::stft(&x, nfft, hop)
+        .iter()
+        .map(|col| {
+            col[..bins]
+                .iter()
+                .map(|c| (10.0 * c.norm_sqr().max(1e-30).log10()) as f32)
+                .collect()
+        })
+        .collect();
+    Ok(json!({
+        "roi": roi,
+        "sample_rate_hz": report.sample_rate_hz,
+        "samples": report.samples,
+        "duration_s": report.samples as f64 / rate,
+        "encoding": report.encoding,
+        "notes": report.notes,
+        "wav": format!("data:audio/wav;base64,{}", base64(&bytes)),
+        "spectrogram": {
+            "nfft": nfft,
+            "hop_s": hop as f64 / rate,
+            "bin_hz": bin_hz,
+            "top_hz": top,
+            "db": columns,
+        },
+    }))
 }
 
 /// The modes recipe's PNG and complex image (phase aligned as the PNG's

@@ -112,6 +112,7 @@ async fn connect(port: u16, profile: &Path) -> Client {
                 "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
                 "--no-first-run", "--disable-quic", "--disable-component-update", "--disable-sync",
                 "--disable-dev-shm-usage", "--window-size=1400,1000",
+                "--autoplay-policy=no-user-gesture-required",
                 format!("--user-data-dir={}", profile.display()),
             ]
         }
@@ -547,6 +548,47 @@ async fn drive(c: &Client, studio: &Studio, video: &Path, dir: &Path) {
     )
     .await;
     wait_for(c, "modeSeq", before, errors).await;
+    // Listening to the region: the listen recipe's sound, decoded and
+    // played by Web Audio, as long as the recording, its spectrogram's
+    // strongest line the mode that dominates the region.
+    let sounds = counter(c, "soundSeq").await;
+    c.find(Locator::Id("listen"))
+        .await
+        .unwrap()
+        .click()
+        .await
+        .unwrap();
+    wait_for(c, "soundSeq", sounds, errors).await;
+    let heard = js(
+        c,
+        "const S = window.studio, sg = S.sound.spectrogram;
+         const mean = sg.db[0].map((_, b) => sg.db.reduce((a, col) => a + Math.pow(10, col[b] / 10), 0));
+         let best = 1; for (let b = 1; b < mean.length; b++) if (mean[b] > mean[best]) best = b;
+         return [S.soundBuffer.duration, S.audioCtx.state, S.soundStarted, best * sg.bin_hz, sg.bin_hz,
+                 document.getElementById('audio').src.startsWith('data:audio/wav'), S.sound.sample_rate_hz];",
+    )
+    .await;
+    println!("listen: {heard}");
+    let duration = heard[0].as_f64().unwrap();
+    let frames_s = 600.0 / FPS;
+    assert!(
+        (duration - frames_s).abs() < 0.03 * frames_s,
+        "the sound lasts {duration} s for {frames_s} s of video"
+    );
+    assert_eq!(
+        heard[1],
+        json!("running"),
+        "the audio context is not playing"
+    );
+    assert_eq!(heard[2], json!(true));
+    let (f_top, bin) = (heard[3].as_f64().unwrap(), heard[4].as_f64().unwrap());
+    assert!(
+        (f_top - MODES[1].0).abs() <= 1.5 * bin,
+        "the sound's strongest line is {f_top} Hz, not mode 2 at {} Hz",
+        MODES[1].0
+    );
+    assert_eq!(heard[5], json!(true));
+    assert_eq!(heard[6], json!(8000));
     let shot = c.screenshot().await.unwrap();
     std::fs::write(img_dir().join("studio-region.png"), shot).unwrap();
     // Bad input on the page: a video the server cannot read shows an error.

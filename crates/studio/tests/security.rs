@@ -199,6 +199,14 @@ fn paths_bodies_and_malformed_requests_get_the_right_status() {
             "{\"video\":\"sub/clip.y4m\",\"fps\":-3}",
             422,
         ),
+        (
+            "/api/listen",
+            "{\"video\":\"sub/clip.y4m\",\"roi\":[0,0,4000,9]}",
+            422,
+        ),
+        ("/api/listen", "{\"video\":\"../outside/secret.y4m\"}", 403),
+        ("/api/listen", "{\"video\":\"sub/clip.y4m\",\"x\":1}", 400),
+        ("/api/listen", "{\"video\":\"nothing.y4m\"}", 404),
     ] {
         let (st, b) = post(a, target, body);
         assert_eq!(st, want, "{target} {body}: {b}");
