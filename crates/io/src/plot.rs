@@ -495,6 +495,18 @@ const KEY_W: usize = 190;
 /// Height of a modal figure's title band, pixels.
 const TITLE_H: usize = 36;
 
+/// The factor a modal figure enlarges a `w`×`h` image by: the whole factor
+/// that brings it closest to 1280x960 without passing it, or below 1 the
+/// factor that shrinks it to fit.
+pub fn figure_zoom(w: usize, h: usize) -> f64 {
+    let fit = (1280.0 / w.max(1) as f64).min(960.0 / h.max(1) as f64);
+    if fit >= 1.0 {
+        fit.floor()
+    } else {
+        fit
+    }
+}
+
 /// A modal image people can read (thesis Fig. 3-6): `img` (the image, as a
 /// rule laid over a frame of the scene) enlarged by a whole factor to about
 /// 1280x960 (shrunk to fit if larger), under `caption`, beside a wheel of
@@ -509,8 +521,7 @@ pub fn modal_figure(img: &Rgb, caption: &str, key: &AmplitudeKey<'_>) -> Result<
         });
     }
     font();
-    let fit = (1280.0 / w as f64).min(960.0 / h as f64);
-    let z = if fit >= 1.0 { fit.floor() } else { fit };
+    let z = figure_zoom(w, h);
     let (dw, dh) = (
         ((w as f64 * z).round() as usize).max(1),
         ((h as f64 * z).round() as usize).max(1),

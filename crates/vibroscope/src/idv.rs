@@ -18,7 +18,7 @@
 //!   ffmpeg any container).
 
 use crate::error::{Error, Result, UsageError};
-use crate::io::{self, Depth, FrameDest, FrameDestRef};
+use crate::io::{self, Depth, FrameDest};
 use crate::math::idv::{modal_force, Oscillator, Renderer, Shape};
 use crate::math::idv::{Complex32, Complex64};
 use crate::math::modal::{npy_complex64, read_npy_complex64, ModalConfig, ModalImager, Motion};
@@ -801,17 +801,14 @@ pub fn idv(o: &IdvOptions) -> Result<IdvReport> {
     let mut sim = Simulation::new(&basis, &o.pokes, o.damping_scale)?;
     let shapes: Vec<Shape> = basis.modes.iter().map(|m| m.shape.clone()).collect();
     let mut notes = basis.notes.clone();
-    let y4m = if ffmpeg {
-        io::atomic::temp_sibling(&o.output.with_extension("y4m"))
-    } else {
-        io::atomic::temp_sibling(&o.output)
-    };
-    let written = render_to(&basis, &shapes, &mut sim, rate, frames, &y4m);
-    if let Err(e) = written {
-        let _ = std::fs::remove_file(&y4m);
-        return Err(e);
-    }
-    crate::magnify::finish_output(&y4m, &o.output, ffmpeg)?;
+    let mut r = Renderer::new(basis.width, basis.height);
+    let size = (basis.width, basis.height);
+    crate::magnify::write_gray_video(&o.output, ffmpeg, size, rate, frames, |k, out| {
+        let q = sim.advance_to(k as f64 / rate);
+        r.displacement(&shapes, q);
+        r.warp(&basis.rest, out);
+        Ok(())
+    })?;
     if basis.modes.iter().any(|m| m.freq_hz > rate / 2.0) {
         notes.push(format!(
             "modes above {} Hz (half the output rate) alias in the rendered video; raise --rate",
@@ -828,43 +825,4 @@ pub fn idv(o: &IdvOptions) -> Result<IdvReport> {
         basis_written,
         notes,
     })
-}
-
-/// Renders `frames` frames at `rate` into the Y4M file `path`.
-fn render_to(
-    basis: &Basis,
-    shapes: &[Shape],
-    sim: &mut Simulation,
-    rate: f64,
-    frames: u64,
-    path: &Path,
-) -> Result<()> {
-    let werr = |source: std::io::Error| {
-        Error::from(io::atomic::WriteError {
-            path: path.to_path_buf(),
-            source,
-        })
-    };
-    let file = std::fs::File::create(path).map_err(werr)?;
-    let mut wr = io::Y4mWriter::new(
-        std::io::BufWriter::new(file),
-        basis.width as u32,
-        basis.height as u32,
-        Depth::U8,
-        rate,
-    )
-    .map_err(werr)?;
-    let mut r = Renderer::new(basis.width, basis.height);
-    let mut out = vec![0u8; basis.width * basis.height];
-    for k in 0..frames {
-        let t = k as f64 / rate;
-        let q = sim.advance_to(t);
-        r.displacement(shapes, q);
-        r.warp(&basis.rest, &mut out);
-        let ts = (t * 1e9).round() as i64;
-        wr.write_frame(FrameDestRef::U8(&out), Some(ts))
-            .map_err(werr)?;
-    }
-    wr.finish().map_err(werr)?;
-    Ok(())
 }

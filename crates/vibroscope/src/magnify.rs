@@ -521,6 +521,56 @@ pub(crate) fn open_video(
 /// Moves the finished Y4M `y4m` to `output`: renamed, or with `ffmpeg`
 /// encoded into a temporary sibling that is then renamed; `y4m` is
 /// removed either way and a failed encode leaves nothing behind.
+/// Writes an 8-bit grey video of `frames` frames of `size` (w, h) at `rate`
+/// Hz to `output` (Y4M, or any container through ffmpeg), frame `k` drawn
+/// into the buffer by `draw(k, buf)`, each stamped k / rate. The Y4M goes
+/// to a temporary sibling first, so `output` is whole or absent.
+pub(crate) fn write_gray_video(
+    output: &Path,
+    ffmpeg: bool,
+    (w, h): (usize, usize),
+    rate: f64,
+    frames: u64,
+    mut draw: impl FnMut(u64, &mut [u8]) -> Result<()>,
+) -> Result<()> {
+    let y4m = if ffmpeg {
+        io::atomic::temp_sibling(&output.with_extension("y4m"))
+    } else {
+        io::atomic::temp_sibling(output)
+    };
+    let werr = |source: std::io::Error| {
+        Error::from(io::atomic::WriteError {
+            path: output.to_path_buf(),
+            source,
+        })
+    };
+    let written = (|| -> Result<()> {
+        let file = std::fs::File::create(&y4m).map_err(werr)?;
+        let mut wr = io::Y4mWriter::new(
+            std::io::BufWriter::new(file),
+            w as u32,
+            h as u32,
+            io::Depth::U8,
+            rate,
+        )
+        .map_err(werr)?;
+        let mut out = vec![0u8; w * h];
+        for k in 0..frames {
+            draw(k, &mut out)?;
+            let ts = (k as f64 / rate * 1e9).round() as i64;
+            wr.write_frame(io::FrameDestRef::U8(&out), Some(ts))
+                .map_err(werr)?;
+        }
+        wr.finish().map_err(werr)?;
+        Ok(())
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&y4m);
+        return Err(e);
+    }
+    finish_output(&y4m, output, ffmpeg)
+}
+
 pub(crate) fn finish_output(y4m: &Path, output: &Path, ffmpeg: bool) -> Result<()> {
     if ffmpeg {
         via_temporary(y4m, output, |tmp| encode(y4m, tmp))

@@ -479,7 +479,6 @@ fn animate(
     motion: Motion,
     px: f64,
 ) -> Result<()> {
-    use crate::io::{Depth, FrameDestRef, Y4mWriter};
     use crate::math::idv::{Complex64, Renderer, Shape};
     use crate::math::modal::{align_phase, Complex32};
     // The scale's reference is the 99.5th percentile of |U|, not its
@@ -502,8 +501,8 @@ fn animate(
             "the image has no motion at that frequency to animate",
         ));
     }
-    // Enlarged like the figure; even sides for ffmpeg's 4:2:0.
-    let z = ((1280.0 / w as f64).min(960.0 / h as f64)).floor().max(1.0) as usize;
+    // Enlarged like the figure (never shrunk); even sides for ffmpeg's 4:2:0.
+    let z = crate::io::plot::figure_zoom(w, h).floor().max(1.0) as usize;
     let (dw, dh) = ((w * z) & !1, (h * z) & !1);
     if dw == 0 || dh == 0 {
         return Err(Error::usage(
@@ -533,47 +532,16 @@ fn animate(
             ))
         }
     };
-    let werr = |source: std::io::Error| {
-        Error::from(crate::io::atomic::WriteError {
-            path: path.to_path_buf(),
-            source,
-        })
-    };
-    let y4m = if ffmpeg {
-        crate::io::atomic::temp_sibling(&path.with_extension("y4m"))
-    } else {
-        crate::io::atomic::temp_sibling(path)
-    };
     let rate = ANIMATION_FRAMES as f64;
-    let written = (|| -> Result<()> {
-        let file = std::fs::File::create(&y4m).map_err(werr)?;
-        let mut wr = Y4mWriter::new(
-            std::io::BufWriter::new(file),
-            dw as u32,
-            dh as u32,
-            Depth::U8,
-            rate,
-        )
-        .map_err(werr)?;
-        let mut r = Renderer::new(dw, dh);
-        let mut out = vec![0u8; dw * dh];
-        let shapes = [shape];
-        for k in 0..ANIMATION_FRAMES * ANIMATION_CYCLES {
-            let theta = std::f64::consts::TAU * k as f64 / ANIMATION_FRAMES as f64;
-            r.displacement(&shapes, &[Complex64::from_polar(1.0, -theta)]);
-            r.warp(&big, &mut out);
-            let ts = (k as f64 / rate * 1e9).round() as i64;
-            wr.write_frame(FrameDestRef::U8(&out), Some(ts))
-                .map_err(werr)?;
-        }
-        wr.finish().map_err(werr)?;
+    let mut r = Renderer::new(dw, dh);
+    let shapes = [shape];
+    let frames = (ANIMATION_FRAMES * ANIMATION_CYCLES) as u64;
+    crate::magnify::write_gray_video(path, ffmpeg, (dw, dh), rate, frames, |k, out| {
+        let theta = std::f64::consts::TAU * k as f64 / ANIMATION_FRAMES as f64;
+        r.displacement(&shapes, &[Complex64::from_polar(1.0, -theta)]);
+        r.warp(&big, out);
         Ok(())
-    })();
-    if let Err(e) = written {
-        let _ = std::fs::remove_file(&y4m);
-        return Err(e);
-    }
-    crate::magnify::finish_output(&y4m, path, ffmpeg)
+    })
 }
 
 /// The recording's first frame as 8-bit gray, stretched to its own range;
