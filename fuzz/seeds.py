@@ -226,3 +226,10 @@ put("studio_http", "motion-roi", req(5, "/api/motion", b'{"video":"v.y4m","roi":
 put("studio_http", "mode", req(5, "/api/mode", b'{"video":"v.y4m","freq_hz":10}', JSON))
 put("studio_http", "mode-roi", req(5, "/api/mode", b'{"video":"v.y4m","freq_hz":12.5,"roi":[0,0,16,12]}', JSON))
 put("studio_http", "wrong-method", req(4, "/api/motion"))
+put("studio_http", "listen", req(5, "/api/listen", b'{"video":"v.y4m"}', JSON))
+put("studio_http", "listen-roi", req(5, "/api/listen", b'{"video":"v.y4m","roi":[0,0,8,8],"fps":100}', JSON))
+put("studio_http", "live", req(4, "/api/live"))
+put("studio_http", "live-frame", req(4, "/api/live/frame"))
+put("studio_http", "live-ws", req(4, "/api/live/ws", b"", ((b"upgrade", b"websocket"), (b"connection", b"Upgrade"),
+                                                          (b"sec-websocket-version", b"13"),
+                                                          (b"sec-websocket-key", b"dGhlIHNhbXBsZSBub25jZQ=="))))
