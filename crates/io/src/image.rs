@@ -24,6 +24,15 @@ pub enum ImageError {
     },
 }
 
+/// 16-bit samples of `bits` significant bits as 8-bit grey (the top 8
+/// bits, saturating), into `dst` (as many as both hold).
+pub fn gray8_from_u16(src: &[u16], bits: u8, dst: &mut [u8]) {
+    let shift = bits.saturating_sub(8).min(8);
+    for (d, &s) in dst.iter_mut().zip(src) {
+        *d = (s >> shift).min(255) as u8;
+    }
+}
+
 /// A PGM (P2 or P5, 8 or 16 bit) or PNG picture as 16-bit grey.
 pub fn read_gray16(path: &Path) -> Result<Gray16, ImageError> {
     let bytes = std::fs::read(path).map_err(|source| ImageError::Open {

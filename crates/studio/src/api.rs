@@ -321,12 +321,12 @@ async fn live_update(State(app): State<Arc<App>>) -> ApiResult<axum::Json<Value>
 
 async fn live_frame(State(app): State<Arc<App>>) -> ApiResult<Response> {
     let live = live_of(&app)?;
-    let png = blocking(move || match live.frame_png() {
+    let png = blocking(move || match live.latest_frame() {
         None => Err(ApiError::new(
             StatusCode::NOT_FOUND,
             "no frame yet: the live pipeline has not delivered one",
         )),
-        Some(r) => r.map_err(|m| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, m)),
+        Some(f) => encode_png(&f.gray, f.width, f.height, image::ExtendedColorType::L8),
     })
     .await?;
     Ok((
@@ -498,10 +498,7 @@ fn read_frame_png(app: &App, path: &Path, i: u64) -> ApiResult<Vec<u8>> {
         }
     }
     if info.depth == vibroscope::io::Depth::U16 {
-        let shift = info.bits.saturating_sub(8).min(8);
-        for (d, &s) in px8.iter_mut().zip(&px16) {
-            *d = (s >> shift).min(255) as u8;
-        }
+        vibroscope::io::image::gray8_from_u16(&px16, info.bits, &mut px8);
     }
     encode_png(&px8, info.width, info.height, image::ExtendedColorType::L8)
 }
@@ -595,22 +592,55 @@ fn answer(v: &Value, cached: bool, ms: f64) -> axum::Json<Value> {
 }
 
 async fn motion(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
+    region_answer(app, &b, "motion", |path, fps, roi, whole, _| {
+        region_motion(path, fps, roi, whole)
+    })
+    .await
+}
+
+/// A recipe over a region: (video, fps, region as requested, region or the
+/// whole frame, the video's probe) to its JSON answer.
+type RegionRecipe = fn(
+    &Path,
+    Option<f64>,
+    Option<[u32; 4]>,
+    [u32; 4],
+    &vibroscope::probe::ProbeReport,
+) -> ApiResult<Value>;
+
+/// A region's answer (`what`: its cache key's tag) for a [`MotionRequest`]:
+/// from the cache, or `compute(path, fps, roi as given, roi or the whole
+/// frame, probe)` once the region is checked against the frame.
+async fn region_answer(
+    app: Arc<App>,
+    b: &Bytes,
+    what: &'static str,
+    compute: RegionRecipe,
+) -> ApiResult<axum::Json<Value>> {
     let t0 = Instant::now();
-    let r: MotionRequest = body(&b)?;
+    let r: MotionRequest = body(b)?;
     let path = guard::resolve(&app.root, &r.video)?;
     let fps = fps_of(&app, r.fps)?;
-    let key = format!("motion|{}|{:?}|{fps:?}", file_key(&path), r.roi);
+    let key = format!("{what}|{}|{:?}|{fps:?}", file_key(&path), r.roi);
     if let Some(v) = cached(&app, &key) {
         return Ok(answer(&v, true, t0.elapsed().as_secs_f64() * 1e3));
     }
     let app2 = app.clone();
     let v = blocking(move || {
-        let (_, roi) = check_roi(&path, fps, r.roi)?;
-        let v = region_motion(&path, fps, r.roi.map(|_| roi), roi)?;
+        let (p, roi) = check_roi(&path, fps, r.roi)?;
+        let v = compute(&path, fps, r.roi.map(|_| roi), roi, &p)?;
         Ok(remember(&app2, key, v))
     })
     .await?;
     Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
+}
+
+/// The request's region as the recipes take it (none: the whole frame).
+fn region_of(roi: Option<[u32; 4]>) -> Region {
+    Region {
+        roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
+        ..Region::default()
+    }
 }
 
 /// The spectrum recipe (its peaks with damping and uncertainty) and the
@@ -625,10 +655,7 @@ fn region_motion(
     o.fps = fps;
     o.peaks = 8;
     o.include_spectrum = true;
-    o.region = Region {
-        roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
-        ..Region::default()
-    };
+    o.region = region_of(roi);
     let tap = DisplacementTap::new(vec![disp_roi]);
     let (report, _run) = vibroscope::spectrum::run_spectrum_with(&o, true, Some(&tap))?;
     let regions = tap.read()?;
@@ -715,22 +742,10 @@ async fn mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Val
 const LISTEN_RATE_HZ: u32 = 8000;
 
 async fn listen(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
-    let t0 = Instant::now();
-    let r: MotionRequest = body(&b)?;
-    let path = guard::resolve(&app.root, &r.video)?;
-    let fps = fps_of(&app, r.fps)?;
-    let key = format!("listen|{}|{:?}|{fps:?}", file_key(&path), r.roi);
-    if let Some(v) = cached(&app, &key) {
-        return Ok(answer(&v, true, t0.elapsed().as_secs_f64() * 1e3));
-    }
-    let app2 = app.clone();
-    let v = blocking(move || {
-        let (p, roi) = check_roi(&path, fps, r.roi)?;
-        let v = region_sound(&path, fps, r.roi.map(|_| roi), p.fps)?;
-        Ok(remember(&app2, key, v))
+    region_answer(app, &b, "listen", |path, fps, roi, _, probe| {
+        region_sound(path, fps, roi, probe.fps)
     })
-    .await?;
-    Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
+    .await
 }
 
 /// The `listen` recipe on a region (16-bit WAV at [`LISTEN_RATE_HZ`]), and
@@ -747,10 +762,7 @@ fn region_sound(
         video: path.to_path_buf(),
         output: wav.path().to_path_buf(),
         fps,
-        region: Region {
-            roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
-            ..Region::default()
-        },
+        region: region_of(roi),
         denoise: Default::default(),
         speaker: None,
         calibration: None,
@@ -817,10 +829,7 @@ fn modal_image(
         output: png.path().to_path_buf(),
         npy: Some(npy.path().to_path_buf()),
         fps,
-        region: Region {
-            roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
-            ..Region::default()
-        },
+        region: region_of(roi),
         ..ModesOptions::default()
     };
     vibroscope::modes::modes(&o)?;

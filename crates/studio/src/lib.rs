@@ -206,13 +206,6 @@ impl Studio {
         })
     }
 
-    /// Serves until the process ends.
-    pub fn wait(mut self) {
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-
     /// Serves until the process ends, or until a signal (Ctrl-C) stopped
     /// the live pipeline: then its outputs are finalised, the server stops
     /// and this returns true (the caller exits with the signal's status).

@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use vibroscope::engine::config::{self, Origin, PipelineDecl};
-use vibroscope::engine::{Latest, Observer, PortType, TapSlot};
+use vibroscope::engine::{Latest, Observer, PortType, TapFrame, TapSlot};
 use vibroscope::math::peaks::{find_peaks, PeakOptions};
 use vibroscope::pipeline::{self as pl, PipelineOptions};
 
@@ -210,20 +210,12 @@ impl Live {
         )
     }
 
-    /// The latest frame as an 8-bit grey PNG.
-    pub fn frame_png(&self) -> Option<Result<Vec<u8>, String>> {
-        let s = self.frame.snapshot()?;
-        let Latest::Frame(f) = s.latest else {
-            return None;
-        };
-        use image::ImageEncoder;
-        let mut png = Vec::new();
-        Some(
-            image::codecs::png::PngEncoder::new(&mut png)
-                .write_image(&f.gray, f.width, f.height, image::ExtendedColorType::L8)
-                .map(|()| png)
-                .map_err(|e| format!("PNG: {e}")),
-        )
+    /// The latest frame (8-bit grey), if one came.
+    pub fn latest_frame(&self) -> Option<TapFrame> {
+        match self.frame.snapshot()?.latest {
+            Latest::Frame(f) => Some(f),
+            _ => None,
+        }
     }
 
     /// One update: the latest spectrum (dB) and its peaks, the level, the
@@ -268,17 +260,13 @@ impl Live {
                 Latest::Audio(a) => &a.samples,
                 _ => return None,
             };
-            let n = data.iter().filter(|v| v.is_finite()).count().max(1);
-            let ms = data
+            let (n, sum, peak) = data
                 .iter()
                 .filter(|v| v.is_finite())
-                .map(|&v| f64::from(v) * f64::from(v))
-                .sum::<f64>()
-                / n as f64;
-            let peak = data
-                .iter()
-                .filter(|v| v.is_finite())
-                .fold(0.0f32, |m, &v| m.max(v.abs()));
+                .fold((0usize, 0.0f64, 0.0f32), |(n, sum, peak), &v| {
+                    (n + 1, sum + f64::from(v) * f64::from(v), peak.max(v.abs()))
+                });
+            let ms = sum / n.max(1) as f64;
             Some(json!({
                 "seq": s.seq,
                 "rms": ms.sqrt(),
