@@ -228,6 +228,8 @@ put("studio_http", "mode-roi", req(5, "/api/mode", b'{"video":"v.y4m","freq_hz":
 put("studio_http", "wrong-method", req(4, "/api/motion"))
 put("studio_http", "listen", req(5, "/api/listen", b'{"video":"v.y4m"}', JSON))
 put("studio_http", "listen-roi", req(5, "/api/listen", b'{"video":"v.y4m","roi":[0,0,8,8],"fps":100}', JSON))
+put("studio_http", "damping", req(5, "/api/damping", b'{"video":"v.y4m","lo_hz":5,"hi_hz":20}', JSON))
+put("studio_http", "damping-roi", req(5, "/api/damping", b'{"video":"v.y4m","roi":[0,0,8,8],"lo_hz":1,"hi_hz":49.5,"fps":100}', JSON))
 put("studio_http", "live", req(4, "/api/live"))
 put("studio_http", "live-frame", req(4, "/api/live/frame"))
 put("studio_http", "live-ws", req(4, "/api/live/ws", b"", ((b"upgrade", b"websocket"), (b"connection", b"Upgrade"),

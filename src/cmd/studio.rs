@@ -14,8 +14,11 @@ use vibroscope_studio::{Studio, StudioOptions};
 /// (frequency, damping ± uncertainty, prominence); click the spectrum, or a
 /// listed peak to snap to it, to see the modal image at that frequency over
 /// the frame (hue = phase, brightness = amplitude, thesis ch. 3.5.5) and
-/// animate its mode shape. "Listen" plays the region's recovered sound in
-/// the browser. Each view exports PNG and CSV/JSON (and the sound as WAV).
+/// animate its mode shape. Drag over a spike in the spectrum instead to fit
+/// its damping: a Lorentzian over the range dragged, with SSI-cov's
+/// stabilisation diagram for it (thesis 5.4.2). "Listen" plays the region's
+/// recovered sound in the browser. Each view exports PNG and CSV/JSON (and
+/// the sound as WAV).
 ///
 /// With --pipeline (a shipped live pipeline such as live-spectrum, or a
 /// pipeline file with a sliding `spectrum` stage) the studio runs it and

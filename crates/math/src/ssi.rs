@@ -68,7 +68,7 @@ impl Default for SsiOptions {
 }
 
 /// One pole of one model order.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct Pole {
     pub order: usize,
     /// Undamped natural frequency |s| / 2π (Hz).

@@ -11,6 +11,7 @@ const S = {
   regions: [], sel: -1, motion: null, mode: null, grey: null,
   motionSeq: 0, modeSeq: 0, errorSeq: 0, lastError: null, busy: 0,
   sound: null, soundSeq: 0, soundBuffer: null, soundStarted: false, audioCtx: null,
+  damp: null, dampSeq: 0, specDrag: null,
 };
 window.studio = S;
 
@@ -68,6 +69,8 @@ async function openVideo() {
     }
     const o = $("overlay"); o.width = cw; o.height = ch; o.style.width = cw + "px"; o.style.height = ch + "px";
     $("modal").hidden = true; $("modepanel").hidden = true;
+    S.sound = null; $("soundgram").hidden = true; $("audio").removeAttribute("src"); $("listenstatus").textContent = "";
+    S.damp = null; $("damppanel").hidden = true;
     $("scrub").max = Math.max(0, (info.frames || 1) - 1); $("scrub").value = 0;
     status(`${info.format} ${w}x${h}, ${info.frames ?? "?"} frames at ${info.fps ?? "?"} Hz`);
     await loadFrame(0);
@@ -147,6 +150,7 @@ async function loadMotion() {
   try {
     const m = await (await api("/api/motion", null, body)).json();
     S.motion = m; S.motionSeq++;
+    S.damp = null; $("damppanel").hidden = true;
     clearError();
     $("plottitle").textContent = (roi ? `Region R${S.sel + 1} (${roi.join(",")})` : "Whole frame") +
       ` — ${m.peaks.length} peaks, resolution ${m.resolution_hz.toFixed(3)} Hz` + (m.cached ? " (cached)" : "");
@@ -208,6 +212,12 @@ function drawSpectrum() {
   g.fillStyle = "#ff5555";
   S.motion.peaks.forEach((pk, k) => { const x = S.freqToX(pk.frequency_hz); g.fillRect(x - 1, SPEC.T, 2, 6); g.fillText(String(k + 1), x + 2, SPEC.T + 12); });
   if (S.mode) { g.strokeStyle = "#ffcc33"; const x = S.freqToX(S.mode.freq_hz); g.beginPath(); g.moveTo(x, SPEC.T); g.lineTo(x, SPEC.T + H); g.stroke(); }
+  // The range being dragged, or the damping view's.
+  const range = S.specDrag ? [xToFreq(S.specDrag.a), xToFreq(S.specDrag.b)] : S.damp ? [S.damp.damping.lo_hz, S.damp.damping.hi_hz] : null;
+  if (range) {
+    const a = S.freqToX(Math.min(...range)), b = S.freqToX(Math.max(...range));
+    g.fillStyle = "rgba(255, 160, 60, 0.22)"; g.fillRect(a, SPEC.T, b - a, H);
+  }
 }
 
 function fillPeaks() {
@@ -290,6 +300,99 @@ function animate(ts) {
   requestAnimationFrame(animate);
 }
 
+// ---- the damping view (thesis 5.4.2): drag over a spike ----
+async function showDamping(lo, hi) {
+  const roi = S.motion ? S.motion.roi : null;
+  const body = { video: S.video, roi, lo_hz: lo, hi_hz: hi };
+  if (S.fps) body.fps = S.fps;
+  status(`fitting ${lo.toFixed(2)}–${hi.toFixed(2)} Hz…`);
+  try {
+    const r = await (await api("/api/damping", null, body)).json();
+    S.damp = r; S.dampSeq++;
+    clearError();
+    const d = r.damping, f = d.fit, fmt = (x, n) => x.toFixed(n);
+    $("damppanel").hidden = false;
+    $("damptitle").textContent = `Damping over ${fmt(d.lo_hz, 2)}–${fmt(d.hi_hz, 2)} Hz` +
+      (roi ? ` (region ${roi.join(",")})` : " (whole frame)");
+    $("damptext").textContent = f
+      ? `Lorentzian least squares over ${d.bins} bins (${d.taper} taper): f₀ = ${fmt(f.f0_hz, 3)} ± ${fmt(f.f0_std_hz, 3)} Hz, ` +
+        `damping ζ = ${f.resolved ? "" : "≤ "}${f.damping_ratio.toFixed(4)} ± ${f.damping_ratio_std.toFixed(4)}` +
+        ` (half width γ = ${f.gamma_hz.toFixed(3)} Hz${f.resolved ? "" : "; narrower than the bins resolve: an upper bound"})`
+      : d.fit_refusal;
+    const m = d.ssi;
+    $("stabtext").textContent = m
+      ? `SSI-cov (orders 2–${d.max_order}, ${d.block_rows} block rows): ζ = ${m.damping_ratio.toFixed(4)} ± ${m.damping_ratio_std.toFixed(4)} at ${fmt(m.frequency_hz, 3)} Hz, ${m.stable_orders} stable orders agree`
+      : `SSI-cov (orders 2–${d.max_order}, ${d.block_rows} block rows): no stable poles agree in this range` +
+        (d.poles.length ? "" : " (the recording is too short for these block rows, or the range holds no pole)");
+    drawDampFit(); drawStab(); drawSpectrum();
+    status(`damping over ${fmt(d.lo_hz, 2)}–${fmt(d.hi_hz, 2)} Hz`);
+  } catch (e) { status(""); showError(e.message); }
+}
+
+S.showDamping = showDamping;
+
+// Plot frame for a range [lo, hi] Hz: x maps frequency to canvas pixels.
+function rangeAxes(c, lo, hi, ylabel) {
+  const g = c.getContext("2d"), L = 50, B = 22;
+  axes(g, c, L, B, "frequency (Hz)", ylabel);
+  const W = c.width - L - 10, H = c.height - B - 8;
+  const X = (f) => L + (f - lo) / (hi - lo) * W;
+  g.fillStyle = "#aaa";
+  for (let k = 0; k < 4; k++) { const f = lo + (hi - lo) * k / 4; g.fillText(f.toFixed(2), X(f) - 14, c.height - 8); }
+  return { g, L, W, H, X };
+}
+
+function drawDampFit() {
+  const d = S.damp.damping, sp = S.motion.spectrum, f = d.fit;
+  const { g, H, X } = rangeAxes($("dampfit"), d.lo_hz, d.hi_hz, "power (dB)");
+  const pts = [];
+  sp.power_db.forEach((v, k) => { const fr = sp.f0_hz + k * sp.resolution_hz; if (fr >= d.lo_hz && fr <= d.hi_hz) pts.push([fr, v]); });
+  let lo = Infinity, hi = -Infinity;
+  for (const [, v] of pts) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  if (f) for (const v of f.curve_db) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  if (!(hi > lo)) hi = lo + 1;
+  const pad = 0.05 * (hi - lo); lo -= pad; hi += pad;
+  const Y = (v) => 8 + (hi - v) / (hi - lo) * H;
+  g.strokeStyle = "#66dd88"; g.fillStyle = "#66dd88"; g.beginPath();
+  pts.forEach(([fr, v], k) => { k ? g.lineTo(X(fr), Y(v)) : g.moveTo(X(fr), Y(v)); });
+  g.stroke();
+  for (const [fr, v] of pts) g.fillRect(X(fr) - 1.5, Y(v) - 1.5, 3, 3);
+  if (f) {
+    g.strokeStyle = "#ff9933"; g.lineWidth = 2; g.beginPath();
+    f.curve_hz.forEach((fr, k) => { const y = Y(f.curve_db[k]); k ? g.lineTo(X(fr), y) : g.moveTo(X(fr), y); });
+    g.stroke(); g.lineWidth = 1;
+    g.strokeStyle = "#ffcc33"; g.setLineDash([4, 3]); g.beginPath(); g.moveTo(X(f.f0_hz), 8); g.lineTo(X(f.f0_hz), 8 + H); g.stroke(); g.setLineDash([]);
+    g.fillStyle = "#ff9933"; g.fillText(`Lorentzian fit: ζ = ${f.damping_ratio.toFixed(4)} ± ${f.damping_ratio_std.toFixed(4)}`, 60, 22);
+  }
+  g.fillStyle = "#66dd88"; g.fillText("spectrum", 60, 36);
+  g.fillStyle = "#aaa"; g.fillText(hi.toFixed(0), 4, 18); g.fillText(lo.toFixed(0), 4, 8 + H);
+}
+
+function drawStab() {
+  const d = S.damp.damping, sp = S.motion.spectrum;
+  const { g, H, X } = rangeAxes($("stab"), d.lo_hz, d.hi_hz, "model order");
+  const top = d.max_order + 2, Y = (n) => 8 + (1 - n / top) * H;
+  // The spectrum, faint, behind the poles.
+  const pts = [];
+  sp.power_db.forEach((v, k) => { const fr = sp.f0_hz + k * sp.resolution_hz; if (fr >= d.lo_hz && fr <= d.hi_hz) pts.push([fr, v]); });
+  if (pts.length) {
+    let lo = Infinity, hi = -Infinity;
+    for (const [, v] of pts) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+    g.strokeStyle = "rgba(102, 221, 136, 0.35)"; g.beginPath();
+    pts.forEach(([fr, v], k) => { const y = 8 + (hi - v) / (hi - lo || 1) * H; k ? g.lineTo(X(fr), y) : g.moveTo(X(fr), y); });
+    g.stroke();
+  }
+  for (const p of d.poles) {
+    const x = X(p.frequency_hz), y = Y(p.order);
+    if (p.stable) { g.fillStyle = "#33cc66"; g.beginPath(); g.arc(x, y, 3.5, 0, 2 * Math.PI); g.fill(); }
+    else { g.strokeStyle = "#888"; g.beginPath(); g.moveTo(x - 3, y - 3); g.lineTo(x + 3, y + 3); g.moveTo(x + 3, y - 3); g.lineTo(x - 3, y + 3); g.stroke(); }
+  }
+  if (d.ssi) { g.strokeStyle = "#ffcc33"; g.setLineDash([4, 3]); g.beginPath(); g.moveTo(X(d.ssi.frequency_hz), 8); g.lineTo(X(d.ssi.frequency_hz), 8 + H); g.stroke(); g.setLineDash([]); }
+  g.fillStyle = "#aaa";
+  for (let n = 10; n <= d.max_order; n += 10) g.fillText(String(n), 30, Y(n) + 4);
+  g.fillStyle = "#33cc66"; g.fillText("● stable", 60, 22); g.fillStyle = "#888"; g.fillText("× not stable", 120, 22);
+}
+
 // ---- listening (the listen recipe on the region, played through Web Audio) ----
 async function listenRegion() {
   if (!S.video) return showError("open a video first");
@@ -349,6 +452,14 @@ function setupExport() {
   $("export-wav").onclick = () => {
     if (!S.sound) return showError("press Listen first");
     download(base() + (S.sound.roi ? `-R${S.sound.roi.join("_")}` : "") + ".wav", S.sound.wav);
+  };
+  $("export-damp-png").onclick = () => { if (S.damp) download(base() + "-damping.png", $("dampfit").toDataURL("image/png")); };
+  $("export-stab-png").onclick = () => { if (S.damp) download(base() + "-stabilisation.png", $("stab").toDataURL("image/png")); };
+  $("export-damp-json").onclick = () => { if (S.damp) downloadText(base() + "-damping.json", JSON.stringify(S.damp), "application/json"); };
+  $("export-damp-csv").onclick = () => {
+    const f = S.damp && S.damp.damping.fit;
+    if (!f) return showError("no fit to export");
+    downloadText(base() + "-damping-fit.csv", "frequency_hz,model_power_db\n" + f.curve_hz.map((x, k) => `${x},${f.curve_db[k]}`).join("\n") + "\n", "text/csv");
   };
   $("export-mode-png").onclick = () => { if (S.mode) download(base() + `-mode-${S.mode.freq_hz.toFixed(2)}Hz.png`, S.mode.png); };
   $("export-mode-json").onclick = () => {
@@ -517,11 +628,23 @@ async function main() {
   $("listen").onclick = listenRegion;
   $("video").addEventListener("keydown", (e) => { if (e.key === "Enter") openVideo(); });
   $("scrub").addEventListener("input", () => loadFrame(+$("scrub").value).catch((e) => showError(e.message)));
-  $("spectrum").addEventListener("click", (ev) => {
-    if (!S.motion) return;
-    const b = $("spectrum").getBoundingClientRect(), x = (ev.clientX - b.left) * $("spectrum").width / b.width;
-    const f = xToFreq(x);
-    if (f > 0 && f <= nyquist()) showMode(f);
+  // A click shows the modal image there; a drag fits the damping over it.
+  const specX = (ev) => { const b = $("spectrum").getBoundingClientRect(); return (ev.clientX - b.left) * $("spectrum").width / b.width; };
+  $("spectrum").addEventListener("mousedown", (ev) => { if (S.motion) S.specDrag = { a: specX(ev), b: specX(ev) }; });
+  $("spectrum").addEventListener("mousemove", (ev) => { if (S.specDrag) { S.specDrag.b = specX(ev); drawSpectrum(); } });
+  window.addEventListener("mouseup", (ev) => {
+    const d = S.specDrag; if (!d) return;
+    S.specDrag = null;
+    d.b = specX(ev);
+    const ny = nyquist(), clamp = (f) => Math.max(0, Math.min(ny, f));
+    if (Math.abs(d.b - d.a) < 4) {
+      const f = xToFreq(d.a);
+      drawSpectrum();
+      if (f > 0 && f <= ny) showMode(f);
+    } else {
+      const lo = clamp(xToFreq(Math.min(d.a, d.b))), hi = clamp(xToFreq(Math.max(d.a, d.b)));
+      showDamping(lo, hi);
+    }
   });
   $("opacity").addEventListener("input", () => { $("modal").style.opacity = $("opacity").value; });
   const gl = () => { $("gainlabel").textContent = "x" + $("gain").value; };

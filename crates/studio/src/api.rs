@@ -9,6 +9,7 @@
 //! | `POST /api/motion {video, roi?, fps?}` | the region's waveform (px), spectrum (dB) and peaks |
 //! | `POST /api/mode {video, freq_hz, roi?, fps?}` | the modal image: PNG (hue = phase, brightness = amplitude) and the amplitude/phase numbers |
 //! | `POST /api/listen {video, roi?, fps?}` | the region's recovered sound (the `listen` recipe, 16-bit WAV at 8 kHz) and its spectrogram |
+//! | `POST /api/damping {video, lo_hz, hi_hz, roi?, fps?}` | the damping view over a range of the region's spectrum: the Lorentzian fitted there (damping, uncertainty, the model's curve) and SSI-cov's stabilisation diagram (poles over model orders, stable ones marked) |
 //! | `GET /api/live` | the live pipeline's latest update (spectrum in dB, peaks, level, frame number, stage counters) |
 //! | `GET /api/live/frame` | its latest frame as an 8-bit grey PNG |
 //! | `GET /api/live/ws` | a WebSocket carrying each new update as it comes (at most 50 a second; stale ones are replaced, never queued) |
@@ -175,6 +176,7 @@ pub fn router(app: Arc<App>, max_body: usize) -> Router {
         .route("/api/motion", post(motion))
         .route("/api/mode", post(mode))
         .route("/api/listen", post(listen))
+        .route("/api/damping", post(damping))
         .route("/api/live", get(live_update))
         .route("/api/live/frame", get(live_frame))
         .route("/api/live/ws", get(live_ws))
@@ -583,9 +585,16 @@ fn remember(app: &App, key: String, v: Value) -> Arc<Value> {
     v
 }
 
+/// A cached answer's field that stays on the server: the motion signal
+/// the region's spectrum was computed from (the damping view's SSI).
+const PRIVATE_MOTION: &str = "_motion";
+
 /// Answers from the cache, marking them so (`"cached": true`).
 fn answer(v: &Value, cached: bool, ms: f64) -> axum::Json<Value> {
     let mut v = v.clone();
+    if let Some(o) = v.as_object_mut() {
+        o.remove(PRIVATE_MOTION);
+    }
     v["cached"] = json!(cached);
     v["elapsed_ms"] = json!(ms);
     axum::Json(v)
@@ -621,7 +630,7 @@ async fn region_answer(
     let r: MotionRequest = body(b)?;
     let path = guard::resolve(&app.root, &r.video)?;
     let fps = fps_of(&app, r.fps)?;
-    let key = format!("{what}|{}|{:?}|{fps:?}", file_key(&path), r.roi);
+    let key = region_key(what, &path, r.roi, fps);
     if let Some(v) = cached(&app, &key) {
         return Ok(answer(&v, true, t0.elapsed().as_secs_f64() * 1e3));
     }
@@ -630,6 +639,74 @@ async fn region_answer(
         let (p, roi) = check_roi(&path, fps, r.roi)?;
         let v = compute(&path, fps, r.roi.map(|_| roi), roi, &p)?;
         Ok(remember(&app2, key, v))
+    })
+    .await?;
+    Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
+}
+
+/// The cache key of a region's answer (`what`: its recipe's tag).
+fn region_key(what: &str, path: &Path, roi: Option<[u32; 4]>, fps: Option<f64>) -> String {
+    format!("{what}|{}|{roi:?}|{fps:?}", file_key(path))
+}
+
+/// The damping request's fields that name its range, in its errors.
+const RANGE_FIELDS: &str = "lo_hz/hi_hz";
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DampingRequest {
+    video: String,
+    roi: Option<[u32; 4]>,
+    fps: Option<f64>,
+    lo_hz: f64,
+    hi_hz: f64,
+}
+
+/// The damping view (thesis 5.4.2) over a dragged range of a region's
+/// spectrum: the region's answer (cached, or computed and kept), then the
+/// Lorentzian over the range and SSI's poles for it
+/// ([`vibroscope::damping::damping_over`]).
+async fn damping(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
+    let t0 = Instant::now();
+    let r: DampingRequest = body(&b)?;
+    let path = guard::resolve(&app.root, &r.video)?;
+    let fps = fps_of(&app, r.fps)?;
+    let key = region_key("motion", &path, r.roi, fps);
+    let v = blocking(move || {
+        let m = match cached(&app, &key) {
+            Some(m) => m,
+            None => {
+                let (p, roi) = check_roi(&path, fps, r.roi)?;
+                // A range the recording cannot have is refused before the work.
+                if let Some(rate) = p.fps {
+                    vibroscope::damping::check_range((r.lo_hz, r.hi_hz), rate, RANGE_FIELDS)?;
+                }
+                let m = region_motion(&path, fps, r.roi.map(|_| roi), roi)?;
+                remember(&app, key, m)
+            }
+        };
+        let internal = |what: &str| {
+            ApiError::new(
+                StatusCode::INTERNAL_SERVER_ERROR,
+                format!("the region's {what} is missing"),
+            )
+        };
+        let sp: vibroscope::peaks::SpectrumDb =
+            serde_json::from_value(m["spectrum"].clone()).map_err(|_| internal("spectrum"))?;
+        let motion: Vec<f64> =
+            serde_json::from_value(m[PRIVATE_MOTION].clone()).map_err(|_| internal("motion"))?;
+        let fs = m["sample_rate_hz"]
+            .as_f64()
+            .ok_or_else(|| internal("sample rate"))?;
+        let d = vibroscope::damping::damping_over(
+            &sp,
+            fs,
+            m["taper"].as_str(),
+            &motion,
+            (r.lo_hz, r.hi_hz),
+            RANGE_FIELDS,
+        )?;
+        Ok(json!({ "roi": r.roi, "sample_rate_hz": fs, "damping": d }))
     })
     .await?;
     Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
@@ -656,8 +733,17 @@ fn region_motion(
     o.peaks = 8;
     o.include_spectrum = true;
     o.region = region_of(roi);
+    // The motion the spectrum came from, kept for the damping view's SSI.
+    let wav = vibroscope::io::atomic::TempPath::new("studio-motion.wav");
+    o.motion_wav = Some(wav.path().to_path_buf());
     let tap = DisplacementTap::new(vec![disp_roi]);
     let (report, _run) = vibroscope::spectrum::run_spectrum_with(&o, true, Some(&tap))?;
+    let (_, signal) = vibroscope::io::wav::read_mono(wav.path()).map_err(|e| {
+        ApiError::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            format!("the region's motion WAV: {e}"),
+        )
+    })?;
     let regions = tap.read()?;
     let m = regions.into_iter().next().unwrap_or_default();
     let freqs: Vec<f64> = report.peaks.iter().map(|p| p.frequency_hz).collect();
@@ -686,14 +772,18 @@ fn region_motion(
             })
         })
         .collect();
-    Ok(json!({
+    let mut v = json!({
         "roi": roi,
         "sample_rate_hz": report.sample_rate_hz,
         "resolution_hz": report.resolution_hz,
         "spectrum": report.spectrum,
+        "taper": report.taper,
         "peaks": peaks,
         "waveform": { "rate_hz": m.rate_hz, "t_s": m.t_s, "x_px": m.x, "y_px": m.y },
-    }))
+    });
+    // Kept on the server, not sent (see `answer`).
+    v[PRIVATE_MOTION] = json!(signal);
+    Ok(v)
 }
 
 async fn mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {

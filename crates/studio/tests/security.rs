@@ -207,6 +207,37 @@ fn paths_bodies_and_malformed_requests_get_the_right_status() {
         ("/api/listen", "{\"video\":\"../outside/secret.y4m\"}", 403),
         ("/api/listen", "{\"video\":\"sub/clip.y4m\",\"x\":1}", 400),
         ("/api/listen", "{\"video\":\"nothing.y4m\"}", 404),
+        ("/api/damping", "{\"video\":\"sub/clip.y4m\"}", 400),
+        (
+            "/api/damping",
+            "{\"video\":\"sub/clip.y4m\",\"lo_hz\":10,\"hi_hz\":60}",
+            422,
+        ),
+        (
+            "/api/damping",
+            "{\"video\":\"sub/clip.y4m\",\"lo_hz\":20,\"hi_hz\":10}",
+            422,
+        ),
+        (
+            "/api/damping",
+            "{\"video\":\"sub/clip.y4m\",\"lo_hz\":-1,\"hi_hz\":10}",
+            422,
+        ),
+        (
+            "/api/damping",
+            "{\"video\":\"sub/clip.y4m\",\"lo_hz\":1,\"hi_hz\":10,\"roi\":[0,0,99,99]}",
+            422,
+        ),
+        (
+            "/api/damping",
+            "{\"video\":\"../outside/secret.y4m\",\"lo_hz\":1,\"hi_hz\":10}",
+            403,
+        ),
+        (
+            "/api/damping",
+            "{\"video\":\"sub/clip.y4m\",\"lo_hz\":1,\"hi_hz\":10,\"q\":1}",
+            400,
+        ),
     ] {
         let (st, b) = post(a, target, body);
         assert_eq!(st, want, "{target} {body}: {b}");

@@ -88,3 +88,154 @@ pub fn add_ssi(report: &mut SpectrumReport, y: &[f64], opts: &SsiOptions) {
         }
     }
 }
+
+/// The thesis's damping interface (5.4.2) for one range of a spectrum a
+/// person chose (the studio's drag over a spike): a Lorentzian fitted over
+/// exactly that range, and SSI-cov's stabilisation diagram for the same
+/// range from the motion the spectrum was computed from.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RangeDamping {
+    pub lo_hz: f64,
+    pub hi_hz: f64,
+    /// The spectrum's bins in the range.
+    pub bins: usize,
+    pub taper: String,
+    /// The fit, or why there is none (`fit_refusal`).
+    pub fit: Option<RangeFit>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit_refusal: Option<String>,
+    /// Every pole of every order whose frequency is in the range.
+    pub poles: Vec<crate::math::ssi::Pole>,
+    pub max_order: usize,
+    pub block_rows: usize,
+    /// The mode the stable poles agree on in the range (with its
+    /// uncertainty over orders and segments), if any.
+    pub ssi: Option<crate::math::ssi::SsiMode>,
+}
+
+/// A Lorentzian over a chosen range ([`crate::math::peaks::fit_range`]).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct RangeFit {
+    pub f0_hz: f64,
+    pub f0_std_hz: f64,
+    /// Half width at half maximum.
+    pub gamma_hz: f64,
+    /// ξ = γ / f0, and its standard deviation.
+    pub damping_ratio: f64,
+    pub damping_ratio_std: f64,
+    /// The half width is at least [`crate::math::peaks::MIN_RESOLVED_BINS`]
+    /// bins: below that the damping is only an upper bound.
+    pub resolved: bool,
+    /// Residual scatter of ln P (relative power scatter).
+    pub scatter: f64,
+    /// The model (through the taper's line shape) at the range's bins, in
+    /// dB like the spectrum.
+    pub curve_hz: Vec<f64>,
+    pub curve_db: Vec<f64>,
+}
+
+/// Refuses a range that is not `0 <= lo < hi <= fs / 2`, naming `option`.
+pub fn check_range((lo_hz, hi_hz): (f64, f64), fs: f64, option: &str) -> Result<()> {
+    let bad = |m: String| crate::Error::usage(option, m);
+    if !(lo_hz.is_finite() && hi_hz.is_finite() && lo_hz >= 0.0 && lo_hz < hi_hz) {
+        return Err(bad(format!(
+            "the range {lo_hz}..{hi_hz} Hz: give a lower and a higher frequency, from 0 Hz"
+        )));
+    }
+    let nyquist = fs / 2.0;
+    if hi_hz > nyquist * (1.0 + 1e-9) {
+        return Err(bad(format!(
+            "the range {lo_hz}..{hi_hz} Hz reaches above the Nyquist frequency {nyquist} Hz (frame rate {fs} Hz)"
+        )));
+    }
+    Ok(())
+}
+
+/// [`RangeDamping`] over `[lo_hz, hi_hz]` of the spectrum `sp` (of a
+/// signal sampled at `fs`, its segments tapered with `taper`; `hann` when
+/// not said), with `motion` that signal. A range outside 0..Nyquist,
+/// reversed, or narrower than 6 bins is a usage error naming `option`.
+pub fn damping_over(
+    sp: &crate::peaks::SpectrumDb,
+    fs: f64,
+    taper: Option<&str>,
+    motion: &[f64],
+    (lo_hz, hi_hz): (f64, f64),
+    option: &str,
+) -> Result<RangeDamping> {
+    use crate::math::peaks::{fit_range, MIN_RESOLVED_BINS};
+    let bad = |m: String| crate::Error::usage(option, m);
+    check_range((lo_hz, hi_hz), fs, option)?;
+    let df = sp.resolution_hz;
+    let bins = ((hi_hz - lo_hz) / df).floor() as usize + 1;
+    if bins < 6 {
+        return Err(bad(format!(
+            "the range {lo_hz:.3}..{hi_hz:.3} Hz holds {bins} bins of {df:.4} Hz: drag over at least 6"
+        )));
+    }
+    let taper_name = taper.unwrap_or("hann").to_string();
+    let taper: crate::engine::item::Taper =
+        serde_json::from_value(serde_json::Value::String(taper_name.clone()))
+            .map_err(|_| bad(format!("the spectrum's taper `{taper_name}` is not known")))?;
+    let window = (fs / df).round().max(2.0) as usize;
+    let kernel = taper.power_kernel(window, 4);
+    let power: Vec<f64> = sp.power_db.iter().map(|d| 10f64.powf(d / 10.0)).collect();
+    let f = fit_range(&power, sp.f0_hz, df, &kernel, lo_hz, hi_hz);
+    let fit_refusal = f.is_none().then(|| {
+        format!("no Lorentzian settles on a peak inside {lo_hz:.3}..{hi_hz:.3} Hz: drag over one spike, with some floor either side")
+    });
+    let fit = f.map(|f| {
+        let xi = f.gamma / f.f0;
+        let first = ((f.lo_hz - sp.f0_hz) / df).round() as usize;
+        let last = ((f.hi_hz - sp.f0_hz) / df).round() as usize;
+        // Four points a bin, so the curve is smooth between the bins.
+        let curve_hz: Vec<f64> = (first * 4..=last * 4)
+            .map(|q| sp.f0_hz + q as f64 * df / 4.0)
+            .collect();
+        let curve_db = curve_hz
+            .iter()
+            .map(|&x| 10.0 * f.power_at(&kernel, df, x).max(f64::MIN_POSITIVE).log10())
+            .collect();
+        RangeFit {
+            f0_hz: f.f0,
+            f0_std_hz: f.f0_std,
+            gamma_hz: f.gamma,
+            damping_ratio: xi,
+            damping_ratio_std: xi * f.ln_gamma_std,
+            resolved: f.gamma >= MIN_RESOLVED_BINS * df,
+            scatter: f.s,
+            curve_hz,
+            curve_db,
+        }
+    });
+    // SSI over the same motion: the diagram's poles in the range, and the
+    // mode the stable ones agree on near its middle.
+    let opts = SsiOptions::default();
+    let centre = fit.as_ref().map_or(0.5 * (lo_hz + hi_hz), |f| f.f0_hz);
+    let i = crate::math::ssi::block_rows_for(fs, centre.max(df), &opts);
+    let (poles, ssi) = if motion.len() >= 8 * i {
+        let r = crate::math::ssi::autocorrelation(motion, 2 * i);
+        let poles: Vec<_> = crate::math::ssi::stabilisation(&r, fs, i, &opts)
+            .into_iter()
+            .filter(|p| (lo_hz..=hi_hz).contains(&p.frequency_hz))
+            .collect();
+        let tol = (centre - lo_hz).max(hi_hz - centre);
+        let mode = identify(motion, fs, centre, tol, &opts)
+            .filter(|m| (lo_hz..=hi_hz).contains(&m.frequency_hz));
+        (poles, mode)
+    } else {
+        (Vec::new(), None)
+    };
+    Ok(RangeDamping {
+        lo_hz,
+        hi_hz,
+        bins,
+        taper: taper_name,
+        fit,
+        fit_refusal,
+        poles,
+        max_order: opts.max_order,
+        block_rows: i,
+        ssi,
+    })
+}

@@ -92,6 +92,10 @@ pub struct SpectrumReport {
     pub resolution_hz: f64,
     pub sample_rate_hz: f64,
     pub spectra_averaged: usize,
+    /// The taper of the spectrum's segments (`hann`, ...): it sets how one
+    /// line looks, so a fit over the spectrum needs it.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub taper: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub spectrum: Option<SpectrumDb>,
     /// The unit and method of the peaks' `amplitude` (`spectrum` only).
