@@ -232,6 +232,7 @@ put("studio_http", "damping", req(5, "/api/damping", b'{"video":"v.y4m","lo_hz":
 put("studio_http", "damping-roi", req(5, "/api/damping", b'{"video":"v.y4m","roi":[0,0,8,8],"lo_hz":1,"hi_hz":49.5,"fps":100}', JSON))
 put("studio_http", "live", req(4, "/api/live"))
 put("studio_http", "live-frame", req(4, "/api/live/frame"))
+put("studio_http", "live-mode", req(5, "/api/live/mode", b'{"freq_hz":10}', JSON))
 put("studio_http", "live-ws", req(4, "/api/live/ws", b"", ((b"upgrade", b"websocket"), (b"connection", b"Upgrade"),
                                                           (b"sec-websocket-version", b"13"),
                                                           (b"sec-websocket-key", b"dGhlIHNhbXBsZSBub25jZQ=="))))

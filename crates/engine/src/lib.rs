@@ -28,7 +28,9 @@ pub use item::{
     AudioBlock, Item, PortType, PyramidData, PyramidFrame, SampleBlock, Spectrum, Taper,
 };
 pub use latency::{LatencyHist, LatencySummary};
-pub use observe::{Latest, Observer, Snapshot, StageLive, TapFrame, TapSlot};
+pub use observe::{
+    FrameHistory, HistoryLimits, Latest, Observer, Snapshot, StageLive, TapFrame, TapSlot,
+};
 pub use runner::{
     error_chain, run, thousands, RunError, RunOptions, RunReport, SourceProgress, StageReport,
 };

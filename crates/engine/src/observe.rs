@@ -13,7 +13,7 @@
 use crate::frame::PixelsRef;
 use crate::item::{AudioBlock, Item, SampleBlock, Spectrum};
 use crate::stage::Control;
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, TryLockError};
 use std::time::Instant;
@@ -146,13 +146,67 @@ struct Held {
     arrived: Option<Instant>,
 }
 
-/// The latest item of one `tap` stage.
+/// The latest item of one `tap` stage (and, for a tap with `history_s`,
+/// its last frames).
 #[derive(Default)]
 pub struct TapSlot {
     held: Mutex<Held>,
     /// Items the tap saw but did not keep: a reader held the slot, or the
     /// item came sooner than the tap's interval after the last one kept.
     skipped: AtomicU64,
+    history: Mutex<History>,
+}
+
+/// The last frames of a stream, oldest first, contiguous (after a gap the
+/// history starts over).
+#[derive(Default)]
+struct History {
+    frames: VecDeque<TapFrame>,
+    bytes: usize,
+    /// Times the history started over after frames were lost.
+    restarts: u64,
+}
+
+/// What a history keeps: this much capture time, in this much memory.
+#[derive(Clone, Copy, Debug)]
+pub struct HistoryLimits {
+    pub span_ns: i64,
+    pub max_bytes: usize,
+}
+
+/// The tap's side of a history: frames that came while a reader held it
+/// (handed over at the next frame), and buffers to reuse.
+#[derive(Default)]
+pub(crate) struct Pending {
+    frames: VecDeque<TapFrame>,
+    bytes: usize,
+    free: Vec<TapFrame>,
+    /// Frames were lost (more came than `Pending` holds while a reader
+    /// held the history): it starts over.
+    gap: bool,
+}
+
+/// A reader's copy of a history.
+#[derive(Clone, Debug, Default)]
+pub struct FrameHistory {
+    /// Oldest first, consecutive frames of the stream.
+    pub frames: Vec<TapFrame>,
+    /// Times the history started over because frames were lost.
+    pub restarts: u64,
+}
+
+/// Copies `f` into `tf` as 8-bit grey, reusing its buffer.
+fn copy_frame(f: &crate::frame::Frame, tf: &mut TapFrame) {
+    tf.t_ns = f.meta().t_ns;
+    tf.seq = f.meta().seq;
+    tf.width = f.width() as u32;
+    tf.height = f.height() as u32;
+    let n = f.width() * f.height();
+    tf.gray.resize(n, 0);
+    match f.pixels() {
+        PixelsRef::U8(p) => tf.gray.copy_from_slice(&p[..n]),
+        PixelsRef::U16(p) => vibroscope_io::image::gray8_from_u16(p, f.format().bits, &mut tf.gray),
+    }
 }
 
 /// A reader's copy of a slot.
@@ -212,18 +266,7 @@ impl TapSlot {
                     Some(Latest::Frame(tf)) => tf,
                     _ => TapFrame::default(),
                 };
-                tf.t_ns = f.meta().t_ns;
-                tf.seq = f.meta().seq;
-                tf.width = f.width() as u32;
-                tf.height = f.height() as u32;
-                let n = f.width() * f.height();
-                tf.gray.resize(n, 0);
-                match f.pixels() {
-                    PixelsRef::U8(p) => tf.gray.copy_from_slice(&p[..n]),
-                    PixelsRef::U16(p) => {
-                        vibroscope_io::image::gray8_from_u16(p, f.format().bits, &mut tf.gray)
-                    }
-                }
+                copy_frame(f, &mut tf);
                 Latest::Frame(tf)
             }
             Item::Pyramid(_) => {
@@ -235,6 +278,99 @@ impl TapSlot {
         h.seq += 1;
         h.arrived = Some(Instant::now());
         true
+    }
+}
+
+impl TapSlot {
+    /// A copy of the frames kept by a tap with `history_s` (empty for
+    /// others). The tap does not wait while this copies: what arrives
+    /// meanwhile is handed over at its next frame.
+    pub fn history(&self) -> FrameHistory {
+        let h = self.history.lock().unwrap_or_else(|e| e.into_inner());
+        FrameHistory {
+            frames: h.frames.iter().cloned().collect(),
+            restarts: h.restarts,
+        }
+    }
+
+    /// Times the history started over because frames were lost.
+    pub fn history_restarts(&self) -> u64 {
+        self.history
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .restarts
+    }
+
+    /// Adds `f` to the history, trimmed to `lim`. Never waits: while a
+    /// reader holds the history, frames wait in `pending` (up to an eighth
+    /// of the history's memory; past that the history starts over).
+    pub(crate) fn record(
+        &self,
+        f: &crate::frame::Frame,
+        lim: HistoryLimits,
+        pending: &mut Pending,
+    ) {
+        let mut h = match self.history.try_lock() {
+            Ok(h) => h,
+            Err(TryLockError::Poisoned(p)) => p.into_inner(),
+            Err(TryLockError::WouldBlock) => {
+                let size = f.width() * f.height();
+                if pending.bytes + size > lim.max_bytes / 8 {
+                    pending.gap = true;
+                    pending.bytes = 0;
+                    let lost = std::mem::take(&mut pending.frames);
+                    pending.free.extend(lost);
+                    return;
+                }
+                let mut tf = pending.free.pop().unwrap_or_default();
+                copy_frame(f, &mut tf);
+                pending.bytes += tf.gray.len();
+                pending.frames.push_back(tf);
+                return;
+            }
+        };
+        if std::mem::take(&mut pending.gap) {
+            h.restarts += 1;
+            pending.free.extend(h.frames.drain(..));
+            h.bytes = 0;
+        }
+        pending.bytes = 0;
+        while let Some(tf) = pending.frames.pop_front() {
+            h.push(tf, lim, &mut pending.free);
+        }
+        let mut tf = pending.free.pop().unwrap_or_default();
+        copy_frame(f, &mut tf);
+        h.push(tf, lim, &mut pending.free);
+    }
+}
+
+impl History {
+    /// Appends `tf`; drops (into `free`) the frames older than the span or
+    /// over the memory, and everything before a change of frame size.
+    fn push(&mut self, tf: TapFrame, lim: HistoryLimits, free: &mut Vec<TapFrame>) {
+        if self
+            .frames
+            .back()
+            .is_some_and(|b| (b.width, b.height) != (tf.width, tf.height) || tf.t_ns < b.t_ns)
+        {
+            free.extend(self.frames.drain(..));
+            self.bytes = 0;
+        }
+        self.bytes += tf.gray.len();
+        let newest = tf.t_ns;
+        self.frames.push_back(tf);
+        while self.frames.len() > 1
+            && (self.bytes > lim.max_bytes
+                || self
+                    .frames
+                    .front()
+                    .is_some_and(|f| newest - f.t_ns > lim.span_ns))
+        {
+            if let Some(old) = self.frames.pop_front() {
+                self.bytes -= old.gray.len();
+                free.push(old);
+            }
+        }
     }
 }
 
@@ -254,6 +390,87 @@ mod tests {
             segments: 1,
             power: vec![1.0f32; 51].into(),
         })
+    }
+
+    /// Frame `seq` at `seq` ms, 4x2, its pixels all `seq`.
+    fn frame(pool: &crate::frame::FramePool, seq: u64) -> crate::frame::Frame {
+        let mut f = pool.try_acquire().expect("a frame");
+        f.meta_mut().seq = seq;
+        f.meta_mut().t_ns = seq as i64 * 1_000_000;
+        if let crate::frame::PixelsMut::U8(p) = f.pixels_mut() {
+            p.fill(seq as u8);
+        }
+        f.freeze()
+    }
+
+    /// A history keeps the last span of frames, consecutive: frames that
+    /// come while a reader holds it are handed over at the next frame; when
+    /// more come than the tap can hold meanwhile, it starts over.
+    #[test]
+    fn a_history_keeps_the_last_frames_and_never_waits() {
+        use crate::frame::{Depth, FrameFormat, FramePool};
+        let pool = FramePool::new(
+            FrameFormat {
+                width: 4,
+                height: 2,
+                depth: Depth::U8,
+                bits: 8,
+                fps: 1000.0,
+                row_timing: None,
+            },
+            2,
+        );
+        let s = Observer::new().slot("history");
+        // 10 ms of frames, in memory for 64 of them (8 while a reader holds it).
+        let lim = HistoryLimits {
+            span_ns: 10_000_000,
+            max_bytes: 64 * 8,
+        };
+        let mut pending = Pending::default();
+        for k in 0..30 {
+            s.record(&frame(&pool, k), lim, &mut pending);
+        }
+        let seqs = |s: &TapSlot| -> Vec<u64> { s.history().frames.iter().map(|f| f.seq).collect() };
+        assert_eq!(seqs(&s), (19..30).collect::<Vec<_>>());
+        assert!(s
+            .history()
+            .frames
+            .iter()
+            .all(|f| f.gray == vec![f.seq as u8; 8]));
+        // A reader holds it for 5 frames: they wait, then join in order.
+        let guard = s.history.lock().unwrap();
+        for k in 30..35 {
+            s.record(&frame(&pool, k), lim, &mut pending);
+        }
+        drop(guard);
+        assert_eq!(seqs(&s), (19..30).collect::<Vec<_>>());
+        s.record(&frame(&pool, 35), lim, &mut pending);
+        assert_eq!(seqs(&s), (25..36).collect::<Vec<_>>());
+        assert_eq!(s.history().restarts, 0);
+        // Held for 20 frames: more than the tap holds meanwhile; the
+        // history starts over with what came after the loss.
+        let guard = s.history.lock().unwrap();
+        for k in 36..56 {
+            s.record(&frame(&pool, k), lim, &mut pending);
+        }
+        drop(guard);
+        s.record(&frame(&pool, 56), lim, &mut pending);
+        let after = seqs(&s);
+        assert_eq!(s.history().restarts, 1);
+        assert!(after.windows(2).all(|w| w[1] == w[0] + 1), "{after:?}");
+        assert_eq!(after.last(), Some(&56));
+        assert!(after[0] > 36, "{after:?}");
+        // Memory bounds it too: 4 frames' worth.
+        let small = HistoryLimits {
+            span_ns: i64::MAX,
+            max_bytes: 4 * 8,
+        };
+        let s2 = Observer::new().slot("h2");
+        let mut p2 = Pending::default();
+        for k in 0..10 {
+            s2.record(&frame(&pool, k), small, &mut p2);
+        }
+        assert_eq!(seqs(&s2), vec![6, 7, 8, 9]);
     }
 
     #[test]

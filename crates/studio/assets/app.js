@@ -476,6 +476,7 @@ function setupExport() {
 const LIVE = {
   updates: 0, spectra: 0, specSeq: 0, firstMs: null, lastMs: null,
   closed: 0, last: null, frameSeq: 0, frameBusy: false, framesShown: 0, hiDb: null,
+  ny: null, mode: null, modeSeq: 0,
 };
 S.live = LIVE;
 
@@ -547,6 +548,7 @@ function drawLiveSpectrum(sp) {
   LIVE.hiDb = LIVE.hiDb === null ? hi : Math.max(hi, LIVE.hiDb - 0.5); // slow fall, fast rise
   const top = LIVE.hiDb + 3, lo = top - 70;
   const ny = sp.rate_hz / 2;
+  LIVE.ny = ny;
   const X = (f) => LSPEC.L + f / ny * W, Y = (v) => LSPEC.T + (top - Math.max(v, lo)) / (top - lo) * H;
   g.strokeStyle = "#66dd88"; g.beginPath();
   p.forEach((v, k) => { const x = X(sp.f0_hz + k * sp.bin_hz), y = Y(v); k ? g.lineTo(x, y) : g.moveTo(x, y); });
@@ -556,7 +558,29 @@ function drawLiveSpectrum(sp) {
   for (let k = 0; k <= 5; k++) { const f = ny * k / 5; g.fillText(f.toFixed(0), X(f) - 8, c.height - 8); }
   g.fillStyle = "#ff5555";
   sp.peaks.forEach((pk, k) => { const x = X(pk.frequency_hz); g.fillRect(x - 1, LSPEC.T, 2, 6); g.fillText(`${k + 1}: ${pk.frequency_hz.toFixed(1)}`, x + 3, LSPEC.T + 12 + 12 * k); });
+  if (LIVE.mode) { g.strokeStyle = "#ffcc33"; const x = X(LIVE.mode.freq_hz); g.beginPath(); g.moveTo(x, LSPEC.T); g.lineTo(x, LSPEC.T + H); g.stroke(); }
 }
+// Canvas x of frequency f on the live spectrum, for the test.
+LIVE.freqToX = (f) => { const c = $("livespec"); return LSPEC.L + f / LIVE.ny * (c.width - LSPEC.L - LSPEC.R); };
+
+// The modal image at f from the live pipeline's last seconds of frames.
+async function showLiveMode(f) {
+  $("livemodetitle").textContent = `modal image at ${f.toFixed(2)} Hz from the last frames…`;
+  $("livemodebox").hidden = false;
+  try {
+    const m = await (await api("/api/live/mode", null, { freq_hz: f })).json();
+    const img = new Image();
+    await new Promise((ok, fail) => { img.onload = ok; img.onerror = () => fail(new Error("modal image PNG did not decode")); img.src = m.png; });
+    const c = $("livemode"), g = c.getContext("2d"), sc = Math.max(1, Math.min(4, Math.floor(320 / m.width)));
+    c.width = m.width; c.height = m.height; c.style.width = m.width * sc + "px"; c.style.height = m.height * sc + "px";
+    g.drawImage(img, 0, 0);
+    LIVE.mode = m; LIVE.modeSeq++;
+    clearError();
+    $("livemodetitle").textContent = `Modal image at ${m.freq_hz.toFixed(2)} Hz from the last ${m.frames} frames ` +
+      `(${m.span_s.toFixed(2)} s at ${m.fps.toFixed(1)} fps; ${m.elapsed_ms.toFixed(0)} ms): hue = phase, brightness = amplitude, 0 … ${m.max_amplitude_px.toPrecision(3)} px`;
+  } catch (e) { $("livemodetitle").textContent = ""; showError(e.message); }
+}
+S.showLiveMode = showLiveMode;
 
 function pushSpectrogram(sp) {
   const c = $("spectrogram"), g = c.getContext("2d"), col = 2;
@@ -585,6 +609,8 @@ function fillLivePeaks(sp) {
   const tb = document.querySelector("#livepeaks tbody"); tb.innerHTML = "";
   for (const p of sp.peaks) {
     const tr = document.createElement("tr");
+    tr.title = `the modal image at ${p.frequency_hz.toFixed(2)} Hz from the last seconds of frames`;
+    tr.onclick = () => showLiveMode(p.frequency_hz);
     for (const v of [p.frequency_hz.toFixed(2), p.frequency_std_hz.toFixed(2), p.prominence_db.toFixed(1),
       p.damping_ratio.toExponential(2)]) {
       const td = document.createElement("td"); td.textContent = v; tr.appendChild(td);
@@ -610,6 +636,18 @@ function fillLiveStats(u) {
 }
 
 function setupLiveExport() {
+  $("export-live-mode").onclick = () => { if (LIVE.mode) download(`live-mode-${LIVE.mode.freq_hz.toFixed(2)}Hz.png`, LIVE.mode.png); };
+  $("livespec").addEventListener("click", (ev) => {
+    if (!LIVE.ny) return;
+    const c = $("livespec"), b = c.getBoundingClientRect(), x = (ev.clientX - b.left) * c.width / b.width;
+    let f = (x - LSPEC.L) / (c.width - LSPEC.L - LSPEC.R) * LIVE.ny;
+    // Within 6 px of a listed peak: that peak's own frequency (a click's
+    // pixel is a fraction of a bin off, and the image is made at exactly
+    // the frequency asked).
+    const sp = LIVE.last && LIVE.last.spectrum;
+    if (sp) for (const pk of sp.peaks) if (Math.abs(LIVE.freqToX(pk.frequency_hz) - x) <= 6) f = pk.frequency_hz;
+    if (f > 0 && f <= LIVE.ny) showLiveMode(f);
+  });
   const name = () => (LIVE.last ? LIVE.last.pipeline : "live").replace(/[^A-Za-z0-9_.-]+/g, "_");
   $("export-live-png").onclick = () => download(name() + "-spectrum.png", $("livespec").toDataURL("image/png"));
   $("export-live-gram").onclick = () => download(name() + "-spectrogram.png", $("spectrogram").toDataURL("image/png"));

@@ -12,6 +12,7 @@
 //! | `POST /api/damping {video, lo_hz, hi_hz, roi?, fps?}` | the damping view over a range of the region's spectrum: the Lorentzian fitted there (damping, uncertainty, the model's curve) and SSI-cov's stabilisation diagram (poles over model orders, stable ones marked) |
 //! | `GET /api/live` | the live pipeline's latest update (spectrum in dB, peaks, level, frame number, stage counters) |
 //! | `GET /api/live/frame` | its latest frame as an 8-bit grey PNG |
+//! | `POST /api/live/mode {freq_hz}` | the modal image at that frequency from the live pipeline's last 4 s of frames (as `/api/mode` answers, with the frames, span and rate used) |
 //! | `GET /api/live/ws` | a WebSocket carrying each new update as it comes (at most 50 a second; stale ones are replaced, never queued) |
 //!
 //! Errors come back as `{"error": MESSAGE}` with a 4xx (the request) or
@@ -180,6 +181,7 @@ pub fn router(app: Arc<App>, max_body: usize) -> Router {
         .route("/api/live", get(live_update))
         .route("/api/live/frame", get(live_frame))
         .route("/api/live/ws", get(live_ws))
+        .route("/api/live/mode", post(live_mode))
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "no such page") })
         .layer(DefaultBodyLimit::max(max_body))
         .layer(middleware::from_fn(json_errors))
@@ -339,6 +341,48 @@ async fn live_frame(State(app): State<Arc<App>>) -> ApiResult<Response> {
         png,
     )
         .into_response())
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LiveModeRequest {
+    freq_hz: f64,
+}
+
+/// The modal image at a frequency from the live pipeline's last
+/// [`crate::live::HISTORY_S`] seconds of frames (the `modes` recipe over
+/// them, written to a scratch video).
+async fn live_mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
+    let t0 = Instant::now();
+    let live = live_of(&app)?;
+    let r: LiveModeRequest = body(&b)?;
+    if !(r.freq_hz.is_finite() && r.freq_hz > 0.0) {
+        return Err(ApiError::unprocessable(format!(
+            "frequency {} Hz: must be above 0",
+            r.freq_hz
+        )));
+    }
+    let mut v = blocking(move || {
+        let video = vibroscope::io::atomic::TempPath::new("studio-live.y4m");
+        let (frames, span_s, fps) = live
+            .history_video(video.path())
+            .map_err(|m| ApiError::new(StatusCode::CONFLICT, m))?;
+        if r.freq_hz > fps / 2.0 {
+            return Err(ApiError::unprocessable(format!(
+                "frequency {} Hz is above the Nyquist frequency {} Hz (the live frames come at {fps:.1} Hz)",
+                r.freq_hz,
+                fps / 2.0
+            )));
+        }
+        let mut v = modal_image(video.path(), Some(fps), None, r.freq_hz)?;
+        v["frames"] = json!(frames);
+        v["span_s"] = json!(span_s);
+        v["fps"] = json!(fps);
+        Ok(v)
+    })
+    .await?;
+    v["elapsed_ms"] = json!(t0.elapsed().as_secs_f64() * 1e3);
+    Ok(axum::Json(v))
 }
 
 async fn live_ws(

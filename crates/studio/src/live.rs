@@ -32,6 +32,15 @@ const TAP_CAPACITY: i64 = 64;
 const TAP_FRAME: &str = "studio_frame";
 const TAP_SAMPLES: &str = "studio_samples";
 const TAP_SPECTRUM: &str = "studio_spectrum";
+const TAP_HISTORY: &str = "studio_history";
+
+/// Seconds of frames kept for a modal image of the live view, and the
+/// memory they may take (older frames go first).
+pub const HISTORY_S: f64 = 4.0;
+const HISTORY_MB: i64 = 256;
+
+/// At least this many frames before a live modal image is made.
+pub const MIN_HISTORY_FRAMES: usize = 32;
 
 /// A live pipeline and what watches it.
 pub struct Live {
@@ -43,6 +52,7 @@ pub struct Live {
     frame: Arc<TapSlot>,
     samples: Arc<TapSlot>,
     spectrum: Arc<TapSlot>,
+    history: Arc<TapSlot>,
     state: Arc<Mutex<RunState>>,
     thread: Mutex<Option<std::thread::JoinHandle<()>>>,
     /// Updates the server has sent to pages.
@@ -97,7 +107,7 @@ pub fn prepare(pipeline: &str, set: &[String]) -> Result<PipelineDecl, String> {
     };
     let spectrum_id = spectrum.map(id);
     drop(g);
-    for id in [TAP_FRAME, TAP_SAMPLES, TAP_SPECTRUM] {
+    for id in [TAP_FRAME, TAP_SAMPLES, TAP_SPECTRUM, TAP_HISTORY] {
         if decl.stages.iter().any(|s| s.id == id) {
             return Err(format!(
                 "{}: a stage is called `{id}`, the name the studio gives its own",
@@ -121,6 +131,12 @@ pub fn prepare(pipeline: &str, set: &[String]) -> Result<PipelineDecl, String> {
     }
     if let Some(sp) = &spectrum_id {
         tap(TAP_SPECTRUM, sp, "spectrum", 0.0);
+        // Every frame of the last seconds, for a clicked peak's modal image.
+        tap(TAP_HISTORY, &source, "history", 0.0);
+        if let Some(st) = decl.stages.last_mut() {
+            config::set_param(st, "history_s", HISTORY_S.into(), origin.clone());
+            config::set_param(st, "history_mb", HISTORY_MB.into(), origin.clone());
+        }
     }
     // Errors naming the user's stages and fields, before anything runs.
     vibroscope::engine::graph::validate(&decl, vibroscope::stages::REGISTRY)
@@ -142,6 +158,7 @@ impl Live {
             frame: observer.slot("frame"),
             samples: observer.slot("samples"),
             spectrum: observer.slot("spectrum"),
+            history: observer.slot("history"),
             observer: Arc::clone(&observer),
             state: Arc::clone(&state),
             thread: Mutex::new(None),
@@ -208,6 +225,46 @@ impl Live {
             *self.state.lock().unwrap_or_else(|p| p.into_inner()),
             RunState::Finished(_, _, true)
         )
+    }
+
+    /// The last [`HISTORY_S`] seconds of frames written to `path` as an
+    /// 8-bit Y4M (each frame's capture time in it), with the rate they came
+    /// at: (frames, seconds spanned, frame rate). `Err`: why there are
+    /// none to use yet.
+    pub fn history_video(&self, path: &std::path::Path) -> Result<(usize, f64, f64), String> {
+        let h = self.history.history();
+        let n = h.frames.len();
+        if n < MIN_HISTORY_FRAMES {
+            return Err(format!(
+                "the live view holds {n} frames so far; a modal image needs at least {MIN_HISTORY_FRAMES} (wait a moment)"
+            ));
+        }
+        let (first, last) = (&h.frames[0], &h.frames[n - 1]);
+        let span_s = (last.t_ns - first.t_ns) as f64 * 1e-9;
+        if span_s.is_nan() || span_s <= 0.0 {
+            return Err("the live frames carry no increasing capture times".into());
+        }
+        let fps = (n - 1) as f64 / span_s;
+        let write = || -> std::io::Result<()> {
+            let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+            let mut w = vibroscope::io::Y4mWriter::new(
+                file,
+                first.width,
+                first.height,
+                vibroscope::io::Depth::U8,
+                fps,
+            )?;
+            for f in &h.frames {
+                w.write_frame(
+                    vibroscope::io::FrameDestRef::U8(&f.gray),
+                    Some(f.t_ns - first.t_ns),
+                )?;
+            }
+            w.finish()?;
+            Ok(())
+        };
+        write().map_err(|e| format!("the live frames' scratch video {}: {e}", path.display()))?;
+        Ok((n, span_s, fps))
     }
 
     /// The latest frame (8-bit grey), if one came.
@@ -380,7 +437,7 @@ mod tests {
     }
 
     #[test]
-    fn taps_go_on_the_source_the_signal_and_the_spectrum() {
+    fn taps_go_on_the_source_the_signal_the_spectrum_and_the_history() {
         let taps = |d: &PipelineDecl| -> Vec<(String, String)> {
             d.stages
                 .iter()
@@ -399,9 +456,18 @@ mod tests {
             want(&[
                 (TAP_FRAME, "src"),
                 (TAP_SAMPLES, "phase"),
-                (TAP_SPECTRUM, "spectrum")
+                (TAP_SPECTRUM, "spectrum"),
+                (TAP_HISTORY, "src")
             ])
         );
+        // Only the history tap keeps every frame, for the last seconds.
+        let h = d
+            .stages
+            .iter()
+            .find(|s| s.id == TAP_HISTORY)
+            .expect("history");
+        let hs = h.params.iter().find(|p| p.key == "history_s");
+        assert_eq!(hs.and_then(|p| p.value.as_float()), Some(HISTORY_S));
         // No spectrum: the level comes from the last stage giving audio.
         let d = prepare("live-microphone", &[]).expect("the shipped live microphone");
         let t = taps(&d);

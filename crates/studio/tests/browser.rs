@@ -840,7 +840,7 @@ fn live_view_ten_spectra_a_second_without_drops_in_headless_chromium() {
         "src.width=96".to_owned(),
         "src.height=96".to_owned(),
         "src.duration_s=30.0".to_owned(),
-        "src.amplitude_px=0.05".to_owned(),
+        "src.amplitude_px=0.2".to_owned(),
         format!(
             "src.signal={{ type = \"tones\", freqs_hz = [{:.1}, {:.1}] }}",
             LIVE_TONES[0], LIVE_TONES[1]
@@ -992,4 +992,91 @@ async fn drive_live(c: &Client, studio: &Studio) {
     }
     let hidden = js(c, "return document.getElementById('error').hidden").await;
     assert_eq!(hidden, json!(true), "the error stays after reconnecting");
+    // A click on the live spectrum at the first tone (it snaps to the
+    // listed peak): the modal image from the last seconds of frames,
+    // bright on the moving object (the central half of the frame) and dark
+    // around it.
+    let spec = c.find(Locator::Css("#livespec")).await.unwrap();
+    let w = js(c, "return document.getElementById('livespec').width")
+        .await
+        .as_f64()
+        .unwrap();
+    let x = live(c, &format!("window.studio.live.freqToX({})", LIVE_TONES[0]))
+        .await
+        .as_f64()
+        .unwrap();
+    let errors = counter(c, "errorSeq").await;
+    let before = live(c, "window.studio.live.modeSeq")
+        .await
+        .as_u64()
+        .unwrap();
+    click_at(c, &spec, x.round() + 0.5 - w / 2.0, 0.0).await;
+    let t0 = Instant::now();
+    while live(c, "window.studio.live.modeSeq")
+        .await
+        .as_u64()
+        .unwrap()
+        == before
+    {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "no live modal image"
+        );
+        assert_eq!(
+            counter(c, "errorSeq").await,
+            errors,
+            "{}",
+            js(c, "return window.studio.lastError").await
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    let m = live(c, "(({freq_hz, width, height, frames, span_s, fps, elapsed_ms, amplitude_px}) => ({freq_hz, width, height, frames, span_s, fps, elapsed_ms, amplitude_px}))(window.studio.live.mode)").await;
+    let num = |k: &str| m[k].as_f64().unwrap();
+    let amp: Vec<f64> = m["amplitude_px"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let (mut on, mut n_on, mut off, mut n_off) = (0.0, 0usize, 0.0, 0usize);
+    for y in 0..96usize {
+        for x in 0..96usize {
+            let a = amp[y * 96 + x];
+            if (28..68).contains(&x) && (28..68).contains(&y) {
+                on += a;
+                n_on += 1;
+            } else if !(18..78).contains(&x) || !(18..78).contains(&y) {
+                off += a;
+                n_off += 1;
+            }
+        }
+    }
+    let contrast = (on / n_on as f64) / (off / n_off as f64).max(1e-30);
+    println!(
+        "live modal image at {:.2} Hz: {} frames over {:.2} s at {:.1} fps, {:.0} ms; on the object / around it {contrast:.1}; largest amplitude {:.4} px",
+        num("freq_hz"),
+        num("frames"),
+        num("span_s"),
+        num("fps"),
+        num("elapsed_ms"),
+        amp.iter().copied().fold(0.0, f64::max)
+    );
+    assert!(
+        (num("freq_hz") - LIVE_TONES[0]).abs() < 1.0,
+        "{}",
+        num("freq_hz")
+    );
+    assert_eq!((num("width"), num("height")), (96.0, 96.0));
+    assert!(
+        (num("fps") - 500.0).abs() < 10.0,
+        "frames came at {} fps",
+        num("fps")
+    );
+    assert!(num("frames") >= 1000.0 && num("span_s") > 2.0, "{m}");
+    assert!(
+        contrast > 2.5,
+        "the modal image is not brighter on the object ({contrast:.2})"
+    );
+    let shot = c.screenshot().await.unwrap();
+    std::fs::write(img_dir().join("studio-live.png"), shot).unwrap();
 }

@@ -407,6 +407,8 @@ fn live_routes_without_and_with_a_pipeline() {
     }
     let (st, body) = upgrade(s.addr, "/api/live/ws");
     assert_eq!(st, 404, "{body}");
+    let (st, body) = post(s.addr, "/api/live/mode", "{\"freq_hz\":10}");
+    assert_eq!(st, 404, "{body}");
     drop(s);
     // Bad pipelines are refused at start, naming what is wrong.
     for (p, set, want) in [
@@ -475,6 +477,29 @@ fn live_routes_without_and_with_a_pipeline() {
     let (st, body) = get(a, &format!("/api/live/ws?token={t}"));
     assert_eq!(st, 400, "{body}");
     assert!(error_of(&body).contains("WebSocket"), "{body}");
+    // A clicked peak's modal image from the last frames; bad requests.
+    let mode = |b: &str| post(a, &format!("/api/live/mode?token={t}"), b);
+    assert_eq!(post(a, "/api/live/mode", "{\"freq_hz\":10}").0, 401);
+    for (b, want) in [
+        ("{\"freq_hz\":\"ten\"}", 400),
+        ("{\"freq_hz\":10,\"x\":1}", 400),
+        ("{\"freq_hz\":-1}", 422),
+        ("{\"freq_hz\":150}", 422),
+    ] {
+        let (st, body) = mode(b);
+        assert_eq!(st, want, "{b}: {body}");
+        assert!(!error_of(&body).is_empty());
+    }
+    let (st, body) = mode("{\"freq_hz\":150}");
+    assert!(error_of(&body).contains("Nyquist"), "{st} {body}");
+    let (st, body) = mode("{\"freq_hz\":20}");
+    assert_eq!(st, 200, "{body}");
+    let m: serde_json::Value = serde_json::from_str(&body).unwrap();
+    assert_eq!(
+        (m["width"].as_u64(), m["height"].as_u64()),
+        (Some(32), Some(32))
+    );
+    assert!(m["frames"].as_u64().unwrap() >= 32, "{}", m["frames"]);
     // Stopping the studio stops the pipeline; its sink finalises.
     drop(s);
     assert!(root.join("live.json").exists());

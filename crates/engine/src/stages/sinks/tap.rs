@@ -9,6 +9,12 @@
 //! buffer instead of holding a pooled one. In a run that nobody watches
 //! (`vibroscope run`), it discards what it receives.
 //!
+//! With `history_s`, a tap on frames keeps instead the last `history_s`
+//! seconds of them (8-bit, at most `history_mb`), consecutive: the studio
+//! computes a modal image from them when a peak of the live spectrum is
+//! clicked. While the watcher copies them out, frames wait in a buffer of
+//! an eighth of that memory; if more come, the history starts over.
+//!
 //! ```toml
 //! [[stage]]
 //! id = "live"
@@ -18,7 +24,7 @@
 //! every_ms = 40       # at most 25 items a second
 //! ```
 
-use crate::observe::TapSlot;
+use crate::observe::{HistoryLimits, Pending, TapSlot};
 use crate::*;
 use serde::Deserialize;
 use std::sync::Arc;
@@ -28,6 +34,8 @@ use std::sync::Arc;
 struct P {
     name: String,
     every_ms: f64,
+    history_s: f64,
+    history_mb: u64,
 }
 
 const PARAMS: &[ParamSpec] = &[
@@ -38,6 +46,14 @@ const PARAMS: &[ParamSpec] = &[
         .floats(0.0, 60_000.0)
         .unit("ms")
         .doc("keep at most one item per this much capture time (0: every item)"),
+    ParamSpec::new("history_s", ParamType::Float, Def::Float(0.0))
+        .floats(0.0, 3600.0)
+        .unit("s")
+        .doc("keep the last this many seconds of frames (8-bit), every one, instead of the latest item (0: the latest only; other items are then ignored)"),
+    ParamSpec::new("history_mb", ParamType::Int, Def::Int(256))
+        .ints(1, 65_536)
+        .unit("MiB")
+        .doc("at most this much memory for the history (older frames go first)"),
 ];
 
 pub const KIND: KindSpec = KindSpec {
@@ -56,6 +72,7 @@ pub const KIND: KindSpec = KindSpec {
         if v.name.trim().is_empty() {
             return Err(p.error("name", "must not be empty"));
         }
+
         Ok(Box::new(TapPlan(v)))
     },
 };
@@ -68,12 +85,18 @@ struct TapPlan(P);
 impl Plan for TapPlan {
     fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
         let slot = ctx.observer.as_ref().map(|o| o.slot(&self.0.name));
+        let history = (self.0.history_s > 0.0).then(|| HistoryLimits {
+            span_ns: (self.0.history_s * 1e9) as i64,
+            max_bytes: (self.0.history_mb as usize).saturating_mul(1 << 20),
+        });
         Ok(Node::Stage(Box::new(Tap {
             slot,
             every_ns: (self.0.every_ms * 1e6) as i64,
             last_ns: None,
             kept: 0,
             seen: 0,
+            history,
+            pending: Pending::default(),
         })))
     }
 }
@@ -84,6 +107,9 @@ struct Tap {
     last_ns: Option<i64>,
     kept: u64,
     seen: u64,
+    /// Keep the last frames instead of the latest item.
+    history: Option<HistoryLimits>,
+    pending: Pending,
 }
 
 impl Stage for Tap {
@@ -92,6 +118,13 @@ impl Stage for Tap {
         let Some(slot) = &self.slot else {
             return Ok(());
         };
+        if let Some(lim) = self.history {
+            if let Item::Frame(f) = &item {
+                slot.record(f, lim, &mut self.pending);
+                self.kept += 1;
+            }
+            return Ok(());
+        }
         let t = item.t_ns();
         if let Some(last) = self.last_ns {
             if t >= last && t - last < self.every_ns {
@@ -115,6 +148,13 @@ impl Stage for Tap {
 
     fn summary(&self) -> Option<String> {
         Some(match &self.slot {
+            Some(s) if self.history.is_some() => format!(
+                "recorded {} frames into the watcher's history ({} of {} items; started over {} times)",
+                self.kept,
+                self.kept,
+                self.seen,
+                s.history_restarts()
+            ),
             Some(s) => format!(
                 "kept {} of {} items for the watcher ({} skipped)",
                 self.kept,
