@@ -16,7 +16,8 @@ use vibroscope_studio::{Studio, StudioOptions};
 /// the frame (hue = phase, brightness = amplitude, thesis ch. 3.5.5) and
 /// animate its mode shape. Drag over a spike in the spectrum instead to fit
 /// its damping: a Lorentzian over the range dragged, with SSI-cov's
-/// stabilisation diagram for it (thesis 5.4.2). "Listen" plays the region's
+/// stabilisation diagram for it (thesis 5.4.2). A scale typed in the header
+/// (mm per pixel) gives the motion in µm or mm. "Listen" plays the region's
 /// recovered sound in the browser. Each view exports PNG and CSV/JSON (and
 /// the sound as WAV).
 ///

@@ -46,6 +46,12 @@ async function api(path, params, body) {
   } finally { S.busy--; }
 }
 
+// Millimetres per pixel typed in the header, or null.
+function scaleParam() {
+  const v = parseFloat($("mmpx").value);
+  return $("mmpx").value.trim() === "" ? null : v;
+}
+
 function fpsParam() {
   const v = parseFloat($("fps").value);
   return isFinite(v) && v > 0 ? v : null;
@@ -147,6 +153,8 @@ async function loadMotion() {
   $("plottitle").textContent = (roi ? `Region R${S.sel + 1} (${roi.join(",")})` : "Whole frame") + ": computing…";
   const body = { video: S.video, roi };
   if (S.fps) body.fps = S.fps;
+  const scale = scaleParam();
+  if (scale !== null) body.scale_mm_per_px = scale;
   try {
     const m = await (await api("/api/motion", null, body)).json();
     S.motion = m; S.motionSeq++;
@@ -155,7 +163,8 @@ async function loadMotion() {
     $("plottitle").textContent = (roi ? `Region R${S.sel + 1} (${roi.join(",")})` : "Whole frame") +
       ` — ${m.peaks.length} peaks, resolution ${m.resolution_hz.toFixed(3)} Hz` + (m.cached ? " (cached)" : "");
     drawWaveform(); drawSpectrum(); fillPeaks();
-  } catch (e) { $("plottitle").textContent = "Error"; showError(e.message); }
+    return true;
+  } catch (e) { $("plottitle").textContent = "Error"; showError(e.message); return false; }
 }
 
 function axes(g, c, L, B, xlabel, ylabel) {
@@ -169,14 +178,14 @@ function axes(g, c, L, B, xlabel, ylabel) {
 function drawWaveform() {
   const c = $("waveform"), g = c.getContext("2d"), m = S.motion.waveform;
   const L = 50, B = 22, W = c.width - L - 10, H = c.height - B - 8;
-  axes(g, c, L, B, "time (s)", "px");
-  const n = m.y_px.length; if (!n) return;
+  axes(g, c, L, B, "time (s)", m.unit);
+  const n = m.y.length; if (!n) return;
   let lo = Infinity, hi = -Infinity;
-  for (const a of [m.x_px, m.y_px]) for (const v of a) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+  for (const a of [m.x, m.y]) for (const v of a) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
   if (hi <= lo) { hi = lo + 1e-3; }
   const t0 = m.t_s[0], t1 = m.t_s[n - 1] || t0 + 1;
   const X = (t) => L + (t - t0) / (t1 - t0 || 1) * W, Y = (v) => 8 + (hi - v) / (hi - lo) * H;
-  for (const [a, col] of [[m.x_px, "#77aaff"], [m.y_px, "#ffaa55"]]) {
+  for (const [a, col] of [[m.x, "#77aaff"], [m.y, "#ffaa55"]]) {
     g.strokeStyle = col; g.beginPath();
     for (let k = 0; k < n; k++) { const x = X(m.t_s[k]), y = Y(a[k]); k ? g.lineTo(x, y) : g.moveTo(x, y); }
     g.stroke();
@@ -222,13 +231,14 @@ function drawSpectrum() {
 
 function fillPeaks() {
   const tb = document.querySelector("#peaks tbody"); tb.innerHTML = "";
+  $("ampunit").textContent = `amplitude (${S.motion.amplitude_unit})`;
   S.motion.peaks.forEach((p) => {
     const tr = document.createElement("tr");
     // A peak narrower than the bins gives only an upper bound on damping.
     const bound = p.damping_method.startsWith("resolution_limit");
     const cells = [p.frequency_hz.toFixed(3), p.frequency_std_hz.toFixed(3),
       (bound ? "≤ " : "") + p.damping_ratio.toFixed(4), bound ? "–" : p.damping_ratio_std.toFixed(4),
-      p.prominence_db.toFixed(1), p.amplitude_px.toPrecision(3)];
+      p.prominence_db.toFixed(1), p.amplitude.toPrecision(3)];
     tr.innerHTML = cells.map((v) => `<td>${v}</td>`).join("");
     tr.title = `show the modal image at ${p.frequency_hz.toFixed(3)} Hz (damping: ${p.damping_method})`;
     tr.onclick = () => showMode(p.frequency_hz);
@@ -241,6 +251,8 @@ function fillPeaks() {
 async function showMode(f) {
   const body = { video: S.video, freq_hz: f };
   if (S.fps) body.fps = S.fps;
+  const scale = scaleParam();
+  if (scale !== null) body.scale_mm_per_px = scale;
   status(`modal image at ${f.toFixed(3)} Hz…`);
   try {
     const m = await (await api("/api/mode", null, body)).json();
@@ -253,7 +265,7 @@ async function showMode(f) {
     clearError();
     $("modepanel").hidden = false;
     $("modetitle").textContent = `Modal image at ${f.toFixed(3)} Hz` + (m.cached ? " (cached)" : "") + ` — ${m.elapsed_ms.toFixed(0)} ms`;
-    $("amplabel").textContent = `0 … ${m.max_amplitude_px.toPrecision(3)} px (brightness = amplitude)`;
+    $("amplabel").textContent = `0 … ${m.max_amplitude.toPrecision(3)} ${m.amplitude_unit} (brightness = amplitude)`;
     status(`modal image at ${f.toFixed(3)} Hz`);
     drawSpectrum(); fillPeaks();
   } catch (e) { status(""); showError(e.message); }
@@ -665,6 +677,11 @@ async function main() {
   $("open").onclick = openVideo;
   $("listen").onclick = listenRegion;
   $("video").addEventListener("keydown", (e) => { if (e.key === "Enter") openVideo(); });
+  // A new scale: the same answers (cached on the server) in the new unit.
+  $("mmpx").addEventListener("change", async () => {
+    if (!S.video) return;
+    if (await loadMotion() && S.mode) await showMode(S.mode.freq_hz);
+  });
   $("scrub").addEventListener("input", () => loadFrame(+$("scrub").value).catch((e) => showError(e.message)));
   // A click shows the modal image there; a drag fits the damping over it.
   const specX = (ev) => { const b = $("spectrum").getBoundingClientRect(); return (ev.clientX - b.left) * $("spectrum").width / b.width; };

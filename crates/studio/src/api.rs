@@ -6,8 +6,8 @@
 //! | `GET /api/session` | the video opened at start, the root, whether a token is needed |
 //! | `GET /api/info?video=P[&fps=F]` | [`vibroscope::probe`]'s report |
 //! | `GET /api/frame?video=P&i=N` | frame N as an 8-bit grey PNG |
-//! | `POST /api/motion {video, roi?, fps?}` | the region's waveform (px), spectrum (dB) and peaks |
-//! | `POST /api/mode {video, freq_hz, roi?, fps?}` | the modal image: PNG (hue = phase, brightness = amplitude) and the amplitude/phase numbers |
+//! | `POST /api/motion {video, roi?, fps?, scale_mm_per_px?}` | the region's waveform (px, and in µm/mm with a scale), spectrum (dB) and peaks (amplitudes likewise) |
+//! | `POST /api/mode {video, freq_hz, roi?, fps?, scale_mm_per_px?}` | the modal image: PNG (hue = phase, brightness = amplitude) and the amplitude/phase numbers |
 //! | `POST /api/listen {video, roi?, fps?}` | the region's recovered sound (the `listen` recipe, 16-bit WAV at 8 kHz) and its spectrogram |
 //! | `POST /api/damping {video, lo_hz, hi_hz, roi?, fps?}` | the damping view over a range of the region's spectrum: the Lorentzian fitted there (damping, uncertainty, the model's curve) and SSI-cov's stabilisation diagram (poles over model orders, stable ones marked) |
 //! | `GET /api/live` | the live pipeline's latest update (spectrum in dB, peaks, level, frame number, stage counters) |
@@ -571,6 +571,9 @@ struct MotionRequest {
     /// `[x, y, w, h]`; none: the whole frame.
     roi: Option<[u32; 4]>,
     fps: Option<f64>,
+    /// Millimetres per pixel on the object: the motion is then also given
+    /// in µm or mm (as `--scale`).
+    scale_mm_per_px: Option<f64>,
 }
 
 #[derive(Deserialize)]
@@ -580,6 +583,63 @@ struct ModeRequest {
     freq_hz: f64,
     roi: Option<[u32; 4]>,
     fps: Option<f64>,
+    scale_mm_per_px: Option<f64>,
+}
+
+/// The request's scale, checked as `--scale` is.
+fn scale_of(mm_per_px: Option<f64>) -> ApiResult<Option<vibroscope::units::Scale>> {
+    mm_per_px
+        .map(|v| {
+            vibroscope::units::ScaleArg::MmPerPx(v)
+                .resolve(u32::MAX, u32::MAX)
+                .map_err(|e| ApiError::unprocessable(format!("scale_mm_per_px: {}", e.message)))
+        })
+        .transpose()
+}
+
+/// A unit for values up to `largest_px` pixels and the factor from pixels
+/// to it (the library's choice: µm below 1 mm, else mm; px without a
+/// scale).
+fn unit_for(scale: Option<&vibroscope::units::Scale>, largest_px: f64) -> (String, f64) {
+    use vibroscope::units::{px_to, Quantity, Scale};
+    let unit = Scale::unit(scale, Quantity::Displacement, largest_px);
+    (unit.to_string(), px_to(unit, scale))
+}
+
+/// Adds the motion in the scale's unit to a region's answer: the
+/// waveform's `x`, `y` and `unit`, each peak's `amplitude` and the peaks'
+/// `amplitude_unit` (the same numbers in px without a scale).
+fn with_units(v: &mut Value, scale: Option<&vibroscope::units::Scale>) {
+    let nums = |a: &Value| -> Vec<f64> {
+        a.as_array()
+            .map(|a| a.iter().filter_map(Value::as_f64).collect())
+            .unwrap_or_default()
+    };
+    let largest = |a: &[f64]| a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let (x, y) = (nums(&v["waveform"]["x_px"]), nums(&v["waveform"]["y_px"]));
+    let (unit, k) = unit_for(scale, largest(&x).max(largest(&y)));
+    let conv = |a: &[f64]| a.iter().map(|p| p * k).collect::<Vec<f64>>();
+    v["waveform"]["x"] = json!(conv(&x));
+    v["waveform"]["y"] = json!(conv(&y));
+    v["waveform"]["unit"] = json!(unit);
+    let amps: Vec<f64> = v["peaks"]
+        .as_array()
+        .map(|p| {
+            p.iter()
+                .filter_map(|p| p["amplitude_px"].as_f64())
+                .collect()
+        })
+        .unwrap_or_default();
+    let (unit, k) = unit_for(scale, largest(&amps));
+    if let Some(peaks) = v["peaks"].as_array_mut() {
+        for p in peaks {
+            if let Some(a) = p["amplitude_px"].as_f64() {
+                p["amplitude"] = json!(a * k);
+            }
+        }
+    }
+    v["amplitude_unit"] = json!(unit);
+    v["scale_mm_per_px"] = json!(scale.map(|s| s.mm_per_px));
 }
 
 /// The video's size and rate, and `roi` checked against the frame.
@@ -645,10 +705,14 @@ fn answer(v: &Value, cached: bool, ms: f64) -> axum::Json<Value> {
 }
 
 async fn motion(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
-    region_answer(app, &b, "motion", |path, fps, roi, whole, _| {
+    let r: MotionRequest = body(&b)?;
+    let scale = scale_of(r.scale_mm_per_px)?;
+    let axum::Json(mut v) = region_answer(app, &b, "motion", |path, fps, roi, whole, _| {
         region_motion(path, fps, roi, whole)
     })
-    .await
+    .await?;
+    with_units(&mut v, scale.as_ref());
+    Ok(axum::Json(v))
 }
 
 /// A recipe over a region: (video, fps, region as requested, region or the
@@ -835,6 +899,7 @@ async fn mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Val
     let r: ModeRequest = body(&b)?;
     let path = guard::resolve(&app.root, &r.video)?;
     let fps = fps_of(&app, r.fps)?;
+    let scale = scale_of(r.scale_mm_per_px)?;
     if !(r.freq_hz.is_finite() && r.freq_hz > 0.0) {
         return Err(ApiError::unprocessable(format!(
             "frequency {} Hz: must be above 0",
@@ -848,7 +913,9 @@ async fn mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Val
         r.freq_hz.to_bits()
     );
     if let Some(v) = cached(&app, &key) {
-        return Ok(answer(&v, true, t0.elapsed().as_secs_f64() * 1e3));
+        let axum::Json(mut v) = answer(&v, true, t0.elapsed().as_secs_f64() * 1e3);
+        mode_units(&mut v, scale.as_ref());
+        return Ok(axum::Json(v));
     }
     let app2 = app.clone();
     let v = blocking(move || {
@@ -867,7 +934,18 @@ async fn mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Val
         Ok(remember(&app2, key, v))
     })
     .await?;
-    Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
+    let axum::Json(mut v) = answer(&v, false, t0.elapsed().as_secs_f64() * 1e3);
+    mode_units(&mut v, scale.as_ref());
+    Ok(axum::Json(v))
+}
+
+/// A modal image's largest amplitude in the scale's unit (`max_amplitude`,
+/// `amplitude_unit`).
+fn mode_units(v: &mut Value, scale: Option<&vibroscope::units::Scale>) {
+    let max = v["max_amplitude_px"].as_f64().unwrap_or(0.0);
+    let (unit, k) = unit_for(scale, max);
+    v["max_amplitude"] = json!(max * k);
+    v["amplitude_unit"] = json!(unit);
 }
 
 /// The playback rate of a region's sound: a standard rate every browser

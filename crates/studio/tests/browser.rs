@@ -482,6 +482,65 @@ async fn drive(c: &Client, studio: &Studio, video: &Path, dir: &Path) {
         .unwrap();
     assert_eq!(f, f_peak, "a listed peak snaps to its frequency");
 
+    // A scale typed in (0.02 mm/px): the waveform, the peak amplitudes and
+    // the modal image's scale in µm, the library's conversion of the px
+    // numbers; cleared, px again.
+    let set_scale = |v: &str| {
+        format!("const e = document.getElementById('mmpx'); e.value = '{v}'; e.dispatchEvent(new Event('change')); return 0")
+    };
+    let (motions, modes) = (counter(c, "motionSeq").await, counter(c, "modeSeq").await);
+    js(c, &set_scale("0.02")).await;
+    wait_for(c, "motionSeq", motions, errors).await;
+    wait_for(c, "modeSeq", modes, errors).await;
+    let got = js(
+        c,
+        "const S = window.studio, w = S.motion.waveform;
+         return [w.unit, w.x_px, w.x, S.motion.amplitude_unit, S.motion.peaks.map(p => [p.amplitude_px, p.amplitude]),
+                 S.mode.amplitude_unit, S.mode.max_amplitude_px, S.mode.max_amplitude,
+                 document.getElementById('ampunit').textContent, document.getElementById('amplabel').textContent]",
+    )
+    .await;
+    println!(
+        "scale 0.02 mm/px: waveform in {}, amplitudes in {}, modal image in {}: {}",
+        got[0], got[3], got[5], got[9]
+    );
+    assert_eq!(got[0], json!("µm"));
+    let to_um = |v: &Value| v.as_f64().unwrap() * 0.02 * 1e3;
+    for (px, um) in got[1]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(got[2].as_array().unwrap())
+    {
+        assert!((to_um(px) - um.as_f64().unwrap()).abs() <= 1e-9 * to_um(px).abs().max(1e-9));
+    }
+    assert_eq!(got[3], json!("µm"));
+    for p in got[4].as_array().unwrap() {
+        assert!((to_um(&p[0]) - p[1].as_f64().unwrap()).abs() <= 1e-9 * to_um(&p[0]).abs());
+    }
+    assert_eq!(got[5], json!("µm"));
+    assert!((to_um(&got[6]) - got[7].as_f64().unwrap()).abs() <= 1e-9 * to_um(&got[6]));
+    assert_eq!(got[8], json!("amplitude (µm)"));
+    assert!(got[9].as_str().unwrap().contains(" µm"), "{}", got[9]);
+    let (motions, modes) = (counter(c, "motionSeq").await, counter(c, "modeSeq").await);
+    js(c, &set_scale("")).await;
+    wait_for(c, "motionSeq", motions, errors).await;
+    wait_for(c, "modeSeq", modes, errors).await;
+    let unit = js(
+        c,
+        "return [window.studio.motion.waveform.unit, window.studio.mode.amplitude_unit]",
+    )
+    .await;
+    assert_eq!(unit, json!(["px", "px"]));
+    // A scale that is not a number is the page's error.
+    let shown = error_after(c, &set_scale("-1")).await;
+    assert!(shown.contains("scale_mm_per_px"), "{shown}");
+    let (motions, modes) = (counter(c, "motionSeq").await, counter(c, "modeSeq").await);
+    let errors = counter(c, "errorSeq").await;
+    js(c, &set_scale("")).await;
+    wait_for(c, "motionSeq", motions, errors).await;
+    wait_for(c, "modeSeq", modes, errors).await;
+
     // A region drawn with the mouse, where the simulator says mode 2
     // dominates: the 24 object columns where its shape's share is largest.
     let [ox, oy, ow, oh] = OBJECT;

@@ -207,6 +207,16 @@ fn paths_bodies_and_malformed_requests_get_the_right_status() {
         ("/api/listen", "{\"video\":\"../outside/secret.y4m\"}", 403),
         ("/api/listen", "{\"video\":\"sub/clip.y4m\",\"x\":1}", 400),
         ("/api/listen", "{\"video\":\"nothing.y4m\"}", 404),
+        (
+            "/api/motion",
+            "{\"video\":\"sub/clip.y4m\",\"scale_mm_per_px\":0}",
+            422,
+        ),
+        (
+            "/api/mode",
+            "{\"video\":\"sub/clip.y4m\",\"freq_hz\":10,\"scale_mm_per_px\":-2}",
+            422,
+        ),
         ("/api/damping", "{\"video\":\"sub/clip.y4m\"}", 400),
         (
             "/api/damping",
