@@ -227,6 +227,9 @@ put("studio_http", "motion-scale", req(5, "/api/motion", b'{"video":"v.y4m","sca
 put("studio_http", "mode", req(5, "/api/mode", b'{"video":"v.y4m","freq_hz":10}', JSON))
 put("studio_http", "mode-roi", req(5, "/api/mode", b'{"video":"v.y4m","freq_hz":12.5,"roi":[0,0,16,12]}', JSON))
 put("studio_http", "wrong-method", req(4, "/api/motion"))
+_mask = "data:image/png;base64," + __import__("base64").b64encode(
+    png(16, 12, [[255 if 4 <= x < 12 and 3 <= y < 9 else 0 for x in range(16)] for y in range(12)])).decode()
+put("studio_http", "motion-mask", req(5, "/api/motion", json.dumps({"video": "v.y4m", "mask": _mask}).encode(), JSON))
 put("studio_http", "listen", req(5, "/api/listen", b'{"video":"v.y4m"}', JSON))
 put("studio_http", "listen-roi", req(5, "/api/listen", b'{"video":"v.y4m","roi":[0,0,8,8],"fps":100}', JSON))
 put("studio_http", "damping", req(5, "/api/damping", b'{"video":"v.y4m","lo_hz":5,"hi_hz":20}', JSON))

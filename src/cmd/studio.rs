@@ -9,7 +9,7 @@ use vibroscope_studio::{Studio, StudioOptions};
 /// peaks and modal images (a local web application).
 ///
 /// Starts a web server inside this process and prints its URL; open it in
-/// a browser. Draw a rectangle on the frame to see that region's motion
+/// a browser. Draw a rectangle (or paint a mask) on the frame to see that region's motion
 /// waveform, its global power spectrum (Eq. 3.17) and the peak list
 /// (frequency, damping ± uncertainty, prominence); click the spectrum, or a
 /// listed peak to snap to it, to see the modal image at that frequency over

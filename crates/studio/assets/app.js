@@ -12,7 +12,11 @@ const S = {
   motionSeq: 0, modeSeq: 0, errorSeq: 0, lastError: null, busy: 0,
   sound: null, soundSeq: 0, soundBuffer: null, soundStarted: false, audioCtx: null,
   damp: null, dampSeq: 0, specDrag: null,
+  // A mask painted on the frame (its own frame-size canvas) and whether
+  // the mouse paints; S.sel === MASK selects it.
+  mask: null, painting: false,
 };
+const MASK = -2;
 window.studio = S;
 
 function url(path, params) {
@@ -66,7 +70,7 @@ async function openVideo() {
   if (fps) params.fps = fps;
   try {
     const info = await (await api("/api/info", params)).json();
-    S.video = video; S.fps = fps; S.info = info; S.regions = []; S.sel = -1; S.mode = null;
+    S.video = video; S.fps = fps; S.info = info; S.regions = []; S.sel = -1; S.mode = null; S.mask = null;
     const w = info.width, h = info.height;
     S.scale = Math.max(1, Math.min(8, Math.floor(560 / w)));
     const cw = w * S.scale, ch = h * S.scale;
@@ -108,9 +112,29 @@ function dragRoi() {
   const [x0, y0] = drag.a, [x1, y1] = drag.b;
   return [Math.min(x0, x1), Math.min(y0, y1), Math.abs(x1 - x0), Math.abs(y1 - y0)];
 }
+// The selected region as the API takes it: a rectangle, a painted mask
+// (PNG data URL), or neither (the whole frame); and its name.
+function selection() {
+  if (S.sel === MASK && S.mask) return { roi: null, mask: S.mask.canvas.toDataURL("image/png"), name: "the mask" };
+  if (S.sel >= 0) return { roi: S.regions[S.sel], mask: null, name: `R${S.sel + 1}` };
+  return { roi: null, mask: null, name: "whole frame" };
+}
+function paintAt(ev) {
+  if (!S.mask) {
+    const c = document.createElement("canvas"); c.width = S.info.width; c.height = S.info.height;
+    S.mask = { canvas: c };
+  }
+  const [x, y] = framePoint(ev), g = S.mask.canvas.getContext("2d");
+  g.fillStyle = "#fff"; g.beginPath(); g.arc(x + 0.5, y + 0.5, +$("brush").value, 0, 2 * Math.PI); g.fill();
+  drawRegions();
+}
 function drawRegions() {
   const o = $("overlay"), g = o.getContext("2d"), s = S.scale;
   g.clearRect(0, 0, o.width, o.height);
+  if (S.mask) {
+    g.save(); g.globalAlpha = S.sel === MASK ? 0.45 : 0.2; g.imageSmoothingEnabled = false;
+    g.drawImage(S.mask.canvas, 0, 0, o.width, o.height); g.restore();
+  }
   g.lineWidth = 2; g.font = "12px sans-serif";
   S.regions.forEach((r, k) => {
     g.strokeStyle = k === S.sel ? "#ffcc33" : "#33ccff";
@@ -128,6 +152,11 @@ function drawRegions() {
   };
   add("Whole frame", -1);
   S.regions.forEach((r, k) => add(`R${k + 1} ${r.join(",")}`, k));
+  if (S.mask) {
+    add("Mask", MASK);
+    const b = document.createElement("button"); b.textContent = "Clear mask";
+    b.onclick = () => { S.mask = null; if (S.sel === MASK) S.sel = -1; drawRegions(); loadMotion(); }; box.appendChild(b);
+  }
   if (S.regions.length) {
     const b = document.createElement("button"); b.textContent = "Clear regions";
     b.onclick = () => { S.regions = []; S.sel = -1; drawRegions(); loadMotion(); }; box.appendChild(b);
@@ -135,9 +164,17 @@ function drawRegions() {
 }
 function setupRegions() {
   const o = $("overlay");
-  o.addEventListener("mousedown", (ev) => { if (S.info) { drag = { a: framePoint(ev), b: framePoint(ev) }; } });
-  o.addEventListener("mousemove", (ev) => { if (drag) { drag.b = framePoint(ev); drawRegions(); } });
+  let painting = false;
+  o.addEventListener("mousedown", (ev) => {
+    if (!S.info) return;
+    if (S.painting) { painting = true; paintAt(ev); } else drag = { a: framePoint(ev), b: framePoint(ev) };
+  });
+  o.addEventListener("mousemove", (ev) => {
+    if (painting) paintAt(ev);
+    else if (drag) { drag.b = framePoint(ev); drawRegions(); }
+  });
   window.addEventListener("mouseup", (ev) => {
+    if (painting) { painting = false; S.sel = MASK; drawRegions(); loadMotion(); return; }
     if (!drag) return;
     drag.b = framePoint(ev);
     const r = dragRoi(); drag = null;
@@ -149,9 +186,11 @@ function setupRegions() {
 // ---- waveform, spectrum, peaks ----
 async function loadMotion() {
   if (!S.video) return;
-  const roi = S.sel >= 0 ? S.regions[S.sel] : null;
-  $("plottitle").textContent = (roi ? `Region R${S.sel + 1} (${roi.join(",")})` : "Whole frame") + ": computing…";
+  const sel = selection(), roi = sel.roi;
+  const title = () => sel.mask ? "Mask" : roi ? `Region R${S.sel + 1} (${roi.join(",")})` : "Whole frame";
+  $("plottitle").textContent = title() + ": computing…";
   const body = { video: S.video, roi };
+  if (sel.mask) body.mask = sel.mask;
   if (S.fps) body.fps = S.fps;
   const scale = scaleParam();
   if (scale !== null) body.scale_mm_per_px = scale;
@@ -160,7 +199,7 @@ async function loadMotion() {
     S.motion = m; S.motionSeq++;
     S.damp = null; $("damppanel").hidden = true;
     clearError();
-    $("plottitle").textContent = (roi ? `Region R${S.sel + 1} (${roi.join(",")})` : "Whole frame") +
+    $("plottitle").textContent = title() + (m.mask_pixels ? ` (${m.mask_pixels} px, in ${m.roi.join(",")})` : "") +
       ` — ${m.peaks.length} peaks, resolution ${m.resolution_hz.toFixed(3)} Hz` + (m.cached ? " (cached)" : "");
     drawWaveform(); drawSpectrum(); fillPeaks();
     return true;
@@ -238,7 +277,7 @@ function fillPeaks() {
     const bound = p.damping_method.startsWith("resolution_limit");
     const cells = [p.frequency_hz.toFixed(3), p.frequency_std_hz.toFixed(3),
       (bound ? "≤ " : "") + p.damping_ratio.toFixed(4), bound ? "–" : p.damping_ratio_std.toFixed(4),
-      p.prominence_db.toFixed(1), p.amplitude.toPrecision(3)];
+      p.prominence_db.toFixed(1), p.false_alarm == null ? "–" : p.false_alarm < 1e-12 ? "< 1e-12" : p.false_alarm.toExponential(1), p.amplitude.toPrecision(3)];
     tr.innerHTML = cells.map((v) => `<td>${v}</td>`).join("");
     tr.title = `show the modal image at ${p.frequency_hz.toFixed(3)} Hz (damping: ${p.damping_method})`;
     tr.onclick = () => showMode(p.frequency_hz);
@@ -314,8 +353,9 @@ function animate(ts) {
 
 // ---- the damping view (thesis 5.4.2): drag over a spike ----
 async function showDamping(lo, hi) {
-  const roi = S.motion ? S.motion.roi : null;
+  const sel = selection(), roi = sel.roi;
   const body = { video: S.video, roi, lo_hz: lo, hi_hz: hi };
+  if (sel.mask) body.mask = sel.mask;
   if (S.fps) body.fps = S.fps;
   status(`fitting ${lo.toFixed(2)}–${hi.toFixed(2)} Hz…`);
   try {
@@ -325,7 +365,7 @@ async function showDamping(lo, hi) {
     const d = r.damping, f = d.fit, fmt = (x, n) => x.toFixed(n);
     $("damppanel").hidden = false;
     $("damptitle").textContent = `Damping over ${fmt(d.lo_hz, 2)}–${fmt(d.hi_hz, 2)} Hz` +
-      (roi ? ` (region ${roi.join(",")})` : " (whole frame)");
+      (sel.mask ? " (the mask)" : roi ? ` (region ${roi.join(",")})` : " (whole frame)");
     $("damptext").textContent = f
       ? `Lorentzian least squares over ${d.bins} bins (${d.taper} taper): f₀ = ${fmt(f.f0_hz, 3)} ± ${fmt(f.f0_std_hz, 3)} Hz, ` +
         `damping ζ = ${f.resolved ? "" : "≤ "}${f.damping_ratio.toFixed(4)} ± ${f.damping_ratio_std.toFixed(4)}` +
@@ -408,8 +448,9 @@ function drawStab() {
 // ---- listening (the listen recipe on the region, played through Web Audio) ----
 async function listenRegion() {
   if (!S.video) return showError("open a video first");
-  const roi = S.sel >= 0 ? S.regions[S.sel] : null;
+  const sel = selection(), roi = sel.roi;
   const body = { video: S.video, roi };
+  if (sel.mask) body.mask = sel.mask;
   if (S.fps) body.fps = S.fps;
   // The click starts the audio context (browsers allow sound after a gesture).
   if (!S.audioCtx) S.audioCtx = new AudioContext();
@@ -426,7 +467,7 @@ async function listenRegion() {
     src.buffer = buf; src.connect(S.audioCtx.destination); src.start();
     S.soundStarted = true; S.soundSeq++;
     clearError();
-    $("listenstatus").textContent = (roi ? `R${S.sel + 1}` : "whole frame") +
+    $("listenstatus").textContent = sel.name +
       `: ${r.duration_s.toFixed(2)} s, ${r.sample_rate_hz} Hz, ${r.encoding}` + (r.cached ? " (cached)" : "");
   } catch (e) { $("listenstatus").textContent = ""; showError(e.message); }
 }
@@ -675,6 +716,11 @@ function setupLiveExport() {
 async function main() {
   drawKeys(); setupRegions(); setupExport();
   $("open").onclick = openVideo;
+  $("paint").onclick = () => {
+    S.painting = !S.painting;
+    $("paint").classList.toggle("sel", S.painting);
+    $("paint").textContent = S.painting ? "Painting (click to draw rectangles)" : "Paint a mask";
+  };
   $("listen").onclick = listenRegion;
   $("video").addEventListener("keydown", (e) => { if (e.key === "Enter") openVideo(); });
   // A new scale: the same answers (cached on the server) in the new unit.

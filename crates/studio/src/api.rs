@@ -6,14 +6,17 @@
 //! | `GET /api/session` | the video opened at start, the root, whether a token is needed |
 //! | `GET /api/info?video=P[&fps=F]` | [`vibroscope::probe`]'s report |
 //! | `GET /api/frame?video=P&i=N` | frame N as an 8-bit grey PNG |
-//! | `POST /api/motion {video, roi?, fps?, scale_mm_per_px?}` | the region's waveform (px, and in µm/mm with a scale), spectrum (dB) and peaks (amplitudes likewise) |
+//! | `POST /api/motion {video, roi?, mask?, fps?, scale_mm_per_px?}` | the region's waveform (px, and in µm/mm with a scale), spectrum (dB) and peaks (amplitudes likewise) |
 //! | `POST /api/mode {video, freq_hz, roi?, fps?, scale_mm_per_px?}` | the modal image: PNG (hue = phase, brightness = amplitude) and the amplitude/phase numbers |
-//! | `POST /api/listen {video, roi?, fps?}` | the region's recovered sound (the `listen` recipe, 16-bit WAV at 8 kHz) and its spectrogram |
-//! | `POST /api/damping {video, lo_hz, hi_hz, roi?, fps?}` | the damping view over a range of the region's spectrum: the Lorentzian fitted there (damping, uncertainty, the model's curve) and SSI-cov's stabilisation diagram (poles over model orders, stable ones marked) |
+//! | `POST /api/listen {video, roi?, mask?, fps?}` | the region's recovered sound (the `listen` recipe, 16-bit WAV at 8 kHz) and its spectrogram |
+//! | `POST /api/damping {video, lo_hz, hi_hz, roi?, mask?, fps?}` | the damping view over a range of the region's spectrum: the Lorentzian fitted there (damping, uncertainty, the model's curve) and SSI-cov's stabilisation diagram (poles over model orders, stable ones marked) |
 //! | `GET /api/live` | the live pipeline's latest update (spectrum in dB, peaks, level, frame number, stage counters) |
 //! | `GET /api/live/frame` | its latest frame as an 8-bit grey PNG |
 //! | `POST /api/live/mode {freq_hz}` | the modal image at that frequency from the live pipeline's last 4 s of frames (as `/api/mode` answers, with the frames, span and rate used) |
 //! | `GET /api/live/ws` | a WebSocket carrying each new update as it comes (at most 50 a second; stale ones are replaced, never queued) |
+//!
+//! A `mask` is a PNG the frame's size painted on the page (a `data:` URL),
+//! read by the same loader as `--mask`.
 //!
 //! Errors come back as `{"error": MESSAGE}` with a 4xx (the request) or
 //! 5xx (the computation) status; nothing a request holds panics the server.
@@ -574,6 +577,9 @@ struct MotionRequest {
     /// Millimetres per pixel on the object: the motion is then also given
     /// in µm or mm (as `--scale`).
     scale_mm_per_px: Option<f64>,
+    /// A mask painted on the frame: a PNG the frame's size (a `data:` URL
+    /// or bare base64), pixels > 0 inside; with `roi`, both must hold.
+    mask: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -707,23 +713,114 @@ fn answer(v: &Value, cached: bool, ms: f64) -> axum::Json<Value> {
 async fn motion(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
     let r: MotionRequest = body(&b)?;
     let scale = scale_of(r.scale_mm_per_px)?;
-    let axum::Json(mut v) = region_answer(app, &b, "motion", |path, fps, roi, whole, _| {
-        region_motion(path, fps, roi, whole)
-    })
-    .await?;
+    let axum::Json(mut v) = region_answer(app, &b, "motion", region_motion).await?;
     with_units(&mut v, scale.as_ref());
     Ok(axum::Json(v))
 }
 
 /// A recipe over a region: (video, fps, region as requested, region or the
 /// whole frame, the video's probe) to its JSON answer.
-type RegionRecipe = fn(
-    &Path,
-    Option<f64>,
-    Option<[u32; 4]>,
-    [u32; 4],
-    &vibroscope::probe::ProbeReport,
-) -> ApiResult<Value>;
+type RegionRecipe = fn(&Path, Option<f64>, &Selection) -> ApiResult<Value>;
+
+/// A region as the recipes take it, checked against the recording.
+struct Selection {
+    probe: vibroscope::probe::ProbeReport,
+    /// The rectangle analysed: as given, else the mask's bounding box, else
+    /// none (the whole frame).
+    roi: Option<[u32; 4]>,
+    /// The rectangle the waveform is measured over (`roi` or the frame).
+    whole: [u32; 4],
+    /// The painted mask, written to a scratch PNG, and its pixels inside.
+    mask: Option<(vibroscope::io::atomic::TempPath, u64)>,
+}
+
+impl Selection {
+    fn region(&self) -> Region {
+        Region {
+            roi: self.roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
+            mask: self.mask_path(),
+            ..Region::default()
+        }
+    }
+
+    fn mask_path(&self) -> Option<PathBuf> {
+        self.mask.as_ref().map(|(t, _)| t.path().to_path_buf())
+    }
+
+    /// Facts of the selection for its answer.
+    fn describe(&self, v: &mut Value) {
+        v["roi"] = json!(self.roi);
+        v["mask_pixels"] = json!(self.mask.as_ref().map(|(_, n)| n));
+    }
+}
+
+/// At least this many mask pixels inside the region.
+const MIN_MASK_PIXELS: u64 = 16;
+
+/// `roi` and a painted `mask` checked against the recording `path`.
+fn select(
+    path: &Path,
+    fps: Option<f64>,
+    roi: Option<[u32; 4]>,
+    mask: Option<&str>,
+) -> ApiResult<Selection> {
+    let (probe, whole) = check_roi(path, fps, roi)?;
+    let Some(mask) = mask else {
+        return Ok(Selection {
+            probe,
+            roi,
+            whole,
+            mask: None,
+        });
+    };
+    let b64 = mask.strip_prefix("data:image/png;base64,").unwrap_or(mask);
+    let bytes = base64_decode(b64)
+        .ok_or_else(|| ApiError::bad("mask: not base64 (send the PNG as a data: URL)"))?;
+    let m = vibroscope::stages::transform::roi::Mask::decode(&bytes, Path::new("mask"))
+        .map_err(ApiError::unprocessable)?;
+    if (m.width, m.height) != (probe.width as usize, probe.height as usize) {
+        return Err(ApiError::unprocessable(format!(
+            "mask: {}x{}, but the frames are {}x{}",
+            m.width, m.height, probe.width, probe.height
+        )));
+    }
+    let [x, y, w, h] = whole.map(|v| v as usize);
+    let inside = (y..y + h)
+        .flat_map(|yy| (x..x + w).map(move |xx| (xx, yy)))
+        .filter(|&(xx, yy)| m.at(xx, yy))
+        .count() as u64;
+    if inside < MIN_MASK_PIXELS {
+        return Err(ApiError::unprocessable(format!(
+            "mask: {inside} painted pixels inside the region; paint at least {MIN_MASK_PIXELS}"
+        )));
+    }
+    // Without a rectangle: the mask's bounding box, at least 8x8.
+    let roi = roi.unwrap_or_else(|| {
+        let b = m.bounds();
+        let grow = |start: usize, len: usize, size: u32| -> (u32, u32) {
+            let size = size as usize;
+            let len2 = len.max(8).min(size);
+            let start2 = start.saturating_sub((len2 - len) / 2).min(size - len2);
+            (start2 as u32, len2 as u32)
+        };
+        let (bx, bw) = grow(b.x, b.w, probe.width);
+        let (by, bh) = grow(b.y, b.h, probe.height);
+        [bx, by, bw, bh]
+    });
+    let file = vibroscope::io::atomic::TempPath::new("studio-mask.png");
+    std::fs::write(file.path(), &bytes).map_err(|e| {
+        ApiError::new(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            format!("the mask's scratch file: {e}"),
+        )
+    })?;
+    Ok(Selection {
+        probe,
+        roi: Some(roi),
+        whole: roi,
+        mask: Some((file, inside)),
+    })
+}
 
 /// A region's answer (`what`: its cache key's tag) for a [`MotionRequest`]:
 /// from the cache, or `compute(path, fps, roi as given, roi or the whole
@@ -738,14 +835,15 @@ async fn region_answer(
     let r: MotionRequest = body(b)?;
     let path = guard::resolve(&app.root, &r.video)?;
     let fps = fps_of(&app, r.fps)?;
-    let key = region_key(what, &path, r.roi, fps);
+    let key = region_key(what, &path, r.roi, r.mask.as_deref(), fps);
     if let Some(v) = cached(&app, &key) {
         return Ok(answer(&v, true, t0.elapsed().as_secs_f64() * 1e3));
     }
     let app2 = app.clone();
     let v = blocking(move || {
-        let (p, roi) = check_roi(&path, fps, r.roi)?;
-        let v = compute(&path, fps, r.roi.map(|_| roi), roi, &p)?;
+        let sel = select(&path, fps, r.roi, r.mask.as_deref())?;
+        let mut v = compute(&path, fps, &sel)?;
+        sel.describe(&mut v);
         Ok(remember(&app2, key, v))
     })
     .await?;
@@ -753,8 +851,20 @@ async fn region_answer(
 }
 
 /// The cache key of a region's answer (`what`: its recipe's tag).
-fn region_key(what: &str, path: &Path, roi: Option<[u32; 4]>, fps: Option<f64>) -> String {
-    format!("{what}|{}|{roi:?}|{fps:?}", file_key(path))
+fn region_key(
+    what: &str,
+    path: &Path,
+    roi: Option<[u32; 4]>,
+    mask: Option<&str>,
+    fps: Option<f64>,
+) -> String {
+    use std::hash::{Hash, Hasher};
+    let mask = mask.map(|m| {
+        let mut h = std::hash::DefaultHasher::new();
+        m.hash(&mut h);
+        (h.finish(), m.len())
+    });
+    format!("{what}|{}|{roi:?}|{mask:?}|{fps:?}", file_key(path))
 }
 
 /// The damping request's fields that name its range, in its errors.
@@ -765,6 +875,7 @@ const RANGE_FIELDS: &str = "lo_hz/hi_hz";
 struct DampingRequest {
     video: String,
     roi: Option<[u32; 4]>,
+    mask: Option<String>,
     fps: Option<f64>,
     lo_hz: f64,
     hi_hz: f64,
@@ -779,17 +890,18 @@ async fn damping(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<
     let r: DampingRequest = body(&b)?;
     let path = guard::resolve(&app.root, &r.video)?;
     let fps = fps_of(&app, r.fps)?;
-    let key = region_key("motion", &path, r.roi, fps);
+    let key = region_key("motion", &path, r.roi, r.mask.as_deref(), fps);
     let v = blocking(move || {
         let m = match cached(&app, &key) {
             Some(m) => m,
             None => {
-                let (p, roi) = check_roi(&path, fps, r.roi)?;
+                let sel = select(&path, fps, r.roi, r.mask.as_deref())?;
                 // A range the recording cannot have is refused before the work.
-                if let Some(rate) = p.fps {
+                if let Some(rate) = sel.probe.fps {
                     vibroscope::damping::check_range((r.lo_hz, r.hi_hz), rate, RANGE_FIELDS)?;
                 }
-                let m = region_motion(&path, fps, r.roi.map(|_| roi), roi)?;
+                let mut m = region_motion(&path, fps, &sel)?;
+                sel.describe(&mut m);
                 remember(&app, key, m)
             }
         };
@@ -820,31 +932,18 @@ async fn damping(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<
     Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
 }
 
-/// The request's region as the recipes take it (none: the whole frame).
-fn region_of(roi: Option<[u32; 4]>) -> Region {
-    Region {
-        roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
-        ..Region::default()
-    }
-}
-
 /// The spectrum recipe (its peaks with damping and uncertainty) and the
 /// region's displacement, from one run over the recording.
-fn region_motion(
-    path: &Path,
-    fps: Option<f64>,
-    roi: Option<[u32; 4]>,
-    disp_roi: [u32; 4],
-) -> ApiResult<Value> {
+fn region_motion(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Value> {
     let mut o = SpectrumOptions::new(path, "studio-unused.json");
     o.fps = fps;
     o.peaks = 8;
     o.include_spectrum = true;
-    o.region = region_of(roi);
+    o.region = sel.region();
     // The motion the spectrum came from, kept for the damping view's SSI.
     let wav = vibroscope::io::atomic::TempPath::new("studio-motion.wav");
     o.motion_wav = Some(wav.path().to_path_buf());
-    let tap = DisplacementTap::new(vec![disp_roi]);
+    let tap = DisplacementTap::new(vec![sel.whole]).with_mask(sel.mask_path());
     let (report, _run) = vibroscope::spectrum::run_spectrum_with(&o, true, Some(&tap))?;
     let (_, signal) = vibroscope::io::wav::read_mono(wav.path()).map_err(|e| {
         ApiError::new(
@@ -874,6 +973,8 @@ fn region_motion(
                 "damping_ratio_std": p.damping_ratio_std,
                 "damping_method": p.damping_method,
                 "prominence_db": p.prominence_db,
+                "false_alarm": p.false_alarm,
+                "floor_db": p.floor_db,
                 "power_db": p.power_db,
                 "resolved": p.resolved,
                 "amplitude_px": a,
@@ -881,7 +982,6 @@ fn region_motion(
         })
         .collect();
     let mut v = json!({
-        "roi": roi,
         "sample_rate_hz": report.sample_rate_hz,
         "resolution_hz": report.resolution_hz,
         "spectrum": report.spectrum,
@@ -954,27 +1054,20 @@ fn mode_units(v: &mut Value, scale: Option<&vibroscope::units::Scale>) {
 const LISTEN_RATE_HZ: u32 = 8000;
 
 async fn listen(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
-    region_answer(app, &b, "listen", |path, fps, roi, _, probe| {
-        region_sound(path, fps, roi, probe.fps)
-    })
-    .await
+    region_answer(app, &b, "listen", region_sound).await
 }
 
 /// The `listen` recipe on a region (16-bit WAV at [`LISTEN_RATE_HZ`]), and
 /// the sound's spectrogram up to half the frame rate (where the motion's
 /// content ends) in dB.
-fn region_sound(
-    path: &Path,
-    fps: Option<f64>,
-    roi: Option<[u32; 4]>,
-    frame_rate: Option<f64>,
-) -> ApiResult<Value> {
+fn region_sound(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Value> {
+    let frame_rate = sel.probe.fps;
     let wav = vibroscope::io::atomic::TempPath::new("studio-listen.wav");
     let o = vibroscope::listen::ListenOptions {
         video: path.to_path_buf(),
         output: wav.path().to_path_buf(),
         fps,
-        region: region_of(roi),
+        region: sel.region(),
         denoise: Default::default(),
         speaker: None,
         calibration: None,
@@ -1008,7 +1101,6 @@ fn region_sound(
         })
         .collect();
     Ok(json!({
-        "roi": roi,
         "sample_rate_hz": report.sample_rate_hz,
         "samples": report.samples,
         "duration_s": report.samples as f64 / rate,
@@ -1041,7 +1133,10 @@ fn modal_image(
         output: png.path().to_path_buf(),
         npy: Some(npy.path().to_path_buf()),
         fps,
-        region: region_of(roi),
+        region: Region {
+            roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
+            ..Region::default()
+        },
         ..ModesOptions::default()
     };
     vibroscope::modes::modes(&o)?;
@@ -1087,9 +1182,49 @@ pub fn base64(b: &[u8]) -> String {
     s
 }
 
+/// Standard base64 (padding optional, no whitespace) decoded; `None` for
+/// anything else.
+pub fn base64_decode(s: &str) -> Option<Vec<u8>> {
+    let s = s.trim_end_matches('=').as_bytes();
+    let val = |c: u8| -> Option<u32> {
+        Some(match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => return None,
+        } as u32)
+    };
+    if s.len() % 4 == 1 {
+        return None;
+    }
+    let mut out = Vec::with_capacity(s.len() / 4 * 3 + 2);
+    for c in s.chunks(4) {
+        let mut n = 0u32;
+        for (k, &ch) in c.iter().enumerate() {
+            n |= val(ch)? << (18 - 6 * k);
+        }
+        let bytes = n.to_be_bytes();
+        out.extend_from_slice(&bytes[1..c.len()]);
+    }
+    Some(out)
+}
+
 #[cfg(test)]
 mod tests {
-    use super::base64;
+    use super::{base64, base64_decode};
+
+    #[test]
+    fn base64_decodes_what_it_encodes() {
+        for n in 0..40u8 {
+            let b: Vec<u8> = (0..n).map(|k| k.wrapping_mul(97).wrapping_add(n)).collect();
+            assert_eq!(base64_decode(&base64(&b)).as_deref(), Some(&b[..]));
+        }
+        assert_eq!(base64_decode("Zm9vYg").as_deref(), Some(&b"foob"[..]));
+        assert_eq!(base64_decode("Zm9v!mFy"), None);
+        assert_eq!(base64_decode("Z"), None);
+    }
 
     #[test]
     fn base64_matches_the_rfc_examples() {

@@ -227,6 +227,32 @@ async fn error_after(c: &Client, script: &str) -> String {
         .to_string()
 }
 
+/// A JSON array of unsigned integers.
+fn u64s(v: &Value) -> Vec<u64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect()
+}
+
+/// The strongest of a page's peaks: its frequency.
+fn top_peak_hz(peaks: &Value) -> f64 {
+    peaks
+        .as_array()
+        .unwrap()
+        .iter()
+        .max_by(|a, b| {
+            a["power_db"]
+                .as_f64()
+                .unwrap()
+                .total_cmp(&b["power_db"].as_f64().unwrap())
+        })
+        .expect("peaks")["frequency_hz"]
+        .as_f64()
+        .unwrap()
+}
+
 /// The library's modal image at `f`: the recipe's PNG (RGB) and the complex
 /// image's amplitudes.
 fn library_mode(video: &Path, dir: &Path, f: f64) -> (Vec<u8>, Vec<f32>) {
@@ -588,34 +614,78 @@ async fn drive(c: &Client, studio: &Studio, video: &Path, dir: &Path) {
         "return [window.studio.motion.roi, window.studio.motion.peaks]",
     )
     .await;
-    let page_roi: Vec<u64> = got[0]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_u64().unwrap())
-        .collect();
-    assert_eq!(page_roi, roi.map(u64::from).to_vec(), "the region drawn");
-    let top = got[1]
-        .as_array()
-        .unwrap()
-        .iter()
-        .max_by(|a, b| {
-            a["power_db"]
-                .as_f64()
-                .unwrap()
-                .total_cmp(&b["power_db"].as_f64().unwrap())
-        })
-        .expect("peaks in the region");
-    let f_top = top["frequency_hz"].as_f64().unwrap();
-    println!(
-        "region {roi:?}: top peak {f_top:.3} Hz ({:.1} dB)",
-        top["power_db"].as_f64().unwrap()
+    assert_eq!(
+        u64s(&got[0]),
+        roi.map(u64::from).to_vec(),
+        "the region drawn"
     );
+    let f_top = top_peak_hz(&got[1]);
+    println!("region {roi:?}: top peak {f_top:.3} Hz");
     assert!(
         (f_top - MODES[1].0).abs() < 0.5,
         "the region's top peak is {f_top} Hz, not mode 2 ({} Hz)",
         MODES[1].0
     );
+    // The same place painted as a mask (a stroke along the region's middle
+    // row, 8 px brush): its spectrum's top peak is mode 2 too, over the
+    // pixels painted; then back to the rectangle.
+    js(
+        c,
+        "document.getElementById('brush').value = 8; document.getElementById('paint').click(); return 0",
+    )
+    .await;
+    let cy = roi[1] + roi[3] / 2;
+    let (px0, py) = at(roi[0] + 8, cy);
+    let (px1, _) = at(roi[0] + roi[2] - 8, cy);
+    let before = counter(c, "motionSeq").await;
+    drag(c, &overlay, (px0, py), (px1, py)).await;
+    wait_for(c, "motionSeq", before, errors).await;
+    let got = js(
+        c,
+        "const m = window.studio.motion; return [m.mask_pixels, m.roi, m.peaks, window.studio.sel]",
+    )
+    .await;
+    let painted = got[0].as_u64().expect("a masked answer");
+    let bbox = u64s(&got[1]);
+    let f_mask = top_peak_hz(&got[2]);
+    println!("mask: {painted} px painted, bounding box {bbox:?}; top peak {f_mask:.3} Hz");
+    // The stroke: 8 px either side of the row, from 8 px before the first
+    // centre to 8 px after the last.
+    let want_w = (roi[2] - 16 + 17) as u64;
+    assert!(
+        (bbox[2] as i64 - want_w as i64).abs() <= 2 && (bbox[3] as i64 - 17).abs() <= 2,
+        "bounding box {bbox:?} for a {want_w}x17 stroke"
+    );
+    assert!(
+        painted as f64 > 0.8 * (want_w * 17) as f64 && painted <= want_w * 17,
+        "{painted} px painted"
+    );
+    assert_eq!(got[3], json!(-2), "the mask is selected");
+    assert!(
+        (f_mask - MODES[1].0).abs() < 0.5,
+        "the mask's top peak is {f_mask} Hz, not mode 2"
+    );
+    // The mask, not only its bounding box, was analysed: the box's own
+    // spectrum differs.
+    let differs = c
+        .execute_async(
+            "const done = arguments[arguments.length - 1], S = window.studio;
+             fetch('/api/motion', {method: 'POST', headers: {'content-type': 'application/json'},
+                                   body: JSON.stringify({video: S.video, roi: S.motion.roi})})
+               .then(r => r.json()).then(b => done(b.spectrum.power_db.some((v, k) => Math.abs(v - S.motion.spectrum.power_db[k]) > 0.01)));",
+            vec![],
+        )
+        .await
+        .unwrap();
+    assert_eq!(
+        differs,
+        json!(true),
+        "the mask's spectrum is its bounding box's"
+    );
+    js(c, "document.getElementById('paint').click(); return 0").await;
+    let before = counter(c, "motionSeq").await;
+    js(c, "Array.from(document.querySelectorAll('#regions button')).find(b => b.textContent.startsWith('R1')).click(); return 0").await;
+    wait_for(c, "motionSeq", before, errors).await;
     // The modal image over the frame with the region drawn, for the README.
     let before = counter(c, "modeSeq").await;
     click_at(
@@ -1005,12 +1075,20 @@ async fn drive_live(c: &Client, studio: &Studio) {
             "no top peak at {f} Hz: {peaks:?}"
         );
     }
-    // The frame and the spectrogram are drawn.
-    let shown = live(
-        c,
-        "[window.studio.live.framesShown, document.getElementById('liveframe').naturalWidth]",
-    )
-    .await;
+    // The frame and the spectrogram are drawn (the image's size reads 0
+    // while its next frame loads: look again then).
+    let t0 = Instant::now();
+    let shown = loop {
+        let shown = live(
+            c,
+            "[window.studio.live.framesShown, document.getElementById('liveframe').naturalWidth]",
+        )
+        .await;
+        if shown[1] != json!(0) || t0.elapsed() > Duration::from_secs(5) {
+            break shown;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    };
     assert!(shown[0].as_u64().unwrap() >= 10, "{shown}");
     assert_eq!(shown[1], json!(96));
     std::fs::create_dir_all(img_dir()).unwrap();

@@ -253,6 +253,42 @@ fn paths_bodies_and_malformed_requests_get_the_right_status() {
         assert_eq!(st, want, "{target} {body}: {b}");
         assert!(!error_of(&b).is_empty());
     }
+    // Painted masks: not base64, not a picture, the wrong size, empty, too
+    // few pixels in the region; each named.
+    let png = |w: u32, h: u32, on: &[(u32, u32)]| -> String {
+        let mut img = image::GrayImage::new(w, h);
+        for &(x, y) in on {
+            img.put_pixel(x, y, image::Luma([255]));
+        }
+        let mut out = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut out, image::ImageFormat::Png).unwrap();
+        format!(
+            "data:image/png;base64,{}",
+            vibroscope_studio::api::base64(out.get_ref())
+        )
+    };
+    let all: Vec<(u32, u32)> = (0..64).map(|k| (k % 8, k / 8)).collect();
+    for (mask, roi, want, says) in [
+        ("!!!".to_string(), None, 400, "base64"),
+        ("aGVsbG8=".to_string(), None, 422, "mask"),
+        (png(8, 8, &all), None, 422, "8x8, but the frames are 16x16"),
+        (png(16, 16, &[]), None, 422, "empty"),
+        (png(16, 16, &all[..4]), None, 422, "4 painted pixels"),
+        (
+            png(16, 16, &all),
+            Some([8, 8, 8, 8]),
+            422,
+            "0 painted pixels",
+        ),
+    ] {
+        let body =
+            serde_json::json!({"video": "sub/clip.y4m", "mask": mask, "roi": roi}).to_string();
+        for target in ["/api/motion", "/api/listen"] {
+            let (st, b) = post(a, target, &body);
+            assert_eq!(st, want, "{target} {says}: {b}");
+            assert!(error_of(&b).contains(says), "{target}: {b}");
+        }
+    }
     // A file that is not a video: an error answer with a message, not a crash.
     let (st, b) = get(a, "/api/info?video=notes.y4m");
     assert!((400..600).contains(&st), "{st} {b}");
