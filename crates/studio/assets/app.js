@@ -50,10 +50,14 @@ async function api(path, params, body) {
   } finally { S.busy--; }
 }
 
-// Millimetres per pixel typed in the header, or null.
+// Millimetres per pixel typed in the header, or null; undefined (and the
+// error shown) when it is not a number.
 function scaleParam() {
-  const v = parseFloat($("mmpx").value);
-  return $("mmpx").value.trim() === "" ? null : v;
+  const t = $("mmpx").value.trim();
+  if (t === "") return null;
+  const v = Number(t);
+  if (!isFinite(v)) { showError(`scale: "${t}" is not a number of millimetres per pixel`); return undefined; }
+  return v;
 }
 
 function fpsParam() {
@@ -193,6 +197,7 @@ async function loadMotion() {
   if (sel.mask) body.mask = sel.mask;
   if (S.fps) body.fps = S.fps;
   const scale = scaleParam();
+  if (scale === undefined) { $("plottitle").textContent = "Error"; return false; }
   if (scale !== null) body.scale_mm_per_px = scale;
   try {
     const m = await (await api("/api/motion", null, body)).json();
@@ -291,6 +296,7 @@ async function showMode(f) {
   const body = { video: S.video, freq_hz: f };
   if (S.fps) body.fps = S.fps;
   const scale = scaleParam();
+  if (scale === undefined) return;
   if (scale !== null) body.scale_mm_per_px = scale;
   status(`modal image at ${f.toFixed(3)} Hz…`);
   try {

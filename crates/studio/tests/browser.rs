@@ -558,9 +558,11 @@ async fn drive(c: &Client, studio: &Studio, video: &Path, dir: &Path) {
     )
     .await;
     assert_eq!(unit, json!(["px", "px"]));
-    // A scale that is not a number is the page's error.
+    // A scale that is not a number, or not above 0, is the page's error.
     let shown = error_after(c, &set_scale("-1")).await;
     assert!(shown.contains("scale_mm_per_px"), "{shown}");
+    let shown = error_after(c, &set_scale("abc")).await;
+    assert!(shown.contains("not a number"), "{shown}");
     let (motions, modes) = (counter(c, "motionSeq").await, counter(c, "modeSeq").await);
     let errors = counter(c, "errorSeq").await;
     js(c, &set_scale("")).await;
