@@ -72,7 +72,6 @@ pub const KIND: KindSpec = KindSpec {
         if v.name.trim().is_empty() {
             return Err(p.error("name", "must not be empty"));
         }
-
         Ok(Box::new(TapPlan(v)))
     },
 };
@@ -149,8 +148,7 @@ impl Stage for Tap {
     fn summary(&self) -> Option<String> {
         Some(match &self.slot {
             Some(s) if self.history.is_some() => format!(
-                "recorded {} frames into the watcher's history ({} of {} items; started over {} times)",
-                self.kept,
+                "recorded {} frames of {} items into the watcher's history (started over {} times)",
                 self.kept,
                 self.seen,
                 s.history_restarts()
