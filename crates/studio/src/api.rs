@@ -369,7 +369,14 @@ async fn live_mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Jso
         let video = vibroscope::io::atomic::TempPath::new("studio-live.y4m");
         let (frames, span_s, fps) = live
             .history_video(video.path())
-            .map_err(|m| ApiError::new(StatusCode::CONFLICT, m))?;
+            .map_err(|(io, m)| {
+                let status = if io {
+                    StatusCode::INTERNAL_SERVER_ERROR
+                } else {
+                    StatusCode::CONFLICT
+                };
+                ApiError::new(status, m)
+            })?;
         if r.freq_hz > fps / 2.0 {
             return Err(ApiError::unprocessable(format!(
                 "frequency {} Hz is above the Nyquist frequency {} Hz (the live frames come at {fps:.1} Hz)",

@@ -229,20 +229,27 @@ impl Live {
 
     /// The last [`HISTORY_S`] seconds of frames written to `path` as an
     /// 8-bit Y4M (each frame's capture time in it), with the rate they came
-    /// at: (frames, seconds spanned, frame rate). `Err`: why there are
-    /// none to use yet.
-    pub fn history_video(&self, path: &std::path::Path) -> Result<(usize, f64, f64), String> {
+    /// at: (frames, seconds spanned, frame rate). `Err((false, why))`:
+    /// there are none to use yet; `Err((true, why))`: the file could not
+    /// be written.
+    pub fn history_video(
+        &self,
+        path: &std::path::Path,
+    ) -> Result<(usize, f64, f64), (bool, String)> {
         let h = self.history.history();
         let n = h.frames.len();
         if n < MIN_HISTORY_FRAMES {
-            return Err(format!(
+            return Err((false, format!(
                 "the live view holds {n} frames so far; a modal image needs at least {MIN_HISTORY_FRAMES} (wait a moment)"
-            ));
+            )));
         }
         let (first, last) = (&h.frames[0], &h.frames[n - 1]);
         let span_s = (last.t_ns - first.t_ns) as f64 * 1e-9;
         if span_s.is_nan() || span_s <= 0.0 {
-            return Err("the live frames carry no increasing capture times".into());
+            return Err((
+                false,
+                "the live frames carry no increasing capture times".into(),
+            ));
         }
         let fps = (n - 1) as f64 / span_s;
         let write = || -> std::io::Result<()> {
@@ -263,7 +270,12 @@ impl Live {
             w.finish()?;
             Ok(())
         };
-        write().map_err(|e| format!("the live frames' scratch video {}: {e}", path.display()))?;
+        write().map_err(|e| {
+            (
+                true,
+                format!("the live frames' scratch video {}: {e}", path.display()),
+            )
+        })?;
         Ok((n, span_s, fps))
     }
 
