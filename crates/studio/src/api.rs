@@ -359,12 +359,7 @@ async fn live_mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Jso
     let t0 = Instant::now();
     let live = live_of(&app)?;
     let r: LiveModeRequest = body(&b)?;
-    if !(r.freq_hz.is_finite() && r.freq_hz > 0.0) {
-        return Err(ApiError::unprocessable(format!(
-            "frequency {} Hz: must be above 0",
-            r.freq_hz
-        )));
-    }
+    check_frequency(r.freq_hz)?;
     let mut v = blocking(move || {
         let video = vibroscope::io::atomic::TempPath::new("studio-live.y4m");
         let (frames, span_s, fps) = live
@@ -843,18 +838,41 @@ async fn region_answer(
     let path = guard::resolve(&app.root, &r.video)?;
     let fps = fps_of(&app, r.fps)?;
     let key = region_key(what, &path, r.roi, r.mask.as_deref(), fps);
-    if let Some(v) = cached(&app, &key) {
-        return Ok(answer(&v, true, t0.elapsed().as_secs_f64() * 1e3));
-    }
-    let app2 = app.clone();
-    let v = blocking(move || {
-        let sel = select(&path, fps, r.roi, r.mask.as_deref())?;
-        let mut v = compute(&path, fps, &sel)?;
-        sel.describe(&mut v);
-        Ok(remember(&app2, key, v))
+    let (v, was_cached) = blocking(move || {
+        region_cached(
+            &app,
+            key,
+            &path,
+            fps,
+            (r.roi, r.mask.as_deref()),
+            compute,
+            |_| Ok(()),
+        )
     })
     .await?;
-    Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
+    Ok(answer(&v, was_cached, t0.elapsed().as_secs_f64() * 1e3))
+}
+
+/// A region's answer kept under `key` (and whether it was), else computed
+/// by `compute` over the selection (`roi`, `mask`) once `check` accepts
+/// it, and kept. Blocking: call it through [`blocking`].
+fn region_cached(
+    app: &App,
+    key: String,
+    path: &Path,
+    fps: Option<f64>,
+    (roi, mask): (Option<[u32; 4]>, Option<&str>),
+    compute: RegionRecipe,
+    check: impl FnOnce(&Selection) -> ApiResult<()>,
+) -> ApiResult<(Arc<Value>, bool)> {
+    if let Some(v) = cached(app, &key) {
+        return Ok((v, true));
+    }
+    let sel = select(path, fps, roi, mask)?;
+    check(&sel)?;
+    let mut v = compute(path, fps, &sel)?;
+    sel.describe(&mut v);
+    Ok((remember(app, key, v), false))
 }
 
 /// The cache key of a region's answer (`what`: its recipe's tag).
@@ -899,19 +917,17 @@ async fn damping(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<
     let fps = fps_of(&app, r.fps)?;
     let key = region_key("motion", &path, r.roi, r.mask.as_deref(), fps);
     let v = blocking(move || {
-        let m = match cached(&app, &key) {
-            Some(m) => m,
-            None => {
-                let sel = select(&path, fps, r.roi, r.mask.as_deref())?;
-                // A range the recording cannot have is refused before the work.
-                if let Some(rate) = sel.probe.fps {
-                    vibroscope::damping::check_range((r.lo_hz, r.hi_hz), rate, RANGE_FIELDS)?;
-                }
-                let mut m = region_motion(&path, fps, &sel)?;
-                sel.describe(&mut m);
-                remember(&app, key, m)
-            }
+        // A range the recording cannot have is refused before the work.
+        let check = |sel: &Selection| match sel.probe.fps {
+            Some(rate) => Ok(vibroscope::damping::check_range(
+                (r.lo_hz, r.hi_hz),
+                rate,
+                RANGE_FIELDS,
+            )?),
+            None => Ok(()),
         };
+        let sel = (r.roi, r.mask.as_deref());
+        let (m, _) = region_cached(&app, key, &path, fps, sel, region_motion, check)?;
         let internal = |what: &str| {
             ApiError::new(
                 StatusCode::INTERNAL_SERVER_ERROR,
@@ -1007,12 +1023,7 @@ async fn mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Val
     let path = guard::resolve(&app.root, &r.video)?;
     let fps = fps_of(&app, r.fps)?;
     let scale = scale_of(r.scale_mm_per_px)?;
-    if !(r.freq_hz.is_finite() && r.freq_hz > 0.0) {
-        return Err(ApiError::unprocessable(format!(
-            "frequency {} Hz: must be above 0",
-            r.freq_hz
-        )));
-    }
+    check_frequency(r.freq_hz)?;
     let key = format!(
         "mode|{}|{:?}|{fps:?}|{}",
         file_key(&path),
@@ -1122,6 +1133,16 @@ fn region_sound(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Val
             "db": columns,
         },
     }))
+}
+
+/// Refuses a modal image's frequency at or below 0 Hz (or not a number).
+fn check_frequency(freq_hz: f64) -> ApiResult<()> {
+    if freq_hz.is_finite() && freq_hz > 0.0 {
+        return Ok(());
+    }
+    Err(ApiError::unprocessable(format!(
+        "frequency {freq_hz} Hz: must be above 0"
+    )))
 }
 
 /// The modes recipe's PNG and complex image (phase aligned as the PNG's
