@@ -401,7 +401,12 @@ impl Scene {
         modal: &super::ModalSpec,
         look: Look,
     ) -> Result<Scene, SimError> {
-        let beam = super::ModalBeam::new(modal, spec.object[2] as usize, spec.seed)?;
+        let beam = super::ModalBeam::new(
+            modal,
+            spec.object[2] as usize,
+            spec.object[3] as usize,
+            spec.seed,
+        )?;
         Self::build(spec, signal, Some(beam), None, look)
     }
 
@@ -439,6 +444,7 @@ impl Scene {
             Some(m) => Some(super::ModalBeam::new(
                 m,
                 spec.object[2] as usize,
+                spec.object[3] as usize,
                 spec.seed,
             )?),
             None => None,

@@ -22,7 +22,7 @@ use crate::io::{self, Depth, FrameDest};
 use crate::math::idv::{modal_force, Oscillator, Renderer, Shape};
 use crate::math::idv::{Complex32, Complex64};
 use crate::math::modal::{npy_complex64, read_npy_complex64, ModalConfig, ModalImager, Motion};
-use crate::pipeline::{Region, RunSettings};
+use crate::pipeline::{Region, Roi, RunSettings};
 use crate::spectrum::{run_spectrum, SpectrumOptions};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -150,8 +150,65 @@ struct Picked {
     method: String,
 }
 
-/// The modes to measure, from the spectrum's peaks.
-fn pick_modes(o: &BasisOptions, notes: &mut Vec<String>) -> Result<Vec<Picked>> {
+/// A quadrant at least this many pixels on each side is searched for
+/// modes of its own (see [`pick_modes`]).
+const MIN_QUADRANT_PX: u32 = 16;
+
+/// The region's rectangle (the frame's without one) cut into 2 x 2, or
+/// nothing when a quarter would be smaller than [`MIN_QUADRANT_PX`].
+fn quadrants(region: &Region, width: usize, height: usize) -> Vec<Roi> {
+    let r = region.roi.unwrap_or(Roi {
+        x: 0,
+        y: 0,
+        w: width as u32,
+        h: height as u32,
+    });
+    let (w0, h0) = (r.w / 2, r.h / 2);
+    if w0 < MIN_QUADRANT_PX || h0 < MIN_QUADRANT_PX {
+        return Vec::new();
+    }
+    let (w1, h1) = (r.w - w0, r.h - h0);
+    vec![
+        Roi {
+            x: r.x,
+            y: r.y,
+            w: w0,
+            h: h0,
+        },
+        Roi {
+            x: r.x + w0,
+            y: r.y,
+            w: w1,
+            h: h0,
+        },
+        Roi {
+            x: r.x,
+            y: r.y + h0,
+            w: w0,
+            h: h1,
+        },
+        Roi {
+            x: r.x + w0,
+            y: r.y + h0,
+            w: w1,
+            h: h1,
+        },
+    ]
+}
+
+/// The modes to measure, from the spectrum's peaks. With `Auto` the
+/// peaks of the region's spectrum and of its four quadrants' are pooled:
+/// the spectrum graph averages each band's motion over its region before
+/// the power is taken, so a mode whose parts move in opposite phase (a
+/// twist, a mode with a node across the region) cancels in the whole
+/// region's spectrum; a quadrant sees it. (Eq. 3.17 sums the power of
+/// every local signal for the same reason; quadrants are its coarsest
+/// form.) The listed choice uses the whole region's spectrum only.
+fn pick_modes(
+    o: &BasisOptions,
+    size: (usize, usize),
+    notes: &mut Vec<String>,
+) -> Result<Vec<Picked>> {
     let mut so = SpectrumOptions::new(&o.video, PathBuf::new());
     so.fps = o.fps;
     so.region = o.region.clone();
@@ -161,9 +218,17 @@ fn pick_modes(o: &BasisOptions, notes: &mut Vec<String>) -> Result<Vec<Picked>> 
         ModeChoice::Listed(_) => 32,
     };
     let (report, _) = run_spectrum(&so, true)?;
-    let mut peaks: Vec<&crate::peaks::Peak> = report
-        .peaks
+    let mut reports = vec![report];
+    if o.modes == ModeChoice::Auto {
+        for q in quadrants(&o.region, size.0, size.1) {
+            so.region.roi = Some(q);
+            reports.push(run_spectrum(&so, true)?.0);
+        }
+    }
+    let report = &reports[0];
+    let mut peaks: Vec<&crate::peaks::Peak> = reports
         .iter()
+        .flat_map(|r| r.peaks.iter())
         .filter(|p| p.frequency_hz.is_finite() && p.frequency_hz > 0.0)
         .collect();
     // A broadband-driven mode can show as a split peak: of peaks closer
@@ -287,7 +352,7 @@ pub fn extract_basis(o: &BasisOptions) -> Result<Basis> {
     let info = reader.info().clone();
     let (w, h) = (info.width as usize, info.height as usize);
     let mask = read_mask(&o.region, w, h)?;
-    let picked = pick_modes(o, &mut notes)?;
+    let picked = pick_modes(o, (w, h), &mut notes)?;
     let mut imagers = Vec::with_capacity(picked.len() * 2);
     for p in &picked {
         for motion in [Motion::X, Motion::Y] {

@@ -213,10 +213,22 @@ impl SyntheticParams {
         }
     }
 
+    /// The `modal` key with the recording's length filled in (a noise-driven
+    /// mode needs more lines the longer it is watched; see
+    /// `sim::modal::noise_lines`).
+    fn modal_spec(&self) -> Option<sim::ModalSpec> {
+        self.modal.clone().map(|mut m| {
+            if self.fps > 0.0 {
+                m.duration_s = self.frame_count() as f64 / self.fps;
+            }
+            m
+        })
+    }
+
     /// The forward model for these parameters.
     pub fn scene(&self) -> Result<Scene, String> {
         let (spec, signal, look) = self.parts(true)?;
-        match (&self.modal, &self.fabric) {
+        match (&self.modal_spec(), &self.fabric) {
             (Some(m), _) => Scene::with_modal(spec, signal, m, look),
             (None, Some(f)) => Scene::with_fabric(spec, signal, f, look),
             (None, None) => Scene::with_look(spec, signal, look),
@@ -236,7 +248,7 @@ impl SyntheticParams {
         Scene::check(
             &spec,
             &signal,
-            self.modal.as_ref(),
+            self.modal_spec().as_ref(),
             self.fabric.as_ref(),
             &look,
         )
