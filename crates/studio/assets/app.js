@@ -85,6 +85,8 @@ async function openVideo() {
     $("modal").hidden = true; $("modepanel").hidden = true;
     S.sound = null; $("soundgram").hidden = true; $("audio").removeAttribute("src"); $("listenstatus").textContent = "";
     S.damp = null; $("damppanel").hidden = true;
+    IDV.engine = null; IDV.basis = null; IDV.on = false; $("idvon").checked = false; $("idvon").disabled = true;
+    $("idvinfo").textContent = ""; $("overlay").style.cursor = "crosshair";
     $("scrub").max = Math.max(0, (info.frames || 1) - 1); $("scrub").value = 0;
     status(`${info.format} ${w}x${h}, ${info.frames ?? "?"} frames at ${info.fps ?? "?"} Hz`);
     await loadFrame(0);
@@ -170,7 +172,7 @@ function setupRegions() {
   const o = $("overlay");
   let painting = false;
   o.addEventListener("mousedown", (ev) => {
-    if (!S.info) return;
+    if (!S.info || IDV.on) return;
     if (S.painting) { painting = true; paintAt(ev); } else drag = { a: framePoint(ev), b: framePoint(ev) };
   });
   o.addEventListener("mousemove", (ev) => {
@@ -339,7 +341,7 @@ function drawKeys() {
 // The operating deflection shape: the frame warped along y by
 // gain x amplitude x cos(phase + θ(t)), θ turning once a second.
 function animate(ts) {
-  if ($("animate").checked && S.mode && S.grey && S.mode.width === S.info.width) {
+  if ($("animate").checked && !IDV.on && S.mode && S.grey && S.mode.width === S.info.width) {
     const c = $("frame"), g = c.getContext("2d"), w = c.width, h = c.height;
     const im = g.createImageData(w, h), gain = +$("gain").value, th = (ts / 1000) * 2 * Math.PI;
     const A = S.mode.amplitude_px, P = S.mode.phase_rad;
@@ -718,9 +720,340 @@ function setupLiveExport() {
   };
 }
 
+// ---- interactive dynamic video (thesis ch. 6): drag the object ----
+// The server measures the region's image-space modal basis (/api/idv/basis);
+// the page simulates each mode as a damped oscillator and renders
+// D = Σ Re{φ'_i q_i} (Eq. 6.10) warped onto the rest frame with the depth
+// rule, as the library's math::idv::Renderer does. Buffers are made once
+// per basis; a frame allocates nothing.
+const IDV = { engine: null, basis: null, on: false, seq: 0, grabs: 0, releases: 0,
+  frames: 0, fps: 0, lastTs: null, fpsT0: null, fpsN: 0, refused: 0 };
+S.idv = IDV;
+const LITTLE_ENDIAN = new Uint8Array(new Uint32Array([1]).buffer)[0] === 1;
+function b64bytes(s) {
+  const bin = atob(s), b = new Uint8Array(bin.length);
+  for (let i = 0; i < bin.length; i++) b[i] = bin.charCodeAt(i);
+  return b;
+}
+function f32le(bytes) {
+  if (LITTLE_ENDIAN) return new Float32Array(bytes.buffer, bytes.byteOffset, bytes.byteLength >> 2);
+  const dv = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength), out = new Float32Array(bytes.byteLength >> 2);
+  for (let i = 0; i < out.length; i++) out[i] = dv.getFloat32(4 * i, true);
+  return out;
+}
+
+// b: {width, height, box: [x, y, w, h], rest: Uint8Array(w*h), modes: [{freq_hz,
+// damping_ratio, shape: Float32Array(4 per box pixel: xr, xi, yr, yi)}]}.
+function makeIdv(b) {
+  const w = b.width, h = b.height, n = w * h, m = b.modes.length, [, , bw, bh] = b.box;
+  const E = {
+    // The shapes packed per pixel, mode after mode (xr, xi, yr, yi each):
+    // Eq. 6.10 then reads one stream and sums each pixel in registers.
+    w, h, box: b.box, rest: b.rest, m, ph: new Float32Array(4 * m * bw * bh), q: new Float64Array(2 * m),
+    freq: Float64Array.from(b.modes, (md) => md.freq_hz), xi0: Float64Array.from(b.modes, (md) => md.damping_ratio),
+    omega: new Float64Array(m), xi: new Float64Array(m), rho: new Float64Array(m), vel: new Float64Array(m),
+    dx: new Float32Array(n), dy: new Float32Array(n), depth: new Float32Array(n),
+    ownx: new Float32Array(n), owny: new Float32Array(n), image: new ImageData(w, h),
+    held: false, grab: -1, p: [0, 0], d: [0, 0], strength: 1, velocity: false, reachMax: 0,
+  };
+  E.image.data.fill(255);
+  b.modes.forEach((md, i) => {
+    for (let k = 0; k < bw * bh; k++) for (let c = 0; c < 4; c++) E.ph[4 * (k * m + i) + c] = md.shape[4 * k + c];
+  });
+  // The largest Σ_i |φ'_i|² in the box: a point far below it barely moves.
+  for (let k = 0; k < bw * bh; k++) E.reachMax = Math.max(E.reachMax, idvReach(E, k));
+  idvSetDamping(E, 1);
+  return E;
+}
+
+// Every ξ times `scale`, then ω as math::idv::Oscillator::new makes it
+// (the free motion rings at the measured damped frequency).
+function idvSetDamping(E, scale) {
+  for (let i = 0; i < E.m; i++) {
+    const xi = Math.max(0, Math.min(0.999, E.xi0[i] * scale));
+    E.xi[i] = xi; E.omega[i] = 2 * Math.PI * E.freq[i] / Math.sqrt(1 - xi * xi);
+  }
+}
+
+// Free motion over h seconds: the exact state transition e^{Ah} of
+// math::idv::Oscillator::transition, so the motion does not depend on the
+// frame rate.
+function idvStep(E, h) {
+  if (!(h > 0)) return;
+  for (let i = 0; i < E.m; i++) {
+    const w = E.omega[i], sigma = E.xi[i] * w, wd = w * Math.sqrt(1 - E.xi[i] * E.xi[i]);
+    const e = Math.exp(-sigma * h), s = Math.sin(wd * h), c = Math.cos(wd * h);
+    const p11 = e * (c + sigma / wd * s), p12 = e * s / wd, p21 = -e * w * w / wd * s, p22 = e * (c - sigma / wd * s);
+    const r = E.rho[i], v = E.vel[i];
+    E.rho[i] = p11 * r + p12 * v; E.vel[i] = p21 * r + p22 * v;
+  }
+}
+
+// Σ_i |φ'_i(p)|² at box pixel k: whether the grabbed point moves at all.
+function idvReach(E, k) {
+  let r = 0;
+  for (let j = 4 * k * E.m; j < 4 * (k + 1) * E.m; j++) r += E.ph[j] * E.ph[j];
+  return r;
+}
+
+// Direct manipulation (Eq. 6.7-6.8, math::idv::manipulate): with a_i =
+// dᵀφ'_i(p), |q_i| = |a_i| α and Arg q_i = -Arg a_i, i.e. q_i = α conj(a_i),
+// which maximises the displacement of p along d. α = strength /
+// Σ_i |d̂ᵀφ'_i(p)|² makes p move by strength x |d| along d (the sum is
+// floored at a quarter of Σ_i |φ'_i(p)|², so a drag across the
+// direction the point can move moves it little instead of without bound).
+// "Throw" (Eq. 6.9) turns the phase by a quarter period so that p sits
+// at rest and moves along d when let go (with q = ρ - iρ'/ω the free
+// motion turns q by e^{+iωt}, so the turn is -π/2).
+function idvHold(E) {
+  const k = E.grab, len = Math.hypot(E.d[0], E.d[1]);
+  if (k < 0) return;
+  if (len === 0) { E.rho.fill(0); E.vel.fill(0); return; }
+  const ux = E.d[0] / len, uy = E.d[1] / len;
+  let along = 0;
+  const s = E.ph;
+  for (let i = 0, j = 4 * k * E.m; i < E.m; i++, j += 4) {
+    const ar = ux * s[j] + uy * s[j + 2], ai = ux * s[j + 1] + uy * s[j + 3];
+    along += ar * ar + ai * ai;
+  }
+  const all = idvReach(E, k);
+  if (!(all > 0)) return;
+  const alpha = E.strength / Math.max(along, 0.25 * all);
+  for (let i = 0, j = 4 * k * E.m; i < E.m; i++, j += 4) {
+    const ar = E.d[0] * s[j] + E.d[1] * s[j + 2], ai = E.d[0] * s[j + 1] + E.d[1] * s[j + 3];
+    let qr = alpha * ar, qi = -alpha * ai;
+    if (E.velocity) { const t = qr; qr = -qi; qi = -t; } // q x (-i)
+    // math::idv::Oscillator::set_q: ρ = Re q, ρ' = -ω Im q.
+    E.rho[i] = qr; E.vel[i] = -qi * E.omega[i];
+  }
+}
+
+// Eq. 6.10 then the forward warp with the depth rule (math::idv::Renderer):
+// every pixel lands on the output pixel nearest to where it moves, the
+// one moving most wins, each output pixel samples the rest frame
+// bilinearly at itself minus the winner's displacement; a pixel nothing
+// lands on samples it with its own displacement.
+function idvRender(E, g) {
+  const { w, h, dx, dy, depth, ownx, owny, rest } = E, data = E.image.data;
+  const bx = E.box[0], by = E.box[1], bw = E.box[2], bh = E.box[3];
+  const m = E.m, q = E.q, s = E.ph;
+  for (let i = 0; i < m; i++) { q[2 * i] = E.rho[i]; q[2 * i + 1] = -E.vel[i] / E.omega[i]; }
+  for (let y = 0, k = 0; y < bh; y++) {
+    let o = (by + y) * w + bx;
+    for (let x = 0; x < bw; x++, o++) {
+      let sx = 0, sy = 0;
+      for (let i = 0; i < 2 * m; i += 2, k += 4) {
+        const qr = q[i], qi = q[i + 1];
+        sx += s[k] * qr - s[k + 1] * qi; sy += s[k + 2] * qr - s[k + 3] * qi;
+      }
+      dx[o] = sx; dy[o] = sy;
+    }
+  }
+  depth.fill(-1); ownx.set(dx); owny.set(dy);
+  for (let y = 0, i = 0; y < h; y++) {
+    for (let x = 0; x < w; x++, i++) {
+      const ddx = dx[i], ddy = dy[i], fx = x + ddx, fy = y + ddy;
+      // f32::round (halves away from zero); anything at or below -0.5
+      // rounds below 0 and is dropped, so -1 stands for it.
+      const tx = fx > -0.5 ? (fx + 0.5) | 0 : -1, ty = fy > -0.5 ? (fy + 0.5) | 0 : -1;
+      if (tx < 0 || ty < 0 || tx >= w || ty >= h) continue;
+      const t = ty * w + tx, mag = ddx * ddx + ddy * ddy;
+      if (mag > depth[t]) { depth[t] = mag; ownx[t] = ddx; owny[t] = ddy; }
+    }
+  }
+  const wm = w - 1, hm = h - 1;
+  for (let y = 0, i = 0; y < h; y++) {
+    for (let x = 0; x < w; x++, i++) {
+      let sx = x - ownx[i], sy = y - owny[i];
+      sx = sx < 0 ? 0 : sx > wm ? wm : sx; sy = sy < 0 ? 0 : sy > hm ? hm : sy;
+      const x0 = sx | 0, y0 = sy | 0, x1 = x0 < wm ? x0 + 1 : wm, y1 = y0 < hm ? y0 + 1 : hm;
+      const fx = sx - x0, fy = sy - y0;
+      const a = rest[y0 * w + x0] * (1 - fx) + rest[y0 * w + x1] * fx;
+      const b = rest[y1 * w + x0] * (1 - fx) + rest[y1 * w + x1] * fx;
+      const v = (a * (1 - fy) + b * fy + 0.5) | 0, o = 4 * i;
+      data[o] = v; data[o + 1] = v; data[o + 2] = v;
+    }
+  }
+  g.putImageData(E.image, 0, 0);
+}
+
+// The overlay in interaction: the basis's box and the arrow from the
+// grabbed point to the pointer.
+function idvOverlay() {
+  const o = $("overlay"), g = o.getContext("2d"), s = S.scale, E = IDV.engine;
+  g.clearRect(0, 0, o.width, o.height);
+  if (!E) return;
+  const [bx, by, bw, bh] = E.box;
+  g.strokeStyle = "rgba(255, 204, 51, 0.5)"; g.setLineDash([4, 3]); g.lineWidth = 1;
+  g.strokeRect(bx * s + 0.5, by * s + 0.5, bw * s - 1, bh * s - 1); g.setLineDash([]);
+  if (!E.held) return;
+  const x0 = (E.p[0] + 0.5) * s, y0 = (E.p[1] + 0.5) * s, x1 = x0 + E.d[0] * s, y1 = y0 + E.d[1] * s;
+  g.strokeStyle = g.fillStyle = "#ffcc33"; g.lineWidth = 3;
+  g.beginPath(); g.arc(x0, y0, 4, 0, 2 * Math.PI); g.fill();
+  const len = Math.hypot(x1 - x0, y1 - y0);
+  if (len < 1) return;
+  const ux = (x1 - x0) / len, uy = (y1 - y0) / len, head = Math.min(14, len * 0.6);
+  g.beginPath(); g.moveTo(x0, y0); g.lineTo(x1 - ux * head * 0.5, y1 - uy * head * 0.5); g.stroke();
+  g.beginPath(); g.moveTo(x1, y1);
+  g.lineTo(x1 - ux * head - uy * head * 0.5, y1 - uy * head + ux * head * 0.5);
+  g.lineTo(x1 - ux * head + uy * head * 0.5, y1 - uy * head - ux * head * 0.5);
+  g.closePath(); g.fill(); g.lineWidth = 1;
+}
+
+function idvPoint(ev) {
+  const b = $("overlay").getBoundingClientRect();
+  return [(ev.clientX - b.left) / S.scale - 0.5, (ev.clientY - b.top) / S.scale - 0.5];
+}
+
+function idvSetOn(on) {
+  IDV.on = on && !!IDV.engine;
+  $("idvon").checked = IDV.on;
+  $("overlay").style.cursor = IDV.on ? "grab" : "crosshair";
+  IDV.lastTs = null; IDV.fpsT0 = null;
+  if (IDV.on) idvOverlay();
+  else { drawRegions(); if (S.video) loadFrame(S.frameIndex).catch((e) => showError(e.message)); }
+}
+
+async function idvLoad() {
+  if (!S.video) return showError("open a video first");
+  const sel = selection();
+  const body = { video: S.video, roi: sel.roi, modes: $("idvmodes").value.trim() || "auto" };
+  if (sel.mask) body.mask = sel.mask;
+  if (S.fps) body.fps = S.fps;
+  $("idvinfo").textContent = `measuring the modal basis of ${sel.name}…`;
+  try {
+    const r = await (await api("/api/idv/basis", null, body)).json();
+    const [, , bw, bh] = r.box;
+    const rest = b64bytes(r.rest);
+    if (rest.length !== r.width * r.height) throw new Error("the basis's rest frame is not the frame's size");
+    const modes = r.modes.map((md) => {
+      const shape = f32le(b64bytes(md.shape));
+      if (shape.length !== 4 * bw * bh) throw new Error(`mode ${md.freq_hz} Hz: its shape is not the box's size`);
+      return { freq_hz: md.freq_hz, damping_ratio: md.damping_ratio, damping_method: md.damping_method, shape };
+    });
+    IDV.engine = makeIdv({ width: r.width, height: r.height, box: r.box, rest, modes });
+    idvApplySliders();
+    delete r.rest; r.modes.forEach((md) => { delete md.shape; });
+    IDV.basis = r; IDV.seq++;
+    clearError();
+    $("idvon").disabled = false;
+    $("idvinfo").textContent = `${modes.length} modes over ${sel.name} (${r.box.join(",")}): ` +
+      r.modes.map((md) => `${md.freq_hz.toFixed(2)} Hz (ζ ${md.damping_ratio.toFixed(3)})`).join(", ") +
+      ` — ${(r.payload_bytes / 1e6).toFixed(1)} MB, ${r.elapsed_ms.toFixed(0)} ms${r.cached ? " (cached)" : ""}` +
+      (r.notes.length ? "; " + r.notes.join("; ") : "") + ". Drag on the object; let go and it rings.";
+    idvSetOn(true);
+  } catch (e) { $("idvinfo").textContent = ""; showError(e.message); }
+}
+
+function idvApplySliders() {
+  const st = +$("idvstrength").value, ds = Math.pow(2, +$("idvdamping").value);
+  $("idvstrengthlabel").textContent = st.toFixed(2) + "x";
+  $("idvdampinglabel").textContent = "ζ x" + ds.toPrecision(2);
+  const E = IDV.engine; if (!E) return;
+  E.strength = st; E.velocity = $("idvvelocity").checked; idvSetDamping(E, ds);
+}
+
+// One animation frame: the modes held or let go by the real time elapsed.
+function idvFrame(ts) {
+  const E = IDV.engine;
+  if (E && IDV.on && S.info && E.w === S.info.width && E.h === S.info.height) {
+    const dt = IDV.lastTs === null ? 0 : (ts - IDV.lastTs) / 1000;
+    IDV.lastTs = ts;
+    if (E.held) idvHold(E); else idvStep(E, dt);
+    idvRender(E, $("frame").getContext("2d"));
+    IDV.frames++; IDV.fpsN++;
+    if (IDV.fpsT0 === null) { IDV.fpsT0 = ts; IDV.fpsN = 0; }
+    else if (ts - IDV.fpsT0 >= 500) {
+      IDV.fps = IDV.fpsN * 1000 / (ts - IDV.fpsT0); IDV.fpsT0 = ts; IDV.fpsN = 0;
+      $("idvfps").textContent = IDV.fps.toFixed(1);
+    }
+  }
+  requestAnimationFrame(idvFrame);
+}
+
+function setupIdv() {
+  const o = $("overlay");
+  o.addEventListener("pointerdown", (ev) => {
+    const E = IDV.engine;
+    if (!IDV.on || !E) return;
+    ev.preventDefault();
+    const [fx, fy] = idvPoint(ev), px = Math.round(fx), py = Math.round(fy), [bx, by, bw, bh] = E.box;
+    const inBox = px >= bx && py >= by && px < bx + bw && py < by + bh;
+    const k = inBox ? (py - by) * bw + (px - bx) : -1;
+    if (k < 0 || idvReach(E, k) < 0.01 * E.reachMax) {
+      IDV.refused++;
+      $("idvinfo").textContent = `nothing moves at ${px},${py}: grab the object (inside the dashed box, where its modes move)`;
+      return;
+    }
+    E.grab = k; E.p = [px, py]; E.d = [fx - px, fy - py]; E.held = true; IDV.grabs++;
+    o.setPointerCapture(ev.pointerId); o.style.cursor = "grabbing";
+    idvOverlay();
+  });
+  o.addEventListener("pointermove", (ev) => {
+    const E = IDV.engine;
+    if (!IDV.on || !E || !E.held) return;
+    const [fx, fy] = idvPoint(ev);
+    E.d = [fx - E.p[0], fy - E.p[1]];
+    idvOverlay();
+  });
+  const up = () => {
+    const E = IDV.engine;
+    if (!E || !E.held) return;
+    E.held = false; IDV.releases++;
+    o.style.cursor = IDV.on ? "grab" : "crosshair";
+    idvOverlay();
+  };
+  o.addEventListener("pointerup", up);
+  o.addEventListener("pointercancel", up);
+  $("idvload").onclick = idvLoad;
+  $("idvon").onchange = () => idvSetOn($("idvon").checked);
+  $("idvrest").onclick = () => { const E = IDV.engine; if (E) { E.rho.fill(0); E.vel.fill(0); } };
+  for (const id of ["idvstrength", "idvdamping", "idvvelocity"]) $(id).addEventListener("input", idvApplySliders);
+  idvApplySliders();
+  requestAnimationFrame(idvFrame);
+}
+
+// Renders the current state once into the frame (for the test, which
+// reads it back in the same script and compares it with the library's).
+S.idvRender = () => { if (IDV.engine) idvRender(IDV.engine, $("frame").getContext("2d")); };
+
+// The frame rate of the page's renderer for a synthetic basis (w x h,
+// `modes` smooth modes over the whole frame), drawn to a canvas of its
+// own: `frames` frames back to back (simulation + Eq. 6.10 + warp +
+// putImageData), then as many as requestAnimationFrame gives in `ms`.
+S.idvBench = (w, h, modes, frames, ms) => new Promise((done) => {
+  const n = w * h, rest = new Uint8Array(n), md = [];
+  for (let i = 0; i < n; i++) rest[i] = ((i % w) >> 3 & 1) ^ ((i / w | 0) >> 3 & 1) ? 200 : 60;
+  for (let k = 0; k < modes; k++) {
+    const s = new Float32Array(4 * n);
+    for (let y = 0; y < h; y++) for (let x = 0; x < w; x++) {
+      const i = 4 * (y * w + x), u = Math.sin((k + 1) * Math.PI * x / w) * Math.cos(Math.PI * y / h);
+      s[i] = 0.3 * u; s[i + 1] = 0.05 * u; s[i + 2] = u; s[i + 3] = 0.1 * u;
+    }
+    md.push({ freq_hz: 3 + 7 * k, damping_ratio: 0.02, shape: s });
+  }
+  const E = makeIdv({ width: w, height: h, box: [0, 0, w, h], rest, modes: md });
+  const c = document.createElement("canvas"); c.width = w; c.height = h;
+  const g = c.getContext("2d");
+  E.grab = (h >> 2) * w + (w >> 1); E.d = [0, 10]; idvHold(E);
+  const t0 = performance.now();
+  for (let f = 0; f < frames; f++) { idvStep(E, 1 / 60); idvRender(E, g); }
+  const loopMs = performance.now() - t0;
+  let first = null, last = null, count = 0;
+  const tick = (ts) => {
+    if (first === null) first = ts;
+    else { idvStep(E, (ts - last) / 1000); idvRender(E, g); count++; }
+    last = ts;
+    if (ts - first < ms) requestAnimationFrame(tick);
+    else done({ width: w, height: h, modes, frames, loop_ms_per_frame: loopMs / frames,
+      loop_fps: frames * 1000 / loopMs, raf_frames: count, raf_fps: count * 1000 / (last - first) });
+  };
+  requestAnimationFrame(tick);
+});
+
 // ---- start ----
 async function main() {
-  drawKeys(); setupRegions(); setupExport();
+  drawKeys(); setupRegions(); setupExport(); setupIdv();
   $("open").onclick = openVideo;
   $("paint").onclick = () => {
     S.painting = !S.painting;

@@ -10,6 +10,7 @@
 //! | `POST /api/mode {video, freq_hz, roi?, fps?, scale_mm_per_px?}` | the modal image: PNG (hue = phase, brightness = amplitude) and the amplitude/phase numbers |
 //! | `POST /api/listen {video, roi?, mask?, fps?}` | the region's recovered sound (the `listen` recipe, 16-bit WAV at 8 kHz) and its spectrogram |
 //! | `POST /api/damping {video, lo_hz, hi_hz, roi?, mask?, fps?}` | the damping view over a range of the region's spectrum: the Lorentzian fitted there (damping, uncertainty, the model's curve) and SSI-cov's stabilisation diagram (poles over model orders, stable ones marked) |
+//! | `POST /api/idv/basis {video, roi?, mask?, fps?, modes?, max_modes?}` | the region's image-space modal basis (interactive dynamic video, thesis ch. 6) for the page to simulate and render: see [`crate::idv`] |
 //! | `GET /api/live` | the live pipeline's latest update (spectrum in dB, peaks, level, frame number, stage counters) |
 //! | `GET /api/live/frame` | its latest frame as an 8-bit grey PNG |
 //! | `POST /api/live/mode {freq_hz}` | the modal image at that frequency from the live pipeline's last 4 s of frames (as `/api/mode` answers, with the frames, span and rate used) |
@@ -115,7 +116,7 @@ pub struct ApiError {
 }
 
 impl ApiError {
-    fn new(status: StatusCode, message: impl Into<String>) -> ApiError {
+    pub(crate) fn new(status: StatusCode, message: impl Into<String>) -> ApiError {
         ApiError {
             status,
             message: message.into(),
@@ -124,7 +125,7 @@ impl ApiError {
     fn bad(message: impl Into<String>) -> ApiError {
         ApiError::new(StatusCode::BAD_REQUEST, message)
     }
-    fn unprocessable(message: impl Into<String>) -> ApiError {
+    pub(crate) fn unprocessable(message: impl Into<String>) -> ApiError {
         ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, message)
     }
 }
@@ -181,6 +182,7 @@ pub fn router(app: Arc<App>, max_body: usize) -> Router {
         .route("/api/mode", post(mode))
         .route("/api/listen", post(listen))
         .route("/api/damping", post(damping))
+        .route("/api/idv/basis", post(idv_basis))
         .route("/api/live", get(live_update))
         .route("/api/live/frame", get(live_frame))
         .route("/api/live/ws", get(live_ws))
@@ -701,6 +703,9 @@ fn remember(app: &App, key: String, v: Value) -> Arc<Value> {
 /// the region's spectrum was computed from (the damping view's SSI).
 const PRIVATE_MOTION: &str = "_motion";
 
+/// A computed answer's mark: send it, do not keep it (too large).
+pub(crate) const PRIVATE_NO_CACHE: &str = "_no_cache";
+
 /// Answers from the cache, marking them so (`"cached": true`).
 fn answer(v: &Value, cached: bool, ms: f64) -> axum::Json<Value> {
     let mut v = v.clone();
@@ -725,19 +730,19 @@ async fn motion(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<V
 type RegionRecipe = fn(&Path, Option<f64>, &Selection) -> ApiResult<Value>;
 
 /// A region as the recipes take it, checked against the recording.
-struct Selection {
-    probe: vibroscope::probe::ProbeReport,
+pub(crate) struct Selection {
+    pub(crate) probe: vibroscope::probe::ProbeReport,
     /// The rectangle analysed: as given, else the mask's bounding box, else
     /// none (the whole frame).
     roi: Option<[u32; 4]>,
     /// The rectangle the waveform is measured over (`roi` or the frame).
-    whole: [u32; 4],
+    pub(crate) whole: [u32; 4],
     /// The painted mask, written to a scratch PNG, and its pixels inside.
     mask: Option<(vibroscope::io::atomic::TempPath, u64)>,
 }
 
 impl Selection {
-    fn region(&self) -> Region {
+    pub(crate) fn region(&self) -> Region {
         Region {
             roi: self.roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
             mask: self.mask_path(),
@@ -862,7 +867,7 @@ fn region_cached(
     path: &Path,
     fps: Option<f64>,
     (roi, mask): (Option<[u32; 4]>, Option<&str>),
-    compute: RegionRecipe,
+    compute: impl FnOnce(&Path, Option<f64>, &Selection) -> ApiResult<Value>,
     check: impl FnOnce(&Selection) -> ApiResult<()>,
 ) -> ApiResult<(Arc<Value>, bool)> {
     if let Some(v) = cached(app, &key) {
@@ -872,6 +877,11 @@ fn region_cached(
     check(&sel)?;
     let mut v = compute(path, fps, &sel)?;
     sel.describe(&mut v);
+    if let Some(o) = v.as_object_mut() {
+        if o.remove(PRIVATE_NO_CACHE).is_some() {
+            return Ok((Arc::new(v), false));
+        }
+    }
     Ok((remember(app, key, v), false))
 }
 
@@ -953,6 +963,54 @@ async fn damping(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<
     })
     .await?;
     Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BasisRequest {
+    video: String,
+    roi: Option<[u32; 4]>,
+    mask: Option<String>,
+    fps: Option<f64>,
+    /// `auto` (default) or `F1,F2,LO-HI` (Hz), as `vibroscope idv --modes`.
+    modes: Option<String>,
+    /// At most this many modes with `auto` (default 8).
+    max_modes: Option<usize>,
+}
+
+/// The region's image-space modal basis ([`crate::idv`]): cached per
+/// video, region, rate and modes like the other region answers; a basis
+/// whose answer would be too large is refused before the work.
+async fn idv_basis(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
+    let t0 = Instant::now();
+    let r: BasisRequest = body(&b)?;
+    let path = guard::resolve(&app.root, &r.video)?;
+    let fps = fps_of(&app, r.fps)?;
+    let choice = crate::idv::Choice::parse(r.modes.as_deref(), r.max_modes)?;
+    let tag = format!("idv-basis|{}|{}", choice.text, choice.max_modes);
+    let key = region_key(&tag, &path, r.roi, r.mask.as_deref(), fps);
+    let (v, was_cached) = blocking(move || {
+        let c2 = choice.clone();
+        let name = r.video.clone();
+        region_cached(
+            &app,
+            key,
+            &path,
+            fps,
+            (r.roi, r.mask.as_deref()),
+            move |p, f, sel| {
+                let mut v = crate::idv::basis_answer(&name, p, f, sel, &c2)?;
+                if v["payload_bytes"].as_u64().unwrap_or(u64::MAX) > crate::idv::MAX_CACHED_PAYLOAD
+                {
+                    v[PRIVATE_NO_CACHE] = json!(true);
+                }
+                Ok(v)
+            },
+            |sel| choice.check_size(sel),
+        )
+    })
+    .await?;
+    Ok(answer(&v, was_cached, t0.elapsed().as_secs_f64() * 1e3))
 }
 
 /// The spectrum recipe (its peaks with damping and uncertainty) and the

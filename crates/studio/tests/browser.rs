@@ -12,8 +12,12 @@
 //! finds the mode. A live synthetic pipeline run by the studio must get
 //! at least 10 spectrum updates a second to the page for 10 s with no
 //! frame dropped anywhere in the pipeline, its peaks at the scene's tones;
-//! a dropped WebSocket shows an error and the page reconnects. Screenshots
-//! go to `docs/img/studio-*.png`.
+//! a dropped WebSocket shows an error and the page reconnects.
+//! Interactive dynamic video (issue 17): a drag on the beam's free end,
+//! held, moves the rendered texture there the way dragged (little near
+//! the clamp) with an arrow drawn; let go, it swings through rest and dies
+//! away; the page renderer's frame rate for a 512x512 basis of 8 modes is
+//! measured and printed. Screenshots go to `docs/img/studio-*.png`.
 //!
 //! Needs Debian's `chromium` and `chromium-driver`; skips with a printed
 //! reason when they are missing.
@@ -1218,4 +1222,453 @@ async fn drive_live(c: &Client, studio: &Studio) {
     );
     let shot = c.screenshot().await.unwrap();
     std::fs::write(img_dir().join("studio-live.png"), shot).unwrap();
+}
+
+/// Interactive dynamic video's scene (issue 17): the cantilever of
+/// `docs/img/idv-beam.toml` on the studio's frame, clamped on the left,
+/// free on the right, its three modes noise-driven for 4 s.
+const IDV_MODES: [(f64, f64, f64, u32); 3] = [
+    (7.3, 0.02, 0.3, 1),
+    (45.8, 0.01, 0.15, 2),
+    (128.0, 0.005, 0.1, 3),
+];
+
+fn idv_scene() -> String {
+    let m = IDV_MODES;
+    format!(
+        "width = {W}\nheight = {H}\nfps = {FPS}\nframes = 1200\nobject = {OBJECT:?}\n\
+         noise_std = 2.0\nseed = 3\nmodal = {{ modes = [\n\
+         {{ freq_hz = {}, damping = {}, amplitude_px = {}, shape = {} }},\n\
+         {{ freq_hz = {}, damping = {}, amplitude_px = {}, shape = {} }},\n\
+         {{ freq_hz = {}, damping = {}, amplitude_px = {}, shape = {} }},\n] }}\n",
+        m[0].0,
+        m[0].1,
+        m[0].2,
+        m[0].3,
+        m[1].0,
+        m[1].1,
+        m[1].2,
+        m[1].3,
+        m[2].0,
+        m[2].1,
+        m[2].2,
+        m[2].3
+    )
+}
+
+/// The vertical shift s (px, + down) that best explains `now` as `rest`
+/// moved: now[y] ≈ rest[y - s] over the object's inner rows, searched in
+/// steps of 0.05 px over ±10 px (rest linearly interpolated).
+fn vertical_shift(rest: &[f64], now: &[f64]) -> f64 {
+    let rows = (OBJECT[1] + 6) as usize..(OBJECT[1] + OBJECT[3] - 6) as usize;
+    let at = |y: f64| {
+        let y = y.clamp(0.0, (rest.len() - 1) as f64);
+        let y0 = y.floor() as usize;
+        let y1 = (y0 + 1).min(rest.len() - 1);
+        rest[y0] + (rest[y1] - rest[y0]) * (y - y0 as f64)
+    };
+    let mut best = (f64::INFINITY, 0.0);
+    for k in -200..=200 {
+        let s = k as f64 * 0.05;
+        let e: f64 = rows
+            .clone()
+            .map(|y| (now[y] - at(y as f64 - s)).powi(2))
+            .sum();
+        if e < best.0 {
+            best = (e, s);
+        }
+    }
+    best.1
+}
+
+/// Columns `xs` of the page's rendered frame (the `#frame` canvas), grey.
+async fn frame_columns(c: &Client, xs: &[u32]) -> Vec<Vec<f64>> {
+    let v = js(
+        c,
+        &format!(
+            "const c = document.getElementById('frame'), d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+             return {xs:?}.map(x => {{ const col = []; for (let y = 0; y < c.height; y++) col.push(d[4 * (y * c.width + x)]); return col; }})"
+        ),
+    )
+    .await;
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|col| {
+            col.as_array()
+                .unwrap()
+                .iter()
+                .map(|v| v.as_f64().unwrap())
+                .collect()
+        })
+        .collect()
+}
+
+/// Renders the page's current modal state once and compares the frame
+/// with `math::idv::Renderer` (Eq. 6.10 and the warp) over the library's
+/// basis of `region` (`extract_basis`, its shapes zero outside the
+/// region's box as the page has them) at the same modal coordinates.
+async fn same_as_library(c: &Client, video: &Path, region: [u32; 4]) {
+    let v = js(
+        c,
+        "const S = window.studio, E = S.idv.engine; S.idvRender();
+         const cv = document.getElementById('frame'), d = cv.getContext('2d').getImageData(0, 0, cv.width, cv.height).data;
+         const grey = []; for (let i = 0; i < d.length; i += 4) grey.push(d[i]);
+         return [Array.from(E.rho), Array.from(E.vel), Array.from(E.omega), grey]",
+    )
+    .await;
+    let nums = |v: &Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let (rho, vel, omega, page) = (nums(&v[0]), nums(&v[1]), nums(&v[2]), nums(&v[3]));
+    let mut o = vibroscope::idv::BasisOptions::new(video);
+    o.region = vibroscope::pipeline::Region {
+        roi: Some(vibroscope::pipeline::Roi {
+            x: region[0],
+            y: region[1],
+            w: region[2],
+            h: region[3],
+        }),
+        ..Default::default()
+    };
+    o.modes = IDV_MODES
+        .map(|m| m.0.to_string())
+        .join(",")
+        .parse()
+        .unwrap();
+    let basis = vibroscope::idv::extract_basis(&o).unwrap();
+    let (w, h) = (basis.width, basis.height);
+    let [bx, by, bw, bh] = region.map(|v| v as usize);
+    let zero = vibroscope::math::idv::Complex32::new(0.0, 0.0);
+    let shapes: Vec<_> = basis
+        .modes
+        .iter()
+        .map(|m| {
+            let mut s = m.shape.clone();
+            for i in 0..w * h {
+                let (x, y) = (i % w, i / w);
+                if !(bx..bx + bw).contains(&x) || !(by..by + bh).contains(&y) {
+                    s.x[i] = zero;
+                    s.y[i] = zero;
+                }
+            }
+            s
+        })
+        .collect();
+    let q: Vec<_> = (0..rho.len())
+        .map(|i| vibroscope::math::idv::Complex64::new(rho[i], -vel[i] / omega[i]))
+        .collect();
+    let mut r = vibroscope::math::idv::Renderer::new(w, h);
+    r.displacement(&shapes, &q);
+    let mut out = vec![0u8; w * h];
+    r.warp(&basis.rest, &mut out);
+    let largest = r.dy.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    let diffs: Vec<f64> = page
+        .iter()
+        .zip(&out)
+        .map(|(p, l)| (p - *l as f64).abs())
+        .collect();
+    let off = diffs.iter().filter(|d| **d > 1.0).count();
+    let worst = diffs.iter().copied().fold(0.0, f64::max);
+    println!(
+        "page vs library renderer (|D| up to {largest:.2} px): {off} of {} pixels differ by more than 1 level (worst {worst})",
+        diffs.len()
+    );
+    assert!(largest > 2.0, "the state held moves the beam");
+    assert!(
+        off * 1000 <= diffs.len(),
+        "{off} pixels differ from the library's rendering"
+    );
+}
+
+/// The overlay's RGBA at frame point (x, y) (the centre of that frame pixel).
+async fn arrow_pixel(c: &Client, x: f64, y: f64, scale: f64) -> [u8; 4] {
+    let v = js(
+        c,
+        &format!(
+            "const o = document.getElementById('overlay'); return Array.from(o.getContext('2d').getImageData({}, {}, 1, 1).data)",
+            ((x + 0.5) * scale).floor(),
+            ((y + 0.5) * scale).floor()
+        ),
+    )
+    .await;
+    let v: Vec<u8> = v
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap() as u8)
+        .collect();
+    [v[0], v[1], v[2], v[3]]
+}
+
+#[test]
+fn dragging_the_object_bends_it_and_it_rings_when_let_go_in_headless_chromium() {
+    if browser_missing() {
+        return;
+    }
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = dir.path().join("idv-beam.toml");
+    std::fs::write(&scene_path, idv_scene()).unwrap();
+    let video = dir.path().join("idv-beam.y4m");
+    vibroscope::simulate::simulate(&vibroscope::simulate::SimulateOptions {
+        scene: scene_path,
+        output: video.clone(),
+        ..Default::default()
+    })
+    .unwrap();
+    let studio = Studio::start(&StudioOptions {
+        video: Some(video.clone()),
+        ..StudioOptions::default()
+    })
+    .unwrap();
+    let (s, v) = (&studio, &video);
+    in_browser(|c| async move {
+        drive_idv(&c, s, v).await;
+        c
+    });
+}
+
+/// The IDV panel end to end: load the basis of the three listed modes,
+/// drag the free end up (then down) and hold: the rendered beam's texture
+/// near the free end moves the way dragged, most there and little near the
+/// clamp, with the arrow drawn; let go: it swings through rest to the
+/// other side and dies away. Then the renderer's frame rate for a
+/// synthetic 512x512 basis of 8 modes, measured in the page.
+/// Screenshot: `docs/img/studio-idv.png`.
+async fn drive_idv(c: &Client, studio: &Studio, video: &Path) {
+    c.set_window_size(1400, 1000).await.unwrap();
+    c.goto(&studio.url).await.unwrap();
+    wait_for(c, "motionSeq", 0, 0).await;
+    let errors = counter(c, "errorSeq").await;
+    let modes = IDV_MODES.map(|m| m.0.to_string()).join(",");
+    // The object with a 4 px margin as the selected region: the basis is
+    // measured there and sent for its box only.
+    let [ox, oy, ow, oh] = OBJECT;
+    let region = [ox - 4, oy - 4, ow + 8, oh + 8];
+    let overlay = c.find(Locator::Css("#overlay")).await.unwrap();
+    let scale = js(c, "return window.studio.scale").await.as_f64().unwrap();
+    let (ow_css, oh_css) = (W as f64 * scale, H as f64 * scale);
+    let at = |x: f64, y: f64| {
+        (
+            x * scale + scale / 2.0 - ow_css / 2.0,
+            y * scale + scale / 2.0 - oh_css / 2.0,
+        )
+    };
+    let before = counter(c, "motionSeq").await;
+    drag(
+        c,
+        &overlay,
+        at(region[0] as f64, region[1] as f64),
+        at(
+            (region[0] + region[2]) as f64,
+            (region[1] + region[3]) as f64,
+        ),
+    )
+    .await;
+    wait_for(c, "motionSeq", before, errors).await;
+    js(
+        c,
+        &format!("document.getElementById('idvmodes').value = '{modes}'; document.getElementById('idvload').click(); return 0"),
+    )
+    .await;
+    wait_for(c, "idv.seq", 0, errors).await;
+    let b = js(c, "const b = window.studio.idv.basis; return [b.width, b.height, b.box, b.modes, b.payload_bytes, b.elapsed_ms, window.studio.idv.on]").await;
+    println!(
+        "basis: {}x{} box {} in {:.0} ms, {} bytes; modes {}",
+        b[0],
+        b[1],
+        b[2],
+        b[5].as_f64().unwrap(),
+        b[4],
+        b[3]
+    );
+    assert_eq!(
+        (b[0].as_u64(), b[1].as_u64()),
+        (Some(W as u64), Some(H as u64))
+    );
+    assert_eq!(
+        b[6],
+        json!(true),
+        "interaction is on once the basis is loaded"
+    );
+    assert_eq!(
+        u64s(&b[2]),
+        region.map(u64::from).to_vec(),
+        "the region's box"
+    );
+    let got: Vec<f64> = b[3]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m["freq_hz"].as_f64().unwrap())
+        .collect();
+    assert_eq!(got, IDV_MODES.map(|m| m.0).to_vec(), "the modes asked for");
+
+    let free_x = ox + ow - 8;
+    let clamp_x = ox + 6;
+    let grab = (free_x as f64, (oy + oh / 2) as f64);
+    // At rest the rendered frame is the rest frame.
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let rest = frame_columns(c, &[free_x, clamp_x]).await;
+    let mouse = |x: f64, y: f64, dur: Option<Duration>| PointerAction::MoveToElement {
+        element: overlay.clone(),
+        duration: dur,
+        x,
+        y,
+    };
+    for dy in [-5.0, 5.0] {
+        let (gx, gy) = at(grab.0, grab.1);
+        let (tx, ty) = at(grab.0, grab.1 + dy);
+        let hold = MouseActions::new("mouse".into())
+            .then(mouse(gx, gy, None))
+            .then(PointerAction::Down {
+                button: MOUSE_BUTTON_LEFT,
+            })
+            .then(mouse(tx, ty, Some(Duration::from_millis(250))));
+        c.perform_actions(hold).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(300)).await;
+        let held = js(
+            c,
+            "const I = window.studio.idv; return [I.engine.held, I.engine.d, I.grabs]",
+        )
+        .await;
+        let now = frame_columns(c, &[free_x, clamp_x]).await;
+        let (s_free, s_clamp) = (
+            vertical_shift(&rest[0], &now[0]),
+            vertical_shift(&rest[1], &now[1]),
+        );
+        println!(
+            "held, dragged {dy:+} px at ({}, {}): pointer offset {}, texture shift at the free end {s_free:+.2} px, near the clamp {s_clamp:+.2} px",
+            grab.0, grab.1, held[1]
+        );
+        assert_eq!(held[0], json!(true), "the grab was taken");
+        assert!(
+            s_free * dy.signum() > 2.5,
+            "dragged {dy:+} px: the free end moved {s_free:+.2} px"
+        );
+        assert!(
+            s_clamp.abs() < 0.5 * s_free.abs(),
+            "near the clamp the beam moved {s_clamp:+.2} px, at the free end {s_free:+.2} px"
+        );
+        // The page's frame for the state held is the library's renderer's
+        // (math::idv::Renderer over the library's basis of the same region).
+        if dy < 0.0 {
+            same_as_library(c, video, region).await;
+        }
+        // The arrow is on the overlay: opaque yellow halfway along the drag.
+        let mid = arrow_pixel(c, grab.0, grab.1 + dy / 2.0, scale).await;
+        assert_eq!(mid, [255, 204, 51, 255], "no arrow halfway along the drag");
+        let releases = counter(c, "idv.releases").await;
+        let up = MouseActions::new("mouse".into()).then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+        c.perform_actions(up).await.unwrap();
+        c.release_actions().await.unwrap();
+        // Free motion: the free end's column at every animation frame for 3 s.
+        let trace = c
+            .execute_async(
+                &format!(
+                    "const done = arguments[arguments.length - 1], c = document.getElementById('frame'), g = c.getContext('2d');
+                     const out = [], t0 = performance.now();
+                     const tick = (ts) => {{
+                       const d = g.getImageData({free_x}, 0, 1, c.height).data, col = [];
+                       for (let y = 0; y < c.height; y++) col.push(d[4 * y]);
+                       out.push([ts - t0, col]);
+                       if (ts - t0 < 3000) requestAnimationFrame(tick); else done([out, window.studio.idv.fps, window.studio.idv.releases]);
+                     }};
+                     requestAnimationFrame(tick);"
+                ),
+                vec![],
+            )
+            .await
+            .unwrap();
+        assert!(
+            trace[2].as_u64().unwrap() > releases,
+            "the release was seen"
+        );
+        let mid = arrow_pixel(c, grab.0, grab.1 + dy / 2.0, scale).await;
+        assert_eq!(mid[3], 0, "the arrow is gone once let go");
+        let samples: Vec<(f64, f64)> = trace[0]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| {
+                let col: Vec<f64> = s[1]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|v| v.as_f64().unwrap())
+                    .collect();
+                (s[0].as_f64().unwrap(), vertical_shift(&rest[0], &col))
+            })
+            .collect();
+        let rms = |lo: f64, hi: f64| {
+            let v: Vec<f64> = samples
+                .iter()
+                .filter(|s| s.0 >= lo && s.0 < hi)
+                .map(|s| s.1)
+                .collect();
+            (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+        };
+        let early = &samples[..samples.iter().take_while(|s| s.0 < 500.0).count()];
+        let other_side = early
+            .iter()
+            .map(|s| -s.1 * dy.signum())
+            .fold(f64::MIN, f64::max);
+        let (first, last) = (rms(0.0, 500.0), rms(2500.0, 3000.0));
+        println!(
+            "released: {} frames in 3 s (page shows {:.1} frames/s); swings {other_side:.2} px to the other side within 0.5 s; rms shift {first:.2} px over the first 0.5 s, {last:.2} px over 2.5-3 s",
+            samples.len(),
+            trace[1].as_f64().unwrap()
+        );
+        assert!(
+            other_side > 1.0,
+            "let go, the free end did not swing through rest ({other_side:.2} px)"
+        );
+        assert!(
+            last < 0.5 * first,
+            "the motion did not die away: rms {first:.2} then {last:.2} px"
+        );
+    }
+
+    // For the README: the free end pulled up 8 px and held, the arrow drawn.
+    let (gx, gy) = at(grab.0, grab.1);
+    let (tx, ty) = at(grab.0, grab.1 - 8.0);
+    let hold = MouseActions::new("mouse".into())
+        .then(mouse(gx, gy, None))
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(mouse(tx, ty, Some(Duration::from_millis(250))));
+    c.perform_actions(hold).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    std::fs::create_dir_all(img_dir()).unwrap();
+    let shot = c.screenshot().await.unwrap();
+    std::fs::write(img_dir().join("studio-idv.png"), shot).unwrap();
+    c.release_actions().await.unwrap();
+
+    // The renderer's speed for 512x512 with 8 modes (issue 17 asks >= 30
+    // rendered frames a second): printed, not asserted beyond > 0.
+    let bench = c
+        .execute_async(
+            "const done = arguments[arguments.length - 1]; window.studio.idvBench(512, 512, 8, 30, 3000).then(done);",
+            vec![],
+        )
+        .await
+        .unwrap();
+    println!(
+        "IDV renderer, 512x512, 8 modes, in headless Chromium (software canvas): {:.1} ms a frame back to back = {:.1} frames/s; {:.1} frames/s rendered at requestAnimationFrame ({} frames)",
+        bench["loop_ms_per_frame"].as_f64().unwrap(),
+        bench["loop_fps"].as_f64().unwrap(),
+        bench["raf_fps"].as_f64().unwrap(),
+        bench["raf_frames"]
+    );
+    assert!(bench["loop_fps"].as_f64().unwrap() > 0.0);
+    assert!(bench["raf_fps"].as_f64().unwrap() > 0.0);
+    assert_eq!(counter(c, "errorSeq").await, errors, "no error shown");
 }

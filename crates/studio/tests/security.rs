@@ -550,3 +550,105 @@ fn live_routes_without_and_with_a_pipeline() {
     drop(s);
     assert!(root.join("live.json").exists());
 }
+
+/// A still recording: a texture, 96 frames at 100 Hz, nothing moves.
+fn write_still_y4m(p: &Path, w: u32, h: u32, frames: u32) {
+    let mut v = format!("YUV4MPEG2 W{w} H{h} F100:1 Ip A1:1 Cmono\n").into_bytes();
+    let tex: Vec<u8> = (0..w * h)
+        .map(|k| {
+            let (x, y) = (k % w, k / w);
+            (((x / 4 + y / 4) % 2) * 120 + 60) as u8
+        })
+        .collect();
+    for _ in 0..frames {
+        v.extend_from_slice(b"FRAME\n");
+        v.extend_from_slice(&tex);
+    }
+    std::fs::write(p, v).unwrap();
+}
+
+#[test]
+fn idv_basis_refuses_bad_requests_with_json_errors() {
+    let (_d, root) = setup();
+    write_still_y4m(&root.join("still.y4m"), 32, 32, 96);
+    // 2048x2048: 8 modes would be 715 MB of basis.
+    write_still_y4m(&root.join("huge.y4m"), 2048, 2048, 2);
+    let s = Studio::start(&StudioOptions {
+        root: Some(root.clone()),
+        ..StudioOptions::default()
+    })
+    .unwrap();
+    let a = s.addr;
+    let route = "/api/idv/basis";
+    for (body, want, says) in [
+        (
+            r#"{"video":"../outside/secret.y4m"}"#,
+            403,
+            "`..` is not allowed",
+        ),
+        (r#"{"video":"/etc/passwd"}"#, 403, "absolute paths"),
+        (r#"{"video":"link.y4m"}"#, 403, "root"),
+        (r#"{"video":"no-such.y4m"}"#, 404, "no-such.y4m"),
+        (
+            r#"{"video":"sub/clip.y4m","modes":"7.3,abc"}"#,
+            422,
+            "modes: `abc`",
+        ),
+        (
+            r#"{"video":"sub/clip.y4m","modes":"50-20"}"#,
+            422,
+            "modes: range",
+        ),
+        (r#"{"video":"sub/clip.y4m","modes":""}"#, 422, "modes:"),
+        (
+            r#"{"video":"sub/clip.y4m","max_modes":0}"#,
+            422,
+            "max_modes",
+        ),
+        (
+            r#"{"video":"sub/clip.y4m","max_modes":1000}"#,
+            422,
+            "max_modes",
+        ),
+        (
+            r#"{"video":"sub/clip.y4m","roi":[0,0,100,100]}"#,
+            422,
+            "region",
+        ),
+        (r#"{"video":"sub/clip.y4m","fps":-3}"#, 422, "fps"),
+        (r#"{"video":"sub/clip.y4m","mask":"!!"}"#, 400, "mask"),
+        (r#"{"video":"sub/clip.y4m","bogus":1}"#, 400, "bogus"),
+        (r#"{"video":7}"#, 400, "request body"),
+        (r#"{"video":"still.y4m"}"#, 422, "no significant peak"),
+        (
+            r#"{"video":"still.y4m","modes":"10-20"}"#,
+            422,
+            "no significant peak",
+        ),
+        (r#"{"video":"huge.y4m"}"#, 422, "roi/modes"),
+    ] {
+        let (st, got) = post(a, route, body);
+        let msg = error_of(&got);
+        println!("{body} -> {st} {msg}");
+        assert_eq!(st, want, "{body}: {got}");
+        assert!(msg.contains(says), "{body}: {msg:?} does not say {says:?}");
+        assert!(
+            !msg.contains("/tmp"),
+            "{body}: {msg:?} names the server's path"
+        );
+    }
+    // A region of the huge frame small enough is accepted past the size check
+    // (it then finds no peak: the frame is still).
+    let (st, got) = post(
+        a,
+        route,
+        r#"{"video":"huge.y4m","roi":[0,0,64,64],"modes":"auto"}"#,
+    );
+    assert!(st >= 400, "{got}");
+    assert!(!error_of(&got).contains("roi/modes"), "{got}");
+    assert_eq!(
+        get(a, "/api/info?video=sub/clip.y4m").0,
+        200,
+        "still answering"
+    );
+}
