@@ -1,9 +1,12 @@
 //! Interactive dynamic video rendering (issue 17): frames per second for a
-//! 512x512 frame with 8 modes, one thread, in three steps, against a
-//! plain copy of the frame measured in the same run (the floor of any
-//! renderer): `simulate` (advance 8 exact oscillators by one frame),
-//! `displacement` (Eq. 6.10, D = Σ Re{φ'q}), `frame` (simulation +
-//! displacement + forward warp with the depth rule).
+//! 512x512 frame with 8 modes, against a plain copy of the frame measured
+//! in the same run (the floor of any renderer): `simulate` (advance 8
+//! exact oscillators by one frame), `displacement` (Eq. 6.10, D = Σ
+//! Re{φ'q}, one thread), `frame` (simulation + displacement + forward
+//! warp with the depth rule, one thread), `frame, 2 threads` (the same
+//! with `vibroscope::idv::FrameRenderer` on two threads: what `idv`
+//! renders with on this two-core machine), and `colour frame, 2 threads`
+//! (three planes warped together).
 //!
 //!     cargo bench --bench idv
 
@@ -69,6 +72,31 @@ fn bench(c: &mut Criterion) {
             }
             r.displacement(&shapes, &q);
             r.warp(&rest, &mut out);
+        })
+    });
+    let mut fr = vibroscope::idv::FrameRenderer::new(W, H, 2);
+    assert_eq!(fr.threads(), 2);
+    g.bench_function("frame, 2 threads", |b| {
+        b.iter(|| {
+            for (o, q) in osc.iter_mut().zip(&mut q) {
+                o.step(1.0 / 60.0, 0.0);
+                *q = o.q();
+            }
+            fr.displace(&shapes, &q);
+            fr.sample(&rest, &mut out);
+        })
+    });
+    let mut planes = [out.clone(), out.clone(), out.clone()];
+    g.bench_function("colour frame, 2 threads", |b| {
+        b.iter(|| {
+            for (o, q) in osc.iter_mut().zip(&mut q) {
+                o.step(1.0 / 60.0, 0.0);
+                *q = o.q();
+            }
+            fr.displace(&shapes, &q);
+            for p in &mut planes {
+                fr.sample(&rest, p);
+            }
         })
     });
     g.finish();

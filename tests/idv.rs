@@ -1,12 +1,13 @@
 //! Interactive dynamic video (issue 17, thesis ch. 6): the basis measured
-//! from the simulator's noise-driven modal beam against the true modes,
-//! idv's impulse response against the simulator's, and bad input.
+//! from the simulator's noise-driven modal beam and plate against the true
+//! modes, idv's impulse response against the simulator's, plucks of the
+//! real guitar's strings, and bad input.
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 mod common;
 use common::{code, run_in, stderr};
-use vibroscope::idv::{extract_basis, load_basis, BasisOptions, Poke, Simulation};
+use vibroscope::idv::{extract_basis, load_basis, BasisOptions, Poke, PokeKind, Simulation};
 use vibroscope::math::idv::Renderer;
 use vibroscope::sim::modal::{ModalBeam, ModalSpec};
 
@@ -114,6 +115,7 @@ fn beam_basis_and_impulse_response_match_the_simulator() {
         dx: 0.0,
         dy: 1.0,
         strength: 1.0,
+        kind: PokeKind::Impulse,
     };
     let mut sim = Simulation::new(&basis, &[poke], 1.0).unwrap();
     let shapes: Vec<_> = basis.modes.iter().map(|m| m.shape.clone()).collect();
@@ -217,6 +219,51 @@ fn idv_command_renders_and_reloads_the_basis() {
     assert!(frames[..15].iter().all(|f| f == &frames[0]));
     let moved = frames[40..80].iter().any(|f| f != &frames[0]);
     assert!(moved, "the poked beam never moves");
+    // Direct manipulation (Eq. 6.7-6.9): a pull holds the point displaced
+    // by exactly (DX, DY) at its time; a throw leaves it there at rest,
+    // moving along (DX, DY).
+    let (px, py) = (84usize, 24usize);
+    let p = py * b.width + px;
+    let shapes: Vec<_> = b.modes.iter().map(|m| m.shape.clone()).collect();
+    let mut r = Renderer::new(b.width, b.height);
+    for kind in [PokeKind::Pull, PokeKind::Throw] {
+        let pk = Poke {
+            t_s: 0.05,
+            x: px as f64,
+            y: py as f64,
+            dx: 0.0,
+            dy: 3.0,
+            strength: 1.0,
+            kind,
+        };
+        let mut sim = Simulation::new(&b, &[pk], 1.0).unwrap();
+        r.displacement(&shapes, sim.advance_to(0.05));
+        let at = r.dy[p] as f64;
+        r.displacement(&shapes, sim.advance_to(0.051));
+        let after = r.dy[p] as f64;
+        eprintln!("{kind:?} at ({px}, {py}) by 3 px: {at:.4} px, 1 ms later {after:.4} px");
+        match kind {
+            PokeKind::Pull => assert!((at - 3.0).abs() < 1e-3, "pulled to {at} px, not 3"),
+            _ => assert!(at.abs() < 1e-3 && after > 0.01, "thrown: {at} then {after}"),
+        }
+    }
+    let args = [
+        "idv",
+        "--basis",
+        "basis",
+        "--pull",
+        "0.05,84,24,0,3",
+        "--throw",
+        "0.3,84,24,0,-2",
+        "-o",
+        "c.y4m",
+        "--duration",
+        "0.5",
+    ];
+    let o = run_in(dir.path(), &args);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let c = std::fs::read(dir.path().join("c.y4m")).unwrap();
+    assert_ne!(c, bb, "the pull and throw render what the poke did");
 }
 
 /// Bad input: a clear message naming what is wrong, a non-zero exit, no panic.
@@ -270,6 +317,13 @@ fn idv_bad_input() {
         stderr(&o)
     );
     assert!(!stderr(&o).contains("panicked"));
+    // A pull outside the frame names --pull.
+    let o = run_in(
+        d,
+        &["idv", "beam.y4m", "--pull", "0.1,500,10,0,1", "-o", "o.y4m"],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("--pull"), "{}", stderr(&o));
     // A malformed poke.
     let o = run_in(
         d,
@@ -456,6 +510,7 @@ fn plate_basis_and_impulse_response_in_two_dimensions_match_the_simulator() {
         dx: 0.0,
         dy: 1.0,
         strength: 1.0,
+        kind: PokeKind::Impulse,
     };
     let mut sim = Simulation::new(&basis, &[poke], 1.0).unwrap();
     let shapes: Vec<_> = basis.modes.iter().map(|m| m.shape.clone()).collect();
@@ -495,4 +550,172 @@ fn plate_basis_and_impulse_response_in_two_dimensions_match_the_simulator() {
         "a damping ratio is off by {:.0}%",
         100.0 * worst_d
     );
+}
+
+/// The strings of guitar.mp4 (432x192) in view: the low E string (~81 Hz)
+/// on y = 40 + 0.155 (x - 120) and the A string (~108 Hz) on
+/// y = 54.5 + 0.16 (x - 120), right of x = 100: the lines through the
+/// largest mean |U|² of the modal images at 80.8 and 108.4 Hz (`vibroscope
+/// modes guitar.mp4 --fps 600 --at 80.8 --at 108.4 --npy m.npy`).
+const GUITAR_STRINGS: [(f64, f64, f64); 2] = [(81.0, 40.0, 0.155), (108.0, 54.5, 0.16)];
+
+/// A PGM mask (432x192) of the pixels within `half` px (vertically) of
+/// the strings `which`.
+fn string_mask(which: &[usize], half: f64) -> Vec<u8> {
+    let (w, h) = (432usize, 192usize);
+    let mut v = format!("P5\n{w} {h}\n255\n").into_bytes();
+    for y in 0..h {
+        for x in 0..w {
+            let on = x >= 100
+                && which.iter().any(|&s| {
+                    let (_, a, b) = GUITAR_STRINGS[s];
+                    (y as f64 - (a + b * (x as f64 - 120.0))).abs() <= half
+                });
+            v.push(if on { 255 } else { 0 });
+        }
+    }
+    v
+}
+
+/// The largest displacement amplitude (px) among the peaks `spectrum`
+/// finds in `video` over `mask`, and the frequency of the strongest one.
+fn strongest(dir: &std::path::Path, video: &str, mask: &str) -> (f64, f64) {
+    let json = format!("{video}-{mask}.json");
+    let o = run_in(dir, &["spectrum", video, "--mask", mask, "--json", &json]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join(&json)).unwrap()).unwrap();
+    v["peaks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            (
+                p["amplitude"].as_f64().unwrap(),
+                p["frequency_hz"].as_f64().unwrap(),
+            )
+        })
+        .fold((0.0, f64::NAN), |a, b| if b.0 > a.0 { b } else { a })
+}
+
+/// Real data: a basis of the two strings of guitar.mp4 (600 fps, modes
+/// in 75-90 and 100-115 Hz, the strings masked as the thesis's user
+/// does), then a scripted pluck of each string where it moves most.
+/// `vibroscope spectrum` on each rendered video, over each string: the
+/// plucked string rings at its frequency, and the other moves at most a
+/// fifth of what it does when it is the one plucked (-14 dB).
+#[test]
+fn guitar_plucks_ring_the_plucked_string_and_leave_the_other_nearly_still() {
+    let Some(video) = common::guitar_with_ffmpeg() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("strings.pgm"), string_mask(&[0, 1], 4.0)).unwrap();
+    std::fs::write(d.join("e.pgm"), string_mask(&[0], 3.0)).unwrap();
+    std::fs::write(d.join("a.pgm"), string_mask(&[1], 3.0)).unwrap();
+    // The basis (and a first render, replaced below).
+    let v = video.to_str().unwrap();
+    let args = [
+        "idv",
+        v,
+        "--fps",
+        "600",
+        "--modes",
+        "75-90,100-115",
+        "--mask",
+        "strings.pgm",
+        "--poke",
+        "0.05,380,80,0,1",
+        "--duration",
+        "0.1",
+        "-o",
+        "first.y4m",
+        "--save-basis",
+        "basis",
+    ];
+    let o = run_in(d, &args);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let basis = load_basis(&d.join("basis")).unwrap();
+    assert_eq!(basis.modes.len(), 2);
+    // The clip is colour: the basis keeps its colour rest frame.
+    assert!(basis.colour.is_some(), "the colour rest frame was lost");
+    // A poke off the mask moves nothing: refused, naming the poke.
+    let o = run_in(
+        d,
+        &[
+            "idv",
+            "--basis",
+            "basis",
+            "--poke",
+            "0.05,5,5,0,1",
+            "-o",
+            "off.y4m",
+        ],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--poke") && stderr(&o).contains("no mode"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.join("off.y4m").exists());
+    // Pluck each string where its own mode's shape is largest.
+    let mut moved = [[0.0f64; 2]; 2]; // [plucked][measured]
+    for s in 0..2 {
+        let m = &basis.modes[s];
+        let band = string_mask(&[s], 3.0);
+        let body = &band[band.len() - 432 * 192..];
+        let p = (0..432 * 192)
+            .filter(|&i| body[i] > 0)
+            .max_by(|&i, &j| m.shape.y[i].norm().total_cmp(&m.shape.y[j].norm()))
+            .unwrap();
+        let (x, y) = (p % 432, p / 432);
+        let out = format!("pluck{s}.y4m");
+        let poke = format!("0.05,{x},{y},0,1");
+        let args = [
+            "idv",
+            "--basis",
+            "basis",
+            "--poke",
+            &poke,
+            "--duration",
+            "1",
+            "-o",
+            &out,
+        ];
+        let o = run_in(d, &args);
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        let head = std::fs::read(d.join(&out)).unwrap();
+        assert!(
+            head.starts_with(b"YUV4MPEG2 W432 H192 F600:1 Ip A1:1 C444"),
+            "not colour"
+        );
+        for (r, mask) in ["e.pgm", "a.pgm"].iter().enumerate() {
+            let (amp, f) = strongest(d, &out, mask);
+            eprintln!(
+                "pluck string {s} ({:.2} Hz mode) at ({x}, {y}): over string {r} the strongest peak {f:.2} Hz, {amp:.5} px",
+                m.freq_hz
+            );
+            moved[s][r] = amp;
+            if r == s {
+                assert!(
+                    (f - m.freq_hz).abs() <= 1.0 && (f - GUITAR_STRINGS[s].0).abs() <= 3.0,
+                    "the plucked string rings at {f} Hz, its mode is {} Hz",
+                    m.freq_hz
+                );
+            }
+        }
+    }
+    for r in 0..2 {
+        let ratio = moved[1 - r][r] / moved[r][r];
+        eprintln!(
+            "string {r}: moves {:.1} dB less when the other is plucked",
+            -20.0 * ratio.log10()
+        );
+        assert!(
+            ratio <= 0.2,
+            "string {r} moves {ratio:.3} of its own pluck when the other is plucked"
+        );
+    }
 }

@@ -3,7 +3,7 @@
 use super::VideoArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use vibroscope::idv::{self, BasisOptions, IdvOptions, ModeChoice, Poke};
+use vibroscope::idv::{self, BasisOptions, IdvOptions, ModeChoice, Poke, PokeKind};
 use vibroscope::pipeline::RunSettings;
 
 /// Interactive dynamic video: poke an object in a recording and render how it responds.
@@ -15,13 +15,16 @@ use vibroscope::pipeline::RunSettings;
 /// oscillator kicked by the scripted pokes, and renders the response by
 /// warping the first frame (pixels that move more occlude those that move
 /// less). A poke of strength 1 moves the poked point by about |DX,DY|
-/// pixels. The basis can be saved (--save-basis DIR) and reused (--basis
+/// pixels. --pull and --throw are direct manipulation instead (thesis Eq.
+/// 6.7-6.9): at T the point is held displaced by DX,DY (pull) or set
+/// moving along it (throw), then let go. The basis can be saved (--save-basis DIR) and reused (--basis
 /// DIR) without the video; its format is in docs/idv.md.
 #[derive(clap::Args)]
 #[command(after_help = "Examples:\n  \
     vibroscope idv beam.y4m --poke 0.1,150,40,0,3 -o poke.y4m --save-basis beam-basis\n  \
     vibroscope idv --basis beam-basis --poke 0.1,150,40,0,3,2 --poke 1.0,100,40,0,-3 -o two.mp4\n  \
-    vibroscope idv ../shared/data/guitar.mp4 --fps 600 --modes 75-90,100-115 --poke 0.05,300,200,0,2 -o pluck.y4m")]
+    vibroscope idv --basis beam-basis --pull 0.1,150,40,0,5 -o pulled.mp4\n  \
+    vibroscope idv guitar.mp4 --fps 600 --modes 75-90,100-115 --mask strings.pgm --poke 0.05,382,83,0,3 -o pluck.mp4")]
 pub struct Args {
     /// The recording (.y4m, .cine, .mraw/.cih, or anything ffmpeg reads);
     /// not needed with --basis.
@@ -32,10 +35,30 @@ pub struct Args {
     #[arg(
         long = "poke",
         value_name = "T,X,Y,DX,DY[,STRENGTH]",
-        required = true,
+        required_unless_present_any = ["pull", "throw"],
         allow_hyphen_values = true
     )]
     pokes: Vec<Poke>,
+    /// Direct manipulation (Eq. 6.7-6.8): at T seconds the point X,Y is
+    /// held displaced by DX,DY pixels (times STRENGTH), then let go; the
+    /// motion before is replaced. Repeat for several.
+    #[arg(
+        long,
+        value_name = "T,X,Y,DX,DY[,STRENGTH]",
+        allow_hyphen_values = true,
+        value_parser = |s: &str| Poke::parse(s, PokeKind::Pull)
+    )]
+    pull: Vec<Poke>,
+    /// Direct manipulation (Eq. 6.9): at T seconds the point X,Y is at
+    /// rest and set moving along DX,DY, swinging about that far (times
+    /// STRENGTH); the motion before is replaced. Repeat for several.
+    #[arg(
+        long,
+        value_name = "T,X,Y,DX,DY[,STRENGTH]",
+        allow_hyphen_values = true,
+        value_parser = |s: &str| Poke::parse(s, PokeKind::Throw)
+    )]
+    throw: Vec<Poke>,
     /// The modes: `auto` (the significant spectral peaks, at most
     /// --max-modes) or a list of frequencies and ranges in Hz (`7.3,58`,
     /// `75-90,100-115`: the most prominent peak of each range).
@@ -69,7 +92,7 @@ pub struct Args {
     /// Output frame rate, Hz (default: the recording's capture rate).
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     rate: Option<f64>,
-    /// Seconds rendered (default: the last poke + 1 s).
+    /// Seconds rendered (default: the last poke, pull or throw + 1 s).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     duration: Option<f64>,
     /// Multiplies every mode's damping ratio (2 = rings half as long).
@@ -141,7 +164,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         basis: b,
         basis_dir: a.basis,
         save_basis: a.save_basis,
-        pokes: a.pokes,
+        pokes: a.pokes.into_iter().chain(a.pull).chain(a.throw).collect(),
         rate_hz: a.rate,
         duration_s: a.duration,
         damping_scale: a.damping_scale,

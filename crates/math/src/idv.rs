@@ -152,11 +152,15 @@ pub fn modal_force(shape: &Shape, p: usize, d: [f64; 2], alpha: f64) -> f64 {
 /// Direct manipulation (Eq. 6.7-6.9): the complex modal coordinate with
 /// |q| = |dᵀφ'(p)| α and the phase that maximises the displacement
 /// (`velocity = false`, Eq. 6.8) or the velocity (Eq. 6.9) of `p` along `d`.
+/// With q = ρ - iρ'/ω ([`Oscillator::q`]) free motion turns q by e^{+iωt},
+/// so the velocity of `p` along `d`, Re{iω dᵀφ' q}, is largest a quarter
+/// turn *behind* the displacement's phase: -π/2 (the thesis writes +π/2
+/// for its own sign of the imaginary part).
 pub fn manipulate(shape: &Shape, p: usize, d: [f64; 2], alpha: f64, velocity: bool) -> Complex64 {
     let a = shape.along(p, d);
     let mut arg = -a.arg();
     if velocity {
-        arg += std::f64::consts::FRAC_PI_2;
+        arg -= std::f64::consts::FRAC_PI_2;
     }
     Complex64::from_polar(a.norm() * alpha, arg)
 }
@@ -191,31 +195,36 @@ impl Renderer {
         }
     }
 
+    /// The frame's width and height.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
     /// Eq. 6.10: D = Σ_i Re{φ'_i q_i}, into [`Renderer::dx`], [`Renderer::dy`].
     pub fn displacement(&mut self, shapes: &[Shape], q: &[Complex64]) {
-        self.dx.fill(0.0);
-        self.dy.fill(0.0);
-        for (s, q) in shapes.iter().zip(q) {
-            let (qr, qi) = (q.re as f32, q.im as f32);
-            for (d, c) in self.dx.iter_mut().zip(&s.x) {
-                *d += c.re * qr - c.im * qi;
-            }
-            for (d, c) in self.dy.iter_mut().zip(&s.y) {
-                *d += c.re * qr - c.im * qi;
-            }
-        }
+        displacement_part(shapes, q, 0, &mut self.dx, &mut self.dy);
     }
 
     /// Warps `rest` (one plane, row-major, values 0..=255) by the current
-    /// displacement field into `out`. Each source pixel lands on the
-    /// output pixel nearest to where it moves; where several land, the one
-    /// that moves most wins (the depth rule of 6.4.5). Each output pixel
-    /// then samples the rest frame bilinearly at itself minus the winner's
-    /// displacement (sub-pixel motion stays smooth); a pixel nothing lands
-    /// on (a disocclusion) samples it with its own displacement.
+    /// displacement field into `out`: [`Renderer::resolve`] then
+    /// [`Renderer::sample`].
     pub fn warp(&mut self, rest: &[u8], out: &mut [u8]) {
+        self.resolve();
+        self.sample(rest, out);
+    }
+
+    /// Where each output pixel takes its value from, for the current
+    /// displacement field. Each source pixel lands on the output pixel
+    /// nearest to where it moves; where several land, the one that moves
+    /// most wins (the depth rule of 6.4.5). Each output pixel then
+    /// samples the rest frame at itself minus the winner's displacement
+    /// (sub-pixel motion stays smooth); a pixel nothing lands on (a
+    /// disocclusion) samples it with its own displacement.
+    pub fn resolve(&mut self) {
         let (w, h) = (self.width, self.height);
-        assert!(rest.len() == w * h && out.len() == w * h, "frame size");
         self.depth.fill(-1.0);
         self.own_x.copy_from_slice(&self.dx);
         self.own_y.copy_from_slice(&self.dy);
@@ -237,13 +246,58 @@ impl Renderer {
                 }
             }
         }
-        for y in 0..h {
-            for x in 0..w {
+    }
+
+    /// Samples one plane of the rest frame (`rest`, row-major 0..=255)
+    /// bilinearly where [`Renderer::resolve`] said, into `out`: called once
+    /// per plane (luma, then each chroma plane of a colour frame), the
+    /// planes move together.
+    pub fn sample(&self, rest: &[u8], out: &mut [u8]) {
+        assert!(out.len() == self.width * self.height, "frame size");
+        self.sample_rows(rest, 0, out);
+    }
+
+    /// [`Renderer::sample`] of the whole rows from `y0` on into `out`
+    /// (as many rows as it holds): a frame's rows can be shared between
+    /// threads.
+    pub fn sample_rows(&self, rest: &[u8], y0: usize, out: &mut [u8]) {
+        let (w, h) = (self.width, self.height);
+        assert!(rest.len() == w * h, "frame size");
+        assert!(
+            out.len().is_multiple_of(w) && y0 + out.len() / w <= h,
+            "rows"
+        );
+        for (r, row) in out.chunks_exact_mut(w).enumerate() {
+            let y = y0 + r;
+            for (x, o) in row.iter_mut().enumerate() {
                 let i = y * w + x;
                 let sx = x as f32 - self.own_x[i];
                 let sy = y as f32 - self.own_y[i];
-                out[i] = bilinear_u8(rest, w, h, sx, sy);
+                *o = bilinear_u8(rest, w, h, sx, sy);
             }
+        }
+    }
+}
+
+/// Eq. 6.10 for the pixels `start..start + dx.len()`: D = Σ_i Re{φ'_i q_i}
+/// into `dx`, `dy` (a frame's pixels can be shared between threads).
+pub fn displacement_part(
+    shapes: &[Shape],
+    q: &[Complex64],
+    start: usize,
+    dx: &mut [f32],
+    dy: &mut [f32],
+) {
+    dx.fill(0.0);
+    dy.fill(0.0);
+    let end = start + dx.len();
+    for (s, q) in shapes.iter().zip(q) {
+        let (qr, qi) = (q.re as f32, q.im as f32);
+        for (d, c) in dx.iter_mut().zip(&s.x[start..end]) {
+            *d += c.re * qr - c.im * qi;
+        }
+        for (d, c) in dy.iter_mut().zip(&s.y[start..end]) {
+            *d += c.re * qr - c.im * qi;
         }
     }
 }
@@ -346,5 +400,27 @@ mod tests {
         // Pixel 2 is a hole: it samples the rest frame at 2 - 2.0 = 0.
         assert_eq!(out[2], rest[0]);
         assert_eq!(out[7], rest[7]);
+    }
+
+    #[test]
+    fn a_thrown_point_starts_at_rest_and_moves_along_the_drag() {
+        let s = Shape {
+            x: vec![Complex32::new(0.0, 0.0); 2],
+            y: vec![Complex32::from_polar(0.8, 0.7), Complex32::new(0.1, 0.0)],
+        };
+        let d = [0.0, 1.0];
+        let mut o = Oscillator::new(5.0, 0.01);
+        o.set_q(manipulate(&s, 0, d, 1.0, true));
+        let along = |o: &Oscillator| (s.along(0, d) * o.q()).re;
+        let x0 = along(&o);
+        o.step(1e-3, 0.0);
+        assert!(x0.abs() < 1e-9, "not at rest: {x0}");
+        assert!(along(&o) > 1e-4, "moves against the drag: {}", along(&o));
+        // Held (Eq. 6.8): the point sits at its largest displacement along d.
+        let mut o = Oscillator::new(5.0, 0.01);
+        o.set_q(manipulate(&s, 0, d, 1.0, false));
+        let x0 = along(&o);
+        o.step(1e-3, 0.0);
+        assert!(x0 > 0.0 && along(&o) < x0);
     }
 }

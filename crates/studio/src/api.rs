@@ -10,7 +10,7 @@
 //! | `POST /api/mode {video, freq_hz, roi?, fps?, scale_mm_per_px?}` | the modal image: PNG (hue = phase, brightness = amplitude) and the amplitude/phase numbers |
 //! | `POST /api/listen {video, roi?, mask?, fps?}` | the region's recovered sound (the `listen` recipe, 16-bit WAV at 8 kHz) and its spectrogram |
 //! | `POST /api/damping {video, lo_hz, hi_hz, roi?, mask?, fps?}` | the damping view over a range of the region's spectrum: the Lorentzian fitted there (damping, uncertainty, the model's curve) and SSI-cov's stabilisation diagram (poles over model orders, stable ones marked) |
-//! | `POST /api/idv/basis {video, roi?, mask?, fps?, modes?, max_modes?}` | the region's image-space modal basis (interactive dynamic video, thesis ch. 6) for the page to simulate and render: see [`crate::idv`] |
+//! | `POST /api/idv/basis {video, roi?, mask?, fps?, modes?, max_modes?}` | the region's image-space modal basis (interactive dynamic video, thesis ch. 6) for the page to simulate and render: see [`idv`] |
 //! | `GET /api/live` | the live pipeline's latest update (spectrum in dB, peaks, level, frame number, stage counters) |
 //! | `GET /api/live/frame` | its latest frame as an 8-bit grey PNG |
 //! | `POST /api/live/mode {freq_hz}` | the modal image at that frequency from the live pipeline's last 4 s of frames (as `/api/mode` answers, with the frames, span and rate used) |
@@ -21,6 +21,8 @@
 //!
 //! Errors come back as `{"error": MESSAGE}` with a 4xx (the request) or
 //! 5xx (the computation) status; nothing a request holds panics the server.
+
+pub mod idv;
 
 use crate::guard::{self, Refusal};
 use crate::live::Live;
@@ -978,7 +980,7 @@ struct BasisRequest {
     max_modes: Option<usize>,
 }
 
-/// The region's image-space modal basis ([`crate::idv`]): cached per
+/// The region's image-space modal basis ([`idv`]): cached per
 /// video, region, rate and modes like the other region answers; a basis
 /// whose answer would be too large is refused before the work.
 async fn idv_basis(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
@@ -986,7 +988,7 @@ async fn idv_basis(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Jso
     let r: BasisRequest = body(&b)?;
     let path = guard::resolve(&app.root, &r.video)?;
     let fps = fps_of(&app, r.fps)?;
-    let choice = crate::idv::Choice::parse(r.modes.as_deref(), r.max_modes)?;
+    let choice = idv::Choice::parse(r.modes.as_deref(), r.max_modes)?;
     let tag = format!("idv-basis|{}|{}", choice.text, choice.max_modes);
     let key = region_key(&tag, &path, r.roi, r.mask.as_deref(), fps);
     let (v, was_cached) = blocking(move || {
@@ -999,9 +1001,8 @@ async fn idv_basis(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Jso
             fps,
             (r.roi, r.mask.as_deref()),
             move |p, f, sel| {
-                let mut v = crate::idv::basis_answer(&name, p, f, sel, &c2)?;
-                if v["payload_bytes"].as_u64().unwrap_or(u64::MAX) > crate::idv::MAX_CACHED_PAYLOAD
-                {
+                let mut v = idv::basis_answer(&name, p, f, sel, &c2)?;
+                if v["payload_bytes"].as_u64().unwrap_or(u64::MAX) > idv::MAX_CACHED_PAYLOAD {
                     v[PRIVATE_NO_CACHE] = json!(true);
                 }
                 Ok(v)

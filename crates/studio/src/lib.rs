@@ -10,12 +10,11 @@
 //! - [`api`]: the JSON API (video info, frames as PNG, a region's motion,
 //!   spectrum and peaks, the modal image at a frequency), each answer
 //!   computed by the recipes of the `vibroscope` crate and cached per video;
-//! - [`idv`]: the modal basis of a region for interactive dynamic video in
+//! - [`api::idv`]: the modal basis of a region for interactive dynamic video in
 //!   the page (thesis ch. 6: drag the object, see it respond).
 
 pub mod api;
 pub mod guard;
-pub mod idv;
 pub mod live;
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};

@@ -19,7 +19,7 @@
 
 use crate::error::{Error, Result, UsageError};
 use crate::io::{self, Depth, FrameDest};
-use crate::math::idv::{modal_force, Oscillator, Renderer, Shape};
+use crate::math::idv::{manipulate, modal_force, Oscillator, Renderer, Shape};
 use crate::math::idv::{Complex32, Complex64};
 use crate::math::modal::{npy_complex64, read_npy_complex64, ModalConfig, ModalImager, Motion};
 use crate::pipeline::{Region, Roi, RunSettings};
@@ -136,11 +136,117 @@ pub struct Basis {
     pub height: usize,
     /// The rest frame (the video's first frame, 8-bit grey).
     pub rest: Vec<u8>,
+    /// The rest frame in colour, when the video has colour (and ffmpeg
+    /// decodes it): Y, Cb and Cr planes at full resolution (4:4:4),
+    /// rendered warped together instead of [`Basis::rest`].
+    pub colour: Option<RestColour>,
     /// The capture rate of the video it came from.
     pub fps: f64,
     pub modes: Vec<Mode>,
     /// What was assumed or dropped while measuring it.
     pub notes: Vec<String>,
+}
+
+/// The colour rest frame: 8-bit Y, Cb, Cr planes, each `width x height`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RestColour {
+    pub planes: [Vec<u8>; 3],
+    /// Full-range (0-255) luma, or video range (16-235).
+    pub full_range: bool,
+}
+
+/// The first frame of `video` in colour (4:4:4) from ffmpeg, when the
+/// video has colour, ffmpeg runs, and the frame is `w x h`; otherwise
+/// none, with a note saying why when colour was lost.
+fn rest_colour(
+    video: &Path,
+    info: &io::VideoInfo,
+    (w, h): (usize, usize),
+    notes: &mut Vec<String>,
+) -> Option<RestColour> {
+    let crate::magnify::Colour::Yes { video_range } = crate::magnify::has_colour(video, info)
+    else {
+        return None;
+    };
+    let out = std::process::Command::new("ffmpeg")
+        .args(["-v", "error", "-nostdin", "-i"])
+        .arg(io::ffmpeg_input(video))
+        .args([
+            "-frames:v",
+            "1",
+            "-f",
+            "rawvideo",
+            "-pix_fmt",
+            "yuv444p",
+            "-",
+        ])
+        .output();
+    let n = w * h;
+    match out {
+        Ok(o) if o.status.success() && o.stdout.len() == 3 * n => {
+            notes.push("colour kept: the first frame's Y, Cb and Cr move together".into());
+            let b = o.stdout;
+            Some(RestColour {
+                planes: [b[..n].to_vec(), b[n..2 * n].to_vec(), b[2 * n..].to_vec()],
+                full_range: !video_range,
+            })
+        }
+        _ => {
+            notes.push(
+                "colour is not kept: ffmpeg could not decode the first frame in colour; \
+                 the frames are grey"
+                    .into(),
+            );
+            None
+        }
+    }
+}
+
+/// A one-frame 4:4:4 Y4M of `c` (how a basis stores its colour rest frame).
+fn y4m_444_header((w, h): (usize, usize), rate: f64, full_range: bool) -> String {
+    let (num, den) = if rate.fract() == 0.0 && rate <= u32::MAX as f64 {
+        (rate as u64, 1)
+    } else {
+        ((rate * 1000.0).round() as u64, 1000)
+    };
+    let range = if full_range { "FULL" } else { "LIMITED" };
+    format!("YUV4MPEG2 W{w} H{h} F{num}:{den} Ip A1:1 C444 XCOLORRANGE={range}\n")
+}
+
+/// Reads a colour rest frame written by [`save_basis`]: a 4:4:4 Y4M of
+/// one `w x h` frame.
+fn read_rest_colour(path: &Path, (w, h): (usize, usize)) -> Result<RestColour> {
+    let bad = |m: String| Error::input(path, m);
+    let bytes = std::fs::read(path).map_err(|e| bad(e.to_string()))?;
+    let nl = bytes
+        .iter()
+        .position(|&b| b == b'\n')
+        .ok_or_else(|| bad("no Y4M header".into()))?;
+    let head = String::from_utf8_lossy(&bytes[..nl]).to_string();
+    let fields: Vec<&str> = head.split(' ').collect();
+    let want = [format!("W{w}"), format!("H{h}")];
+    if fields.first() != Some(&"YUV4MPEG2")
+        || !want.iter().all(|f| fields.contains(&f.as_str()))
+        || !fields.contains(&"C444")
+    {
+        return Err(bad(format!(
+            "is not a {w}x{h} 4:4:4 Y4M frame (header `{head}`)"
+        )));
+    }
+    let full_range = fields.contains(&"XCOLORRANGE=FULL");
+    let body = &bytes[nl + 1..];
+    let n = w * h;
+    let fnl = body.iter().position(|&b| b == b'\n').unwrap_or(body.len());
+    if !body.starts_with(b"FRAME") || body.len() != fnl + 1 + 3 * n {
+        return Err(bad(format!(
+            "does not hold exactly one {w}x{h} 4:4:4 frame"
+        )));
+    }
+    let p = &body[fnl + 1..];
+    Ok(RestColour {
+        planes: [p[..n].to_vec(), p[n..2 * n].to_vec(), p[2 * n..].to_vec()],
+        full_range,
+    })
 }
 
 /// A peak of the spectrum: frequency, damping, method.
@@ -413,6 +519,7 @@ pub fn extract_basis(o: &BasisOptions) -> Result<Basis> {
             cb(k, info.frame_count);
         }
     }
+    let colour = rest_colour(&o.video, &info, (w, h), &mut notes);
     let mut modes = Vec::with_capacity(picked.len());
     for (p, pair) in picked.iter().zip(imagers.chunks_exact(2)) {
         let x = pair[0].finish().map_err(crate::math::MathError::from)?;
@@ -433,6 +540,7 @@ pub fn extract_basis(o: &BasisOptions) -> Result<Basis> {
         width: w,
         height: h,
         rest,
+        colour,
         fps,
         modes,
         notes,
@@ -460,6 +568,9 @@ struct Manifest {
     height: usize,
     fps: f64,
     rest: String,
+    /// The colour rest frame, a one-frame 4:4:4 Y4M (absent: grey).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    rest_colour: Option<String>,
     modes: Vec<ModeEntry>,
 }
 
@@ -482,6 +593,17 @@ pub fn save_basis(basis: &Basis, dir: &Path) -> Result<Vec<PathBuf>> {
     let mut pgm = format!("P5\n{} {}\n255\n", basis.width, basis.height).into_bytes();
     pgm.extend_from_slice(&basis.rest);
     put("rest.pgm", &pgm)?;
+    let rest_colour = match &basis.colour {
+        Some(c) => {
+            let size = (basis.width, basis.height);
+            let mut y4m = y4m_444_header(size, basis.fps, c.full_range).into_bytes();
+            y4m.extend_from_slice(b"FRAME\n");
+            c.planes.iter().for_each(|p| y4m.extend_from_slice(p));
+            put("rest.y4m", &y4m)?;
+            Some("rest.y4m".to_string())
+        }
+        None => None,
+    };
     let mut entries = Vec::new();
     for (k, m) in basis.modes.iter().enumerate() {
         let (xn, yn) = (format!("mode{k}_x.npy"), format!("mode{k}_y.npy"));
@@ -502,6 +624,7 @@ pub fn save_basis(basis: &Basis, dir: &Path) -> Result<Vec<PathBuf>> {
         height: basis.height,
         fps: basis.fps,
         rest: "rest.pgm".into(),
+        rest_colour,
         modes: entries,
     };
     let p = dir.join(MANIFEST);
@@ -622,18 +745,50 @@ pub fn load_basis(dir: &Path) -> Result<Basis> {
             },
         });
     }
+    let colour = match &m.rest_colour {
+        Some(name) => Some(read_rest_colour(&inside(name)?, (m.width, m.height))?),
+        None => None,
+    };
     Ok(Basis {
         width: m.width,
         height: m.height,
         rest,
+        colour,
         fps: m.fps,
         modes,
         notes: Vec::new(),
     })
 }
 
-/// A scripted poke: an impulse at time `t_s` at pixel (`x`, `y`) in the
-/// direction (`dx`, `dy`) px, of relative `strength`.
+/// What a scripted [`Poke`] does to the object at its time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PokeKind {
+    /// A force impulse (Eq. 6.6, `--poke`): adds to the motion there is.
+    #[default]
+    Impulse,
+    /// Direct manipulation (Eq. 6.7-6.8, `--pull`): the point is held
+    /// displaced by (`dx`, `dy`) and let go; the motion before is replaced.
+    Pull,
+    /// Direct manipulation (Eq. 6.9, `--throw`): the point is at rest and
+    /// moving along (`dx`, `dy`), swinging about as far; the motion before
+    /// is replaced.
+    Throw,
+}
+
+impl PokeKind {
+    /// The command-line flag that gives it.
+    pub fn flag(self) -> &'static str {
+        match self {
+            PokeKind::Impulse => "--poke",
+            PokeKind::Pull => "--pull",
+            PokeKind::Throw => "--throw",
+        }
+    }
+}
+
+/// A scripted poke: at time `t_s` at pixel (`x`, `y`) in the direction
+/// (`dx`, `dy`) px, of relative `strength`: an impulse, or a pull or
+/// throw of the point (see [`PokeKind`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Poke {
     pub t_s: f64,
@@ -642,14 +797,22 @@ pub struct Poke {
     pub dx: f64,
     pub dy: f64,
     pub strength: f64,
+    pub kind: PokeKind,
 }
 
 impl std::str::FromStr for Poke {
     type Err = UsageError;
-    /// `T,X,Y,DX,DY[,STRENGTH]`.
+    /// `T,X,Y,DX,DY[,STRENGTH]`: an impulse.
     fn from_str(s: &str) -> std::result::Result<Poke, UsageError> {
+        Poke::parse(s, PokeKind::Impulse)
+    }
+}
+
+impl Poke {
+    /// `T,X,Y,DX,DY[,STRENGTH]` as a poke of `kind` (errors name its flag).
+    pub fn parse(s: &str, kind: PokeKind) -> std::result::Result<Poke, UsageError> {
         let v: Vec<&str> = s.split(',').collect();
-        let bad = |m: String| UsageError::new("--poke", format!("`{s}`: {m}"));
+        let bad = |m: String| UsageError::new(kind.flag(), format!("`{s}`: {m}"));
         if !(5..=6).contains(&v.len()) {
             return Err(bad(
                 "expected T,X,Y,DX,DY[,STRENGTH] (seconds, pixel, direction in px, strength)"
@@ -679,6 +842,7 @@ impl std::str::FromStr for Poke {
             dx: n[3],
             dy: n[4],
             strength: n[5],
+            kind,
         })
     }
 }
@@ -690,7 +854,7 @@ impl Poke {
         let (x, y) = (self.x.round(), self.y.round());
         if x < 0.0 || y < 0.0 || x >= width as f64 || y >= height as f64 {
             return Err(UsageError::new(
-                "--poke",
+                self.kind.flag(),
                 format!(
                     "point ({}, {}) at t = {} s is outside the {width}x{height} frame",
                     self.x, self.y, self.t_s
@@ -701,22 +865,38 @@ impl Poke {
     }
 }
 
+/// What happens to the modes at a poke's time.
+enum Event {
+    /// Each mode's velocity jumps by this impulse.
+    Kick(Vec<f64>),
+    /// Each mode's state is set to this complex coordinate.
+    Set(Vec<Complex64>),
+}
+
 /// The modal coordinates over time: one exact oscillator per mode, kicked
-/// by impulses (Eq. 6.6) at the pokes' times.
+/// by impulses (Eq. 6.6) or set by direct manipulation (Eq. 6.7-6.9) at
+/// the pokes' times.
 pub struct Simulation {
     osc: Vec<Oscillator>,
-    /// (time, per-mode impulse), sorted by time.
-    kicks: Vec<(f64, Vec<f64>)>,
+    /// (time, what happens), sorted by time (stable: pokes at one time
+    /// act in the order given).
+    events: Vec<(f64, Event)>,
     next: usize,
     t: f64,
     q: Vec<Complex64>,
 }
 
 impl Simulation {
-    /// `damping_scale` multiplies every mode's ξ. Each poke's impulse on
-    /// mode i is α Re(dᵀφ'_i(p)) (see [`modal_force`]), with α chosen so
-    /// that a poke of strength 1 moves the poked point by about |d| px
-    /// along d: α = strength |d| / Σ_i (d̂ᵀφ'_i(p))² / ω_i.
+    /// `damping_scale` multiplies every mode's ξ.
+    ///
+    /// - An impulse's (`--poke`) on mode i is α Re(dᵀφ'_i(p)) (see
+    ///   [`modal_force`]), with α chosen so that a poke of strength 1
+    ///   moves the poked point by about |d| px along d: α = strength |d| /
+    ///   Σ_i (d̂ᵀφ'_i(p))² / ω_i.
+    /// - A pull or throw sets mode i to [`manipulate`]`(φ'_i, p, d, α)`
+    ///   with α = strength / Σ_i |d̂ᵀφ'_i(p)|², so that a pull of strength
+    ///   1 displaces p by exactly |d| px along d (and a throw swings it
+    ///   about as far).
     pub fn new(
         basis: &Basis,
         pokes: &[Poke],
@@ -727,7 +907,7 @@ impl Simulation {
             .iter()
             .map(|m| Oscillator::new(m.freq_hz, m.damping * damping_scale))
             .collect();
-        let mut kicks = Vec::with_capacity(pokes.len());
+        let mut events = Vec::with_capacity(pokes.len());
         for pk in pokes {
             let p = pk.pixel(basis.width, basis.height)?;
             let len = pk.dx.hypot(pk.dy);
@@ -736,25 +916,53 @@ impl Simulation {
                 .modes
                 .iter()
                 .zip(&osc)
-                .map(|(m, o)| modal_force(&m.shape, p, dir, 1.0).powi(2) / o.omega)
+                .map(|(m, o)| match pk.kind {
+                    PokeKind::Impulse => modal_force(&m.shape, p, dir, 1.0).powi(2) / o.omega,
+                    _ => m.shape.along(p, dir).norm_sqr(),
+                })
                 .sum();
-            let alpha = if reach > 0.0 {
-                pk.strength * len / reach
-            } else {
-                0.0
+            if reach.is_nan() || reach <= 0.0 {
+                return Err(UsageError::new(
+                    pk.kind.flag(),
+                    format!(
+                        "point ({}, {}) at t = {} s moves with no mode along ({}, {}): every \
+                         mode's shape is zero there (outside the mask, or at a node of them all); \
+                         poke the object",
+                        pk.x, pk.y, pk.t_s, pk.dx, pk.dy
+                    ),
+                ));
+            }
+            let event = match pk.kind {
+                PokeKind::Impulse => {
+                    let alpha = pk.strength * len / reach;
+                    Event::Kick(
+                        basis
+                            .modes
+                            .iter()
+                            .map(|m| modal_force(&m.shape, p, dir, alpha))
+                            .collect(),
+                    )
+                }
+                PokeKind::Pull | PokeKind::Throw => {
+                    let alpha = pk.strength / reach;
+                    let d = [pk.dx, pk.dy];
+                    let throw = pk.kind == PokeKind::Throw;
+                    Event::Set(
+                        basis
+                            .modes
+                            .iter()
+                            .map(|m| manipulate(&m.shape, p, d, alpha, throw))
+                            .collect(),
+                    )
+                }
             };
-            let j = basis
-                .modes
-                .iter()
-                .map(|m| modal_force(&m.shape, p, dir, alpha))
-                .collect();
-            kicks.push((pk.t_s, j));
+            events.push((pk.t_s, event));
         }
-        kicks.sort_by(|a, b| a.0.total_cmp(&b.0));
+        events.sort_by(|a, b| a.0.total_cmp(&b.0));
         let n = osc.len();
         Ok(Simulation {
             osc,
-            kicks,
+            events,
             next: 0,
             t: 0.0,
             q: vec![Complex64::new(0.0, 0.0); n],
@@ -764,12 +972,15 @@ impl Simulation {
     /// Advances to `t_s` (not before the current time) and returns the
     /// complex modal coordinates there.
     pub fn advance_to(&mut self, t_s: f64) -> &[Complex64] {
-        while self.next < self.kicks.len() && self.kicks[self.next].0 <= t_s {
-            let (tk, j) = &self.kicks[self.next];
+        while self.next < self.events.len() && self.events[self.next].0 <= t_s {
+            let (tk, event) = &self.events[self.next];
             let h = tk - self.t;
-            for (o, &j) in self.osc.iter_mut().zip(j) {
+            for (k, o) in self.osc.iter_mut().enumerate() {
                 o.step(h, 0.0);
-                o.kick(j);
+                match event {
+                    Event::Kick(j) => o.kick(j[k]),
+                    Event::Set(q) => o.set_q(q[k]),
+                }
             }
             self.t = self.t.max(*tk);
             self.next += 1;
@@ -781,6 +992,117 @@ impl Simulation {
         }
         self.t = self.t.max(t_s);
         &self.q
+    }
+}
+
+/// [`crate::magnify::write_gray_video`] in colour: a 4:4:4 Y4M (or any
+/// container through ffmpeg) whose frame `k` is drawn into the Y, Cb and
+/// Cr planes by `draw(k, planes)`, in the range of the rest frame `c`.
+fn write_colour_video(
+    output: &Path,
+    ffmpeg: bool,
+    (w, h): (usize, usize),
+    rate: f64,
+    frames: u64,
+    c: &RestColour,
+    mut draw: impl FnMut(u64, &mut [Vec<u8>; 3]) -> Result<()>,
+) -> Result<()> {
+    use std::io::Write;
+    crate::magnify::write_via_y4m(output, ffmpeg, |file, werr| {
+        let mut wr = std::io::BufWriter::new(file);
+        wr.write_all(y4m_444_header((w, h), rate, c.full_range).as_bytes())
+            .map_err(werr)?;
+        let mut planes = [vec![0u8; w * h], vec![0u8; w * h], vec![0u8; w * h]];
+        for k in 0..frames {
+            draw(k, &mut planes)?;
+            wr.write_all(b"FRAME\n").map_err(werr)?;
+            for p in &planes {
+                wr.write_all(p).map_err(werr)?;
+            }
+        }
+        wr.into_inner()
+            .map_err(|e| werr(e.into_error()))?
+            .sync_all()
+            .map_err(werr)
+    })
+}
+
+/// The renderer of [`crate::math::idv::Renderer`] on every core: Eq.
+/// 6.10 and the sampling of each plane split into parts (pixels, rows)
+/// run on a pool made once; the depth rule's scatter, which writes
+/// anywhere, stays on one thread. Allocates nothing per frame.
+pub struct FrameRenderer {
+    pub r: Renderer,
+    pool: Option<rayon::ThreadPool>,
+    parts: usize,
+}
+
+impl FrameRenderer {
+    /// `threads`: 0 = one per core.
+    pub fn new(width: usize, height: usize, threads: usize) -> FrameRenderer {
+        let threads = match threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        }
+        .clamp(1, 64);
+        let pool = if threads > 1 {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .thread_name(|i| format!("idv-render-{i}"))
+                .build()
+                .ok()
+        } else {
+            None
+        };
+        let parts = if pool.is_some() { threads } else { 1 };
+        FrameRenderer {
+            r: Renderer::new(width, height),
+            pool,
+            parts,
+        }
+    }
+
+    /// The threads it renders on.
+    pub fn threads(&self) -> usize {
+        self.parts
+    }
+
+    /// Eq. 6.10 for the modal coordinates `q`, then the depth rule.
+    pub fn displace(&mut self, shapes: &[Shape], q: &[Complex64]) {
+        let Some(pool) = &self.pool else {
+            self.r.displacement(shapes, q);
+            self.r.resolve();
+            return;
+        };
+        use rayon::prelude::*;
+        let n = self.r.dx.len();
+        let chunk = n.div_ceil(self.parts).max(1);
+        let (dx, dy) = (&mut self.r.dx, &mut self.r.dy);
+        pool.install(|| {
+            dx.par_chunks_mut(chunk)
+                .zip(dy.par_chunks_mut(chunk))
+                .enumerate()
+                .for_each(|(k, (a, b))| {
+                    crate::math::idv::displacement_part(shapes, q, k * chunk, a, b)
+                })
+        });
+        self.r.resolve();
+    }
+
+    /// One plane of the rest frame sampled where [`FrameRenderer::displace`] said.
+    pub fn sample(&self, rest: &[u8], out: &mut [u8]) {
+        let Some(pool) = &self.pool else {
+            return self.r.sample(rest, out);
+        };
+        use rayon::prelude::*;
+        let (w, h) = (self.r.width(), self.r.height());
+        let rows = h.div_ceil(self.parts).max(1);
+        let r = &self.r;
+        pool.install(|| {
+            out.par_chunks_mut(rows * w)
+                .enumerate()
+                .for_each(|(k, part)| r.sample_rows(rest, k * rows, part))
+        });
     }
 }
 
@@ -820,7 +1142,7 @@ pub fn idv(o: &IdvOptions) -> Result<IdvReport> {
     if o.pokes.is_empty() {
         return Err(Error::usage(
             "--poke",
-            "give at least one poke T,X,Y,DX,DY[,STRENGTH]",
+            "give at least one --poke, --pull or --throw T,X,Y,DX,DY[,STRENGTH]",
         ));
     }
     if !(o.damping_scale.is_finite() && o.damping_scale > 0.0) {
@@ -866,14 +1188,24 @@ pub fn idv(o: &IdvOptions) -> Result<IdvReport> {
     let mut sim = Simulation::new(&basis, &o.pokes, o.damping_scale)?;
     let shapes: Vec<Shape> = basis.modes.iter().map(|m| m.shape.clone()).collect();
     let mut notes = basis.notes.clone();
-    let mut r = Renderer::new(basis.width, basis.height);
+    let mut r = FrameRenderer::new(basis.width, basis.height, 0);
     let size = (basis.width, basis.height);
-    crate::magnify::write_gray_video(&o.output, ffmpeg, size, rate, frames, |k, out| {
-        let q = sim.advance_to(k as f64 / rate);
-        r.displacement(&shapes, q);
-        r.warp(&basis.rest, out);
-        Ok(())
-    })?;
+    match &basis.colour {
+        Some(c) => write_colour_video(&o.output, ffmpeg, size, rate, frames, c, |k, out| {
+            r.displace(&shapes, sim.advance_to(k as f64 / rate));
+            for (plane, o) in c.planes.iter().zip(out.iter_mut()) {
+                r.sample(plane, o);
+            }
+            Ok(())
+        })?,
+        None => {
+            crate::magnify::write_gray_video(&o.output, ffmpeg, size, rate, frames, |k, out| {
+                r.displace(&shapes, sim.advance_to(k as f64 / rate));
+                r.sample(&basis.rest, out);
+                Ok(())
+            })?
+        }
+    }
     if basis.modes.iter().any(|m| m.freq_hz > rate / 2.0) {
         notes.push(format!(
             "modes above {} Hz (half the output rate) alias in the rendered video; raise --rate",

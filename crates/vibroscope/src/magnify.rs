@@ -322,7 +322,7 @@ pub fn magnify(o: &MagnifyOptions) -> Result<MagnifyReport> {
 
 /// Whether an input has chroma worth keeping.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Colour {
+pub(crate) enum Colour {
     Grey,
     /// `video_range`: ffmpeg decoded it from video-range YUV (16-235), and
     /// its grey (the luma the engine magnified) was stretched to 0-255.
@@ -334,7 +334,7 @@ enum Colour {
 /// A Y4M whose reader kept only its luma, or a file ffmpeg decodes from a
 /// pixel format that is not grey (asked of `ffprobe`; when it cannot say,
 /// grey).
-fn has_colour(video: &Path, info: &io::VideoInfo) -> Colour {
+pub(crate) fn has_colour(video: &Path, info: &io::VideoInfo) -> Colour {
     if info.notes.iter().any(|n| n.contains("luma plane only")) {
         // The Y4M reader reads the luma plane as it is.
         return Colour::Yes { video_range: false };
@@ -477,7 +477,11 @@ fn run_ffmpeg(cmd: &mut Command, what: impl FnOnce() -> String) -> Result<()> {
 /// `write` fills a temporary sibling of `output` (keeping its extension,
 /// for ffmpeg) from the finished Y4M `y4m`; the sibling is then renamed to
 /// `output`. `y4m` is removed either way, and a failure leaves nothing.
-fn via_temporary(y4m: &Path, output: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+pub(crate) fn via_temporary(
+    y4m: &Path,
+    output: &Path,
+    write: impl FnOnce(&Path) -> Result<()>,
+) -> Result<()> {
     let tmp = temp_with_ext(output);
     let done = write(&tmp).and_then(|()| {
         std::fs::rename(&tmp, output).map_err(|source| {
@@ -518,9 +522,6 @@ pub(crate) fn open_video(
     Ok((reader, fps))
 }
 
-/// Moves the finished Y4M `y4m` to `output`: renamed, or with `ffmpeg`
-/// encoded into a temporary sibling that is then renamed; `y4m` is
-/// removed either way and a failed encode leaves nothing behind.
 /// Writes an 8-bit grey video of `frames` frames of `size` (w, h) at `rate`
 /// Hz to `output` (Y4M, or any container through ffmpeg), frame `k` drawn
 /// into the buffer by `draw(k, buf)`, each stamped k / rate. The Y4M goes
@@ -533,19 +534,7 @@ pub(crate) fn write_gray_video(
     frames: u64,
     mut draw: impl FnMut(u64, &mut [u8]) -> Result<()>,
 ) -> Result<()> {
-    let y4m = if ffmpeg {
-        io::atomic::temp_sibling(&output.with_extension("y4m"))
-    } else {
-        io::atomic::temp_sibling(output)
-    };
-    let werr = |source: std::io::Error| {
-        Error::from(io::atomic::WriteError {
-            path: output.to_path_buf(),
-            source,
-        })
-    };
-    let written = (|| -> Result<()> {
-        let file = std::fs::File::create(&y4m).map_err(werr)?;
+    write_via_y4m(output, ffmpeg, |file, werr| {
         let mut wr = io::Y4mWriter::new(
             std::io::BufWriter::new(file),
             w as u32,
@@ -563,7 +552,32 @@ pub(crate) fn write_gray_video(
         }
         wr.finish().map_err(werr)?;
         Ok(())
-    })();
+    })
+}
+
+/// A video written as a Y4M by `write` (given the new file and the error
+/// for a failed write of `output`) into a temporary sibling, then renamed
+/// to `output` or, with `ffmpeg`, encoded into it ([`finish_output`]):
+/// `output` is whole or absent, and nothing else is left behind.
+pub(crate) fn write_via_y4m(
+    output: &Path,
+    ffmpeg: bool,
+    write: impl FnOnce(std::fs::File, &dyn Fn(std::io::Error) -> Error) -> Result<()>,
+) -> Result<()> {
+    let y4m = if ffmpeg {
+        io::atomic::temp_sibling(&output.with_extension("y4m"))
+    } else {
+        io::atomic::temp_sibling(output)
+    };
+    let werr = |source: std::io::Error| {
+        Error::from(io::atomic::WriteError {
+            path: output.to_path_buf(),
+            source,
+        })
+    };
+    let written = std::fs::File::create(&y4m)
+        .map_err(werr)
+        .and_then(|file| write(file, &werr));
     if let Err(e) = written {
         let _ = std::fs::remove_file(&y4m);
         return Err(e);
@@ -571,6 +585,9 @@ pub(crate) fn write_gray_video(
     finish_output(&y4m, output, ffmpeg)
 }
 
+/// Moves the finished Y4M `y4m` to `output`: renamed, or with `ffmpeg`
+/// encoded into a temporary sibling that is then renamed; `y4m` is
+/// removed either way and a failed encode leaves nothing behind.
 pub(crate) fn finish_output(y4m: &Path, output: &Path, ffmpeg: bool) -> Result<()> {
     if ffmpeg {
         via_temporary(y4m, output, |tmp| encode(y4m, tmp))

@@ -18,7 +18,7 @@
 //! object: outside it the displacement is zero, as the library's mask
 //! makes it outside a mask); the whole frame when no region is selected.
 
-use crate::api::{ApiError, Selection};
+use super::{ApiError, Selection};
 use axum::http::StatusCode;
 use serde_json::{json, Value};
 use std::path::Path;
@@ -154,7 +154,7 @@ pub(crate) fn basis_answer(
             "freq_hz": m.freq_hz,
             "damping_ratio": m.damping,
             "damping_method": m.damping_method,
-            "shape": crate::api::base64(&bytes),
+            "shape": super::base64(&bytes),
         }));
     }
     let payload = Choice::payload((bw * bh) as u64, modes.len() as u64, (w * h) as u64);
@@ -163,7 +163,7 @@ pub(crate) fn basis_answer(
         "height": h,
         "fps": basis.fps,
         "box": sel.whole,
-        "rest": crate::api::base64(&basis.rest),
+        "rest": super::base64(&basis.rest),
         "layout": "f32le xr,xi,yr,yi per pixel of box, row-major",
         "modes": modes,
         "notes": basis.notes,
