@@ -260,46 +260,69 @@ struct Picked {
 /// modes of its own (see [`pick_modes`]).
 const MIN_QUADRANT_PX: u32 = 16;
 
-/// The region's rectangle (the frame's without one) cut into 2 x 2, or
-/// nothing when a quarter would be smaller than [`MIN_QUADRANT_PX`].
-fn quadrants(region: &Region, width: usize, height: usize) -> Vec<Roi> {
-    let r = region.roi.unwrap_or(Roi {
+/// A quadrant with fewer pixels of the mask than this is not searched.
+const MIN_QUADRANT_MASK_PX: usize = 64;
+
+/// The region cut into 2 x 2 (see [`pick_modes`]): the rectangle of the
+/// mask's pixels when there is a mask (already limited to the roi), else
+/// the roi, else the frame; nothing when a quarter would be smaller than
+/// [`MIN_QUADRANT_PX`] on a side, and no quarter holding fewer than
+/// [`MIN_QUADRANT_MASK_PX`] of the mask's pixels.
+fn quadrants(region: &Region, mask: Option<&[bool]>, width: usize, height: usize) -> Vec<Roi> {
+    let frame = Roi {
         x: 0,
         y: 0,
         w: width as u32,
         h: height as u32,
-    });
+    };
+    let r = match mask {
+        Some(m) => {
+            let (mut x0, mut y0, mut x1, mut y1) = (usize::MAX, usize::MAX, 0, 0);
+            for (i, _) in m.iter().enumerate().filter(|(_, &v)| v) {
+                let (x, y) = (i % width, i / width);
+                (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x + 1), y1.max(y + 1));
+            }
+            if x0 >= x1 {
+                return Vec::new();
+            }
+            Roi {
+                x: x0 as u32,
+                y: y0 as u32,
+                w: (x1 - x0) as u32,
+                h: (y1 - y0) as u32,
+            }
+        }
+        None => region.roi.unwrap_or(frame),
+    };
     let (w0, h0) = (r.w / 2, r.h / 2);
     if w0 < MIN_QUADRANT_PX || h0 < MIN_QUADRANT_PX {
         return Vec::new();
     }
     let (w1, h1) = (r.w - w0, r.h - h0);
-    vec![
-        Roi {
-            x: r.x,
-            y: r.y,
-            w: w0,
-            h: h0,
-        },
-        Roi {
-            x: r.x + w0,
-            y: r.y,
-            w: w1,
-            h: h0,
-        },
-        Roi {
-            x: r.x,
-            y: r.y + h0,
-            w: w0,
-            h: h1,
-        },
-        Roi {
-            x: r.x + w0,
-            y: r.y + h0,
-            w: w1,
-            h: h1,
-        },
-    ]
+    let all = [
+        (r.x, r.y, w0, h0),
+        (r.x + w0, r.y, w1, h0),
+        (r.x, r.y + h0, w0, h1),
+        (r.x + w0, r.y + h0, w1, h1),
+    ];
+    all.into_iter()
+        .map(|(x, y, w, h)| Roi { x, y, w, h })
+        .filter(|q| {
+            mask.is_none_or(|m| {
+                let (x0, y0) = (q.x as usize, q.y as usize);
+                let (x1, y1) = (x0 + q.w as usize, y0 + q.h as usize);
+                (y0..y1)
+                    .map(|y| {
+                        m[y * width + x0..y * width + x1]
+                            .iter()
+                            .filter(|&&v| v)
+                            .count()
+                    })
+                    .sum::<usize>()
+                    >= MIN_QUADRANT_MASK_PX
+            })
+        })
+        .collect()
 }
 
 /// The modes to measure, from the spectrum's peaks. With `Auto` the
@@ -313,6 +336,7 @@ fn quadrants(region: &Region, width: usize, height: usize) -> Vec<Roi> {
 fn pick_modes(
     o: &BasisOptions,
     size: (usize, usize),
+    mask: Option<&[bool]>,
     notes: &mut Vec<String>,
 ) -> Result<Vec<Picked>> {
     let mut so = SpectrumOptions::new(&o.video, PathBuf::new());
@@ -326,9 +350,14 @@ fn pick_modes(
     let (report, _) = run_spectrum(&so, true)?;
     let mut reports = vec![report];
     if o.modes == ModeChoice::Auto {
-        for q in quadrants(&o.region, size.0, size.1) {
+        for q in quadrants(&o.region, mask, size.0, size.1) {
             so.region.roi = Some(q);
-            reports.push(run_spectrum(&so, true)?.0);
+            // A quadrant is a second look; one the spectrum cannot take
+            // (too little texture in it, say) is left out, and said.
+            match run_spectrum(&so, true) {
+                Ok((r, _)) => reports.push(r),
+                Err(e) => notes.push(format!("quadrant {q} not searched for modes: {e}")),
+            }
         }
     }
     let report = &reports[0];
@@ -458,7 +487,7 @@ pub fn extract_basis(o: &BasisOptions) -> Result<Basis> {
     let info = reader.info().clone();
     let (w, h) = (info.width as usize, info.height as usize);
     let mask = read_mask(&o.region, w, h)?;
-    let picked = pick_modes(o, (w, h), &mut notes)?;
+    let picked = pick_modes(o, (w, h), mask.as_deref(), &mut notes)?;
     let mut imagers = Vec::with_capacity(picked.len() * 2);
     for p in &picked {
         for motion in [Motion::X, Motion::Y] {
@@ -1222,4 +1251,44 @@ pub fn idv(o: &IdvOptions) -> Result<IdvReport> {
         basis_written,
         notes,
     })
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quadrants_cover_the_region_or_the_mask_and_skip_empty_ones() {
+        let whole = quadrants(&Region::default(), None, 64, 40);
+        assert_eq!(whole.len(), 4);
+        let area: u32 = whole.iter().map(|q| q.w * q.h).sum();
+        assert_eq!(area, 64 * 40);
+        // Too small a region: no quadrant.
+        let small = Region {
+            roi: Some(Roi {
+                x: 4,
+                y: 4,
+                w: 30,
+                h: 40,
+            }),
+            ..Default::default()
+        };
+        assert!(quadrants(&small, None, 64, 40).is_empty());
+        // A mask: its bounding box, and only the quarters it covers enough.
+        let (w, h) = (100usize, 80usize);
+        let mut m = vec![false; w * h];
+        for y in 10..50 {
+            for x in 20..60 {
+                // An L: the top rows and the left columns of the box.
+                m[y * w + x] = y < 14 || x < 24;
+            }
+        }
+        let q = quadrants(&Region::default(), Some(&m), w, h);
+        assert_eq!(q[0].to_string(), "20,10,20,20");
+        // The bottom-right quarter holds none of the L.
+        assert_eq!(q.len(), 3, "{q:?}");
+        assert!(q.iter().all(|r| !(r.x == 40 && r.y == 30)));
+        assert!(quadrants(&Region::default(), Some(&vec![false; w * h]), w, h).is_empty());
+    }
 }
