@@ -53,26 +53,20 @@ fn render_beam(dir: &std::path::Path, frames: u64) -> std::path::PathBuf {
     dir.join("beam.y4m")
 }
 
-/// The basis of the noise-driven beam (130 s at 300 Hz) and the worst
-/// relative errors, over the true modes, of the nearest measured mode's
-/// frequency and damping.
-fn beam_basis() -> (vibroscope::idv::Basis, f64, f64) {
-    let dir = tempfile::tempdir().unwrap();
-    let video = render_beam(dir.path(), FRAMES);
-    let mut o = BasisOptions::new(&video);
-    o.sigma_px = 1.5;
-    let basis = extract_basis(&o).unwrap();
+/// Per true (frequency Hz, damping ratio), the nearest measured mode's
+/// relative errors, printed under `label`; the worst of each. A damping
+/// the basis only assumed fails.
+fn worst_errors(label: &str, basis: &vibroscope::idv::Basis, truth: &[(f64, f64)]) -> (f64, f64) {
     let mut worst = (0.0f64, 0.0f64);
-    for &(f, d, _, _) in &MODES {
+    for &(f, d) in truth {
         let m = basis
             .modes
             .iter()
             .min_by(|a, b| (a.freq_hz - f).abs().total_cmp(&(b.freq_hz - f).abs()))
             .unwrap();
-        let ef = (m.freq_hz - f).abs() / f;
-        let ed = (m.damping - d).abs() / d;
+        let (ef, ed) = ((m.freq_hz - f).abs() / f, (m.damping - d).abs() / d);
         eprintln!(
-            "mode {f} Hz ξ {d}: measured {:.3} Hz ({:.2}%), ξ {:.4} ({:.0}%, {})",
+            "{label} {f} Hz ξ {d}: measured {:.3} Hz ({:.2}%), ξ {:.4} ({:.0}%, {})",
             m.freq_hz,
             100.0 * ef,
             m.damping,
@@ -82,6 +76,57 @@ fn beam_basis() -> (vibroscope::idv::Basis, f64, f64) {
         assert_ne!(m.damping_method, "assumed", "{f} Hz: damping not measured");
         worst = (worst.0.max(ef), worst.1.max(ed));
     }
+    worst
+}
+
+/// Asserts, for a scene `t_s` seconds long, that each true mode's
+/// damping floor ([`damping_floor`]) is under a third of the 25% the
+/// test allows: the scene is long enough for its test.
+fn assert_long_enough(label: &str, truth: &[(f64, f64)], t_s: f64) {
+    for &(f, d) in truth {
+        let floor = damping_floor(f, d, t_s);
+        eprintln!("{label} {f} Hz ξ {d}: damping floor {:.1}%", 100.0 * floor);
+        assert!(floor <= 0.25 / 3.0, "the scene is too short for its test");
+    }
+}
+
+/// The acceptance of a ground-truth basis: idv's displacements `a`
+/// against the simulator's `b`, correlated after one global scale (the
+/// least-squares fit) >= 0.9; the worst frequency error <= 1% and the
+/// worst damping error <= 25%.
+fn assert_matches(label: &str, a: &[f64], b: &[f64], (worst_f, worst_d): (f64, f64)) {
+    let ab: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
+    let aa: f64 = a.iter().map(|x| x * x).sum();
+    let bb: f64 = b.iter().map(|x| x * x).sum();
+    let corr = ab / (aa * bb).sqrt();
+    eprintln!(
+        "{label} impulse response: correlation {corr:.4} (scale {:.3e})",
+        ab / aa
+    );
+    assert!(corr >= 0.9, "impulse-response correlation {corr:.4} < 0.9");
+    assert!(
+        worst_f <= 0.01,
+        "a frequency is off by {:.2}%",
+        100.0 * worst_f
+    );
+    assert!(
+        worst_d <= 0.25,
+        "a damping ratio is off by {:.0}%",
+        100.0 * worst_d
+    );
+}
+
+/// The basis of the noise-driven beam (130 s at 300 Hz) and the worst
+/// relative errors, over the true modes, of the nearest measured mode's
+/// frequency and damping.
+fn beam_basis() -> (vibroscope::idv::Basis, f64, f64) {
+    let dir = tempfile::tempdir().unwrap();
+    let video = render_beam(dir.path(), FRAMES);
+    let mut o = BasisOptions::new(&video);
+    o.sigma_px = 1.5;
+    let basis = extract_basis(&o).unwrap();
+    let truth: Vec<(f64, f64)> = MODES.iter().map(|m| (m.0, m.1)).collect();
+    let worst = worst_errors("mode", &basis, &truth);
     (basis, worst.0, worst.1)
 }
 
@@ -94,14 +139,8 @@ fn beam_basis() -> (vibroscope::idv::Basis, f64, f64) {
 /// fitted.
 #[test]
 fn beam_basis_and_impulse_response_match_the_simulator() {
-    for &(f, d, _, _) in &MODES {
-        let floor = damping_floor(f, d, FRAMES as f64 / FPS);
-        eprintln!(
-            "beam mode {f} Hz ξ {d}: damping floor {:.1}%",
-            100.0 * floor
-        );
-        assert!(floor <= 0.25 / 3.0, "the scene is too short for its test");
-    }
+    let truth: Vec<(f64, f64)> = MODES.iter().map(|m| (m.0, m.1)).collect();
+    assert_long_enough("beam mode", &truth, FRAMES as f64 / FPS);
     let (basis, worst_f, worst_d) = beam_basis();
     // The impulse response (before the accuracy asserts, so both print).
     let spec: ModalSpec = toml::from_str(&format!("modes = {}", modes_toml())).unwrap();
@@ -139,26 +178,7 @@ fn beam_basis_and_impulse_response_match_the_simulator() {
             b.push(tv);
         }
     }
-    // One global scale: the least-squares fit; then the correlation.
-    let ab: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
-    let aa: f64 = a.iter().map(|x| x * x).sum();
-    let bb: f64 = b.iter().map(|x| x * x).sum();
-    let corr = ab / (aa * bb).sqrt();
-    eprintln!(
-        "impulse response: correlation {corr:.4} (scale {:.3e})",
-        ab / aa
-    );
-    assert!(corr >= 0.9, "impulse-response correlation {corr:.4} < 0.9");
-    assert!(
-        worst_f <= 0.01,
-        "a frequency is off by {:.2}%",
-        100.0 * worst_f
-    );
-    assert!(
-        worst_d <= 0.25,
-        "a damping ratio is off by {:.0}%",
-        100.0 * worst_d
-    );
+    assert_matches("beam", &a, &b, (worst_f, worst_d));
 }
 
 /// The command end to end: basis saved and reloaded, frames written,
@@ -457,15 +477,8 @@ fn damping_floor(f: f64, xi: f64, t_s: f64) -> f64 {
 /// slowest mode >= 0.9, one global scale fitted).
 #[test]
 fn plate_basis_and_impulse_response_in_two_dimensions_match_the_simulator() {
-    let t_s = PLATE_FRAMES as f64 / PLATE_FPS;
-    for &(f, d, _, _, _) in &PLATE_MODES {
-        let floor = damping_floor(f, d, t_s);
-        eprintln!(
-            "plate mode {f} Hz ξ {d}: damping floor {:.1}%",
-            100.0 * floor
-        );
-        assert!(floor <= 0.25 / 3.0, "the scene is too short for its test");
-    }
+    let truth: Vec<(f64, f64)> = PLATE_MODES.iter().map(|m| (m.0, m.1)).collect();
+    assert_long_enough("plate mode", &truth, PLATE_FRAMES as f64 / PLATE_FPS);
     let dir = tempfile::tempdir().unwrap();
     let seed = std::env::var("IDV_SEED").map_or(5, |v| v.parse().unwrap());
     let scene = format!(
@@ -479,26 +492,7 @@ fn plate_basis_and_impulse_response_in_two_dimensions_match_the_simulator() {
     let mut o = BasisOptions::new(dir.path().join("plate.y4m"));
     o.sigma_px = 1.5;
     let basis = extract_basis(&o).unwrap();
-    let (mut worst_f, mut worst_d) = (0.0f64, 0.0f64);
-    for &(f, d, _, _, _) in &PLATE_MODES {
-        let m = basis
-            .modes
-            .iter()
-            .min_by(|a, b| (a.freq_hz - f).abs().total_cmp(&(b.freq_hz - f).abs()))
-            .unwrap();
-        let (ef, ed) = ((m.freq_hz - f).abs() / f, (m.damping - d).abs() / d);
-        eprintln!(
-            "plate mode {f} Hz ξ {d}: measured {:.3} Hz ({:.2}%), ξ {:.4} ({:.0}%, {})",
-            m.freq_hz,
-            100.0 * ef,
-            m.damping,
-            100.0 * ed,
-            m.damping_method
-        );
-        assert_ne!(m.damping_method, "assumed", "{f} Hz: damping not measured");
-        worst_f = worst_f.max(ef);
-        worst_d = worst_d.max(ed);
-    }
+    let worst = worst_errors("plate mode", &basis, &truth);
     // The impulse response near the top corner of the free edge.
     let spec: ModalSpec = toml::from_str(&format!("modes = {}", plate_modes_toml())).unwrap();
     let plate = ModalBeam::new(&spec, PLATE[2], PLATE[3], 1).unwrap();
@@ -531,25 +525,7 @@ fn plate_basis_and_impulse_response_in_two_dimensions_match_the_simulator() {
             }
         }
     }
-    let ab: f64 = a.iter().zip(&b).map(|(x, y)| x * y).sum();
-    let aa: f64 = a.iter().map(|x| x * x).sum();
-    let bb: f64 = b.iter().map(|x| x * x).sum();
-    let corr = ab / (aa * bb).sqrt();
-    eprintln!(
-        "plate impulse response: correlation {corr:.4} (scale {:.3e})",
-        ab / aa
-    );
-    assert!(corr >= 0.9, "impulse-response correlation {corr:.4} < 0.9");
-    assert!(
-        worst_f <= 0.01,
-        "a frequency is off by {:.2}%",
-        100.0 * worst_f
-    );
-    assert!(
-        worst_d <= 0.25,
-        "a damping ratio is off by {:.0}%",
-        100.0 * worst_d
-    );
+    assert_matches("plate", &a, &b, worst);
 }
 
 /// The strings of guitar.mp4 (432x192) in view: the low E string (~81 Hz)
