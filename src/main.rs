@@ -78,6 +78,8 @@ enum Command {
     Demo(cmd::demo::Args),
     Learn(cmd::learn::Args),
     Studio(cmd::studio::Args),
+    #[cfg(feature = "net")]
+    Monitor(cmd::monitor::Args),
 }
 
 fn main() -> ExitCode {
@@ -145,6 +147,8 @@ fn run(command: Command) -> anyhow::Result<ExitCode> {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Learn(a) => cmd::learn::run(a),
         Command::Studio(a) => cmd::studio::run(a),
+        #[cfg(feature = "net")]
+        Command::Monitor(a) => cmd::monitor::run(a),
     }
 }
 

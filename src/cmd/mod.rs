@@ -12,6 +12,8 @@ pub mod learn;
 pub mod listen;
 pub mod magnify;
 pub mod modes;
+#[cfg(feature = "net")]
+pub mod monitor;
 pub mod pipelines;
 pub mod pitch;
 pub mod probe;

@@ -241,6 +241,29 @@ pub fn validate(decl: &PipelineDecl, registry: &'static [KindSpec]) -> Result<Gr
             Output::None => None,
             Output::Fixed(t) => Some(t),
             Output::SameAsInput => inputs.first().map(|r| r.port_type),
+            Output::FromParam(name) => {
+                let given = s.params.iter().find(|q| q.key == name).map(|q| &q.value);
+                let default = kind
+                    .params
+                    .iter()
+                    .find(|q| q.name == name)
+                    .and_then(|q| q.default.value());
+                let text = given.cloned().or(default);
+                let t = text
+                    .as_ref()
+                    .and_then(|v| v.as_str())
+                    .and_then(PortType::from_name);
+                if t.is_none() {
+                    return Err(cerr(
+                        file,
+                        &s.origin,
+                        &s.id,
+                        Some(name),
+                        "must name an edge type: frames, samples, audio, spectrum or peaks",
+                    ));
+                }
+                t
+            }
         };
         if kind.output() == Output::SameAsInput
             && inputs.iter().any(|r| Some(r.port_type) != out_type[i])

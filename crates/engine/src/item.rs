@@ -19,6 +19,24 @@ pub enum PortType {
     Spectrum,
     /// One frame's pyramid coefficients (local amplitude and phase per band).
     Pyramid,
+    /// The resonances picked from one spectrum ([`PeakSet`]).
+    Peaks,
+}
+
+impl PortType {
+    /// The type its [`fmt::Display`] name names (`"spectrum"`, ...).
+    pub fn from_name(name: &str) -> Option<PortType> {
+        [
+            PortType::Frames,
+            PortType::Samples,
+            PortType::Audio,
+            PortType::Spectrum,
+            PortType::Pyramid,
+            PortType::Peaks,
+        ]
+        .into_iter()
+        .find(|t| t.to_string() == name)
+    }
 }
 
 impl fmt::Display for PortType {
@@ -29,8 +47,45 @@ impl fmt::Display for PortType {
             PortType::Audio => "audio",
             PortType::Spectrum => "spectrum",
             PortType::Pyramid => "pyramid",
+            PortType::Peaks => "peaks",
         })
     }
+}
+
+/// One resonance picked from a spectrum: what `monitor` tracks and what
+/// crosses a network edge (the analysis's full [`vibroscope_math::peaks::Peak`]
+/// also carries its fit details).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct Resonance {
+    pub frequency_hz: f64,
+    pub frequency_std_hz: f64,
+    /// Power at the peak, dB of the spectrum's unit (amplitude²).
+    pub power_db: f64,
+    pub prominence_db: f64,
+    pub damping_ratio: f64,
+    pub damping_ratio_std: f64,
+}
+
+impl From<&vibroscope_math::peaks::Peak> for Resonance {
+    fn from(p: &vibroscope_math::peaks::Peak) -> Self {
+        Resonance {
+            frequency_hz: p.frequency_hz,
+            frequency_std_hz: p.frequency_std_hz,
+            power_db: p.power_db,
+            prominence_db: p.prominence_db,
+            damping_ratio: p.damping_ratio,
+            damping_ratio_std: p.damping_ratio_std,
+        }
+    }
+}
+
+/// The resonances found in one spectrum, strongest first, at the
+/// spectrum's time.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct PeakSet {
+    /// Time of the spectrum's window centre, ns on the source clock.
+    pub t_ns: i64,
+    pub peaks: Vec<Resonance>,
 }
 
 /// A block of a uniformly sampled mono signal.
@@ -183,6 +238,7 @@ pub enum Item {
     Audio(AudioBlock),
     Spectrum(Spectrum),
     Pyramid(PyramidFrame),
+    Peaks(PeakSet),
 }
 
 impl Item {
@@ -193,6 +249,7 @@ impl Item {
             Item::Audio(_) => PortType::Audio,
             Item::Spectrum(_) => PortType::Spectrum,
             Item::Pyramid(_) => PortType::Pyramid,
+            Item::Peaks(_) => PortType::Peaks,
         }
     }
 
@@ -204,6 +261,7 @@ impl Item {
             Item::Audio(a) => a.t0_ns,
             Item::Spectrum(s) => s.t_ns,
             Item::Pyramid(p) => p.t_ns,
+            Item::Peaks(p) => p.t_ns,
         }
     }
 }

@@ -95,6 +95,7 @@ impl LatencyHist {
             }
             Item::Spectrum(s) => self.record(now_ns - s.t_ns),
             Item::Pyramid(p) => self.record(now_ns - p.t_ns),
+            Item::Peaks(p) => self.record(now_ns - p.t_ns),
         }
     }
 

@@ -8,6 +8,8 @@ pub mod graph;
 pub mod item;
 pub mod latency;
 pub mod memory;
+#[cfg(feature = "net")]
+pub mod net;
 pub mod notify;
 pub mod observe;
 pub mod runner;
@@ -25,7 +27,8 @@ pub use frame::{
 };
 pub use graph::{BuildCtx, Graph, KindSpec, Output, Plan};
 pub use item::{
-    AudioBlock, Item, PortType, PyramidData, PyramidFrame, SampleBlock, Spectrum, Taper,
+    AudioBlock, Item, PeakSet, PortType, PyramidData, PyramidFrame, Resonance, SampleBlock,
+    Spectrum, Taper,
 };
 pub use latency::{LatencyHist, LatencySummary};
 pub use observe::{

@@ -269,7 +269,7 @@ impl TapSlot {
                 copy_frame(f, &mut tf);
                 Latest::Frame(tf)
             }
-            Item::Pyramid(_) => {
+            Item::Pyramid(_) | Item::Peaks(_) => {
                 self.count_skip();
                 return false;
             }

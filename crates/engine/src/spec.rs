@@ -476,6 +476,9 @@ pub enum OutType {
     Fixed(PortType),
     /// Whatever arrives on the inputs (pass-through stages).
     SameAsInput,
+    /// The type a `Choice` parameter of this name names (a network source
+    /// says what it receives); its default when the parameter is absent.
+    FromParam(&'static str),
 }
 
 /// An output port (fan-out: any number of consumers).
@@ -546,6 +549,7 @@ impl KindSpec {
             let t = match p.ty {
                 OutType::Fixed(t) => t.to_string(),
                 OutType::SameAsInput => "same as input".into(),
+                OutType::FromParam(name) => format!("the `{name}` parameter's type"),
             };
             let _ = writeln!(s, "output:  {}: {t}", p.name);
         }
@@ -608,6 +612,8 @@ pub enum Output {
     Fixed(PortType),
     /// Whatever its input carries (pass-through stages).
     SameAsInput,
+    /// The type named by this parameter ([`OutType::FromParam`]).
+    FromParam(&'static str),
 }
 
 /// A stage kind in the registry: the name used as `kind` in TOML, its
@@ -649,6 +655,7 @@ impl KindSpec {
             None => Output::None,
             Some(OutType::Fixed(t)) => Output::Fixed(t),
             Some(OutType::SameAsInput) => Output::SameAsInput,
+            Some(OutType::FromParam(n)) => Output::FromParam(n),
         }
     }
 }

@@ -58,23 +58,9 @@ pub enum WireError {
     Trailing(usize),
 }
 
-/// One resonance as it travels: the figures `monitor` tracks.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct WirePeak {
-    pub frequency_hz: f64,
-    pub frequency_std_hz: f64,
-    pub power_db: f64,
-    pub prominence_db: f64,
-    pub damping_ratio: f64,
-    pub damping_ratio_std: f64,
-}
-
-/// The peaks found in one spectrum, at the spectrum's time.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PeakSet {
-    pub t_ns: i64,
-    pub peaks: Vec<WirePeak>,
-}
+pub use crate::item::PeakSet;
+/// One resonance as it travels (the item type, under its wire name).
+pub use crate::item::Resonance as WirePeak;
 
 /// Pixels of a decoded frame, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]

@@ -32,6 +32,40 @@ pub enum SignalSpec {
     /// A WAV file: first channel, normalised to peak 1, linear
     /// interpolation between samples, zero before 0 and after its end.
     Wav { path: PathBuf },
+    /// White noise sampled at `rate_hz` for `duration_s` (zero after), each
+    /// sample the mean of four uniform draws in [-1, 1] (peak 1, nearly
+    /// Gaussian), linear interpolation between samples, deterministic from
+    /// `seed`. Through `resonances` it drives each like an ambient force.
+    Noise {
+        rate_hz: f64,
+        duration_s: f64,
+        #[serde(default = "default_noise_seed")]
+        seed: u64,
+    },
+}
+
+fn default_noise_seed() -> u64 {
+    1
+}
+
+/// The most noise samples a scene may ask for.
+const MAX_NOISE_SAMPLES: f64 = 2e8;
+
+/// [`SignalSpec::Noise`]'s samples: splitmix64 draws, four per sample.
+fn noise_samples(rate_hz: f64, duration_s: f64, seed: u64) -> Arc<[f32]> {
+    let n = (rate_hz * duration_s).ceil() as usize + 1;
+    let mut state = seed;
+    let mut next = || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    };
+    (0..n)
+        .map(|_| ((next() + next() + next() + next()) / 4.0) as f32)
+        .collect()
 }
 
 #[derive(Clone, Debug)]
@@ -67,6 +101,31 @@ pub struct Resonance {
     pub freq_hz: f64,
     pub q: f64,
     pub gain_db: f64,
+    /// The section acts from this time on (s); before, it is flat.
+    #[serde(default)]
+    pub from_s: Option<f64>,
+    /// The section acts until this time (s); after, it is flat (its state
+    /// cleared): with another section `from_s` the same time, a resonance
+    /// that moves mid-run (a glass being filled).
+    #[serde(default)]
+    pub until_s: Option<f64>,
+}
+
+impl Resonance {
+    /// A section that acts for the whole run.
+    pub fn new(freq_hz: f64, q: f64, gain_db: f64) -> Resonance {
+        Resonance {
+            freq_hz,
+            q,
+            gain_db,
+            from_s: None,
+            until_s: None,
+        }
+    }
+
+    fn active(&self, t_s: f64) -> bool {
+        self.from_s.is_none_or(|a| t_s >= a) && self.until_s.is_none_or(|b| t_s < b)
+    }
 }
 
 fn invalid(field: impl Into<String>, msg: impl Into<String>) -> SimError {
@@ -173,6 +232,34 @@ impl Signal {
                 }
             }
             SignalSpec::Wav { path } => load_wav(path)?,
+            SignalSpec::Noise {
+                rate_hz,
+                duration_s,
+                seed,
+            } => {
+                let n = rate_hz * duration_s;
+                if !(rate_hz.is_finite() && *rate_hz > 0.0) {
+                    return Err(invalid("rate_hz", format!("must be > 0 Hz, got {rate_hz}")));
+                }
+                if !(duration_s.is_finite() && *duration_s > 0.0) {
+                    return Err(invalid(
+                        "duration_s",
+                        format!("must be > 0 seconds, got {duration_s}"),
+                    ));
+                }
+                if n > MAX_NOISE_SAMPLES {
+                    return Err(invalid(
+                        "duration_s",
+                        format!(
+                            "{duration_s} s at {rate_hz} Hz is {n:.3e} samples, over the {MAX_NOISE_SAMPLES:.0e} a scene may hold"
+                        ),
+                    ));
+                }
+                Kind::Wav {
+                    rate: *rate_hz,
+                    samples: noise_samples(*rate_hz, *duration_s, *seed),
+                }
+            }
         };
         Ok(Signal {
             spec: spec.clone(),
@@ -201,8 +288,13 @@ impl Signal {
         let mut state = vec![[0.0f64; 2]; sections.len()];
         let samples: Vec<f32> = (0..n as usize)
             .map(|k| {
-                let mut x = self.value(k as f64 / rate_hz);
-                for (c, z) in sections.iter().zip(state.iter_mut()) {
+                let t = k as f64 / rate_hz;
+                let mut x = self.value(t);
+                for ((c, z), r) in sections.iter().zip(state.iter_mut()).zip(res) {
+                    if !r.active(t) {
+                        *z = [0.0; 2];
+                        continue;
+                    }
                     // Transposed direct form II.
                     let y = c[0] * x + z[0];
                     z[0] = c[1] * x - c[3] * y + z[1];
@@ -240,10 +332,21 @@ impl Signal {
         if !res.is_empty() {
             check_resonances(res, rate_hz, duration_s)?;
         }
-        let gain: f64 = res
+        // Sections act over their own spans: the bound is the largest
+        // product of the boosts acting at one time (each span's start).
+        let mut starts: Vec<f64> = vec![0.0];
+        starts.extend(res.iter().flat_map(|r| [r.from_s, r.until_s]).flatten());
+        let gain: f64 = starts
             .iter()
-            .map(|r| super::detmath::exp(r.gain_db.max(0.0) / 20.0 * std::f64::consts::LN_10))
-            .product();
+            .map(|&t| {
+                res.iter()
+                    .filter(|r| r.active(t))
+                    .map(|r| {
+                        super::detmath::exp(r.gain_db.max(0.0) / 20.0 * std::f64::consts::LN_10)
+                    })
+                    .product::<f64>()
+            })
+            .fold(1.0, f64::max);
         self.gain_bound *= gain;
         Ok(self)
     }
@@ -463,6 +566,24 @@ fn check_resonances(
                 format!("resonances[{i}].gain_db"),
                 format!("must be within ±60 dB, got {}", r.gain_db),
             ));
+        }
+        for (name, v) in [("from_s", r.from_s), ("until_s", r.until_s)] {
+            if let Some(v) = v {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(invalid(
+                        format!("resonances[{i}].{name}"),
+                        format!("must be a time >= 0 s, got {v}"),
+                    ));
+                }
+            }
+        }
+        if let (Some(a), Some(b)) = (r.from_s, r.until_s) {
+            if a >= b {
+                return Err(invalid(
+                    format!("resonances[{i}].until_s"),
+                    format!("must be after from_s ({a} s), got {b}"),
+                ));
+            }
         }
         sections.push(peaking(r, rate_hz));
     }
@@ -783,11 +904,7 @@ mod transfer_tests {
     /// section has settled; a tone far away is barely touched.
     #[test]
     fn resonance_gain_at_and_away_from_its_frequency() {
-        let res = [Resonance {
-            freq_hz: 500.0,
-            q: 3.0,
-            gain_db: 12.0,
-        }];
+        let res = [Resonance::new(500.0, 3.0, 12.0)];
         for (f, want_db) in [(500.0, 12.0), (60.0, 0.0)] {
             let s = Signal::new(&SignalSpec::Tone {
                 freq_hz: f,
@@ -816,11 +933,7 @@ mod transfer_tests {
             })
             .unwrap()
         };
-        let r = |freq_hz, gain_db| Resonance {
-            freq_hz,
-            q: 3.0,
-            gain_db,
-        };
+        let r = |freq_hz, gain_db| Resonance::new(freq_hz, 3.0, gain_db);
         let res = [r(500.0, 12.0), r(3000.0, -20.0), r(9000.0, 6.0)];
         let checked = tone().through_checked(&res, 96_000.0, 2.0).unwrap();
         let want = 10f64.powf(18.0 / 20.0);
@@ -838,5 +951,54 @@ mod transfer_tests {
             .through_checked(&[r(60_000.0, 6.0)], 96_000.0, 2.0)
             .is_err());
         assert!(tone().through_checked(&res, 96_000.0, 1e9).is_err());
+    }
+
+    /// Noise through a resonance that moves at 5 s: the strongest line of
+    /// each half is at that half's resonance, and the noise is
+    /// deterministic from its seed.
+    #[test]
+    fn noise_through_a_resonance_that_moves() {
+        let spec = SignalSpec::Noise {
+            rate_hz: 400.0,
+            duration_s: 10.0,
+            seed: 7,
+        };
+        let before = Resonance {
+            until_s: Some(5.0),
+            ..Resonance::new(40.0, 100.0, 30.0)
+        };
+        let after = Resonance {
+            from_s: Some(5.0),
+            ..Resonance::new(44.0, 100.0, 30.0)
+        };
+        let res = [before, after];
+        let s = Signal::new(&spec)
+            .unwrap()
+            .through(&res, 400.0, 10.0)
+            .unwrap();
+        let again = Signal::new(&spec)
+            .unwrap()
+            .through(&res, 400.0, 10.0)
+            .unwrap();
+        assert_eq!(s.value(3.3), again.value(3.3));
+        // The strongest of 0.25 Hz-spaced probe lines, by correlation.
+        let peak = |t0: f64| {
+            let xs: Vec<f64> = (0..1600).map(|k| s.value(t0 + k as f64 / 400.0)).collect();
+            (120..200)
+                .map(|j| j as f64 * 0.25)
+                .map(|f| {
+                    let (mut c, mut q) = (0.0, 0.0);
+                    for (k, x) in xs.iter().enumerate() {
+                        let ph = std::f64::consts::TAU * f * k as f64 / 400.0;
+                        c += x * ph.cos();
+                        q += x * ph.sin();
+                    }
+                    (f, c * c + q * q)
+                })
+                .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
+                .0
+        };
+        assert!((peak(0.5) - 40.0).abs() <= 0.5, "{}", peak(0.5));
+        assert!((peak(5.5) - 44.0).abs() <= 0.5, "{}", peak(5.5));
     }
 }

@@ -94,6 +94,7 @@ pub fn describe_signal(s: &crate::sim::signal::SignalSpec) -> String {
             duration_s,
         } => format!("a chirp from {f0_hz} to {f1_hz} Hz over {duration_s} s"),
         SignalSpec::Wav { path } => format!("the sound of {}", path.display()),
+        SignalSpec::Noise { .. } => "white noise".to_string(),
     }
 }
 

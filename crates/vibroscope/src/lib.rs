@@ -49,6 +49,8 @@ pub mod listen;
 pub mod magnify;
 pub mod microphone;
 pub mod modes;
+#[cfg(feature = "net")]
+pub mod monitor;
 pub mod motion;
 pub mod peaks;
 pub mod pitch;

@@ -14,6 +14,8 @@ pub static REGISTRY: &[KindSpec] = &[
     sources::pattern::KIND,
     sources::v4l2::KIND,
     sources::nokhwa::KIND,
+    #[cfg(feature = "net")]
+    sources::zenoh_sub::KIND,
     transform::passthrough::KIND,
     transform::mean::KIND,
     transform::gradient_motion::KIND,
@@ -32,6 +34,7 @@ pub static REGISTRY: &[KindSpec] = &[
     transform::gap_fill::KIND,
     transform::exposure::KIND,
     transform::spectrum::KIND,
+    transform::resonances::KIND,
     transform::resample::KIND,
     sinks::wav::KIND,
     sinks::speaker::KIND,
@@ -43,6 +46,8 @@ pub static REGISTRY: &[KindSpec] = &[
     sinks::y4m::KIND,
     sinks::tap::KIND,
     sinks::null::KIND,
+    #[cfg(feature = "net")]
+    sinks::zenoh_pub::KIND,
 ];
 
 /// Looks a kind up by name.

@@ -1,7 +1,9 @@
 //! `csv`: writes signals or spectra as CSV.
 //!
 //! Audio: `t_s,value`; samples: `t_s,ch0,ch1,...`; spectra: one row per bin,
-//! `t_s,freq_hz,power`. The file is created on the first item (a run that
+//! `t_s,freq_hz,power`; peak sets: one row per resonance, `t_s,rank,frequency_hz,
+//! frequency_std_hz,power_db,prominence_db,damping_ratio,damping_ratio_std`.
+//! The file is created on the first item (a run that
 //! fails before any data arrives leaves no empty file behind); rows are
 //! written as they arrive to a unique temporary sibling
 //! (`.NAME.PID-N.partial`), flushed and renamed to the path on finish (end
@@ -26,11 +28,12 @@ const PARAMS: &[ParamSpec] =
 
 pub const KIND: KindSpec = KindSpec {
     name: "csv",
-    summary: "writes audio, samples or spectra as CSV rows",
+    summary: "writes audio, samples, spectra or peak sets as CSV rows",
     inputs: &[InPort::one(&[
         PortType::Audio,
         PortType::Samples,
         PortType::Spectrum,
+        PortType::Peaks,
     ])],
     outputs: NO_OUTPUTS,
     params: PARAMS,
@@ -99,6 +102,24 @@ impl Csv {
                 let t = s.t_ns as f64 * 1e-9;
                 for (k, p) in s.power.iter().enumerate() {
                     writeln!(o, "{t:.9},{},{p}", s.f0_hz + k as f64 * s.resolution_hz)?;
+                }
+            }
+            Item::Peaks(ps) => {
+                if header {
+                    writeln!(o, "t_s,rank,frequency_hz,frequency_std_hz,power_db,prominence_db,damping_ratio,damping_ratio_std")?;
+                }
+                let t = ps.t_ns as f64 * 1e-9;
+                for (k, r) in ps.peaks.iter().enumerate() {
+                    writeln!(
+                        o,
+                        "{t:.9},{k},{},{},{},{},{},{}",
+                        r.frequency_hz,
+                        r.frequency_std_hz,
+                        r.power_db,
+                        r.prominence_db,
+                        r.damping_ratio,
+                        r.damping_ratio_std
+                    )?;
                 }
             }
             Item::Frame(_) | Item::Pyramid(_) => {}

@@ -76,7 +76,7 @@ impl Stage for Json {
                 "resolution_hz": s.resolution_hz,
                 "power": &s.power[..],
             })),
-            Item::Frame(_) | Item::Pyramid(_) => {}
+            Item::Frame(_) | Item::Pyramid(_) | Item::Peaks(_) => {}
         }
         Ok(())
     }

@@ -8,6 +8,8 @@ pub mod spectrum_png;
 pub mod tap;
 pub mod wav;
 pub mod y4m;
+#[cfg(feature = "net")]
+pub mod zenoh_pub;
 
 use crate::StageError;
 use std::path::Path;

@@ -46,21 +46,27 @@ pub(crate) const MAX_HZ: ParamSpec = ParamSpec::new("max_hz", ParamType::Float, 
     .unit("Hz")
     .doc("upper edge of the band searched (> min_hz); default: Nyquist");
 
+/// `min_prominence_db`, shared with `resonances`.
+pub(crate) const MIN_PROMINENCE: ParamSpec =
+    ParamSpec::new("min_prominence_db", ParamType::Float, Def::Float(6.0))
+        .at_least(0.0)
+        .unit("dB")
+        .doc("a peak must stand this far above its surroundings");
+/// `false_alarm`, shared with `resonances`.
+pub(crate) const FALSE_ALARM: ParamSpec = ParamSpec::new("false_alarm", ParamType::Float, Def::Float(vibroscope_math::peaks::DEFAULT_FALSE_ALARM))
+    .floats(1e-12, 1.0)
+    .doc("report only peaks that noise alone would put this high anywhere in the band with at most this probability (the spectrum's K averages and its local floor); 1 = every prominent peak, each with its probability");
+
 const PARAMS: &[ParamSpec] = &[
     ParamSpec::new("path", ParamType::Path, Def::Required)
         .doc("the JSON file (written atomically at the end)"),
     ParamSpec::new("peaks", ParamType::Int, Def::Int(5))
         .ints(1, 1000)
         .doc("most prominent peaks reported"),
-    ParamSpec::new("min_prominence_db", ParamType::Float, Def::Float(6.0))
-        .at_least(0.0)
-        .unit("dB")
-        .doc("a peak must stand this far above its surroundings"),
+    MIN_PROMINENCE,
     MIN_HZ,
     MAX_HZ,
-    ParamSpec::new("false_alarm", ParamType::Float, Def::Float(vibroscope_math::peaks::DEFAULT_FALSE_ALARM))
-        .floats(1e-12, 1.0)
-        .doc("report only peaks that noise alone would put this high anywhere in the band with at most this probability (the spectrum's K averages and its local floor); 1 = every prominent peak, each with its probability"),
+    FALSE_ALARM,
     ParamSpec::new("include_spectrum", ParamType::Bool, Def::Bool(false))
         .doc("add the mean spectrum (dB) to the JSON"),
 ];

@@ -15,6 +15,7 @@ pub mod phase;
 pub mod pyramid;
 pub mod reduce;
 pub mod resample;
+pub mod resonances;
 pub mod roi;
 pub mod rows;
 pub mod spectrum;

@@ -1,0 +1,117 @@
+//! `resonances`: the resonances of a stream of spectra, as a stream of peak
+//! sets (frequency, damping and amplitude with their uncertainties) that
+//! `zenoh_pub` sends and `vibroscope monitor` tracks. Every `average`
+//! spectra that arrive are averaged and their peaks picked exactly as the
+//! `peaks` sink picks them at the end of a run ([`vibroscope_math::peaks`]:
+//! prominence, significance against the local floor, damping through the
+//! taper's spectral window). The set carries the time of the middle of the
+//! spectra averaged; an empty set (nothing stood out) is still emitted, so a
+//! downstream tracker sees the camera alive.
+
+use super::super::sinks::peaks::{check_band, FALSE_ALARM, MAX_HZ, MIN_HZ, MIN_PROMINENCE};
+use crate::*;
+use serde::Deserialize;
+use vibroscope_math::peaks::{find_peaks, PeakOptions};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct P {
+    peaks: usize,
+    min_prominence_db: f64,
+    min_hz: Option<f64>,
+    max_hz: Option<f64>,
+    false_alarm: f64,
+    average: usize,
+}
+
+const PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("peaks", ParamType::Int, Def::Int(5))
+        .ints(1, 1000)
+        .doc("most prominent peaks in each set"),
+    MIN_PROMINENCE,
+    MIN_HZ,
+    MAX_HZ,
+    FALSE_ALARM,
+    ParamSpec::new("average", ParamType::Int, Def::Int(1))
+        .ints(1, 100_000)
+        .doc("spectra averaged into each peak set (consecutive, not overlapping)"),
+];
+
+pub const KIND: KindSpec = KindSpec {
+    name: "resonances",
+    summary: "picks the resonances of each spectrum (or of each `average` spectra) and emits them as a peak set: frequency, damping, power, with uncertainties",
+    inputs: &[InPort::one(&[PortType::Spectrum])],
+    outputs: &[OutPort::out(PortType::Peaks)],
+    params: PARAMS,
+    plan: |p| {
+        let v: P = p.resolve(PARAMS)?;
+        check_band(p, v.min_hz, v.max_hz)?;
+        Ok(Box::new(Plan_(v)))
+    },
+};
+
+struct Plan_(P);
+
+impl Plan for Plan_ {
+    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+        Ok(Node::Stage(Box::new(Resonances {
+            p: self.0,
+            sum: Vec::new(),
+            count: 0,
+            first_t_ns: 0,
+        })))
+    }
+}
+
+struct Resonances {
+    p: P,
+    /// Running sum of the spectra of the current set.
+    sum: Vec<f64>,
+    count: usize,
+    first_t_ns: i64,
+}
+
+impl Stage for Resonances {
+    fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
+        let Item::Spectrum(s) = item else {
+            return Ok(());
+        };
+        if s.power.len() != self.sum.len() {
+            // The first spectrum, or a new layout: start the set again.
+            self.sum.clear();
+            self.sum.resize(s.power.len(), 0.0);
+            self.count = 0;
+        }
+        if self.count == 0 {
+            self.first_t_ns = s.t_ns;
+        }
+        for (a, &p) in self.sum.iter_mut().zip(s.power.iter()) {
+            *a += p as f64;
+        }
+        self.count += 1;
+        if self.count < self.p.average {
+            return Ok(());
+        }
+        let n = self.count as f64;
+        self.sum.iter_mut().for_each(|a| *a /= n);
+        let opts = PeakOptions {
+            max_peaks: self.p.peaks,
+            min_prominence_db: self.p.min_prominence_db,
+            min_hz: self.p.min_hz,
+            max_hz: self.p.max_hz,
+            window_kernel: s.taper.power_kernel(s.window, 4),
+            segments: s.segments.max(1).saturating_mul(self.count),
+            max_false_alarm: (self.p.false_alarm < 1.0).then_some(self.p.false_alarm),
+        };
+        let peaks = find_peaks(&self.sum, s.f0_hz, s.resolution_hz, &opts);
+        let t_ns = self.first_t_ns + (s.t_ns - self.first_t_ns) / 2;
+        self.sum.iter_mut().for_each(|a| *a = 0.0);
+        self.count = 0;
+        // A closed downstream means the run is stopping; nothing to report.
+        let _ = out.emit(Item::Peaks(PeakSet {
+            t_ns,
+            peaks: peaks.iter().map(Resonance::from).collect(),
+        }));
+        Ok(())
+    }
+}
