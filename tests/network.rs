@@ -82,7 +82,12 @@ impl Monitor {
         let child = vibroscope_in(ns)
             .args(["monitor", "--db"])
             .arg(db)
-            .args(["--listen", listen, "--stale-s", "3", "--events-key", ""])
+            .args(["--listen", listen, "--stale-s", "3"])
+            .args(if extra.contains(&"--events-key") {
+                &[][..]
+            } else {
+                &["--events-key", ""][..]
+            })
             .args(extra)
             .stdout(File::create(&out).unwrap())
             .stderr(File::create(&err).unwrap())
@@ -925,4 +930,97 @@ fn a_receiving_pipeline_skips_garbage_and_keeps_the_rest() {
         csv.lines().nth(10).unwrap().starts_with("9.000000000,0,49"),
         "{csv}"
     );
+}
+
+/// GET `path` from a local HTTP server; the body.
+fn http_get(port: u16, path: &str) -> Option<String> {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).ok()?;
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n"
+    )
+    .ok()?;
+    let mut text = String::new();
+    s.read_to_string(&mut text).ok()?;
+    text.split_once("\r\n\r\n").map(|(_, b)| b.to_string())
+}
+
+/// The studio started with `--monitor` shows the monitor's sources, their
+/// resonances and the alarm of the camera whose resonance moved.
+#[test]
+fn the_studio_shows_the_monitors_alarm() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let ep = format!("tcp/127.0.0.1:{port}");
+    let mut m = Monitor::start(
+        dir.path(),
+        "m",
+        &dir.path().join("h.sqlite"),
+        &ep,
+        None,
+        &["--events-key", "vibroscope/@monitor/events"],
+    );
+    let web = free_port();
+    let mut studio = bin()
+        .current_dir(dir.path())
+        .args(["studio", "--monitor", &ep, "--port", &web.to_string()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while http_get(web, "/api/session").is_none() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "the studio did not start"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let session: Value = serde_json::from_str(&http_get(web, "/api/session").unwrap()).unwrap();
+    assert_eq!(session["monitor"], true, "{session}");
+    assert!(http_get(web, "/").unwrap().contains("id=\"monitor\""));
+    // 60 simulated seconds, the 40 Hz resonance moving at 30 s.
+    let mut c = vibroscope_in(None);
+    c.args(["run", "sim-node", "--set"])
+        .arg(format!("pub.connect={ep}"))
+        .args([
+            "--set",
+            "pub.camera=cam9",
+            "--set",
+            "cam.duration_s=60",
+            "--set",
+        ])
+        .arg("cam.signal={type=\"noise\",rate_hz=250.0,duration_s=60.0,seed=9}")
+        .arg("--set")
+        .arg(resonances(true).replace(&format!("={SHIFT_AT_S}"), "=30"));
+    let o = c.output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let src = source(9);
+    let t0 = Instant::now();
+    let snap = loop {
+        let v: Value = serde_json::from_str(&http_get(web, "/api/monitor").unwrap()).unwrap();
+        if v["sources"][&src]["state"] == "alarm" {
+            break v;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "no alarm in the studio: {v}"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let _ = studio.kill();
+    let _ = studio.wait();
+    assert_eq!(m.signal(libc::SIGTERM), 143);
+    let tracks = snap["sources"][&src]["tracks"].as_object().unwrap();
+    assert_eq!(tracks.len(), 2, "{snap}");
+    assert_eq!(tracks["0"]["alarmed"], true, "{snap}");
+    assert_eq!(tracks["1"]["alarmed"], false, "{snap}");
+    let alarm = snap["events"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["event"] == "alarm")
+        .unwrap();
+    eprintln!("studio: {src} in alarm, {alarm}");
 }

@@ -40,7 +40,8 @@ use vibroscope_studio::{Studio, StudioOptions};
     vibroscope studio beam.y4m\n  \
     vibroscope studio ../shared/data/guitar.mp4 --fps 600 --port 8080\n  \
     vibroscope studio --pipeline live-spectrum --set src.duration_s=60\n  \
-    vibroscope studio --root recordings --bind 0.0.0.0 --port 8080")]
+    vibroscope studio --root recordings --bind 0.0.0.0 --port 8080\n  \
+    vibroscope studio --monitor tcp/127.0.0.1:7447     # a monitor's sources and alarms")]
 pub struct Args {
     /// The recording opened first (.y4m, .cine, .mraw/.cih, or anything
     /// ffmpeg reads); others under --root can be opened from the page.
@@ -67,6 +68,13 @@ pub struct Args {
     /// repeatable.
     #[arg(long = "set", value_name = "STAGE.KEY=VALUE")]
     set: Vec<String>,
+    /// Show a `vibroscope monitor`'s sources and alarms: the zenoh endpoint
+    /// it listens on (tcp/HOST:PORT; comma-separated for several).
+    #[arg(long, value_name = "ENDPOINT")]
+    monitor: Option<String>,
+    /// The key the monitor publishes its events on (its --events-key).
+    #[arg(long, value_name = "KEY", default_value = "vibroscope/@monitor/events")]
+    monitor_key: String,
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
@@ -79,6 +87,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         max_body: None,
         pipeline: a.pipeline,
         set: a.set,
+        monitor: a.monitor.map(|m| (m, a.monitor_key)),
     };
     let o_pipeline = o.pipeline.clone();
     let studio = Studio::start(&o).map_err(|e| -> anyhow::Error {

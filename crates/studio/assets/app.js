@@ -541,6 +541,48 @@ const LIVE = {
 };
 S.live = LIVE;
 
+// The Monitor panel (--monitor): each source's state and resonances, and
+// the latest events, from GET /api/monitor once a second.
+function monitorDetail(e) {
+  const f = (x, d) => (typeof x === "number" ? x.toFixed(d) : "");
+  switch (e.event) {
+    case "alarm": return f(e.observed_hz, 2) + " Hz against " + f(e.frequency_hz, 3) + " ± " + f(e.sigma_hz, 3) + " (z " + f(e.z, 1) + ")";
+    case "lost": return "no peak near " + f(e.frequency_hz, 2) + " Hz since t = " + f(e.since_s, 1) + " s";
+    case "cleared": return f(e.observed_hz, 2) + " Hz, back within the history";
+    case "track": return f(e.frequency_hz, 3) + " ± " + f(e.sigma_hz, 3) + " Hz, ζ " + f(e.damping_ratio, 4);
+    case "stale": return "silent " + f(e.silent_s, 1) + " s";
+    case "refused": return (e.reason || "") + ": " + (e.message || "");
+    case "baseline": return (e.tracks ?? "") + " resonances found";
+    case "ended": return (e.items ?? "") + " items";
+    default: return "";
+  }
+}
+function cell(tr, text, cls) { const td = document.createElement("td"); td.textContent = text; if (cls) td.className = cls; tr.appendChild(td); }
+async function pollMonitor() {
+  try {
+    const m = await (await api("/api/monitor")).json();
+    $("monitorinfo").textContent = "from " + m.endpoints.join(", ") + " (" + m.key + "): " + m.received + " events";
+    const sb = $("monsources").tBodies[0]; sb.replaceChildren();
+    for (const [src, s] of Object.entries(m.sources)) {
+      const tr = document.createElement("tr");
+      cell(tr, src); cell(tr, s.state, "state-" + s.state);
+      const tracks = Object.values(s.tracks || {}).map((t) => (t.alarmed ? "⚠ " : "") + (t.frequency_hz ?? 0).toFixed(2) + " ± " + (t.sigma_hz ?? 0).toFixed(3));
+      cell(tr, tracks.join(", "));
+      cell(tr, s.last ? s.last.event + " " + monitorDetail(s.last) : "");
+      sb.appendChild(tr);
+    }
+    const eb = $("monevents").tBodies[0]; eb.replaceChildren();
+    for (const e of m.events.slice(0, 20)) {
+      const tr = document.createElement("tr");
+      cell(tr, e.event, "state-" + (e.event === "alarm" || e.event === "lost" ? "alarm" : e.event));
+      cell(tr, e.source || ""); cell(tr, e.track ?? ""); cell(tr, typeof e.t_s === "number" ? e.t_s.toFixed(1) : "");
+      cell(tr, monitorDetail(e));
+      eb.appendChild(tr);
+    }
+  } catch (e) { showError("monitor: " + e.message); }
+  setTimeout(pollMonitor, 1000);
+}
+
 function connectLive() {
   const proto = location.protocol === "https:" ? "wss:" : "ws:";
   let ws;
@@ -1099,6 +1141,7 @@ async function main() {
         $("gramcaption").textContent = "this pipeline has no spectrum stage: the live view shows its frames, level and stages";
       }
     }
+    if (s.monitor) { $("monitor").hidden = false; pollMonitor(); }
     if (s.fps) $("fps").value = s.fps;
     if (s.video) { $("video").value = s.video; await openVideo(); }
     else if (!s.live) status("root: " + s.root + " — name a video and press Open");

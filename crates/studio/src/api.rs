@@ -26,6 +26,13 @@ pub mod idv;
 
 use crate::guard::{self, Refusal};
 use crate::live::Live;
+
+/// What the Monitor panel shows: a monitor's events over zenoh.
+#[cfg(feature = "net")]
+pub type MonitorFeed = vibroscope::monitor::feed::Feed;
+/// Without the `net` feature there is no monitor to show.
+#[cfg(not(feature = "net"))]
+pub enum MonitorFeed {}
 use axum::body::Bytes;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{DefaultBodyLimit, Query, Request, State};
@@ -64,6 +71,8 @@ pub struct App {
     reader: Mutex<Option<OpenReader>>,
     /// The live pipeline, when started with one.
     live: Option<Arc<Live>>,
+    /// A monitor's events (`--monitor`).
+    monitor: Option<Arc<MonitorFeed>>,
     /// Raised when the studio stops: open WebSockets close.
     closing: tokio::sync::watch::Sender<bool>,
 }
@@ -86,11 +95,17 @@ impl App {
             cache: Mutex::new(HashMap::new()),
             reader: Mutex::new(None),
             live: None,
+            monitor: None,
             closing: tokio::sync::watch::Sender::new(false),
         }
     }
 
     /// Serves `live`'s updates too.
+    pub fn with_monitor(mut self, monitor: Option<Arc<MonitorFeed>>) -> App {
+        self.monitor = monitor;
+        self
+    }
+
     pub fn with_live(mut self, live: Option<Arc<Live>>) -> App {
         self.live = live;
         self
@@ -185,6 +200,7 @@ pub fn router(app: Arc<App>, max_body: usize) -> Router {
         .route("/api/listen", post(listen))
         .route("/api/damping", post(damping))
         .route("/api/idv/basis", post(idv_basis))
+        .route("/api/monitor", get(monitor_update))
         .route("/api/live", get(live_update))
         .route("/api/live/frame", get(live_frame))
         .route("/api/live/ws", get(live_ws))
@@ -313,7 +329,22 @@ async fn session(State(app): State<Arc<App>>) -> axum::Json<Value> {
         "root": app.root,
         "token_required": app.token.is_some(),
         "live": app.live.as_ref().map(|l| json!({ "pipeline": l.name, "has_spectrum": l.has_spectrum })),
+        "monitor": app.monitor.is_some(),
     }))
+}
+
+/// The monitor's sources and latest events (`--monitor`).
+async fn monitor_update(State(app): State<Arc<App>>) -> ApiResult<axum::Json<Value>> {
+    match &app.monitor {
+        #[cfg(feature = "net")]
+        Some(m) => Ok(axum::Json(m.snapshot())),
+        #[cfg(not(feature = "net"))]
+        Some(m) => match **m {},
+        None => Err(ApiError::new(
+            StatusCode::NOT_FOUND,
+            "no monitor: start the studio with --monitor tcp/HOST:PORT (the endpoint `vibroscope monitor` listens on)",
+        )),
+    }
 }
 
 fn live_of(app: &App) -> ApiResult<Arc<Live>> {

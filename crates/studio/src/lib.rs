@@ -43,6 +43,33 @@ pub struct StudioOptions {
     pub pipeline: Option<String>,
     /// `STAGE.KEY=VALUE` changes to that pipeline.
     pub set: Vec<String>,
+    /// A `vibroscope monitor` to show: its zenoh endpoints (comma-separated)
+    /// and the key it publishes its events on.
+    pub monitor: Option<(String, String)>,
+}
+
+/// Subscribes to a monitor's events (`--monitor`).
+#[cfg(feature = "net")]
+fn start_monitor_feed(endpoints: &str, key: &str) -> Result<Arc<api::MonitorFeed>, StartError> {
+    use vibroscope::engine::net;
+    let connect = net::parse_endpoints(endpoints)
+        .map_err(|m| StartError::Usage(format!("--monitor: {m}")))?;
+    let feed = vibroscope::monitor::feed::Feed::start(
+        net::Endpoints {
+            connect,
+            listen: Vec::new(),
+        },
+        key,
+    )
+    .map_err(|m| StartError::Usage(format!("--monitor: {m}")))?;
+    Ok(Arc::new(feed))
+}
+
+#[cfg(not(feature = "net"))]
+fn start_monitor_feed(_: &str, _: &str) -> Result<Arc<api::MonitorFeed>, StartError> {
+    Err(StartError::Usage(
+        "--monitor: this build has no network support (the `net` feature)".into(),
+    ))
 }
 
 /// The default bound on request bodies (the API's requests are a few
@@ -154,6 +181,10 @@ impl Studio {
             None => None,
             Some(p) => Some(live::prepare(p, &o.set).map_err(StartError::Usage)?),
         };
+        let monitor = match &o.monitor {
+            None => None,
+            Some((endpoints, key)) => Some(start_monitor_feed(endpoints, key)?),
+        };
         let ip = o.bind.unwrap_or(IpAddr::V4(Ipv4Addr::LOCALHOST));
         let token = (!ip.is_loopback()).then(guard::new_token);
         let rt = tokio::runtime::Builder::new_multi_thread()
@@ -172,8 +203,11 @@ impl Studio {
             (Some(d), Some(name)) => Some(live::Live::start(name, d).map_err(StartError::Runtime)?),
             _ => None,
         };
-        let app =
-            Arc::new(api::App::new(root.clone(), video, o.fps, token.clone()).with_live(live));
+        let app = Arc::new(
+            api::App::new(root.clone(), video, o.fps, token.clone())
+                .with_live(live)
+                .with_monitor(monitor),
+        );
         let router = api::router(app.clone(), o.max_body.unwrap_or(MAX_BODY));
         let (tx, rx) = tokio::sync::oneshot::channel::<()>();
         let thread = std::thread::Builder::new()

@@ -10,6 +10,7 @@
 //! ([`history`]) that a restarted monitor continues from. The same events
 //! are published on `<events key>` for the studio or another subscriber.
 
+pub mod feed;
 pub mod history;
 pub mod track;
 
