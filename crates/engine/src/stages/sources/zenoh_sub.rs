@@ -61,7 +61,7 @@ const PARAMS: &[ParamSpec] = &[
     ParamSpec::new("idle_s", ParamType::Float, Def::Optional)
         .floats(0.001, 1e6)
         .unit("s")
-        .doc("end the run after this long with nothing received; default: wait for ever"),
+        .doc("end the run after this long with nothing received; default: wait for ever (a publisher killed before its end marker then holds a replay receiver until stopped)"),
 ];
 
 pub const KIND: KindSpec = KindSpec {
