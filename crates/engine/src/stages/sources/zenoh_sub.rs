@@ -187,12 +187,16 @@ impl Sub {
         e.0 += 1;
     }
 
-    /// Accounts for `seq` from `from`; returns the items skipped before it.
-    fn gap(&mut self, from: &str, seq: u64) -> u64 {
+    /// Accounts for `seq` from `from`: the items missing before it are
+    /// counted as lost (and as dropped in the run's statistics).
+    fn gap(&mut self, from: &str, seq: u64, ctx: &SourceCtx<'_>) {
         let next = self.next_seq.entry(from.to_string()).or_insert(0);
         let lost = seq.saturating_sub(*next);
         *next = (*next).max(seq + 1);
-        lost
+        if lost > 0 {
+            self.missing += lost;
+            ctx.count_dropped(lost);
+        }
     }
 
     fn item_of(&mut self, w: WireItem, ctx: &SourceCtx<'_>) -> Result<Option<Item>, StageError> {
@@ -282,16 +286,13 @@ impl Source for Sub {
                         _ => "garbage",
                     };
                     self.reject(why, format!("{} bytes on {from}: {e}", bytes.len()));
-                    // It still took a sequence number: not a loss.
-                    self.gap(&from, seq);
+                    // It took a sequence number (skipped, not lost); what
+                    // was missing before it was lost.
+                    self.gap(&from, seq, ctx);
                     continue;
                 }
             };
-            let lost = self.gap(&from, seq);
-            if lost > 0 {
-                self.missing += lost;
-                ctx.count_dropped(lost);
-            }
+            self.gap(&from, seq, ctx);
             let wt = match &w {
                 WireItem::Audio(_) => PortType::Audio,
                 WireItem::Samples(_) => PortType::Samples,
