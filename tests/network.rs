@@ -339,12 +339,13 @@ struct Netns {
 }
 
 impl Netns {
-    fn create() -> Result<Netns, String> {
-        let id = std::process::id() % 100_000;
+    /// `tag` (0-9) tells apart the namespaces of tests running at once.
+    fn create(tag: u32) -> Result<Netns, String> {
+        let id = std::process::id() % 10_000 * 10 + tag;
         let n = Netns {
             monitor: format!("vbs-mon-{id}"),
             nodes: format!("vbs-cam-{id}"),
-            monitor_ip: "10.213.7.1".into(),
+            monitor_ip: format!("10.213.{tag}.1"),
         };
         let (a, b) = (format!("vbs{id}a"), format!("vbs{id}b"));
         let steps: Vec<Vec<String>> = vec![
@@ -379,7 +380,7 @@ impl Netns {
                 n.monitor.clone(),
                 "addr".into(),
                 "add".into(),
-                "10.213.7.1/24".into(),
+                format!("10.213.{tag}.1/24"),
                 "dev".into(),
                 a.clone(),
             ],
@@ -388,7 +389,7 @@ impl Netns {
                 n.nodes.clone(),
                 "addr".into(),
                 "add".into(),
-                "10.213.7.2/24".into(),
+                format!("10.213.{tag}.2/24"),
                 "dev".into(),
                 b.clone(),
             ],
@@ -450,16 +451,26 @@ impl Drop for Netns {
     }
 }
 
-#[test]
-fn two_cameras_and_a_monitor_on_two_hosts() {
-    let net = match Netns::create() {
+/// N cameras on one host and the monitor on another (network namespaces).
+fn on_two_hosts(n: usize, tag: u32) {
+    let net = match Netns::create(tag) {
         Ok(n) => n,
         Err(why) => {
             eprintln!("skipping: cannot create network namespaces here ({why})");
             return;
         }
     };
-    site(2, 0, Some(&net));
+    site(n, 0, Some(&net));
+}
+
+#[test]
+fn two_cameras_and_a_monitor_on_two_hosts() {
+    on_two_hosts(2, 7);
+}
+
+#[test]
+fn four_cameras_and_a_monitor_on_two_hosts() {
+    on_two_hosts(4, 8);
 }
 
 /// The history survives a crash: a monitor killed (SIGKILL) mid-stream
