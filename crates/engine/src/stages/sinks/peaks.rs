@@ -99,6 +99,31 @@ pub(crate) fn check_band(
     Ok(())
 }
 
+/// The peak search `peaks` and `resonances` share, for `averaged`
+/// spectra averaged whose facts (taper, window, Welch segments) `facts`
+/// carries.
+pub(crate) fn search_options(
+    max_peaks: usize,
+    min_prominence_db: f64,
+    min_hz: Option<f64>,
+    max_hz: Option<f64>,
+    false_alarm: f64,
+    facts: &Spectrum,
+    averaged: usize,
+) -> PeakOptions {
+    PeakOptions {
+        max_peaks,
+        min_prominence_db,
+        min_hz,
+        max_hz,
+        // The fit sees each line through the taper's spectral window.
+        window_kernel: facts.taper.power_kernel(facts.window, 4),
+        // Welch segments times the spectra averaged.
+        segments: facts.segments.max(1).saturating_mul(averaged),
+        max_false_alarm: (false_alarm < 1.0).then_some(false_alarm),
+    }
+}
+
 struct PeaksPlan(P);
 
 impl Plan for PeaksPlan {
@@ -155,17 +180,16 @@ impl Stage for Peaks {
             )));
         };
         let mean: Vec<f64> = self.sum.iter().map(|s| s / self.count as f64).collect();
-        let opts = PeakOptions {
-            max_peaks: self.p.peaks,
-            min_prominence_db: self.p.min_prominence_db,
-            min_hz: self.p.min_hz,
-            max_hz: self.p.max_hz,
-            // The fit sees each line through the taper's spectral window.
-            window_kernel: last.taper.power_kernel(last.window, 4),
-            // Welch segments times the spectra averaged here.
-            segments: last.segments.max(1).saturating_mul(self.count),
-            max_false_alarm: (self.p.false_alarm < 1.0).then_some(self.p.false_alarm),
-        };
+        let p = &self.p;
+        let opts = search_options(
+            p.peaks,
+            p.min_prominence_db,
+            p.min_hz,
+            p.max_hz,
+            p.false_alarm,
+            last,
+            self.count,
+        );
         let peaks = find_peaks(&mean, self.f0, self.df, &opts);
         for pk in &peaks {
             tracing::info!(

@@ -8,10 +8,12 @@
 //! spectra averaged; an empty set (nothing stood out) is still emitted, so a
 //! downstream tracker sees the camera alive.
 
-use super::super::sinks::peaks::{check_band, FALSE_ALARM, MAX_HZ, MIN_HZ, MIN_PROMINENCE};
+use super::super::sinks::peaks::{
+    check_band, search_options, FALSE_ALARM, MAX_HZ, MIN_HZ, MIN_PROMINENCE,
+};
 use crate::*;
 use serde::Deserialize;
-use vibroscope_math::peaks::{find_peaks, PeakOptions};
+use vibroscope_math::peaks::find_peaks;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -94,15 +96,16 @@ impl Stage for Resonances {
         }
         let n = self.count as f64;
         self.sum.iter_mut().for_each(|a| *a /= n);
-        let opts = PeakOptions {
-            max_peaks: self.p.peaks,
-            min_prominence_db: self.p.min_prominence_db,
-            min_hz: self.p.min_hz,
-            max_hz: self.p.max_hz,
-            window_kernel: s.taper.power_kernel(s.window, 4),
-            segments: s.segments.max(1).saturating_mul(self.count),
-            max_false_alarm: (self.p.false_alarm < 1.0).then_some(self.p.false_alarm),
-        };
+        let p = &self.p;
+        let opts = search_options(
+            p.peaks,
+            p.min_prominence_db,
+            p.min_hz,
+            p.max_hz,
+            p.false_alarm,
+            &s,
+            self.count,
+        );
         let peaks = find_peaks(&self.sum, s.f0_hz, s.resolution_hz, &opts);
         let t_ns = self.first_t_ns + (s.t_ns - self.first_t_ns) / 2;
         self.sum.iter_mut().for_each(|a| *a = 0.0);
