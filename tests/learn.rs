@@ -52,18 +52,22 @@ fn evaluate_al(dir: &Path) -> std::process::Output {
     run_in(dir, &args)
 }
 
-/// Leave-one-fabric-out on unseen fabrics, same condition: the area
-/// weight is predicted (R >= 0.8 on 12 fabrics; issue 19 asks 0.9 for both
-/// properties, see docs/learning.md for where it stands).
+/// Leave-one-fabric-out on unseen fabrics, same condition, 24 fabrics x 2
+/// takes (about 45 s on 2 cores): area weight R >= 0.9 and stiffness R >=
+/// 0.5. Measured 0.948 and 0.596 here; on the documented 30 x 3 dataset
+/// 0.972 and 0.839 (issue 19 asks 0.9 for both; docs/learning.md has
+/// where stiffness stands). Stiffness shows only in the upper modes, so it
+/// needs the local spectra (tiles) and more fabrics: with 12 it is 0.36.
 #[test]
-fn same_condition_leave_one_out_predicts_area_weight() {
+fn same_condition_leave_one_out_predicts_both_properties() {
     let d = tempfile::tempdir().unwrap();
-    generate(d.path(), "12", "A/L", "30");
+    generate(d.path(), "24", "A/L", "30");
     let o = evaluate_al(d.path());
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let out = stdout(&o);
     println!("{out}");
-    assert!(r_of(&out, "area_weight") >= 0.8, "{out}");
+    assert!(r_of(&out, "area_weight") >= 0.9, "{out}");
+    assert!(r_of(&out, "stiffness") >= 0.5, "{out}");
     // Cached features: a second run renders nothing and agrees.
     let o2 = evaluate_al(d.path());
     assert_eq!(stdout(&o2), out);
@@ -209,7 +213,7 @@ fn bad_datasets_and_models_are_refused_by_name() {
     write(
         dir,
         "old.json",
-        &text.replacen("\"version\": 1", "\"version\": 0", 1),
+        &text.replacen("\"version\": 2", "\"version\": 0", 1),
     );
     let o = run_in(dir, &["learn", "predict", "old.json", "v0.y4m"]);
     assert_eq!(code(&o), 2, "{}", stderr(&o));

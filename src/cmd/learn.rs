@@ -187,17 +187,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             drop(bar);
             let m = r?;
             println!(
-                "{} with {} components on {} videos of {} objects ({})",
-                m.model.method.name(),
-                m.model.components,
+                "one model per property, on {} videos of {} objects ({}); leave-one-object-out:",
                 m.videos,
                 m.objects,
                 m.conditions.join(", ")
             );
-            println!("leave-one-object-out:");
-            for (t, c) in m.targets.iter().zip(&m.cv) {
+            for tm in &m.models {
+                let c = &tm.cv;
                 println!(
-                    "  {t:<20} R {}  error {}%  tau {}",
+                    "  {:<5} {:>2} comp.  {:<20} R {}  error {}%  tau {}",
+                    tm.model.method.name(),
+                    tm.model.components,
+                    tm.target,
                     num(c.r, 3),
                     num(c.pct_error, 1),
                     num(c.kendall_tau, 3)
@@ -220,22 +221,22 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             let r = r?;
             for pp in &r.properties {
                 println!(
-                    "{:<20} {:.4e}  (95% interval {:.4e} .. {:.4e})",
-                    pp.name, pp.value, pp.low, pp.high
+                    "{:<20} {:.4e}  (95% interval {:.4e} .. {:.4e})  T2 {} (limit {}), Q {} (limit {}){}",
+                    pp.name,
+                    pp.value,
+                    pp.low,
+                    pp.high,
+                    num(pp.t2, 2),
+                    num(pp.t2_limit, 2),
+                    num(pp.q, 4),
+                    num(pp.q_limit, 4),
+                    if pp.out_of_distribution {
+                        ": OUTSIDE the training distribution, not to be trusted"
+                    } else {
+                        ""
+                    }
                 );
             }
-            println!(
-                "T2 {} (limit {}), Q {} (limit {}){}",
-                num(r.t2, 2),
-                num(r.t2_limit, 2),
-                num(r.q, 4),
-                num(r.q_limit, 4),
-                if r.out_of_distribution {
-                    ": OUTSIDE the training distribution, the prediction is not to be trusted"
-                } else {
-                    ""
-                }
-            );
             if let Some(j) = &o.json {
                 eprintln!("wrote {}", j.display());
             }
@@ -270,11 +271,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 r.test_videos
             );
             for m in &r.methods {
-                for (t, c) in r.targets.iter().zip(&m.metrics) {
+                for (k, (t, c)) in r.targets.iter().zip(&m.metrics).enumerate() {
                     println!(
                         "  {:<5} {:>2} comp.  {t:<20} R {}  error {}%  tau {}",
                         m.method.name(),
-                        m.components,
+                        m.components[k],
                         num(c.r, 3),
                         num(c.pct_error, 1),
                         num(c.kendall_tau, 3)

@@ -65,6 +65,12 @@ pub struct SpectrumOptions {
     pub regions: Vec<Roi>,
     /// Filters applied to the waveforms (zero-phase), in order.
     pub filters: Vec<BandFilter>,
+    /// Cut the region into `tiles` x `tiles` local regions whose power
+    /// spectra are added (Eq. 3.17's local signals; the `phase` stage's
+    /// `tiles`). 1: the power of the region's mean motion. With more, the
+    /// spectrum's shape is what counts: a peak's amplitude is then not the
+    /// region's displacement.
+    pub tiles: usize,
     pub run: RunSettings,
 }
 
@@ -92,6 +98,7 @@ impl SpectrumOptions {
             waveform: None,
             regions: Vec::new(),
             filters: Vec::new(),
+            tiles: 1,
             run: RunSettings::default(),
         }
     }
@@ -120,6 +127,9 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
         Value::Integer(64),
         by("spectrum"),
     )?;
+    if o.tiles > 1 {
+        pipeline::set(&mut decl, "phase", "tiles", int(o.tiles), by("tiles"))?;
+    }
     let st = pipeline::stage_mut(&mut decl, "spectrum")?;
     st.params
         .retain(|p| !matches!(p.key.as_str(), "window" | "hop" | "welch"));

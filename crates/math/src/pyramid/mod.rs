@@ -17,7 +17,7 @@ pub use riesz::{RieszCoeffs, RieszLevel, RieszPyramid};
 
 /// Which pyramid measures local phase: the complex steerable pyramid
 /// (quality, FFT-based) or the Riesz pyramid (speed, FFT-free).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum PyramidKind {
     #[default]

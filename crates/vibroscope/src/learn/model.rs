@@ -98,7 +98,16 @@ pub fn fit(
     }
     let (mean, sd) = standardise(x);
     let xs = (x - &mean) / &sd;
-    let (coef_b, coef, rot_b, rot, load) = match method {
+    // A target that does not vary over the training rows has nothing to
+    // learn (and PLS's power method fails on it): the principal
+    // components' least squares then predicts its constant, and the
+    // components still give T² and Q.
+    let constant = y.columns().into_iter().all(|c| {
+        let m = c.mean().unwrap_or(0.0);
+        c.iter().all(|v| (v - m).abs() <= 1e-12 * m.abs().max(1.0))
+    });
+    let solver = if constant { Method::Pcr } else { method };
+    let (coef_b, coef, rot_b, rot, load) = match solver {
         Method::Pls => {
             let ds = Dataset::new(xs.clone(), y.clone());
             let pls = PlsRegression::params(components)

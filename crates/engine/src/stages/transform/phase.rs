@@ -25,8 +25,14 @@
 //! overlap mean's error (a 1/√(overlap+1) fraction of one sample's noise).
 //!
 //! The output carries one channel per band (scale-major:
-//! `scale * orientations + orientation`) at each frame's capture time. All
-//! bands are divided by one constant, the reference's total A² over all
+//! `scale * orientations + orientation`) at each frame's capture time.
+//! With `tiles = T` the region is cut into a T x T grid of local regions,
+//! each summed on its own: T² x bands channels, tile-major (`tile * bands +
+//! band`, tiles row by row), so a `spectrum` stage downstream adds the
+//! power spectra of local motion signals as Eq. 3.17 does, instead of
+//! taking the power of the whole region's mean motion, in which parts of a
+//! mode moving in opposite phase cancel. All
+//! channels are divided by one constant, the reference's total A² over all
 //! bands, which keeps their relative weights (Eq. 3.6 sums them
 //! unnormalised) and gives values of the order of radians of phase instead
 //! of millions.
@@ -58,6 +64,7 @@ struct P {
     threads: usize,
     reference_interval_s: f64,
     reference_overlap: usize,
+    tiles: usize,
 }
 
 const PARAMS: &[ParamSpec] = &[
@@ -79,6 +86,10 @@ const PARAMS: &[ParamSpec] = &[
         .ints(0, 65536)
         .unit("frames")
         .doc("frames over which old and next reference run side by side to join them"),
+    ParamSpec::new("tiles", ParamType::Int, Def::Int(1))
+        .ints(1, 32)
+        .unit("per side")
+        .doc("cut the region into tiles x tiles local regions, one channel per band per tile (tile-major), so a spectrum sums local power spectra (Eq. 3.17)"),
 ];
 
 pub const KIND: KindSpec = KindSpec {
@@ -119,6 +130,7 @@ impl Plan for PhasePlan {
             roi: v.roi,
             mask,
             block: v.block,
+            tiles: v.tiles,
             renewal: Renewal {
                 interval_s: v.reference_interval_s,
                 overlap: v.reference_overlap,
@@ -145,6 +157,10 @@ struct BandState {
     len: usize,
     /// Band pixels inside the mask, if there is one.
     inside: Option<Vec<bool>>,
+    /// Tile boundaries in band pixels (`tiles + 1` each, from x0 to x1
+    /// and y0 to y1).
+    xs: Vec<usize>,
+    ys: Vec<usize>,
 }
 
 /// A reference frame (Eq. 3.2) with its A² weights (Eq. 3.3).
@@ -155,7 +171,7 @@ struct Reference<C> {
     /// Σ A² over every band's region (output scale).
     norm: f64,
     t_ns: i64,
-    /// Added per band to this reference's normalised sums, so the output
+    /// Added per channel to this reference's normalised sums, so the output
     /// continues across renewals.
     offset: Vec<f64>,
 }
@@ -192,6 +208,8 @@ struct Engine<A: Analyzer> {
     interval_ns: Option<i64>,
     overlap: usize,
     bands: Vec<BandState>,
+    /// Tiles per side of the region.
+    tiles: usize,
     scales: usize,
     orientations: usize,
     /// The output values of one frame.
@@ -211,7 +229,8 @@ struct Renewal {
 
 /// The object-safe face of [`Engine`] (one per pyramid kind).
 trait FrameSignals: Send {
-    fn bands(&self) -> usize;
+    /// Output channels (bands x tiles²).
+    fn channels(&self) -> usize;
     fn size(&self) -> (usize, usize);
     /// Computes `frames` in order and calls `emit` with each frame's
     /// normalised band signals.
@@ -228,11 +247,12 @@ impl<A: Analyzer> Engine<A> {
         mut make: impl FnMut() -> Result<A, PyramidError>,
         workers: usize,
         (scales, orientations): (usize, usize),
-        (roi, mask): (Roi, Option<&Mask>),
+        (roi, mask, tiles): (Roi, Option<&Mask>, usize),
         renewal: Renewal,
         (width, height): (usize, usize),
     ) -> Result<Self, StageError> {
-        let nb = scales * orientations;
+        let tiles = tiles.max(1);
+        let nb = scales * orientations * tiles * tiles;
         let mut ws = Vec::with_capacity(workers);
         for _ in 0..workers.max(1) {
             let an = make().map_err(err)?;
@@ -259,6 +279,14 @@ impl<A: Analyzer> Engine<A> {
             let x1 = to_band(roi.x + roi.w, b.step_x, b.width).max(x0);
             let y0 = to_band(roi.y, b.step_y, b.height);
             let y1 = to_band(roi.y + roi.h, b.step_y, b.height).max(y0);
+            // Tile t of T spans input [start + t·len/T, start + (t+1)·len/T).
+            let cuts = |start: usize, len: usize, step: f32, n: usize, lo: usize, hi: usize| {
+                (0..=tiles)
+                    .map(|t| to_band(start + t * len / tiles, step, n).clamp(lo, hi))
+                    .collect::<Vec<usize>>()
+            };
+            let xs = cuts(roi.x, roi.w, b.step_x, b.width, x0, x1);
+            let ys = cuts(roi.y, roi.h, b.step_y, b.height, y0, y1);
             // Band pixels whose input position falls outside the mask get
             // no weight (multiplied into A² of each reference).
             let inside = mask.map(|m| {
@@ -279,6 +307,8 @@ impl<A: Analyzer> Engine<A> {
                 width: b.width,
                 len: b.len(),
                 inside,
+                xs,
+                ys,
             });
         }
         let interval_ns = (renewal.interval_s > 0.0).then_some((renewal.interval_s * 1e9) as i64);
@@ -290,6 +320,7 @@ impl<A: Analyzer> Engine<A> {
             interval_ns,
             overlap: renewal.overlap,
             bands,
+            tiles,
             scales,
             orientations,
             vals: vec![0.0; nb],
@@ -307,7 +338,7 @@ impl<A: Analyzer> Engine<A> {
         w: usize,
         t_ns: i64,
     ) -> Result<Option<Reference<A::C>>, StageError> {
-        let nb = self.bands.len();
+        let nb = self.vals.len();
         let mut r = match self.spare.take() {
             Some(r) => r,
             None => Reference {
@@ -391,9 +422,10 @@ impl<A: Analyzer> Engine<A> {
         };
         let next = self.handover.as_ref().map(|h| &h.next);
         let (bands, scales, k) = (&self.bands[..], self.scales, self.orientations);
+        let tiles = self.tiles;
         let workers = &mut self.workers[..batch.len()];
         spread(pool, workers, batch, |w: &mut Worker<A>, f: &Item| {
-            w.result = compute(w, f, (reference, next), bands, (scales, k));
+            w.result = compute(w, f, (reference, next), bands, (scales, k, tiles));
         });
         for (w, f) in workers.iter_mut().zip(batch) {
             std::mem::replace(&mut w.result, Ok(()))?;
@@ -447,15 +479,16 @@ impl<A: Analyzer> Engine<A> {
     }
 }
 
-/// Eq. 3.2-3.4 for one frame: Σ A(t_ref)² (φ(t) - φ(t_ref)) per band,
-/// against the reference and, during a handover, the next one.
+/// Eq. 3.2-3.4 for one frame: Σ A(t_ref)² (φ(t) - φ(t_ref)) per band
+/// (and tile), against the reference and, during a handover, the next one.
 fn compute<A: Analyzer>(
     w: &mut Worker<A>,
     f: &Item,
     (reference, next): (&Reference<A::C>, Option<&Reference<A::C>>),
     bands: &[BandState],
-    (scales, k): (usize, usize),
+    (scales, k, tiles): (usize, usize, usize),
 ) -> Result<(), StageError> {
+    let nb = scales * k;
     w.an.analyze(f, &mut w.input, &mut w.c)?;
     let refs = [
         Some((reference, &mut w.sums)),
@@ -468,23 +501,27 @@ fn compute<A: Analyzer>(
                 *d = wt;
             }
             let b = &bands[s * k];
-            w.c.scale_phase_delta_sums(
-                &r.c,
-                s,
-                &weights[..k],
-                b.y0..b.y1,
-                b.x0..b.x1,
-                &mut sums[s * k..(s + 1) * k],
-            )
-            .map_err(err)?;
+            for t in 0..tiles * tiles {
+                let (ty, tx) = (t / tiles, t % tiles);
+                let o = t * nb + s * k;
+                w.c.scale_phase_delta_sums(
+                    &r.c,
+                    s,
+                    &weights[..k],
+                    b.ys[ty]..b.ys[ty + 1],
+                    b.xs[tx]..b.xs[tx + 1],
+                    &mut sums[o..o + k],
+                )
+                .map_err(err)?;
+            }
         }
     }
     Ok(())
 }
 
 impl<A: Analyzer> FrameSignals for Engine<A> {
-    fn bands(&self) -> usize {
-        self.bands.len()
+    fn channels(&self) -> usize {
+        self.vals.len()
     }
     fn size(&self) -> (usize, usize) {
         (self.width, self.height)
@@ -502,7 +539,7 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
                 return Ok(());
             };
             self.set_reference(first)?;
-            emit(first, &mut std::iter::repeat_n(0.0, self.bands.len()));
+            emit(first, &mut std::iter::repeat_n(0.0, self.vals.len()));
             rest = tail;
         }
         while let Some(first) = rest.first() {
@@ -540,6 +577,7 @@ struct Phase {
     roi: Option<RoiParam>,
     mask: Option<(std::path::PathBuf, Mask)>,
     block: usize,
+    tiles: usize,
     renewal: Renewal,
     engine: Option<Box<dyn FrameSignals>>,
     /// Frames (or their pyramids) waiting for a full batch (one per worker).
@@ -594,7 +632,7 @@ impl Phase {
         if let Item::Frame(_) = f {
             self.check_memory(w, h)?;
         }
-        let region = (roi, mask.as_ref());
+        let region = (roi, mask.as_ref(), self.tiles);
         let engine: Box<dyn FrameSignals> = match f {
             // An upstream `pyramid` stage decides the pyramid and its layout.
             Item::Pyramid(p) => {
@@ -644,7 +682,7 @@ impl Phase {
                 }
             }
         };
-        self.batch = Some(Batcher::samples(self.block, engine.bands()));
+        self.batch = Some(Batcher::samples(self.block, engine.channels()));
         self.engine = Some(engine);
         Ok(())
     }
