@@ -935,6 +935,41 @@ fn frame_rates_below_one_hertz_are_refused() {
     );
 }
 
+/// A whole-recording spectrum keeps channels x frames: with a `phase`
+/// stage's `tiles = 32` (8192 channels) it grows by 32 KiB a frame, and
+/// past 64 MiB it is refused under a 100 MiB limit (exit 1, the message
+/// says what to change), not killed for memory; no peaks file is left.
+#[test]
+fn a_whole_spectrum_of_too_many_channels_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("p.toml"),
+        "[[stage]]\nid = \"src\"\nkind = \"synthetic\"\nwidth = 64\nheight = 64\nfps = 1000.0\n\
+         frames = 4000\nnoise_std = 1.0\n\
+         [[stage]]\nid = \"phase\"\nkind = \"phase\"\ninput = \"src\"\npyramid = \"riesz\"\ntiles = 32\n\
+         [[stage]]\nid = \"spectrum\"\nkind = \"spectrum\"\ninput = \"phase\"\nmode = \"whole\"\n\
+         [[stage]]\nid = \"out\"\nkind = \"peaks\"\ninput = \"spectrum\"\npath = \"s.json\"\n",
+    )
+    .unwrap();
+    let o = bin()
+        .current_dir(d)
+        .env("VIBROSCOPE_MAX_MEMORY", "100M")
+        .args(["run", "p.toml", "-q"])
+        .output()
+        .unwrap();
+    no_panic(&o);
+    assert_eq!(code(&o), 1, "{}", stderr(&o));
+    for want in [
+        "whole-recording spectrum of 8192 channels",
+        "would need up to",
+        "tiles",
+    ] {
+        assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
+    }
+    assert!(!d.join("s.json").exists());
+}
+
 /// A frame size whose pyramids would not fit in the memory the process
 /// may take is refused when the first frame arrives, before the
 /// pyramids are allocated: the message gives the bound and what to

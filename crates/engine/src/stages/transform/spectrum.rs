@@ -197,6 +197,8 @@ impl Plan for SpectrumPlan {
             next_end: v.window.unwrap_or(DEFAULT_WINDOW) as u64,
             hist_start: 0,
             hist: Vec::new(),
+            next_check: FIRST_CHECK_BYTES,
+            refused: false,
             fft: None,
             history: VecDeque::new(),
             sum: Vec::new(),
@@ -270,6 +272,13 @@ impl SegmentFft {
     }
 }
 
+/// Whole mode keeps the recording, channels x frames: past this many
+/// bytes, and at each doubling after, it checks that twice as much may be
+/// taken (`crate::memory`), so a long recording of many channels (a
+/// `phase` stage's `tiles`) is refused with a message, not killed for
+/// memory.
+const FIRST_CHECK_BYTES: usize = 64 << 20;
+
 struct SpectrumStage {
     mode: Mode,
     window: Option<usize>,
@@ -288,6 +297,11 @@ struct SpectrumStage {
     hist_start: u64,
     /// Interleaved frames: the recording (whole) or the last window + hop (sliding).
     hist: Vec<f32>,
+    /// Whole: the size of `hist` (bytes) at which the memory is checked next.
+    next_check: usize,
+    /// Whole: the recording was refused for memory; the end emits nothing
+    /// (a spectrum of the part received would pass for the recording's).
+    refused: bool,
     fft: Option<SegmentFft>,
     /// Sliding: the last `welch` window spectra, and their sum.
     history: VecDeque<Vec<f64>>,
@@ -432,6 +446,26 @@ impl Stage for SpectrumStage {
             )));
         }
         let frames = data.len() / ch;
+        let bytes = (self.hist.len() + frames * ch) * std::mem::size_of::<f32>();
+        if self.mode == Mode::Whole && bytes >= self.next_check {
+            crate::memory::check(
+                2 * bytes as u64,
+                &format!(
+                    "the whole-recording spectrum of {ch} channels ({} frames so far)",
+                    self.received + frames as u64
+                ),
+                "use fewer channels (a `phase` stage's `tiles`, scales or orientations), `mode = \"sliding\"` or a shorter recording",
+            )
+            .map_err(|message| {
+                self.refused = true;
+                self.hist = Vec::new();
+                StageError::Config {
+                    field: "memory",
+                    message,
+                }
+            })?;
+            self.next_check = 2 * bytes;
+        }
         self.hist.extend_from_slice(&data[..frames * ch]);
         self.received += frames as u64;
         if self.mode == Mode::Sliding {
@@ -441,7 +475,7 @@ impl Stage for SpectrumStage {
     }
 
     fn finish(&mut self, out: &mut Emitter) -> Result<(), StageError> {
-        if self.mode == Mode::Whole && self.t0_ns.is_some() {
+        if self.mode == Mode::Whole && self.t0_ns.is_some() && !self.refused {
             return self.whole(out);
         }
         Ok(())
