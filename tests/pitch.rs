@@ -21,6 +21,19 @@ fn track(p: &Path) -> Vec<(f64, f64, bool)> {
         .collect()
 }
 
+/// The rows of a `pitch` stage's CSV (`t_s,ch0,ch1,ch2`): (time, f0, voiced).
+fn stage_track(p: &Path) -> Vec<(f64, f64, bool)> {
+    let text = std::fs::read_to_string(p).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("t_s,ch0,ch1,ch2"));
+    lines
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            (v[0], v[1], v[3] == 1.0)
+        })
+        .collect()
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
@@ -50,7 +63,9 @@ fn speech(dir: &Path, voice: &str, p: u32) -> Option<std::path::PathBuf> {
 /// Three voices, pitch set low, middle and high: the scene (96x96, 2200
 /// fps, 0.15 px peak, sensor noise 2 DN) recovers speech at a few dB of
 /// SNR, and its pitch on the frames the clean sound voices is within 2%
-/// (median), as on the frames the recovery itself calls voiced.
+/// (median), as on the frames the recovery itself calls voiced; both for
+/// `vibroscope pitch VIDEO` and for the live graph's `pitch` stage
+/// (`run live-pitch --replay VIDEO`).
 #[test]
 fn pitch_survives_the_visual_microphone() {
     let dir = tempfile::tempdir().unwrap();
@@ -148,6 +163,69 @@ fn pitch_survives_the_visual_microphone() {
             "{voice}: {false_voiced} false voiced"
         );
         medians.push(mt);
+
+        // The live graph on the same video (`pipelines/live-pitch.toml`
+        // replayed): the `pitch` stage frame by frame, after a high-pass.
+        let live_csv = format!("{voice}-{p}.live.csv");
+        let o = run_in(
+            d,
+            &[
+                "run",
+                "live-pitch",
+                "--quiet",
+                "--replay",
+                &video,
+                "--set",
+                &format!("track.path={live_csv}"),
+                "--set",
+                &format!("out.path={voice}-{p}.live.wav"),
+            ],
+        );
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        let live = stage_track(&d.join(&live_csv));
+        // Rows matched by time (the truth's frames are at the same hop).
+        let mut live_err = Vec::new();
+        let mut live_both = Vec::new();
+        for t in truth.iter().filter(|t| t.2) {
+            let Some(l) = live.iter().find(|l| (l.0 - t.0).abs() < 0.004) else {
+                continue;
+            };
+            live_err.push((l.1 / t.1 - 1.0).abs());
+            if l.2 {
+                live_both.push((l.1 / t.1 - 1.0).abs());
+            }
+        }
+        assert!(
+            live_err.len() + 5 >= voiced_truth.len(),
+            "{voice}: {} of {} truth frames have a live row",
+            live_err.len(),
+            voiced_truth.len()
+        );
+        let live_false = live
+            .iter()
+            .filter(|l| l.2)
+            .filter(|l| {
+                truth
+                    .iter()
+                    .find(|t| (l.0 - t.0).abs() < 0.004)
+                    .is_some_and(|t| !t.2)
+            })
+            .count();
+        let (le, lb) = (median(live_err.clone()), median(live_both.clone()));
+        eprintln!(
+            "{voice} -p {p}, live pitch stage: median error {:.2}% on the truth's voiced frames, \
+             {:.2}% on the {} it also calls voiced, {live_false} voiced only live",
+            100.0 * le,
+            100.0 * lb,
+            live_both.len()
+        );
+        assert!(
+            live_false <= live_both.len(),
+            "{voice}: {live_false} false voiced live"
+        );
+        assert!(live_both.len() >= 5, "{voice}: {}", live_both.len());
+        assert!(le < 0.02, "{voice}: live median error {:.2}%", 100.0 * le);
+        assert!(lb < 0.02, "{voice}: live median error {:.2}%", 100.0 * lb);
     }
     // The pitch set with -p shows: low, middle and high voices in order.
     assert!(

@@ -25,6 +25,10 @@ pub static SHIPPED: &[Shipped] = &[
         text: include_str!("../../../pipelines/live-demo.toml"),
     },
     Shipped {
+        name: "live-pitch",
+        text: include_str!("../../../pipelines/live-pitch.toml"),
+    },
+    Shipped {
         name: "rolling-shutter",
         text: include_str!("../../../pipelines/rolling-shutter.toml"),
     },

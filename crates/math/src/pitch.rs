@@ -134,6 +134,12 @@ fn geometry(p: &YinParams, rate_hz: f64) -> Result<(usize, usize, usize), PitchE
     Ok(geometry_at(p, rate_hz))
 }
 
+/// Whether the settings work on a signal at `rate_hz` (before it is
+/// interpolated: the highest pitch must have four samples a period).
+pub fn check(p: &YinParams, rate_hz: f64) -> Result<(), PitchError> {
+    geometry(p, rate_hz).map(|_| ())
+}
+
 /// [`geometry`] of checked settings.
 fn geometry_at(p: &YinParams, rate_hz: f64) -> (usize, usize, usize) {
     let max_lag = (rate_hz / p.fmin_hz).ceil() as usize;
@@ -179,7 +185,9 @@ fn upsample(x: &[f64], k: usize) -> Vec<f64> {
 /// samples a period).
 pub const MIN_RATE_HZ: f64 = 8000.0;
 
-/// Tracks the pitch of `x` sampled at `rate_hz`.
+/// Tracks the pitch of `x` sampled at `rate_hz`: the whole signal, each
+/// frame's silence judged against the loudest frame of the signal (the
+/// live [`Tracker`] can only judge against the loudest so far).
 pub fn track(x: &[f64], rate_hz: f64, p: &YinParams) -> Result<Vec<PitchFrame>, PitchError> {
     let (_, max_lag, w) = geometry(p, rate_hz)?;
     let need = w + max_lag + 2;
@@ -198,36 +206,11 @@ pub fn track(x: &[f64], rate_hz: f64, p: &YinParams) -> Result<Vec<PitchFrame>, 
         .iter()
         .map(|v| if v.is_finite() { *v } else { 0.0 })
         .collect();
-    let up = if rate_hz < MIN_RATE_HZ {
-        (MIN_RATE_HZ / rate_hz).ceil() as usize
-    } else {
-        1
-    };
+    let up = upsampling(rate_hz);
     let x = if up > 1 { upsample(&x, up) } else { x };
-    let rate_hz = rate_hz * up as f64;
-    let (min_lag, max_lag, w) = geometry_at(p, rate_hz);
-    let hop = ((p.hop_s * rate_hz).round() as usize).max(1);
-    let span = w + max_lag + 1;
-    let mut d = vec![0.0; max_lag + 2];
-    let mut dn = vec![0.0; max_lag + 2];
+    let mut t = Tracker::new(p, rate_hz * up as f64, Silence::Off)?;
     let mut frames = Vec::new();
-    let mut start = 0;
-    while start + span <= x.len() {
-        let seg = &x[start..start + span];
-        difference(seg, w, &mut d);
-        normalise(&d, &mut dn);
-        let (tau, dip) = choose(&dn, min_lag, max_lag + 1, p.threshold);
-        let lag = refine(&d, tau);
-        let rms = (seg[..w].iter().map(|v| v * v).sum::<f64>() / w as f64).sqrt();
-        frames.push(PitchFrame {
-            time_s: (start as f64 + w as f64 / 2.0) / rate_hz,
-            f0_hz: rate_hz / lag,
-            confidence: (1.0 - dip).clamp(0.0, 1.0),
-            voiced: dip < p.threshold,
-            rms,
-        });
-        start += hop;
-    }
+    t.push(&x, |f| frames.push(f));
     // Silence: relative to the loudest frame.
     let loud = frames.iter().map(|f| f.rms).fold(0.0, f64::max);
     let floor = loud * 10f64.powf(-p.silence_db / 20.0);
@@ -237,6 +220,139 @@ pub fn track(x: &[f64], rate_hz: f64, p: &YinParams) -> Result<Vec<PitchFrame>, 
         }
     }
     Ok(frames)
+}
+
+/// The factor by which a signal at `rate_hz` is interpolated before YIN
+/// (to at least [`MIN_RATE_HZ`]; 1 at or above it).
+pub fn upsampling(rate_hz: f64) -> usize {
+    if rate_hz < MIN_RATE_HZ {
+        (MIN_RATE_HZ / rate_hz).ceil() as usize
+    } else {
+        1
+    }
+}
+
+/// How a [`Tracker`] decides that a frame is silent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Silence {
+    /// Against the loudest frame so far (causal: the first frames of a
+    /// quiet start count as loud until something louder comes).
+    SoFar,
+    /// Not at all (the caller decides, as [`track`] does on the whole
+    /// signal).
+    Off,
+}
+
+/// YIN on a stream: samples go in as they come (already at a rate where
+/// YIN works, see [`upsampling`]), a [`PitchFrame`] comes out every hop
+/// once a window and the longest lag are in. Frame `k` covers samples
+/// `k·hop .. k·hop + W + max_lag` of the stream, as in [`track`], so both
+/// give the same frames at the same times. Nothing is allocated after
+/// [`Tracker::new`].
+pub struct Tracker {
+    rate_hz: f64,
+    min_lag: usize,
+    max_lag: usize,
+    w: usize,
+    hop: usize,
+    span: usize,
+    threshold: f64,
+    silence: Silence,
+    silence_ratio: f64,
+    loudest: f64,
+    /// The last `span` samples, written twice (at `i` and `i + span`) so the
+    /// window is always one slice.
+    ring: Vec<f64>,
+    pos: usize,
+    /// Samples pushed so far.
+    n: u64,
+    d: Vec<f64>,
+    dn: Vec<f64>,
+}
+
+impl Tracker {
+    /// A tracker for samples at `rate_hz` (the settings are checked
+    /// against it).
+    pub fn new(p: &YinParams, rate_hz: f64, silence: Silence) -> Result<Tracker, PitchError> {
+        geometry(p, rate_hz)?;
+        let (min_lag, max_lag, w) = geometry_at(p, rate_hz);
+        let span = w + max_lag + 1;
+        Ok(Tracker {
+            rate_hz,
+            min_lag,
+            max_lag,
+            w,
+            hop: ((p.hop_s * rate_hz).round() as usize).max(1),
+            span,
+            threshold: p.threshold,
+            silence,
+            silence_ratio: 10f64.powf(-p.silence_db / 20.0),
+            loudest: 0.0,
+            ring: vec![0.0; 2 * span],
+            pos: 0,
+            n: 0,
+            d: vec![0.0; max_lag + 2],
+            dn: vec![0.0; max_lag + 2],
+        })
+    }
+
+    /// Samples between frames.
+    pub fn hop(&self) -> usize {
+        self.hop
+    }
+
+    /// Samples a frame spans (the window plus the longest lag): a frame is
+    /// out this many samples after its first.
+    pub fn span(&self) -> usize {
+        self.span
+    }
+
+    /// Samples from a frame's first to its reported time (half a window).
+    pub fn centre(&self) -> f64 {
+        self.w as f64 / 2.0
+    }
+
+    /// Feeds samples (non-finite ones count as 0); `emit` gets each frame
+    /// completed, its time counted from the first sample ever pushed.
+    pub fn push(&mut self, x: &[f64], mut emit: impl FnMut(PitchFrame)) {
+        for &v in x {
+            let v = if v.is_finite() { v } else { 0.0 };
+            self.ring[self.pos] = v;
+            self.ring[self.pos + self.span] = v;
+            self.pos = (self.pos + 1) % self.span;
+            self.n += 1;
+            if self.n < self.span as u64
+                || !(self.n - self.span as u64).is_multiple_of(self.hop as u64)
+            {
+                continue;
+            }
+            let start = self.n - self.span as u64;
+            let f = self.frame(start);
+            emit(f);
+        }
+    }
+
+    /// The frame over the ring's window, which starts at sample `start`.
+    fn frame(&mut self, start: u64) -> PitchFrame {
+        let seg = &self.ring[self.pos..self.pos + self.span];
+        difference(seg, self.w, &mut self.d);
+        normalise(&self.d, &mut self.dn);
+        let (tau, dip) = choose(&self.dn, self.min_lag, self.max_lag + 1, self.threshold);
+        let lag = refine(&self.d, tau);
+        let rms = (seg[..self.w].iter().map(|v| v * v).sum::<f64>() / self.w as f64).sqrt();
+        let mut voiced = dip < self.threshold;
+        if self.silence == Silence::SoFar {
+            self.loudest = self.loudest.max(rms);
+            voiced &= rms > self.loudest * self.silence_ratio;
+        }
+        PitchFrame {
+            time_s: (start as f64 + self.w as f64 / 2.0) / self.rate_hz,
+            f0_hz: self.rate_hz / lag,
+            confidence: (1.0 - dip).clamp(0.0, 1.0),
+            voiced,
+            rms,
+        }
+    }
 }
 
 /// Step 2: `d[τ] = Σ_{j<w} (s[j] - s[j+τ])²` for τ in 0..d.len().
@@ -314,6 +430,24 @@ pub fn spectrogram(x: &[f64], rate_hz: f64, len: usize, hop: usize) -> Vec<(f64,
         .collect()
 }
 
+/// A voice-like signal of known pitch `f0(t)` (Hz at `t` seconds), to test
+/// trackers with: a band-limited pulse train, the first `harmonics`
+/// harmonics below Nyquist with amplitude 1/k, `secs` long at `rate_hz`.
+pub fn voice(rate_hz: f64, secs: f64, harmonics: usize, f0: impl Fn(f64) -> f64) -> Vec<f64> {
+    let n = (rate_hz * secs) as usize;
+    let mut phase = 0.0;
+    (0..n)
+        .map(|i| {
+            let f = f0(i as f64 / rate_hz);
+            phase += 2.0 * std::f64::consts::PI * f / rate_hz;
+            (1..=harmonics)
+                .filter(|k| (*k as f64) * f < rate_hz / 2.0)
+                .map(|k| (k as f64 * phase).sin() / k as f64)
+                .sum()
+        })
+        .collect()
+}
+
 /// Median relative error `|f / truth - 1|` over the frames voiced in
 /// `truth` (frames matched by index; both tracks made with the same
 /// settings on signals of the same rate), and how many frames it used.
@@ -333,29 +467,11 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
-    /// A voice-like signal whose pitch is known: a band-limited pulse train
-    /// (harmonics with falling amplitude) whose pitch glides and wobbles.
-    fn voice(rate: f64, secs: f64, f0: impl Fn(f64) -> f64) -> Vec<f64> {
-        let n = (rate * secs) as usize;
-        let mut phase = 0.0;
-        (0..n)
-            .map(|i| {
-                let t = i as f64 / rate;
-                let f = f0(t);
-                phase += 2.0 * PI * f / rate;
-                (1..=12)
-                    .filter(|k| (*k as f64) * f < rate / 2.0)
-                    .map(|k| (k as f64 * phase).sin() / k as f64)
-                    .sum()
-            })
-            .collect()
-    }
-
     #[test]
     fn tracks_a_known_gliding_pitch() {
         for (rate, base) in [(2200.0, 110.0), (2200.0, 280.0), (16_000.0, 110.0)] {
             let f0 = |t: f64| base + 60.0 * t + 5.0 * (2.0 * PI * 5.0 * t).sin();
-            let x = voice(rate, 1.5, f0);
+            let x = voice(rate, 1.5, 12, f0);
             let frames = track(&x, rate, &YinParams::default()).unwrap();
             let mut e: Vec<f64> = frames
                 .iter()

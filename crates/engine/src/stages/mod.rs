@@ -36,6 +36,7 @@ pub static REGISTRY: &[KindSpec] = &[
     transform::spectrum::KIND,
     transform::resonances::KIND,
     transform::resample::KIND,
+    transform::pitch::KIND,
     sinks::wav::KIND,
     sinks::speaker::KIND,
     sinks::csv::KIND,

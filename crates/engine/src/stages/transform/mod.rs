@@ -12,6 +12,7 @@ pub mod magnify;
 pub mod mean;
 pub mod passthrough;
 pub mod phase;
+pub mod pitch;
 pub mod pyramid;
 pub mod reduce;
 pub mod resample;
