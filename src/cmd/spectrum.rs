@@ -89,6 +89,13 @@ pub struct SpectrumArgs {
     /// Only peaks below this frequency (Hz).
     #[arg(long, value_name = "HZ")]
     pub max_hz: Option<f64>,
+    /// How the bands' spectra make one: `snr` scales each to its own
+    /// noise floor and weighs it by how far it stands out (a band across
+    /// the motion, or noise, adds nothing: a vibration that a small part
+    /// of the frame carries is found without a --roi); `sum` adds them
+    /// (Eq. 3.17 as written).
+    #[arg(long, value_enum, default_value = "snr")]
+    pub combine: CombineArg,
     /// Also write the spectrum (dB) into the JSON.
     #[arg(long)]
     pub include_spectrum: bool,
@@ -125,6 +132,10 @@ impl SpectrumArgs {
                 self.false_alarm
             },
             include_spectrum: self.include_spectrum,
+            combine: match self.combine {
+                CombineArg::Snr => spectrum::Combine::Snr,
+                CombineArg::Sum => spectrum::Combine::Sum,
+            },
             png: self.png.clone(),
             spectrogram: self.spectrogram.clone(),
             spectrogram_window: self.spectrogram_window,
@@ -133,6 +144,12 @@ impl SpectrumArgs {
             ..SpectrumOptions::new(&self.video, &self.json)
         }
     }
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+pub enum CombineArg {
+    Snr,
+    Sum,
 }
 
 #[derive(Clone, Copy, Debug, Default, clap::ValueEnum)]

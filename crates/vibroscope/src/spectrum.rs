@@ -71,7 +71,32 @@ pub struct SpectrumOptions {
     /// spectrum's shape is what counts: a peak's amplitude is then not the
     /// region's displacement.
     pub tiles: usize,
+    /// How the channels (bands, tiles) make one spectrum: `Snr` weighs
+    /// each by how far it stands out of its own noise floor (the
+    /// `spectrum` stage's `combine`), `Sum` adds them (Eq. 3.17).
+    pub combine: Combine,
     pub run: RunSettings,
+}
+
+/// How the channels' spectra make one (the `spectrum` stage's `combine`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Combine {
+    /// Each channel scaled to its noise floor, weighted by its excess over
+    /// it: noise-only bands and tiles add nothing.
+    #[default]
+    Snr,
+    /// The channels' power spectra added (Eq. 3.17).
+    Sum,
+}
+
+impl Combine {
+    pub fn name(self) -> &'static str {
+        match self {
+            Combine::Snr => "snr",
+            Combine::Sum => "sum",
+        }
+    }
 }
 
 impl SpectrumOptions {
@@ -99,6 +124,7 @@ impl SpectrumOptions {
             regions: Vec::new(),
             filters: Vec::new(),
             tiles: 1,
+            combine: Combine::default(),
             run: RunSettings::default(),
         }
     }
@@ -135,6 +161,12 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
         .retain(|p| !matches!(p.key.as_str(), "window" | "hop" | "welch"));
     let set = crate::engine::config::set_param;
     set(st, "mode", Value::String("whole".into()), by("spectrum"));
+    set(
+        st,
+        "combine",
+        Value::String(o.combine.name().into()),
+        by("--combine"),
+    );
     if let Some(k) = o.segments {
         set(st, "segments", int(k), by("--segments"));
     }

@@ -217,6 +217,11 @@ pub fn from_video(
     o.include_spectrum = true;
     o.segments = params.segments;
     o.tiles = params.tiles;
+    // Eq. 3.17's plain sum of the local spectra: the relative heights of
+    // a fabric's modes are the features, and weighing the tiles by their
+    // own lines would make those heights depend on where the lines stood
+    // out (the features and their cache predate `combine`).
+    o.combine = crate::spectrum::Combine::Sum;
     o.peaks = 1;
     o.run = run;
     let (report, _) = run_spectrum(&o, false)?;

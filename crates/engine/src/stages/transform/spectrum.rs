@@ -94,10 +94,22 @@ impl Taper {
     }
 }
 
+/// How the channels' spectra make one.
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+pub enum Combine {
+    /// Their sum (Eq. 3.17 as written).
+    Sum,
+    /// Each scaled to its own noise floor and weighted by how far it
+    /// stands out of it (see [`snr_weights`]).
+    Snr,
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct P {
     mode: Mode,
+    combine: Combine,
     window: Option<usize>,
     hop: Option<usize>,
     taper: Taper,
@@ -112,6 +124,8 @@ const PARAMS: &[ParamSpec] = &[
         Def::Str("sliding"),
     )
     .doc("a spectrum every `hop` samples, or one of the whole recording at the end"),
+    ParamSpec::new("combine", ParamType::Choice(&["sum", "snr"]), Def::Str("sum"))
+        .doc("whole: add the channels' power spectra (Eq. 3.17), or `snr`: scale each to its noise floor and weight it by its excess over that floor, so channels of noise only (a band across the motion, tiles off the vibrating part) add nothing"),
     ParamSpec::new("window", ParamType::Int, Def::Optional)
         .ints(8, MAX_WINDOW as i64)
         .unit("samples")
@@ -168,6 +182,12 @@ pub const KIND: KindSpec = KindSpec {
                 ));
             }
         }
+        if v.combine == Combine::Snr && v.mode == Mode::Sliding {
+            return Err(p.error(
+                "combine",
+                "\"snr\" applies to mode = \"whole\" (it weighs channels over the whole recording)",
+            ));
+        }
         if v.welch > 1 && v.mode == Mode::Whole {
             return Err(p.error(
                 "welch",
@@ -185,6 +205,8 @@ impl Plan for SpectrumPlan {
         let v = self.0;
         Ok(Node::Stage(Box::new(SpectrumStage {
             mode: v.mode,
+            combine: v.combine,
+            weighed: None,
             window: v.window,
             hop: v.hop,
             taper: v.taper,
@@ -281,6 +303,10 @@ const FIRST_CHECK_BYTES: usize = 64 << 20;
 
 struct SpectrumStage {
     mode: Mode,
+    combine: Combine,
+    /// Whole with `snr`: channels that stood out, and the largest weight's
+    /// channel and share (for the summary).
+    weighed: Option<(usize, usize, f64)>,
     window: Option<usize>,
     hop: Option<usize>,
     taper: Taper,
@@ -384,7 +410,22 @@ impl SpectrumStage {
         };
         let hop = self.hop.unwrap_or(n / 2).clamp(1, n);
         let mut fft = SegmentFft::new(n, self.taper, self.rate);
-        let mut acc = vec![0.0; fft.bins()];
+        let bins = fft.bins();
+        // One spectrum per channel when they are weighed, else one sum.
+        let per_channel = self.combine == Combine::Snr && ch > 1;
+        let rows = if per_channel { ch } else { 1 };
+        if per_channel {
+            crate::memory::check(
+                (rows * bins * std::mem::size_of::<f64>()) as u64,
+                &format!("the spectra of {ch} channels of {bins} bins (combine = \"snr\")"),
+                "use fewer channels (a `phase` stage's `tiles`, scales or orientations) or `combine = \"sum\"`",
+            )
+            .map_err(|message| StageError::Config {
+                field: "memory",
+                message,
+            })?;
+        }
+        let mut acc = vec![0.0; rows * bins];
         let mut count = 0usize;
         // Segments are spread evenly so that the first starts at 0 and the
         // last ends at the last frame (no data left out at the end).
@@ -399,11 +440,46 @@ impl SpectrumStage {
             let start = a.min(frames - n);
             let seg = &self.hist[start * ch..(start + n) * ch];
             for c in 0..ch {
-                fft.accumulate(seg, ch, c, &mut acc);
+                let row = if per_channel { c } else { 0 };
+                fft.accumulate(seg, ch, c, &mut acc[row * bins..(row + 1) * bins]);
             }
             count += 1;
         }
         acc.iter_mut().for_each(|p| *p /= count as f64);
+        if per_channel {
+            let w = snr_weights(&acc, bins, count);
+            let stood = w.iter().filter(|&&(_, x)| x > 0.0).count();
+            let total: f64 = w.iter().map(|&(_, x)| x).sum();
+            let mut sum = vec![0.0; bins];
+            if total > 0.0 {
+                // Σ w_c P_c / floor_c, scaled by Σ w_c floor_c: one channel
+                // alone gives its own spectrum.
+                let level: f64 = w.iter().map(|&(f, x)| x / total * f).sum();
+                for (c, &(floor, x)) in w.iter().enumerate() {
+                    if x > 0.0 {
+                        let k = x / total / floor * level;
+                        for (s, p) in sum.iter_mut().zip(&acc[c * bins..(c + 1) * bins]) {
+                            *s += k * p;
+                        }
+                    }
+                }
+                let (top, share) = w
+                    .iter()
+                    .enumerate()
+                    .map(|(c, &(_, x))| (c, x / total))
+                    .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+                self.weighed = Some((stood, top, share));
+            } else {
+                // No channel stands out: the plain sum (Eq. 3.17).
+                for c in 0..ch {
+                    for (s, p) in sum.iter_mut().zip(&acc[c * bins..(c + 1) * bins]) {
+                        *s += p;
+                    }
+                }
+                self.weighed = Some((0, 0, 0.0));
+            }
+            acc = sum;
+        }
         tracing::info!(
             segments = count,
             window = n,
@@ -480,6 +556,157 @@ impl Stage for SpectrumStage {
         }
         Ok(())
     }
+
+    fn summary(&self) -> Option<String> {
+        let (stood, top, share) = self.weighed?;
+        Some(if stood == 0 {
+            format!(
+                "combine = snr: no channel of {} stands out of its noise floor; the channels' spectra are summed",
+                self.channels
+            )
+        } else {
+            format!(
+                "combine = snr: {stood} of {} channels stand out of their noise floor and make the spectrum; channel {top} weighs most ({:.0}%)",
+                self.channels,
+                100.0 * share
+            )
+        })
+    }
+}
+
+/// The local noise floor of a power spectrum `p` of `segments` averages,
+/// written to `floor`: at anchor bins, the median over ±max(16, f/4) bins
+/// (f the bin; wide enough that a mode of 5% damping leaves the floor
+/// under it, narrow enough at low frequencies to follow a 1/f rise),
+/// converted from median to mean (χ²₂ₖ/2K), linear between anchors.
+fn local_floor(p: &[f64], segments: usize, scratch: &mut Vec<f64>, floor: &mut [f64]) {
+    let n = p.len();
+    let to_mean = 1.0 / vibroscope_math::peaks::chi2_ratio_median(segments.max(1));
+    let half = |b: usize| (b / 4).max(16);
+    let at = |a: usize, scratch: &mut Vec<f64>| -> f64 {
+        let h = half(a);
+        scratch.clear();
+        scratch.extend(
+            p[a.saturating_sub(h)..(a + h + 1).min(n)]
+                .iter()
+                .copied()
+                .filter(|v| v.is_finite() && *v > 0.0),
+        );
+        if scratch.is_empty() {
+            return f64::MIN_POSITIVE;
+        }
+        let mid = scratch.len() / 2;
+        *scratch.select_nth_unstable_by(mid, f64::total_cmp).1 * to_mean
+    };
+    let (mut a, mut fa) = (0usize, at(0, scratch));
+    while a < n {
+        let b = (a + (half(a) / 4).max(4)).min(n - 1);
+        let fb = if b == a { fa } else { at(b, scratch) };
+        let end = if b == n - 1 { n } else { b };
+        for (k, f) in floor.iter_mut().enumerate().take(end).skip(a) {
+            let t = if b > a {
+                (k - a) as f64 / (b - a) as f64
+            } else {
+                0.0
+            };
+            *f = (fa + t * (fb - fa)).max(f64::MIN_POSITIVE);
+        }
+        if b == n - 1 {
+            break;
+        }
+        (a, fa) = (b, fb);
+    }
+}
+
+/// The bins under this one count for nothing in a channel's weight: there
+/// a 1/f rise makes the local floor uncertain (a median of bins on one
+/// side), and noise would pass for a line. A slow sway down there is still
+/// found when no channel stands out elsewhere (the plain sum).
+const LOW_BINS: usize = 8;
+
+/// Widths (bins) over which a channel's excess is looked for: a line is
+/// one or two bins wide, a damped mode tens; averaging `m` bins lowers
+/// the level noise alone reaches.
+const EXCESS_WIDTHS: [usize; 2] = [1, 8];
+
+/// For each channel's K-segment power spectrum (`spectra`, channel-major,
+/// `bins` each): its noise level (the median over the bins, DC and
+/// Nyquist left out) and its weight, from bin [`LOW_BINS`] up, the excess of r = P/F over θ_m summed
+/// over the spectrum, where F is the channel's local floor
+/// ([`local_floor`]) and r is averaged over blocks of m = 1 and 8 bins
+/// (a line, a damped mode); θ_m is the level noise alone passes with
+/// probability 10⁻³ over all blocks of all channels and widths (χ²₂ₖ/2K;
+/// K·m/2 averages for a block of m, since neighbouring bins of a tapered
+/// segment are correlated). A channel of noise only has weight 0 (save 1
+/// run in 1000); a channel that carries a line or a mode weighs by how far
+/// it stands out (for a line, the weights of maximal-ratio combining: gain
+/// over noise).
+pub fn snr_weights(spectra: &[f64], bins: usize, segments: usize) -> Vec<(f64, f64)> {
+    use vibroscope_math::peaks::chi2_ratio_sf;
+    let ch = spectra.len() / bins.max(1);
+    let tests = (bins * ch * EXCESS_WIDTHS.len()).max(1) as f64;
+    let k = segments.max(1);
+    // θ_m by bisection on the χ² tail.
+    let theta: Vec<f64> = EXCESS_WIDTHS
+        .iter()
+        .map(|&m| {
+            let km = (k * m / 2).max(k);
+            let (mut lo, mut hi) = (1.0f64, 200.0f64);
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                if chi2_ratio_sf(mid, km) * tests > 1e-3 {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            hi
+        })
+        .collect();
+    let mut scratch = Vec::with_capacity(bins);
+    let mut floor = vec![0.0; bins];
+    let inner = 1..bins.saturating_sub(1).max(1);
+    let tested = LOW_BINS.min(inner.end)..inner.end;
+    (0..ch)
+        .map(|c| {
+            let p = &spectra[c * bins..(c + 1) * bins];
+            scratch.clear();
+            scratch.extend(
+                p[inner.clone()]
+                    .iter()
+                    .copied()
+                    .filter(|v| v.is_finite() && *v > 0.0),
+            );
+            if scratch.is_empty() {
+                return (1.0, 0.0);
+            }
+            let mid = scratch.len() / 2;
+            let level = *scratch.select_nth_unstable_by(mid, f64::total_cmp).1;
+            local_floor(p, k, &mut scratch, &mut floor);
+            // r over the bins tested, then its excess at each width.
+            scratch.clear();
+            scratch.extend(
+                p[tested.clone()]
+                    .iter()
+                    .zip(&floor[tested.clone()])
+                    .map(|(v, f)| if v.is_finite() { v / f } else { 0.0 }),
+            );
+            let excess: f64 = EXCESS_WIDTHS
+                .iter()
+                .zip(&theta)
+                .map(|(&m, &th)| {
+                    scratch
+                        .chunks(m)
+                        .map(|b| {
+                            let r = b.iter().sum::<f64>() / b.len() as f64;
+                            (r - th).max(0.0) * b.len() as f64
+                        })
+                        .sum::<f64>()
+                })
+                .sum();
+            (level, excess)
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -518,6 +745,57 @@ mod tests {
         // 12.5 Hz is bin 8 exactly: the Hann line spreads over bins 7-9.
         let total: f64 = acc.iter().sum::<f64>() * fs / n as f64;
         assert!((total - 2.0).abs() < 0.05, "power {total}, want a²/2 = 2");
+    }
+
+    /// `snr_weights` on K-averaged noise spectra with a 1/f rise and a
+    /// 5%-damped mode's skirt: over 20 seeds no noise-only channel takes
+    /// a weight in more than one; a channel with a line 12x its floor, or
+    /// with a wide mode, always does.
+    #[test]
+    fn snr_weights_pick_the_channels_that_carry_a_line() {
+        use vibroscope_math::rng::Xoshiro256;
+        let (bins, k, ch) = (1025usize, 4usize, 40usize);
+        let mut false_runs = 0;
+        for seed in 0..20u64 {
+            let mut r = Xoshiro256::new(seed + 1);
+            let mut spectra = vec![0.0; bins * ch];
+            for c in 0..ch {
+                for b in 0..bins {
+                    let mean = 1e-6 * (1.0 + 40.0 / (1.0 + b as f64)) * (1.0 + c as f64);
+                    // χ²₂ₖ/2K: the mean of K exponential draws.
+                    let e: f64 = (0..k).map(|_| -(1.0 - r.next_f64()).ln()).sum::<f64>() / k as f64;
+                    spectra[c * bins + b] = mean * e;
+                }
+            }
+            // Channel 3: a narrow line; channel 7: a mode of 5% damping
+            // at bin 400 (half width 20 bins) 10x its floor.
+            for b in 299..=301 {
+                spectra[3 * bins + b] += 12.0 * 4e-6;
+            }
+            for b in 300..500 {
+                let x = (b as f64 - 400.0) / 20.0;
+                spectra[7 * bins + b] += 10.0 * 8e-6 / (1.0 + x * x);
+            }
+            let w = snr_weights(&spectra, bins, k);
+            assert!(w[3].1 > 0.0, "seed {seed}: the line's channel {:?}", w[3]);
+            assert!(w[7].1 > 0.0, "seed {seed}: the mode's channel {:?}", w[7]);
+            let noise: Vec<usize> = (0..ch)
+                .filter(|&c| c != 3 && c != 7 && w[c].1 > 0.0)
+                .collect();
+            if !noise.is_empty() {
+                false_runs += 1;
+            }
+            // The level is the channel's median: about its mean at mid band.
+            assert!(
+                w[20].0 > 1e-6 * 21.0 * 0.8 && w[20].0 < 1e-6 * 21.0 * 1.5,
+                "{:?}",
+                w[20]
+            );
+        }
+        assert!(
+            false_runs <= 1,
+            "{false_runs} of 20 runs weighed a noise channel"
+        );
     }
 
     /// The power kernel sums to 1, is symmetric and peaks at the centre.
