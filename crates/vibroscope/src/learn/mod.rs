@@ -295,7 +295,7 @@ pub struct FitOptions {
 /// the spectra to the log of stiffness *or* of area weight), with its own
 /// number of components: fitted jointly, the components that serve one
 /// property well are a compromise for the other (on the simulated
-/// fabrics, stiffness R 0.72 at best jointly, against 0.85 alone).
+/// fabrics, stiffness R 0.72 at best jointly, against 0.84 alone).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct TargetModel {
     pub target: String,
