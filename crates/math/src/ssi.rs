@@ -83,8 +83,12 @@ pub struct Pole {
 pub struct SsiMode {
     pub frequency_hz: f64,
     pub damping_ratio: f64,
+    /// The spreads over orders and segments combined; NaN (JSON null)
+    /// when neither exists (one stable order and fewer than two segments):
+    /// the estimate's uncertainty is then unknown, not zero.
     pub damping_ratio_std: f64,
-    /// Spread (robust standard deviation) over the stable orders.
+    /// Spread (robust standard deviation) over the stable orders (0 for
+    /// one order).
     pub order_std: f64,
     /// Standard deviation over the record's segments, over √segments
     /// (`None` when the record is too short for two segments of 8 block
@@ -235,6 +239,17 @@ fn near(poles: &[Pole], target_hz: f64, tol_hz: f64) -> Option<(f64, f64, f64, u
     Some((f, xi, 1.4826 * mad, best.len()))
 }
 
+/// The damping's uncertainty from the spread over `orders` stable orders
+/// and over segments: NaN when there is neither (one order, under two
+/// segments), since one estimate says nothing of its own error.
+fn combined_std(order_std: f64, orders: usize, segment_std: Option<f64>) -> f64 {
+    if orders < 2 && segment_std.is_none() {
+        f64::NAN
+    } else {
+        order_std.hypot(segment_std.unwrap_or(0.0))
+    }
+}
+
 /// SSI-cov around one resonance: the mode nearest `target_hz` (within
 /// `tol_hz`) among the stable poles of the whole record, with its
 /// uncertainty. `None` when no stable pole is near.
@@ -272,7 +287,7 @@ pub fn identify(
     Some(SsiMode {
         frequency_hz: f,
         damping_ratio: xi,
-        damping_ratio_std: order_std.hypot(segment_std.unwrap_or(0.0)),
+        damping_ratio_std: combined_std(order_std, count, segment_std),
         order_std,
         segment_std,
         stable_orders: count,
@@ -283,6 +298,16 @@ pub fn identify(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// One stable order and no segments: the uncertainty is unknown, not
+    /// the 0 the single order's spread would give.
+    #[test]
+    fn one_estimate_has_no_uncertainty_to_give() {
+        assert!(combined_std(0.0, 1, None).is_nan());
+        assert_eq!(combined_std(0.0, 1, Some(0.002)), 0.002);
+        assert_eq!(combined_std(0.003, 4, None), 0.003);
+        assert!((combined_std(0.003, 4, Some(0.004)) - 0.005).abs() < 1e-15);
+    }
 
     /// A noiseless ring-down of two modes: poles recovered to 1e-6.
     #[test]

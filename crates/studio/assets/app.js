@@ -275,6 +275,11 @@ function drawSpectrum() {
   }
 }
 
+// An uncertainty that may be unknown (JSON null for NaN): "n/a".
+function fixedOrNa(v, digits) {
+  return v == null || !Number.isFinite(v) ? "n/a" : v.toFixed(digits);
+}
+
 function fillPeaks() {
   const tb = document.querySelector("#peaks tbody"); tb.innerHTML = "";
   $("ampunit").textContent = `amplitude (${S.motion.amplitude_unit})`;
@@ -282,8 +287,8 @@ function fillPeaks() {
     const tr = document.createElement("tr");
     // A peak narrower than the bins gives only an upper bound on damping.
     const bound = p.damping_method.startsWith("resolution_limit");
-    const cells = [p.frequency_hz.toFixed(3), p.frequency_std_hz.toFixed(3),
-      (bound ? "≤ " : "") + p.damping_ratio.toFixed(4), bound ? "–" : p.damping_ratio_std.toFixed(4),
+    const cells = [p.frequency_hz.toFixed(3), fixedOrNa(p.frequency_std_hz, 3),
+      (bound ? "≤ " : "") + p.damping_ratio.toFixed(4), bound ? "–" : fixedOrNa(p.damping_ratio_std, 4),
       p.prominence_db.toFixed(1), p.false_alarm == null ? "–" : p.false_alarm < 1e-12 ? "< 1e-12" : p.false_alarm.toExponential(1), p.amplitude.toPrecision(3)];
     tr.innerHTML = cells.map((v) => `<td>${v}</td>`).join("");
     tr.title = `show the modal image at ${p.frequency_hz.toFixed(3)} Hz (damping: ${p.damping_method})`;
@@ -376,12 +381,12 @@ async function showDamping(lo, hi) {
       (sel.mask ? " (the mask)" : roi ? ` (region ${roi.join(",")})` : " (whole frame)");
     $("damptext").textContent = f
       ? `Lorentzian least squares over ${d.bins} bins (${d.taper} taper): f₀ = ${fmt(f.f0_hz, 3)} ± ${fmt(f.f0_std_hz, 3)} Hz, ` +
-        `damping ζ = ${f.resolved ? "" : "≤ "}${f.damping_ratio.toFixed(4)} ± ${f.damping_ratio_std.toFixed(4)}` +
+        `damping ζ = ${f.resolved ? "" : "≤ "}${f.damping_ratio.toFixed(4)} ± ${fixedOrNa(f.damping_ratio_std, 4)}` +
         ` (half width γ = ${f.gamma_hz.toFixed(3)} Hz${f.resolved ? "" : "; narrower than the bins resolve: an upper bound"})`
       : d.fit_refusal;
     const m = d.ssi;
     $("stabtext").textContent = m
-      ? `SSI-cov (orders 2–${d.max_order}, ${d.block_rows} block rows): ζ = ${m.damping_ratio.toFixed(4)} ± ${m.damping_ratio_std.toFixed(4)} at ${fmt(m.frequency_hz, 3)} Hz, ${m.stable_orders} stable orders agree`
+      ? `SSI-cov (orders 2–${d.max_order}, ${d.block_rows} block rows): ζ = ${m.damping_ratio.toFixed(4)} ± ${fixedOrNa(m.damping_ratio_std, 4)} at ${fmt(m.frequency_hz, 3)} Hz, ${m.stable_orders} stable orders agree`
       : `SSI-cov (orders 2–${d.max_order}, ${d.block_rows} block rows): no stable poles agree in this range` +
         (d.poles.length ? "" : " (the recording is too short for these block rows, or the range holds no pole)");
     drawDampFit(); drawStab(); drawSpectrum();
@@ -422,7 +427,7 @@ function drawDampFit() {
     f.curve_hz.forEach((fr, k) => { const y = Y(f.curve_db[k]); k ? g.lineTo(X(fr), y) : g.moveTo(X(fr), y); });
     g.stroke(); g.lineWidth = 1;
     g.strokeStyle = "#ffcc33"; g.setLineDash([4, 3]); g.beginPath(); g.moveTo(X(f.f0_hz), 8); g.lineTo(X(f.f0_hz), 8 + H); g.stroke(); g.setLineDash([]);
-    g.fillStyle = "#ff9933"; g.fillText(`Lorentzian fit: ζ = ${f.damping_ratio.toFixed(4)} ± ${f.damping_ratio_std.toFixed(4)}`, 60, 22);
+    g.fillStyle = "#ff9933"; g.fillText(`Lorentzian fit: ζ = ${f.damping_ratio.toFixed(4)} ± ${fixedOrNa(f.damping_ratio_std, 4)}`, 60, 22);
   }
   g.fillStyle = "#66dd88"; g.fillText("spectrum", 60, 36);
   g.fillStyle = "#aaa"; g.fillText(hi.toFixed(0), 4, 18); g.fillText(lo.toFixed(0), 4, 8 + H);
@@ -714,7 +719,7 @@ function fillLivePeaks(sp) {
     const tr = document.createElement("tr");
     tr.title = `the modal image at ${p.frequency_hz.toFixed(2)} Hz from the last seconds of frames`;
     tr.onclick = () => showLiveMode(p.frequency_hz);
-    for (const v of [p.frequency_hz.toFixed(2), p.frequency_std_hz.toFixed(2), p.prominence_db.toFixed(1),
+    for (const v of [p.frequency_hz.toFixed(2), fixedOrNa(p.frequency_std_hz, 2), p.prominence_db.toFixed(1),
       p.damping_ratio.toExponential(2)]) {
       const td = document.createElement("td"); td.textContent = v; tr.appendChild(td);
     }
