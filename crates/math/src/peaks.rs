@@ -186,19 +186,28 @@ pub fn chi2_ratio_sf(r: f64, k: usize) -> f64 {
     log_sum.exp().min(1.0)
 }
 
-/// The median of χ²₂ₖ/2K (the ratio of a noise bin's running median to
-/// its mean): ln 2 for K = 1, toward 1 as K grows.
-pub fn chi2_ratio_median(k: usize) -> f64 {
-    let (mut lo, mut hi) = (0.0f64, 2.0f64);
+/// The level r that χ²₂ₖ/2K exceeds with probability `p` (the inverse of
+/// [`chi2_ratio_sf`], by bisection; `p` in (0, 1)).
+pub fn chi2_ratio_isf(p: f64, k: usize) -> f64 {
+    let (mut lo, mut hi) = (0.0f64, 1.0f64);
+    while chi2_ratio_sf(hi, k) > p && hi < 1e6 {
+        (lo, hi) = (hi, 2.0 * hi);
+    }
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
-        if chi2_ratio_sf(mid, k) > 0.5 {
+        if chi2_ratio_sf(mid, k) > p {
             lo = mid;
         } else {
             hi = mid;
         }
     }
     0.5 * (lo + hi)
+}
+
+/// The median of χ²₂ₖ/2K (the ratio of a noise bin's running median to
+/// its mean): ln 2 for K = 1, toward 1 as K grows.
+pub fn chi2_ratio_median(k: usize) -> f64 {
+    chi2_ratio_isf(0.5, k)
 }
 
 /// Bins either side of a peak over which its noise floor is the median:

@@ -301,6 +301,11 @@ impl Tracker {
         self.hop
     }
 
+    /// The rate of the samples it takes, Hz.
+    pub fn rate_hz(&self) -> f64 {
+        self.rate_hz
+    }
+
     /// Samples a frame spans (the window plus the longest lag): a frame is
     /// out this many samples after its first.
     pub fn span(&self) -> usize {

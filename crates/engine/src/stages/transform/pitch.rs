@@ -115,8 +115,6 @@ struct Run {
     t0_ns: i64,
     /// Input samples taken in this stretch.
     n_in: u64,
-    /// Time between rows, and the first row's time, ns from `t0_ns`.
-    row_ns: f64,
 }
 
 struct PitchStage {
@@ -163,7 +161,6 @@ impl PitchStage {
         Ok(Run {
             rate_in: a.rate_hz,
             interp,
-            row_ns: tracker.hop() as f64 * 1e9 / rate,
             tracker,
             t0_ns: a.t0_ns,
             n_in: 0,
@@ -195,7 +192,7 @@ impl PitchStage {
         };
         let _ = out.emit(Item::Samples(SampleBlock {
             t0_ns: run.t0_ns + (t * 1e9).round() as i64,
-            rate_hz: 1e9 / run.row_ns,
+            rate_hz: run.tracker.rate_hz() / run.tracker.hop() as f64,
             channels: 3,
             data: Arc::from(&self.rows[..]),
             times_ns: None,
@@ -276,7 +273,7 @@ impl Stage for PitchStage {
             ),
             None => format!("{} Hz", run.rate_in),
         };
-        let rate = run.rate_in * pitch::upsampling(run.rate_in) as f64;
+        let rate = run.tracker.rate_hz();
         let span_ms = run.tracker.span() as f64 * 1e3 / rate;
         let interp_ms = run
             .interp

@@ -642,26 +642,14 @@ const EXCESS_WIDTHS: [usize; 2] = [1, 8];
 /// it stands out (for a line, the weights of maximal-ratio combining: gain
 /// over noise).
 pub fn snr_weights(spectra: &[f64], bins: usize, segments: usize) -> Vec<(f64, f64)> {
-    use vibroscope_math::peaks::chi2_ratio_sf;
+    use vibroscope_math::peaks::chi2_ratio_isf;
     let ch = spectra.len() / bins.max(1);
     let tests = (bins * ch * EXCESS_WIDTHS.len()).max(1) as f64;
     let k = segments.max(1);
-    // θ_m by bisection on the χ² tail.
+    // θ_m: where the χ² tail falls to 10⁻³ over all tests.
     let theta: Vec<f64> = EXCESS_WIDTHS
         .iter()
-        .map(|&m| {
-            let km = (k * m / 2).max(k);
-            let (mut lo, mut hi) = (1.0f64, 200.0f64);
-            for _ in 0..60 {
-                let mid = 0.5 * (lo + hi);
-                if chi2_ratio_sf(mid, km) * tests > 1e-3 {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            hi
-        })
+        .map(|&m| chi2_ratio_isf(1e-3 / tests, (k * m / 2).max(k)))
         .collect();
     let mut scratch = Vec::with_capacity(bins);
     let mut floor = vec![0.0; bins];
