@@ -55,15 +55,7 @@ fn bound_json(dir: &Path, video: &str, extra: &[&str]) -> serde_json::Value {
 fn the_bound_matches_the_simulators_truth() {
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
-    // A smooth picture: stripes at two angles and a ramp.
-    write_pgm(&dir.join("pic.pgm"), 64, 64, |x, y| {
-        let (x, y) = (x as f64, y as f64);
-        let v = 128.0
-            + 50.0 * (0.45 * x + 0.2 * y).sin()
-            + 30.0 * (0.1 * x - 0.5 * y).cos()
-            + 20.0 * (y / 63.0 - 0.5);
-        v.round() as u8
-    });
+    smooth_picture(&dir.join("pic.pgm"), 64);
     let base = "width = 128\nheight = 128\nobject = [32, 32, 64, 64]\nfps = 1000.0\nframes = 48\n\
                 amplitude_px = 0.05\nsignal = { type = \"tone\", freq_hz = 120.0 }\n";
     let picture = format!("texture = \"{}\"\n", dir.join("pic.pgm").display());

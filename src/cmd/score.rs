@@ -10,6 +10,13 @@ use std::process::ExitCode;
 /// after finding the best lag and gain (a recovery's scale and sign are
 /// arbitrary). The test is resampled to the reference's rate when they
 /// differ.
+///
+/// `wiener_bound_db` is the SNR the best fixed filter would reach on the
+/// test: a stationary Wiener filter built from the test's true signal and
+/// noise spectra (which only a known reference gives). Score a recovery
+/// before denoising to get the bound, then its denoised version to see how
+/// far a denoiser is from it (`listen --denoise wiener` adapts to speech's
+/// changing spectrum and can exceed it).
 #[derive(clap::Args)]
 #[command(after_help = "Example:\n  vibroscope score speech.wav recovered.wav --json score.json")]
 pub struct Args {
@@ -31,8 +38,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let text = serde_json::to_string_pretty(&r)?;
     super::outln!("{text}");
     eprintln!(
-        "SNR {} dB, segmental SNR {} dB, LLR {}, STOI {} (lag {} samples at {} Hz)",
+        "SNR {} dB (a fixed Wiener filter would reach {} dB), segmental SNR {} dB, LLR {}, STOI {} (lag {} samples at {} Hz)",
         super::num(r.snr_db, 2),
+        super::num(r.wiener_bound_db, 2),
         super::num(r.ssnr_db, 2),
         super::num(r.llr, 3),
         super::num(r.stoi, 3),

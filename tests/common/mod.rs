@@ -190,3 +190,17 @@ pub fn write_pgm(path: &Path, w: usize, h: usize, px: impl Fn(usize, usize) -> u
     }
     std::fs::write(path, b).unwrap();
 }
+
+/// A smooth `n` x `n` picture (PGM): stripes at two angles and a ramp, a
+/// texture whose gradients are known and unlike the simulator's random one.
+pub fn smooth_picture(path: &Path, n: usize) {
+    let last = (n - 1) as f64;
+    write_pgm(path, n, n, |x, y| {
+        let (x, y) = (x as f64, y as f64);
+        let v = 128.0
+            + 50.0 * (0.45 * x + 0.2 * y).sin()
+            + 30.0 * (0.1 * x - 0.5 * y).cos()
+            + 20.0 * (y / last - 0.5);
+        v.round() as u8
+    });
+}

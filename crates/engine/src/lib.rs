@@ -15,6 +15,8 @@ pub mod observe;
 pub mod runner;
 pub mod spec;
 pub mod stage;
+#[cfg(test)]
+pub(crate) mod test_support;
 pub mod wire;
 
 pub mod pipelines;

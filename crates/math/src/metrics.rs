@@ -720,6 +720,126 @@ pub fn best_lag_gain(reference: &[f64], test: &[f64], max_lag: usize) -> (isize,
     (best_lag, gain)
 }
 
+/// The SNR a stationary Wiener filter built from the true spectra reaches on `test`:
+/// the limit of any linear time-invariant denoiser (issue 14), to set a denoiser's
+/// [`score`] against.
+///
+/// [`best_lag_gain`] splits the aligned `test` into its signal `g r` and its noise
+/// `t - g r`; their power spectra are Welch averages (segments of the power
+/// of two nearest 0.1 s at `fs`, at least 16 samples, half overlapping, [`hanning`]
+/// windows); the filter is
+/// `H = S / (S + N)` per bin, interpolated linearly in frequency and applied with zero
+/// phase to the whole aligned test (zero-padded, so nothing wraps around); the result is
+/// scored as [`score`] scores SNR (its own lag and gain, then [`snr_db`]). A denoiser that
+/// adapts to speech's changing spectrum can exceed this figure; one that scores below it
+/// does worse than the best fixed filter.
+///
+/// `NaN` when [`score`]'s SNR is undefined (empty or non-finite input, a silent
+/// reference or test) or when the overlap is shorter than two segments. A test that is
+/// the reference scaled has no noise to filter and scores the FFT's rounding (about
+/// 300 dB).
+pub fn stationary_wiener_snr_db(reference: &[f64], test: &[f64], fs: f64, max_lag: usize) -> f64 {
+    let (lag, gain) = best_lag_gain(reference, test, max_lag);
+    if !(gain.is_finite() && gain != 0.0 && fs.is_finite() && fs > 0.0) {
+        return f64::NAN;
+    }
+    let (r, t) = overlap(reference, test, lag);
+    let seg = (0.1 * fs).log2().round().exp2().max(16.0) as usize;
+    if r.len() < 2 * seg {
+        return f64::NAN;
+    }
+    let noise: Vec<f64> = r.iter().zip(t).map(|(r, t)| t - gain * r).collect();
+    let signal_psd = welch(r, seg);
+    let noise_psd = welch(&noise, seg);
+    drop(noise);
+    let (Some(s), Some(n)) = (signal_psd, noise_psd) else {
+        return f64::NAN;
+    };
+    // The filter per Welch bin; the signal's spectrum is g² times the reference's.
+    let h: Vec<f64> = s
+        .iter()
+        .zip(&n)
+        .map(|(s, n)| {
+            let s = gain * gain * s;
+            if s + n > 0.0 {
+                s / (s + n)
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let Some(len) = t
+        .len()
+        .checked_add(seg)
+        .and_then(usize::checked_next_power_of_two)
+    else {
+        return f64::NAN;
+    };
+    let mut planner = RealFftPlanner::<f64>::new();
+    let forward = planner.plan_fft_forward(len);
+    let inverse = planner.plan_fft_inverse(len);
+    let mut buf = forward.make_input_vec();
+    buf[..t.len()].copy_from_slice(t);
+    let mut spec = forward.make_output_vec();
+    if forward.process(&mut buf, &mut spec).is_err() {
+        return f64::NAN;
+    }
+    let step = seg as f64 / len as f64;
+    for (k, c) in spec.iter_mut().enumerate() {
+        let x = k as f64 * step;
+        let i = (x.floor() as usize).min(h.len() - 1);
+        let f = x - i as f64;
+        let w = match h.get(i + 1) {
+            Some(next) => h[i] * (1.0 - f) + next * f,
+            None => h[i],
+        };
+        *c *= w / len as f64;
+    }
+    spec[0].im = 0.0;
+    if let Some(last) = spec.last_mut() {
+        last.im = 0.0;
+    }
+    if inverse.process(&mut spec, &mut buf).is_err() {
+        return f64::NAN;
+    }
+    // Free what is done with before the alignment's own transforms (memory
+    // peaks there: `score` bounds its input by it).
+    drop(spec);
+    buf.truncate(t.len());
+    buf.shrink_to_fit();
+    let (lag, gain) = best_lag_gain(r, &buf, max_lag);
+    if !(gain.is_finite() && gain != 0.0) {
+        return f64::NAN;
+    }
+    let (r, z) = overlap(r, &buf, lag);
+    let signal: f64 = r.iter().map(|r| r * r).sum();
+    let error: f64 = r.iter().zip(z).map(|(r, z)| (r - z / gain).powi(2)).sum();
+    10.0 * (signal / error).log10()
+}
+
+/// Welch's power spectrum of `x`: [`hanning`] segments of `seg` samples, half
+/// overlapping, `seg / 2 + 1` bins (unnormalised: only ratios are used).
+fn welch(x: &[f64], seg: usize) -> Option<Vec<f64>> {
+    let window = hanning(seg);
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fft = planner.plan_fft_forward(seg);
+    let mut buf = fft.make_input_vec();
+    let mut spec = fft.make_output_vec();
+    let mut psd = vec![0.0; spec.len()];
+    let mut start = 0;
+    while start + seg <= x.len() {
+        for ((b, v), w) in buf.iter_mut().zip(&x[start..start + seg]).zip(&window) {
+            *b = v * w;
+        }
+        fft.process(&mut buf, &mut spec).ok()?;
+        for (p, c) in psd.iter_mut().zip(&spec) {
+            *p += c.norm_sqr();
+        }
+        start += seg / 2;
+    }
+    Some(psd)
+}
+
 /// Aligns `test` to `reference` and computes all four scores.
 ///
 /// [`best_lag_gain`] (lag searched within `±max_lag`) gives the delay and gain; both
@@ -755,6 +875,61 @@ mod tests {
         env!("CARGO_MANIFEST_DIR"),
         "/../../../shared/data/speech-metrics"
     );
+
+    /// A signal confined to the lowest eighth of the band under white noise of the
+    /// same power (0 dB): the best fixed filter passes that eighth and stops the rest,
+    /// keeping an eighth of the noise, 10 log10(8) = 9.0 dB. A filter from wrong spectra
+    /// (or none) would stay near 0 dB.
+    #[test]
+    fn the_stationary_wiener_bound_of_a_band_limited_signal() {
+        let n = 1 << 15;
+        let mut state = 7u64;
+        let mut gauss = move || {
+            let mut u = || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (a, b) = (u(), u());
+            (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
+        };
+        let white: Vec<f64> = (0..n).map(|_| gauss()).collect();
+        let noise: Vec<f64> = (0..n).map(|_| gauss()).collect();
+        let mut planner = RealFftPlanner::<f64>::new();
+        let (fwd, inv) = (planner.plan_fft_forward(n), planner.plan_fft_inverse(n));
+        let mut buf = white.clone();
+        let mut spec = fwd.make_output_vec();
+        fwd.process(&mut buf, &mut spec).unwrap();
+        for (k, c) in spec.iter_mut().enumerate() {
+            if k > n / 16 {
+                *c = Complex::new(0.0, 0.0);
+            }
+        }
+        inv.process(&mut spec, &mut buf).unwrap();
+        let power = |x: &[f64]| x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64;
+        let scale = (power(&noise) / power(&buf)).sqrt();
+        let signal: Vec<f64> = buf.iter().map(|v| v * scale).collect();
+        let test: Vec<f64> = signal
+            .iter()
+            .zip(&noise)
+            .map(|(s, e)| -0.5 * (s + e))
+            .collect();
+        let raw = score(&signal, &test, 8000.0, 10).snr_db;
+        let bound = stationary_wiener_snr_db(&signal, &test, 8000.0, 10);
+        assert!(raw.abs() < 0.3, "raw SNR {raw:.2} dB");
+        assert!(
+            (bound - 10.0 * 8f64.log10()).abs() < 0.5,
+            "bound {bound:.2} dB, want 9.0"
+        );
+        // No noise: nothing to filter (only FFT rounding is left).
+        assert!(stationary_wiener_snr_db(&signal, &signal, 8000.0, 0) > 200.0);
+        // Too short for two segments, silent, empty, bad rate.
+        assert!(stationary_wiener_snr_db(&signal[..1000], &test[..1000], 8000.0, 0).is_nan());
+        assert!(stationary_wiener_snr_db(&vec![0.0; n], &test, 8000.0, 0).is_nan());
+        assert!(stationary_wiener_snr_db(&[], &[], 8000.0, 0).is_nan());
+        assert!(stationary_wiener_snr_db(&signal, &test, 0.0, 0).is_nan());
+    }
 
     /// Reads a mono WAV as f64 samples (float, or integer scaled to [-1, 1)).
     fn read_wav(name: &str) -> Option<(Vec<f64>, f64)> {

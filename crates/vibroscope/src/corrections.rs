@@ -36,26 +36,34 @@ pub fn apply_to_wav(path: &Path, corrections: &[Correction], denoise: Denoise) -
 /// Runs the denoiser (default settings, as the stage's) over `x`; `x`
 /// itself for [`Denoise::None`]. Output sample `k` is the estimate of input
 /// sample `k` (the denoisers' latency is only in when a sample is
-/// released), so the whole signal is fed and finished.
+/// released), so the whole signal is fed and finished. The signal is a
+/// recording, so each denoiser is first primed on its lead, as the stage
+/// does on replay.
 fn denoise_again(x: &[f64], rate: f64, kind: Denoise) -> Result<Vec<f64>> {
-    use crate::math::denoise::{SpectralSubtraction, SpeechEnhance, Wiener};
+    use crate::math::denoise::{DenoiseConfig, SpectralSubtraction, SpeechEnhance, Wiener};
     use crate::math::MathError;
     let input: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+    // Every default configuration has the same noise window.
+    let lead_len = (DenoiseConfig::default().noise_window_s * rate).ceil() as usize;
+    let lead = &input[..lead_len.min(input.len())];
     let mut out = Vec::with_capacity(input.len());
     match kind {
         Denoise::None => return Ok(x.to_vec()),
         Denoise::Subtract => {
             let mut d = SpectralSubtraction::with_defaults(rate).map_err(MathError::from)?;
+            d.prime(lead);
             d.process(&input, &mut out);
             d.finish(&mut out);
         }
         Denoise::Enhance => {
             let mut d = SpeechEnhance::with_defaults(rate).map_err(MathError::from)?;
+            d.prime(lead);
             d.process(&input, &mut out);
             d.finish(&mut out);
         }
         Denoise::Wiener => {
             let mut d = Wiener::with_defaults(rate).map_err(MathError::from)?;
+            d.prime(lead);
             d.process(&input, &mut out);
             d.finish(&mut out);
         }

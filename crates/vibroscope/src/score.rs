@@ -20,6 +20,12 @@ pub struct ScoreReport {
     pub llr: f64,
     #[serde(serialize_with = "finite")]
     pub stoi: f64,
+    /// The SNR the best fixed (stationary Wiener) filter, built from this
+    /// test's true signal and noise spectra, would reach on it
+    /// ([`metrics::stationary_wiener_snr_db`]): score a recovery before
+    /// denoising to get the bound its denoised version is measured against.
+    #[serde(serialize_with = "finite")]
+    pub wiener_bound_db: f64,
     pub lag_samples: isize,
     #[serde(serialize_with = "finite")]
     pub gain: f64,
@@ -41,9 +47,9 @@ fn finite<S: Serializer>(v: &f64, s: S) -> std::result::Result<S::Ok, S::Error> 
 pub const RATES_HZ: std::ops::RangeInclusive<u32> = 1..=768_000;
 /// Longest signal `score` accepts, in samples at the reference's rate
 /// (each file, the test after resampling): 2^23, 3.2 minutes at 44.1 kHz.
-/// Scoring needs about 130 bytes per sample of the pair (137 MB peak for
-/// two 1,000,000-sample WAVs, `/usr/bin/time -f %M vibroscope score`), so
-/// about 1.1 GB at this bound.
+/// Scoring needs about 170 bytes per sample of the pair (171 MB peak for
+/// two 1,000,000-sample WAVs, `/usr/bin/time -f %M vibroscope score`; 137
+/// MB before `wiener_bound_db`), so about 1.4 GB at this bound.
 pub const MAX_SAMPLES: u64 = 1 << 23;
 
 /// Checks a WAV's header: a rate in [`RATES_HZ`], a length (at the
@@ -132,6 +138,7 @@ pub fn score(reference: &Path, test: &Path, max_lag_s: f64) -> Result<ScoreRepor
     let max_lag = (max_lag_s * fr as f64).round() as usize;
     let (lag, gain) = metrics::best_lag_gain(&r, &t, max_lag);
     let s = metrics::score(&r, &t, fr as f64, max_lag);
+    let wiener_bound_db = metrics::stationary_wiener_snr_db(&r, &t, fr as f64, max_lag);
     let overlap = r.len().min(t.len());
     let mut notes = Vec::new();
     let mut why = |name: &str, v: f64, reason: String| {
@@ -166,8 +173,16 @@ pub fn score(reference: &Path, test: &Path, max_lag_s: f64) -> Result<ScoreRepor
             overlap as f64 / fr as f64
         ),
     );
+    why(
+        "wiener_bound_db",
+        wiener_bound_db,
+        format!(
+            "the {overlap}-sample overlap is shorter than two 0.1 s spectrum segments, or no gain fits"
+        ),
+    );
     Ok(ScoreReport {
         notes,
+        wiener_bound_db,
         snr_db: s.snr_db,
         ssnr_db: s.ssnr_db,
         llr: s.llr,

@@ -279,40 +279,17 @@ fn group_delay_s(f: &Sos, f_hz: f64, rate_hz: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::edge::{edge, Policy};
     use std::f64::consts::PI;
 
     /// Runs a tone at `f` through a Butterworth stage built for a replay
     /// (`live = false`) or a live graph, in 16-sample blocks; returns the
     /// output and the blocks' times.
     fn run(plan: FilterPlan, live: bool, f: f64, fs: f64, n: usize) -> (Vec<f32>, Vec<i64>) {
-        let ctx = BuildCtx {
-            held_downstream: 0,
-            pool_frames: 0,
-            input_types: vec![PortType::Audio],
-            live,
-            observer: None,
-        };
-        let Ok(Node::Stage(mut st)) = Box::new(plan).build(&ctx) else {
-            panic!("not a stage");
-        };
-        let (tx, mut rx, _) = edge(n, Policy::Block);
-        let mut out = Emitter::new(vec![tx], Control::new(), Arc::default());
         let x: Vec<f32> = (0..n)
             .map(|i| (2.0 * PI * f * i as f64 / fs).sin() as f32)
             .collect();
-        for (k, c) in x.chunks(16).enumerate() {
-            let t0 = (k as f64 * 16.0 * 1e9 / fs).round() as i64;
-            let a = AudioBlock {
-                t0_ns: t0,
-                rate_hz: fs,
-                samples: Arc::from(c),
-            };
-            st.process(0, Item::Audio(a), &mut out).unwrap();
-        }
-        st.finish(&mut out).unwrap();
         let (mut y, mut t) = (Vec::new(), Vec::new());
-        while let Some(Item::Audio(a)) = rx.try_recv() {
+        for a in crate::test_support::run_audio_stage(Box::new(plan), live, &x, fs, 16, 0) {
             y.extend_from_slice(&a.samples);
             t.push(a.t0_ns);
         }

@@ -6,6 +6,13 @@
 //! they go (minimum statistics; no look at the whole recording) and delay
 //! the signal by one STFT frame; every output block carries the capture
 //! time of its first sample, taken from the input blocks.
+//!
+//! Where replay and live differ (causality): on replay (no live source in
+//! the graph) a denoiser first reads `noise_window_s` of the stream and
+//! warms its noise tracker on it (`prime`), then denoises from the start,
+//! so a signal present from the first sample is not taken for noise; its
+//! first output waits for that lead. Live, it starts cold, with one frame
+//! of latency.
 
 use crate::*;
 use serde::Deserialize;
@@ -13,7 +20,7 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 use vibroscope_math::denoise::{
     DenoiseConfig, DenoiseError, SpectralSubtraction, SpeechEnhance, Wiener, DEFAULT_ALPHA,
-    DEFAULT_BETA,
+    DEFAULT_BETA, LSA_DD_ALPHA, WIENER_DD_ALPHA,
 };
 
 #[derive(Deserialize)]
@@ -22,6 +29,7 @@ struct P {
     frame_ms: f64,
     overlap: f64,
     noise_window_s: f64,
+    dd_alpha: Option<f64>,
     alpha: Option<f64>,
     beta: Option<f64>,
 }
@@ -41,7 +49,7 @@ const NOISE_WINDOW: ParamSpec = ParamSpec::new("noise_window_s", ParamType::Floa
         hi_open: false,
     })
     .unit("s")
-    .doc("window of the minimum-statistics noise tracker");
+    .doc("window of the minimum-statistics noise tracker; on replay also the lead that warms it before the first output (live starts cold)");
 
 const SUBTRACT_PARAMS: &[ParamSpec] = &[
     FRAME_MS,
@@ -54,7 +62,20 @@ const SUBTRACT_PARAMS: &[ParamSpec] = &[
         .floats(0.0, 1.0)
         .doc("spectral floor, a fraction of the noise power"),
 ];
-const ENHANCE_PARAMS: &[ParamSpec] = &[FRAME_MS, OVERLAP, NOISE_WINDOW];
+/// The decision-directed weight, whose default differs between the LSA and
+/// Wiener gains ([`WIENER_DD_ALPHA`]).
+const fn dd_alpha(default: f64) -> ParamSpec {
+    ParamSpec::new("dd_alpha", ParamType::Float, Def::Float(default))
+        .range(Range::Float {
+            lo: 0.0,
+            lo_open: false,
+            hi: 1.0,
+            hi_open: true,
+        })
+        .doc("weight of the previous frame in the decision-directed a-priori SNR (higher: smoother, less musical noise; lower: follows speech faster)")
+}
+const ENHANCE_PARAMS: &[ParamSpec] = &[FRAME_MS, OVERLAP, NOISE_WINDOW, dd_alpha(LSA_DD_ALPHA)];
+const WIENER_PARAMS: &[ParamSpec] = &[FRAME_MS, OVERLAP, NOISE_WINDOW, dd_alpha(WIENER_DD_ALPHA)];
 
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Method {
@@ -73,13 +94,19 @@ fn plan(p: &Params<'_>, method: Method) -> Result<Box<dyn Plan>, ConfigError> {
     }
     let v: P = p.resolve(match method {
         Method::Subtract => SUBTRACT_PARAMS,
-        Method::Enhance | Method::Wiener => ENHANCE_PARAMS,
+        Method::Enhance => ENHANCE_PARAMS,
+        Method::Wiener => WIENER_PARAMS,
     })?;
+    let base = match method {
+        Method::Wiener => DenoiseConfig::wiener(),
+        _ => DenoiseConfig::default(),
+    };
     let cfg = DenoiseConfig {
         frame_ms: v.frame_ms,
         overlap: v.overlap,
         noise_window_s: v.noise_window_s,
-        ..DenoiseConfig::default()
+        dd_alpha: v.dd_alpha.unwrap_or(base.dd_alpha),
+        ..base
     };
     let (alpha, beta) = (
         v.alpha.unwrap_or(DEFAULT_ALPHA),
@@ -144,7 +171,7 @@ pub const ENHANCE_KIND: KindSpec = audio_kind(
 pub const WIENER_KIND: KindSpec = audio_kind(
     "wiener",
     "streaming MMSE (Wiener) STFT denoiser, decision-directed a-priori SNR, tracked noise floor: raises SNR, not only segmental SNR",
-    ENHANCE_PARAMS,
+    WIENER_PARAMS,
     |p| plan(p, Method::Wiener),
 );
 
@@ -156,13 +183,14 @@ struct DenoisePlan {
 }
 
 impl Plan for DenoisePlan {
-    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+    fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
         Ok(Node::Stage(Box::new(Denoise {
             plan: *self,
             filter: None,
             rate: 0.0,
             pending: VecDeque::new(),
             out: Vec::new(),
+            lead: Lead::from_live(ctx.live),
         })))
     }
 }
@@ -173,8 +201,30 @@ enum Filter {
     Wiener(Box<Wiener>),
 }
 
+/// Replay's look at the start: the first `noise_window_s` of samples warm
+/// the noise tracker before any is denoised (the denoisers' `prime`).
+enum Lead {
+    /// Live, or the lead is done: every block goes straight through.
+    Off,
+    /// Replay before the first block (its rate sets the lead's length).
+    Pending,
+    /// Collecting the lead: these samples, until `target`.
+    Collecting { samples: Vec<f32>, target: usize },
+}
+
+impl Lead {
+    fn from_live(live: bool) -> Self {
+        if live {
+            Lead::Off
+        } else {
+            Lead::Pending
+        }
+    }
+}
+
 struct Denoise {
     plan: DenoisePlan,
+    lead: Lead,
     filter: Option<Filter>,
     rate: f64,
     /// Input blocks whose samples have not all come out yet: (t0, samples left).
@@ -208,6 +258,35 @@ impl Denoise {
     }
 }
 
+impl Denoise {
+    fn feed(&mut self, samples: &[f32]) {
+        match self.filter.as_mut() {
+            Some(Filter::Subtract(f)) => f.process(samples, &mut self.out),
+            Some(Filter::Enhance(f)) => f.process(samples, &mut self.out),
+            Some(Filter::Wiener(f)) => f.process(samples, &mut self.out),
+            None => {}
+        }
+    }
+
+    /// Primes the tracker on the collected lead, then denoises it from its
+    /// start; afterwards blocks go straight through.
+    fn release_lead(&mut self) {
+        let Lead::Collecting { samples, target } = std::mem::replace(&mut self.lead, Lead::Off)
+        else {
+            return;
+        };
+        // Exactly the lead, however the blocks fell.
+        let lead = &samples[..target.min(samples.len())];
+        match self.filter.as_mut() {
+            Some(Filter::Subtract(f)) => f.prime(lead),
+            Some(Filter::Enhance(f)) => f.prime(lead),
+            Some(Filter::Wiener(f)) => f.prime(lead),
+            None => {}
+        }
+        self.feed(&samples);
+    }
+}
+
 impl Stage for Denoise {
     fn process(&mut self, _: usize, item: Item, out: &mut Emitter) -> Result<(), StageError> {
         let Item::Audio(a) = item else {
@@ -235,17 +314,30 @@ impl Stage for Denoise {
             )));
         }
         self.pending.push_back((a.t0_ns, a.samples.len(), 0));
-        match self.filter.as_mut() {
-            Some(Filter::Subtract(f)) => f.process(&a.samples, &mut self.out),
-            Some(Filter::Enhance(f)) => f.process(&a.samples, &mut self.out),
-            Some(Filter::Wiener(f)) => f.process(&a.samples, &mut self.out),
-            None => {}
+        if let Lead::Pending = self.lead {
+            // Once per stream: the lead's buffer, before any output.
+            let target = (self.plan.cfg.noise_window_s * a.rate_hz).ceil() as usize;
+            self.lead = Lead::Collecting {
+                samples: Vec::with_capacity(target),
+                target,
+            };
         }
+        if let Lead::Collecting { samples, target } = &mut self.lead {
+            samples.extend_from_slice(&a.samples);
+            if samples.len() >= *target {
+                self.release_lead();
+                self.emit(out);
+            }
+            return Ok(());
+        }
+        self.feed(&a.samples);
         self.emit(out);
         Ok(())
     }
 
     fn finish(&mut self, out: &mut Emitter) -> Result<(), StageError> {
+        // A stream shorter than the lead: all of it warms the tracker.
+        self.release_lead();
         match self.filter.as_mut() {
             Some(Filter::Subtract(f)) => f.finish(&mut self.out),
             Some(Filter::Enhance(f)) => f.finish(&mut self.out),
@@ -254,5 +346,88 @@ impl Stage for Denoise {
         }
         self.emit(out);
         Ok(())
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    /// Runs `x` through a `wiener` stage built for a replay or a live graph
+    /// in blocks of `block` samples; returns the output and its blocks' times.
+    /// A live stream's block times are checked here: each input block's
+    /// time leaves with its first sample.
+    fn run(x: &[f32], fs: f64, live: bool, block: usize) -> (Vec<f32>, Vec<i64>) {
+        let plan = DenoisePlan {
+            method: Method::Wiener,
+            cfg: DenoiseConfig::wiener(),
+            alpha: DEFAULT_ALPHA,
+            beta: DEFAULT_BETA,
+        };
+        let blocks =
+            crate::test_support::run_audio_stage(Box::new(plan), live, x, fs, block, 1_000);
+        let times: Vec<i64> = (0..x.len().div_ceil(block))
+            .map(|k| 1_000 + (k as f64 * block as f64 * 1e9 / fs).round() as i64)
+            .collect();
+        let y: Vec<f32> = blocks
+            .iter()
+            .flat_map(|a| a.samples.iter().copied())
+            .collect();
+        let t: Vec<i64> = blocks.iter().map(|a| a.t0_ns).collect();
+        // An input block may leave in two pieces (the frame of latency), each
+        // with its own first sample's time; every input block's time leaves.
+        assert!(
+            times.iter().all(|t0| t.contains(t0)),
+            "an input block's time is missing"
+        );
+        (y, t)
+    }
+
+    /// The library's Wiener over `x`, primed on its first `noise_window_s`
+    /// or cold.
+    fn direct(x: &[f32], fs: f64, prime: bool) -> Vec<f32> {
+        let mut d = Wiener::with_defaults(fs).unwrap();
+        if prime {
+            let n = (DenoiseConfig::wiener().noise_window_s * fs).ceil() as usize;
+            d.prime(&x[..n.min(x.len())]);
+        }
+        let mut out = Vec::new();
+        d.process(x, &mut out);
+        d.finish(&mut out);
+        out
+    }
+
+    /// Replay primes on the lead and live starts cold, whatever the block
+    /// size (a block longer than the lead, a stream shorter than it), and
+    /// both keep every sample and block time.
+    #[test]
+    fn replay_primes_on_the_lead_and_live_starts_cold() {
+        let fs = 2200.0;
+        let x: Vec<f32> = (0..9000)
+            .map(|i| {
+                let t = i as f64 / fs;
+                let noise = ((i as f64 * 12.9898).sin() * 43758.5453).fract() - 0.5;
+                ((2.0 * std::f64::consts::PI * 300.0 * t).sin() * (1.0 + (3.0 * t).sin()) * 0.3
+                    + 0.2 * noise) as f32
+            })
+            .collect();
+        let (primed, cold) = (direct(&x, fs, true), direct(&x, fs, false));
+        assert!(primed != cold, "priming changed nothing");
+        for block in [1, 64, 333, 5000] {
+            assert!(
+                run(&x, fs, false, block).0 == primed,
+                "replay, blocks of {block}"
+            );
+            assert!(
+                run(&x, fs, true, block).0 == cold,
+                "live, blocks of {block}"
+            );
+        }
+        let short = &x[..1000];
+        assert!(
+            run(short, fs, false, 64).0 == direct(short, fs, true),
+            "a short replay"
+        );
     }
 }
