@@ -571,6 +571,7 @@ fn a_small_vibrating_region_is_the_top_peak_without_a_roi() {
         assert_eq!(code(&o), 0, "{}", stderr(&o));
         let doc: serde_json::Value =
             serde_json::from_slice(&std::fs::read(d.join("small.json")).unwrap()).unwrap();
+        assert_eq!(doc["combine"], combine, "the document says how it combined");
         // An SSI-cov estimate from one stable order and no segments has no
         // uncertainty to give: null ("n/a"), never a confident 0.
         for e in doc["peaks"]

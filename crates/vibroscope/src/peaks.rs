@@ -98,6 +98,10 @@ pub struct SpectrumReport {
     pub taper: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub spectrum: Option<SpectrumDb>,
+    /// How the channels' spectra were combined (`snr` or `sum`; `spectrum`
+    /// only): it decides which peaks a small region can carry.
+    #[serde(skip_deserializing, skip_serializing_if = "Option::is_none")]
+    pub combine: Option<&'static str>,
     /// The unit and method of the peaks' `amplitude` (`spectrum` only).
     #[serde(skip_deserializing, skip_serializing_if = "Option::is_none")]
     pub motion: Option<crate::motion::MotionSummary>,

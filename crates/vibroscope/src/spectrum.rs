@@ -270,6 +270,7 @@ pub fn run_spectrum_with(
     }
     let run = pipeline::run(&decl, o.run)?;
     let mut report: SpectrumReport = crate::json::read(tmp.path(), "the peaks document")?;
+    report.combine = Some(o.combine.name());
     if let Some(tap) = tap {
         tap.refine(&mut report, &Default::default())?;
     }
