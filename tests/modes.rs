@@ -74,7 +74,10 @@ fn images(
             im.push(&fr, t_ns).unwrap();
         }
     }
-    imagers.iter().map(|im| im.finish().unwrap().data).collect()
+    imagers
+        .iter_mut()
+        .map(|im| im.finish().unwrap().data)
+        .collect()
 }
 
 /// Per object column, the mean of the image over the beam's interior rows,
@@ -172,9 +175,11 @@ fn beam_modal_images(pyramid: PyramidKind, min_corr: f64) {
         assert!(others.iter().all(|&o| o < c.abs()));
     }
     // The tone-driven mode 2: the free-end amplitude in pixels. Phase-based
-    // displacement on this smooth texture reads a little low (seeds 1-8:
-    // -16% to -1.5%: noisy low-contrast pixels pull Δφ toward 0); a wrong
-    // unit (a lost factor 2 or 2π) is far outside 25%.
+    // displacement on this smooth texture reads a little low (seeds 1-8,
+    // scale 1: steerable -13.7% to -0.7%, Riesz -22.7% to -5.1%: noisy
+    // low-contrast pixels pull Δφ toward 0, which the noise-free
+    // translation test does not see); a wrong unit (a lost factor 2 or 2π)
+    // is far outside 25%.
     let phi2 = truth(2);
     let gain = profiles[1]
         .iter()
@@ -693,4 +698,85 @@ fn guitar_modal_images_light_up_the_strings() {
     for s in strings {
         assert!(s > 2.0 * worst_off, "{s} vs {worst_off}");
     }
+}
+
+/// The phase per pixel of motion is measured where each pixel is, on the
+/// mean frame: a whole frame of the simulator's smooth texture translated
+/// by a known tone, without sensor noise (16-bit), reads its amplitude
+/// within 5% at scales 0, 1 and 2 with the steerable pyramid, along x and
+/// y (measured: +1.8% to -3.6%). One slope per band from the first frame
+/// read +80% at scale 0 (on a 64x64 frame: its wrap-around edges dominated
+/// it) and -39% on the beam (its static outline did). The Riesz pyramid is
+/// not there yet (-6.0% to -12.0%): it is held to 20% so that it cannot
+/// get worse unseen.
+#[test]
+fn a_noise_free_translation_reads_its_amplitude_at_every_scale() {
+    let (w, h, fps, f, amp) = (128usize, 128usize, 300.0, 58.3, 0.15);
+    let mut failed = Vec::new();
+    for (motion, dir) in [(Motion::X, 0.0), (Motion::Y, 90.0)] {
+        let text = format!(
+            "width = {w}\nheight = {h}\nfps = {fps}\nframes = 200\nobject = [0, 0, {w}, {h}]\n\
+             noise_std = 0.0\nbits = 16\namplitude_px = {amp}\ndirection_deg = {dir}\n\
+             signal = {{ type = \"tone\", freq_hz = {f} }}\n"
+        );
+        let p: SyntheticParams = toml::from_str(&text).unwrap();
+        let mut scene = p.scene().unwrap();
+        for pyramid in [PyramidKind::Csp, PyramidKind::Riesz] {
+            let mut imagers: Vec<ModalImager> = (0..3)
+                .map(|scale| {
+                    let cfg = ModalConfig {
+                        freq_hz: f,
+                        scale,
+                        sigma_px: 1.5,
+                        motion,
+                        normalize: true,
+                        pyramid,
+                    };
+                    ModalImager::new(w, h, cfg).unwrap()
+                })
+                .collect();
+            let mut px = vec![0u16; w * h];
+            let mut fr = vec![0f32; w * h];
+            for i in 0..200u64 {
+                let t = i as f64 / fps;
+                scene.render(i, t, Dest::U16(&mut px));
+                fr.iter_mut().zip(&px).for_each(|(d, &s)| *d = s as f32);
+                for im in &mut imagers {
+                    im.push(&fr, (t * 1e9).round() as i64).unwrap();
+                }
+            }
+            for (scale, im) in imagers.iter_mut().enumerate() {
+                let img = im.finish().unwrap();
+                // The interior, away from the frame's edges.
+                let (mut sum, mut n) = (0.0, 0.0);
+                for y in 32..h - 32 {
+                    for x in 32..w - 32 {
+                        sum += img.data[y * w + x].norm() as f64;
+                        n += 1.0;
+                    }
+                }
+                let got = sum / n;
+                let err = got / amp - 1.0;
+                eprintln!(
+                    "{} {motion:?} scale {scale}: {got:.4} px ({:+.1}%)",
+                    pyramid.name(),
+                    100.0 * err
+                );
+                let bar = match pyramid {
+                    PyramidKind::Csp => 0.05,
+                    PyramidKind::Riesz => 0.2,
+                };
+                if err.abs() > bar {
+                    failed.push(format!(
+                        "{} {motion:?} scale {scale}: {got:.4} px",
+                        pyramid.name()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(
+        failed.is_empty(),
+        "not within the bar of {amp} px: {failed:?}"
+    );
 }

@@ -550,7 +550,7 @@ pub fn extract_basis(o: &BasisOptions) -> Result<Basis> {
     }
     let colour = rest_colour(&o.video, &info, (w, h), &mut notes);
     let mut modes = Vec::with_capacity(picked.len());
-    for (p, pair) in picked.iter().zip(imagers.chunks_exact(2)) {
+    for (p, pair) in picked.iter().zip(imagers.chunks_exact_mut(2)) {
         let x = pair[0].finish().map_err(crate::math::MathError::from)?;
         let y = pair[1].finish().map_err(crate::math::MathError::from)?;
         let mut shape = Shape {

@@ -229,7 +229,7 @@ impl Stage for Modes {
     }
 
     fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
-        let Some(im) = &self.imager else {
+        let Some(mut im) = self.imager.take() else {
             return Err(StageError::format(format!(
                 "{}: no frame arrived",
                 self.p.path.display()
