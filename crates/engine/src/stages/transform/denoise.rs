@@ -201,6 +201,10 @@ enum Filter {
     Wiener(Box<Wiener>),
 }
 
+/// The longest lead a replay collects, in samples (16 MiB of f32; 87 s at
+/// 48 kHz, longer than any noise window at a camera's rate).
+const MAX_LEAD: usize = 1 << 22;
+
 /// Replay's look at the start: the first `noise_window_s` of samples warm
 /// the noise tracker before any is denoised (the denoisers' `prime`).
 enum Lead {
@@ -315,10 +319,17 @@ impl Stage for Denoise {
         }
         self.pending.push_back((a.t0_ns, a.samples.len(), 0));
         if let Lead::Pending = self.lead {
-            // Once per stream: the lead's buffer, before any output.
-            let target = (self.plan.cfg.noise_window_s * a.rate_hz).ceil() as usize;
+            // Once per stream: the lead's buffer, before any output; at
+            // most `MAX_LEAD` samples (a long window at a high rate warms on
+            // its first part), grown as it fills rather than reserved whole.
+            let target = (self.plan.cfg.noise_window_s * a.rate_hz).ceil();
+            let target = if target.is_finite() && target > 0.0 {
+                (target as usize).min(MAX_LEAD)
+            } else {
+                0
+            };
             self.lead = Lead::Collecting {
-                samples: Vec::with_capacity(target),
+                samples: Vec::with_capacity(target.min(1 << 16)),
                 target,
             };
         }
