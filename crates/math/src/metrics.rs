@@ -883,19 +883,9 @@ mod tests {
     #[test]
     fn the_stationary_wiener_bound_of_a_band_limited_signal() {
         let n = 1 << 15;
-        let mut state = 7u64;
-        let mut gauss = move || {
-            let mut u = || {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-            };
-            let (a, b) = (u(), u());
-            (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-        };
-        let white: Vec<f64> = (0..n).map(|_| gauss()).collect();
-        let noise: Vec<f64> = (0..n).map(|_| gauss()).collect();
+        let (mut rng, normal) = (crate::rng::Xoshiro256::new(7), crate::rng::Ziggurat::new());
+        let white: Vec<f64> = (0..n).map(|_| normal.sample(&mut rng)).collect();
+        let noise: Vec<f64> = (0..n).map(|_| normal.sample(&mut rng)).collect();
         let mut planner = RealFftPlanner::<f64>::new();
         let (fwd, inv) = (planner.plan_fft_forward(n), planner.plan_fft_inverse(n));
         let mut buf = white.clone();

@@ -468,7 +468,7 @@ impl ModalImager {
 
     /// Band `bi`'s input pixels per radian of phase change along its axis,
     /// per band pixel: 1 / g with g the phase slope there, measured on the
-    /// mean frame (nearly free of sensor noise, which does not move with
+    /// `mean` frame (nearly free of sensor noise, which does not move with
     /// the object) moved by one pixel, as arg of G∗(A² e^{iΔφ}) blurred as
     /// the image is (at least one band pixel), skipping the band's first
     /// column (row), which sees the repeated edge. Local, not one slope
@@ -480,10 +480,8 @@ impl ModalImager {
     /// slope (much weaker than the mean texture) it shrinks to the band-wide
     /// one, else the scale's nominal frequency. Every slope is held within
     /// a quarter to twice the nominal one.
-    fn px_per_rad(&mut self, bi: usize) -> Result<Vec<f64>, ModalError> {
+    fn px_per_rad(&mut self, bi: usize, mean: &[f32]) -> Result<Vec<f64>, ModalError> {
         let (w, h) = (self.width, self.height);
-        let n = self.frames.max(1) as f64;
-        let mean: Vec<f32> = self.frame_sum.iter().map(|&v| (v / n) as f32).collect();
         let band = self.bands[bi].band;
         let vertical = band % 2 == 1;
         // The content moved by +1 pixel: moved(x) = mean(x - 1), the first
@@ -500,7 +498,7 @@ impl ModalImager {
             }
         }
         let (gw, gh) = (self.grid_w, self.grid_h);
-        self.pyr.shift_delta(&mean, &moved, band, &mut self.delta)?;
+        self.pyr.shift_delta(mean, &moved, band, &mut self.delta)?;
         let weight = &self.bands[bi].weight;
         let mut re = vec![0.0f64; gw * gh];
         let mut im = vec![0.0f64; gw * gh];
@@ -576,8 +574,9 @@ impl ModalImager {
         let gn = self.grid_w * self.grid_h;
         let mut num = vec![Complex64::new(0.0, 0.0); gn];
         let mut den = vec![0.0f64; gn];
+        let mean: Vec<f32> = self.frame_sum.iter().map(|&v| (v / n) as f32).collect();
         for bi in 0..self.bands.len() {
-            let px_per_rad = self.px_per_rad(bi)?;
+            let px_per_rad = self.px_per_rad(bi, &mean)?;
             let b = &self.bands[bi];
             for (p, (((a, &s), &wt), &k)) in b
                 .acc

@@ -366,10 +366,9 @@ mod tests {
     use super::*;
 
     /// Runs `x` through a `wiener` stage built for a replay or a live graph
-    /// in blocks of `block` samples; returns the output and its blocks' times.
-    /// A live stream's block times are checked here: each input block's
-    /// time leaves with its first sample.
-    fn run(x: &[f32], fs: f64, live: bool, block: usize) -> (Vec<f32>, Vec<i64>) {
+    /// in blocks of `block` samples; returns the output. The block times are
+    /// checked here: each input block's time leaves with its first sample.
+    fn run(x: &[f32], fs: f64, live: bool, block: usize) -> Vec<f32> {
         let plan = DenoisePlan {
             method: Method::Wiener,
             cfg: DenoiseConfig::wiener(),
@@ -381,10 +380,6 @@ mod tests {
         let times: Vec<i64> = (0..x.len().div_ceil(block))
             .map(|k| 1_000 + (k as f64 * block as f64 * 1e9 / fs).round() as i64)
             .collect();
-        let y: Vec<f32> = blocks
-            .iter()
-            .flat_map(|a| a.samples.iter().copied())
-            .collect();
         let t: Vec<i64> = blocks.iter().map(|a| a.t0_ns).collect();
         // An input block may leave in two pieces (the frame of latency), each
         // with its own first sample's time; every input block's time leaves.
@@ -392,7 +387,10 @@ mod tests {
             times.iter().all(|t0| t.contains(t0)),
             "an input block's time is missing"
         );
-        (y, t)
+        blocks
+            .iter()
+            .flat_map(|a| a.samples.iter().copied())
+            .collect()
     }
 
     /// The library's Wiener over `x`, primed on its first `noise_window_s`
@@ -415,10 +413,11 @@ mod tests {
     #[test]
     fn replay_primes_on_the_lead_and_live_starts_cold() {
         let fs = 2200.0;
+        let mut rng = vibroscope_math::rng::Xoshiro256::new(3);
         let x: Vec<f32> = (0..9000)
             .map(|i| {
                 let t = i as f64 / fs;
-                let noise = ((i as f64 * 12.9898).sin() * 43758.5453).fract() - 0.5;
+                let noise = rng.next_f64() - 0.5;
                 ((2.0 * std::f64::consts::PI * 300.0 * t).sin() * (1.0 + (3.0 * t).sin()) * 0.3
                     + 0.2 * noise) as f32
             })
@@ -427,17 +426,14 @@ mod tests {
         assert!(primed != cold, "priming changed nothing");
         for block in [1, 64, 333, 5000] {
             assert!(
-                run(&x, fs, false, block).0 == primed,
+                run(&x, fs, false, block) == primed,
                 "replay, blocks of {block}"
             );
-            assert!(
-                run(&x, fs, true, block).0 == cold,
-                "live, blocks of {block}"
-            );
+            assert!(run(&x, fs, true, block) == cold, "live, blocks of {block}");
         }
         let short = &x[..1000];
         assert!(
-            run(short, fs, false, 64).0 == direct(short, fs, true),
+            run(short, fs, false, 64) == direct(short, fs, true),
             "a short replay"
         );
     }
