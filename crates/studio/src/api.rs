@@ -1160,6 +1160,14 @@ fn mode_units(v: &mut Value, scale: Option<&vibroscope::units::Scale>) {
 /// decodes, well above twice any frame rate a region's motion is sampled at
 /// by the cameras we read (up to 4 kHz of motion).
 const LISTEN_RATE_HZ: u32 = 8000;
+/// The lowest frame rate the studio makes a sound from: below it the
+/// sound's content, which ends at half the frame rate, is all under 10 Hz,
+/// below hearing (the motion view shows slow vibration). A rate a request
+/// can set also bounds the work: the sound lasts frames / fps.
+const MIN_LISTEN_FPS: f64 = 20.0;
+/// The longest sound the studio makes: its WAV, sent in the answer, is then
+/// at most 9.6 MB (`vibroscope listen` has no such limit).
+const MAX_LISTEN_S: f64 = 600.0;
 
 async fn listen(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Value>> {
     region_answer(app, &b, "listen", region_sound).await
@@ -1170,6 +1178,22 @@ async fn listen(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<V
 /// content ends) in dB.
 fn region_sound(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Value> {
     let frame_rate = sel.probe.fps;
+    if let Some(rate) = frame_rate {
+        if rate < MIN_LISTEN_FPS {
+            return Err(ApiError::unprocessable(format!(
+                "fps {rate}: a sound needs at least {MIN_LISTEN_FPS} frames per second (its content ends at half the frame rate, {} Hz here, below hearing); the motion view shows slow vibration",
+                rate / 2.0
+            )));
+        }
+        if let Some(frames) = sel.probe.frames {
+            let seconds = frames as f64 / rate;
+            if seconds > MAX_LISTEN_S {
+                return Err(ApiError::unprocessable(format!(
+                    "{frames} frames at fps {rate} make {seconds:.0} s of sound; the studio plays at most {MAX_LISTEN_S} s (use `vibroscope listen` for longer recordings)"
+                )));
+            }
+        }
+    }
     let wav = vibroscope::io::atomic::TempPath::new("studio-listen.wav");
     let o = vibroscope::listen::ListenOptions {
         video: path.to_path_buf(),

@@ -207,6 +207,18 @@ fn paths_bodies_and_malformed_requests_get_the_right_status() {
         ("/api/listen", "{\"video\":\"../outside/secret.y4m\"}", 403),
         ("/api/listen", "{\"video\":\"sub/clip.y4m\",\"x\":1}", 400),
         ("/api/listen", "{\"video\":\"nothing.y4m\"}", 404),
+        // A sound from 1.1 frames a second is 7000 times longer than the
+        // recording's frames at 8 kHz, all of it under 1 Hz: refused.
+        (
+            "/api/listen",
+            "{\"video\":\"sub/clip.y4m\",\"fps\":1.1}",
+            422,
+        ),
+        (
+            "/api/listen",
+            "{\"video\":\"sub/clip.y4m\",\"fps\":1e-300}",
+            422,
+        ),
         (
             "/api/motion",
             "{\"video\":\"sub/clip.y4m\",\"scale_mm_per_px\":0}",
