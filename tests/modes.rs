@@ -700,83 +700,129 @@ fn guitar_modal_images_light_up_the_strings() {
     }
 }
 
-/// The phase per pixel of motion is measured where each pixel is, on the
-/// mean frame: a whole frame of the simulator's smooth texture translated
-/// by a known tone, without sensor noise (16-bit), reads its amplitude
-/// within 5% at scales 0, 1 and 2 with the steerable pyramid, along x and
-/// y (measured: +1.8% to -3.6%). One slope per band from the first frame
-/// read +80% at scale 0 (on a 64x64 frame: its wrap-around edges dominated
-/// it) and -39% on the beam (its static outline did). The Riesz pyramid is
-/// not there yet (-6.0% to -12.0%): it is held to 20% so that it cannot
-/// get worse unseen.
+/// Modal amplitude is unbiased at every scale (issue 14): a whole frame
+/// translated by a known tone, imaged at scales 0, 1 and 2 with both
+/// pyramids, along x, along y, and along x and y together (`Motion::Sum`,
+/// the default of `modes`, for a motion along 0° and 120°), reads its
+/// amplitude (the mean |image| over the interior) within 5% with the
+/// steerable pyramid: on the simulator's random texture and on a smooth
+/// picture without sensor noise (16-bit: the bias alone), and on the
+/// random texture with the simulator's default noise (2 DN, 8-bit).
+/// Measured: -3.0% to +0.9% over those 36 images. The Riesz pyramid is held
+/// to 10% (measured -1.4% to +5.2%), except along x and y together on the
+/// picture (+6.4% and +22.5% at scales 1 and 2 at 120°), which is printed,
+/// not asserted.
+///
+/// Each pixel's phase change is fitted to its phase per pixel of motion by
+/// least squares (x and y together: a 2-D fit along the pixel's own
+/// direction), the phase per pixel of motion a central difference.
+/// Dividing by a slope smoothed over the neighbourhood and held within an
+/// octave of the scale's nominal one read the smooth picture 41% low at
+/// scale 0 and the Riesz pyramid up to 12% low; averaging the x and y
+/// bands read a motion along x at half its amplitude.
+///
+/// Not covered: the smooth picture with noise at scale 0 of the steerable
+/// pyramid, whose finest band holds texture at under 1% of the noise's
+/// power (median over the frame): the image there is noise, and its mean
+/// |image| reads several times the motion.
 #[test]
-fn a_noise_free_translation_reads_its_amplitude_at_every_scale() {
+fn a_translation_reads_its_amplitude_at_every_scale_on_two_textures() {
     let (w, h, fps, f, amp) = (128usize, 128usize, 300.0, 58.3, 0.15);
+    let dir = tempfile::tempdir().unwrap();
+    let picture = dir.path().join("pic.pgm");
+    smooth_picture(&picture, w);
+    let picture = format!("texture = \"{}\"\n", picture.display());
     let mut failed = Vec::new();
-    for (motion, dir) in [(Motion::X, 0.0), (Motion::Y, 90.0)] {
-        let text = format!(
-            "width = {w}\nheight = {h}\nfps = {fps}\nframes = 200\nobject = [0, 0, {w}, {h}]\n\
-             noise_std = 0.0\nbits = 16\namplitude_px = {amp}\ndirection_deg = {dir}\n\
-             signal = {{ type = \"tone\", freq_hz = {f} }}\n"
-        );
-        let p: SyntheticParams = toml::from_str(&text).unwrap();
-        let mut scene = p.scene().unwrap();
-        for pyramid in [PyramidKind::Csp, PyramidKind::Riesz] {
-            let mut imagers: Vec<ModalImager> = (0..3)
-                .map(|scale| {
-                    let cfg = ModalConfig {
-                        freq_hz: f,
-                        scale,
-                        sigma_px: 1.5,
-                        motion,
-                        normalize: true,
-                        pyramid,
-                    };
-                    ModalImager::new(w, h, cfg).unwrap()
-                })
-                .collect();
-            let mut px = vec![0u16; w * h];
-            let mut fr = vec![0f32; w * h];
-            for i in 0..200u64 {
-                let t = i as f64 / fps;
-                scene.render(i, t, Dest::U16(&mut px));
-                fr.iter_mut().zip(&px).for_each(|(d, &s)| *d = s as f32);
-                for im in &mut imagers {
-                    im.push(&fr, (t * 1e9).round() as i64).unwrap();
-                }
-            }
-            for (scale, im) in imagers.iter_mut().enumerate() {
-                let img = im.finish().unwrap();
-                // The interior, away from the frame's edges.
-                let (mut sum, mut n) = (0.0, 0.0);
-                for y in 32..h - 32 {
-                    for x in 32..w - 32 {
-                        sum += img.data[y * w + x].norm() as f64;
-                        n += 1.0;
+    for (case, extra) in [
+        (
+            "random texture, no noise",
+            "noise_std = 0.0\nbits = 16\n".to_owned(),
+        ),
+        (
+            "picture, no noise",
+            format!("noise_std = 0.0\nbits = 16\n{picture}"),
+        ),
+        (
+            "random texture, 2 DN",
+            "noise_std = 2.0\nbits = 8\n".to_owned(),
+        ),
+    ] {
+        for (motion, dir) in [
+            (Motion::X, 0.0),
+            (Motion::Y, 90.0),
+            (Motion::Sum, 0.0),
+            (Motion::Sum, 120.0),
+        ] {
+            let text = format!(
+                "width = {w}\nheight = {h}\nfps = {fps}\nframes = 200\nobject = [0, 0, {w}, {h}]\n\
+                 {extra}amplitude_px = {amp}\ndirection_deg = {dir}\n\
+                 signal = {{ type = \"tone\", freq_hz = {f} }}\n"
+            );
+            let p: SyntheticParams = toml::from_str(&text).unwrap();
+            let mut scene = p.scene().unwrap();
+            for pyramid in [PyramidKind::Csp, PyramidKind::Riesz] {
+                let mut imagers: Vec<ModalImager> = (0..3)
+                    .map(|scale| {
+                        let cfg = ModalConfig {
+                            freq_hz: f,
+                            scale,
+                            sigma_px: 1.5,
+                            motion,
+                            normalize: true,
+                            pyramid,
+                        };
+                        ModalImager::new(w, h, cfg).unwrap()
+                    })
+                    .collect();
+                let mut px = vec![0u16; w * h];
+                let mut fr = vec![0f32; w * h];
+                for i in 0..200u64 {
+                    let t = i as f64 / fps;
+                    scene.render(i, t, Dest::U16(&mut px));
+                    fr.iter_mut().zip(&px).for_each(|(d, &s)| *d = s as f32);
+                    for im in &mut imagers {
+                        im.push(&fr, (t * 1e9).round() as i64).unwrap();
                     }
                 }
-                let got = sum / n;
-                let err = got / amp - 1.0;
-                eprintln!(
-                    "{} {motion:?} scale {scale}: {got:.4} px ({:+.1}%)",
-                    pyramid.name(),
-                    100.0 * err
-                );
-                let bar = match pyramid {
-                    PyramidKind::Csp => 0.05,
-                    PyramidKind::Riesz => 0.2,
-                };
-                if err.abs() > bar {
-                    failed.push(format!(
-                        "{} {motion:?} scale {scale}: {got:.4} px",
+                for (scale, im) in imagers.iter_mut().enumerate() {
+                    let img = im.finish().unwrap();
+                    // The interior, away from the frame's edges.
+                    let (mut sum, mut n) = (0.0, 0.0);
+                    for y in 32..h - 32 {
+                        for x in 32..w - 32 {
+                            sum += img.data[y * w + x].norm() as f64;
+                            n += 1.0;
+                        }
+                    }
+                    let got = sum / n;
+                    let err = got / amp - 1.0;
+                    let what = format!(
+                        "{case}, {} {motion:?} ({dir}°) scale {scale}",
                         pyramid.name()
-                    ));
+                    );
+                    // The steerable pyramid (the default) within 5%; the
+                    // Riesz pyramid within 10%, and not along x and y
+                    // together on the picture (+22% at scale 2, below).
+                    let bar = match pyramid {
+                        PyramidKind::Csp => Some(0.05),
+                        PyramidKind::Riesz
+                            if motion == Motion::Sum && case.starts_with("picture") =>
+                        {
+                            None
+                        }
+                        PyramidKind::Riesz => Some(0.1),
+                    };
+                    eprintln!(
+                        "{what}: {got:.4} px ({:+.1}%){}",
+                        100.0 * err,
+                        if bar.is_none() { ", not asserted" } else { "" }
+                    );
+                    if bar.is_some_and(|b| err.abs() > b) {
+                        failed.push(format!("{what}: {got:.4} px"));
+                    }
                 }
             }
         }
     }
-    assert!(
-        failed.is_empty(),
-        "not within the bar of {amp} px: {failed:?}"
-    );
+    assert!(failed.is_empty(), "not within 5% of {amp} px: {failed:?}");
 }

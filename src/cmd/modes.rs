@@ -12,7 +12,9 @@ enum MotionArg {
     X,
     /// Vertical motion.
     Y,
-    /// Their sum.
+    /// Both: each pixel's motion along its own direction (x and y
+    /// fitted together), signed on the side of the frame's overall
+    /// direction.
     Sum,
 }
 
@@ -142,7 +144,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 r.freq_hz,
                 sig4(p.amplitude),
                 if o.unnormalized {
-                    "(A²-weighted, no unit)".to_string()
+                    "(texture-weighted, no unit)".to_string()
                 } else {
                     r.unit.to_string()
                 },

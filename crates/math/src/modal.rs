@@ -7,13 +7,17 @@
 //!
 //! Each frame goes through a complex steerable pyramid or a Riesz pyramid
 //! ([`PyramidKind`]; two orientations: band 0 sees x motion, band 1 y).
-//! At one scale `s` and per band pixel, the local displacement in input
-//! pixels is u = Δφ / g (Eq. 3.2 divided by the phase change per pixel of
-//! motion): Δφ is the wrapped phase change against the first frame, g the
-//! band's A²-weighted phase change for the first frame moved by one input
-//! pixel along the band's axis (about -2π f, f the local spatial frequency),
-//! measured once by analysing that shifted copy: arg Σ A² e^{iΔφ₁} over the
-//! band, which works the same for both pyramids.
+//! At one scale `s` and per band pixel, Δφ is the wrapped phase change
+//! against the first frame (Eq. 3.2) and g the phase change per input pixel
+//! of motion along the band's axis (about -2π f, f the local spatial
+//! frequency), measured at the end on the mean frame (where the sensor
+//! noise has averaged out) moved by one pixel either way (a central
+//! difference): the same for both pyramids.
+//! The displacement is the least-squares fit of Δφ = g·u over the pixels
+//! under the blur, each weighted by its texture A²: u = G∗(A² g Δφ) /
+//! G∗(A² g²). A pixel whose phase hardly moves with the object (g near 0:
+//! smooth content at a fine scale, or a static outline) adds nothing, where
+//! dividing its Δφ by its own small g would turn its noise into motion.
 //!
 //! An optional mask ([`ModalImager::set_mask`]) limits the object: band
 //! pixels whose input position is outside it get no weight (in the
@@ -31,17 +35,22 @@
 //! complex amplitude in pixels: a motion a·cos(ωτ + φ) at exactly ω reads
 //! a·e^{iφ}.
 //!
-//! The weights are the reference frame's A² (as in the `phase` stage). With
-//! fixed weights, the per-frame filtering of ch. 3.5.2 (Gaussian blur of
-//! std σ_b of the weighted displacements and of the weights, then the ratio)
-//! commutes with the temporal transform, so it is applied once at the end to
-//! the transformed slice, exactly: G∗(A²·U) / G∗(A²) (with `normalize =
-//! false`, G∗(A²·U) / max G∗(A²), the unnormalised images of ch. 4-5). With
-//! `Motion::Sum` the two bands' weighted displacements and weights are added
-//! before the ratio (the x + y sum of ch. 4-5).
+//! The weights A² are the mean frame's (free of the sensor noise's energy).
+//! With fixed weights, the per-frame filtering of ch. 3.5.2 (Gaussian blur
+//! of std σ_b of the weighted displacements and of the weights, then the
+//! ratio) commutes with the temporal transform, so it is applied once at
+//! the end to the transformed slice, exactly: G∗(A² g ΔΦ) / G∗(A² g²) (with
+//! `normalize = false`, divided by max G∗(A² g²) instead: the unnormalised
+//! images of ch. 4-5, where the texture's information acts as a mask).
+//! With `Motion::Sum` (the x + y images of ch. 4-5) both bands are fitted
+//! together, with g the phase change per pixel of motion along x and along
+//! y for each band (a band's phase also turns with motion across its
+//! axis): per pixel, the motion along its own direction
+//! (`along_own_axis`); adding the two bands' sums instead, as a sum of
+//! the x and y images, read a motion along x alone at half its amplitude.
 //!
-//! Memory: 7 f64 per band pixel and orientation; the pyramid's buffers.
-//! Nothing is allocated per frame.
+//! Memory: 7 f64 per band pixel and orientation; the pyramid's buffers; the
+//! frame sum (one f64 per input pixel). Nothing is allocated per frame.
 
 use crate::pyramid::{
     BandInfo, ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError, PyramidKind,
@@ -56,6 +65,8 @@ use std::f64::consts::TAU;
 pub enum Motion {
     X,
     Y,
+    /// Both bands fitted together: each pixel's motion along its own
+    /// direction (`along_own_axis`).
     Sum,
 }
 
@@ -242,17 +253,11 @@ impl<P: Analyze> Phases for Analysis<P> {
     }
 }
 
-/// The weight of the band-wide phase slope in each pixel's local one, as a
-/// share of the mean blurred texture weight (`ModalImager::px_per_rad`).
-const PRIOR_SHARE: f64 = 0.1;
-
 /// One orientation band's accumulators on the band grid.
 struct BandAcc {
     band: usize,
-    /// A(t0)² (Eq. 3.3 weights), from the first frame.
-    weight: Vec<f32>,
-    /// Σ Δφ τ^k e^{-iωτ}, k = 2, 3, 4, per pixel (radians: the pixels
-    /// per radian are known at the end, `ModalImager::px_per_rad`).
+    /// Σ Δφ τ^k e^{-iωτ}, k = 2, 3, 4, per pixel (radians: the phase per
+    /// pixel of motion is measured at the end, `ModalImager::phase_per_px`).
     acc: Vec<[Complex64; 3]>,
     /// Σ Δφ per pixel (for the mean).
     sum: Vec<f64>,
@@ -274,9 +279,6 @@ pub struct ModalImager {
     grid_w: usize,
     grid_h: usize,
     step: (f64, f64),
-    /// The scale's nominal frequency, cycles per input pixel: the fallback
-    /// when the texture gives no phase slope.
-    centre_frequency: f64,
     t0_ns: Option<i64>,
     last_ns: i64,
     frames: u64,
@@ -296,7 +298,8 @@ pub struct ModalImage {
     pub height: usize,
     pub freq_hz: f64,
     pub data: Vec<Complex32>,
-    /// G∗A², relative to its maximum (1 = the best-textured place).
+    /// G∗(A² g²), relative to its maximum: the motion information per pixel
+    /// (1 = the best-textured place).
     pub confidence: Vec<f32>,
     /// Frames and time span used.
     pub frames: u64,
@@ -324,7 +327,6 @@ impl ModalImager {
             .iter()
             .map(|&o| BandAcc {
                 band: cfg.scale * 2 + o,
-                weight: vec![0.0; n],
                 acc: vec![[Complex64::new(0.0, 0.0); 3]; n],
                 sum: vec![0.0; n],
             })
@@ -341,7 +343,6 @@ impl ModalImager {
             grid_w: info.width,
             grid_h: info.height,
             step: (info.step_x as f64, info.step_y as f64),
-            centre_frequency: info.centre_frequency as f64,
             t0_ns: None,
             last_ns: 0,
             frames: 0,
@@ -409,7 +410,7 @@ impl ModalImager {
         self.last_ns = t_ns;
         self.frames += 1;
         if !self.pyr.has_reference() {
-            self.set_reference()?;
+            self.pyr.keep_reference();
             // Δφ = 0 on the reference frame: only the taper's sums move.
             self.add_moments(0.0);
             return Ok(());
@@ -443,121 +444,64 @@ impl ModalImager {
         c
     }
 
-    /// First frame: the reference phases and the A² weights (times the
-    /// share of energy oriented along the band's axis; zero outside the
-    /// mask).
-    fn set_reference(&mut self) -> Result<(), ModalError> {
-        for b in &mut self.bands {
-            self.pyr.amplitude(b.band, &mut b.weight)?;
-            self.pyr.orientation_share(b.band, &mut self.delta);
-            b.weight
-                .iter_mut()
-                .zip(&self.delta)
-                .for_each(|(a, &s)| *a = *a * *a * s);
-            if let Some(inside) = &self.band_inside {
-                b.weight
-                    .iter_mut()
-                    .zip(inside)
-                    .filter(|(_, &i)| !i)
-                    .for_each(|(w, _)| *w = 0.0);
-            }
-        }
-        self.pyr.keep_reference();
-        Ok(())
-    }
-
-    /// Band `bi`'s input pixels per radian of phase change along its axis,
-    /// per band pixel: 1 / g with g the phase slope there, measured on the
-    /// `mean` frame (nearly free of sensor noise, which does not move with
-    /// the object) moved by one pixel, as arg of G∗(A² e^{iΔφ}) blurred as
-    /// the image is (at least one band pixel), skipping the band's first
-    /// column (row), which sees the repeated edge. Local, not one slope
-    /// per band: at a fine scale a smooth texture's weak content and the
-    /// strong, broadband edges of the frame or of a static outline have
-    /// different slopes, and one band-wide slope from the first frame took
-    /// the edges' and the noise's (scale 0 read 39% low on the beam and 80%
-    /// high on a translated smooth texture). Where the texture gives little
-    /// slope (much weaker than the mean texture) it shrinks to the band-wide
-    /// one, else the scale's nominal frequency. Every slope is held within
-    /// a quarter to twice the nominal one.
-    fn px_per_rad(&mut self, bi: usize, mean: &[f32]) -> Result<Vec<f64>, ModalError> {
+    /// Band `bi`'s phase change per input pixel of motion along x (along y
+    /// if `vertical`), per band pixel (radians), measured on the `mean`
+    /// frame moved by one pixel either way: the central difference, the
+    /// mean of the phase changes from the copy moved by -1 to the frame and
+    /// from the frame to the copy moved by +1 (one-sided, it is the slope
+    /// half a pixel away, which at the finest scale read a motion along x
+    /// and y together 8% low). Zero on the band's
+    /// first and last columns (rows), which see the repeated edge.
+    fn phase_per_px(
+        &mut self,
+        bi: usize,
+        mean: &[f32],
+        vertical: bool,
+    ) -> Result<Vec<f64>, ModalError> {
         let (w, h) = (self.width, self.height);
         let band = self.bands[bi].band;
-        let vertical = band % 2 == 1;
-        // The content moved by +1 pixel: moved(x) = mean(x - 1), the first
-        // column (row) repeated.
-        let mut moved = vec![0.0f32; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                let (sx, sy) = if vertical {
-                    (x, y.saturating_sub(1))
-                } else {
-                    (x.saturating_sub(1), y)
-                };
-                moved[y * w + x] = mean[sy * w + sx];
+        // moved(x) = mean(x - s), the edge column (row) repeated.
+        let shifted = |s: isize| -> Vec<f32> {
+            let mut moved = vec![0.0f32; w * h];
+            for y in 0..h {
+                for x in 0..w {
+                    let (sx, sy) = if vertical {
+                        (x, (y as isize - s).clamp(0, h as isize - 1) as usize)
+                    } else {
+                        ((x as isize - s).clamp(0, w as isize - 1) as usize, y)
+                    };
+                    moved[y * w + x] = mean[sy * w + sx];
+                }
             }
-        }
-        let (gw, gh) = (self.grid_w, self.grid_h);
-        self.pyr.shift_delta(mean, &moved, band, &mut self.delta)?;
-        let weight = &self.bands[bi].weight;
-        let mut re = vec![0.0f64; gw * gh];
-        let mut im = vec![0.0f64; gw * gh];
-        let mut den = vec![0.0f64; gw * gh];
-        for by in usize::from(vertical)..gh {
-            for bx in usize::from(!vertical)..gw {
-                let p = by * gw + bx;
-                let z = Complex64::from_polar(f64::from(weight[p]), f64::from(self.delta[p]));
-                re[p] = z.re;
-                im[p] = z.im;
-                den[p] = f64::from(weight[p]);
-            }
-        }
-        let sx = (self.cfg.sigma_px / self.step.0).max(1.0);
-        let sy = (self.cfg.sigma_px / self.step.1).max(1.0);
-        gaussian_blur(&mut re, gw, gh, sx, sy);
-        gaussian_blur(&mut im, gw, gh, sx, sy);
-        gaussian_blur(&mut den, gw, gh, sx, sy);
-        let band_g = Complex64::new(re.iter().sum(), im.iter().sum()).arg();
-        // Shrinkage toward the band-wide slope, worth a tenth of the mean
-        // texture: where the texture is much weaker than that (flat wood,
-        // dark corners), whose own slope would turn noise into large
-        // motion, the band's slope holds. (A tenth of the median instead
-        // let the guitar's dark corners outshine its strings; the mean,
-        // which strong edges raise, costs the beam's finest scale: -18%.)
-        let prior = Complex64::from_polar(
-            PRIOR_SHARE * den.iter().sum::<f64>() / den.len().max(1) as f64,
-            band_g,
-        );
-        if prior.re.is_finite() && prior.im.is_finite() {
-            re.iter_mut().for_each(|r| *r += prior.re);
-            im.iter_mut().for_each(|i| *i += prior.im);
-        }
-        // A slope far outside the band's octave around its nominal
-        // frequency is not the texture's (nearly flat content, where the
-        // motion would be noise divided by almost nothing): it is held to
-        // a quarter to twice the nominal slope.
-        let centre = -TAU * self.centre_frequency;
-        let (lo, hi) = (2.0 * centre, 0.25 * centre);
-        let usable = |g: f64| g.is_finite() && g < -1e-3;
-        let fallback = if usable(band_g) {
-            band_g.clamp(lo, hi)
-        } else {
-            centre
+            moved
         };
-        Ok(re
-            .iter()
-            .zip(&im)
-            .map(|(&r, &i)| {
-                let g = i.atan2(r);
-                1.0 / if usable(g) { g.clamp(lo, hi) } else { fallback }
-            })
-            .collect())
+        let (gw, gh) = (self.grid_w, self.grid_h);
+        // Each one-pixel step wrapped on its own (two pixels at once would
+        // wrap at the finest scale, whose phase turns up to π per pixel).
+        let mut back = vec![0.0f32; gw * gh];
+        self.pyr.shift_delta(&shifted(-1), mean, band, &mut back)?;
+        self.pyr
+            .shift_delta(mean, &shifted(1), band, &mut self.delta)?;
+        let mut g = vec![0.0f64; gw * gh];
+        let (x0, x1, y0, y1) = if vertical {
+            (0, gw, 1, gh.saturating_sub(1))
+        } else {
+            (1, gw.saturating_sub(1), 0, gh)
+        };
+        for by in y0..y1 {
+            for bx in x0..x1 {
+                let p = by * gw + bx;
+                g[p] = 0.5 * (f64::from(self.delta[p]) + f64::from(back[p]));
+            }
+        }
+        Ok(g)
     }
 
     /// The blurred, normalised slice at full input resolution.
     ///
-    /// Measures each band's phase per pixel of motion on the mean frame
-    /// first, which analyses two frames; the stream stays as it was, so
+    /// Measures the weights and each band's phase per pixel of motion on
+    /// the mean frame first, which analyses it once and twice more per band
+    /// (itself and moved); the reference and the sums stay as they were, so
     /// more frames may follow and `finish` again.
     pub fn finish(&mut self) -> Result<ModalImage, ModalError> {
         let span = (self.last_ns - self.t0_ns.unwrap_or(0)) as f64 * 1e-9;
@@ -572,47 +516,96 @@ impl ModalImager {
         let big_w: Complex64 = (0..3).map(|k| self.moments[k] * coef[k]).sum();
         let n = self.frames as f64;
         let gn = self.grid_w * self.grid_h;
-        let mut num = vec![Complex64::new(0.0, 0.0); gn];
-        let mut den = vec![0.0f64; gn];
+        // Per band pixel: r = Σ A² g ΔΦ (x and y components, complex) and
+        // G = Σ A² g gᵀ over the bands, g the phase change per pixel of
+        // motion along x and y (with one band, along its own axis only).
+        let two = self.bands.len() == 2;
+        let zero = Complex64::new(0.0, 0.0);
+        let (mut rx, mut ry) = (vec![zero; gn], vec![zero; gn]);
+        let (mut gxx, mut gxy, mut gyy) = (vec![0.0f64; gn], vec![0.0f64; gn], vec![0.0f64; gn]);
         let mean: Vec<f32> = self.frame_sum.iter().map(|&v| (v / n) as f32).collect();
+        let mut amp = vec![0.0f32; gn];
+        let mut share = vec![0.0f32; gn];
+        // The weights from the mean frame: the texture's A² without the
+        // sensor noise's, times the share oriented along the band's axis.
+        self.pyr.analyze(&mean)?;
         for bi in 0..self.bands.len() {
-            let px_per_rad = self.px_per_rad(bi, &mean)?;
+            let band = self.bands[bi].band;
+            let vertical = band % 2 == 1;
+            self.pyr.amplitude(band, &mut amp)?;
+            self.pyr.orientation_share(band, &mut share);
+            let along_x = if two || !vertical {
+                Some(self.phase_per_px(bi, &mean, false)?)
+            } else {
+                None
+            };
+            let along_y = if two || vertical {
+                Some(self.phase_per_px(bi, &mean, true)?)
+            } else {
+                None
+            };
             let b = &self.bands[bi];
-            for (p, (((a, &s), &wt), &k)) in b
-                .acc
-                .iter()
-                .zip(&b.sum)
-                .zip(&b.weight)
-                .zip(&px_per_rad)
-                .enumerate()
-            {
+            for p in 0..gn {
+                if self.band_inside.as_ref().is_some_and(|m| !m[p]) {
+                    continue;
+                }
+                let w = f64::from(amp[p]) * f64::from(amp[p]) * f64::from(share[p]);
+                let gx = along_x.as_ref().map_or(0.0, |g| g[p]);
+                let gy = along_y.as_ref().map_or(0.0, |g| g[p]);
+                let a = &b.acc[p];
                 let x: Complex64 = (0..3).map(|k| a[k] * coef[k]).sum();
                 // Mean removed exactly: the taper's transform times the mean.
-                let u = (x - big_w * (s / n)) * (2.0 * k / sum_w);
-                num[p] += u * wt as f64;
-                den[p] += wt as f64;
+                let u = (x - big_w * (b.sum[p] / n)) * (2.0 / sum_w);
+                rx[p] += u * (w * gx);
+                ry[p] += u * (w * gy);
+                gxx[p] += w * gx * gx;
+                gxy[p] += w * gx * gy;
+                gyy[p] += w * gy * gy;
             }
         }
         let sx = self.cfg.sigma_px / self.step.0;
         let sy = self.cfg.sigma_px / self.step.1;
         let (w, h) = (self.grid_w, self.grid_h);
-        let mut re: Vec<f64> = num.iter().map(|c| c.re).collect();
-        let mut im: Vec<f64> = num.iter().map(|c| c.im).collect();
-        gaussian_blur(&mut re, w, h, sx, sy);
-        gaussian_blur(&mut im, w, h, sx, sy);
-        gaussian_blur(&mut den, w, h, sx, sy);
+        for r in [&mut rx, &mut ry] {
+            let mut re: Vec<f64> = r.iter().map(|c| c.re).collect();
+            let mut im: Vec<f64> = r.iter().map(|c| c.im).collect();
+            gaussian_blur(&mut re, w, h, sx, sy);
+            gaussian_blur(&mut im, w, h, sx, sy);
+            for ((c, re), im) in r.iter_mut().zip(re).zip(im) {
+                *c = Complex64::new(re, im);
+            }
+        }
+        for g in [&mut gxx, &mut gxy, &mut gyy] {
+            gaussian_blur(g, w, h, sx, sy);
+        }
+        // The amplitude and its information per pixel: the fit along the
+        // band's axis, or (x and y together) along each pixel's own
+        // direction of motion.
+        let fit_one = |r: &[Complex64], d: &[f64]| -> (Vec<Complex64>, Vec<f64>) {
+            let u = r
+                .iter()
+                .zip(d)
+                .map(|(&r, &d)| if d > 0.0 { r / d } else { zero })
+                .collect();
+            (u, d.to_vec())
+        };
+        let (amp_grid, den) = match (two, self.cfg.motion) {
+            (true, _) => along_own_axis(&rx, &ry, &gxx, &gxy, &gyy),
+            (false, Motion::Y) => fit_one(&ry, &gyy),
+            (false, _) => fit_one(&rx, &gxx),
+        };
         let dmax = den.iter().copied().fold(0.0f64, f64::max);
         let floor = dmax * 1e-9;
-        let grid: Vec<Complex64> = re
+        let grid: Vec<Complex64> = amp_grid
             .iter()
-            .zip(&im)
             .zip(&den)
-            .map(|((&r, &i), &d)| {
-                let d = if self.cfg.normalize { d } else { dmax };
-                if d > floor {
-                    Complex64::new(r / d, i / d)
-                } else {
+            .map(|(&u, &d)| {
+                if d <= floor {
                     Complex64::new(0.0, 0.0)
+                } else if self.cfg.normalize {
+                    u
+                } else {
+                    u * (d / dmax)
                 }
             })
             .collect();
@@ -647,6 +640,88 @@ impl ModalImager {
             span_s: span,
         })
     }
+}
+
+/// The blurred sums of both bands (`rx`, `ry`: G∗Σ A² g ΔΦ along x and y;
+/// `gxx`, `gxy`, `gyy`: G∗Σ A² g gᵀ) fitted, per pixel, to one motion
+/// along an unknown direction v = (cos α, sin α): a, the complex amplitude
+/// along v, = vᵀr / vᵀGv, with the v that explains the most (the
+/// generalised eigenvector of Re(r rᴴ) against G). A motion along x alone
+/// reads its full amplitude (an average of the x and y bands' fits would
+/// read half of it), and each band's phase change from motion across its
+/// axis counts. The direction's sign is taken on the side of the frame's
+/// overall direction, so that in-phase motion keeps one phase across the
+/// image. Returns the amplitudes and the information along each pixel's
+/// direction (vᵀGv).
+fn along_own_axis(
+    rx: &[Complex64],
+    ry: &[Complex64],
+    gxx: &[f64],
+    gxy: &[f64],
+    gyy: &[f64],
+) -> (Vec<Complex64>, Vec<f64>) {
+    let outer = |a: Complex64, b: Complex64| (a * b.conj()).re;
+    let n = rx.len();
+    let (mut a, mut g) = ([0.0f64; 3], [0.0f64; 3]);
+    for p in 0..n {
+        a[0] += outer(rx[p], rx[p]);
+        a[1] += outer(rx[p], ry[p]);
+        a[2] += outer(ry[p], ry[p]);
+        g[0] += gxx[p];
+        g[1] += gxy[p];
+        g[2] += gyy[p];
+    }
+    let overall = principal(a, g).unwrap_or((1.0, 0.0));
+    let mut amp = Vec::with_capacity(n);
+    let mut info = Vec::with_capacity(n);
+    for p in 0..n {
+        let (r1, r2) = (rx[p], ry[p]);
+        let a = [outer(r1, r1), outer(r1, r2), outer(r2, r2)];
+        let Some((mut cx, mut cy)) = principal(a, [gxx[p], gxy[p], gyy[p]]) else {
+            amp.push(Complex64::new(0.0, 0.0));
+            info.push(0.0);
+            continue;
+        };
+        if cx * overall.0 + cy * overall.1 < 0.0 {
+            (cx, cy) = (-cx, -cy);
+        }
+        let d = gxx[p] * cx * cx + 2.0 * gxy[p] * cx * cy + gyy[p] * cy * cy;
+        amp.push(if d > 0.0 {
+            (r1 * cx + r2 * cy) / d
+        } else {
+            Complex64::new(0.0, 0.0)
+        });
+        info.push(d.max(0.0));
+    }
+    (amp, info)
+}
+
+/// The unit v maximising vᵀAv / vᵀGv for symmetric 2x2 A = [a0 a1; a1 a2]
+/// and positive semi-definite G = [g0 g1; g1 g2] (the generalised
+/// eigenvector, through G's Cholesky factor; G is lifted by 1e-9 of its
+/// trace so that information along one direction only still gives it).
+/// None where G is zero or the numbers are not finite.
+fn principal(a: [f64; 3], g: [f64; 3]) -> Option<(f64, f64)> {
+    let eps = 1e-9 * (g[0] + g[2]);
+    if !(eps > 0.0 && eps.is_finite()) {
+        return None;
+    }
+    let (g0, g1, g2) = (g[0] + eps, g[1], g[2] + eps);
+    let l11 = g0.sqrt();
+    let l21 = g1 / l11;
+    let l22 = (g2 - l21 * l21).max(eps).sqrt();
+    // L⁻¹ = [[i11, 0], [i21, i22]]; M = L⁻¹ A L⁻ᵀ.
+    let (i11, i22) = (1.0 / l11, 1.0 / l22);
+    let i21 = -l21 * i11 * i22;
+    let m00 = i11 * i11 * a[0];
+    let m01 = i11 * (i21 * a[0] + i22 * a[1]);
+    let m11 = i21 * i21 * a[0] + 2.0 * i21 * i22 * a[1] + i22 * i22 * a[2];
+    let beta = 0.5 * (2.0 * m01).atan2(m00 - m11);
+    let (w0, w1) = (beta.cos(), beta.sin());
+    // v = L⁻ᵀ w.
+    let (vx, vy) = (i11 * w0 + i21 * w1, i22 * w1);
+    let norm = vx.hypot(vy);
+    (norm > 0.0 && norm.is_finite()).then(|| (vx / norm, vy / norm))
 }
 
 /// Values that bilinear interpolation can mix.

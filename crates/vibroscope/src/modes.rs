@@ -6,8 +6,9 @@
 //! of the mode's sinusoid, px). The recipe reads the complex image back
 //! and reports its peak; with a scale (`--scale`, `--known-length`) the
 //! `.npy` is rewritten in µm (peak below 1 mm) or mm and the peak says
-//! which. An unnormalised image is weighted by the squared local
-//! amplitude, not motion: it takes no scale.
+//! which. An unnormalised image is motion weighted by the texture's
+//! information about it (A² g², relative to its largest), not motion: it
+//! takes no scale.
 
 use crate::engine::config::{set_param, PipelineDecl};
 use crate::engine::RunReport;
@@ -265,7 +266,7 @@ pub fn modes_all(o: &ModesOptions) -> Result<(Vec<ModalImagesReport>, RunReport)
     if o.unnormalized && o.scale.is_some() {
         return Err(Error::usage(
             "--scale",
-            "an --unnormalized image is weighted by the squared local amplitude, not motion: it has no length unit (drop --unnormalized or the scale)",
+            "an --unnormalized image is motion weighted by the texture's information about it, not motion: it has no length unit (drop --unnormalized or the scale)",
         ));
     }
     let scale = crate::spectrum::resolve_scale(&o.video, o.fps, o.scale.as_ref())?;
@@ -323,7 +324,7 @@ pub fn modes_all(o: &ModesOptions) -> Result<(Vec<ModalImagesReport>, RunReport)
         let kk = px_to(unit, scale.as_ref());
         if o.figure.is_some() {
             let label = if o.unnormalized {
-                "A²-weighted motion (no unit)".to_string()
+                "texture-weighted motion (no unit)".to_string()
             } else {
                 format!("amplitude ({unit})")
             };
