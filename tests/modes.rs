@@ -826,3 +826,74 @@ fn a_translation_reads_its_amplitude_at_every_scale_on_two_textures() {
     }
     assert!(failed.is_empty(), "not within 5% of {amp} px: {failed:?}");
 }
+
+/// Where a scale's band holds no texture above the sensor noise, `modes`
+/// says so (issue 14): the smooth picture with 2 DN of noise at 8 bits,
+/// at the steerable pyramid's finest scale, whose band holds texture at
+/// about 1% of the noise's power, warns and names the scale; the same
+/// picture at scale 1, and the simulator's random texture at scale 0, do
+/// not. The image is written either way.
+#[test]
+fn modes_warns_where_the_band_holds_no_texture_above_the_noise() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    smooth_picture(&d.join("pic.pgm"), 128);
+    for (name, texture) in [
+        (
+            "pic",
+            format!("texture = \"{}\"\n", d.join("pic.pgm").display()),
+        ),
+        ("random", String::new()),
+    ] {
+        std::fs::write(
+            d.join(format!("{name}.toml")),
+            format!(
+                "width = 128\nheight = 128\nfps = 300.0\nframes = 100\nobject = [0, 0, 128, 128]\n\
+                 noise_std = 2.0\nbits = 8\namplitude_px = 0.15\n{texture}\
+                 signal = {{ type = \"tone\", freq_hz = 58.3 }}\n"
+            ),
+        )
+        .unwrap();
+        let o = run_in(
+            d,
+            &[
+                "simulate",
+                &format!("{name}.toml"),
+                "-o",
+                &format!("{name}.y4m"),
+            ],
+        );
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+    }
+    for (video, scale, warns) in [
+        ("pic", "0", true),
+        ("pic", "1", false),
+        ("random", "0", false),
+    ] {
+        let o = run_in(
+            d,
+            &[
+                "modes",
+                &format!("{video}.y4m"),
+                "--at",
+                "58.3",
+                "--pyramid-scale",
+                scale,
+                "-o",
+                "m.png",
+            ],
+        );
+        let err = stderr(&o);
+        eprintln!("{video} at scale {scale}: {}", err.trim());
+        assert_eq!(code(&o), 0, "{err}");
+        assert!(d.join("m.png").exists());
+        assert_eq!(
+            err.contains("the texture is under the sensor noise"),
+            warns,
+            "{video} at scale {scale}: {err}"
+        );
+        if warns {
+            assert!(err.contains("pyramid scale 0"), "{err}");
+        }
+    }
+}

@@ -49,7 +49,7 @@
 //! (`along_own_axis`); adding the two bands' sums instead, as a sum of
 //! the x and y images, read a motion along x alone at half its amplitude.
 //!
-//! Memory: 7 f64 per band pixel and orientation; the pyramid's buffers; the
+//! Memory: 8 f64 per band pixel and orientation; the pyramid's buffers; the
 //! frame sum (one f64 per input pixel). Nothing is allocated per frame.
 
 use crate::pyramid::{
@@ -261,6 +261,9 @@ struct BandAcc {
     acc: Vec<[Complex64; 3]>,
     /// Σ Δφ per pixel (for the mean).
     sum: Vec<f64>,
+    /// Σ A² per pixel over the frames: with the mean frame's A², the
+    /// noise's power there ([`ModalImage::texture_to_noise`]).
+    power: Vec<f64>,
 }
 
 /// Streams frames in and accumulates one frequency slice of the spectral
@@ -301,6 +304,13 @@ pub struct ModalImage {
     /// G∗(A² g²), relative to its maximum: the motion information per pixel
     /// (1 = the best-textured place).
     pub confidence: Vec<f32>,
+    /// The band's texture against the sensor noise: the median over the
+    /// object of |B̄|² / (mean |B|² - |B̄|²), B̄ the mean frame's
+    /// coefficient (the texture) and the rest the frames' spread around it
+    /// (the noise, and the motion itself); the larger of the two bands'
+    /// for `Motion::Sum`. Under 1, most of the image is noise: the scale
+    /// sees little texture (a smooth object at a fine scale).
+    pub texture_to_noise: f64,
     /// Frames and time span used.
     pub frames: u64,
     pub span_s: f64,
@@ -329,6 +339,7 @@ impl ModalImager {
                 band: cfg.scale * 2 + o,
                 acc: vec![[Complex64::new(0.0, 0.0); 3]; n],
                 sum: vec![0.0; n],
+                power: vec![0.0; n],
             })
             .collect();
         Ok(Self {
@@ -405,6 +416,12 @@ impl ModalImager {
         self.pyr.analyze(frame)?;
         for (a, &v) in self.frame_sum.iter_mut().zip(frame) {
             *a += f64::from(v);
+        }
+        for b in &mut self.bands {
+            self.pyr.amplitude(b.band, &mut self.delta)?;
+            for (p, &a) in b.power.iter_mut().zip(&self.delta) {
+                *p += f64::from(a) * f64::from(a);
+            }
         }
         let t0 = *self.t0_ns.get_or_insert(t_ns);
         self.last_ns = t_ns;
@@ -526,6 +543,7 @@ impl ModalImager {
         let mean: Vec<f32> = self.frame_sum.iter().map(|&v| (v / n) as f32).collect();
         let mut amp = vec![0.0f32; gn];
         let mut share = vec![0.0f32; gn];
+        let mut texture_to_noise = 0.0f64;
         // The weights from the mean frame: the texture's A² without the
         // sensor noise's, times the share oriented along the band's axis.
         self.pyr.analyze(&mean)?;
@@ -545,6 +563,23 @@ impl ModalImager {
                 None
             };
             let b = &self.bands[bi];
+            let mut ratios: Vec<f64> = (0..gn)
+                .filter(|&p| self.band_inside.as_ref().is_none_or(|m| m[p]))
+                .map(|p| {
+                    let texture = f64::from(amp[p]) * f64::from(amp[p]);
+                    let noise = b.power[p] / n - texture;
+                    if noise > 0.0 {
+                        texture / noise
+                    } else {
+                        f64::INFINITY
+                    }
+                })
+                .collect();
+            if !ratios.is_empty() {
+                let mid = ratios.len() / 2;
+                let (_, m, _) = ratios.select_nth_unstable_by(mid, f64::total_cmp);
+                texture_to_noise = texture_to_noise.max(*m);
+            }
             for p in 0..gn {
                 if self.band_inside.as_ref().is_some_and(|m| !m[p]) {
                     continue;
@@ -636,6 +671,7 @@ impl ModalImager {
             freq_hz: self.cfg.freq_hz,
             data,
             confidence,
+            texture_to_noise,
             frames: self.frames,
             span_s: span,
         })

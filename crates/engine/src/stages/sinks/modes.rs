@@ -50,6 +50,10 @@ struct P {
 /// Default σ_b, input pixels.
 pub const DEFAULT_SIGMA_PX: f64 = 2.0;
 
+/// Below this median texture-to-noise power (`ModalImage::texture_to_noise`)
+/// the sink warns that the image is mostly noise.
+const TEXTURE_TO_NOISE_WARN: f64 = 1.0;
+
 const PARAMS: &[ParamSpec] = &[
     ParamSpec::new("freq_hz", ParamType::Float, Def::Required)
         .above(0.0)
@@ -255,11 +259,20 @@ impl Stage for Modes {
         if let Some(npy) = &self.p.npy {
             super::write_atomic(npy, &npy_complex64(&img.data, img.width, img.height))?;
         }
+        if img.texture_to_noise < TEXTURE_TO_NOISE_WARN {
+            tracing::warn!(
+                "modal image at {} Hz: at pyramid scale {} the texture is under the sensor noise over most of the image (median texture-to-noise power {:.3}): the image there is mostly noise; a coarser scale sees more of the texture",
+                img.freq_hz,
+                self.p.scale,
+                img.texture_to_noise
+            );
+        }
         let peak = img.data.iter().map(|c| c.norm()).fold(0.0f32, f32::max);
         tracing::info!(
             frames = img.frames,
             span_s = img.span_s,
             peak_px = peak,
+            texture_to_noise = img.texture_to_noise,
             "modal image at {} Hz",
             img.freq_hz
         );
