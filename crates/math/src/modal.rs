@@ -205,14 +205,17 @@ trait Phases: Send {
     fn amplitude(&self, band: usize, out: &mut [f32]) -> Result<(), PyramidError>;
     /// [`Analyze::orientation_share`] of the current frame.
     fn orientation_share(&self, band: usize, out: &mut [f32]);
-    /// `band`'s wrapped phase change from `base` to `moved`, leaving the
-    /// current and reference coefficients as they were.
-    fn shift_delta(
+    /// For the current frame and copies of it moved back (`back`) and
+    /// forward (`fwd`): per band of `bands`, the wrapped phase change from
+    /// `back` to the current frame (`from_back`) and from it to `fwd`
+    /// (`to_fwd`). Each copy is analysed once for all the bands; the
+    /// current and reference coefficients stay as they were.
+    fn steps(
         &mut self,
-        base: &[f32],
-        moved: &[f32],
-        band: usize,
-        out: &mut [f32],
+        moved: (&[f32], &[f32]),
+        bands: &[usize],
+        from_back: &mut [Vec<f32>],
+        to_fwd: &mut [Vec<f32>],
     ) -> Result<(), PyramidError>;
 }
 
@@ -238,18 +241,22 @@ impl<P: Analyze> Phases for Analysis<P> {
     fn orientation_share(&self, band: usize, out: &mut [f32]) {
         P::orientation_share(&self.coeffs, band, out)
     }
-    fn shift_delta(
+    fn steps(
         &mut self,
-        base: &[f32],
-        moved: &[f32],
-        band: usize,
-        out: &mut [f32],
+        (back, fwd): (&[f32], &[f32]),
+        bands: &[usize],
+        from_back: &mut [Vec<f32>],
+        to_fwd: &mut [Vec<f32>],
     ) -> Result<(), PyramidError> {
         let mut b = self.pyr.alloc();
-        self.pyr.run(base, &mut b)?;
-        let mut m = self.pyr.alloc();
-        self.pyr.run(moved, &mut m)?;
-        m.phase_delta_into(&b, band, out)
+        self.pyr.run(back, &mut b)?;
+        let mut f = self.pyr.alloc();
+        self.pyr.run(fwd, &mut f)?;
+        for ((&band, fb), tf) in bands.iter().zip(from_back).zip(to_fwd) {
+            self.coeffs.phase_delta_into(&b, band, fb)?;
+            f.phase_delta_into(&self.coeffs, band, tf)?;
+        }
+        Ok(())
     }
 }
 
@@ -461,22 +468,17 @@ impl ModalImager {
         c
     }
 
-    /// Band `bi`'s phase change per input pixel of motion along x (along y
-    /// if `vertical`), per band pixel (radians), measured on the `mean`
-    /// frame moved by one pixel either way: the central difference, the
-    /// mean of the phase changes from the copy moved by -1 to the frame and
-    /// from the frame to the copy moved by +1 (one-sided, it is the slope
-    /// half a pixel away, which at the finest scale read a motion along x
-    /// and y together 8% low). Zero on the band's
-    /// first and last columns (rows), which see the repeated edge.
-    fn phase_per_px(
-        &mut self,
-        bi: usize,
-        mean: &[f32],
-        vertical: bool,
-    ) -> Result<Vec<f64>, ModalError> {
+    /// Every band's phase change per input pixel of motion along x (along
+    /// y if `vertical`), per band pixel (radians), measured on the `mean`
+    /// frame, which must be the one analysed last, moved by one pixel
+    /// either way: the central difference, the mean of the phase changes
+    /// from the copy moved by -1 to the frame and from the frame to the
+    /// copy moved by +1 (one-sided, it is the slope half a pixel away,
+    /// which at the finest scale read a motion along x and y together 8%
+    /// low). Zero on the band's first and last columns (rows), which see
+    /// the repeated edge.
+    fn phase_per_px(&mut self, mean: &[f32], vertical: bool) -> Result<Vec<Vec<f64>>, ModalError> {
         let (w, h) = (self.width, self.height);
-        let band = self.bands[bi].band;
         // moved(x) = mean(x - s), the edge column (row) repeated.
         let shifted = |s: isize| -> Vec<f32> {
             let mut moved = vec![0.0f32; w * h];
@@ -493,33 +495,41 @@ impl ModalImager {
             moved
         };
         let (gw, gh) = (self.grid_w, self.grid_h);
+        let bands: Vec<usize> = self.bands.iter().map(|b| b.band).collect();
         // Each one-pixel step wrapped on its own (two pixels at once would
         // wrap at the finest scale, whose phase turns up to π per pixel).
-        let mut back = vec![0.0f32; gw * gh];
-        self.pyr.shift_delta(&shifted(-1), mean, band, &mut back)?;
+        let mut back = vec![vec![0.0f32; gw * gh]; bands.len()];
+        let mut fwd = back.clone();
         self.pyr
-            .shift_delta(mean, &shifted(1), band, &mut self.delta)?;
-        let mut g = vec![0.0f64; gw * gh];
+            .steps((&shifted(-1), &shifted(1)), &bands, &mut back, &mut fwd)?;
         let (x0, x1, y0, y1) = if vertical {
             (0, gw, 1, gh.saturating_sub(1))
         } else {
             (1, gw.saturating_sub(1), 0, gh)
         };
-        for by in y0..y1 {
-            for bx in x0..x1 {
-                let p = by * gw + bx;
-                g[p] = 0.5 * (f64::from(self.delta[p]) + f64::from(back[p]));
-            }
-        }
-        Ok(g)
+        Ok(back
+            .iter()
+            .zip(&fwd)
+            .map(|(back, fwd)| {
+                let mut g = vec![0.0f64; gw * gh];
+                for by in y0..y1 {
+                    for bx in x0..x1 {
+                        let p = by * gw + bx;
+                        g[p] = 0.5 * (f64::from(fwd[p]) + f64::from(back[p]));
+                    }
+                }
+                g
+            })
+            .collect())
     }
 
     /// The blurred, normalised slice at full input resolution.
     ///
     /// Measures the weights and each band's phase per pixel of motion on
-    /// the mean frame first, which analyses it once and twice more per band
-    /// (itself and moved); the reference and the sums stay as they were, so
-    /// more frames may follow and `finish` again.
+    /// the mean frame first, which analyses it and its copies moved one
+    /// pixel either way along each axis the motion needs (3 or 5 frames);
+    /// the reference and the sums stay as they were, so more frames may
+    /// follow and `finish` again.
     pub fn finish(&mut self) -> Result<ModalImage, ModalError> {
         let span = (self.last_ns - self.t0_ns.unwrap_or(0)) as f64 * 1e-9;
         if self.frames < 3 || span <= 0.0 {
@@ -533,13 +543,6 @@ impl ModalImager {
         let big_w: Complex64 = (0..3).map(|k| self.moments[k] * coef[k]).sum();
         let n = self.frames as f64;
         let gn = self.grid_w * self.grid_h;
-        // Per band pixel: r = Σ A² g ΔΦ (x and y components, complex) and
-        // G = Σ A² g gᵀ over the bands, g the phase change per pixel of
-        // motion along x and y (with one band, along its own axis only).
-        let two = self.bands.len() == 2;
-        let zero = Complex64::new(0.0, 0.0);
-        let (mut rx, mut ry) = (vec![zero; gn], vec![zero; gn]);
-        let (mut gxx, mut gxy, mut gyy) = (vec![0.0f64; gn], vec![0.0f64; gn], vec![0.0f64; gn]);
         let mean: Vec<f32> = self.frame_sum.iter().map(|&v| (v / n) as f32).collect();
         let mut amp = vec![0.0f32; gn];
         let mut share = vec![0.0f32; gn];
@@ -547,21 +550,24 @@ impl ModalImager {
         // The weights from the mean frame: the texture's A² without the
         // sensor noise's, times the share oriented along the band's axis.
         self.pyr.analyze(&mean)?;
+        let along_x = match self.cfg.motion {
+            Motion::Y => None,
+            _ => Some(self.phase_per_px(&mean, false)?),
+        };
+        let along_y = match self.cfg.motion {
+            Motion::X => None,
+            _ => Some(self.phase_per_px(&mean, true)?),
+        };
+        // Per band pixel: r = Σ A² g ΔΦ (x and y components, complex) and
+        // G = Σ A² g gᵀ over the bands, g the phase change per pixel of
+        // motion along x and y (with one band, along its own axis only).
+        let zero = Complex64::new(0.0, 0.0);
+        let (mut rx, mut ry) = (vec![zero; gn], vec![zero; gn]);
+        let (mut gxx, mut gxy, mut gyy) = (vec![0.0f64; gn], vec![0.0f64; gn], vec![0.0f64; gn]);
         for bi in 0..self.bands.len() {
             let band = self.bands[bi].band;
-            let vertical = band % 2 == 1;
             self.pyr.amplitude(band, &mut amp)?;
             self.pyr.orientation_share(band, &mut share);
-            let along_x = if two || !vertical {
-                Some(self.phase_per_px(bi, &mean, false)?)
-            } else {
-                None
-            };
-            let along_y = if two || vertical {
-                Some(self.phase_per_px(bi, &mean, true)?)
-            } else {
-                None
-            };
             let b = &self.bands[bi];
             let mut ratios: Vec<f64> = (0..gn)
                 .filter(|&p| self.band_inside.as_ref().is_none_or(|m| m[p]))
@@ -585,8 +591,8 @@ impl ModalImager {
                     continue;
                 }
                 let w = f64::from(amp[p]) * f64::from(amp[p]) * f64::from(share[p]);
-                let gx = along_x.as_ref().map_or(0.0, |g| g[p]);
-                let gy = along_y.as_ref().map_or(0.0, |g| g[p]);
+                let gx = along_x.as_ref().map_or(0.0, |g| g[bi][p]);
+                let gy = along_y.as_ref().map_or(0.0, |g| g[bi][p]);
                 let a = &b.acc[p];
                 let x: Complex64 = (0..3).map(|k| a[k] * coef[k]).sum();
                 // Mean removed exactly: the taper's transform times the mean.
@@ -624,10 +630,10 @@ impl ModalImager {
                 .collect();
             (u, d.to_vec())
         };
-        let (amp_grid, den) = match (two, self.cfg.motion) {
-            (true, _) => along_own_axis(&rx, &ry, &gxx, &gxy, &gyy),
-            (false, Motion::Y) => fit_one(&ry, &gyy),
-            (false, _) => fit_one(&rx, &gxx),
+        let (amp_grid, den) = match self.cfg.motion {
+            Motion::Sum => along_own_axis(&rx, &ry, &gxx, &gxy, &gyy),
+            Motion::X => fit_one(&rx, &gxx),
+            Motion::Y => fit_one(&ry, &gyy),
         };
         let dmax = den.iter().copied().fold(0.0f64, f64::max);
         let floor = dmax * 1e-9;
