@@ -44,7 +44,10 @@ pub struct Args {
     /// The effects to try, comma-separated, in the catalog's order
     /// whatever the order given (default: all of time_base,
     /// dropped_frames, exposure, interference, transfer_function,
-    /// soft_clip).
+    /// soft_clip, static_nonlinearity). Of the two nonlinearities one is
+    /// kept at most, and static_nonlinearity (a polynomial with even and
+    /// odd terms) is only tried when the residual holds harmonics of the
+    /// reference.
     #[arg(long, value_name = "LIST")]
     effects: Option<String>,
 }
@@ -125,12 +128,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     // and parameters (± one standard deviation in REPORT.json).
     eprintln!();
     eprintln!(
-        "{:<18} {:<5} {:>14}  parameters",
+        "{:<19} {:<5} {:>14}  parameters",
         "effect", "kept", "held-out gain"
     );
     for e in &r.report.effects {
         eprintln!(
-            "{:<18} {:<5} {:>11} dB  {}",
+            "{:<19} {:<5} {:>11} dB  {}",
             e.name,
             "yes",
             format!("{:+.2}", e.snr_gain_db),
@@ -139,7 +142,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     for (name, gain, p) in &r.rejected {
         eprintln!(
-            "{:<18} {:<5} {:>11} dB  {}",
+            "{:<19} {:<5} {:>11} dB  {}",
             name,
             "no",
             if gain.is_finite() {
@@ -151,7 +154,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         );
     }
     eprintln!(
-        "{:<18} {:<5} {:>11} dB  (SNR {} -> {} dB, in {:.1} s)",
+        "{:<19} {:<5} {:>11} dB  (SNR {} -> {} dB, in {:.1} s)",
         "total",
         "",
         format!("{:+.2}", af.snr_db - b.snr_db),
@@ -166,18 +169,28 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 }
 
 /// The numeric parameters of an effect on one line (`key value`, four
-/// significant figures; lists as their length).
+/// decimals, whole numbers as they are; lists of up to four numbers in
+/// full, longer ones as their length).
 fn brief(p: &vibroscope::math::calibrate::Parameters) -> String {
     let Ok(serde_json::Value::Object(m)) = serde_json::to_value(p) else {
         return String::new();
     };
     m.iter()
         .map(|(k, v)| match v {
+            serde_json::Value::Number(n) if n.is_u64() || n.is_i64() => format!("{k} {n}"),
             serde_json::Value::Number(n) => {
                 format!(
                     "{k} {}",
                     n.as_f64().map_or(n.to_string(), |x| format!("{x:.4}"))
                 )
+            }
+            serde_json::Value::Array(a) if a.len() <= 4 && a.iter().all(|v| v.is_f64()) => {
+                let v: Vec<String> = a
+                    .iter()
+                    .filter_map(|v| v.as_f64())
+                    .map(|x| format!("{x:.4}"))
+                    .collect();
+                format!("{k} [{}]", v.join(", "))
             }
             serde_json::Value::Array(a) => format!("{k} [{}]", a.len()),
             other => format!("{k} {other}"),

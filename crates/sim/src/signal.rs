@@ -86,6 +86,9 @@ pub struct Signal {
     extra: Vec<(f64, f64)>,
     /// Soft clipping level (signal units): `c tanh(x / c)` before the extra tones.
     clip: Option<f64>,
+    /// A static polynomial response, coefficients of x², x³, … (signal
+    /// units): `x + c2 x² + c3 x³ + …`, before the clipping.
+    poly: Vec<f64>,
     /// Factor on the waveform's peak in [`Signal::peak_bound`]: the
     /// resonances' steady-state gain after [`Signal::through_checked`], 1
     /// otherwise.
@@ -266,6 +269,7 @@ impl Signal {
             kind,
             extra: Vec::new(),
             clip: None,
+            poly: Vec::new(),
             gain_bound: 1.0,
         })
     }
@@ -312,6 +316,7 @@ impl Signal {
             },
             extra: self.extra,
             clip: self.clip,
+            poly: self.poly,
             gain_bound: 1.0,
         })
     }
@@ -381,6 +386,30 @@ impl Signal {
         Ok(self)
     }
 
+    /// A static nonlinear response of the object: `x + c2 x² + c3 x³ +
+    /// …` with `coefs = [c2, c3, …]` in signal units (x at unit peak: 0.3
+    /// puts 30% of the peak in the square term at the peak), applied
+    /// before soft clipping and the extra tones. Even terms make even
+    /// harmonics, which `tanh` cannot.
+    pub fn with_polynomial(mut self, coefs: &[f64]) -> Result<Signal, SimError> {
+        if coefs.len() > 8 {
+            return Err(invalid(
+                "response_poly",
+                format!("at most 8 coefficients (x² to x⁹), got {}", coefs.len()),
+            ));
+        }
+        for (i, c) in coefs.iter().enumerate() {
+            if !(c.is_finite() && c.abs() <= 10.0) {
+                return Err(invalid(
+                    format!("response_poly[{i}]"),
+                    format!("must be finite and within ±10, got {c}"),
+                ));
+            }
+        }
+        self.poly = coefs.to_vec();
+        Ok(self)
+    }
+
     pub fn spec(&self) -> &SignalSpec {
         &self.spec
     }
@@ -415,7 +444,14 @@ impl Signal {
             Kind::Wav { samples, .. } => samples.iter().fold(0.0f64, |m, &v| m.max(v.abs() as f64)),
             _ => 1.0,
         };
-        base * self.gain_bound + self.extra.iter().map(|(_, w)| w.abs()).sum::<f64>()
+        let p = base * self.gain_bound;
+        let poly: f64 = self
+            .poly
+            .iter()
+            .enumerate()
+            .map(|(i, c)| c.abs() * p.powi(i as i32 + 2))
+            .sum();
+        p + poly + self.extra.iter().map(|(_, w)| w.abs()).sum::<f64>()
     }
 
     /// Unit-peak waveform value at time `t_s` seconds (plus any
@@ -426,7 +462,15 @@ impl Signal {
             .iter()
             .map(|&(f, w)| w * sin_turns(turns(f, t_s)))
             .sum();
-        let b = self.base_value(t_s);
+        let mut b = self.base_value(t_s);
+        if !self.poly.is_empty() {
+            // Horner on x (c2 + x (c3 + …)), times x², plus x.
+            let mut acc = 0.0;
+            for c in self.poly.iter().rev() {
+                acc = acc * b + c;
+            }
+            b += acc * b * b;
+        }
         let b = match self.clip {
             // tanh(u) = 1 - 2 / (exp(2u) + 1), with the deterministic exp.
             Some(c) => {
@@ -601,6 +645,27 @@ mod tests {
             phase_rad: ph,
         })
         .unwrap()
+    }
+
+    /// Issue 15: the static polynomial response is `x + c2 x² + c3 x³` on
+    /// the signal, bounded in `peak_bound`, and bad coefficients are
+    /// refused naming `response_poly`.
+    #[test]
+    fn a_polynomial_response_adds_its_terms() {
+        let s = tone(10.0, 0.3).with_polynomial(&[0.25, -0.1]).unwrap();
+        let plain = tone(10.0, 0.3);
+        for k in 0..50 {
+            let t = k as f64 * 0.0071;
+            let x = plain.value(t);
+            let want = x + 0.25 * x * x - 0.1 * x * x * x;
+            assert!((s.value(t) - want).abs() < 1e-12, "{t}");
+            assert!(s.value(t).abs() <= s.peak_bound() + 1e-12);
+        }
+        assert!((s.peak_bound() - 1.35).abs() < 1e-12);
+        for bad in [vec![f64::NAN], vec![11.0], vec![0.1; 9]] {
+            let e = tone(10.0, 0.0).with_polynomial(&bad).unwrap_err();
+            assert!(e.to_string().contains("response_poly"), "{e}");
+        }
     }
 
     #[test]

@@ -58,6 +58,16 @@ pub enum Correction {
         level: f64,
         highpass: Option<(usize, f64)>,
     },
+    /// Undo a static nonlinear response: `u + a2 u² + a3 u³ + …`
+    /// (`coefs = [a2, a3, …]`, recovery units) on `u`, the recovery with
+    /// its high-pass undone, then high-passed again (as for soft
+    /// clipping). The terms are held at ±`range` (the recovery's peak when
+    /// it was fitted) beyond it.
+    Polynomial {
+        coefs: Vec<f64>,
+        range: f64,
+        highpass: Option<(usize, f64)>,
+    },
 }
 
 /// Most boost the exposure inverse applies (the `exposure` stage's -12 dB floor).
@@ -74,6 +84,7 @@ impl Correction {
             Correction::Interference { .. } => EffectKind::Interference,
             Correction::Transfer { .. } => EffectKind::Transfer,
             Correction::SoftClip { .. } => EffectKind::SoftClip,
+            Correction::Polynomial { .. } => EffectKind::Polynomial,
         }
     }
 
@@ -82,7 +93,10 @@ impl Correction {
     pub fn reusable(&self) -> bool {
         matches!(
             self,
-            Correction::TimeBase { .. } | Correction::Exposure { .. } | Correction::Transfer { .. }
+            Correction::TimeBase { .. }
+                | Correction::Exposure { .. }
+                | Correction::Transfer { .. }
+                | Correction::Polynomial { .. }
         )
     }
 
@@ -109,6 +123,11 @@ impl Correction {
                     .collect();
                 redo_highpass(&p, fs, *highpass)
             }
+            Correction::Polynomial {
+                coefs,
+                range,
+                highpass,
+            } => super::polynomial::apply(z, fs, coefs, *range, *highpass),
             Correction::Exposure { .. } | Correction::Transfer { .. } => equalize(z, fs, |f| {
                 self.response(f).unwrap_or(Complex::new(1.0, 0.0))
             }),

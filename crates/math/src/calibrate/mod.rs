@@ -17,7 +17,9 @@
 //! recovery can be written out and the same correction reused on a new
 //! recording of the same object and camera). The catalog: time-base
 //! error, dropped or duplicated frames, exposure, narrowband interference
-//! lines, object transfer function, soft saturation. Acceptance is
+//! lines, object transfer function, soft saturation, and a static
+//! polynomial response with even and odd terms (the family soft saturation
+//! belongs to; one of the two is kept at most). Acceptance is
 //! greedy, best first: each round fits every effect not yet kept on the
 //! current corrected recovery and keeps the one that gains most on the
 //! held-out part. Each is fitted on the fit part of the recording (blocks of
@@ -43,7 +45,8 @@
 //! (residuals are coloured in practice, so these are lower bounds).
 //!
 //! One file per effect of the catalog ([`time_base`], [`frames`],
-//! [`exposure`], [`interference`], [`transfer`], [`soft_clip`]); the
+//! [`exposure`], [`interference`], [`transfer`], [`soft_clip`],
+//! [`polynomial`]); the
 //! corrections they fit ([`correction`]), the linear model ([`model`]),
 //! signal tools ([`signal`]), correlation ([`correlation`]) and the
 //! residual analysis ([`residual`]) beside them; here the options, the
@@ -55,6 +58,7 @@ mod exposure;
 mod frames;
 mod interference;
 mod model;
+mod polynomial;
 mod report;
 mod residual;
 mod signal;
@@ -116,17 +120,25 @@ pub enum EffectKind {
     /// object or loudspeaker driven hard. Added by the worked example in
     /// the README's "Closing the loop".
     SoftClip,
+    /// (g) A static nonlinear response with even and odd terms (`x + c2
+    /// x² + …`, order chosen on data the coefficients were not fitted on):
+    /// the family soft clipping belongs to, for the responses it cannot
+    /// fit (a quadratic term: energy at twice the reference's frequency).
+    /// Of the two, the simpler is kept unless the other gains
+    /// [`Options::min_gain_db`] more.
+    Polynomial,
 }
 
 /// The catalog in the order it is tried: time base, then frames, then the
 /// spectral effects, then saturation.
-pub const CATALOG: [EffectKind; 6] = [
+pub const CATALOG: [EffectKind; 7] = [
     EffectKind::TimeBase,
     EffectKind::Frames,
     EffectKind::Exposure,
     EffectKind::Interference,
     EffectKind::Transfer,
     EffectKind::SoftClip,
+    EffectKind::Polynomial,
 ];
 
 impl EffectKind {
@@ -138,6 +150,7 @@ impl EffectKind {
             EffectKind::Interference => "interference",
             EffectKind::Transfer => "transfer_function",
             EffectKind::SoftClip => "soft_clip",
+            EffectKind::Polynomial => "static_nonlinearity",
         }
     }
 }
@@ -157,6 +170,10 @@ pub struct EffectReport {
     pub parameters: Parameters,
     pub uncertainty: Uncertainty,
     pub snr_gain_db: f64,
+    /// The structure of the residual that pointed to this effect, as it
+    /// was before the effect was added (a nonlinearity: the harmonics).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub evidence: Vec<Unexplained>,
 }
 
 /// What `calibrate` found: `REPORT.json` is this, serialised.
@@ -267,6 +284,14 @@ pub fn calibrate_observed(
     loop {
         round_no += 1;
         let mut round: Vec<Tried> = Vec::new();
+        // The residual's harmonics now: a nonlinearity is only fitted
+        // when there are some (the general polynomial otherwise finds an
+        // amplitude-dependent gain, which on a chirp of varying response
+        // mimics a filter: +0.5 dB on scenes with no nonlinearity at all).
+        let harmonics: Vec<Unexplained> = unexplained(&m, &z, &fit)
+            .into_iter()
+            .filter(|u| matches!(u, Unexplained::Harmonics { .. }))
+            .collect();
         for (index, &kind) in left.iter().enumerate() {
             on_step(Step {
                 round: round_no,
@@ -274,6 +299,9 @@ pub fn calibrate_observed(
                 index,
                 of: left.len(),
             });
+            if kind == EffectKind::Polynomial && harmonics.is_empty() {
+                continue;
+            }
             let Some(c) = fit_effect(kind, &m, &z, &fit) else {
                 continue;
             };
@@ -284,12 +312,28 @@ pub fn calibrate_observed(
             tracing::info!(effect = kind.name(), gain_db = gain, "candidate");
             round.push(Tried { kind, c, gain });
         }
-        let best = round
+        let mut best = round
             .iter()
             .enumerate()
             .filter(|(_, r)| r.gain.is_finite() && r.gain >= opts.min_gain_db)
             .max_by(|a, b| a.1.gain.total_cmp(&b.1.gain))
             .map(|(i, _)| i);
+        // One nonlinearity family: soft clipping, the simpler member (one
+        // level), is kept over the general polynomial unless the
+        // polynomial gains `min_gain_db` more.
+        if let Some(bi) = best {
+            if round[bi].kind == EffectKind::Polynomial {
+                if let Some((ci, c)) = round
+                    .iter()
+                    .enumerate()
+                    .find(|(_, r)| r.kind == EffectKind::SoftClip)
+                {
+                    if c.gain >= opts.min_gain_db && round[bi].gain - c.gain < opts.min_gain_db {
+                        best = Some(ci);
+                    }
+                }
+            }
+        }
         let Some(bi) = best else {
             for t in round {
                 rejected.push(Rejected {
@@ -302,6 +346,9 @@ pub fn calibrate_observed(
         };
         let mut t = round.swap_remove(bi);
         left.retain(|&k| k != t.kind);
+        if matches!(t.kind, EffectKind::SoftClip | EffectKind::Polynomial) {
+            left.retain(|&k| !matches!(k, EffectKind::SoftClip | EffectKind::Polynomial));
+        }
         // Lines are subtracted first, from the recovery as delivered.
         if let Correction::Interference { lines } = &mut t.c.correction {
             let up = chain(&kept);
@@ -309,9 +356,15 @@ pub fn calibrate_observed(
                 *l = Correction::line_before(*l, &up, fs);
             }
         }
+        let evidence = if matches!(t.kind, EffectKind::SoftClip | EffectKind::Polynomial) {
+            harmonics.clone()
+        } else {
+            Vec::new()
+        };
         kept.push(Kept {
             c: t.c,
             gain: t.gain,
+            evidence,
         });
         z = apply_all(&chain(&kept), y, fs);
         fit = m.fit_linear(&z);
@@ -341,6 +394,7 @@ pub fn calibrate_observed(
                 parameters: c.parameters(fs, fit.g),
                 uncertainty: k.c.uncertainty.clone(),
                 snr_gain_db: gain,
+                evidence: k.evidence.clone(),
             }
         })
         .collect();
@@ -369,6 +423,7 @@ fn fit_effect(kind: EffectKind, m: &Model, z: &[f64], fit: &Fit) -> Option<Candi
         EffectKind::Interference => interference::fit_interference(m, z, fit),
         EffectKind::Transfer => transfer::fit_transfer(m, z, fit),
         EffectKind::SoftClip => soft_clip::fit_soft_clip(m, z, fit),
+        EffectKind::Polynomial => polynomial::fit_polynomial(m, z, fit),
     }
 }
 
@@ -376,6 +431,7 @@ fn fit_effect(kind: EffectKind, m: &Model, z: &[f64], fit: &Fit) -> Option<Candi
 struct Kept {
     c: Candidate,
     gain: f64,
+    evidence: Vec<Unexplained>,
 }
 
 /// The kept corrections in the order they apply: interference lines first

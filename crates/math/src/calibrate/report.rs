@@ -57,6 +57,19 @@ pub enum Parameters {
         a5: f64,
         level_in_reference_units: f64,
     },
+    /// The inverse `u + a2 u² + …` in the recovery's units (what
+    /// `listen --calibration` applies), the same in the reference's units
+    /// (`ak g^(k-1)`, g the recovery's gain: to first order the object's
+    /// forward response is `x - a2 x² - …` there), the order and the
+    /// recovery's range it was fitted over; the high-pass it undoes.
+    Polynomial {
+        coefficients: Vec<f64>,
+        highpass_hz: Option<f64>,
+        highpass_order: Option<usize>,
+        inverse_in_reference_units: Vec<f64>,
+        order: usize,
+        range: f64,
+    },
 }
 
 fn list(f: &mut fmt::Formatter<'_>, v: &[f64]) -> fmt::Result {
@@ -123,6 +136,16 @@ impl fmt::Display for Parameters {
                 f,
                 "a3 {a3}, a5 {a5}, level_in_reference_units {level_in_reference_units}"
             ),
+            Parameters::Polynomial {
+                inverse_in_reference_units,
+                order,
+                range,
+                ..
+            } => {
+                write!(f, "order {order}, inverse_in_reference_units ")?;
+                list(f, inverse_in_reference_units)?;
+                write!(f, ", range {range}")
+            }
         }
     }
 }
@@ -158,6 +181,10 @@ pub enum Uncertainty {
         a3: f64,
         a5: f64,
         level_in_reference_units: f64,
+    },
+    /// Of each coefficient, recovery units.
+    Polynomial {
+        coefficients: Vec<f64>,
     },
 }
 
@@ -272,6 +299,22 @@ impl Correction {
                 a5: *a5,
                 level_in_reference_units: *level,
             },
+            Correction::Polynomial {
+                coefs,
+                range,
+                highpass,
+            } => Parameters::Polynomial {
+                coefficients: coefs.clone(),
+                highpass_hz: highpass.map(|h| h.1),
+                highpass_order: highpass.map(|h| h.0),
+                inverse_in_reference_units: coefs
+                    .iter()
+                    .enumerate()
+                    .map(|(i, a)| a * gain.powi(i as i32 + 1))
+                    .collect(),
+                order: coefs.len() + 1,
+                range: *range,
+            },
         }
     }
 }
@@ -340,6 +383,9 @@ pub const MAX_EXPOSURE_US: f64 = 1e6;
 /// The largest transfer-function strength `k` a stored report may hold
 /// (the fit searches 0 to 3).
 pub const MAX_TRANSFER_K: f64 = 10.0;
+/// The most terms a stored static nonlinearity may hold (the fit uses at
+/// most four; the simulator renders up to x⁹).
+pub const MAX_POLYNOMIAL_TERMS: usize = 8;
 
 /// A value in a stored report's `parameters`, as loosely as it may come.
 #[derive(Deserialize)]
@@ -431,6 +477,7 @@ fn from_report(
         EffectKind::TimeBase,
         EffectKind::Exposure,
         EffectKind::Transfer,
+        EffectKind::Polynomial,
     ]
     .into_iter()
     .find(|k| k.name() == name);
@@ -492,6 +539,47 @@ fn from_report(
                 coef_db: c,
                 phase_deg: phase,
                 k,
+            })
+        }
+        Some(EffectKind::Polynomial) => {
+            let coefs = list("coefficients")?;
+            if coefs.is_empty() || coefs.len() > MAX_POLYNOMIAL_TERMS {
+                return Err(ReportError::OutOfRange {
+                    index,
+                    name: name.to_string(),
+                    key: "coefficients",
+                    range: "1 to 8 numbers (x² to x⁹)",
+                    value: coefs.len() as f64,
+                });
+            }
+            let range = num("range")?;
+            if range <= 0.0 {
+                return Err(ReportError::OutOfRange {
+                    index,
+                    name: name.to_string(),
+                    key: "range",
+                    range: "> 0",
+                    value: range,
+                });
+            }
+            // The high-pass it undoes: both keys numbers, or both absent/null.
+            let highpass = match (p.get("highpass_order"), p.get("highpass_hz")) {
+                (Some(Stored::Num(o)), Some(Stored::Num(hz))) => {
+                    if !(o.fract() == 0.0 && (1.0..=16.0).contains(o)) {
+                        return Err(field("highpass_order", "a whole number 1 to 16"));
+                    }
+                    if !(hz.is_finite() && *hz > 0.0) {
+                        return Err(field("highpass_hz", "a frequency > 0"));
+                    }
+                    Some((*o as usize, *hz))
+                }
+                (None | Some(Stored::Other(_)), None | Some(Stored::Other(_))) => None,
+                _ => return Err(field("highpass_hz", "given with highpass_order")),
+            };
+            Some(Correction::Polynomial {
+                coefs,
+                range,
+                highpass,
             })
         }
         // Per recording: the level is in the recovery's units, which

@@ -268,3 +268,80 @@ fn report_clock_error_out_of_range_is_refused() {
         }
     }
 }
+
+/// Issue 15: a static nonlinearity belongs to the object, so a stored
+/// report gives it back (with the high-pass it undoes, or none), and its
+/// numbers have ranges: no coefficients or more than eight, a range that
+/// is not > 0, a high-pass order without its frequency are refused,
+/// naming the field. Applied, the inverse holds its terms at the range's
+/// edge beyond it.
+#[test]
+fn report_round_trips_a_static_nonlinearity_and_refuses_bad_ones() {
+    for hp in [Some((4, 55.0)), None] {
+        let c = Correction::Polynomial {
+            coefs: vec![-20.0, 300.0],
+            range: 0.01,
+            highpass: hp,
+        };
+        let p = serde_json::to_value(c.parameters(2200.0, -0.006)).unwrap();
+        let inv = p["inverse_in_reference_units"].as_array().unwrap();
+        assert!((inv[0].as_f64().unwrap() - 0.12).abs() < 1e-12, "{p}");
+        assert!(
+            (inv[1].as_f64().unwrap() - 300.0 * 3.6e-5).abs() < 1e-12,
+            "{p}"
+        );
+        assert_eq!(p["order"], 3);
+        let back = reusable_from_report(
+            &json!({"effects": [{"name": "static_nonlinearity", "parameters": p}]}),
+        )
+        .unwrap();
+        assert_eq!(back, [c]);
+    }
+    let poly = |coefs: Value, range: f64, extra: Value| {
+        let mut p = json!({"coefficients": coefs, "range": range});
+        if let (Some(m), Value::Object(e)) = (p.as_object_mut(), extra) {
+            m.extend(e);
+        }
+        json!({"effects": [{"name": "static_nonlinearity", "parameters": p}]})
+    };
+    for (report, key) in [
+        (poly(json!([]), 0.01, json!({})), "coefficients"),
+        (poly(json!(vec![1.0; 9]), 0.01, json!({})), "coefficients"),
+        (poly(json!([1.0]), 0.0, json!({})), "range"),
+        (
+            poly(json!([1.0]), 0.01, json!({"highpass_order": 4})),
+            "highpass_hz",
+        ),
+        (
+            poly(
+                json!([1.0]),
+                0.01,
+                json!({"highpass_order": 2.5, "highpass_hz": 50.0}),
+            ),
+            "highpass_order",
+        ),
+        (
+            poly(
+                json!([1.0]),
+                0.01,
+                json!({"highpass_order": 4, "highpass_hz": -1.0}),
+            ),
+            "highpass_hz",
+        ),
+    ] {
+        match reusable_from_report(&report) {
+            Ok(c) => panic!("{report}: accepted {c:?}"),
+            Err(e) => assert!(e.to_string().contains(key), "{e}"),
+        }
+    }
+    // Beyond the range the terms stay at the edge's value.
+    let c = Correction::Polynomial {
+        coefs: vec![1.0],
+        range: 0.5,
+        highpass: None,
+    };
+    let y = c.apply(&[0.25, 0.5, 2.0, -2.0], 2200.0);
+    for (got, want) in y.iter().zip([0.3125, 0.75, 2.25, -1.75]) {
+        assert!((got - want).abs() < 1e-12, "{y:?}");
+    }
+}

@@ -46,6 +46,7 @@ pub struct SyntheticParams {
     pub modal: Option<sim::ModalSpec>,
     pub fabric: Option<sim::FabricSpec>,
     pub soft_clip_px: Option<f64>,
+    pub response_poly: Vec<f64>,
 }
 
 /// A narrowband motion added to the object's.
@@ -137,6 +138,9 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec::new("soft_clip_px", ParamType::Float, Def::Optional)
         .unit("px")
         .doc("excursion saturates softly: L tanh(d / L) with L = soft_clip_px"),
+    ParamSpec::new("response_poly", ParamType::Floats, Def::Toml("[]"))
+        .floats(-10.0, 10.0)
+        .doc("static nonlinear response [c2, c3, ...]: x + c2 x² + c3 x³ + ... with x in units of amplitude_px (before soft_clip_px; even terms make even harmonics)"),
 ];
 
 impl Default for SyntheticParams {
@@ -177,6 +181,7 @@ impl Default for SyntheticParams {
             modal: None,
             fabric: None,
             soft_clip_px: None,
+            response_poly: Vec::new(),
         }
     }
 }
@@ -288,6 +293,7 @@ impl SyntheticParams {
                     s.through_checked(&self.resonances, rate, span)
                 }
             })
+            .and_then(|s| s.with_polynomial(&self.response_poly))
             .and_then(|s| match self.soft_clip_px {
                 Some(l) => s.soft_clipped(l * unit),
                 None => Ok(s),
@@ -433,6 +439,8 @@ impl SyntheticParams {
                 "modal"
             } else if m.contains("soft_clip_px") {
                 "soft_clip_px"
+            } else if m.contains("response_poly") {
+                "response_poly"
             } else if m.contains("resonances") {
                 "resonances"
             } else if m.contains("interference") {
