@@ -32,6 +32,14 @@ const REF_RATE: u32 = 32_000;
 
 /// A linear chirp 100-1000 Hz over 2.2 s (longer than the 2 s videos).
 fn write_chirp(path: &Path) -> f64 {
+    write_sweeps(path, 1, 2.2)
+}
+
+/// `count` linear sweeps of 100-1000 Hz, `secs` each, one after the other
+/// (with two, frequencies repeat over time, so a gain that changes with
+/// time and one that changes with frequency no longer look alike); the
+/// peak as stored.
+fn write_sweeps(path: &Path, count: usize, secs: f64) -> f64 {
     let spec = hound::WavSpec {
         channels: 1,
         sample_rate: REF_RATE,
@@ -39,10 +47,11 @@ fn write_chirp(path: &Path) -> f64 {
         sample_format: hound::SampleFormat::Float,
     };
     let mut w = hound::WavWriter::create(path, spec).unwrap();
-    let (secs, f0, f1) = (2.2, 100.0, 1000.0);
+    let (f0, f1) = (100.0, 1000.0);
+    let n = (secs * REF_RATE as f64) as usize;
     let mut peak = 0.0f64;
-    for i in 0..(secs * REF_RATE as f64) as usize {
-        let t = i as f64 / REF_RATE as f64;
+    for i in 0..count * n {
+        let t = (i % n) as f64 / REF_RATE as f64;
         let v = 0.9 * (2.0 * PI * (f0 * t + (f1 - f0) * t * t / (2.0 * secs))).sin();
         peak = peak.max(v.abs() as f32 as f64);
         w.write_sample(v as f32).unwrap();
@@ -368,6 +377,27 @@ fn bad_input_exits_2_naming_the_file() {
         let o = run_in(d.path(), &args);
         assert_eq!(code(&o), 2, "{}", stderr(&o));
         assert!(stderr(&o).contains(needle), "{}", stderr(&o));
+    }
+    // A tone instead of a WAV: out of range, not a number, both or
+    // neither given; no report written.
+    for (args, needle) in [
+        (&["--reference-tone", "0"][..], "--reference-tone"),
+        (&["--reference-tone", "-64"][..], "--reference-tone"),
+        (&["--reference-tone", "NaN"][..], "--reference-tone"),
+        (&["--reference-tone", "1e9"][..], "--reference-tone"),
+        (&["--reference-tone", "sixty"][..], "sixty"),
+        (
+            &["--reference-tone", "64", "--reference", "chirp.wav"][..],
+            "--reference",
+        ),
+        (&[][..], "--reference"),
+    ] {
+        let mut a = vec!["calibrate", "s.y4m", "--json", "r.json"];
+        a.extend_from_slice(args);
+        let o = run_in(d.path(), &a);
+        assert_eq!(code(&o), 2, "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{args:?}: {}", stderr(&o));
+        assert!(!d.path().join("r.json").exists(), "{args:?}");
     }
 }
 
@@ -828,5 +858,164 @@ fn no_nonlinearity_is_claimed_where_there_is_none() {
             c.report.before.snr_db, r["effects"]
         );
         assert!(c.report.effects.is_empty(), "seed {seed}: {r}");
+    }
+}
+
+/// Issue 15, family (h), slow modulation of gain: the object's motion
+/// decays as exp(-t / 2 s) (`gain_decay_s`, a struck object ringing down;
+/// 8.7 dB over the 2 s), calibrated on two sweeps of the chirp. The
+/// residual's time axis reads the gain falling; `gain_drift` alone is
+/// kept, pointed to by that reading (`evidence`), its start-to-end change
+/// within 1.5 dB of the true -8.7 dB, the held-out SNR up by 1 dB at least
+/// (the effect is weak in SNR: undoing the decay lifts the noise where the
+/// signal has faded; +3.3 dB measured). It belongs to one recording, so
+/// `listen --calibration` leaves it out. On a single up-sweep the decay is
+/// confounded with a low-pass (the sweep's frequency rises with time):
+/// there `exposure` is kept first (docs/calibration.md).
+#[test]
+fn a_decaying_excitation_is_read_on_the_time_axis_and_undone() {
+    let d = tempfile::tempdir().unwrap();
+    let wav = d.path().join("two-sweeps.wav");
+    write_sweeps(&wav, 2, 1.1);
+    let scene = format!(
+        "width = 64\nheight = 64\nfps = 2200.0\nnoise_std = 0.5\nduration_s = 2.0\namplitude_px = 0.05\nsignal = {{ type = \"wav\", path = {:?} }}\ngain_decay_s = 2.0\n{}",
+        wav.display().to_string(),
+        seed_key()
+    );
+    let toml = d.path().join("decay.toml");
+    std::fs::write(&toml, scene).unwrap();
+    let y4m = d.path().join("decay.y4m");
+    assert_eq!(simulate(&toml, &y4m), std::process::ExitCode::SUCCESS);
+    let (c, r) = calibrate_with(&y4m, &wav, CATALOG.to_vec());
+    eprintln!("decay: {r}");
+    let kept: Vec<&str> = c.report.effects.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(kept, ["gain_drift"], "{r}");
+    let e = &r["effects"][0];
+    assert!(
+        e["evidence"]
+            .as_array()
+            .is_some_and(|v| v.iter().any(|u| u["kind"] == "gain_over_time")),
+        "{e}"
+    );
+    let change = e["parameters"]["start_to_end_db"].as_f64().unwrap();
+    let want = 20.0 * (-1.0f64).exp().log10();
+    let g = c.report.after.snr_db - c.report.before.snr_db;
+    eprintln!(
+        "decay: start to end {change:.2} dB (true {want:.2}), held-out SNR {:.2} -> {:.2} dB ({g:+.2})",
+        c.report.before.snr_db, c.report.after.snr_db
+    );
+    assert!((change - want).abs() < 1.5, "{change} vs {want}");
+    assert!(g >= 1.0, "{g}");
+    // Per recording: a stored report gives nothing back for it.
+    let back = vibroscope::math::calibrate::reusable_from_report(&r).unwrap();
+    assert!(back.is_empty(), "{back:?}");
+}
+
+/// Issue 15 on measured data: the 64 Hz tuning fork filmed at 250, 500
+/// and 1000 fps (`../shared/data/forks`, a known tone struck by hand; the
+/// regions from `roi_xywh.txt`), calibrated with `--reference-tone 64`.
+/// Each report gives the linear model's residual on every axis; the
+/// fork's pitch against the camera's clock (the time base) is found and
+/// kept, the report notes that against one tone the two are one
+/// parameter, and the held-out SNR rises by at least 2 dB. Where the
+/// residual's time axis shows the strike decaying, `gain_drift` is kept
+/// with the gain falling. The table is printed (docs/calibration.md).
+/// Skips when the data or ffmpeg is missing.
+#[test]
+fn the_tuning_fork_is_calibrated_against_its_tone() {
+    let Some(rois) = shared_data("forks/roi_xywh.txt") else {
+        return;
+    };
+    if std::process::Command::new("ffmpeg")
+        .arg("-version")
+        .output()
+        .is_err()
+    {
+        eprintln!("skipping: ffmpeg is not installed (the fork videos are H.264)");
+        return;
+    }
+    let rois = std::fs::read_to_string(rois).unwrap();
+    let d = tempfile::tempdir().unwrap();
+    let mut rows = Vec::new();
+    for line in rois.lines().filter(|l| !l.trim().is_empty()) {
+        let f: Vec<&str> = line.split_whitespace().collect();
+        let (file, roi) = (f[0], format!("{},{},{},{}", f[1], f[2], f[3], f[4]));
+        let fps = file
+            .trim_start_matches("fork64hz_")
+            .trim_end_matches("fps.mp4")
+            .to_string();
+        let video = shared_data(&format!("forks/{file}")).unwrap();
+        let json = d.path().join(format!("{fps}.json"));
+        let o = run_in(
+            d.path(),
+            &[
+                "calibrate",
+                video.to_str().unwrap(),
+                "--fps",
+                &fps,
+                "--roi",
+                &roi,
+                "--reference-tone",
+                "64",
+                "--json",
+                json.to_str().unwrap(),
+            ],
+        );
+        assert_eq!(code(&o), 0, "{file}: {}", stderr(&o));
+        let r: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert_eq!(r["reference_tone_hz"], 64.0, "{r}");
+        let kinds: Vec<String> = r["linear_residual"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|u| u["kind"].as_str().unwrap().to_string())
+            .collect();
+        let names: Vec<&str> = r["effects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|e| e["name"].as_str().unwrap())
+            .collect();
+        assert!(names.contains(&"time_base"), "{file}: {r}");
+        let ppm = r["effects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|e| e["name"] == "time_base")
+            .unwrap()["parameters"]["clock_error_ppm"]
+            .as_f64()
+            .unwrap();
+        let pitch = 64.0 * (1.0 - ppm * 1e-6);
+        assert!(
+            r["notes"][0]
+                .as_str()
+                .is_some_and(|n| n.contains("one parameter")),
+            "{r}"
+        );
+        let (b, a) = (
+            r["before"]["snr_db"].as_f64().unwrap(),
+            r["after"]["snr_db"].as_f64().unwrap(),
+        );
+        assert!(a - b >= 2.0, "{file}: {b} -> {a}");
+        let drift = r["effects"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|e| e["name"] == "gain_drift")
+            .map(|e| e["parameters"]["start_to_end_db"].as_f64().unwrap());
+        if let Some(db) = drift {
+            assert!(kinds.iter().any(|k| k == "gain_over_time"), "{file}: {r}");
+            assert!(db < 0.0, "{file}: the strike's gain rose by {db} dB");
+        }
+        rows.push((fps, kinds, names.join(", "), pitch, drift, b, a));
+    }
+    eprintln!("| fps | linear model's residual | effects kept | pitch on the declared rate | gain start to end | held-out SNR before -> after |");
+    eprintln!("|---|---|---|---|---|---|");
+    for (fps, kinds, names, pitch, drift, b, a) in rows {
+        eprintln!(
+            "| {fps} | {} | {names} | {pitch:.3} Hz | {} | {b:.2} -> {a:.2} dB |",
+            kinds.join(", "),
+            drift.map_or("-".into(), |v| format!("{v:+.1} dB"))
+        );
     }
 }

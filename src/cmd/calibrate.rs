@@ -12,13 +12,15 @@ use vibroscope::pipeline::RunSettings;
 /// Compare what the visual microphone recovers from VIDEO with the sound
 /// that was played (REF.wav): fit delay and gain, then try the catalog
 /// of effects (time-base error, dropped or duplicated frames, exposure,
-/// interference lines, object transfer function, soft saturation), each
+/// interference lines, object transfer function, soft saturation, a
+/// static nonlinearity, a gain drifting over the recording), each
 /// fitted on 60% of the recording (blocks of about 0.1 s, 3 of every 5)
 /// and kept only if it lowers the error on the other 40%; report the
 /// errors before and after and the residual no effect explains.
 #[derive(clap::Args)]
 #[command(after_help = "Examples:\n  \
     vibroscope calibrate chirp.y4m --reference chirp.wav --json report.json -o corrected.wav\n  \
+    vibroscope calibrate fork.mp4 --fps 1000 --roi 274,35,60,88 --reference-tone 64 --json fork.json\n  \
     vibroscope listen speech.y4m --calibration report.json -o speech.wav")]
 pub struct Args {
     /// The recording of the object while the reference sound played
@@ -27,8 +29,20 @@ pub struct Args {
     /// The sound that was played (WAV, first channel): a chirp or ramp, or
     /// speech. It must cover the video's duration and be sampled at least
     /// at the video's frame rate.
-    #[arg(long, value_name = "REF.wav")]
-    reference: PathBuf,
+    #[arg(
+        long,
+        value_name = "REF.wav",
+        required_unless_present = "reference_tone",
+        conflicts_with = "reference_tone"
+    )]
+    reference: Option<PathBuf>,
+    /// Instead of a WAV: the object rang at a known pitch whose phase and
+    /// exact frequency are unknown (a tuning fork struck by hand). The
+    /// delay fits the phase; the time base then measures the pitch (or the
+    /// camera's rate: against one tone they are one parameter, and the
+    /// report says so).
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    reference_tone: Option<f64>,
     /// Where to write the report: errors on the held-out part before and
     /// after, the effects kept (name, parameters, uncertainty, SNR gain) and
     /// the residual no effect explains.
@@ -44,10 +58,11 @@ pub struct Args {
     /// The effects to try, comma-separated, in the catalog's order
     /// whatever the order given (default: all of time_base,
     /// dropped_frames, exposure, interference, transfer_function,
-    /// soft_clip, static_nonlinearity). Of the two nonlinearities one is
-    /// kept at most, and static_nonlinearity (a polynomial with even and
-    /// odd terms) is only tried when the residual holds harmonics of the
-    /// reference.
+    /// soft_clip, static_nonlinearity, gain_drift). Of the two
+    /// nonlinearities one is kept at most, and static_nonlinearity (a
+    /// polynomial with even and odd terms) is only tried when the residual
+    /// holds harmonics of the reference; gain_drift only when the gain
+    /// moves over the recording and nothing else gains in that round.
     #[arg(long, value_name = "LIST")]
     effects: Option<String>,
 }
@@ -91,7 +106,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     let o = CalibrateOptions {
         video: a.video,
-        reference: a.reference,
+        reference: a.reference.unwrap_or_default(),
+        reference_tone_hz: a.reference_tone,
         json: a.json,
         output: a.output,
         fps: a.video_args.fps,
@@ -121,8 +137,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         db(b.lsd_db),
         db(af.lsd_db)
     );
+    for u in &r.report.linear_residual {
+        eprintln!("linear model's residual: {}", u.description());
+    }
     for u in &r.report.unexplained {
         eprintln!("unexplained: {}", u.description());
+    }
+    for n in &r.notes {
+        eprintln!("note: {n}");
     }
     // The summary: every effect fitted, kept or not, its held-out gain
     // and parameters (± one standard deviation in REPORT.json).

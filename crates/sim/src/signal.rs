@@ -89,6 +89,9 @@ pub struct Signal {
     /// A static polynomial response, coefficients of x², x³, … (signal
     /// units): `x + c2 x² + c3 x³ + …`, before the clipping.
     poly: Vec<f64>,
+    /// The excitation decays as `exp(-t / decay_s)` (a struck object),
+    /// before the extra tones.
+    decay_s: Option<f64>,
     /// Factor on the waveform's peak in [`Signal::peak_bound`]: the
     /// resonances' steady-state gain after [`Signal::through_checked`], 1
     /// otherwise.
@@ -270,6 +273,7 @@ impl Signal {
             extra: Vec::new(),
             clip: None,
             poly: Vec::new(),
+            decay_s: None,
             gain_bound: 1.0,
         })
     }
@@ -317,6 +321,7 @@ impl Signal {
             extra: self.extra,
             clip: self.clip,
             poly: self.poly,
+            decay_s: self.decay_s,
             gain_bound: 1.0,
         })
     }
@@ -410,6 +415,19 @@ impl Signal {
         Ok(self)
     }
 
+    /// The object's motion decays as `exp(-t / decay_s)` over the
+    /// recording (a struck object ringing down), before the extra tones.
+    pub fn decaying(mut self, decay_s: f64) -> Result<Signal, SimError> {
+        if !(decay_s.is_finite() && decay_s > 0.0) {
+            return Err(invalid(
+                "gain_decay_s",
+                format!("must be a finite time > 0, got {decay_s}"),
+            ));
+        }
+        self.decay_s = Some(decay_s);
+        Ok(self)
+    }
+
     pub fn spec(&self) -> &SignalSpec {
         &self.spec
     }
@@ -477,6 +495,10 @@ impl Signal {
                 let u = (b / c).clamp(-20.0, 20.0);
                 c * (1.0 - 2.0 / (super::detmath::exp(2.0 * u) + 1.0))
             }
+            None => b,
+        };
+        let b = match self.decay_s {
+            Some(d) => b * super::detmath::exp(-t_s.max(0.0) / d),
             None => b,
         };
         b + extra

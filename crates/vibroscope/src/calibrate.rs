@@ -29,8 +29,13 @@ impl std::fmt::Debug for StepHook {
 pub struct CalibrateOptions {
     /// The recording of the object while the reference sound played.
     pub video: PathBuf,
-    /// The sound that was played (WAV, first channel).
+    /// The sound that was played (WAV, first channel); unused with
+    /// `reference_tone_hz`.
     pub reference: PathBuf,
+    /// Instead of a WAV: the reference is a pure tone of this frequency
+    /// whose phase is unknown (a tuning fork); its exact pitch is what the
+    /// time base then measures.
+    pub reference_tone_hz: Option<f64>,
     /// Where the report goes (REPORT.json).
     pub json: PathBuf,
     /// Also the corrected recovery at the reference's rate.
@@ -60,6 +65,13 @@ pub struct CalibrationReport {
     /// Files written.
     #[serde(skip)]
     pub written: Vec<PathBuf>,
+    /// The reference when it was a tone (`--reference-tone`), Hz.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference_tone_hz: Option<f64>,
+    /// What the effects found mean that the table does not say (a tone's
+    /// pitch and a clock error are one parameter).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 /// `a,b,c` as catalog entries (in catalog order).
@@ -160,6 +172,27 @@ pub struct Calibrated {
     pub calibration: Calibration,
 }
 
+/// What the object heard.
+#[derive(Clone, Copy, Debug)]
+pub enum ReferenceSource<'a> {
+    /// A WAV file (first channel).
+    Wav(&'a Path),
+    /// A pure tone of this frequency (Hz), phase unknown.
+    Tone(f64),
+}
+
+/// Highest tone `--reference-tone` accepts, Hz.
+pub const MAX_TONE_HZ: f64 = 1e5;
+
+/// A unit-peak tone at `hz` sampled at `rate` for `secs` (its phase is
+/// what the delay fits).
+fn tone(hz: f64, rate: f64, secs: f64) -> Vec<f64> {
+    let n = (secs * rate).ceil() as usize;
+    (0..n)
+        .map(|i| (std::f64::consts::TAU * (hz * i as f64 / rate).fract()).sin())
+        .collect()
+}
+
 /// Recovers `video` and calibrates it against `reference`, telling
 /// `on_step` of each candidate effect as it is fitted (errors that are the
 /// user's are [`Error::Input`] or [`Error::Usage`]).
@@ -172,6 +205,44 @@ pub fn calibrate_video(
     run: RunSettings,
     on_step: Option<&StepHook>,
 ) -> Result<Calibrated> {
+    calibrate_video_from(
+        video,
+        ReferenceSource::Wav(reference),
+        fps,
+        region,
+        opts,
+        run,
+        on_step,
+    )
+}
+
+/// [`calibrate_video`] against a WAV or a tone.
+pub fn calibrate_video_from(
+    video: &Path,
+    reference: ReferenceSource<'_>,
+    fps: Option<f64>,
+    region: &Region,
+    opts: Option<Options>,
+    run: RunSettings,
+    on_step: Option<&StepHook>,
+) -> Result<Calibrated> {
+    let reference = match reference {
+        ReferenceSource::Wav(p) => p,
+        ReferenceSource::Tone(hz) => {
+            if !(hz.is_finite() && hz > 0.0 && hz <= MAX_TONE_HZ) {
+                return Err(Error::usage(
+                    "--reference-tone",
+                    format!("must be a frequency above 0 and at most {MAX_TONE_HZ} Hz, got {hz}"),
+                ));
+            }
+            let (fs, y) = recover(video, fps, region, run)?;
+            // Sampled well above the frame rate and the tone, a second
+            // longer than the video (the delay is searched over ±0.5 s).
+            let fr = (4.0 * fs).max(8.0 * hz).ceil();
+            let r = tone(hz, fr, y.len() as f64 / fs + 1.0);
+            return calibrate_recovery(video, y, fs, r, fr, opts, on_step);
+        }
+    };
     let (fr, r) = read_input_wav(reference)?;
     let fs = frame_rate(video, fps)?;
     if fr < fs {
@@ -193,6 +264,19 @@ pub fn calibrate_video(
             ),
         ));
     }
+    calibrate_recovery(video, y, fs, r, fr, opts, on_step)
+}
+
+/// The math on a recovery `y` (at `fs`) against `r` (at `fr`).
+fn calibrate_recovery(
+    video: &Path,
+    y: Vec<f64>,
+    fs: f64,
+    r: Vec<f64>,
+    fr: f64,
+    opts: Option<Options>,
+    on_step: Option<&StepHook>,
+) -> Result<Calibrated> {
     let opts = opts.unwrap_or_else(|| Options::for_rate(fs));
     let mut hook = |s: Step| {
         if let Some(h) = on_step {
@@ -213,7 +297,10 @@ pub fn calibrate_video(
 /// Runs `calibrate`: writes the report (and the corrected recovery).
 pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
     let _steps = pipeline::Steps::begin();
-    let mut inputs = vec![o.video.as_path(), o.reference.as_path()];
+    let mut inputs = vec![o.video.as_path()];
+    if o.reference_tone_hz.is_none() {
+        inputs.push(o.reference.as_path());
+    }
     inputs.extend(o.region.mask.as_deref());
     let mut outputs = vec![o.json.as_path()];
     outputs.extend(o.output.as_deref());
@@ -230,16 +317,47 @@ pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
         reference_rate_hz: fr,
         reference: r,
         calibration: c,
-    } = calibrate_video(
+    } = calibrate_video_from(
         &o.video,
-        &o.reference,
+        match o.reference_tone_hz {
+            Some(hz) => ReferenceSource::Tone(hz),
+            None => ReferenceSource::Wav(&o.reference),
+        },
         o.fps,
         &o.region,
         opts,
         o.run,
         o.on_step.as_ref(),
     )?;
-    crate::json::write(&o.json, &c.report)?;
+    let mut notes = Vec::new();
+    if let Some(hz) = o.reference_tone_hz {
+        if let Some(cal::Parameters::TimeBase {
+            clock_error_ppm,
+            true_fps,
+            ..
+        }) = c
+            .report
+            .effects
+            .iter()
+            .find(|e| e.name == "time_base")
+            .map(|e| &e.parameters)
+        {
+            notes.push(format!(
+                "against a tone, a clock error and the tone's own pitch are one parameter: either the tone was at {:.4} Hz on the declared {fs} fps, or the camera ran at {true_fps:.4} fps and the tone was at {hz} Hz (a second, independent reference would tell them apart)",
+                hz * (1.0 - clock_error_ppm * 1e-6)
+            ));
+        }
+    }
+    let report = CalibrationReport {
+        report: c.report.clone(),
+        delay_s: c.delay_s,
+        gain: c.gain,
+        rejected: Vec::new(),
+        written: Vec::new(),
+        reference_tone_hz: o.reference_tone_hz,
+        notes: notes.clone(),
+    };
+    crate::json::write(&o.json, &report)?;
     let mut written = Vec::new();
     if let Some(out) = &o.output {
         // Reference time of corrected sample n is n / fs - delay.
@@ -264,5 +382,7 @@ pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
             .map(|e| (e.name.to_string(), e.snr_gain_db, e.parameters.clone()))
             .collect(),
         written,
+        reference_tone_hz: o.reference_tone_hz,
+        notes,
     })
 }

@@ -68,6 +68,14 @@ pub enum Correction {
         range: f64,
         highpass: Option<(usize, f64)>,
     },
+    /// Divide by the gain's trend over the recording: Legendre
+    /// coefficients (relative to the mean) over `samples` samples; the
+    /// trend's change from start to end, dB (reported).
+    GainDrift {
+        coefs: Vec<f64>,
+        samples: usize,
+        start_to_end_db: f64,
+    },
 }
 
 /// Most boost the exposure inverse applies (the `exposure` stage's -12 dB floor).
@@ -85,6 +93,7 @@ impl Correction {
             Correction::Transfer { .. } => EffectKind::Transfer,
             Correction::SoftClip { .. } => EffectKind::SoftClip,
             Correction::Polynomial { .. } => EffectKind::Polynomial,
+            Correction::GainDrift { .. } => EffectKind::GainDrift,
         }
     }
 
@@ -128,6 +137,9 @@ impl Correction {
                 range,
                 highpass,
             } => super::polynomial::apply(z, fs, coefs, *range, *highpass),
+            Correction::GainDrift { coefs, samples, .. } => {
+                super::gain_drift::apply(z, coefs, *samples)
+            }
             Correction::Exposure { .. } | Correction::Transfer { .. } => equalize(z, fs, |f| {
                 self.response(f).unwrap_or(Complex::new(1.0, 0.0))
             }),

@@ -56,6 +56,7 @@ mod correction;
 mod correlation;
 mod exposure;
 mod frames;
+mod gain_drift;
 mod interference;
 mod model;
 mod polynomial;
@@ -127,11 +128,15 @@ pub enum EffectKind {
     /// Of the two, the simpler is kept unless the other gains
     /// [`Options::min_gain_db`] more.
     Polynomial,
+    /// (h) The gain changes slowly over the recording (a decaying strike,
+    /// a fading light): a smooth trend in time, fitted only when the
+    /// residual's time axis shows one. Per recording.
+    GainDrift,
 }
 
 /// The catalog in the order it is tried: time base, then frames, then the
 /// spectral effects, then saturation.
-pub const CATALOG: [EffectKind; 7] = [
+pub const CATALOG: [EffectKind; 8] = [
     EffectKind::TimeBase,
     EffectKind::Frames,
     EffectKind::Exposure,
@@ -139,6 +144,7 @@ pub const CATALOG: [EffectKind; 7] = [
     EffectKind::Transfer,
     EffectKind::SoftClip,
     EffectKind::Polynomial,
+    EffectKind::GainDrift,
 ];
 
 impl EffectKind {
@@ -151,6 +157,7 @@ impl EffectKind {
             EffectKind::Transfer => "transfer_function",
             EffectKind::SoftClip => "soft_clip",
             EffectKind::Polynomial => "static_nonlinearity",
+            EffectKind::GainDrift => "gain_drift",
         }
     }
 }
@@ -183,6 +190,10 @@ pub struct Report {
     pub effects: Vec<EffectReport>,
     pub after: Errors,
     pub unexplained: Vec<Unexplained>,
+    /// The residual of the plain linear model, before any effect, on
+    /// every axis read (frequency: harmonics, lines, lag against
+    /// frequency; time: lag and gain over the recording).
+    pub linear_residual: Vec<Unexplained>,
 }
 
 /// A candidate that was fitted but not kept (for logs).
@@ -273,6 +284,7 @@ pub fn calibrate_observed(
     let m = Model { r, fr, fs, opts };
     let fit0 = m.fit_linear(y);
     let before = m.errors(y, &fit0);
+    let linear_residual = unexplained(&m, y, &fit0);
     let mut kept: Vec<Kept> = Vec::new();
     let mut rejected = Vec::new();
     // Greedy, best first: each round fits every effect not yet kept (in
@@ -288,22 +300,35 @@ pub fn calibrate_observed(
         // when there are some (the general polynomial otherwise finds an
         // amplitude-dependent gain, which on a chirp of varying response
         // mimics a filter: +0.5 dB on scenes with no nonlinearity at all).
-        let harmonics: Vec<Unexplained> = unexplained(&m, &z, &fit)
-            .into_iter()
+        let residual_now = unexplained(&m, &z, &fit);
+        let harmonics: Vec<Unexplained> = residual_now
+            .iter()
             .filter(|u| matches!(u, Unexplained::Harmonics { .. }))
+            .cloned()
             .collect();
-        for (index, &kind) in left.iter().enumerate() {
+        let gain_moves: Vec<Unexplained> = residual_now
+            .iter()
+            .filter(|u| matches!(u, Unexplained::GainOverTime { .. }))
+            .cloned()
+            .collect();
+        // A drifting gain is tried last, in a round where nothing else
+        // gains: on a sweep, a gain that changes with frequency (exposure,
+        // a resonance: properties of camera and object, worth reusing)
+        // also changes with time.
+        let mut try_kind = |kind: EffectKind, index: usize, round: &mut Vec<Tried>| {
             on_step(Step {
                 round: round_no,
                 effect: kind,
                 index,
                 of: left.len(),
             });
-            if kind == EffectKind::Polynomial && harmonics.is_empty() {
-                continue;
+            if (kind == EffectKind::Polynomial && harmonics.is_empty())
+                || (kind == EffectKind::GainDrift && gain_moves.is_empty())
+            {
+                return;
             }
             let Some(c) = fit_effect(kind, &m, &z, &fit) else {
-                continue;
+                return;
             };
             let z2 = c.correction.apply(&z, fs);
             let fit2 = m.fit_linear(&z2);
@@ -311,6 +336,21 @@ pub fn calibrate_observed(
             let gain = e2.snr_db - cur.snr_db;
             tracing::info!(effect = kind.name(), gain_db = gain, "candidate");
             round.push(Tried { kind, c, gain });
+        };
+        for (index, &kind) in left.iter().enumerate() {
+            if kind != EffectKind::GainDrift {
+                try_kind(kind, index, &mut round);
+            }
+        }
+        let gains = |round: &[Tried]| {
+            round
+                .iter()
+                .any(|r| r.gain.is_finite() && r.gain >= opts.min_gain_db)
+        };
+        if !gains(&round) {
+            if let Some(index) = left.iter().position(|&k| k == EffectKind::GainDrift) {
+                try_kind(EffectKind::GainDrift, index, &mut round);
+            }
         }
         let mut best = round
             .iter()
@@ -356,10 +396,10 @@ pub fn calibrate_observed(
                 *l = Correction::line_before(*l, &up, fs);
             }
         }
-        let evidence = if matches!(t.kind, EffectKind::SoftClip | EffectKind::Polynomial) {
-            harmonics.clone()
-        } else {
-            Vec::new()
+        let evidence = match t.kind {
+            EffectKind::SoftClip | EffectKind::Polynomial => harmonics.clone(),
+            EffectKind::GainDrift => gain_moves.clone(),
+            _ => Vec::new(),
         };
         kept.push(Kept {
             c: t.c,
@@ -406,6 +446,7 @@ pub fn calibrate_observed(
             effects,
             after: cur,
             unexplained,
+            linear_residual,
         },
         corrections,
         rejected,
@@ -424,6 +465,7 @@ fn fit_effect(kind: EffectKind, m: &Model, z: &[f64], fit: &Fit) -> Option<Candi
         EffectKind::Transfer => transfer::fit_transfer(m, z, fit),
         EffectKind::SoftClip => soft_clip::fit_soft_clip(m, z, fit),
         EffectKind::Polynomial => polynomial::fit_polynomial(m, z, fit),
+        EffectKind::GainDrift => gain_drift::fit_gain_drift(m, z, fit),
     }
 }
 

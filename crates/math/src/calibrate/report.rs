@@ -62,6 +62,14 @@ pub enum Parameters {
     /// (`ak g^(k-1)`, g the recovery's gain: to first order the object's
     /// forward response is `x - a2 x² - …` there), the order and the
     /// recovery's range it was fitted over; the high-pass it undoes.
+    /// The gain's trend over the recording, relative to its mean: Legendre
+    /// coefficients over the recording's span (`samples` long), and its
+    /// change from start to end.
+    GainDrift {
+        coefficients: Vec<f64>,
+        samples: usize,
+        start_to_end_db: f64,
+    },
     Polynomial {
         coefficients: Vec<f64>,
         highpass_hz: Option<f64>,
@@ -136,6 +144,14 @@ impl fmt::Display for Parameters {
                 f,
                 "a3 {a3}, a5 {a5}, level_in_reference_units {level_in_reference_units}"
             ),
+            Parameters::GainDrift {
+                coefficients,
+                start_to_end_db,
+                ..
+            } => {
+                write!(f, "start_to_end_db {start_to_end_db}, coefficients ")?;
+                list(f, coefficients)
+            }
             Parameters::Polynomial {
                 inverse_in_reference_units,
                 order,
@@ -186,6 +202,10 @@ pub enum Uncertainty {
     Polynomial {
         coefficients: Vec<f64>,
     },
+    /// Of each coefficient of the gain's trend (relative to its mean).
+    GainDrift {
+        coefficients: Vec<f64>,
+    },
 }
 
 /// A structure of the residual no accepted effect explains; `kind` names
@@ -218,6 +238,16 @@ pub enum Unexplained {
         lag_samples_at: f64,
         max_phase_deg: f64,
     },
+    /// A gain that changes over time.
+    GainOverTime {
+        description: String,
+        frequencies_hz: [f64; 0],
+        gain_range_db: [f64; 2],
+        kind: UnexplainedKind,
+        /// The trend's power over the level chance reaches (> 1).
+        significance: f64,
+        start_to_end_db: f64,
+    },
     /// A lag that changes over time.
     LagOverTime {
         description: String,
@@ -236,6 +266,7 @@ pub enum UnexplainedKind {
     CoherentWithoutReference,
     LagVsFrequency,
     LagOverTime,
+    GainOverTime,
 }
 
 impl Unexplained {
@@ -245,7 +276,8 @@ impl Unexplained {
             Unexplained::Harmonics { description, .. }
             | Unexplained::CoherentWithoutReference { description, .. }
             | Unexplained::LagVsFrequency { description, .. }
-            | Unexplained::LagOverTime { description, .. } => description,
+            | Unexplained::LagOverTime { description, .. }
+            | Unexplained::GainOverTime { description, .. } => description,
         }
     }
 }
@@ -298,6 +330,15 @@ impl Correction {
                 a3: *a3,
                 a5: *a5,
                 level_in_reference_units: *level,
+            },
+            Correction::GainDrift {
+                coefs,
+                samples,
+                start_to_end_db,
+            } => Parameters::GainDrift {
+                coefficients: coefs.clone(),
+                samples: *samples,
+                start_to_end_db: *start_to_end_db,
             },
             Correction::Polynomial {
                 coefs,
@@ -386,6 +427,8 @@ pub const MAX_TRANSFER_K: f64 = 10.0;
 /// The most terms a stored static nonlinearity may hold (the fit uses at
 /// most four; the simulator renders up to x⁹).
 pub const MAX_POLYNOMIAL_TERMS: usize = 8;
+/// The largest recovery range a stored static nonlinearity may hold.
+pub const MAX_POLYNOMIAL_RANGE: f64 = 1e9;
 
 /// A value in a stored report's `parameters`, as loosely as it may come.
 #[derive(Deserialize)]
@@ -418,7 +461,7 @@ struct StoredReport {
 /// The reusable corrections stored in a report (`effects` of
 /// `REPORT.json`), from a parsed document any serde deserializer reads by
 /// reference (e.g. a `serde_json::Value`); per-recording effects (frames,
-/// interference, soft clipping) are skipped. Errors name the effect and the
+/// interference, soft clipping, gain drift) are skipped. Errors name the effect and the
 /// field.
 pub fn reusable_from_report<'de, D: ?Sized>(report: &'de D) -> Result<Vec<Correction>, ReportError>
 where
@@ -444,7 +487,7 @@ where
 }
 
 /// A reusable correction back from effect `index` of a report; `None` for
-/// per-recording effects (frames, interference, soft clipping).
+/// per-recording effects (frames, interference, soft clipping, gain drift).
 fn from_report(
     index: usize,
     name: &str,
@@ -553,13 +596,28 @@ fn from_report(
                 });
             }
             let range = num("range")?;
-            if range <= 0.0 {
+            if !(range > 0.0 && range <= MAX_POLYNOMIAL_RANGE) {
                 return Err(ReportError::OutOfRange {
                     index,
                     name: name.to_string(),
                     key: "range",
-                    range: "> 0",
+                    range: "> 0 and at most 1e9",
                     value: range,
+                });
+            }
+            // Each term at the range's edge within 1000x the signal there: a
+            // report that would multiply the recovery beyond that is damaged.
+            if let Some(k) = coefs.iter().enumerate().position(|(k, a)| {
+                (a.abs() * range.powi(k as i32 + 2)).partial_cmp(&(1e3 * range))
+                    != Some(std::cmp::Ordering::Less)
+            }) {
+                return Err(ReportError::OutOfRange {
+                    index,
+                    name: name.to_string(),
+                    key: "coefficients",
+                    range:
+                        "such that each term at the range's edge is under 1000x the signal there",
+                    value: coefs[k],
                 });
             }
             // The high-pass it undoes: both keys numbers, or both absent/null.
@@ -584,7 +642,7 @@ fn from_report(
         }
         // Per recording: the level is in the recovery's units, which
         // depend on the texture and region as much as on the object.
-        _ if ["dropped_frames", "interference", "soft_clip"].contains(&name) => None,
+        _ if ["dropped_frames", "interference", "soft_clip", "gain_drift"].contains(&name) => None,
         _ => {
             return Err(ReportError::UnknownEffect {
                 index,

@@ -222,6 +222,7 @@ pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Unexplained> {
             });
         }
     }
+    out.extend(super::gain_drift::gain_over_time(m, z, fit));
     out
 }
 

@@ -308,6 +308,9 @@ fn report_round_trips_a_static_nonlinearity_and_refuses_bad_ones() {
         (poly(json!([]), 0.01, json!({})), "coefficients"),
         (poly(json!(vec![1.0; 9]), 0.01, json!({})), "coefficients"),
         (poly(json!([1.0]), 0.0, json!({})), "range"),
+        (poly(json!([1.0]), 1e10, json!({})), "range"),
+        (poly(json!([1e300]), 0.01, json!({})), "coefficients"),
+        (poly(json!([0.0, 2e7]), 0.01, json!({})), "coefficients"),
         (
             poly(json!([1.0]), 0.01, json!({"highpass_order": 4})),
             "highpass_hz",

@@ -47,6 +47,7 @@ pub struct SyntheticParams {
     pub fabric: Option<sim::FabricSpec>,
     pub soft_clip_px: Option<f64>,
     pub response_poly: Vec<f64>,
+    pub gain_decay_s: Option<f64>,
 }
 
 /// A narrowband motion added to the object's.
@@ -141,6 +142,10 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec::new("response_poly", ParamType::Floats, Def::Toml("[]"))
         .floats(-10.0, 10.0)
         .doc("static nonlinear response [c2, c3, ...]: x + c2 x² + c3 x³ + ... with x in units of amplitude_px (before soft_clip_px; even terms make even harmonics)"),
+    ParamSpec::new("gain_decay_s", ParamType::Float, Def::Optional)
+        .floats(1e-3, 1e6)
+        .unit("s")
+        .doc("the motion decays as exp(-t / gain_decay_s) over the recording (a struck object ringing down); interference does not"),
 ];
 
 impl Default for SyntheticParams {
@@ -182,6 +187,7 @@ impl Default for SyntheticParams {
             fabric: None,
             soft_clip_px: None,
             response_poly: Vec::new(),
+            gain_decay_s: None,
         }
     }
 }
@@ -296,6 +302,10 @@ impl SyntheticParams {
             .and_then(|s| s.with_polynomial(&self.response_poly))
             .and_then(|s| match self.soft_clip_px {
                 Some(l) => s.soft_clipped(l * unit),
+                None => Ok(s),
+            })
+            .and_then(|s| match self.gain_decay_s {
+                Some(d) => s.decaying(d),
                 None => Ok(s),
             })
             .and_then(|s| s.plus_tones(&tones))
@@ -441,6 +451,8 @@ impl SyntheticParams {
                 "soft_clip_px"
             } else if m.contains("response_poly") {
                 "response_poly"
+            } else if m.contains("gain_decay_s") {
+                "gain_decay_s"
             } else if m.contains("resonances") {
                 "resonances"
             } else if m.contains("interference") {
