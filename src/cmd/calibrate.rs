@@ -143,6 +143,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     for u in &r.report.unexplained {
         eprintln!("unexplained: {}", u.description());
     }
+    for c in &r.report.confounded {
+        eprintln!("confounded: {}", c.description);
+    }
     for n in &r.notes {
         eprintln!("note: {n}");
     }

@@ -57,6 +57,7 @@ mod correlation;
 mod exposure;
 mod frames;
 mod gain_drift;
+mod identify;
 mod interference;
 mod model;
 mod polynomial;
@@ -68,6 +69,7 @@ mod time_base;
 mod transfer;
 
 pub use correction::{Correction, FrameEvent, Line};
+pub use identify::Confound;
 pub use report::{
     reusable_from_report, EventReport, LineReport, LineUncertainty, Parameters, ReportError,
     Uncertainty, Unexplained, UnexplainedKind,
@@ -194,6 +196,10 @@ pub struct Report {
     /// every axis read (frequency: harmonics, lines, lag against
     /// frequency; time: lag and gain over the recording).
     pub linear_residual: Vec<Unexplained>,
+    /// Pairs of kept effects a second explanation trades against each
+    /// other, with the range their parameter spans ([`Confound`]).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub confounded: Vec<Confound>,
 }
 
 /// A candidate that was fitted but not kept (for logs).
@@ -230,6 +236,7 @@ pub enum CalError {
 }
 
 /// A fitted correction with its uncertainty.
+#[derive(Clone)]
 struct Candidate {
     correction: Correction,
     uncertainty: Uncertainty,
@@ -410,6 +417,55 @@ pub fn calibrate_observed(
         fit = m.fit_linear(&z);
         cur = m.errors(&z, &fit);
     }
+    // Each kept effect refitted with the others in place, then the pairs a
+    // second explanation trades against each other.
+    if kept.len() > 1 {
+        identify::refit(&m, y, &mut kept);
+        z = apply_all(&chain(&kept), y, fs);
+        fit = m.fit_linear(&z);
+        cur = m.errors(&z, &fit);
+    }
+    let gates: Vec<UnexplainedKind> = linear_residual.iter().map(Unexplained::kind).collect();
+    let found = identify::confounds(&m, y, &kept, cur.snr_db, fit.g, &gates);
+    // An alternative that explains the held-out part better by the least
+    // gain becomes the kept explanation (the pair is still reported).
+    let best = found
+        .iter()
+        .enumerate()
+        .filter(|(_, (c, _))| c.alternative_snr_db >= c.snr_db + opts.min_gain_db)
+        .max_by(|x, y| {
+            x.1 .0
+                .alternative_snr_db
+                .total_cmp(&y.1 .0.alternative_snr_db)
+        })
+        .map(|(i, _)| i);
+    let mut confounded: Vec<Confound> = Vec::new();
+    match best {
+        None => confounded.extend(found.into_iter().map(|(c, _)| c)),
+        Some(bi) => {
+            // The better explanation is kept; its record stays (numbers
+            // swapped) and the others are read again against it.
+            let mut found = found;
+            let (mut c, alt) = found.swap_remove(bi);
+            let old: Vec<Parameters> = chain(&kept)
+                .iter()
+                .map(|k| k.parameters(fs, fit.g))
+                .collect();
+            kept = alt;
+            z = apply_all(&chain(&kept), y, fs);
+            fit = m.fit_linear(&z);
+            cur = m.errors(&z, &fit);
+            c.swap(old);
+            let again = identify::confounds(&m, y, &kept, cur.snr_db, fit.g, &gates);
+            let more: Vec<Confound> = again
+                .into_iter()
+                .map(|(n, _)| n)
+                .filter(|n| n.parameter != c.parameter)
+                .collect();
+            confounded.push(c);
+            confounded.extend(more);
+        }
+    }
     let corrections = chain(&kept);
     let effects = corrections
         .iter()
@@ -447,6 +503,7 @@ pub fn calibrate_observed(
             after: cur,
             unexplained,
             linear_residual,
+            confounded,
         },
         corrections,
         rejected,
@@ -470,6 +527,7 @@ fn fit_effect(kind: EffectKind, m: &Model, z: &[f64], fit: &Fit) -> Option<Candi
 }
 
 /// An effect [`calibrate`] kept, with its held-out gain.
+#[derive(Clone)]
 struct Kept {
     c: Candidate,
     gain: f64,

@@ -270,6 +270,17 @@ pub enum UnexplainedKind {
 }
 
 impl Unexplained {
+    /// Its `kind`.
+    pub fn kind(&self) -> UnexplainedKind {
+        match self {
+            Unexplained::Harmonics { kind, .. }
+            | Unexplained::CoherentWithoutReference { kind, .. }
+            | Unexplained::LagVsFrequency { kind, .. }
+            | Unexplained::LagOverTime { kind, .. }
+            | Unexplained::GainOverTime { kind, .. } => *kind,
+        }
+    }
+
     /// What it is and what may cause it, in a sentence.
     pub fn description(&self) -> &str {
         match self {

@@ -1,0 +1,306 @@
+//! Identifiability (issue 15, item 3): once the greedy loop has kept its
+//! effects, each is refitted with the others in place (the first kept was
+//! fitted before the later ones existed), and each pair of kept effects is
+//! checked for a second explanation: the later one fitted alone first,
+//! then the other on top. When that explains the recording about as well
+//! (within [`super::Options::min_gain_db`] of the held-out SNR) with the
+//! later effect's main parameter somewhere else entirely, the pair is
+//! reported as confounded, with the range the parameter spans over the
+//! two explanations and the reference signal that would separate them.
+//! (The alternative is built for every parametric effect of the catalog,
+//! kept or not: fitted first, the others refitted on top.)
+
+use super::model::Model;
+use super::report::{Parameters, UnexplainedKind};
+use super::{apply_all, chain, fit_effect, Correction, EffectKind, Kept, Uncertainty};
+
+/// Two kept effects that a second, equally good explanation trades
+/// against each other.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Confound {
+    pub description: String,
+    /// The effect whose parameter is not identified, then the kept effects
+    /// it trades against.
+    pub effects: Vec<String>,
+    /// Held-out SNR (dB) of the effects as kept, and of the alternative.
+    pub snr_db: f64,
+    pub alternative_snr_db: f64,
+    /// The alternative's parameters (the pair, in the same order).
+    pub alternative: Vec<Parameters>,
+    /// The first effect's main parameter, and the range it spans over the
+    /// two explanations (each end widened by its own standard deviation):
+    /// a joint uncertainty that the single-model one understates.
+    pub parameter: String,
+    /// Its value as kept, and in the alternative.
+    pub values: [f64; 2],
+    pub range: [f64; 2],
+    /// A reference signal that would tell the two apart.
+    pub separate_with: String,
+}
+
+impl Confound {
+    /// Writes `description` from the fields.
+    pub(super) fn describe(&mut self) {
+        let a = self.effects.first().map_or("", String::as_str);
+        let b = self.effects[1..].join(" and ");
+        let p = &self.parameter;
+        self.description = format!(
+            "{a} is confounded with {b}: two explanations fit, {p} {:.4} as kept (held-out SNR {:.2} dB) and {p} {:.4} with {a} fitted first and the others on top ({:.2} dB); {p} is only known to lie in [{:.4}, {:.4}]. To separate them: {}",
+            self.values[0],
+            self.snr_db,
+            self.values[1],
+            self.alternative_snr_db,
+            self.range[0],
+            self.range[1],
+            self.separate_with
+        );
+    }
+
+    /// The alternative became the kept explanation: the numbers trade
+    /// places.
+    pub(super) fn swap(&mut self, kept_params: Vec<Parameters>) {
+        std::mem::swap(&mut self.snr_db, &mut self.alternative_snr_db);
+        self.values.swap(0, 1);
+        self.alternative = kept_params;
+        self.describe();
+    }
+}
+
+/// Effects with a continuous parameter that a refit can move (events and
+/// lines are placed, not traded).
+fn parametric(k: EffectKind) -> bool {
+    !matches!(k, EffectKind::Frames | EffectKind::Interference)
+}
+
+/// The one number that says where an effect is, with its standard
+/// deviation, in the units it is reported in.
+fn main_parameter(c: &Correction, u: &Uncertainty, gain: f64) -> Option<(&'static str, f64, f64)> {
+    Some(match (c, u) {
+        (Correction::TimeBase { ppm }, Uncertainty::TimeBase { clock_error_ppm }) => {
+            ("clock_error_ppm", *ppm, *clock_error_ppm)
+        }
+        (Correction::Exposure { exposure_s }, Uncertainty::Exposure { exposure_us }) => {
+            ("exposure_us", exposure_s * 1e6, *exposure_us)
+        }
+        (Correction::Transfer { k, .. }, Uncertainty::Transfer { k: sd }) => ("k", *k, *sd),
+        (
+            Correction::SoftClip { level, .. },
+            Uncertainty::SoftClip {
+                level_in_reference_units,
+                ..
+            },
+        ) => (
+            "level_in_reference_units",
+            *level,
+            *level_in_reference_units,
+        ),
+        (Correction::Polynomial { coefs, .. }, Uncertainty::Polynomial { coefficients }) => (
+            "inverse_square_term",
+            coefs.first()? * gain,
+            coefficients.first()? * gain.abs(),
+        ),
+        (
+            Correction::GainDrift {
+                start_to_end_db, ..
+            },
+            Uncertainty::GainDrift { coefficients },
+        ) => {
+            // End minus start of a Legendre series is 2 (c1 + c3 + ...).
+            let odd: f64 = coefficients.iter().skip(1).step_by(2).map(|v| v * v).sum();
+            (
+                "start_to_end_db",
+                *start_to_end_db,
+                20.0 / std::f64::consts::LN_10 * 2.0 * odd.sqrt(),
+            )
+        }
+        _ => return None,
+    })
+}
+
+/// The reference that separates `a` from `b`.
+fn separating_reference(a: EffectKind, b: EffectKind) -> &'static str {
+    use EffectKind as E;
+    let pair = |x: E, y: E| (a == x && b == y) || (a == y && b == x);
+    if pair(E::TimeBase, E::Transfer)
+        || pair(E::TimeBase, E::Exposure)
+        || pair(E::TimeBase, E::Frames)
+    {
+        "a reference whose frequencies repeat over time (two sweeps one after the other, or a sweep with a click as a time marker): a clock error moves the lag with time, a resonance or a filter with frequency"
+    } else if pair(E::GainDrift, E::Exposure) || pair(E::GainDrift, E::Transfer) {
+        "a reference whose frequencies repeat over time (two sweeps, or noise): a drifting gain changes with time, a filter with frequency"
+    } else if pair(E::Exposure, E::Transfer) {
+        "a sweep past the exposure's first null (1/E): a boxcar has nulls a resonance does not"
+    } else {
+        "two references of different kinds (a sweep and noise, or sweeps at different rates), so the two effects leave different traces"
+    }
+}
+
+/// Refits each kept parametric effect with the others applied (twice over
+/// the list), keeping a refit only when the held-out SNR does not fall.
+pub(super) fn refit(m: &Model, y: &[f64], kept: &mut [Kept]) -> f64 {
+    let snr = |kept: &[Kept]| {
+        let z = apply_all(&chain(kept), y, m.fs);
+        m.errors(&z, &m.fit_linear(&z)).snr_db
+    };
+    let mut cur = snr(kept);
+    for _ in 0..2 {
+        for i in 0..kept.len() {
+            let kind = kept[i].c.correction.kind();
+            if !parametric(kind) || kept.len() < 2 {
+                continue;
+            }
+            let others: Vec<Kept> = kept
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .map(|(_, k)| k.clone())
+                .collect();
+            let w = apply_all(&chain(&others), y, m.fs);
+            let Some(c) = fit_effect(kind, m, &w, &m.fit_linear(&w)) else {
+                continue;
+            };
+            let old = std::mem::replace(&mut kept[i].c, c);
+            let s = snr(kept);
+            if s.is_finite() && s >= cur - 0.05 {
+                cur = s;
+            } else {
+                kept[i].c = old;
+            }
+        }
+    }
+    cur
+}
+
+/// The value a main parameter has when its effect is absent (no clock
+/// error, no exposure, no equalising, no square term, no drift); `None`
+/// where absence is not a value (a saturation level).
+fn neutral(k: EffectKind) -> Option<f64> {
+    match k {
+        EffectKind::TimeBase
+        | EffectKind::Exposure
+        | EffectKind::Transfer
+        | EffectKind::Polynomial
+        | EffectKind::GainDrift => Some(0.0),
+        _ => None,
+    }
+}
+
+/// The second explanations of the recording (see the module docs): for
+/// each parametric effect `E` of the catalog, `E` fitted first on the
+/// recovery as delivered, then each kept effect refitted on top in the
+/// order kept (dropped when it no longer gains). Where that explains the
+/// held-out part about as well as the kept set (or better) with `E`'s main
+/// parameter far from its kept value (its neutral value when `E` was not
+/// kept), the effects are confounded. Each comes with the alternative's
+/// kept list.
+pub(super) fn confounds(
+    m: &Model,
+    y: &[f64],
+    kept: &[Kept],
+    cur_snr: f64,
+    gain: f64,
+    gates: &[UnexplainedKind],
+) -> Vec<(Confound, Vec<Kept>)> {
+    let snr = |z: &[f64]| m.errors(z, &m.fit_linear(z)).snr_db;
+    let mut out = Vec::new();
+    for &e in &m.opts.effects {
+        // The families the greedy loop gates on their residual structure
+        // (in the linear model's residual) are gated here too.
+        let gated = match e {
+            EffectKind::Polynomial => !gates.contains(&UnexplainedKind::Harmonics),
+            EffectKind::GainDrift => !gates.contains(&UnexplainedKind::GainOverTime),
+            _ => false,
+        };
+        // Soft clipping and the polynomial are one family, already
+        // chosen between (the simpler unless the other gains more).
+        let nonlinear = |k: EffectKind| matches!(k, EffectKind::SoftClip | EffectKind::Polynomial);
+        let same_family = nonlinear(e)
+            && kept
+                .iter()
+                .any(|k| k.c.correction.kind() != e && nonlinear(k.c.correction.kind()));
+        if !parametric(e) || gated || same_family {
+            continue;
+        }
+        let mine = kept.iter().find(|k| k.c.correction.kind() == e);
+        let (pb, sb) = match mine {
+            Some(k) => match main_parameter(&k.c.correction, &k.c.uncertainty, gain) {
+                Some((_, v, sd)) => (v, sd),
+                None => continue,
+            },
+            None => match neutral(e) {
+                Some(v) => (v, 0.0),
+                None => continue,
+            },
+        };
+        let fit0 = m.fit_linear(y);
+        let Some(ce) = fit_effect(e, m, y, &fit0) else {
+            continue;
+        };
+        let mut z = ce.correction.apply(y, m.fs);
+        let mut s = snr(&z);
+        // An alternative needs E to explain something on its own.
+        let own = s - snr(y);
+        if own.is_nan() || own < m.opts.min_gain_db {
+            continue;
+        }
+        let mut alt = vec![Kept {
+            c: ce.clone(),
+            gain: s - snr(y),
+            evidence: mine.map(|k| k.evidence.clone()).unwrap_or_default(),
+        }];
+        for k in kept.iter().filter(|k| k.c.correction.kind() != e) {
+            let Some(c) = fit_effect(k.c.correction.kind(), m, &z, &m.fit_linear(&z)) else {
+                continue;
+            };
+            let z2 = c.correction.apply(&z, m.fs);
+            let s2 = snr(&z2);
+            if s2 - s >= m.opts.min_gain_db {
+                alt.push(Kept {
+                    c,
+                    gain: s2 - s,
+                    evidence: k.evidence.clone(),
+                });
+                (z, s) = (z2, s2);
+            }
+        }
+        let fit_alt = m.fit_linear(&z);
+        let Some((name, pb2, sb2)) = main_parameter(&ce.correction, &ce.uncertainty, fit_alt.g)
+        else {
+            continue;
+        };
+        let apart = (pb2 - pb).abs() > 3.0 * sb.max(sb2);
+        if !(s.is_finite() && s >= cur_snr - m.opts.min_gain_db && apart) {
+            continue;
+        }
+        // The kept effects the alternative trades E against.
+        let others: Vec<EffectKind> = kept
+            .iter()
+            .map(|k| k.c.correction.kind())
+            .filter(|&k| k != e)
+            .collect();
+        let Some(&partner) = others.first() else {
+            continue;
+        };
+        let range = [(pb - sb).min(pb2 - sb2), (pb + sb).max(pb2 + sb2)];
+        let mut effects = vec![e.name().to_string()];
+        effects.extend(others.iter().map(|k| k.name().to_string()));
+        let alternative: Vec<Parameters> = chain(&alt)
+            .iter()
+            .map(|c| c.parameters(m.fs, fit_alt.g))
+            .collect();
+        let mut c = Confound {
+            description: String::new(),
+            effects,
+            snr_db: cur_snr,
+            alternative_snr_db: s,
+            alternative,
+            parameter: format!("{}.{name}", e.name()),
+            values: [pb, pb2],
+            range,
+            separate_with: separating_reference(e, partner).to_string(),
+        };
+        c.describe();
+        out.push((c, alt));
+    }
+    out
+}
