@@ -249,10 +249,18 @@ pub(super) fn confounds(
             evidence: mine.map(|k| k.evidence.clone()).unwrap_or_default(),
         }];
         for k in kept.iter().filter(|k| k.c.correction.kind() != e) {
-            let Some(c) = fit_effect(k.c.correction.kind(), m, &z, &m.fit_linear(&z)) else {
+            let Some(mut c) = fit_effect(k.c.correction.kind(), m, &z, &m.fit_linear(&z)) else {
                 continue;
             };
             let z2 = c.correction.apply(&z, m.fs);
+            // Lines are applied first (to the recovery as delivered): as
+            // the greedy loop does, move them back through what came before.
+            if let Correction::Interference { lines } = &mut c.correction {
+                let up = chain(&alt);
+                for l in lines.iter_mut() {
+                    *l = Correction::line_before(*l, &up, m.fs);
+                }
+            }
             let s2 = snr(&z2);
             if s2 - s >= m.opts.min_gain_db {
                 alt.push(Kept {

@@ -17,9 +17,11 @@
 //! recovery can be written out and the same correction reused on a new
 //! recording of the same object and camera). The catalog: time-base
 //! error, dropped or duplicated frames, exposure, narrowband interference
-//! lines, object transfer function, soft saturation, and a static
-//! polynomial response with even and odd terms (the family soft saturation
-//! belongs to; one of the two is kept at most). Acceptance is
+//! lines, object transfer function, soft saturation, a static polynomial
+//! response with even and odd terms (the family soft saturation belongs
+//! to; one of the two is kept at most; fitted only when the residual holds
+//! harmonics) and a gain drifting over the recording (only when the
+//! residual's gain moves). Acceptance is
 //! greedy, best first: each round fits every effect not yet kept on the
 //! current corrected recovery and keeps the one that gains most on the
 //! held-out part. Each is fitted on the fit part of the recording (blocks of
@@ -46,7 +48,9 @@
 //!
 //! One file per effect of the catalog ([`time_base`], [`frames`],
 //! [`exposure`], [`interference`], [`transfer`], [`soft_clip`],
-//! [`polynomial`]); the
+//! [`polynomial`], [`gain_drift`]); after the loop, [`identify`] refits the
+//! kept effects together and reports those a second explanation trades
+//! against each other; the
 //! corrections they fit ([`correction`]), the linear model ([`model`]),
 //! signal tools ([`signal`]), correlation ([`correlation`]) and the
 //! residual analysis ([`residual`]) beside them; here the options, the
@@ -137,7 +141,8 @@ pub enum EffectKind {
 }
 
 /// The catalog in the order it is tried: time base, then frames, then the
-/// spectral effects, then saturation.
+/// spectral effects, then the nonlinearities, then (last, and only in a
+/// round where nothing else gains) a drifting gain.
 pub const CATALOG: [EffectKind; 8] = [
     EffectKind::TimeBase,
     EffectKind::Frames,
