@@ -385,6 +385,7 @@ fn bad_input_exits_2_naming_the_file() {
         (&["--reference-tone", "-64"][..], "--reference-tone"),
         (&["--reference-tone", "NaN"][..], "--reference-tone"),
         (&["--reference-tone", "1e9"][..], "--reference-tone"),
+        (&["--reference-tone", "30000"][..], "--reference-tone"),
         (&["--reference-tone", "sixty"][..], "sixty"),
         (
             &["--reference-tone", "64", "--reference", "chirp.wav"][..],

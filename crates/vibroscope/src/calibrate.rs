@@ -181,8 +181,10 @@ pub enum ReferenceSource<'a> {
     Tone(f64),
 }
 
-/// Highest tone `--reference-tone` accepts, Hz.
-pub const MAX_TONE_HZ: f64 = 1e5;
+/// Highest tone `--reference-tone` accepts, Hz (beyond hearing; the tone
+/// is synthesised at four times the higher of it and the frame rate, so
+/// this also bounds its memory).
+pub const MAX_TONE_HZ: f64 = 25_000.0;
 
 /// A unit-peak tone at `hz` sampled at `rate` for `secs` (its phase is
 /// what the delay fits).
@@ -236,9 +238,10 @@ pub fn calibrate_video_from(
                 ));
             }
             let (fs, y) = recover(video, fps, region, run)?;
-            // Sampled well above the frame rate and the tone, a second
+            // Sampled well above the frame rate and the tone (the model
+            // samples it at the frame times, band-limited), a second
             // longer than the video (the delay is searched over ±0.5 s).
-            let fr = (4.0 * fs).max(8.0 * hz).ceil();
+            let fr = (4.0 * fs.max(hz)).ceil();
             let r = tone(hz, fr, y.len() as f64 / fs + 1.0);
             return calibrate_recovery(video, y, fs, r, fr, opts, on_step);
         }
