@@ -351,17 +351,22 @@ pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
             ));
         }
     }
-    let report = CalibrationReport {
-        report: c.report.clone(),
+    // One report: what is not serialised (rejected candidates, files
+    // written) rides along for the terminal.
+    let mut report = CalibrationReport {
+        report: c.report,
         delay_s: c.delay_s,
         gain: c.gain,
-        rejected: Vec::new(),
+        rejected: c
+            .rejected
+            .iter()
+            .map(|e| (e.name.to_string(), e.snr_gain_db, e.parameters.clone()))
+            .collect(),
         written: Vec::new(),
         reference_tone_hz: o.reference_tone_hz,
-        notes: notes.clone(),
+        notes,
     };
     crate::json::write(&o.json, &report)?;
-    let mut written = Vec::new();
     if let Some(out) = &o.output {
         // Reference time of corrected sample n is n / fs - delay.
         let end = c.corrected.len() as f64 / fs - c.delay_s;
@@ -372,20 +377,8 @@ pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
             (0..count).map(|k| k as f64 / fr + c.delay_s),
         );
         crate::io::wav::write_mono_f32(out, fr as u32, &x)?;
-        written.push(out.clone());
+        report.written.push(out.clone());
     }
-    written.push(o.json.clone());
-    Ok(CalibrationReport {
-        report: c.report,
-        delay_s: c.delay_s,
-        gain: c.gain,
-        rejected: c
-            .rejected
-            .iter()
-            .map(|e| (e.name.to_string(), e.snr_gain_db, e.parameters.clone()))
-            .collect(),
-        written,
-        reference_tone_hz: o.reference_tone_hz,
-        notes,
-    })
+    report.written.push(o.json.clone());
+    Ok(report)
 }

@@ -312,7 +312,12 @@ pub fn calibrate_observed(
         // when there are some (the general polynomial otherwise finds an
         // amplitude-dependent gain, which on a chirp of varying response
         // mimics a filter: +0.5 dB on scenes with no nonlinearity at all).
-        let residual_now = unexplained(&m, &z, &fit);
+        // (The first round's is the linear model's, already read.)
+        let residual_now = if kept.is_empty() {
+            linear_residual.clone()
+        } else {
+            unexplained(&m, &z, &fit)
+        };
         let harmonics: Vec<Unexplained> = residual_now
             .iter()
             .filter(|u| matches!(u, Unexplained::Harmonics { .. }))
