@@ -1,11 +1,13 @@
 //! The visual microphone's speed, latency and memory (issue 3):
 //!
 //! 1. Throughput of `vibroscope listen` on a 2200 fps 256x256 8-bit Y4M
-//!    (1 s, rendered here by the engine), for the Riesz and the 4-scale CSP
+//!    (1 s, rendered here by the engine), for the default method (per-tile
+//!    gradients) and the phase method with the Riesz and the 4-scale CSP
 //!    pyramids, best of 3 runs, in Mpix/s, against a baseline measured in
 //!    the same run: the same file replayed through the same file source
 //!    into a null sink (decoding only). Real time for that camera is
-//!    2200 x 65,536 = 144 Mpix/s. Targets: Riesz >= 150, CSP >= 60.
+//!    2200 x 65,536 = 144 Mpix/s. Targets: gradient >= 150, Riesz >= 150,
+//!    CSP >= 60.
 //!    A peer implementation can be timed on the same file: set
 //!    `VIBROSCOPE_PEER_CMD` to a shell command with `{video}` and `{out}`
 //!    placeholders (it is run once, and its Mpix/s and our ratio printed).
@@ -253,8 +255,21 @@ fn throughput(dir: &Path, before: Option<&str>) {
         mpix(base)
     );
     let mut ours = Vec::new();
-    for (pyr, target) in [("riesz", 150.0), ("csp", 60.0)] {
-        let args = ["listen", "scene.y4m", "-o", "out.wav", "--pyramid", pyr];
+    for (label, extra, target) in [
+        ("gradient", &["--method", "gradient"][..], 150.0),
+        (
+            "phase riesz",
+            &["--method", "phase", "--pyramid", "riesz"][..],
+            150.0,
+        ),
+        (
+            "phase csp",
+            &["--method", "phase", "--pyramid", "csp"][..],
+            60.0,
+        ),
+    ] {
+        let mut args = vec!["listen", "scene.y4m", "-o", "out.wav"];
+        args.extend_from_slice(extra);
         let (mut secs, mut secs_before) = (f64::INFINITY, f64::INFINITY);
         for _ in 0..3 {
             secs = secs.min(vibroscope(dir, &args).0);
@@ -264,15 +279,15 @@ fn throughput(dir: &Path, before: Option<&str>) {
         }
         if before.is_some() {
             println!(
-                "listen --pyramid {pyr:5} with VIBROSCOPE_BENCH_BEFORE: {:6.1} Mpix/s; this build / before: {:.3}",
+                "listen --method {label:11} with VIBROSCOPE_BENCH_BEFORE: {:6.1} Mpix/s; this build / before: {:.3}",
                 mpix(secs_before),
                 mpix(secs) / mpix(secs_before)
             );
         }
         let m = mpix(secs);
-        ours.push((pyr, m));
+        ours.push((label, m));
         println!(
-            "listen --pyramid {pyr:5}: {m:6.1} Mpix/s ({:.2}x real time for 2200 fps 256x256; target {target} Mpix/s: {}); {:.2} of the decode baseline",
+            "listen --method {label:11}: {m:6.1} Mpix/s ({:.2}x real time for 2200 fps 256x256; target {target} Mpix/s: {}); {:.2} of the decode baseline",
             m / 144.2,
             if m >= target { "met" } else { "NOT met" },
             m / mpix(base)
@@ -291,8 +306,8 @@ fn throughput(dir: &Path, before: Option<&str>) {
             match st {
                 Ok(s) if s.success() => {
                     println!("peer `{cmd}`: {:.1} Mpix/s", mpix(secs));
-                    for (pyr, m) in &ours {
-                        println!("  ratio ours ({pyr}) / peer: {:.1}", m / mpix(secs));
+                    for (label, m) in &ours {
+                        println!("  ratio ours ({label}) / peer: {:.1}", m / mpix(secs));
                     }
                 }
                 other => println!("peer `{cmd}` failed: {other:?}"),

@@ -992,7 +992,7 @@ fn frames_too_large_for_the_memory_limit_are_refused() {
         bin()
             .current_dir(d)
             .env("VIBROSCOPE_MAX_MEMORY", limit)
-            .args(["listen", "big.y4m", "-o", "big.wav"])
+            .args(["listen", "big.y4m", "-o", "big.wav", "--method", "phase"])
             .output()
             .unwrap()
     };
@@ -1018,6 +1018,20 @@ fn frames_too_large_for_the_memory_limit_are_refused() {
         "{}",
         stderr(&o)
     );
+    assert!(!d.join("big.wav").exists());
+    // The default method (per-tile gradients, 37 bytes a pixel) under a
+    // 16 MiB limit.
+    let o = bin()
+        .current_dir(d)
+        .env("VIBROSCOPE_MAX_MEMORY", "16M")
+        .args(["listen", "big.y4m", "-o", "big.wav"])
+        .output()
+        .unwrap();
+    no_panic(&o);
+    assert_eq!(code(&o), 1, "{}", stderr(&o));
+    for want in ["1024x1024 frames in `tile_motion`", "would need up to"] {
+        assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
+    }
     assert!(!d.join("big.wav").exists());
     // The noise bound of the same frames: 32 bytes a pixel and 64 MiB.
     let o = bin()

@@ -281,6 +281,72 @@ fn listen_rejects_a_bad_roi_and_a_missing_video() {
     assert!(stderr(&o).contains("nope.y4m"), "{}", stderr(&o));
 }
 
+/// The method's flags: `--sources` out of 1-4 or with `--method phase`,
+/// `--pyramid riesz` or `--calibration` with `--method gradient`, `--method`
+/// with `--rolling-shutter`: a message naming the flag, exit 2, no WAV.
+#[test]
+fn listen_refuses_flags_its_method_does_not_take() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_y4m(
+        d,
+        "v.y4m",
+        &[
+            "--set",
+            "cam.width=32",
+            "--set",
+            "cam.height=32",
+            "--set",
+            "cam.duration_s=0.1",
+        ],
+    );
+    std::fs::write(d.join("cal.json"), "{}").unwrap();
+    for (args, flag) in [
+        (&["--sources", "0"][..], "--sources"),
+        (&["--sources", "5"][..], "--sources"),
+        (&["--sources", "2", "--method", "phase"][..], "--sources"),
+        (&["--pyramid", "riesz"][..], "--pyramid"),
+        (
+            &["--pyramid", "riesz", "--method", "gradient"][..],
+            "--pyramid",
+        ),
+        (
+            &["--method", "gradient", "--calibration", "cal.json"][..],
+            "--method",
+        ),
+        (
+            &[
+                "--method",
+                "phase",
+                "--rolling-shutter",
+                "--line-delay-us",
+                "20",
+            ][..],
+            "--method",
+        ),
+    ] {
+        let mut a = vec!["listen", "v.y4m", "-o", "out.wav"];
+        a.extend_from_slice(args);
+        let o = run_in(d, &a);
+        eprintln!("{args:?}: exit {} {}", code(&o), stderr(&o).trim());
+        assert_eq!(code(&o), 2, "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(flag), "{args:?}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("panicked"), "{args:?}");
+        assert!(!d.join("out.wav").exists(), "{args:?}");
+    }
+    // Both methods run on the same video, and --sources 2 with the default.
+    for args in [
+        &["--method", "phase", "--pyramid", "riesz"][..],
+        &["--sources", "2"][..],
+    ] {
+        let mut a = vec!["listen", "v.y4m", "-o", "out.wav"];
+        a.extend_from_slice(args);
+        let o = run_in(d, &a);
+        assert_eq!(code(&o), 0, "{args:?}: {}", stderr(&o));
+        std::fs::remove_file(d.join("out.wav")).unwrap();
+    }
+}
+
 /// Writes a binary PGM of 256x256 with `inside(x, y)` pixels at 255.
 fn write_mask(path: &std::path::Path, inside: impl Fn(usize, usize) -> bool) {
     let mut b = b"P5\n256 256\n255\n".to_vec();
@@ -570,4 +636,150 @@ fn the_wiener_denoiser_reaches_the_stationary_wiener_bound() {
         failed.is_empty(),
         "more than 1 dB under the stationary Wiener bound: {failed:?}"
     );
+}
+
+/// Default `listen` against the Cramér-Rao bound (issue 14): on rendered
+/// speech scenes with two textures (the simulator's random one and a smooth
+/// picture) at two noise levels, with no region given, `listen` scores
+/// within 1 dB of the SNR that the bound allows an unbiased estimator of
+/// the object's per-frame motion. The bound comes from the simulator's
+/// truth: the exact derivatives of its continuous texture over the object's
+/// pixels along the motion, the sensor noise plus quantisation (1/12 DN²),
+/// and the true motion's mean square. The thesis pipeline (`--method
+/// phase`) is scored too, and printed.
+#[test]
+fn listen_comes_within_1_db_of_the_cramer_rao_bound() {
+    use vibroscope::stages::sources::synthetic::SyntheticParams;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    if !speech_reference(d) {
+        return;
+    }
+    smooth_picture(&d.join("pic.pgm"), 48);
+    let (_, reference) = vibroscope::io::wav::read_mono(&d.join("ref.wav")).unwrap();
+    let (size, object) = (96usize, [24usize, 24, 48, 48]);
+    let picture = format!("texture = \"{}\"\n", d.join("pic.pgm").display());
+    let mut failed = Vec::new();
+    for (texture, extra) in [("random texture", "seed = 1\n"), ("picture", &picture[..])] {
+        for noise in [1.0, 3.0] {
+            let text = simulate_speech(d, size, reference.len(), noise, extra);
+            let p: SyntheticParams = toml::from_str(&text).unwrap();
+            let scene = p.scene().unwrap();
+            // Fisher information of the object's pixels along x (the
+            // motion's direction) over the noise variance.
+            let h = 1e-3;
+            let mut info = 0.0;
+            for y in object[1]..object[1] + object[3] {
+                for x in object[0]..object[0] + object[2] {
+                    let (x, y) = (x as f64, y as f64);
+                    let g = (scene.object_value(x + h, y, 0.0) - scene.object_value(x - h, y, 0.0))
+                        / (2.0 * h);
+                    info += g * g;
+                }
+            }
+            let crb = (noise * noise + 1.0 / 12.0) / info;
+            let power = (0..reference.len())
+                .map(|k| scene.displacement_px(k as f64 / p.fps).powi(2))
+                .sum::<f64>()
+                / reference.len() as f64;
+            let bound = 10.0 * (power / crb).log10();
+            let snr = ["gradient", "phase"].map(|m| listen_snr(d, "sp.y4m", &["--method", m]));
+            eprintln!(
+                "{texture}, {noise} DN: Cramér-Rao SNR {bound:.2} dB; listen {:.2} dB ({:+.2} dB from the bound); --method phase {:.2} dB ({:+.2})",
+                snr[0],
+                snr[0] - bound,
+                snr[1],
+                snr[1] - bound
+            );
+            if snr[0] < bound - 1.0 {
+                failed.push(format!(
+                    "{texture}, {noise} DN: {:.2} dB vs bound {bound:.2}",
+                    snr[0]
+                ));
+            }
+        }
+    }
+    assert!(
+        failed.is_empty(),
+        "more than 1 dB under the Cramér-Rao bound: {failed:?}"
+    );
+}
+
+/// Renders `sp.y4m` in `d` with `simulate`: a `size`² frame whose central
+/// half moves along x by `ref.wav` (`frames` of it at 2200 fps, 0.1 px
+/// peak), sensor noise `noise` DN, `extra` more scene lines. Returns the
+/// scene's TOML.
+fn simulate_speech(
+    d: &std::path::Path,
+    size: usize,
+    frames: usize,
+    noise: f64,
+    extra: &str,
+) -> String {
+    let text = format!(
+        "width = {size}\nheight = {size}\nfps = 2200.0\nframes = {frames}\namplitude_px = 0.1\n\
+         noise_std = {noise}\nsignal = {{ type = \"wav\", path = \"{}\" }}\n{extra}",
+        d.join("ref.wav").display()
+    );
+    std::fs::write(d.join("s.toml"), &text).unwrap();
+    let o = run_in(d, &["simulate", "s.toml", "-o", "sp.y4m"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    text
+}
+
+/// `listen VIDEO --rate native` with `args` in `d`, scored against
+/// `ref.wav`: the SNR (dB).
+fn listen_snr(d: &std::path::Path, video: &str, args: &[&str]) -> f64 {
+    let mut a = vec!["listen", video, "-o", "l.wav", "--rate", "native"];
+    a.extend_from_slice(args);
+    let o = run_in(d, &a);
+    assert_eq!(code(&o), 0, "{args:?}: {}", stderr(&o));
+    let o = run_in(d, &["score", "ref.wav", "l.wav"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    v["snr_db"].as_f64().unwrap()
+}
+
+/// A flickering light does not read as sound: the speech scene's frames
+/// with their brightness modulated by a 2% gain at 100 Hz and a 1 DN offset
+/// at 120 Hz (mains lighting) keep default `listen` within 1 dB of its SNR
+/// on the steady frames. The gradient method's channels see a brightness
+/// change wherever a tile's gradients do not sum to zero; it projects the
+/// two directions an offset and a gain take in them out of every frame.
+#[test]
+fn a_flickering_light_is_not_heard() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    if !speech_reference(d) {
+        return;
+    }
+    let (_, reference) = vibroscope::io::wav::read_mono(&d.join("ref.wav")).unwrap();
+    simulate_speech(d, 96, reference.len(), 1.0, "seed = 1\n");
+    let steady = listen_snr(d, "sp.y4m", &[]);
+    // Y4M: a header line, then per frame a FRAME line and the 8-bit plane.
+    let bytes = std::fs::read(d.join("sp.y4m")).unwrap();
+    let line = |from: usize| from + bytes[from..].iter().position(|&b| b == b'\n').unwrap() + 1;
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut pos = line(0);
+    out.extend_from_slice(&bytes[..pos]);
+    let mut k = 0;
+    while pos < bytes.len() {
+        let start = line(pos);
+        out.extend_from_slice(&bytes[pos..start]);
+        let t = k as f64 / 2200.0;
+        let gain = 1.0 + 0.02 * (2.0 * std::f64::consts::PI * 100.0 * t).sin();
+        let offset = (2.0 * std::f64::consts::PI * 120.0 * t).sin();
+        out.extend(
+            bytes[start..start + 96 * 96]
+                .iter()
+                .map(|&v| (v as f64 * gain + offset).round().clamp(0.0, 255.0) as u8),
+        );
+        pos = start + 96 * 96;
+        k += 1;
+    }
+    assert_eq!(k, reference.len());
+    std::fs::write(d.join("flicker.y4m"), out).unwrap();
+    let flicker = listen_snr(d, "flicker.y4m", &[]);
+    eprintln!("steady light: {steady:.2} dB; flickering: {flicker:.2} dB");
+    assert!(flicker > steady - 1.0, "{flicker:.2} dB vs {steady:.2} dB");
 }

@@ -4,7 +4,7 @@ use super::VideoArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use vibroscope::listen::{
-    self, BandFilter, Denoise, Fill, ListenOptions, OutputRate, RollingShutter,
+    self, BandFilter, Denoise, Fill, ListenOptions, Method, OutputRate, RollingShutter,
 };
 use vibroscope::pipeline::RunSettings;
 use vibroscope::UsageError;
@@ -22,6 +22,17 @@ enum DenoiseArg {
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum MethodArg {
+    /// Per-tile gradient least squares, whitened, on the tiles' first
+    /// principal component: at the Cramér-Rao bound for sub-pixel motion
+    /// of a textured object; still background gets no weight.
+    Gradient,
+    /// The thesis' pyramid local phase (A²-weighted, bands aligned and
+    /// summed): for motions near a pixel or more; what `calibrate` fits on.
+    Phase,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
 enum FillArg {
     /// Autoregressive prediction from both sides.
     Ar,
@@ -31,10 +42,17 @@ enum FillArg {
 
 /// Recover sound from a video (a 16-bit WAV any player takes).
 ///
-/// Recover sound from a video: the shipped visual-microphone pipeline
-/// (pyramid local phase, band alignment, high-pass, optional denoising,
-/// optional band-pass and band-stop filters) replayed on VIDEO, resampled
-/// to a standard audio rate and written as a 16-bit PCM WAV.
+/// Recover sound from a video: a shipped visual-microphone pipeline
+/// replayed on VIDEO (per-tile sub-pixel motion on its first principal
+/// component by default, or the thesis' pyramid local phase with `--method
+/// phase`; then a high-pass, optional denoising, optional band-pass and
+/// band-stop filters), resampled to a standard audio rate and written as a
+/// 16-bit PCM WAV.
+///
+/// The default method reaches the noise limit of sub-pixel motion
+/// (`vibroscope bound`) on a textured object without a region: tiles that
+/// do not move get no weight. It assumes motions well under a pixel
+/// between reference renewals (1 s); for larger ones use `--method phase`.
 ///
 /// On a file every filter is zero-phase (forward-backward): the sound is
 /// aligned with the motion to the sample, and each filter's magnitude is
@@ -56,6 +74,17 @@ pub struct Args {
     output: PathBuf,
     #[command(flatten)]
     video_args: VideoArgs,
+    /// How motion is measured. Default: gradient, or phase with
+    /// --calibration (calibrations are fitted on it). --pyramid applies to
+    /// phase only.
+    #[arg(long, value_enum)]
+    method: Option<MethodArg>,
+    /// Independent sources the gradient method may hear, 1-4: 1 (the
+    /// default) follows the strongest motion, the best for one sound; more
+    /// add further ones that stand out from the noise (a second guitar
+    /// string; a flickering light's residue can stand out too).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=4))]
+    sources: Option<u8>,
     /// Denoising after the high-pass.
     #[arg(long, value_enum, default_value = "none")]
     denoise: DenoiseArg,
@@ -76,9 +105,10 @@ pub struct Args {
     #[arg(long, value_name = "HZ|native", allow_negative_numbers = true)]
     rate: Option<String>,
     /// Write 32-bit float samples in the signal's own units instead of
-    /// 16-bit PCM peak-normalised to -1 dBFS: radians of local phase
-    /// (A²-weighted, aligned and summed over bands), or pixels along x with
-    /// --rolling-shutter. A sound, not a calibrated displacement: for one
+    /// 16-bit PCM peak-normalised to -1 dBFS: relative units (the tiles'
+    /// whitened motion on their principal component), radians of local
+    /// phase with --method phase (A²-weighted, aligned and summed over
+    /// bands), or pixels along x with --rolling-shutter. A sound, not a calibrated displacement: for one
     /// in µm or mm use `spectrum --waveform OUT.csv --scale MM_PER_PX`.
     #[arg(long)]
     float: bool,
@@ -191,6 +221,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         output: a.output.clone(),
         fps: a.video_args.fps,
         region: a.video_args.region(),
+        method: a.method.map(|m| match m {
+            MethodArg::Gradient => Method::Gradient,
+            MethodArg::Phase => Method::Phase,
+        }),
+        sources: a.sources.map(usize::from),
         denoise: match a.denoise {
             DenoiseArg::None => Denoise::None,
             DenoiseArg::Subtract => Denoise::Subtract,

@@ -17,6 +17,10 @@ pub static SHIPPED: &[Shipped] = &[
         text: include_str!("../../../pipelines/visual-microphone.toml"),
     },
     Shipped {
+        name: "tile-microphone",
+        text: include_str!("../../../pipelines/tile-microphone.toml"),
+    },
+    Shipped {
         name: "live-microphone",
         text: include_str!("../../../pipelines/live-microphone.toml"),
     },

@@ -1200,6 +1200,8 @@ fn region_sound(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Val
         output: wav.path().to_path_buf(),
         fps,
         region: sel.region(),
+        method: None,
+        sources: None,
         denoise: Default::default(),
         speaker: None,
         calibration: None,

@@ -6,7 +6,7 @@
 use crate::error::{Error, Result};
 use crate::io::atomic::TempPath;
 use crate::math::calibrate::{self as cal, Calibration, Options};
-use crate::microphone::listen_pipeline;
+use crate::microphone::{listen_pipeline, Method};
 use crate::pipeline::Denoise;
 use crate::pipeline::{self, Region, RunSettings};
 use serde::Serialize;
@@ -156,7 +156,13 @@ pub fn recover(
     }
     let fs = frame_rate(video, fps)?;
     let tmp = TempPath::new("calibrate.wav");
-    let mut decl = listen_pipeline(video, tmp.path(), fps, region, Denoise::None)?;
+    let mut decl = listen_pipeline(
+        video,
+        tmp.path(),
+        fps,
+        (region, Method::Phase),
+        Denoise::None,
+    )?;
     crate::microphone::causal_highpass(&mut decl)?;
     pipeline::run(&decl, run)?;
     let (_, y) = crate::io::wav::read_mono(tmp.path())?;

@@ -1,18 +1,22 @@
-//! Recover sound from a video: the shipped visual-microphone pipeline
-//! (pyramid local phase, band alignment, high-pass, optional denoising)
-//! replayed on a recording; or, for rolling-shutter cameras, one sample
-//! per row. Optional band-pass and band-stop stages (`--band`, `--notch`)
-//! follow, then a `resample` stage to a standard audio rate, then the WAV:
-//! 16-bit PCM peak-normalised to -1 dBFS, or 32-bit float in the signal's
-//! own units (radians of A²-weighted local phase on the frame path, pixels
-//! along x for rows): a sound, not a displacement with a length unit
-//! (that is `spectrum --waveform` with a scale).
+//! Recover sound from a video: a shipped visual-microphone pipeline
+//! replayed on a recording ([`Method::Gradient`], the default: per-tile
+//! gradient motion on its principal component, at the Cramér-Rao bound;
+//! [`Method::Phase`]: the thesis' pyramid local phase and band alignment),
+//! high-passed, optionally denoised; or, for rolling-shutter cameras, one
+//! sample per row. Optional band-pass and band-stop stages (`--band`,
+//! `--notch`) follow, then a `resample` stage to a standard audio rate,
+//! then the WAV: 16-bit PCM peak-normalised to -1 dBFS, or 32-bit float in
+//! the signal's own units (relative units, or radians of A²-weighted local
+//! phase, on the frame path; pixels along x for rows): a sound, not a
+//! displacement with a length unit (that is `spectrum --waveform` with a
+//! scale).
 
 use crate::corrections;
 use crate::engine::config::PipelineDecl;
 use crate::engine::RunReport;
 use crate::error::{Error, Result};
 use crate::microphone::listen_pipeline;
+pub use crate::microphone::Method;
 pub use crate::pipeline::BandFilter;
 pub use crate::pipeline::Denoise;
 use crate::pipeline::{self, by, path_value, PipelineOptions, Region, RunSettings};
@@ -67,6 +71,11 @@ pub struct ListenOptions {
     /// Capture frame rate (Hz) when the file states the wrong one.
     pub fps: Option<f64>,
     pub region: Region,
+    /// How motion is measured; `None`: [`Method::Gradient`], or
+    /// [`Method::Phase`] with a calibration (which is fitted on it).
+    pub method: Option<Method>,
+    /// Independent sources the gradient method may sum (1-4; `None`: 1).
+    pub sources: Option<usize>,
     pub denoise: Denoise,
     /// Also play on this speaker (`default`, part of a name, or `null`).
     pub speaker: Option<String>,
@@ -107,6 +116,21 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     inputs.extend(o.calibration.as_deref());
     inputs.extend(o.region.mask.as_deref());
     crate::error::check_outputs(&inputs, &[&o.output])?;
+    if o.rolling_shutter.is_some() {
+        for (flag, given) in [
+            ("--method", o.method.is_some()),
+            ("--sources", o.sources.is_some()),
+        ] {
+            if given {
+                return Err(Error::usage(
+                    flag,
+                    "not available with --rolling-shutter (rows have their own pipeline)",
+                ));
+            }
+        }
+    } else {
+        method(o)?;
+    }
     let corrections = match &o.calibration {
         Some(path) => {
             if o.rolling_shutter.is_some() || o.speaker.is_some() {
@@ -143,7 +167,21 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
             }
             rs_pipeline(o, rs, &mut notes)?
         }
-        None => listen_pipeline(&o.video, &o.output, o.fps, &o.region, o.denoise)?,
+        None => {
+            let method = method(o)?;
+            let mut decl =
+                listen_pipeline(&o.video, &o.output, o.fps, (&o.region, method), o.denoise)?;
+            if let Some(n) = o.sources {
+                pipeline::set(
+                    &mut decl,
+                    "align",
+                    "components",
+                    Value::Integer(n as i64),
+                    by(&format!("--sources {n}")),
+                )?;
+            }
+            decl
+        }
     };
     if let OutputRate::Hz(r) = o.rate {
         if !RATE_RANGE.contains(&r) {
@@ -215,7 +253,7 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
             let unit = if o.rolling_shutter.is_some() {
                 "pixels of motion along x"
             } else {
-                "radians of local phase, A²-weighted over the bands"
+                method(o)?.unit()
             };
             format!("32-bit float, {unit}")
         } else {
@@ -225,6 +263,37 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         notes,
         run: Some(run),
     })
+}
+
+/// The method `o` runs, or why it cannot: a calibration is fitted on the
+/// phase method, and `--pyramid` only means something there.
+fn method(o: &ListenOptions) -> Result<Method> {
+    let method = o.method.unwrap_or(if o.calibration.is_some() {
+        Method::Phase
+    } else {
+        Method::Gradient
+    });
+    if method == Method::Phase && o.sources.is_some() {
+        return Err(Error::usage(
+            "--sources",
+            "applies to the gradient method (the phase method sums every band)",
+        ));
+    }
+    if method == Method::Gradient {
+        if o.calibration.is_some() {
+            return Err(Error::usage(
+                "--method",
+                "a calibration is fitted on, and applied to, `--method phase`",
+            ));
+        }
+        if o.region.pyramid != crate::pipeline::Pyramid::default() {
+            return Err(Error::usage(
+                "--pyramid",
+                "chooses the pyramid of `--method phase` (the default method, gradient, has none)",
+            ));
+        }
+    }
+    Ok(method)
 }
 
 /// Peak level of the 16-bit WAV, dBFS.

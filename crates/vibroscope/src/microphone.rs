@@ -1,7 +1,9 @@
-//! The visual-microphone graph on a recording: the shipped
-//! `visual-microphone` pipeline (pyramid local phase, band alignment,
-//! high-pass, optional denoising) replayed on a video, writing a WAV. Used
-//! by `listen` and `calibrate`.
+//! The visual-microphone graph on a recording: a shipped pipeline
+//! replayed on a video, writing a WAV: `tile-microphone` (per-tile gradient
+//! motion, first principal component, high-pass; `listen`'s default) or
+//! `visual-microphone` (the thesis: pyramid local phase, band alignment,
+//! high-pass; what `calibrate` fits on), with optional denoising. Used by
+//! `listen` and `calibrate`.
 
 use crate::engine::config::PipelineDecl;
 use crate::error::Result;
@@ -21,22 +23,60 @@ pub fn causal_highpass(decl: &mut PipelineDecl) -> Result<()> {
     )
 }
 
-/// The visual-microphone pipeline replayed on `video`, writing `output`.
+/// How a visual microphone measures motion.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Method {
+    /// Per-tile gradient least squares, whitened, projected on the first
+    /// principal component (`tile-microphone`): at the Cramér-Rao bound on
+    /// textured sub-pixel motion, the still background weighed out.
+    #[default]
+    Gradient,
+    /// Pyramid local phase, A²-weighted, aligned across bands and summed
+    /// (`visual-microphone`, thesis ch. 3): robust to larger motions.
+    Phase,
+}
+
+impl Method {
+    /// The shipped pipeline and the id of its motion stage.
+    fn pipeline(self) -> (&'static str, &'static str) {
+        match self {
+            Method::Gradient => ("tile-microphone", "motion"),
+            Method::Phase => ("visual-microphone", "phase"),
+        }
+    }
+
+    /// The unit of the samples the pipeline writes.
+    pub fn unit(self) -> &'static str {
+        match self {
+            Method::Gradient => {
+                "the tiles' whitened motion on their first principal component (relative units)"
+            }
+            Method::Phase => "radians of local phase, A²-weighted over the bands",
+        }
+    }
+}
+
+/// The visual-microphone pipeline of `method` replayed on `video`, writing
+/// `output`.
 pub fn listen_pipeline(
     video: &Path,
     output: &Path,
     fps: Option<f64>,
-    region: &Region,
+    (region, method): (&Region, Method),
     denoise: Denoise,
 ) -> Result<PipelineDecl> {
+    let (name, stage) = method.pipeline();
     let mut decl = pipeline::prepare(&PipelineOptions {
-        pipeline: "visual-microphone".into(),
+        pipeline: name.into(),
         set: Vec::new(),
         replay: Some(video.to_path_buf()),
         fps,
     })?;
     pipeline::set(&mut decl, "out", "path", path_value(output), by("-o"))?;
-    region.apply(&mut decl, "phase")?;
+    match method {
+        Method::Phase => region.apply(&mut decl, stage)?,
+        Method::Gradient => region.apply_region(&mut decl, stage)?,
+    }
     if let Some(kind) = denoise.kind() {
         let hp = pipeline::position(&decl, "highpass")?;
         let st = pipeline::new_stage("denoise", kind, &["highpass"], by("--denoise"));

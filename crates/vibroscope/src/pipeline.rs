@@ -471,13 +471,18 @@ pub struct Region {
 impl Region {
     /// Sets `roi`, `mask` and `pyramid` on the local-phase stage `id`.
     pub fn apply(&self, decl: &mut PipelineDecl, id: &str) -> Result<()> {
-        let st = stage_mut(decl, id)?;
         set_param(
-            st,
+            stage_mut(decl, id)?,
             "pyramid",
             Value::String(self.pyramid.name().into()),
             by("--pyramid"),
         );
+        self.apply_region(decl, id)
+    }
+
+    /// Sets `roi` and `mask` (not the pyramid) on stage `id`.
+    pub fn apply_region(&self, decl: &mut PipelineDecl, id: &str) -> Result<()> {
+        let st = stage_mut(decl, id)?;
         if let Some(r) = &self.roi {
             set_param(st, "roi", r.value(), by(&format!("--roi {r}")));
         }

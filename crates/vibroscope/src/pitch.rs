@@ -109,6 +109,9 @@ fn recover(o: &PitchOptions) -> Result<(f64, Vec<f64>)> {
         output: tmp.path().to_path_buf(),
         fps: o.fps,
         region: o.region.clone(),
+        // A pyramid chosen is the phase method's; else the default.
+        method: (o.region.pyramid != crate::pipeline::Pyramid::default())
+            .then_some(crate::listen::Method::Phase),
         rate: OutputRate::Native,
         float: true,
         run: o.run,

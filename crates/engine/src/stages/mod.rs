@@ -19,6 +19,7 @@ pub static REGISTRY: &[KindSpec] = &[
     transform::passthrough::KIND,
     transform::mean::KIND,
     transform::gradient_motion::KIND,
+    transform::tile_motion::KIND,
     transform::displacement::KIND,
     transform::highpass::KIND,
     transform::magnify::KIND,

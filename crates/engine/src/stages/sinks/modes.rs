@@ -24,7 +24,7 @@
 //! ```
 
 use crate::stages::transform::pyramid::PyramidKind;
-use crate::stages::transform::roi::{resolve_region, Mask, Roi, RoiParam};
+use crate::stages::transform::roi::{plan_region, resolve_region, Mask, Roi, RoiParam};
 use crate::*;
 use image::ImageEncoder;
 use serde::Deserialize;
@@ -99,14 +99,7 @@ pub const KIND: KindSpec = KindSpec {
     params: PARAMS,
     plan: |p| {
         let v: P = p.resolve(PARAMS)?;
-        if let Some(r) = &v.roi {
-            r.check().map_err(|m| p.error("roi", m))?;
-        }
-        // Read once, here, so a bad mask is a configuration error.
-        let mask = match &v.mask {
-            Some(m) => Some((m.clone(), Mask::load(m).map_err(|e| p.error("mask", e))?)),
-            None => None,
-        };
+        let mask = plan_region(p, v.roi.as_ref(), v.mask.as_ref())?;
         Ok(Box::new(ModesPlan(v, mask)))
     },
 };

@@ -26,6 +26,18 @@
 //! motion orthogonal to that orientation) then get no weight. The
 //! reference band, when not given, is the band most correlated with all the
 //! others.
+//!
+//! With `weights = "principal"` no lag is searched and no reference band is
+//! chosen: the output is the projection of all channels (at lag 0) on the
+//! leading eigenvector of their high-passed covariance over the window.
+//! For channels that carry one signal with different gains under white
+//! noise of equal variance and no correlation (what `tile_motion` emits),
+//! that is the maximum-likelihood combination: each channel is weighted by
+//! its gain, so channels that see no motion get none. Its sign makes the
+//! weights' sum positive. With `components = K > 1`, up to K leading
+//! components are summed where they stand out from the noise (independent
+//! sources: two strings of a guitar; see [`principal_weights`]). Power iteration, from fixed starts:
+//! replays are bit-identical.
 
 use crate::*;
 use serde::Deserialize;
@@ -38,6 +50,7 @@ use vibroscope_math::iir::Sos;
 enum Weights {
     Equal,
     Mrc,
+    Principal,
 }
 
 #[derive(Deserialize)]
@@ -48,6 +61,7 @@ struct P {
     max_lag: usize,
     window: usize,
     warmup: Option<usize>,
+    components: usize,
 }
 
 const PARAMS: &[ParamSpec] = &[
@@ -56,10 +70,10 @@ const PARAMS: &[ParamSpec] = &[
         .doc("band the others are aligned to; default: the most coherent one"),
     ParamSpec::new(
         "weights",
-        ParamType::Choice(&["equal", "mrc"]),
+        ParamType::Choice(&["equal", "mrc", "principal"]),
         Def::Str("equal"),
     )
-    .doc("sum the aligned bands equally, or by maximum-ratio combining"),
+    .doc("sum the aligned bands equally, by maximum-ratio combining, or project all channels (no lags) on their first principal component (for channels of equal white noise: `tile_motion`)"),
     ParamSpec::new("max_lag", ParamType::Int, Def::Int(8))
         .ints(0, 4096)
         .unit("samples")
@@ -68,6 +82,9 @@ const PARAMS: &[ParamSpec] = &[
         .ints(1, 1 << 22)
         .unit("samples")
         .doc("samples used to estimate the lags"),
+    ParamSpec::new("components", ParamType::Int, Def::Int(1))
+        .ints(1, MAX_COMPONENTS as i64)
+        .doc("principal: leading components that may be summed (each beyond the first only where it stands out from the noise): 1 hears the strongest source, more also hear independent ones (a second string; a flickering light's residue can stand out too)"),
     ParamSpec::new("warmup", ParamType::Int, Def::Optional)
         .ints(1, 1 << 22)
         .unit("samples")
@@ -193,6 +210,107 @@ fn one_factor(c: &[Vec<f64>], samples: usize) -> (Vec<f64>, Vec<f64>) {
     (h, d)
 }
 
+/// Most components `principal` may sum (`components`).
+const MAX_COMPONENTS: usize = 4;
+
+fn dot0(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(a, b)| a * b).sum()
+}
+
+/// The `k` leading eigenpairs (λ, unit v) of Σ_t x(t) x(t)ᵀ / n
+/// (`channels[c][t]`), largest first: power iteration from fixed starts,
+/// each kept orthogonal to those found before. Fewer when the channels
+/// have nothing left.
+fn leading_components(channels: &[Vec<f64>], k: usize) -> Vec<(f64, Vec<f64>)> {
+    let c = channels.len();
+    let n = channels.first().map_or(0, |x| x.len()).max(1);
+    let mut found: Vec<(f64, Vec<f64>)> = Vec::new();
+    let mut y = vec![0.0; n];
+    let orthogonalise = |v: &mut Vec<f64>, found: &[(f64, Vec<f64>)]| {
+        for (_, u) in found {
+            let along = dot0(v, u);
+            v.iter_mut().zip(u).for_each(|(v, u)| *v -= along * u);
+        }
+    };
+    for j in 0..k.min(c) {
+        // A start no eigenvector is likely to be orthogonal to.
+        let mut v: Vec<f64> = (0..c)
+            .map(|i| 1.0 + 0.5 * (i as f64 * 0.618 + j as f64 * 1.7).sin())
+            .collect();
+        orthogonalise(&mut v, &found);
+        let norm = dot0(&v, &v).sqrt();
+        if !(norm > 0.0 && norm.is_finite()) {
+            break;
+        }
+        v.iter_mut().for_each(|x| *x /= norm);
+        let mut lambda = None;
+        for _ in 0..1000 {
+            y.iter_mut().for_each(|y| *y = 0.0);
+            for (x, &vi) in channels.iter().zip(&v) {
+                for (y, &x) in y.iter_mut().zip(x) {
+                    *y += vi * x;
+                }
+            }
+            let mut w: Vec<f64> = channels.iter().map(|x| dot0(x, &y) / n as f64).collect();
+            orthogonalise(&mut w, &found);
+            let norm = dot0(&w, &w).sqrt();
+            if !(norm > 0.0 && norm.is_finite()) {
+                break;
+            }
+            let change: f64 = w.iter().zip(&v).map(|(w, v)| (w / norm - v).abs()).sum();
+            v = w.iter().map(|w| w / norm).collect();
+            lambda = Some(norm);
+            if change < 1e-12 * c as f64 {
+                break;
+            }
+        }
+        match lambda {
+            Some(l) if v.iter().all(|x| x.is_finite()) => found.push((l, v)),
+            _ => break,
+        }
+    }
+    found
+}
+
+/// The `principal` weights: the sum of at most `most` leading components,
+/// each signed so that its entries sum to a positive number. The first always counts;
+/// a further one only when it stands out (eigenvalue over a quarter of the
+/// first's and over twice the Marchenko-Pastur edge of the noise, the
+/// largest eigenvalue white noise alone would give `n` samples of `c`
+/// channels), so independent sources (two strings) are all heard and a
+/// single one gets no noise added. Returns the weights and the eigenvalues
+/// of the components summed (all ones and none when the channels are all
+/// zero).
+fn principal_weights(channels: &[Vec<f64>], most: usize) -> (Vec<f64>, Vec<f64>) {
+    let c = channels.len();
+    let n = channels.first().map_or(0, |x| x.len()).max(1);
+    let comps = leading_components(channels, most.clamp(1, MAX_COMPONENTS));
+    let Some(top) = comps.first().map(|c| c.0) else {
+        return (vec![1.0; c], Vec::new());
+    };
+    let trace: f64 = channels.iter().map(|x| dot0(x, x)).sum::<f64>() / n as f64;
+    // Each channel's noise variance: what the components leave, per
+    // dimension they leave (an overestimate when more sources are there).
+    let found: f64 = comps.iter().map(|c| c.0).sum();
+    let noise = (trace - found).max(0.0) / c.saturating_sub(comps.len()).max(1) as f64;
+    let edge = noise * (1.0 + (c as f64 / n as f64).sqrt()).powi(2);
+    let mut w = vec![0.0; c];
+    let mut used = Vec::new();
+    for (k, (lambda, v)) in comps.iter().enumerate() {
+        if k >= most || (k > 0 && !(*lambda > 0.25 * top && *lambda > 2.0 * edge)) {
+            break;
+        }
+        let sign = if v.iter().sum::<f64>() < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        w.iter_mut().zip(v).for_each(|(w, v)| *w += sign * v);
+        used.push(*lambda);
+    }
+    (w, used)
+}
+
 struct Align {
     p: P,
     channels: usize,
@@ -231,6 +349,7 @@ impl Align {
             }
         }
         let cutoff = super::highpass::default_cutoff_hz(rate);
+        let principal = self.p.weights == Weights::Principal;
         let filtered: Vec<Vec<f64>> = (0..c)
             .map(|ch| {
                 let mut hp = Sos::butterworth_highpass(2, cutoff, rate).ok();
@@ -242,6 +361,25 @@ impl Align {
                     .collect()
             })
             .collect();
+        if principal {
+            let (w, used) = principal_weights(&filtered, self.p.components);
+            tracing::info!(
+                channels = c,
+                window = n,
+                eigenvalues = ?used,
+                "principal weights: the sum of {} leading component(s)",
+                used.len()
+            );
+            self.shifts = Some(
+                w.iter()
+                    .map(|&w| Shift {
+                        lag: 0,
+                        sign: w as f32,
+                    })
+                    .collect(),
+            );
+            return Ok(());
+        }
         let r = self
             .p
             .reference_band
@@ -412,6 +550,7 @@ mod tests {
                 max_lag: 8,
                 window: 4096,
                 warmup: None,
+                components: 1,
             },
             channels,
             train: hist.clone(),
@@ -449,6 +588,73 @@ mod tests {
             }
         );
         assert_eq!(sh[2], Shift { lag: 2, sign: 1.0 });
+    }
+
+    /// Gaussian samples from a fixed seed.
+    fn gauss(seed: u64) -> impl FnMut() -> f64 {
+        let mut rng = seed;
+        move || {
+            let mut u = || {
+                rng = rng
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((rng >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+            };
+            let (a, b) = (u(), u());
+            (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
+        }
+    }
+
+    /// Channels `gains[k][c] s_k + 0.3 n_c` for independent unit sources.
+    fn mixed(gains: &[&[f64]], n: usize, seed: u64) -> Vec<Vec<f64>> {
+        let mut g = gauss(seed);
+        let c = gains[0].len();
+        let mut ch = vec![Vec::with_capacity(n); c];
+        for _ in 0..n {
+            let s: Vec<f64> = gains.iter().map(|_| 3.0 * g()).collect();
+            for (i, ch) in ch.iter_mut().enumerate() {
+                let sig: f64 = gains.iter().zip(&s).map(|(gk, s)| gk[i] * s).sum();
+                ch.push(sig + 0.3 * g());
+            }
+        }
+        ch
+    }
+
+    #[test]
+    fn principal_weights_follow_each_channels_gain() {
+        // Channels 0 and 1 carry one signal with gains 1 and -0.5, the
+        // other three only noise, all with the same white noise.
+        let gains = [1.0, -0.5, 0.0, 0.0, 0.0];
+        let (v, used) = principal_weights(&mixed(&[&gains], 20000, 12345), 4);
+        assert_eq!(used.len(), 1, "{used:?}");
+        let norm = gains.iter().map(|g| g * g).sum::<f64>().sqrt();
+        for (v, g) in v.iter().zip(gains) {
+            assert!((v - g / norm).abs() < 0.02, "{v} vs {}", g / norm);
+        }
+        // Noise alone: one component (the first always counts), no more.
+        let (_, used) = principal_weights(&mixed(&[&[0.0; 6]], 4000, 7), 4);
+        assert_eq!(used.len(), 1, "{used:?}");
+        // Two independent sources on channels 0-1 and 2-3: both are summed.
+        let two = mixed(
+            &[&[1.0, 0.8, 0.0, 0.0, 0.0], &[0.0, 0.0, 0.7, -0.7, 0.0]],
+            20000,
+            3,
+        );
+        let (v, used) = principal_weights(&two, 4);
+        assert_eq!(used.len(), 2, "{used:?}");
+        assert!(
+            v[..4].iter().all(|w| w.abs() > 0.5) && v[4].abs() < 0.05,
+            "{v:?}"
+        );
+        // One asked for: the stronger only.
+        let (v, used) = principal_weights(&two, 1);
+        assert_eq!(used.len(), 1, "{used:?}");
+        assert!(v[2].abs() < 0.05 && v[3].abs() < 0.05, "{v:?}");
+        // No signal at all: equal weights, no NaN.
+        assert_eq!(
+            principal_weights(&[vec![0.0; 8], vec![0.0; 8]], 4).0,
+            [1.0, 1.0]
+        );
     }
 
     #[test]

@@ -20,3 +20,4 @@ pub mod resonances;
 pub mod roi;
 pub mod rows;
 pub mod spectrum;
+pub mod tile_motion;

@@ -42,7 +42,7 @@ use super::pyramid::{
     pyramid_err as err, resolve_threads, spread, Analyzer, Carried, OnFrames, PyramidKind,
     FRAME_THREADS, ORIENTATIONS, PYRAMID, SCALES,
 };
-use super::roi::{resolve_region, Mask, Roi, RoiParam};
+use super::roi::{plan_region, resolve_region, Mask, Roi, RoiParam};
 use crate::*;
 use serde::Deserialize;
 use vibroscope_math::kernels::MAX_ORIENT;
@@ -67,6 +67,19 @@ struct P {
     tiles: usize,
 }
 
+/// `reference_interval_s`, shared with `tile_motion`.
+pub(super) const REFERENCE_INTERVAL: ParamSpec =
+    ParamSpec::new("reference_interval_s", ParamType::Float, Def::Float(1.0))
+        .at_least(0.0)
+        .unit("s")
+        .doc("time between reference renewals (0 = the first frame stays the reference)");
+/// `reference_overlap`, shared with `tile_motion`.
+pub(super) const REFERENCE_OVERLAP: ParamSpec =
+    ParamSpec::new("reference_overlap", ParamType::Int, Def::Int(32))
+        .ints(0, 65536)
+        .unit("frames")
+        .doc("frames over which old and next reference run side by side to join them");
+
 const PARAMS: &[ParamSpec] = &[
     PYRAMID,
     SCALES,
@@ -78,14 +91,8 @@ const PARAMS: &[ParamSpec] = &[
         .unit("frames")
         .doc("frames per emitted block"),
     FRAME_THREADS,
-    ParamSpec::new("reference_interval_s", ParamType::Float, Def::Float(1.0))
-        .at_least(0.0)
-        .unit("s")
-        .doc("time between reference renewals (0 = the first frame stays the reference)"),
-    ParamSpec::new("reference_overlap", ParamType::Int, Def::Int(32))
-        .ints(0, 65536)
-        .unit("frames")
-        .doc("frames over which old and next reference run side by side to join them"),
+    REFERENCE_INTERVAL,
+    REFERENCE_OVERLAP,
     ParamSpec::new("tiles", ParamType::Int, Def::Int(1))
         .ints(1, 32)
         .unit("per side")
@@ -100,14 +107,7 @@ pub const KIND: KindSpec = KindSpec {
     params: PARAMS,
     plan: |p| {
         let v: P = p.resolve(PARAMS)?;
-        if let Some(r) = &v.roi {
-            r.check().map_err(|m| p.error("roi", m))?;
-        }
-        // Read once, here, so a bad mask is a configuration error.
-        let mask = match &v.mask {
-            Some(m) => Some((m.clone(), Mask::load(m).map_err(|e| p.error("mask", e))?)),
-            None => None,
-        };
+        let mask = plan_region(p, v.roi.as_ref(), v.mask.as_ref())?;
         Ok(Box::new(PhasePlan { p: v, mask }))
     },
 };

@@ -1,7 +1,27 @@
 //! Regions of interest shared by the analysis stages.
 
-use crate::{Def, ParamSpec, ParamType, StageError};
+use crate::{ConfigError, Def, ParamSpec, ParamType, Params, StageError};
 use serde::Deserialize;
+use std::path::PathBuf;
+
+/// At planning: checks `roi` and reads `mask` once, so that a bad one is a
+/// configuration error naming the field.
+pub fn plan_region(
+    p: &Params<'_>,
+    roi: Option<&RoiParam>,
+    mask: Option<&PathBuf>,
+) -> Result<Option<(PathBuf, Mask)>, ConfigError> {
+    if let Some(r) = roi {
+        r.check().map_err(|m| p.error("roi", m))?;
+    }
+    match mask {
+        Some(m) => Ok(Some((
+            m.clone(),
+            Mask::load(m).map_err(|e| p.error("mask", e))?,
+        ))),
+        None => Ok(None),
+    }
+}
 
 /// `mask`, shared by the stages that take a region.
 pub const MASK: ParamSpec = ParamSpec::new("mask", ParamType::Path, Def::Optional)
