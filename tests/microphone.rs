@@ -347,6 +347,37 @@ fn listen_refuses_flags_its_method_does_not_take() {
     }
 }
 
+/// Motion of pixels, where the default method's linearised least squares
+/// distort: a 100 Hz tone of 3 px peak makes `listen` warn and point to
+/// `--method phase`; one of 0.1 px does not. It is a warning, not an error:
+/// the WAV is written.
+#[test]
+fn a_motion_of_pixels_is_warned_about() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (amplitude, warned) in [("3.0", true), ("0.1", false)] {
+        let amp = format!("cam.amplitude_px={amplitude}");
+        let sets = [
+            "cam.width=64 cam.height=64 cam.duration_s=0.5",
+            "cam.signal={ type = \"tone\", freq_hz = 100.0 }",
+        ];
+        let mut args: Vec<&str> = sets[0].split(' ').flat_map(|s| ["--set", s]).collect();
+        args.extend(["--set", sets[1], "--set", &amp]);
+        render_y4m(d, "v.y4m", &args);
+        let o = run_in(d, &["listen", "v.y4m", "-o", "out.wav"]);
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        let err = stderr(&o);
+        eprintln!("{amplitude} px: {}", err.trim());
+        assert_eq!(
+            err.contains("--method phase"),
+            warned,
+            "{amplitude} px: {err}"
+        );
+        assert!(d.join("out.wav").exists());
+        std::fs::remove_file(d.join("out.wav")).unwrap();
+    }
+}
+
 /// Writes a binary PGM of 256x256 with `inside(x, y)` pixels at 255.
 fn write_mask(path: &std::path::Path, inside: impl Fn(usize, usize) -> bool) {
     let mut b = b"P5\n256 256\n255\n".to_vec();
