@@ -209,22 +209,17 @@ fn render_speech(d: &std::path::Path, size: usize, amplitude: &str, extra: &[&st
 /// `listen VIDEO --denoise MODE --rate native -o MODE.wav` on `sp.y4m` in
 /// `d`, then `score ref.wav MODE.wav`: its JSON.
 fn listen_and_score(d: &std::path::Path, mode: &str) -> serde_json::Value {
-    let out = format!("{mode}.wav");
-    let o = run_in(
-        d,
-        &[
-            "listen",
-            "sp.y4m",
-            "-o",
-            &out,
-            "--denoise",
-            mode,
-            "--rate",
-            "native",
-        ],
-    );
-    assert_eq!(code(&o), 0, "{mode}: {}", stderr(&o));
-    let o = run_in(d, &["score", "ref.wav", &out]);
+    listen_scored(d, "sp.y4m", &format!("{mode}.wav"), &["--denoise", mode])
+}
+
+/// `listen VIDEO -o OUT --rate native` with `args` in `d`, then `score
+/// ref.wav OUT`: its JSON.
+fn listen_scored(d: &std::path::Path, video: &str, out: &str, args: &[&str]) -> serde_json::Value {
+    let mut a = vec!["listen", video, "-o", out, "--rate", "native"];
+    a.extend_from_slice(args);
+    let o = run_in(d, &a);
+    assert_eq!(code(&o), 0, "{args:?}: {}", stderr(&o));
+    let o = run_in(d, &["score", "ref.wav", out]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     serde_json::from_str(&stdout(&o)).unwrap()
 }
@@ -764,14 +759,9 @@ fn simulate_speech(
 /// `listen VIDEO --rate native` with `args` in `d`, scored against
 /// `ref.wav`: the SNR (dB).
 fn listen_snr(d: &std::path::Path, video: &str, args: &[&str]) -> f64 {
-    let mut a = vec!["listen", video, "-o", "l.wav", "--rate", "native"];
-    a.extend_from_slice(args);
-    let o = run_in(d, &a);
-    assert_eq!(code(&o), 0, "{args:?}: {}", stderr(&o));
-    let o = run_in(d, &["score", "ref.wav", "l.wav"]);
-    assert_eq!(code(&o), 0, "{}", stderr(&o));
-    let v: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
-    v["snr_db"].as_f64().unwrap()
+    listen_scored(d, video, "l.wav", args)["snr_db"]
+        .as_f64()
+        .unwrap()
 }
 
 /// A flickering light does not read as sound: the speech scene's frames

@@ -116,7 +116,8 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     inputs.extend(o.calibration.as_deref());
     inputs.extend(o.region.mask.as_deref());
     crate::error::check_outputs(&inputs, &[&o.output])?;
-    if o.rolling_shutter.is_some() {
+    // The frame path's method (rows have their own pipeline).
+    let method = if o.rolling_shutter.is_some() {
         for (flag, given) in [
             ("--method", o.method.is_some()),
             ("--sources", o.sources.is_some()),
@@ -128,9 +129,10 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
                 ));
             }
         }
+        None
     } else {
-        method(o)?;
-    }
+        Some(method(o)?)
+    };
     let corrections = match &o.calibration {
         Some(path) => {
             if o.rolling_shutter.is_some() || o.speaker.is_some() {
@@ -168,7 +170,7 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
             rs_pipeline(o, rs, &mut notes)?
         }
         None => {
-            let method = method(o)?;
+            let method = method.unwrap_or_default();
             let mut decl =
                 listen_pipeline(&o.video, &o.output, o.fps, (&o.region, method), o.denoise)?;
             if let Some(n) = o.sources {
@@ -250,11 +252,7 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         samples,
         sample_rate_hz,
         encoding: if o.float {
-            let unit = if o.rolling_shutter.is_some() {
-                "pixels of motion along x"
-            } else {
-                method(o)?.unit()
-            };
+            let unit = method.map_or("pixels of motion along x", Method::unit);
             format!("32-bit float, {unit}")
         } else {
             format!("16-bit PCM, peak at {PEAK_DBFS} dBFS")
