@@ -17,6 +17,12 @@
 //! background (σ = 2.5 px texture, half the contrast, mean 40% of full
 //! scale). Then `round(clamp(I + n, 0, 2^bits - 1))`, `n ~ N(0, noise_std²)`.
 //!
+//! Regions of rows may move with a lag ([`SceneSpec::row_lag_s`]: two objects
+//! stacked vertically that hear a sound at different times, or a
+//! non-rigid one): row `y` then shows `d(t - lag(y))`, where `t` is the
+//! row's capture time (the frame's, or `t_s + y · line_delay_s` with a
+//! rolling shutter).
+//!
 //! "Inside the object" depends on the [`EdgeMode`]. By default
 //! ([`EdgeMode::Fixed`]) it is the rest rectangle: the textured surface moves
 //! within its outline, so every one of the `w·h` object pixels carries the
@@ -32,8 +38,9 @@
 //! Global shutter: one 16-tap horizontal pass over the object's rows and
 //! one 16-tap vertical pass (skipped when a component of the shift is an
 //! integer), then noise and quantisation over the frame; no allocation per
-//! frame. Rolling shutter filters each row on its own (up to 17·16 MACs per
-//! object pixel when both shift components are fractional).
+//! frame. Rolling shutter (and row lags) filters each row on its own (up
+//! to 17·16 MACs per object pixel when both shift components are
+//! fractional).
 //!
 //! Benchmark: `cargo test --release bench_render_speed -- --nocapture`
 //! (on the 2-core dev machine: ~240 Mpix/s global shutter with noise,
@@ -57,6 +64,10 @@ pub const BACKGROUND_CONTRAST: f64 = 0.5;
 pub const MAX_AMPLITUDE_PX: f64 = 1000.0;
 /// Midpoint-rule sub-samples of the exposure box average (rolling shutter).
 pub const EXPOSURE_SUBSAMPLES: usize = 16;
+/// Most regions of [`SceneSpec::row_lag_s`].
+pub const MAX_ROW_LAGS: usize = 64;
+/// Largest accepted `|lag|` of [`SceneSpec::row_lag_s`], in seconds.
+pub const MAX_ROW_LAG_S: f64 = 1.0;
 /// Largest frame, in pixels.
 const MAX_PIXELS: u64 = 1 << 28;
 /// Objects smaller than this are normalised with the texture's expected
@@ -98,6 +109,16 @@ pub struct SceneSpec {
     /// Std of the object's texture in DN (usually [`SceneSpec::default_contrast`]).
     pub contrast: f64,
     pub seed: u64,
+    /// Regions of rows whose motion lags (a part that hears the sound
+    /// later moves later): `(first_row, lag_s)` pairs, first rows strictly
+    /// ascending and inside the frame, `|lag_s|` at most
+    /// [`MAX_ROW_LAG_S`], at most [`MAX_ROW_LAGS`] pairs. Rows from
+    /// `first_row` up to the next pair's (or the frame's end) show
+    /// `amplitude_px · signal(t - lag_s)` at their capture time `t`; rows
+    /// above the first pair have no lag. Empty: the object moves as one.
+    /// Non-empty, frames are rendered row by row even with a global
+    /// shutter (see [`Scene::row_displacement_px`]).
+    pub row_lag_s: Vec<(u32, f64)>,
 }
 
 impl SceneSpec {
@@ -194,6 +215,40 @@ impl SceneSpec {
                 format!("must be a finite std >= 0 DN, got {}", self.contrast),
             );
         }
+        if self.row_lag_s.len() > MAX_ROW_LAGS {
+            return bad(
+                "row_lag_s",
+                format!(
+                    "at most {MAX_ROW_LAGS} regions, got {}",
+                    self.row_lag_s.len()
+                ),
+            );
+        }
+        let mut prev: Option<u32> = None;
+        for (k, &(row, lag)) in self.row_lag_s.iter().enumerate() {
+            let field = format!("row_lag_s[{k}]");
+            if row as u64 >= h {
+                return bad(
+                    &field,
+                    format!("first row {row} must be below the frame height {h}"),
+                );
+            }
+            if let Some(p) = prev.filter(|&p| row <= p) {
+                return bad(
+                    &field,
+                    format!("first rows must ascend strictly, got {row} after {p}"),
+                );
+            }
+            if !(lag.is_finite() && lag.abs() <= MAX_ROW_LAG_S) {
+                return bad(
+                    &field,
+                    format!(
+                        "lag must be finite and at most {MAX_ROW_LAG_S} s in magnitude, got {lag}"
+                    ),
+                );
+            }
+            prev = Some(row);
+        }
         Ok(())
     }
 }
@@ -212,6 +267,7 @@ impl Default for SceneSpec {
             bits: 8,
             contrast: Self::default_contrast(8),
             seed: 1,
+            row_lag_s: Vec::new(),
         }
     }
 }
@@ -471,6 +527,12 @@ impl Scene {
         look: &Look,
     ) -> Result<(f64, Texture), SimError> {
         spec.validate()?;
+        if !spec.row_lag_s.is_empty() && (modal.is_some() || fabric.is_some()) {
+            return Err(SimError::Invalid {
+                field: "row_lag_s".into(),
+                msg: "needs a rigid object (no modal beam or fabric)".into(),
+            });
+        }
         let (w, h) = (spec.width as usize, spec.height as usize);
         // Room for the largest excursion (a resonance or interference can
         // exceed the unit-peak signal).
@@ -635,20 +697,28 @@ impl Scene {
         self.m.obj_mean as f64
     }
 
-    /// Ground-truth displacement (px, along the direction) at time `t_s`.
+    /// Ground-truth displacement (px, along the direction) at time `t_s`
+    /// (of the rows without a lag, [`SceneSpec::row_lag_s`]).
     pub fn displacement_px(&self, t_s: f64) -> f64 {
         self.m.displacement(t_s)
     }
 
-    /// Ground-truth displacement of row `y` under a rolling shutter: the
-    /// mean of the displacement over `[t_row, t_row + exposure_s]`,
-    /// `t_row = t_s + y · line_delay_s` (a midpoint rule with
-    /// [`EXPOSURE_SUBSAMPLES`] points; the instant `t_row` when
-    /// `exposure_s` is 0). Non-finite delays count as 0, as do negative
-    /// exposures.
+    /// The motion's lag (s) in row `y`: that of the last region of
+    /// [`SceneSpec::row_lag_s`] starting at or above it, 0 above them all.
+    pub fn row_lag_s(&self, y: u32) -> f64 {
+        self.m.row_lag(y as usize)
+    }
+
+    /// Ground-truth displacement of row `y`: the mean of the displacement
+    /// over `[t_row, t_row + exposure_s]` with
+    /// `t_row = t_s + y · line_delay_s - lag(y)` and the row's lag
+    /// [`Scene::row_lag_s`] (a midpoint rule with [`EXPOSURE_SUBSAMPLES`]
+    /// points; the instant `t_row` when `exposure_s` is 0). Non-finite
+    /// delays count as 0, as do negative exposures. A global-shutter frame
+    /// rendered at `t_s` shows this with `line_delay_s` and `exposure_s` 0.
     pub fn row_displacement_px(&self, t_s: f64, y: u32, line_delay_s: f64, exposure_s: f64) -> f64 {
         self.m
-            .row_displacement(t_s, y as f64, line_delay_s, exposure_s)
+            .row_displacement(t_s, y as usize, line_delay_s, exposure_s)
     }
 
     /// The object's noise-free intensity (DN) at object-local point
@@ -699,7 +769,8 @@ impl Scene {
     }
 
     /// Renders frame `index` captured at `t_s` with a global shutter (one
-    /// displacement for the whole frame) into `dst`. Noise depends only on
+    /// displacement for the whole frame, or one per region of
+    /// [`SceneSpec::row_lag_s`]) into `dst`. Noise depends only on
     /// `(seed, index)`. A `dst` of the other depth gets values clamped to its
     /// own range too; a short `dst` gets its whole rows only.
     pub fn render(&mut self, index: u64, t_s: f64, dst: Dest<'_>) {
@@ -708,8 +779,9 @@ impl Scene {
     }
 
     /// Rolling shutter (thesis Eq. 4.4): row `y` shows the displacement
-    /// [`Scene::row_displacement_px`]`(t_s, y, line_delay_s, exposure_s)`.
-    /// With zero delay and exposure this equals [`Scene::render`] bit for bit.
+    /// [`Scene::row_displacement_px`]`(t_s, y, line_delay_s, exposure_s)`
+    /// (row lags included). With zero delay and exposure this equals
+    /// [`Scene::render`] bit for bit.
     pub fn render_rows(
         &mut self,
         index: u64,
@@ -726,7 +798,8 @@ impl Scene {
         self.run(Some(index), timing, dest_out(dst));
     }
 
-    /// Like [`Scene::render`] with an explicit displacement (px) instead of a time.
+    /// Like [`Scene::render`] with an explicit displacement (px) instead of
+    /// a time, the same for every row (row lags do not apply).
     pub fn render_displaced(&mut self, index: u64, d_px: f64, dst: Dest<'_>) {
         self.run(Some(index), Timing::Global(d_px), dest_out(dst));
     }
@@ -750,6 +823,13 @@ impl Scene {
     fn timing(&self, t_s: f64) -> Timing {
         if self.m.modal.is_some() || self.m.fabric.is_some() {
             Timing::Modal(t_s)
+        } else if !self.m.spec.row_lag_s.is_empty() {
+            // Rows differ: the per-row path at the frame's one capture time.
+            Timing::Rolling {
+                t_s,
+                line_delay_s: 0.0,
+                exposure_s: 0.0,
+            }
         } else {
             Timing::Global(self.displacement_px(t_s))
         }
@@ -807,7 +887,7 @@ impl Scene {
                     line_delay_s,
                     exposure_s,
                 } => {
-                    let d = m.row_displacement(t_s, y as f64, line_delay_s, exposure_s);
+                    let d = m.row_displacement(t_s, y, line_delay_s, exposure_s);
                     m.rolling_row(d, s, y);
                 }
             }
@@ -928,14 +1008,27 @@ impl Model {
         self.spec.amplitude_px * self.signal.value(t_s)
     }
 
-    /// See [`Scene::row_displacement_px`].
-    fn row_displacement(&self, t_s: f64, y: f64, line_delay_s: f64, exposure_s: f64) -> f64 {
+    /// See [`Scene::row_lag_s`].
+    fn row_lag(&self, y: usize) -> f64 {
+        let lags = &self.spec.row_lag_s;
+        match lags.partition_point(|&(r, _)| r as usize <= y) {
+            0 => 0.0,
+            k => lags[k - 1].1,
+        }
+    }
+
+    /// See [`Scene::row_displacement_px`]. Times before 0 (a lagged row
+    /// early in the recording) read the signal there: periodic signals
+    /// continue, sampled ones (WAV, noise, resonances) are 0, the object
+    /// still at rest.
+    fn row_displacement(&self, t_s: f64, y: usize, line_delay_s: f64, exposure_s: f64) -> f64 {
         let ld = if line_delay_s.is_finite() {
             line_delay_s
         } else {
             0.0
         };
-        let t0 = t_s + y * ld;
+        // Minus a lag of 0 leaves every time bit for bit.
+        let t0 = t_s + y as f64 * ld - self.row_lag(y);
         if exposure_s.is_finite() && exposure_s > 0.0 {
             let n = EXPOSURE_SUBSAMPLES as f64;
             let mut acc = 0.0;
@@ -1155,6 +1248,7 @@ mod tests {
             bits: 16,
             contrast: SceneSpec::default_contrast(16),
             seed: 11,
+            row_lag_s: Vec::new(),
         }
     }
 
@@ -1423,6 +1517,189 @@ mod tests {
                 assert_eq!(g, r, "dir {dir} frame {k}");
             }
         }
+    }
+
+    /// Issue 15 (per-region lag): rows in a lagged region show the
+    /// displacement at their capture time minus the lag, with a global
+    /// shutter and composed with a rolling shutter and an exposure, and
+    /// times before 0 (a lag longer than the capture time) are the tone's.
+    #[test]
+    fn lagged_rows_follow_their_lagged_times() {
+        let (w, h) = (128usize, 160usize);
+        let rect = [16u32, 8, 96, 144];
+        let amp = 0.3;
+        let f = 50.0;
+        // Rows 8..60 on time, 60..110 a quarter period late, 110.. 3 ms early.
+        let lags = vec![(60u32, 5e-3), (110, -3e-3)];
+        let spec = SceneSpec {
+            row_lag_s: lags.clone(),
+            ..spec16(w as u32, h as u32, rect, amp, 0.0)
+        };
+        let mut moving = Scene::new(spec, tone(f)).unwrap();
+        let rigid = Scene::new(spec16(w as u32, h as u32, rect, amp, 0.0), tone(f)).unwrap();
+        let mut still = Scene::new(spec16(w as u32, h as u32, rect, 0.0, 0.0), tone(f)).unwrap();
+        let reference = to_f64(&frame16(&mut still, 0, 0.0));
+        let lag_of = |y: usize| match y {
+            0..60 => 0.0,
+            60..110 => 5e-3,
+            _ => -3e-3,
+        };
+        for y in [0u32, 59, 60, 109, 110, 159, 100_000] {
+            assert_eq!(moving.row_lag_s(y), lag_of(y as usize), "row {y}");
+        }
+        let t0 = 0.0013; // row 60's lagged time is before 0
+        for (ld, e) in [(0.0, 0.0), (1e-4, 0.0), (5e-5, 2e-3)] {
+            let mut img = vec![0u16; w * h];
+            if ld == 0.0 && e == 0.0 {
+                moving.render(0, t0, Dest::U16(&mut img));
+            } else {
+                moving.render_rows(0, t0, ld, e, Dest::U16(&mut img));
+            }
+            let img = to_f64(&img);
+            let mut worst = 0.0f64;
+            for y in 12..148 {
+                let (mut sgg, mut sgd) = (0.0, 0.0);
+                for x in 22..106 {
+                    let g = grad(&reference, w, x, y, false);
+                    sgg += g * g;
+                    sgd -= g * (img[y * w + x] - reference[y * w + x]);
+                }
+                let d = sgd / sgg;
+                let want = moving.row_displacement_px(t0, y as u32, ld, e);
+                // The truth: the rigid object's, that much earlier.
+                let rigid_want = rigid.row_displacement_px(t0 - lag_of(y), y as u32, ld, e);
+                assert!(
+                    (want - rigid_want).abs() < 1e-12,
+                    "row {y}: {want} vs {rigid_want}"
+                );
+                if e == 0.0 {
+                    let t = t0 + y as f64 * ld - lag_of(y);
+                    let analytic = amp * (std::f64::consts::TAU * f * t).sin();
+                    assert!((want - analytic).abs() < 1e-12, "row {y}");
+                }
+                worst = worst.max((d - want).abs());
+            }
+            eprintln!("row lags, line delay {ld} s, exposure {e} s: worst row error {worst:.5} px");
+            assert!(worst < 0.02 * amp, "ld {ld} e {e}: worst {worst}");
+        }
+        // The lags are large here: the regions clearly differ.
+        let top = moving.row_displacement_px(t0, 30, 0.0, 0.0);
+        let mid = moving.row_displacement_px(t0, 80, 0.0, 0.0);
+        assert!((top - mid).abs() > 0.3, "{top} {mid}");
+    }
+
+    /// Without row lags nothing changes, and lags of 0 take the per-row
+    /// path to the same bytes; rows above the first lagged region are
+    /// untouched by it.
+    #[test]
+    fn zero_or_no_row_lag_equals_the_global_shutter() {
+        for dir in [0.0, 37.0, 90.0] {
+            let spec = SceneSpec {
+                width: 64,
+                height: 50,
+                object: [10, 7, 40, 30],
+                amplitude_px: 0.8,
+                direction_deg: dir,
+                ..SceneSpec::default()
+            };
+            let with = |lags: Vec<(u32, f64)>| {
+                Scene::new(
+                    SceneSpec {
+                        row_lag_s: lags,
+                        ..spec.clone()
+                    },
+                    tone(300.0),
+                )
+                .unwrap()
+            };
+            let mut plain = with(Vec::new());
+            let mut zero = with(vec![(0, 0.0), (20, 0.0)]);
+            let mut lagged = with(vec![(20, 1e-3)]);
+            for k in 0..4u64 {
+                let t = k as f64 * 3.1e-4;
+                let g = frame8(&mut plain, k, t);
+                assert_eq!(g, frame8(&mut zero, k, t), "dir {dir} frame {k}");
+                let l = frame8(&mut lagged, k, t);
+                assert_eq!(g[..20 * 64], l[..20 * 64], "dir {dir} frame {k}");
+                assert_ne!(g[20 * 64..], l[20 * 64..], "dir {dir} frame {k}");
+                let mut clean_g = vec![0f32; 64 * 50];
+                let mut clean_z = vec![0f32; 64 * 50];
+                plain.render_clean(t, &mut clean_g);
+                zero.render_clean(t, &mut clean_z);
+                assert_eq!(clean_g, clean_z);
+            }
+        }
+    }
+
+    #[test]
+    fn bad_row_lags_are_refused_naming_the_field() {
+        let ok = SceneSpec::default(); // 256 rows
+        type Lags = Vec<(u32, f64)>;
+        let cases: Vec<(Lags, &str, &str)> = vec![
+            (
+                vec![(10, 0.0), (256, 1e-3)],
+                "row_lag_s[1]",
+                "below the frame height",
+            ),
+            (
+                vec![(10, 0.0), (30, 1e-3), (20, 0.0)],
+                "row_lag_s[2]",
+                "ascend",
+            ),
+            (vec![(10, 0.0), (10, 1e-3)], "row_lag_s[1]", "ascend"),
+            (vec![(0, f64::NAN)], "row_lag_s[0]", "finite"),
+            (vec![(0, 0.0), (5, f64::INFINITY)], "row_lag_s[1]", "finite"),
+            (vec![(3, -1.5)], "row_lag_s[0]", "at most 1 s"),
+            (
+                (0..65).map(|r| (r, 0.0)).collect(),
+                "row_lag_s",
+                "at most 64",
+            ),
+        ];
+        for (lags, field, what) in cases {
+            let spec = SceneSpec {
+                row_lag_s: lags.clone(),
+                ..ok.clone()
+            };
+            let e = match Scene::new(spec, tone(1.0)) {
+                Ok(_) => panic!("{lags:?} accepted"),
+                Err(e) => e,
+            };
+            assert_eq!(e.field(), field, "{e}");
+            assert!(
+                e.to_string().contains(field) && e.to_string().contains(what),
+                "{e}"
+            );
+        }
+        // The limits themselves are fine.
+        let spec = SceneSpec {
+            row_lag_s: (0..64)
+                .map(|r| (r * 4, if r % 2 == 0 { 1.0 } else { -1.0 }))
+                .collect(),
+            ..ok.clone()
+        };
+        assert!(Scene::new(spec, tone(1.0)).is_ok());
+        // A modal beam or a fabric moves on its own: no row lags.
+        let modal = crate::ModalSpec {
+            duration_s: 0.0,
+            modes: vec![crate::modal::ModeSpec {
+                freq_hz: 50.0,
+                amplitude_px: 0.2,
+                shape: 1,
+                across: 0,
+                damping: 0.02,
+                drive: crate::modal::Drive::Tone,
+                phase_rad: 0.0,
+            }],
+        };
+        let spec = SceneSpec {
+            row_lag_s: vec![(100, 1e-3)],
+            ..ok
+        };
+        let e = Scene::with_modal(spec, tone(1.0), &modal, Look::default())
+            .err()
+            .unwrap();
+        assert_eq!(e.field(), "row_lag_s", "{e}");
     }
 
     #[test]

@@ -169,6 +169,126 @@ pub fn recover(
     Ok((fs, y))
 }
 
+/// Strips of rows the residual's image axis is read on (effect (i)).
+pub const STRIPS: u32 = 8;
+/// The fewest rows a strip holds (the pyramid's finer scales need a few).
+const MIN_STRIP_ROWS: u32 = 4;
+
+/// The frame's size (from the file's header).
+fn frame_size(video: &Path) -> Result<(u32, u32)> {
+    let r = crate::io::open(video, crate::io::Format::Auto)
+        .map_err(|e| Error::input(video, e.to_string()))?;
+    let i = r.info();
+    Ok((i.width, i.height))
+}
+
+/// The frame's height in rows.
+pub fn frame_height(video: &Path) -> Result<u32> {
+    Ok(frame_size(video)?.1)
+}
+
+/// A region's columns (first, count) and its strips of rows (first row,
+/// end row).
+pub type StripLayout = ((u32, u32), Vec<(u32, u32)>);
+
+/// The region's columns and its rows cut into up to [`STRIPS`] strips of
+/// equal height.
+pub fn strip_rows(video: &Path, region: &Region) -> Result<StripLayout> {
+    let (w, h) = frame_size(video)?;
+    let (x, y, rw, rh) = match &region.roi {
+        Some(r) => (
+            r.x,
+            r.y,
+            r.w.min(w.saturating_sub(r.x)),
+            r.h.min(h.saturating_sub(r.y)),
+        ),
+        None => (0, 0, w, h),
+    };
+    let k = STRIPS.min(rh / MIN_STRIP_ROWS);
+    let rows = (0..k)
+        .map(|i| (y + i * rh / k, y + (i + 1) * rh / k))
+        .collect();
+    Ok(((x, rw), rows))
+}
+
+/// Recovers each strip of rows (`rows`, over the columns `cols`) of
+/// `video` with the listen pipeline's phase method, in one run (one
+/// decoder feeding a branch per strip), causally high-passed as
+/// [`recover`]: one signal per strip.
+pub fn recover_strips(
+    video: &Path,
+    fps: Option<f64>,
+    region: &Region,
+    (cols, rows): ((u32, u32), &[(u32, u32)]),
+    run: RunSettings,
+) -> Result<(Vec<Vec<f64>>, crate::engine::RunReport)> {
+    let tmp0 = TempPath::new("strips.wav");
+    let mut decl = listen_pipeline(
+        video,
+        tmp0.path(),
+        fps,
+        (region, Method::Phase),
+        Denoise::None,
+    )?;
+    crate::microphone::causal_highpass(&mut decl)?;
+    let branch = ["phase", "align", "highpass", "out"];
+    let originals: Vec<_> = branch
+        .iter()
+        .map(|id| pipeline::stage_mut(&mut decl, id).map(|s| s.clone()))
+        .collect::<Result<_>>()?;
+    decl.stages.retain(|s| !branch.contains(&s.id.as_str()));
+    let temps: Vec<TempPath> = rows.iter().map(|_| TempPath::new("strip.wav")).collect();
+    let origin = pipeline::by("calibrate (a strip of rows)");
+    for (k, (&(a, b), tmp)) in rows.iter().zip(&temps).enumerate() {
+        for st in &originals {
+            let mut c = st.clone();
+            c.id = format!("{}_{k}", st.id);
+            for i in &mut c.inputs {
+                if branch.contains(&i.from.as_str()) {
+                    i.from = format!("{}_{k}", i.from);
+                }
+            }
+            decl.stages.push(c);
+        }
+        let roi = crate::pipeline::Roi {
+            x: cols.0,
+            y: a,
+            w: cols.1,
+            h: b - a,
+        };
+        pipeline::set(
+            &mut decl,
+            &format!("phase_{k}"),
+            "roi",
+            roi.value(),
+            origin.clone(),
+        )?;
+        // The bands of a strip see its motion at one time: a lag chosen
+        // per recording would move the strip's delay by whole samples
+        // from one recording to the next, and the delays are reused.
+        pipeline::set(
+            &mut decl,
+            &format!("align_{k}"),
+            "max_lag",
+            toml::Value::Integer(0),
+            origin.clone(),
+        )?;
+        pipeline::set(
+            &mut decl,
+            &format!("out_{k}"),
+            "path",
+            pipeline::path_value(tmp.path()),
+            origin.clone(),
+        )?;
+    }
+    let report = pipeline::run(&decl, run)?;
+    let signals = temps
+        .iter()
+        .map(|t| Ok(crate::io::wav::read_mono(t.path())?.1))
+        .collect::<Result<_>>()?;
+    Ok((signals, report))
+}
+
 /// A recovery calibrated against its reference.
 pub struct Calibrated {
     /// The video's frame rate and the reference's sample rate (Hz).
@@ -244,12 +364,13 @@ pub fn calibrate_video_from(
                 ));
             }
             let (fs, y) = recover(video, fps, region, run)?;
+            let strips = strips_for(video, fps, region, opts.as_ref(), run)?;
             // Sampled well above the frame rate and the tone (the model
             // samples it at the frame times, band-limited), a second
             // longer than the video (the delay is searched over ±0.5 s).
             let fr = (4.0 * fs.max(hz)).ceil();
             let r = tone(hz, fr, y.len() as f64 / fs + 1.0);
-            return calibrate_recovery(video, y, fs, r, fr, opts, on_step);
+            return calibrate_recovery(video, (y, strips), fs, r, fr, opts, on_step);
         }
     };
     let (fr, r) = read_input_wav(reference)?;
@@ -273,13 +394,34 @@ pub fn calibrate_video_from(
             ),
         ));
     }
-    calibrate_recovery(video, y, fs, r, fr, opts, on_step)
+    let strips = strips_for(video, fps, region, opts.as_ref(), run)?;
+    calibrate_recovery(video, (y, strips), fs, r, fr, opts, on_step)
+}
+
+/// The strips' recoveries when the effects to try include the capture
+/// time (the default) and the region has rows enough for three strips.
+fn strips_for(
+    video: &Path,
+    fps: Option<f64>,
+    region: &Region,
+    opts: Option<&Options>,
+    run: RunSettings,
+) -> Result<Option<cal::Strips>> {
+    if opts.is_some_and(|o| !o.effects.contains(&EffectKind::CaptureTime)) {
+        return Ok(None);
+    }
+    let (cols, rows) = strip_rows(video, region)?;
+    if rows.len() < 3 {
+        return Ok(None);
+    }
+    let (signals, _) = recover_strips(video, fps, region, (cols, &rows), run)?;
+    Ok(Some(cal::Strips { rows, signals }))
 }
 
 /// The math on a recovery `y` (at `fs`) against `r` (at `fr`).
 fn calibrate_recovery(
     video: &Path,
-    y: Vec<f64>,
+    (y, strips): (Vec<f64>, Option<cal::Strips>),
     fs: f64,
     r: Vec<f64>,
     fr: f64,
@@ -292,7 +434,7 @@ fn calibrate_recovery(
             (h.0)(s)
         }
     };
-    let c = cal::calibrate_observed(&y, fs, &r, fr, &opts, &mut hook)
+    let c = cal::calibrate_strips(&y, strips.as_ref(), fs, &r, fr, &opts, &mut hook)
         .map_err(|e| Error::input(video, e.to_string()))?;
     pipeline::check_interrupt()?;
     Ok(Calibrated {

@@ -15,6 +15,7 @@ use crate::corrections;
 use crate::engine::config::PipelineDecl;
 use crate::engine::RunReport;
 use crate::error::{Error, Result};
+use crate::math::calibrate::Correction;
 use crate::microphone::listen_pipeline;
 pub use crate::microphone::Method;
 pub use crate::pipeline::BandFilter;
@@ -152,6 +153,13 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         }
         None => None,
     };
+    if let Some(c) = corrections.as_deref() {
+        if c.iter()
+            .any(|c| matches!(c, Correction::CaptureTime { .. }))
+        {
+            return listen_strips(o, c, method);
+        }
+    }
     let mut notes = Vec::new();
     let mut decl = match &o.rolling_shutter {
         Some(rs) => {
@@ -242,12 +250,23 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         finish_wav(o, corrections.is_some())?;
     }
     let run = run?;
-    let calibration = corrections.as_ref().map(|c| corrections::describe(c));
+    Ok(report(o, corrections.as_deref(), method, notes, run))
+}
+
+/// What `listen` did, read back from the WAV it wrote.
+fn report(
+    o: &ListenOptions,
+    corrections: Option<&[Correction]>,
+    method: Option<Method>,
+    notes: Vec<String>,
+    run: RunReport,
+) -> ListenReport {
+    let calibration = corrections.map(corrections::describe);
     let (samples, sample_rate_hz) = match hound::WavReader::open(&o.output) {
         Ok(r) => (u64::from(r.duration()), r.spec().sample_rate),
         Err(_) => (0, 0),
     };
-    Ok(ListenReport {
+    ListenReport {
         output: o.output.clone(),
         samples,
         sample_rate_hz,
@@ -260,7 +279,63 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         calibration,
         notes,
         run: Some(run),
-    })
+    }
+}
+
+/// `listen --calibration` with a calibration that holds a capture time
+/// across the image: the strips of rows it was fitted on (over the
+/// region's columns) are recovered in one run, each advanced by its delay
+/// and weighted, summed, and then the report's other corrections apply.
+fn listen_strips(
+    o: &ListenOptions,
+    corrections: &[Correction],
+    method: Option<Method>,
+) -> Result<ListenReport> {
+    let Some(Correction::CaptureTime {
+        rows,
+        delays_s,
+        weights,
+        ..
+    }) = corrections
+        .iter()
+        .find(|c| matches!(c, Correction::CaptureTime { .. }))
+    else {
+        return Err(Error::Analysis("no capture time in the calibration".into()));
+    };
+    let refuse = |flag: &str| {
+        Error::usage(
+            flag,
+            "not available yet with a calibration that holds a capture time across the image (capture_time)",
+        )
+    };
+    if o.denoise != Denoise::None {
+        return Err(refuse("--denoise"));
+    }
+    if !o.filters.is_empty() {
+        return Err(refuse("--band/--notch"));
+    }
+    let calibration = o.calibration.as_deref().unwrap_or(o.video.as_path());
+    let ((cols, _), height) = (
+        crate::calibrate::strip_rows(&o.video, &o.region)?,
+        crate::calibrate::frame_height(&o.video)?,
+    );
+    if let Some(&(_, end)) = rows.iter().find(|r| r.1 > height) {
+        return Err(Error::input(
+            calibration,
+            format!(
+                "its capture_time strips reach row {end}, but {} has {height} rows: it was fitted on another camera or frame size",
+                o.video.display()
+            ),
+        ));
+    }
+    let fs = crate::calibrate::frame_rate(&o.video, o.fps)?;
+    let (signals, run) =
+        crate::calibrate::recover_strips(&o.video, o.fps, &o.region, (cols, rows), o.run)?;
+    let y = crate::math::calibrate::combine(&signals, weights, delays_s, fs);
+    crate::io::wav::write_mono_f32(&o.output, fs.round() as u32, &y)?;
+    corrections::apply_to_wav(&o.output, corrections, Denoise::None)?;
+    finish_wav(o, true)?;
+    Ok(report(o, Some(corrections), method, Vec::new(), run))
 }
 
 /// The method `o` runs, or why it cannot: a calibration is fitted on the

@@ -76,6 +76,19 @@ pub enum Correction {
         samples: usize,
         start_to_end_db: f64,
     },
+    /// Sum strips of rows (first and end row each), strip `k` advanced by
+    /// `delays_s[k]` and weighted by `weights[k]` ([`super::combine`]):
+    /// it acts on the strips' recoveries, before every other correction,
+    /// so on one recovery it does nothing. `line_delay_s` is the fitted
+    /// time per row (reported); `per_region` says the delays are each
+    /// strip's own rather than in proportion to the row.
+    CaptureTime {
+        rows: Vec<(u32, u32)>,
+        delays_s: Vec<f64>,
+        weights: Vec<f64>,
+        line_delay_s: f64,
+        per_region: bool,
+    },
 }
 
 /// Most boost the exposure inverse applies (the `exposure` stage's -12 dB floor).
@@ -94,6 +107,7 @@ impl Correction {
             Correction::SoftClip { .. } => EffectKind::SoftClip,
             Correction::Polynomial { .. } => EffectKind::Polynomial,
             Correction::GainDrift { .. } => EffectKind::GainDrift,
+            Correction::CaptureTime { .. } => EffectKind::CaptureTime,
         }
     }
 
@@ -106,6 +120,7 @@ impl Correction {
                 | Correction::Exposure { .. }
                 | Correction::Transfer { .. }
                 | Correction::Polynomial { .. }
+                | Correction::CaptureTime { .. }
         )
     }
 
@@ -140,6 +155,8 @@ impl Correction {
             Correction::GainDrift { coefs, samples, .. } => {
                 super::gain_drift::apply(z, coefs, *samples)
             }
+            // Applied to the strips (`super::combine`), not here.
+            Correction::CaptureTime { .. } => z.to_vec(),
             Correction::Exposure { .. } | Correction::Transfer { .. } => equalize(z, fs, |f| {
                 self.response(f).unwrap_or(Complex::new(1.0, 0.0))
             }),

@@ -129,7 +129,7 @@ fn scatter(blocks: &[BlockGain]) -> f64 {
 /// The level chi-square with `k` degrees of freedom exceeds with
 /// probability 1e-3 (Wilson-Hilferty): a trend's power over the
 /// block-to-block scatter must pass it to count.
-fn chi2_level(k: usize) -> f64 {
+pub(super) fn chi2_level(k: usize) -> f64 {
     let k = k as f64;
     let z = 3.09; // the normal's 1 - 1e-3 quantile
     let h = 2.0 / (9.0 * k);

@@ -56,6 +56,7 @@
 //! residual analysis ([`residual`]) beside them; here the options, the
 //! report and the greedy fit-and-keep loop.
 
+mod capture_time;
 mod correction;
 mod correlation;
 mod exposure;
@@ -72,6 +73,7 @@ mod soft_clip;
 mod time_base;
 mod transfer;
 
+pub use capture_time::{combine, Strips};
 pub use correction::{Correction, FrameEvent, Line};
 pub use identify::Confound;
 pub use report::{
@@ -138,12 +140,21 @@ pub enum EffectKind {
     /// a fading light): a smooth trend in time, fitted only when the
     /// residual's time axis shows one. Per recording.
     GainDrift,
+    /// (i) The time the motion is seen changes across the image's rows
+    /// (rows read out one after another, two objects that hear the sound
+    /// at different times): each strip of rows advanced by its delay
+    /// before the strips are summed ([`capture_time`]). Needs the strips'
+    /// recoveries ([`calibrate_strips`]); decided before the others, since
+    /// it changes what the others are fitted on.
+    CaptureTime,
 }
 
-/// The catalog in the order it is tried: time base, then frames, then the
+/// The catalog in the order it is tried: the capture time across the image
+/// (before the rest, on the strips), time base, then frames, then the
 /// spectral effects, then the nonlinearities, then (last, and only in a
 /// round where nothing else gains) a drifting gain.
-pub const CATALOG: [EffectKind; 8] = [
+pub const CATALOG: [EffectKind; 9] = [
+    EffectKind::CaptureTime,
     EffectKind::TimeBase,
     EffectKind::Frames,
     EffectKind::Exposure,
@@ -165,6 +176,7 @@ impl EffectKind {
             EffectKind::SoftClip => "soft_clip",
             EffectKind::Polynomial => "static_nonlinearity",
             EffectKind::GainDrift => "gain_drift",
+            EffectKind::CaptureTime => "capture_time",
         }
     }
 }
@@ -279,6 +291,21 @@ pub fn calibrate_observed(
     opts: &Options,
     on_step: &mut dyn FnMut(Step),
 ) -> Result<Calibration, CalError> {
+    calibrate_strips(y, None, fs, r, fr, opts, on_step)
+}
+
+/// [`calibrate_observed`] with the recoveries of strips of rows across the
+/// region (the residual's image axis, and effect (i)): `y` is the region's
+/// recovery, each strip's as long.
+pub fn calibrate_strips(
+    y: &[f64],
+    strips: Option<&Strips>,
+    fs: f64,
+    r: &[f64],
+    fr: f64,
+    opts: &Options,
+    on_step: &mut dyn FnMut(Step),
+) -> Result<Calibration, CalError> {
     if !(fs.is_finite() && fs > 0.0 && fr.is_finite() && fr > 0.0) {
         return Err(CalError::Rates { fs, fr });
     }
@@ -290,19 +317,66 @@ pub fn calibrate_observed(
             fs,
         });
     }
-    if y.iter().chain(r).any(|v| !v.is_finite()) {
+    let strip_values = strips.iter().flat_map(|s| s.signals.iter().flatten());
+    if y.iter()
+        .chain(r)
+        .chain(strip_values)
+        .any(|v| !v.is_finite())
+    {
         return Err(CalError::NonFinite);
     }
     let m = Model { r, fr, fs, opts };
     let fit0 = m.fit_linear(y);
     let before = m.errors(y, &fit0);
-    let linear_residual = unexplained(&m, y, &fit0);
+    let mut linear_residual = unexplained(&m, y, &fit0);
     let mut kept: Vec<Kept> = Vec::new();
     let mut rejected = Vec::new();
+    // (i) The image's row axis, read first: a capture time that changes
+    // across the rows changes the recovery every other effect is fitted
+    // on (the strips, each advanced by its delay, then summed).
+    let mut capture: Option<EffectReport> = None;
+    let mut kept_capture: Option<Correction> = None;
+    let timed: Vec<f64>;
+    let y: &[f64] = match strips.filter(|_| opts.effects.contains(&EffectKind::CaptureTime)) {
+        Some(s) => {
+            on_step(Step {
+                round: 1,
+                effect: EffectKind::CaptureTime,
+                index: 0,
+                of: opts.effects.len(),
+            });
+            let d = capture_time::decide(&m, s, &fit0, opts.min_gain_db);
+            linear_residual.extend(d.evidence.clone());
+            for (c, gain) in d.rejected {
+                rejected.push(Rejected {
+                    name: EffectKind::CaptureTime.name(),
+                    parameters: c.parameters(fs, fit0.g),
+                    snr_gain_db: gain,
+                });
+            }
+            match d.kept {
+                Some((c, gain, z)) => {
+                    capture = Some(EffectReport {
+                        name: EffectKind::CaptureTime.name().to_string(),
+                        parameters: c.correction.parameters(fs, fit0.g),
+                        uncertainty: c.uncertainty.clone(),
+                        snr_gain_db: gain,
+                        evidence: d.evidence.into_iter().collect(),
+                    });
+                    timed = z;
+                    kept_capture = Some(c.correction);
+                    &timed
+                }
+                None => y,
+            }
+        }
+        None => y,
+    };
     // Greedy, best first: each round fits every effect not yet kept (in
     // catalog order) on the current corrected recovery and keeps the one
     // with the largest held-out gain, if it reaches `min_gain_db`.
     let mut left: Vec<EffectKind> = opts.effects.clone();
+    left.retain(|&k| k != EffectKind::CaptureTime);
     let (mut z, mut fit, mut cur) = (y.to_vec(), fit0, before);
     let mut round_no = 0;
     loop {
@@ -477,7 +551,7 @@ pub fn calibrate_observed(
         }
     }
     let corrections = chain(&kept);
-    let effects = corrections
+    let effects: Vec<EffectReport> = corrections
         .iter()
         .enumerate()
         .map(|(i, c)| {
@@ -504,6 +578,9 @@ pub fn calibrate_observed(
             }
         })
         .collect();
+    // The capture time comes first: it is applied to the strips.
+    let effects: Vec<EffectReport> = capture.into_iter().chain(effects).collect();
+    let corrections: Vec<Correction> = kept_capture.into_iter().chain(corrections).collect();
     let unexplained = unexplained(&m, &z, &fit);
     let g = if fit.g != 0.0 { fit.g } else { 1.0 };
     Ok(Calibration {
@@ -533,6 +610,8 @@ fn fit_effect(kind: EffectKind, m: &Model, z: &[f64], fit: &Fit) -> Option<Candi
         EffectKind::SoftClip => soft_clip::fit_soft_clip(m, z, fit),
         EffectKind::Polynomial => polynomial::fit_polynomial(m, z, fit),
         EffectKind::GainDrift => gain_drift::fit_gain_drift(m, z, fit),
+        // Fitted on the strips, before the loop.
+        EffectKind::CaptureTime => None,
     }
 }
 

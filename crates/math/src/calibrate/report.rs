@@ -70,6 +70,19 @@ pub enum Parameters {
         samples: usize,
         start_to_end_db: f64,
     },
+    /// Strips of rows (first and end row each), each advanced by its
+    /// delay and weighted before they are summed; the fitted time per row
+    /// and whether the delays are in proportion to it (`linear`) or each
+    /// strip's own (`per_region`).
+    CaptureTime {
+        axis: &'static str,
+        delays_us: Vec<f64>,
+        end_rows: Vec<u32>,
+        first_rows: Vec<u32>,
+        line_delay_us: f64,
+        member: &'static str,
+        weights: Vec<f64>,
+    },
     Polynomial {
         coefficients: Vec<f64>,
         highpass_hz: Option<f64>,
@@ -152,6 +165,19 @@ impl fmt::Display for Parameters {
                 write!(f, "start_to_end_db {start_to_end_db}, coefficients ")?;
                 list(f, coefficients)
             }
+            Parameters::CaptureTime {
+                delays_us,
+                first_rows,
+                line_delay_us,
+                member,
+                ..
+            } => {
+                write!(f, "{member}, line_delay_us {line_delay_us}, first_rows ")?;
+                let rows: Vec<f64> = first_rows.iter().map(|&r| r as f64).collect();
+                list(f, &rows)?;
+                write!(f, ", delays_us ")?;
+                list(f, delays_us)
+            }
             Parameters::Polynomial {
                 inverse_in_reference_units,
                 order,
@@ -206,6 +232,11 @@ pub enum Uncertainty {
     GainDrift {
         coefficients: Vec<f64>,
     },
+    /// Of each strip's delay and of the time per row, µs.
+    CaptureTime {
+        delays_us: Vec<f64>,
+        line_delay_us: f64,
+    },
 }
 
 /// A structure of the residual no accepted effect explains; `kind` names
@@ -248,6 +279,19 @@ pub enum Unexplained {
         significance: f64,
         start_to_end_db: f64,
     },
+    /// A lag that changes across the image (`axis`: "rows"): each
+    /// strip's delay about their mean (µs; null where a strip holds no
+    /// usable signal) at its central row.
+    LagAcrossImage {
+        axis: &'static str,
+        description: String,
+        frequencies_hz: [f64; 0],
+        kind: UnexplainedKind,
+        lags_us: Vec<f64>,
+        rows: Vec<f64>,
+        /// The spread's chi-square over the level chance reaches (> 1).
+        significance: f64,
+    },
     /// A lag that changes over time.
     LagOverTime {
         description: String,
@@ -267,6 +311,7 @@ pub enum UnexplainedKind {
     LagVsFrequency,
     LagOverTime,
     GainOverTime,
+    LagAcrossImage,
 }
 
 impl Unexplained {
@@ -277,7 +322,8 @@ impl Unexplained {
             | Unexplained::CoherentWithoutReference { kind, .. }
             | Unexplained::LagVsFrequency { kind, .. }
             | Unexplained::LagOverTime { kind, .. }
-            | Unexplained::GainOverTime { kind, .. } => *kind,
+            | Unexplained::GainOverTime { kind, .. }
+            | Unexplained::LagAcrossImage { kind, .. } => *kind,
         }
     }
 
@@ -288,7 +334,8 @@ impl Unexplained {
             | Unexplained::CoherentWithoutReference { description, .. }
             | Unexplained::LagVsFrequency { description, .. }
             | Unexplained::LagOverTime { description, .. }
-            | Unexplained::GainOverTime { description, .. } => description,
+            | Unexplained::GainOverTime { description, .. }
+            | Unexplained::LagAcrossImage { description, .. } => description,
         }
     }
 }
@@ -350,6 +397,21 @@ impl Correction {
                 coefficients: coefs.clone(),
                 samples: *samples,
                 start_to_end_db: *start_to_end_db,
+            },
+            Correction::CaptureTime {
+                rows,
+                delays_s,
+                weights,
+                line_delay_s,
+                per_region,
+            } => Parameters::CaptureTime {
+                axis: "rows",
+                delays_us: delays_s.iter().map(|d| d * 1e6).collect(),
+                end_rows: rows.iter().map(|r| r.1).collect(),
+                first_rows: rows.iter().map(|r| r.0).collect(),
+                line_delay_us: line_delay_s * 1e6,
+                member: if *per_region { "per_region" } else { "linear" },
+                weights: weights.clone(),
             },
             Correction::Polynomial {
                 coefs,
@@ -440,6 +502,12 @@ pub const MAX_TRANSFER_K: f64 = 10.0;
 pub const MAX_POLYNOMIAL_TERMS: usize = 8;
 /// The largest recovery range a stored static nonlinearity may hold.
 pub const MAX_POLYNOMIAL_RANGE: f64 = 1e9;
+/// The most strips a stored capture time may hold.
+pub const MAX_STRIPS: usize = 64;
+/// The largest row a stored capture time may name.
+pub const MAX_ROW: u32 = 1 << 20;
+/// The largest delay of a strip a stored capture time may hold, µs.
+pub const MAX_CAPTURE_DELAY_US: f64 = 1e6;
 
 /// A value in a stored report's `parameters`, as loosely as it may come.
 #[derive(Deserialize)]
@@ -532,6 +600,7 @@ fn from_report(
         EffectKind::Exposure,
         EffectKind::Transfer,
         EffectKind::Polynomial,
+        EffectKind::CaptureTime,
     ]
     .into_iter()
     .find(|k| k.name() == name);
@@ -649,6 +718,53 @@ fn from_report(
                 coefs,
                 range,
                 highpass,
+            })
+        }
+        Some(EffectKind::CaptureTime) => {
+            let (first, end) = (list("first_rows")?, list("end_rows")?);
+            let (delays, weights) = (list("delays_us")?, list("weights")?);
+            let k = first.len();
+            if k == 0 || k > MAX_STRIPS || [end.len(), delays.len(), weights.len()] != [k; 3] {
+                return Err(ReportError::OutOfRange {
+                    index,
+                    name: name.to_string(),
+                    key: "first_rows",
+                    range: "1 to 64 strips, as many as end_rows, delays_us and weights",
+                    value: k as f64,
+                });
+            }
+            let row = |v: f64| v.fract() == 0.0 && (0.0..=f64::from(MAX_ROW)).contains(&v);
+            if (0..k).any(|i| !(row(first[i]) && row(end[i]) && first[i] < end[i])) {
+                return Err(field(
+                    "first_rows",
+                    "whole rows, each strip's first row before its end row (end_rows)",
+                ));
+            }
+            if let Some(&d) = delays.iter().find(|d| d.abs() > MAX_CAPTURE_DELAY_US) {
+                return Err(ReportError::OutOfRange {
+                    index,
+                    name: name.to_string(),
+                    key: "delays_us",
+                    range: "within ±1e6 µs (1 s)",
+                    value: d,
+                });
+            }
+            if weights.iter().all(|w| *w == 0.0) {
+                return Err(field("weights", "a list of numbers, not all zero"));
+            }
+            Some(Correction::CaptureTime {
+                rows: first
+                    .iter()
+                    .zip(&end)
+                    .map(|(&a, &b)| (a as u32, b as u32))
+                    .collect(),
+                delays_s: delays.iter().map(|d| d * 1e-6).collect(),
+                weights,
+                line_delay_s: match p.get("line_delay_us") {
+                    Some(Stored::Num(v)) if v.is_finite() => v * 1e-6,
+                    _ => 0.0,
+                },
+                per_region: false,
             })
         }
         // Per recording: the level is in the recovery's units, which

@@ -48,6 +48,8 @@ pub struct SyntheticParams {
     pub soft_clip_px: Option<f64>,
     pub response_poly: Vec<f64>,
     pub gain_decay_s: Option<f64>,
+    pub row_lag_rows: Vec<u64>,
+    pub row_lag_us: Vec<f64>,
 }
 
 /// A narrowband motion added to the object's.
@@ -146,7 +148,18 @@ pub const PARAMS: &[ParamSpec] = &[
         .floats(1e-3, 1e6)
         .unit("s")
         .doc("the motion decays as exp(-t / gain_decay_s) over the recording (a struck object ringing down); interference does not"),
+    ParamSpec::new("row_lag_rows", ParamType::Ints, Def::Toml("[]"))
+        .ints(0, 16383)
+        .unit("row")
+        .doc("first rows of regions whose motion lags (two objects stacked vertically, a non-rigid one), strictly ascending; each region ends at the next (or the frame's end), rows above the first have no lag"),
+    ParamSpec::new("row_lag_us", ParamType::Floats, Def::Toml("[]"))
+        .floats(-MAX_ROW_LAG_US, MAX_ROW_LAG_US)
+        .unit("µs")
+        .doc("the lag of each region of row_lag_rows: its rows show amplitude_px * signal(t - lag) at their capture time t (with a rolling shutter too); frames are then rendered row by row"),
 ];
+
+/// Largest `|row_lag_us|` (1 s, the simulator's [`sim::scene::MAX_ROW_LAG_S`]).
+const MAX_ROW_LAG_US: f64 = sim::scene::MAX_ROW_LAG_S * 1e6;
 
 impl Default for SyntheticParams {
     /// The declared defaults ([`PARAMS`]).
@@ -188,6 +201,8 @@ impl Default for SyntheticParams {
             soft_clip_px: None,
             response_poly: Vec::new(),
             gain_decay_s: None,
+            row_lag_rows: Vec::new(),
+            row_lag_us: Vec::new(),
         }
     }
 }
@@ -277,8 +292,13 @@ impl SyntheticParams {
             }
             .to_string());
         }
+        // Also here: `scene` may run without `check`, and the pairs must match.
+        self.check_row_lag()
+            .map_err(|(f, m)| format!("invalid {f}: {m}"))?;
+        // A region that moves early (a negative lag) reads the signal later.
+        let early_us = self.row_lag_us.iter().fold(0.0f64, |m, &l| m.max(-l));
         let span = self.frame_count().saturating_add(2) as f64 / self.true_fps()
-            + self.exposure_us.unwrap_or(0.0) * 1e-6
+            + (self.exposure_us.unwrap_or(0.0) + early_us) * 1e-6
             + 0.01;
         let rate = (16.0 * self.fps).max(96_000.0);
         let unit = if self.amplitude_px != 0.0 {
@@ -326,6 +346,7 @@ impl SyntheticParams {
             bits: self.bits,
             contrast: self.contrast.unwrap_or(0.15 * full),
             seed: self.seed,
+            row_lag_s: self.row_lags(),
         };
         // Frame, object and amplitudes first: a picture is resized to the
         // object, so an object past the frame must fail before that.
@@ -378,6 +399,7 @@ impl SyntheticParams {
             return Err(("amplitude_px", "must be a finite number".into()));
         }
         self.check_rolling()?;
+        self.check_row_lag()?;
         let e = self.clock_error_ppm;
         if !(e.is_finite() && e.abs() <= 1e5) {
             return Err((
@@ -430,6 +452,12 @@ impl SyntheticParams {
                 "needs a global shutter (no line_delay_us or exposure_us)".into(),
             ));
         }
+        if !self.row_lag_rows.is_empty() && (self.modal.is_some() || self.fabric.is_some()) {
+            return Err((
+                "row_lag_rows",
+                "needs a rigid object (no modal or fabric)".into(),
+            ));
+        }
         self.check_model().map_err(|m| {
             // The model names its field: `invalid FIELD: ...`.
             let named = m
@@ -453,6 +481,8 @@ impl SyntheticParams {
                 "response_poly"
             } else if m.contains("gain_decay_s") {
                 "gain_decay_s"
+            } else if m.contains("row_lag") {
+                "row_lag_us"
             } else if m.contains("resonances") {
                 "resonances"
             } else if m.contains("interference") {
@@ -485,6 +515,68 @@ impl SyntheticParams {
             )),
             (None, None) => Ok(()),
         }
+    }
+
+    /// Row lags: as many lags as first rows, at most
+    /// [`sim::scene::MAX_ROW_LAGS`] regions, first rows strictly ascending
+    /// and inside the frame, lags finite and within ±1 s. Errors name the
+    /// entry, `row_lag_us[2]`.
+    fn check_row_lag(&self) -> Result<(), (&'static str, String)> {
+        let (rows, lags) = (&self.row_lag_rows, &self.row_lag_us);
+        if rows.len() != lags.len() {
+            return Err((
+                "row_lag_us",
+                format!(
+                    "needs one lag per first row in row_lag_rows: {} lags for {} rows",
+                    lags.len(),
+                    rows.len()
+                ),
+            ));
+        }
+        let max = sim::scene::MAX_ROW_LAGS;
+        if rows.len() > max {
+            return Err((
+                "row_lag_rows",
+                format!("at most {max} regions, got {}", rows.len()),
+            ));
+        }
+        for (k, (&r, &l)) in rows.iter().zip(lags).enumerate() {
+            if r >= self.height as u64 {
+                return Err((
+                    "row_lag_rows",
+                    format!(
+                        "row_lag_rows[{k}] = {r} must be below the frame height {}",
+                        self.height
+                    ),
+                ));
+            }
+            if k > 0 && r <= rows[k - 1] {
+                return Err((
+                    "row_lag_rows",
+                    format!(
+                        "row_lag_rows[{k}] = {r} must be above row_lag_rows[{}] = {} (strictly ascending)",
+                        k - 1,
+                        rows[k - 1]
+                    ),
+                ));
+            }
+            if !(l.is_finite() && l.abs() <= MAX_ROW_LAG_US) {
+                return Err((
+                    "row_lag_us",
+                    format!("row_lag_us[{k}] must be finite and within ±1e6 µs (1 s), got {l}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The row lags as the simulator takes them: `(first_row, lag_s)`.
+    fn row_lags(&self) -> Vec<(u32, f64)> {
+        self.row_lag_rows
+            .iter()
+            .zip(&self.row_lag_us)
+            .map(|(&r, &l)| (r.min(u32::MAX as u64) as u32, l * 1e-6))
+            .collect()
     }
 
     /// Row timing of the simulated camera, if it has a rolling shutter or an exposure.
@@ -702,5 +794,106 @@ mod tests {
             toml::from_str("fps = 600.0").unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(from_toml.width, 256);
         assert_eq!(from_toml.fps, 600.0);
+    }
+
+    /// Issue 15: `row_lag_rows` and `row_lag_us` reach the model (lagged
+    /// rows move late, with a global shutter too; the rows above are as
+    /// without them), and bad pairs are refused naming the key and entry.
+    #[test]
+    fn row_lags_reach_the_model_and_bad_ones_are_named() {
+        let base = "width = 32\nheight = 32\nfps = 2200.0\nnoise_std = 0.0\namplitude_px = 0.5\n\
+                    signal = { type = \"tone\", freq_hz = 500.0 }\n";
+        let params = |extra: &str| -> SyntheticParams {
+            toml::from_str(&format!("{base}{extra}")).unwrap_or_else(|e| panic!("{e}"))
+        };
+        let plain = params("");
+        // Rows 16.. half a period of 500 Hz late: in antiphase.
+        let lagged = params("row_lag_rows = [16]\nrow_lag_us = [1000.0]\n");
+        for p in [&plain, &lagged] {
+            p.check().unwrap_or_else(|(f, m)| panic!("{f}: {m}"));
+        }
+        let mut a = plain.scene().unwrap_or_else(|e| panic!("{e}"));
+        let mut b = lagged.scene().unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((b.row_lag_s(15), b.row_lag_s(16)), (0.0, 1e-3));
+        for k in 0..5u64 {
+            let t = k as f64 / 2200.0;
+            let (want_top, want_bottom) =
+                (a.displacement_px(t), b.row_displacement_px(t, 20, 0.0, 0.0));
+            assert!(
+                (want_top + want_bottom).abs() < 1e-9,
+                "{want_top} {want_bottom}"
+            );
+            let (mut fa, mut fb) = (vec![0u8; 32 * 32], vec![0u8; 32 * 32]);
+            a.render(k, t, sim::Dest::U8(&mut fa));
+            b.render(k, t, sim::Dest::U8(&mut fb));
+            assert_eq!(fa[..16 * 32], fb[..16 * 32], "frame {k}");
+            if want_top.abs() > 0.1 {
+                assert_ne!(fa[16 * 32..], fb[16 * 32..], "frame {k}");
+            }
+        }
+        let modal = "modal = { modes = [{ freq_hz = 50.0, amplitude_px = 0.2, shape = 1, drive = \"tone\" }] }\n";
+        for (extra, field, names) in [
+            (
+                "row_lag_rows = [16, 8]\nrow_lag_us = [0.0, 1.0]",
+                "row_lag_rows",
+                "row_lag_rows[1]",
+            ),
+            (
+                "row_lag_rows = [4, 4]\nrow_lag_us = [0.0, 1.0]",
+                "row_lag_rows",
+                "row_lag_rows[1]",
+            ),
+            (
+                "row_lag_rows = [32]\nrow_lag_us = [1.0]",
+                "row_lag_rows",
+                "row_lag_rows[0]",
+            ),
+            (
+                "row_lag_rows = [1, 2, 3]\nrow_lag_us = [1.0, 2.0, 2e6]",
+                "row_lag_us",
+                "row_lag_us[2]",
+            ),
+            (
+                "row_lag_rows = [1]\nrow_lag_us = [nan]",
+                "row_lag_us",
+                "row_lag_us[0]",
+            ),
+            (
+                "row_lag_rows = [1]\nrow_lag_us = [1.0, 2.0]",
+                "row_lag_us",
+                "row_lag_rows",
+            ),
+            ("row_lag_us = [1.0]", "row_lag_us", "row_lag_rows"),
+            (
+                &format!("row_lag_rows = [1]\nrow_lag_us = [1.0]\n{modal}"),
+                "row_lag_rows",
+                "modal",
+            ),
+        ] {
+            let p = params(extra);
+            let (f, m) = p
+                .check()
+                .err()
+                .unwrap_or_else(|| panic!("{extra} accepted"));
+            assert_eq!(f, field, "{extra}: {m}");
+            assert!(m.contains(names), "{extra}: {m}");
+            // And the model refuses them too, never panicking.
+            assert!(p.scene().is_err(), "{extra}");
+        }
+        // Declared ranges: a pipeline gets them checked by the declaration.
+        let decl = crate::config::parse(
+            "t.toml",
+            "[[stage]]\nid = \"s\"\nkind = \"synthetic\"\nrow_lag_rows = [1]\nrow_lag_us = [-2e6]\n",
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        let p = Params {
+            file: "t.toml",
+            stage: &decl.stages[0],
+        };
+        let e = p
+            .resolve::<SyntheticParams>(PARAMS)
+            .err()
+            .unwrap_or_else(|| panic!("-2e6 µs accepted"));
+        assert!(e.to_string().contains("row_lag_us"), "{e}");
     }
 }

@@ -1,0 +1,450 @@
+//! Family (i): the time at which the motion is seen changes across the
+//! image. The residual's image axis: the region is recovered as horizontal
+//! strips of rows ([`Strips`]) and each strip's delay against the
+//! reference is measured on its own, with an uncertainty from the spread
+//! of its fit blocks (a delete-one-block jackknife, so a coloured residual
+//! widens it as it should). Delays that differ across the rows by more
+//! than that noise (a chi-square test at 1e-3) mean the rows were captured
+//! at different times (a rolling shutter read out while the camera
+//! declared a global one) or the parts of the object heard the sound at
+//! different times (two objects, a non-rigid one).
+//!
+//! The family's members, each a delay per strip applied before the strips
+//! are summed: `linear`, a delay proportional to the row (one parameter,
+//! the time per row), and `per_region`, each strip's own delay (a step
+//! between two objects). Both sum the strips by maximal-ratio combining
+//! (each weighted by its gain over its noise variance, on the fit part),
+//! and both are scored against the same sum without delays, so the gain is
+//! the timing's alone. The linear member is kept unless the per-region one
+//! gains [`super::Options::min_gain_db`] more.
+
+use super::gain_drift::chi2_level;
+use super::model::{Fit, Model};
+use super::report::{Unexplained, UnexplainedKind};
+use super::signal::{sample_at, stft_len};
+use super::{Candidate, Correction, Uncertainty};
+
+/// Recoveries of horizontal strips of the region: the image's row axis.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Strips {
+    /// First and end row (exclusive) of each strip, image pixels.
+    pub rows: Vec<(u32, u32)>,
+    /// Each strip's recovery at the frame rate, as long as the region's.
+    pub signals: Vec<Vec<f64>>,
+}
+
+/// One strip's linear model against the target.
+#[derive(Clone, Debug)]
+pub(super) struct StripFit {
+    /// The strip's central row.
+    pub(super) centre: f64,
+    /// Its delay (s) less the region's.
+    pub(super) lag_s: f64,
+    /// One standard deviation of `lag_s` (jackknife over fit blocks);
+    /// infinite when the strip holds no usable signal.
+    pub(super) sigma_s: f64,
+    pub(super) gain: f64,
+    /// Residual variance on the fit part.
+    pub(super) noise: f64,
+}
+
+impl StripFit {
+    /// The maximal-ratio weight: gain over noise variance.
+    pub(super) fn weight(&self) -> f64 {
+        if self.noise > 0.0 && self.gain.is_finite() {
+            self.gain / self.noise
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Gauss-Newton iterations of each strip's delay.
+const ITERATIONS: usize = 3;
+/// A strip's delay counts when its fit's matched-filter SNR (amplitude)
+/// reaches this: below it the delay is noise.
+const MIN_STRIP_SNR: f64 = 5.0;
+
+/// Each strip's delay, gain and noise against the target (the region's
+/// fit `fit` is the starting point).
+pub(super) fn read(m: &Model, strips: &Strips, fit: &Fit) -> Vec<StripFit> {
+    strips
+        .signals
+        .iter()
+        .zip(&strips.rows)
+        .map(|(y, &(a, b))| {
+            let centre = 0.5 * (a as f64 + b as f64 - 1.0);
+            // Each strip's own delay by the linear model's search (a part
+            // may lag the region by samples), then refined.
+            strip_fit(m, y, m.fit_linear(y).tau).map_or(
+                StripFit {
+                    centre,
+                    lag_s: 0.0,
+                    sigma_s: f64::INFINITY,
+                    gain: 0.0,
+                    noise: 0.0,
+                },
+                |(tau, sigma_s, gain, noise)| StripFit {
+                    centre,
+                    lag_s: tau - fit.tau,
+                    sigma_s,
+                    gain,
+                    noise,
+                },
+            )
+        })
+        .collect()
+}
+
+/// `(delay, its jackknife σ, gain, noise variance)` of `y ≈ g T(τ)`:
+/// Gauss-Newton on the delay (`y ≈ g T + c ∂T/∂τ`, so `δτ = c / g`), from
+/// `tau0`, on the fit part.
+fn strip_fit(m: &Model, y: &[f64], tau0: f64) -> Option<(f64, f64, f64, f64)> {
+    let n = y.len();
+    let block = stft_len(m.fs);
+    let h = 0.05 / m.fs;
+    let mut tau = tau0;
+    let mut last = None;
+    for it in 0..ITERATIONS {
+        let t = m.target(n, 0, tau, 0.0);
+        let (tp, tm) = (m.target(n, 0, tau + h, 0.0), m.target(n, 0, tau - h, 0.0));
+        // Per fit block: Σyy, Σyt, Σyd, Σtt, Σtd, Σdd.
+        let mut sums: Vec<[f64; 6]> = vec![[0.0; 6]; n.div_ceil(block)];
+        for i in (0..n).filter(|&i| m.is_fit(i)) {
+            let d = (tp[i] - tm[i]) / (2.0 * h);
+            let s = &mut sums[i / block];
+            let (yv, tv) = (y[i], t[i]);
+            s[0] += yv * yv;
+            s[1] += yv * tv;
+            s[2] += yv * d;
+            s[3] += tv * tv;
+            s[4] += tv * d;
+            s[5] += d * d;
+        }
+        sums.retain(|s| s[3] > 0.0);
+        let total = sums.iter().fold([0.0; 6], |mut acc, s| {
+            acc.iter_mut().zip(s).for_each(|(a, b)| *a += b);
+            acc
+        });
+        let (g, c) = solve(&total)?;
+        let delta = (c / g).clamp(-0.5 / m.fs, 0.5 / m.fs);
+        if it + 1 == ITERATIONS {
+            // Delete-one-block jackknife of the delay's step.
+            let k = sums.len();
+            if k < 3 {
+                return None;
+            }
+            let loo: Vec<f64> = sums
+                .iter()
+                .filter_map(|s| {
+                    let mut r = total;
+                    r.iter_mut().zip(s).for_each(|(a, b)| *a -= b);
+                    solve(&r).map(|(g, c)| c / g)
+                })
+                .collect();
+            if loo.len() != k {
+                return None;
+            }
+            let mean = loo.iter().sum::<f64>() / k as f64;
+            let var =
+                (k - 1) as f64 / k as f64 * loo.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
+            let nfit = m.nfit(n) as f64;
+            let sse = (total[0] - g * total[1] - c * total[2]).max(0.0);
+            let noise = sse / nfit;
+            let snr = g.abs() * total[3].sqrt() / noise.sqrt().max(1e-300);
+            let sigma = if snr >= MIN_STRIP_SNR {
+                var.sqrt()
+            } else {
+                f64::INFINITY
+            };
+            last = Some((tau + delta, sigma, g, noise));
+        }
+        tau += delta;
+    }
+    last
+}
+
+/// `(g, c)` of the 2x2 normal equations in `s` (Σyy, Σyt, Σyd, Σtt, Σtd, Σdd).
+fn solve(s: &[f64; 6]) -> Option<(f64, f64)> {
+    let det = s[3] * s[5] - s[4] * s[4];
+    if det.is_nan() || det <= 0.0 {
+        return None;
+    }
+    let g = (s[1] * s[5] - s[2] * s[4]) / det;
+    let c = (s[2] * s[3] - s[1] * s[4]) / det;
+    (g != 0.0 && g.is_finite() && c.is_finite()).then_some((g, c))
+}
+
+/// The strips whose delay is measured (finite σ), as (centre, lag, 1/σ²).
+fn usable(fits: &[StripFit]) -> Vec<(f64, f64, f64)> {
+    fits.iter()
+        .filter(|f| f.sigma_s.is_finite() && f.sigma_s > 0.0)
+        .map(|f| (f.centre, f.lag_s, 1.0 / (f.sigma_s * f.sigma_s)))
+        .collect()
+}
+
+/// Weighted least-squares line `lag = a + b (row - c̄)` through the usable
+/// strips, with the slope's σ (widened by the line's misfit), the chi-
+/// squares about the mean and about the line, and the strips' count.
+pub(super) struct Line {
+    pub(super) a: f64,
+    pub(super) b: f64,
+    pub(super) sigma_b: f64,
+    pub(super) cbar: f64,
+    pub(super) chi2_const: f64,
+    pub(super) chi2_line: f64,
+    pub(super) count: usize,
+}
+
+pub(super) fn line(fits: &[StripFit]) -> Option<Line> {
+    let u = usable(fits);
+    if u.len() < 3 {
+        return None;
+    }
+    let sw: f64 = u.iter().map(|p| p.2).sum();
+    let cbar = u.iter().map(|p| p.2 * p.0).sum::<f64>() / sw;
+    let lbar = u.iter().map(|p| p.2 * p.1).sum::<f64>() / sw;
+    let scc: f64 = u.iter().map(|p| p.2 * (p.0 - cbar).powi(2)).sum();
+    let scl: f64 = u.iter().map(|p| p.2 * (p.0 - cbar) * (p.1 - lbar)).sum();
+    let chi2_const: f64 = u.iter().map(|p| p.2 * (p.1 - lbar).powi(2)).sum();
+    if scc <= 0.0 {
+        return None;
+    }
+    let b = scl / scc;
+    let chi2_line = (chi2_const - b * b * scc).max(0.0);
+    // Where the line misfits (strips that only partly hold the object
+    // sit off it), its slope is known the worse for it.
+    let misfit = if u.len() > 2 {
+        (chi2_line / (u.len() - 2) as f64).max(1.0).sqrt()
+    } else {
+        1.0
+    };
+    Some(Line {
+        a: lbar,
+        b,
+        sigma_b: misfit / scc.sqrt(),
+        cbar,
+        chi2_const,
+        chi2_line,
+        count: u.len(),
+    })
+}
+
+/// The residual's image axis: delays that change across the rows beyond
+/// their noise (chi-square at 1e-3 over `count - 1` degrees of freedom),
+/// or `None`.
+pub(super) fn lag_across_rows(fits: &[StripFit]) -> Option<Unexplained> {
+    let l = line(fits)?;
+    let level = chi2_level(l.count - 1);
+    if l.chi2_const <= level {
+        return None;
+    }
+    let u = usable(fits);
+    let lags_us: Vec<f64> = fits
+        .iter()
+        .map(|f| {
+            if f.sigma_s.is_finite() {
+                ((f.lag_s - l.a) * 1e6 * 100.0).round() / 100.0
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    let rows: Vec<f64> = fits.iter().map(|f| f.centre).collect();
+    let (lo, hi) = u
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+            (a.min(p.1 - l.a), b.max(p.1 - l.a))
+        });
+    let linear = l.chi2_line <= chi2_level((l.count - 2).max(1));
+    let description = format!(
+        "the delay changes across the image's rows by {:.1} µs ({:+.1} to {:+.1} µs about the mean; {:.0}x the level the strips' own noise reaches by chance){}: rows captured at different times (a rolling shutter read out while the camera declares a global one), or parts of the object that hear the sound at different times (two objects, a non-rigid one)",
+        (hi - lo) * 1e6,
+        lo * 1e6,
+        hi * 1e6,
+        l.chi2_const / level,
+        if linear {
+            format!(
+                "; in proportion to the row, each row seen {:.3} ± {:.3} µs after the one above",
+                -l.b * 1e6,
+                l.sigma_b * 1e6
+            )
+        } else {
+            "; not in proportion to the row".to_string()
+        }
+    );
+    Some(Unexplained::LagAcrossImage {
+        axis: "rows",
+        description,
+        frequencies_hz: [],
+        kind: UnexplainedKind::LagAcrossImage,
+        lags_us,
+        rows,
+        significance: l.chi2_const / level,
+    })
+}
+
+/// The family's members.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Member {
+    Linear,
+    PerRegion,
+}
+
+impl Member {
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Member::Linear => "linear",
+            Member::PerRegion => "per_region",
+        }
+    }
+}
+
+/// Each strip's delay under `member` (s, about the signal-weighted mean),
+/// and its uncertainty.
+pub(super) fn delays(fits: &[StripFit], member: Member) -> Option<(Vec<f64>, Vec<f64>, f64)> {
+    let l = line(fits)?;
+    let raw: Vec<(f64, f64)> = fits
+        .iter()
+        .map(|f| {
+            let lin = l.a + l.b * (f.centre - l.cbar);
+            let lin_sigma = l.sigma_b * (f.centre - l.cbar).abs();
+            match member {
+                Member::Linear => (lin, lin_sigma),
+                Member::PerRegion if f.sigma_s.is_finite() => (f.lag_s, f.sigma_s),
+                Member::PerRegion => (lin, f64::INFINITY),
+            }
+        })
+        .collect();
+    // About the mean delay the strips' signal carries (the sum's delay
+    // stays the region's).
+    let (mut num, mut den) = (0.0, 0.0);
+    for (f, r) in fits.iter().zip(&raw) {
+        let s = f.weight() * f.gain;
+        num += s * r.0;
+        den += s;
+    }
+    let mean = if den > 0.0 { num / den } else { l.a };
+    Some((
+        raw.iter().map(|r| r.0 - mean).collect(),
+        raw.iter().map(|r| r.1).collect(),
+        l.sigma_b,
+    ))
+}
+
+/// The strips summed with `weights`, strip `k` read `delays_s[k]` later
+/// (advanced by its delay), at `fs`.
+pub fn combine(signals: &[Vec<f64>], weights: &[f64], delays_s: &[f64], fs: f64) -> Vec<f64> {
+    let n = signals.iter().map(Vec::len).min().unwrap_or(0);
+    let mut out = vec![0.0; n];
+    for ((y, &w), &d) in signals.iter().zip(weights).zip(delays_s) {
+        if w == 0.0 {
+            continue;
+        }
+        let moved = if d == 0.0 {
+            y[..n].to_vec()
+        } else {
+            sample_at(y, fs, (0..n).map(|i| i as f64 / fs + d))
+        };
+        for (o, v) in out.iter_mut().zip(moved) {
+            *o += w * v;
+        }
+    }
+    out
+}
+
+/// Maximal-ratio weights, normalised to the largest magnitude.
+pub(super) fn weights(fits: &[StripFit]) -> Vec<f64> {
+    let w: Vec<f64> = fits.iter().map(StripFit::weight).collect();
+    let top = w.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if top > 0.0 {
+        w.iter().map(|v| v / top).collect()
+    } else {
+        w
+    }
+}
+
+/// What the image axis decided: the structure read (if any), the member
+/// kept with its held-out gain and the strips' sum it gives, and the
+/// members fitted but not kept.
+#[derive(Default)]
+pub(super) struct Decision {
+    pub(super) evidence: Option<Unexplained>,
+    pub(super) kept: Option<(Candidate, f64, Vec<f64>)>,
+    pub(super) rejected: Vec<(Correction, f64)>,
+}
+
+/// Reads the image axis and, when the delays move across the rows, fits
+/// both members and keeps the better by held-out gain (the linear one
+/// unless the per-region one gains `min_gain_db` more), if it gains
+/// `min_gain_db` over the strips summed without delays.
+pub(super) fn decide(m: &Model, strips: &Strips, fit: &Fit, min_gain_db: f64) -> Decision {
+    let n = fit.t.len();
+    if strips.signals.len() != strips.rows.len()
+        || strips.signals.len() < 3
+        || strips.signals.iter().any(|s| s.len() != n)
+    {
+        return Decision::default();
+    }
+    let fits = read(m, strips, fit);
+    let Some(evidence) = lag_across_rows(&fits) else {
+        return Decision::default();
+    };
+    let (Some(l), w) = (line(&fits), weights(&fits)) else {
+        return Decision::default();
+    };
+    let zero = vec![0.0; fits.len()];
+    let base = combine(&strips.signals, &w, &zero, m.fs);
+    let e0 = m.errors(&base, &m.fit_linear(&base)).snr_db;
+    let mut tried: Vec<(Candidate, f64, Vec<f64>)> = Vec::new();
+    for member in [Member::Linear, Member::PerRegion] {
+        let Some((d, sd, sigma_b)) = delays(&fits, member) else {
+            continue;
+        };
+        let z = combine(&strips.signals, &w, &d, m.fs);
+        let gain = m.errors(&z, &m.fit_linear(&z)).snr_db - e0;
+        let correction = Correction::CaptureTime {
+            rows: strips.rows.clone(),
+            delays_s: d,
+            weights: w.clone(),
+            // A row seen later shows the motion earlier (a smaller delay).
+            line_delay_s: -l.b,
+            per_region: member == Member::PerRegion,
+        };
+        let uncertainty = Uncertainty::CaptureTime {
+            delays_us: sd.iter().map(|v| v * 1e6).collect(),
+            line_delay_us: sigma_b * 1e6,
+        };
+        tracing::info!(
+            effect = "capture_time",
+            member = member.name(),
+            gain_db = gain,
+            "candidate"
+        );
+        tried.push((
+            Candidate {
+                correction,
+                uncertainty,
+            },
+            gain,
+            z,
+        ));
+    }
+    let pick = match tried.as_slice() {
+        [lin, per] if per.1 >= lin.1 + min_gain_db => 1,
+        [] => return Decision::default(),
+        _ => 0,
+    };
+    let mut out = Decision {
+        evidence: Some(evidence),
+        ..Decision::default()
+    };
+    for (i, t) in tried.into_iter().enumerate() {
+        if i == pick && t.1.is_finite() && t.1 >= min_gain_db {
+            out.kept = Some(t);
+        } else {
+            out.rejected.push((t.0.correction, t.1));
+        }
+    }
+    out
+}
