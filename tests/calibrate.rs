@@ -1208,29 +1208,23 @@ fn two_parts_that_hear_the_sound_at_different_times_are_aligned() {
         return;
     };
     let e = capture_time_kept(&after, "per_region");
-    let p = &e["parameters"];
-    let delays: Vec<f64> = p["delays_us"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    let weights: Vec<f64> = p["weights"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
-    let first: Vec<u64> = p["first_rows"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_u64().unwrap())
-        .collect();
+    let numbers = |key: &str| -> Vec<f64> {
+        e["parameters"][key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    let (delays, weights, first) = (
+        numbers("delays_us"),
+        numbers("weights"),
+        numbers("first_rows"),
+    );
     // The strongest strip on either side of row 32.
     let side = |upper: bool| {
         (0..delays.len())
-            .filter(|&k| (first[k] < 32) == upper)
+            .filter(|&k| (first[k] < 32.0) == upper)
             .max_by(|&a, &b| weights[a].abs().total_cmp(&weights[b].abs()))
             .map(|k| delays[k])
             .unwrap()
@@ -1265,4 +1259,43 @@ fn rows_read_out_one_after_another_are_found_across_the_image() {
     );
     assert!((ld / 6.8 - 1.0).abs() < 0.15, "{ld}");
     assert!(snr[1] - snr[0] >= 1.0, "{snr:?}");
+}
+
+/// A stored capture time that does not fit the video, or is damaged:
+/// `listen --calibration` exits 2 naming the report and the field, and
+/// writes no WAV.
+#[test]
+fn a_capture_time_that_does_not_fit_is_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let chirp = d.path().join("chirp.wav");
+    write_chirp(&chirp);
+    quadratic_object(d.path(), "v", &chirp, "");
+    let effect = |first: &str, end: &str| {
+        format!(
+            r#"{{"effects": [{{"name": "capture_time", "parameters": {{"axis": "rows", "first_rows": {first}, "end_rows": {end}, "delays_us": [0, 10, 20], "weights": [1, 1, 1], "line_delay_us": 1.0, "member": "linear"}}}}]}}"#
+        )
+    };
+    for (name, report, says) in [
+        (
+            "tall.json",
+            effect("[0, 40, 80]", "[40, 80, 120]"),
+            "has 64 rows",
+        ),
+        ("short.json", effect("[0, 8]", "[8, 16]"), "first_rows"),
+        (
+            "backwards.json",
+            effect("[0, 16, 8]", "[8, 8, 24]"),
+            "first_rows",
+        ),
+    ] {
+        std::fs::write(d.path().join(name), report).unwrap();
+        let o = run_in(
+            d.path(),
+            &["listen", "v.y4m", "-o", "out.wav", "--calibration", name],
+        );
+        let err = stderr(&o);
+        assert_eq!(code(&o), 2, "{name}: {err}");
+        assert!(err.contains(name) && err.contains(says), "{name}: {err}");
+        assert!(!d.path().join("out.wav").exists(), "{name}");
+    }
 }

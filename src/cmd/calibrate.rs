@@ -11,9 +11,10 @@ use vibroscope::pipeline::RunSettings;
 ///
 /// Compare what the visual microphone recovers from VIDEO with the sound
 /// that was played (REF.wav): fit delay and gain, then try the catalog
-/// of effects (time-base error, dropped or duplicated frames, exposure,
-/// interference lines, object transfer function, soft saturation, a
-/// static nonlinearity, a gain drifting over the recording), each
+/// of effects (a capture time that changes across the image's rows,
+/// time-base error, dropped or duplicated frames, exposure, interference
+/// lines, object transfer function, soft saturation, a static
+/// nonlinearity, a gain drifting over the recording), each
 /// fitted on 60% of the recording (blocks of about 0.1 s, 3 of every 5)
 /// and kept only if it lowers the error on the other 40%; report the
 /// errors before and after and the residual no effect explains.
@@ -56,9 +57,14 @@ pub struct Args {
     #[command(flatten)]
     video_args: VideoArgs,
     /// The effects to try, comma-separated, in the catalog's order
-    /// whatever the order given (default: all of time_base,
+    /// whatever the order given (default: all of capture_time, time_base,
     /// dropped_frames, exposure, interference, transfer_function,
-    /// soft_clip, static_nonlinearity, gain_drift). Of the two
+    /// soft_clip, static_nonlinearity, gain_drift). capture_time recovers
+    /// the region again as 8 strips of rows and is tried first, when their
+    /// delays against the reference differ beyond their noise (rows read
+    /// out one after another; parts of the object that hear the sound at
+    /// different times); `listen --calibration` then recovers the same
+    /// strips. Of the two
     /// nonlinearities one is kept at most, and static_nonlinearity (a
     /// polynomial with even and odd terms) is only tried when the residual
     /// holds harmonics of the reference; gain_drift only when the gain

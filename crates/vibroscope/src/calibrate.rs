@@ -156,15 +156,7 @@ pub fn recover(
     }
     let fs = frame_rate(video, fps)?;
     let tmp = TempPath::new("calibrate.wav");
-    let mut decl = listen_pipeline(
-        video,
-        tmp.path(),
-        fps,
-        (region, Method::Phase),
-        Denoise::None,
-    )?;
-    crate::microphone::causal_highpass(&mut decl)?;
-    pipeline::run(&decl, run)?;
+    pipeline::run(&recovery_pipeline(video, tmp.path(), fps, region)?, run)?;
     let (_, y) = crate::io::wav::read_mono(tmp.path())?;
     Ok((fs, y))
 }
@@ -223,14 +215,7 @@ pub fn recover_strips(
     run: RunSettings,
 ) -> Result<(Vec<Vec<f64>>, crate::engine::RunReport)> {
     let tmp0 = TempPath::new("strips.wav");
-    let mut decl = listen_pipeline(
-        video,
-        tmp0.path(),
-        fps,
-        (region, Method::Phase),
-        Denoise::None,
-    )?;
-    crate::microphone::causal_highpass(&mut decl)?;
+    let mut decl = recovery_pipeline(video, tmp0.path(), fps, region)?;
     let branch = ["phase", "align", "highpass", "out"];
     let originals: Vec<_> = branch
         .iter()
@@ -287,6 +272,19 @@ pub fn recover_strips(
         .map(|t| Ok(crate::io::wav::read_mono(t.path())?.1))
         .collect::<Result<_>>()?;
     Ok((signals, report))
+}
+
+/// The listen pipeline calibrations are fitted on: the phase method, no
+/// denoising, the causal high-pass; its WAV goes to `out`.
+fn recovery_pipeline(
+    video: &Path,
+    out: &Path,
+    fps: Option<f64>,
+    region: &Region,
+) -> Result<crate::engine::config::PipelineDecl> {
+    let mut decl = listen_pipeline(video, out, fps, (region, Method::Phase), Denoise::None)?;
+    crate::microphone::causal_highpass(&mut decl)?;
+    Ok(decl)
 }
 
 /// A recovery calibrated against its reference.

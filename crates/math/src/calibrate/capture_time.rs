@@ -65,50 +65,134 @@ const ITERATIONS: usize = 3;
 /// reaches this: below it the delay is noise.
 const MIN_STRIP_SNR: f64 = 5.0;
 
-/// Each strip's delay, gain and noise against the target (the region's
-/// fit `fit` is the starting point).
-pub(super) fn read(m: &Model, strips: &Strips, fit: &Fit) -> Vec<StripFit> {
+/// Each strip's delay, gain and noise against the target. A strip's delay
+/// is taken less the region's (`y`, its recovery, fitted the same way), and
+/// its uncertainty is the jackknife of that difference over the fit
+/// blocks: what moves every strip at once (a drifting clock, a tone's pitch
+/// off its nominal value) cancels, as it does in the delays' spread.
+pub(super) fn read(m: &Model, y: &[f64], strips: &Strips, fit: &Fit) -> Vec<StripFit> {
+    let w = search_width(m, fit);
+    let region = strip_fit(m, y, fit.tau);
     strips
         .signals
         .iter()
         .zip(&strips.rows)
-        .map(|(y, &(a, b))| {
+        .map(|(s, &(a, b))| {
             let centre = 0.5 * (a as f64 + b as f64 - 1.0);
-            // Each strip's own delay by the linear model's search (a part
-            // may lag the region by samples), then refined.
-            strip_fit(m, y, m.fit_linear(y).tau).map_or(
-                StripFit {
-                    centre,
-                    lag_s: 0.0,
-                    sigma_s: f64::INFINITY,
-                    gain: 0.0,
-                    noise: 0.0,
+            let none = StripFit {
+                centre,
+                lag_s: 0.0,
+                sigma_s: f64::INFINITY,
+                gain: 0.0,
+                noise: 0.0,
+            };
+            // Each strip's own delay near the region's (a part may lag it
+            // by samples), then refined.
+            let Some(t) = strip_fit(m, s, nearest_peak(m, s, fit, w)) else {
+                return none;
+            };
+            let (lag_s, sigma_s) = match &region {
+                Some(r) if r.loo.len() == t.loo.len() => (
+                    t.tau - r.tau,
+                    jackknife(t.loo.iter().zip(&r.loo).map(|(a, b)| a - b)),
+                ),
+                _ => (t.tau - fit.tau, jackknife(t.loo.iter().copied())),
+            };
+            StripFit {
+                centre,
+                lag_s,
+                sigma_s: if t.snr >= MIN_STRIP_SNR {
+                    sigma_s
+                } else {
+                    f64::INFINITY
                 },
-                |(tau, sigma_s, gain, noise)| StripFit {
-                    centre,
-                    lag_s: tau - fit.tau,
-                    sigma_s,
-                    gain,
-                    noise,
-                },
-            )
+                gain: t.gain,
+                noise: t.noise,
+            }
         })
         .collect()
 }
 
-/// `(delay, its jackknife σ, gain, noise variance)` of `y ≈ g T(τ)`:
-/// Gauss-Newton on the delay (`y ≈ g T + c ∂T/∂τ`, so `δτ = c / g`), from
-/// `tau0`, on the fit part.
-fn strip_fit(m: &Model, y: &[f64], tau0: f64) -> Option<(f64, f64, f64, f64)> {
+/// The widest spread of delays across the image searched: 5 ms (sound
+/// crosses 1.7 m in that time), or a frame period if longer (a rolling
+/// shutter reads the frame out within one).
+pub(super) const MAX_SPREAD_S: f64 = 5e-3;
+
+/// The delay of the strongest correlation (either sign: a strip may see
+/// the motion inverted) of `y` with the target within `w` samples of the
+/// region's delay.
+fn nearest_peak(m: &Model, y: &[f64], fit: &Fit, w: isize) -> f64 {
+    let n = y.len().min(fit.t.len());
+    let t = &fit.t;
+    let score = |l: isize| {
+        // y(i) ≈ g T(i - l): a strip `l` samples later.
+        let (mut yt, mut tt) = (0.0, 0.0);
+        for i in (0..n as isize).filter(|&i| m.is_fit(i as usize)) {
+            let j = i - l;
+            if (0..n as isize).contains(&j) {
+                let v = t[j as usize];
+                yt += y[i as usize] * v;
+                tt += v * v;
+            }
+        }
+        if tt > 0.0 {
+            yt.abs() / tt.sqrt()
+        } else {
+            0.0
+        }
+    };
+    let best = (-w..=w)
+        .map(|l| (l, score(l)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(0, |(l, _)| l);
+    fit.tau + best as f64 / m.fs
+}
+
+/// How far (whole samples) a strip's delay is searched from the region's:
+/// [`MAX_SPREAD_S`] or a frame period, and less than half the lag at which
+/// the target first resembles itself again (|autocorrelation| at a local
+/// peak of at least 0.8), since beyond it the delay is ambiguous: a tone's
+/// is only known modulo half a period, its sign free.
+fn search_width(m: &Model, fit: &Fit) -> isize {
+    let w = (MAX_SPREAD_S.max(1.0 / m.fs) * m.fs).ceil() as isize;
+    let t = m.masked(&fit.t);
+    let acf = |l: usize| -> f64 { t.iter().zip(&t[l.min(t.len())..]).map(|(a, b)| a * b).sum() };
+    let a0 = acf(0);
+    if a0 <= 0.0 {
+        return w;
+    }
+    let r: Vec<f64> = (0..=2 * w as usize + 1)
+        .map(|l| acf(l).abs() / a0)
+        .collect();
+    match (1..r.len() - 1).find(|&l| r[l] >= 0.8 && r[l] >= r[l - 1] && r[l] >= r[l + 1]) {
+        Some(l) => w.min(((l as isize) - 1) / 2),
+        None => w,
+    }
+}
+
+/// A signal's linear model against the target: the delay, the delays
+/// with each fit block left out in turn (every fit block, in order, so
+/// that two signals' lists pair up), the gain, the residual variance and
+/// the fit's matched-filter SNR (amplitude).
+struct Timed {
+    tau: f64,
+    loo: Vec<f64>,
+    gain: f64,
+    noise: f64,
+    snr: f64,
+}
+
+/// [`Timed`] for `y ≈ g T(τ)`: Gauss-Newton on the delay (`y ≈ g T + c
+/// ∂T/∂τ`, so `δτ = c / g`), from `tau0`, on the fit part.
+fn strip_fit(m: &Model, y: &[f64], tau0: f64) -> Option<Timed> {
     let n = y.len();
     let block = stft_len(m.fs);
     let h = 0.05 / m.fs;
     let mut tau = tau0;
-    let mut last = None;
     for it in 0..ITERATIONS {
         let t = m.target(n, 0, tau, 0.0);
         let (tp, tm) = (m.target(n, 0, tau + h, 0.0), m.target(n, 0, tau - h, 0.0));
-        // Per fit block: Σyy, Σyt, Σyd, Σtt, Σtd, Σdd.
+        // Per block: Σyy, Σyt, Σyd, Σtt, Σtd, Σdd over its fit samples.
         let mut sums: Vec<[f64; 6]> = vec![[0.0; 6]; n.div_ceil(block)];
         for i in (0..n).filter(|&i| m.is_fit(i)) {
             let d = (tp[i] - tm[i]) / (2.0 * h);
@@ -121,47 +205,51 @@ fn strip_fit(m: &Model, y: &[f64], tau0: f64) -> Option<(f64, f64, f64, f64)> {
             s[4] += tv * d;
             s[5] += d * d;
         }
-        sums.retain(|s| s[3] > 0.0);
+        // The fit blocks (the same for every signal of this length).
+        let sums: Vec<[f64; 6]> = sums
+            .into_iter()
+            .enumerate()
+            .filter(|(b, _)| m.is_fit(b * block))
+            .map(|(_, s)| s)
+            .collect();
         let total = sums.iter().fold([0.0; 6], |mut acc, s| {
             acc.iter_mut().zip(s).for_each(|(a, b)| *a += b);
             acc
         });
         let (g, c) = solve(&total)?;
         let delta = (c / g).clamp(-0.5 / m.fs, 0.5 / m.fs);
-        if it + 1 == ITERATIONS {
-            // Delete-one-block jackknife of the delay's step.
-            let k = sums.len();
-            if k < 3 {
-                return None;
-            }
-            let loo: Vec<f64> = sums
-                .iter()
-                .filter_map(|s| {
-                    let mut r = total;
-                    r.iter_mut().zip(s).for_each(|(a, b)| *a -= b);
-                    solve(&r).map(|(g, c)| c / g)
-                })
-                .collect();
-            if loo.len() != k {
-                return None;
-            }
-            let mean = loo.iter().sum::<f64>() / k as f64;
-            let var =
-                (k - 1) as f64 / k as f64 * loo.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
-            let nfit = m.nfit(n) as f64;
-            let sse = (total[0] - g * total[1] - c * total[2]).max(0.0);
-            let noise = sse / nfit;
-            let snr = g.abs() * total[3].sqrt() / noise.sqrt().max(1e-300);
-            let sigma = if snr >= MIN_STRIP_SNR {
-                var.sqrt()
-            } else {
-                f64::INFINITY
-            };
-            last = Some((tau + delta, sigma, g, noise));
+        if it + 1 < ITERATIONS {
+            tau += delta;
+            continue;
         }
-        tau += delta;
+        if sums.len() < 3 {
+            return None;
+        }
+        let loo = sums
+            .iter()
+            .map(|s| {
+                let mut r = total;
+                r.iter_mut().zip(s).for_each(|(a, b)| *a -= b);
+                solve(&r).map(|(g, c)| tau + c / g)
+            })
+            .collect::<Option<Vec<f64>>>()?;
+        let noise = (total[0] - g * total[1] - c * total[2]).max(0.0) / m.nfit(n) as f64;
+        return Some(Timed {
+            tau: tau + delta,
+            loo,
+            gain: g,
+            noise,
+            snr: g.abs() * total[3].sqrt() / noise.sqrt().max(1e-300),
+        });
     }
-    last
+    None
+}
+
+/// The delete-one jackknife's standard deviation of the estimates `loo`.
+fn jackknife(loo: impl Iterator<Item = f64> + Clone) -> f64 {
+    let k = loo.clone().count() as f64;
+    let mean = loo.clone().sum::<f64>() / k;
+    ((k - 1.0) / k * loo.map(|v| (v - mean).powi(2)).sum::<f64>()).sqrt()
 }
 
 /// `(g, c)` of the 2x2 normal equations in `s` (Σyy, Σyt, Σyd, Σtt, Σtd, Σdd).
@@ -332,21 +420,43 @@ pub(super) fn delays(fits: &[StripFit], member: Member) -> Option<(Vec<f64>, Vec
     ))
 }
 
-/// The strips summed with `weights`, strip `k` read `delays_s[k]` later
-/// (advanced by its delay), at `fs`.
+/// The strips summed with the magnitudes of `weights`, strip `k` read
+/// `delays_s[k]` later (advanced by its delay), at `fs`. Each strip's sign
+/// is taken from the recording itself: the sign of its correlation, once
+/// aligned, with the most heavily weighted strip's. A strip's polarity is
+/// its pipeline's (the `align` stage's reference band, chosen per
+/// recording), so a sign fitted on one recording need not hold on the next.
 pub fn combine(signals: &[Vec<f64>], weights: &[f64], delays_s: &[f64], fs: f64) -> Vec<f64> {
     let n = signals.iter().map(Vec::len).min().unwrap_or(0);
+    let moved: Vec<Option<Vec<f64>>> = signals
+        .iter()
+        .zip(weights)
+        .zip(delays_s)
+        .map(|((y, &w), &d)| {
+            (w != 0.0 && w.is_finite()).then(|| {
+                if d == 0.0 {
+                    y[..n].to_vec()
+                } else {
+                    sample_at(y, fs, (0..n).map(|i| i as f64 / fs + d))
+                }
+            })
+        })
+        .collect();
     let mut out = vec![0.0; n];
-    for ((y, &w), &d) in signals.iter().zip(weights).zip(delays_s) {
-        if w == 0.0 {
-            continue;
-        }
-        let moved = if d == 0.0 {
-            y[..n].to_vec()
-        } else {
-            sample_at(y, fs, (0..n).map(|i| i as f64 / fs + d))
-        };
-        for (o, v) in out.iter_mut().zip(moved) {
+    let top = weights
+        .iter()
+        .enumerate()
+        .filter(|(_, w)| w.is_finite())
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        .map(|(k, _)| k);
+    let Some(Some(reference)) = top.map(|k| &moved[k]) else {
+        return out;
+    };
+    for (m, &w) in moved.iter().zip(weights) {
+        let Some(m) = m else { continue };
+        let c: f64 = m.iter().zip(reference).map(|(a, b)| a * b).sum();
+        let w = if c < 0.0 { -w.abs() } else { w.abs() };
+        for (o, v) in out.iter_mut().zip(m) {
             *o += w * v;
         }
     }
@@ -378,7 +488,13 @@ pub(super) struct Decision {
 /// both members and keeps the better by held-out gain (the linear one
 /// unless the per-region one gains `min_gain_db` more), if it gains
 /// `min_gain_db` over the strips summed without delays.
-pub(super) fn decide(m: &Model, strips: &Strips, fit: &Fit, min_gain_db: f64) -> Decision {
+pub(super) fn decide(
+    m: &Model,
+    y: &[f64],
+    strips: &Strips,
+    fit: &Fit,
+    min_gain_db: f64,
+) -> Decision {
     let n = fit.t.len();
     if strips.signals.len() != strips.rows.len()
         || strips.signals.len() < 3
@@ -386,7 +502,7 @@ pub(super) fn decide(m: &Model, strips: &Strips, fit: &Fit, min_gain_db: f64) ->
     {
         return Decision::default();
     }
-    let fits = read(m, strips, fit);
+    let fits = read(m, y, strips, fit);
     let Some(evidence) = lag_across_rows(&fits) else {
         return Decision::default();
     };

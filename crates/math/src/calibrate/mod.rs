@@ -345,7 +345,7 @@ pub fn calibrate_strips(
                 index: 0,
                 of: opts.effects.len(),
             });
-            let d = capture_time::decide(&m, s, &fit0, opts.min_gain_db);
+            let d = capture_time::decide(&m, y, s, &fit0, opts.min_gain_db);
             linear_residual.extend(d.evidence.clone());
             for (c, gain) in d.rejected {
                 rejected.push(Rejected {
