@@ -377,7 +377,18 @@ pub fn calibrate_strips(
     // with the largest held-out gain, if it reaches `min_gain_db`.
     let mut left: Vec<EffectKind> = opts.effects.clone();
     left.retain(|&k| k != EffectKind::CaptureTime);
-    let (mut z, mut fit, mut cur) = (y.to_vec(), fit0, before);
+    // What the greedy loop starts from: the linear model on the recovery
+    // as it now is (the strips' timed sum when the capture time was kept),
+    // and its residual.
+    let (fit_start, residual_start) = if capture.is_some() {
+        let f = m.fit_linear(y);
+        let u = unexplained(&m, y, &f);
+        (f, u)
+    } else {
+        (fit0.clone(), linear_residual.clone())
+    };
+    let cur_start = m.errors(y, &fit_start);
+    let (mut z, mut fit, mut cur) = (y.to_vec(), fit_start, cur_start);
     let mut round_no = 0;
     loop {
         round_no += 1;
@@ -386,9 +397,9 @@ pub fn calibrate_strips(
         // when there are some (the general polynomial otherwise finds an
         // amplitude-dependent gain, which on a chirp of varying response
         // mimics a filter: +0.5 dB on scenes with no nonlinearity at all).
-        // (The first round's is the linear model's, already read.)
+        // (The first round's was read above.)
         let residual_now = if kept.is_empty() {
-            linear_residual.clone()
+            residual_start.clone()
         } else {
             unexplained(&m, &z, &fit)
         };
@@ -509,7 +520,7 @@ pub fn calibrate_strips(
         fit = m.fit_linear(&z);
         cur = m.errors(&z, &fit);
     }
-    let gates: Vec<UnexplainedKind> = linear_residual.iter().map(Unexplained::kind).collect();
+    let gates: Vec<UnexplainedKind> = residual_start.iter().map(Unexplained::kind).collect();
     let found = identify::confounds(&m, y, &kept, cur.snr_db, fit.g, &gates);
     // An alternative that explains the held-out part better by the least
     // gain becomes the kept explanation (the pair is still reported).
