@@ -18,6 +18,7 @@
 //! the timing's alone. The linear member is kept unless the per-region one
 //! gains [`super::Options::min_gain_db`] more.
 
+use super::correlation::recurrence;
 use super::gain_drift::chi2_level;
 use super::model::{Fit, Model};
 use super::report::{Unexplained, UnexplainedKind};
@@ -155,17 +156,8 @@ fn nearest_peak(m: &Model, y: &[f64], fit: &Fit, w: isize) -> f64 {
 /// is only known modulo half a period, its sign free.
 fn search_width(m: &Model, fit: &Fit) -> isize {
     let w = (MAX_SPREAD_S.max(1.0 / m.fs) * m.fs).ceil() as isize;
-    let t = m.masked(&fit.t);
-    let acf = |l: usize| -> f64 { t.iter().zip(&t[l.min(t.len())..]).map(|(a, b)| a * b).sum() };
-    let a0 = acf(0);
-    if a0 <= 0.0 {
-        return w;
-    }
-    let r: Vec<f64> = (0..=2 * w as usize + 1)
-        .map(|l| acf(l).abs() / a0)
-        .collect();
-    match (1..r.len() - 1).find(|&l| r[l] >= 0.8 && r[l] >= r[l - 1] && r[l] >= r[l + 1]) {
-        Some(l) => w.min(((l as isize) - 1) / 2),
+    match recurrence(&m.masked(&fit.t), 2 * w as usize + 1, true) {
+        Some(l) => w.min((l.round() as isize - 1) / 2),
         None => w,
     }
 }

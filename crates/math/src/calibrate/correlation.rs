@@ -3,6 +3,12 @@
 
 use super::signal::sample_at;
 
+/// The window [`local_lags`] reads a lag on (about 0.2 s, a power of two
+/// in 64..=1024 samples); it searches a quarter of it either way.
+pub(super) fn local_window(fs: f64) -> usize {
+    ((0.2 * fs) as usize).next_power_of_two().clamp(64, 1024)
+}
+
 /// Local lags (samples, `z[n] ≈ g T[n - lag]`) in windows over
 /// `[0, end)`: `(centre, lag, correlation)` for windows that correlate.
 pub(super) fn local_lags(
@@ -13,7 +19,7 @@ pub(super) fn local_lags(
     end: usize,
     fs: f64,
 ) -> Vec<(f64, f64, f64)> {
-    let w = ((0.2 * fs) as usize).next_power_of_two().clamp(64, 1024);
+    let w = local_window(fs);
     let m = (w / 4) as isize;
     let mut out = Vec::new();
     let mut s = 0usize;
@@ -63,6 +69,37 @@ pub(super) fn local_lags(
         s += w / 2;
     }
     out
+}
+
+/// The first lag (samples, `1..=max`) at which `t` resembles itself
+/// again: a local peak of at least 0.8 of its normalised autocorrelation
+/// (of its magnitude with `either_sign`, where a delay of half a period
+/// with the sign flipped is as good). A periodic reference's delay is only
+/// known modulo that lag (refined between samples by a parabola).
+pub(super) fn recurrence(t: &[f64], max: usize, either_sign: bool) -> Option<f64> {
+    let acf = |l: usize| -> f64 { t.iter().zip(&t[l.min(t.len())..]).map(|(a, b)| a * b).sum() };
+    let a0 = acf(0);
+    if a0 <= 0.0 {
+        return None;
+    }
+    let r: Vec<f64> = (0..=max + 1)
+        .map(|l| {
+            let v = acf(l) / a0;
+            if either_sign {
+                v.abs()
+            } else {
+                v
+            }
+        })
+        .collect();
+    let l = (1..=max).find(|&l| r[l] >= 0.8 && r[l] >= r[l - 1] && r[l] >= r[l + 1])?;
+    let den = r[l - 1] - 2.0 * r[l] + r[l + 1];
+    let d = if den < 0.0 {
+        (0.5 * (r[l - 1] - r[l + 1]) / den).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    };
+    Some(l as f64 + d)
 }
 
 /// Normalised correlation of `z` with `t` at integer lags `-k..=k`

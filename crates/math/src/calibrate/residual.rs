@@ -1,7 +1,7 @@
 //! The residual no accepted effect explains: harmonics of the reference,
 //! coherent energy without it, a lag that changes with frequency or time.
 
-use super::correlation::local_lags;
+use super::correlation::{local_lags, local_window, recurrence};
 use super::model::{Fit, Model};
 use super::report::{Unexplained, UnexplainedKind};
 use super::signal::{alias, stft, stft_len};
@@ -203,7 +203,17 @@ pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Unexplained> {
     // Lag over time.
     let pre = 512;
     let t_ext = m.target(z.len() + pre, pre, fit.tau, 0.0);
-    let lags = local_lags(z, &t_ext, pre, fit.g, z.len(), m.fs);
+    let mut lags = local_lags(z, &t_ext, pre, fit.g, z.len(), m.fs);
+    // Against a periodic reference (a tone) a window's lag is only known
+    // modulo the period: follow it from window to window instead of
+    // reading its jumps by whole periods as movement.
+    if let Some(p) = recurrence(&m.masked(&fit.t), local_window(m.fs) / 2, false) {
+        for i in 1..lags.len() {
+            let prev = lags[i - 1].1;
+            let l = &mut lags[i].1;
+            *l -= ((*l - prev) / p).round() * p;
+        }
+    }
     if lags.len() >= 3 {
         let lo = lags.iter().map(|l| l.1).fold(f64::INFINITY, f64::min);
         let hi = lags.iter().map(|l| l.1).fold(f64::NEG_INFINITY, f64::max);

@@ -459,3 +459,43 @@ fn report_round_trips_a_capture_time_and_refuses_bad_ones() {
         );
     }
 }
+
+/// Against a tone (a periodic reference) the lag over time is followed
+/// from window to window: a 600 ppm clock error over 3 s at 1000 fps
+/// moves the lag by 1.8 samples, read as such, not as jumps by whole
+/// periods (15.6 samples at 64 Hz).
+#[test]
+fn the_lag_over_time_against_a_tone_follows_the_period() {
+    let fr = 8000.0;
+    let r: Vec<f64> = (0..(fr * 3.5) as usize)
+        .map(|i| (2.0 * PI * 64.0 * i as f64 / fr).sin())
+        .collect();
+    let fs = 1000.0;
+    let o = Options {
+        effects: Vec::new(),
+        ..Options::for_rate(fs)
+    };
+    let m = Model {
+        r: &r,
+        fr,
+        fs,
+        opts: &o,
+    };
+    let y = noisy(&m.target(3000, 0, 0.0, 600.0), 3);
+    let cal = calibrate(&y, fs, &r, fr, &o).unwrap();
+    let lag = cal
+        .report
+        .linear_residual
+        .iter()
+        .find_map(|u| match u {
+            Unexplained::LagOverTime {
+                lag_range_samples,
+                drift_ppm,
+                ..
+            } => Some((lag_range_samples[1] - lag_range_samples[0], *drift_ppm)),
+            _ => None,
+        })
+        .expect("a lag over time");
+    assert!(lag.0 < 3.0, "{lag:?}");
+    assert!((lag.1.abs() - 600.0).abs() < 150.0, "{lag:?}");
+}
