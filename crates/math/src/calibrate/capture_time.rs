@@ -1,9 +1,11 @@
 //! Family (i): the time at which the motion is seen changes across the
 //! image. The residual's image axis: the region is recovered as horizontal
 //! strips of rows ([`Strips`]) and each strip's delay against the
-//! reference is measured on its own, with an uncertainty from the spread
-//! of its fit blocks (a delete-one-block jackknife, so a coloured residual
-//! widens it as it should). Delays that differ across the rows by more
+//! reference is measured on its own, less the region's, with an
+//! uncertainty from the spread of that difference over the fit blocks (a
+//! delete-one-block jackknife: a coloured residual widens it as it should,
+//! and what moves every strip at once cancels). Delays that differ across
+//! the rows by more
 //! than that noise (a chi-square test at 1e-3) mean the rows were captured
 //! at different times (a rolling shutter read out while the camera
 //! declared a global one) or the parts of the object heard the sound at
@@ -14,8 +16,9 @@
 //! the time per row), and `per_region`, each strip's own delay (a step
 //! between two objects). Both sum the strips by maximal-ratio combining
 //! (each weighted by its gain over its noise variance, on the fit part),
-//! and both are scored against the same sum without delays, so the gain is
-//! the timing's alone. The linear member is kept unless the per-region one
+//! each strip's sign taken from the recording ([`combine`]), and both are
+//! scored against the same sum without delays, so the gain is the
+//! timing's alone. The linear member is kept unless the per-region one
 //! gains [`super::Options::min_gain_db`] more.
 
 use super::correlation::recurrence;

@@ -21,7 +21,11 @@
 //! response with even and odd terms (the family soft saturation belongs
 //! to; one of the two is kept at most; fitted only when the residual holds
 //! harmonics) and a gain drifting over the recording (only when the
-//! residual's gain moves). Acceptance is
+//! residual's gain moves). Before them, when the recoveries of strips of
+//! rows are given ([`calibrate_strips`]), a capture time that changes
+//! across the image's rows ([`capture_time`]: each strip advanced by its
+//! delay before the strips are summed); it changes the recovery the
+//! others are fitted on. Acceptance is
 //! greedy, best first: each round fits every effect not yet kept on the
 //! current corrected recovery and keeps the one that gains most on the
 //! held-out part. Each is fitted on the fit part of the recording (blocks of
@@ -46,7 +50,7 @@
 //! fit-part squared error, with the residual variance taken as white noise
 //! (residuals are coloured in practice, so these are lower bounds).
 //!
-//! One file per effect of the catalog ([`time_base`], [`frames`],
+//! One file per effect of the catalog ([`capture_time`], [`time_base`], [`frames`],
 //! [`exposure`], [`interference`], [`transfer`], [`soft_clip`],
 //! [`polynomial`], [`gain_drift`]); after the loop, [`identify`] refits the
 //! kept effects together and reports those a second explanation trades
