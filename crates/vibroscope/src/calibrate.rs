@@ -166,27 +166,26 @@ pub const STRIPS: u32 = 8;
 /// The fewest rows a strip holds (the pyramid's finer scales need a few).
 const MIN_STRIP_ROWS: u32 = 4;
 
-/// The frame's size (from the file's header).
-fn frame_size(video: &Path) -> Result<(u32, u32)> {
-    let r = crate::io::open(video, crate::io::Format::Auto)
-        .map_err(|e| Error::input(video, e.to_string()))?;
-    let i = r.info();
-    Ok((i.width, i.height))
+/// A region cut into strips of rows, with the facts of the video's header
+/// the strips need.
+pub struct StripLayout {
+    /// The region's columns: first, count.
+    pub cols: (u32, u32),
+    /// Each strip's first row and end row.
+    pub rows: Vec<(u32, u32)>,
+    /// The frame's height in rows.
+    pub height: u32,
 }
-
-/// The frame's height in rows.
-pub fn frame_height(video: &Path) -> Result<u32> {
-    Ok(frame_size(video)?.1)
-}
-
-/// A region's columns (first, count) and its strips of rows (first row,
-/// end row).
-pub type StripLayout = ((u32, u32), Vec<(u32, u32)>);
 
 /// The region's columns and its rows cut into up to [`STRIPS`] strips of
-/// equal height.
+/// equal height (the video's header is opened once).
 pub fn strip_rows(video: &Path, region: &Region) -> Result<StripLayout> {
-    let (w, h) = frame_size(video)?;
+    if !video.exists() {
+        return Err(Error::input(video, "no such file"));
+    }
+    let r = crate::io::open(video, crate::io::Format::Auto)
+        .map_err(|e| Error::input(video, e.to_string()))?;
+    let (w, h) = (r.info().width, r.info().height);
     let (x, y, rw, rh) = match &region.roi {
         Some(r) => (
             r.x,
@@ -200,28 +199,60 @@ pub fn strip_rows(video: &Path, region: &Region) -> Result<StripLayout> {
     let rows = (0..k)
         .map(|i| (y + i * rh / k, y + (i + 1) * rh / k))
         .collect();
-    Ok(((x, rw), rows))
+    Ok(StripLayout {
+        cols: (x, rw),
+        rows,
+        height: h,
+    })
 }
 
 /// Recovers each strip of rows (`rows`, over the columns `cols`) of
-/// `video` with the listen pipeline's phase method, in one run (one
-/// decoder feeding a branch per strip), causally high-passed as
-/// [`recover`]: one signal per strip.
+/// `video` with the listen pipeline's phase method, causally high-passed
+/// as [`recover`], in one run: one decoder feeds a branch per strip and,
+/// with `whole`, the region's own (so the video is decoded once). Returns
+/// the region's recovery (with `whole`) and one signal per strip.
 pub fn recover_strips(
     video: &Path,
     fps: Option<f64>,
     region: &Region,
     (cols, rows): ((u32, u32), &[(u32, u32)]),
+    whole: bool,
     run: RunSettings,
-) -> Result<(Vec<Vec<f64>>, crate::engine::RunReport)> {
+) -> Result<StripRun> {
     let tmp0 = TempPath::new("strips.wav");
     let mut decl = recovery_pipeline(video, tmp0.path(), fps, region)?;
+    // One pyramid per frame for every branch: `phase` computes it over the
+    // whole frame whatever its region, so nine branches would compute it
+    // nine times.
+    let mut pyr = pipeline::new_stage(
+        "pyramid",
+        "pyramid",
+        &[],
+        pipeline::by("calibrate (the strips' shared pyramid)"),
+    );
+    for st in &decl.stages {
+        if st.id == "phase" {
+            for p in st.params.iter().filter(|p| {
+                ["pyramid", "scales", "orientations", "threads"].contains(&p.key.as_str())
+            }) {
+                crate::engine::config::set_param(
+                    &mut pyr,
+                    &p.key,
+                    p.value.clone(),
+                    p.origin.clone(),
+                );
+            }
+        }
+    }
+    pipeline::insert_before(&mut decl, "phase", pyr)?;
     let branch = ["phase", "align", "highpass", "out"];
     let originals: Vec<_> = branch
         .iter()
         .map(|id| pipeline::stage_mut(&mut decl, id).map(|s| s.clone()))
         .collect::<Result<_>>()?;
-    decl.stages.retain(|s| !branch.contains(&s.id.as_str()));
+    if !whole {
+        decl.stages.retain(|s| !branch.contains(&s.id.as_str()));
+    }
     let temps: Vec<TempPath> = rows.iter().map(|_| TempPath::new("strip.wav")).collect();
     let origin = pipeline::by("calibrate (a strip of rows)");
     for (k, (&(a, b), tmp)) in rows.iter().zip(&temps).enumerate() {
@@ -271,7 +302,24 @@ pub fn recover_strips(
         .iter()
         .map(|t| Ok(crate::io::wav::read_mono(t.path())?.1))
         .collect::<Result<_>>()?;
-    Ok((signals, report))
+    let whole = match whole {
+        true => Some(crate::io::wav::read_mono(tmp0.path())?.1),
+        false => None,
+    };
+    Ok(StripRun {
+        whole,
+        signals,
+        report,
+    })
+}
+
+/// What [`recover_strips`] recovered.
+pub struct StripRun {
+    /// The region's recovery, when asked for.
+    pub whole: Option<Vec<f64>>,
+    /// One signal per strip.
+    pub signals: Vec<Vec<f64>>,
+    pub report: crate::engine::RunReport,
 }
 
 /// The listen pipeline calibrations are fitted on: the phase method, no
@@ -361,8 +409,7 @@ pub fn calibrate_video_from(
                     format!("must be a frequency above 0 and at most {MAX_TONE_HZ} Hz, got {hz}"),
                 ));
             }
-            let (fs, y) = recover(video, fps, region, run)?;
-            let strips = strips_for(video, fps, region, opts.as_ref(), run)?;
+            let (fs, y, strips) = recover_all(video, fps, region, opts.as_ref(), run)?;
             // Sampled well above the frame rate and the tone (the model
             // samples it at the frame times, band-limited), a second
             // longer than the video (the delay is searched over ±0.5 s).
@@ -381,7 +428,7 @@ pub fn calibrate_video_from(
             ),
         ));
     }
-    let (fs, y) = recover(video, fps, region, run)?;
+    let (fs, y, strips) = recover_all(video, fps, region, opts.as_ref(), run)?;
     let (dv, dr) = (y.len() as f64 / fs, r.len() as f64 / fr);
     if dr + 0.5 / fs < dv {
         return Err(Error::input(
@@ -392,28 +439,36 @@ pub fn calibrate_video_from(
             ),
         ));
     }
-    let strips = strips_for(video, fps, region, opts.as_ref(), run)?;
     calibrate_recovery(video, (y, strips), fs, r, fr, opts, on_step)
 }
 
-/// The strips' recoveries when the effects to try include the capture
-/// time (the default) and the region has rows enough for three strips.
-fn strips_for(
+/// The region's recovery `(frame rate, samples)` and, when the effects to
+/// try include the capture time (the default) and the region has rows
+/// enough for three strips, the strips' recoveries from the same run.
+fn recover_all(
     video: &Path,
     fps: Option<f64>,
     region: &Region,
     opts: Option<&Options>,
     run: RunSettings,
-) -> Result<Option<cal::Strips>> {
-    if opts.is_some_and(|o| !o.effects.contains(&EffectKind::CaptureTime)) {
-        return Ok(None);
+) -> Result<(f64, Vec<f64>, Option<cal::Strips>)> {
+    if opts.is_none_or(|o| o.effects.contains(&EffectKind::CaptureTime)) {
+        let layout = strip_rows(video, region)?;
+        if layout.rows.len() >= 3 {
+            let fs = frame_rate(video, fps)?;
+            let StripRun { whole, signals, .. } =
+                recover_strips(video, fps, region, (layout.cols, &layout.rows), true, run)?;
+            let y =
+                whole.ok_or_else(|| Error::Analysis("the region's recovery is missing".into()))?;
+            let strips = cal::Strips {
+                rows: layout.rows,
+                signals,
+            };
+            return Ok((fs, y, Some(strips)));
+        }
     }
-    let (cols, rows) = strip_rows(video, region)?;
-    if rows.len() < 3 {
-        return Ok(None);
-    }
-    let (signals, _) = recover_strips(video, fps, region, (cols, &rows), run)?;
-    Ok(Some(cal::Strips { rows, signals }))
+    let (fs, y) = recover(video, fps, region, run)?;
+    Ok((fs, y, None))
 }
 
 /// The math on a recovery `y` (at `fs`) against `r` (at `fr`).

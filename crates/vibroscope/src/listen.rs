@@ -153,6 +153,18 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         }
         None => None,
     };
+    if let OutputRate::Hz(r) = o.rate {
+        if !RATE_RANGE.contains(&r) {
+            return Err(Error::usage(
+                "--rate",
+                format!(
+                    "{r} Hz is outside {}-{} Hz",
+                    RATE_RANGE.start(),
+                    RATE_RANGE.end()
+                ),
+            ));
+        }
+    }
     if let Some(c) = corrections.as_deref() {
         if c.iter()
             .any(|c| matches!(c, Correction::CaptureTime { .. }))
@@ -193,18 +205,6 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
             decl
         }
     };
-    if let OutputRate::Hz(r) = o.rate {
-        if !RATE_RANGE.contains(&r) {
-            return Err(Error::usage(
-                "--rate",
-                format!(
-                    "{r} Hz is outside {}-{} Hz",
-                    RATE_RANGE.start(),
-                    RATE_RANGE.end()
-                ),
-            ));
-        }
-    }
     // The signal's rate, when known before the run: bands must lie below
     // its Nyquist frequency (checked again by the stages once it is known).
     let signal_rate = match &o.rolling_shutter {
@@ -315,10 +315,8 @@ fn listen_strips(
         return Err(refuse("--band/--notch"));
     }
     let calibration = o.calibration.as_deref().unwrap_or(o.video.as_path());
-    let ((cols, _), height) = (
-        crate::calibrate::strip_rows(&o.video, &o.region)?,
-        crate::calibrate::frame_height(&o.video)?,
-    );
+    let layout = crate::calibrate::strip_rows(&o.video, &o.region)?;
+    let (cols, height) = (layout.cols, layout.height);
     if let Some(&(_, end)) = rows.iter().find(|r| r.1 > height) {
         return Err(Error::input(
             calibration,
@@ -329,8 +327,11 @@ fn listen_strips(
         ));
     }
     let fs = crate::calibrate::frame_rate(&o.video, o.fps)?;
-    let (signals, run) =
-        crate::calibrate::recover_strips(&o.video, o.fps, &o.region, (cols, rows), o.run)?;
+    let crate::calibrate::StripRun {
+        signals,
+        report: run,
+        ..
+    } = crate::calibrate::recover_strips(&o.video, o.fps, &o.region, (cols, rows), false, o.run)?;
     let y = crate::math::calibrate::combine(&signals, weights, delays_s, fs);
     crate::io::wav::write_mono_f32(&o.output, fs.round() as u32, &y)?;
     corrections::apply_to_wav(&o.output, corrections, Denoise::None)?;

@@ -25,7 +25,7 @@ use super::correlation::recurrence;
 use super::gain_drift::chi2_level;
 use super::model::{Fit, Model};
 use super::report::{Unexplained, UnexplainedKind};
-use super::signal::{sample_at, stft_len};
+use super::signal::{jackknife, sample_at, stft_len};
 use super::{Candidate, Correction, Uncertainty};
 
 /// Recoveries of horizontal strips of the region: the image's row axis.
@@ -240,13 +240,6 @@ fn strip_fit(m: &Model, y: &[f64], tau0: f64) -> Option<Timed> {
     None
 }
 
-/// The delete-one jackknife's standard deviation of the estimates `loo`.
-fn jackknife(loo: impl Iterator<Item = f64> + Clone) -> f64 {
-    let k = loo.clone().count() as f64;
-    let mean = loo.clone().sum::<f64>() / k;
-    ((k - 1.0) / k * loo.map(|v| (v - mean).powi(2)).sum::<f64>()).sqrt()
-}
-
 /// `(g, c)` of the 2x2 normal equations in `s` (Σyy, Σyt, Σyd, Σtt, Σtd, Σdd).
 fn solve(s: &[f64; 6]) -> Option<(f64, f64)> {
     let det = s[3] * s[5] - s[4] * s[4];
@@ -315,9 +308,8 @@ pub(super) fn line(fits: &[StripFit]) -> Option<Line> {
 
 /// The residual's image axis: delays that change across the rows beyond
 /// their noise (chi-square at 1e-3 over `count - 1` degrees of freedom),
-/// or `None`.
-pub(super) fn lag_across_rows(fits: &[StripFit]) -> Option<Unexplained> {
-    let l = line(fits)?;
+/// or `None` (`l` is the strips' [`line`]).
+pub(super) fn lag_across_rows(fits: &[StripFit], l: &Line) -> Option<Unexplained> {
     let level = chi2_level(l.count - 1);
     if l.chi2_const <= level {
         return None;
@@ -384,9 +376,8 @@ impl Member {
 }
 
 /// Each strip's delay under `member` (s, about the signal-weighted mean),
-/// and its uncertainty.
-pub(super) fn delays(fits: &[StripFit], member: Member) -> Option<(Vec<f64>, Vec<f64>, f64)> {
-    let l = line(fits)?;
+/// and its uncertainty (`l` is the strips' [`line`]).
+pub(super) fn delays(fits: &[StripFit], l: &Line, member: Member) -> (Vec<f64>, Vec<f64>, f64) {
     let raw: Vec<(f64, f64)> = fits
         .iter()
         .map(|f| {
@@ -408,11 +399,11 @@ pub(super) fn delays(fits: &[StripFit], member: Member) -> Option<(Vec<f64>, Vec
         den += s;
     }
     let mean = if den > 0.0 { num / den } else { l.a };
-    Some((
+    (
         raw.iter().map(|r| r.0 - mean).collect(),
         raw.iter().map(|r| r.1).collect(),
         l.sigma_b,
-    ))
+    )
 }
 
 /// The strips summed with the magnitudes of `weights`, strip `k` read
@@ -498,20 +489,19 @@ pub(super) fn decide(
         return Decision::default();
     }
     let fits = read(m, y, strips, fit);
-    let Some(evidence) = lag_across_rows(&fits) else {
+    let Some(l) = line(&fits) else {
         return Decision::default();
     };
-    let (Some(l), w) = (line(&fits), weights(&fits)) else {
+    let Some(evidence) = lag_across_rows(&fits, &l) else {
         return Decision::default();
     };
+    let w = weights(&fits);
     let zero = vec![0.0; fits.len()];
     let base = combine(&strips.signals, &w, &zero, m.fs);
     let e0 = m.errors(&base, &m.fit_linear(&base)).snr_db;
     let mut tried: Vec<(Candidate, f64, Vec<f64>)> = Vec::new();
     for member in [Member::Linear, Member::PerRegion] {
-        let Some((d, sd, sigma_b)) = delays(&fits, member) else {
-            continue;
-        };
+        let (d, sd, sigma_b) = delays(&fits, &l, member);
         let z = combine(&strips.signals, &w, &d, m.fs);
         let gain = m.errors(&z, &m.fit_linear(&z)).snr_db - e0;
         let correction = Correction::CaptureTime {

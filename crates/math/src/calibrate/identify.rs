@@ -82,7 +82,7 @@ fn main_parameter(c: &Correction, u: &Uncertainty, gain: f64) -> Option<(&'stati
         (Correction::Exposure { exposure_s }, Uncertainty::Exposure { exposure_us }) => {
             ("exposure_us", exposure_s * 1e6, *exposure_us)
         }
-        (Correction::Transfer { k, .. }, Uncertainty::Transfer { k: sd }) => ("k", *k, *sd),
+        (Correction::Transfer { k, .. }, Uncertainty::Transfer { k: sd, .. }) => ("k", *k, *sd),
         (
             Correction::SoftClip { level, .. },
             Uncertainty::SoftClip {

@@ -85,6 +85,7 @@ pub use report::{
     Uncertainty, Unexplained, UnexplainedKind,
 };
 pub use signal::{alias, equalize, sample_at, stft_len};
+pub use transfer::{peak, smooth3};
 
 use model::{Fit, Model};
 use residual::unexplained;

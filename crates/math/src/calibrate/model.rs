@@ -61,6 +61,17 @@ impl Model<'_> {
         !matches!((i / stft_len(self.fs)) % 5, 1 | 3)
     }
 
+    /// The fit part of `0..len`, one range per block (the units a
+    /// jackknife deletes, long enough that a coloured residual stays
+    /// mostly within one).
+    pub(super) fn fit_blocks(&self, len: usize) -> Vec<std::ops::Range<usize>> {
+        let b = stft_len(self.fs);
+        (0..len.div_ceil(b))
+            .map(|k| k * b..((k + 1) * b).min(len))
+            .filter(|r| self.is_fit(r.start))
+            .collect()
+    }
+
     /// `x` with the held-out samples set to zero.
     pub(super) fn masked(&self, x: &[f64]) -> Vec<f64> {
         x.iter()

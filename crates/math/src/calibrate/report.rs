@@ -46,10 +46,14 @@ pub enum Parameters {
     Interference {
         lines: Vec<LineReport>,
     },
+    /// The measured response (`k` scales it when applied), and its
+    /// highest point: frequency, and height above the curve's median.
     Transfer {
         coefficients_db: Vec<f64>,
         frequencies_hz: Vec<f64>,
         k: f64,
+        peak_db: f64,
+        peak_hz: f64,
         phase_deg: Vec<f64>,
     },
     SoftClip {
@@ -140,9 +144,11 @@ impl fmt::Display for Parameters {
                 coefficients_db,
                 frequencies_hz,
                 k,
+                peak_db,
+                peak_hz,
                 phase_deg,
             } => {
-                write!(f, "k {k}, frequencies_hz ")?;
+                write!(f, "k {k}, peak {peak_hz} Hz {peak_db} dB, frequencies_hz ")?;
                 list(f, frequencies_hz)?;
                 write!(f, ", coefficients_db ")?;
                 list(f, coefficients_db)?;
@@ -216,8 +222,12 @@ pub enum Uncertainty {
     Interference {
         lines: Vec<LineUncertainty>,
     },
+    /// Of `k` (from the fit's curvature) and of the peak's frequency and
+    /// height (a delete-one-block jackknife).
     Transfer {
         k: f64,
+        peak_db: f64,
+        peak_hz: f64,
     },
     SoftClip {
         a3: f64,
@@ -378,12 +388,18 @@ impl Correction {
                 coef_db,
                 phase_deg,
                 k,
-            } => Parameters::Transfer {
-                coefficients_db: coef_db.clone(),
-                frequencies_hz: freqs_hz.clone(),
-                k: *k,
-                phase_deg: phase_deg.clone(),
-            },
+            } => {
+                let (peak_hz, peak_db) =
+                    super::transfer::peak(freqs_hz, coef_db).unwrap_or((f64::NAN, f64::NAN));
+                Parameters::Transfer {
+                    coefficients_db: coef_db.clone(),
+                    frequencies_hz: freqs_hz.clone(),
+                    k: *k,
+                    peak_db,
+                    peak_hz,
+                    phase_deg: phase_deg.clone(),
+                }
+            }
             Correction::SoftClip { a3, a5, level, .. } => Parameters::SoftClip {
                 a3: *a3,
                 a5: *a5,

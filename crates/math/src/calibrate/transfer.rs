@@ -1,9 +1,40 @@
 //! Effect (a): the object's transfer function (thesis ch. 4.3.3).
 
 use super::model::{eq_sse, Fit, Model};
-use super::signal::{curvature_sigma, golden, stft, stft_len};
+use super::signal::{curvature_sigma, golden, jackknife, stft, stft_len};
 use super::{Candidate, Correction, Uncertainty};
 use realfft::num_complex::Complex;
+
+/// Per STFT bin: Σ|Z| P, Σ|T| P, Σ P (P the reference's short-time power)
+/// and the cross-spectrum Σ Z T* sign(g), over some frames.
+#[derive(Clone)]
+struct Sums {
+    num: Vec<f64>,
+    den: Vec<f64>,
+    wsum: Vec<f64>,
+    cross: Vec<Complex<f64>>,
+}
+
+impl Sums {
+    fn new(nb: usize) -> Sums {
+        Sums {
+            num: vec![0.0; nb],
+            den: vec![0.0; nb],
+            wsum: vec![0.0; nb],
+            cross: vec![Complex::new(0.0, 0.0); nb],
+        }
+    }
+
+    /// `self` plus (`sign` 1) or minus (-1) `o`.
+    fn add(&mut self, o: &Sums, sign: f64) {
+        for k in 0..self.num.len() {
+            self.num[k] += sign * o.num[k];
+            self.den[k] += sign * o.den[k];
+            self.wsum[k] += sign * o.wsum[k];
+            self.cross[k] += o.cross[k] * sign;
+        }
+    }
+}
 
 /// Transfer coefficients (thesis ch. 4.3.3): per STFT bin, the average of
 /// the recovery's magnitude over time weighted by the reference's short-
@@ -20,27 +51,56 @@ pub(super) fn transfer_coefficients(
     z: &[f64],
     fit: &Fit,
 ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let (blocks, _) = block_sums(m, z, fit);
+    let mut all = Sums::new(blocks.first().map_or(0, |b| b.num.len()));
+    blocks.iter().for_each(|b| all.add(b, 1.0));
+    curve(m, &all, fit.g)
+}
+
+/// The sums of each fit block's frames (frames centred in the fit part,
+/// grouped by the block their centre is in), and the STFT length.
+fn block_sums(m: &Model, z: &[f64], fit: &Fit) -> (Vec<Sums>, usize) {
     let nfft = stft_len(m.fs);
     let (fz, ft) = (stft(z, nfft), stft(&fit.t, nfft));
     let nb = nfft / 2 + 1;
-    let (mut num, mut den, mut wsum) = (vec![0.0; nb], vec![0.0; nb], vec![0.0; nb]);
-    let mut cross = vec![Complex::new(0.0, 0.0); nb];
+    let mut blocks: Vec<(usize, Sums)> = Vec::new();
     for (i, (a, b)) in fz.iter().zip(&ft).enumerate() {
-        // Frames centred in the fit part.
-        if !m.is_fit(i * nfft / 2 + nfft / 2) {
+        let centre = i * nfft / 2 + nfft / 2;
+        if !m.is_fit(centre) {
             continue;
         }
+        let block = centre / nfft;
+        if blocks.last().is_none_or(|(k, _)| *k != block) {
+            blocks.push((block, Sums::new(nb)));
+        }
+        let Some((_, s)) = blocks.last_mut() else {
+            continue;
+        };
         for k in 0..nb {
             let px = b[k].norm_sqr();
-            num[k] += a[k].norm() * px;
-            den[k] += b[k].norm() * px;
-            wsum[k] += px;
-            cross[k] += a[k] * b[k].conj() * fit.g.signum();
+            s.num[k] += a[k].norm() * px;
+            s.den[k] += b[k].norm() * px;
+            s.wsum[k] += px;
+            s.cross[k] += a[k] * b[k].conj() * fit.g.signum();
         }
     }
+    (blocks.into_iter().map(|(_, s)| s).collect(), nfft)
+}
+
+/// The frequencies, smoothed coefficients (dB) and phases (degrees) of the
+/// bins `sums` says enough about.
+fn curve(m: &Model, sums: &Sums, g: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let Sums {
+        num,
+        den,
+        wsum,
+        cross,
+    } = sums;
+    let nb = num.len();
+    let nfft = stft_len(m.fs);
     let wmax = wsum.iter().cloned().fold(0.0, f64::max);
     let lo = m.opts.highpass.map_or(0.0, |(_, c)| 1.5 * c);
-    let g = fit.g.abs().max(1e-300);
+    let g = g.abs().max(1e-300);
     let valid: Vec<usize> = (1..nb)
         .filter(|&k| wsum[k] > 1e-3 * wmax && den[k] > 0.0 && k as f64 * m.fs / nfft as f64 >= lo)
         .collect();
@@ -48,12 +108,7 @@ pub(super) fn transfer_coefficients(
         .iter()
         .map(|&k| 20.0 * (num[k] / den[k] / g).max(1e-12).log10())
         .collect();
-    let smooth: Vec<f64> = (0..raw.len())
-        .map(|i| {
-            let (a, b) = (i.saturating_sub(1), (i + 2).min(raw.len()));
-            raw[a..b].iter().sum::<f64>() / (b - a) as f64
-        })
-        .collect();
+    let smooth = smooth3(&raw);
     let phase: Vec<f64> = (0..valid.len())
         .map(|i| {
             let (a, b) = (i.saturating_sub(1), (i + 2).min(valid.len()));
@@ -69,6 +124,69 @@ pub(super) fn transfer_coefficients(
         .map(|&k| k as f64 * m.fs / nfft as f64)
         .collect();
     (freqs, smooth, phase)
+}
+
+/// `x` averaged over three neighbours (two at the ends): how the
+/// coefficients are smoothed.
+pub fn smooth3(x: &[f64]) -> Vec<f64> {
+    (0..x.len())
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(1), (i + 2).min(x.len()));
+            x[a..b].iter().sum::<f64>() / (b - a) as f64
+        })
+        .collect()
+}
+
+/// The response's highest point: its frequency (Hz, a parabola through
+/// the highest coefficient and its neighbours where they are adjacent
+/// bins) and its height above the curve's median (dB). `None` for fewer
+/// than three coefficients.
+pub fn peak(freqs_hz: &[f64], coef_db: &[f64]) -> Option<(f64, f64)> {
+    if coef_db.len() < 3 || freqs_hz.len() != coef_db.len() {
+        return None;
+    }
+    let (i, &top) = coef_db
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))?;
+    let mut sorted = coef_db.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let mut f = freqs_hz[i];
+    if i > 0 && i + 1 < coef_db.len() {
+        let (df0, df1) = (f - freqs_hz[i - 1], freqs_hz[i + 1] - f);
+        let (a, b) = (coef_db[i - 1], coef_db[i + 1]);
+        let den = a - 2.0 * top + b;
+        if (df0 - df1).abs() < 1e-9 * df0 && den < 0.0 {
+            f += 0.5 * (a - b) / den * df0;
+        }
+    }
+    Some((f, top - median))
+}
+
+/// The delete-one-block jackknife's standard deviations of [`peak`]'s
+/// frequency and height (infinite with fewer than three fit blocks).
+fn peak_sd(m: &Model, z: &[f64], fit: &Fit) -> (f64, f64) {
+    let (blocks, _) = block_sums(m, z, fit);
+    if blocks.len() < 3 {
+        return (f64::INFINITY, f64::INFINITY);
+    }
+    let mut all = Sums::new(blocks[0].num.len());
+    blocks.iter().for_each(|b| all.add(b, 1.0));
+    let mut loo = Vec::with_capacity(blocks.len());
+    for b in &blocks {
+        let mut s = all.clone();
+        s.add(b, -1.0);
+        let (f, c, _) = curve(m, &s, fit.g);
+        match peak(&f, &c) {
+            Some(p) => loo.push(p),
+            None => return (f64::INFINITY, f64::INFINITY),
+        }
+    }
+    (
+        jackknife(loo.iter().map(|p| p.0)),
+        jackknife(loo.iter().map(|p| p.1)),
+    )
 }
 
 pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
@@ -96,8 +214,34 @@ pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate>
     let (k, sse) = golden(|k| eq_sse(m, z, fit, &corr(k)), lo.max(0.0), hi, 16);
     let nf = m.nfit(z.len());
     let sd = curvature_sigma(|k| eq_sse(m, z, fit, &corr(k)), k, 0.02, sse / nf as f64);
+    let (peak_hz, peak_db) = peak_sd(m, z, fit);
     Some(Candidate {
         correction: corr(k),
-        uncertainty: Uncertainty::Transfer { k: sd },
+        uncertainty: Uncertainty::Transfer {
+            k: sd,
+            peak_hz,
+            peak_db,
+        },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::peak;
+
+    /// The peak of a sampled bump lies between bins, and its height is
+    /// read against the curve's median, not its floor or its mean.
+    #[test]
+    fn the_peak_lies_between_bins_above_the_median() {
+        let f: Vec<f64> = (1..100).map(|k| k as f64 * 10.0).collect();
+        let c: Vec<f64> = f
+            .iter()
+            .map(|&x| 1.0 + 9.0 * (-((x - 503.0) / 40.0).powi(2)).exp())
+            .collect();
+        let (hz, db) = peak(&f, &c).unwrap();
+        assert!((hz - 503.0).abs() < 1.0, "{hz}");
+        assert!((db - 9.0).abs() < 0.1, "{db}");
+        assert!(peak(&f[..2], &c[..2]).is_none());
+        assert!(peak(&f, &c[..50]).is_none());
+    }
 }
