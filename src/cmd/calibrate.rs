@@ -57,14 +57,16 @@ pub struct Args {
     #[command(flatten)]
     video_args: VideoArgs,
     /// The effects to try, comma-separated, in the catalog's order
-    /// whatever the order given (default: all of capture_time, time_base,
-    /// dropped_frames, exposure, interference, transfer_function,
-    /// soft_clip, static_nonlinearity, gain_drift). capture_time recovers
-    /// the region again as 8 strips of rows and is tried first, when their
-    /// delays against the reference differ beyond their noise (rows read
-    /// out one after another; parts of the object that hear the sound at
-    /// different times); `listen --calibration` then recovers the same
-    /// strips. Of the two
+    /// whatever the order given (default: all of capture_time, region_gain,
+    /// time_base, dropped_frames, exposure, interference,
+    /// transfer_function, soft_clip, static_nonlinearity, gain_drift).
+    /// capture_time and region_gain also recover the region as 8 strips of
+    /// rows (in the same run) and are tried first: capture_time when the
+    /// strips' delays against the reference differ beyond their noise
+    /// (rows read out one after another; parts of the object that hear the
+    /// sound at different times), region_gain when parts move in antiphase
+    /// (a non-rigid object), which a sum over the region cancels; `listen
+    /// --calibration` then recovers the same strips. Of the two
     /// nonlinearities one is kept at most, and static_nonlinearity (a
     /// polynomial with even and odd terms) is only tried when the residual
     /// holds harmonics of the reference; gain_drift only when the gain

@@ -119,6 +119,12 @@ pub struct SceneSpec {
     /// Non-empty, frames are rendered row by row even with a global
     /// shutter (see [`Scene::row_displacement_px`]).
     pub row_lag_s: Vec<(u32, f64)>,
+    /// The gain of each region of [`SceneSpec::row_lag_s`]: its rows show
+    /// `gain · amplitude_px · signal(t - lag_s)`, `gain` in `[-1, 1]`
+    /// (negative: the part moves in antiphase, as the two halves of a
+    /// plate's second mode do). Empty: 1 for every region; else one per
+    /// region.
+    pub row_gain: Vec<f64>,
 }
 
 impl SceneSpec {
@@ -249,6 +255,24 @@ impl SceneSpec {
             }
             prev = Some(row);
         }
+        if !self.row_gain.is_empty() && self.row_gain.len() != self.row_lag_s.len() {
+            return bad(
+                "row_gain",
+                format!(
+                    "needs one gain per region of row_lag_s: {} gains for {} regions",
+                    self.row_gain.len(),
+                    self.row_lag_s.len()
+                ),
+            );
+        }
+        for (k, &g) in self.row_gain.iter().enumerate() {
+            if !(g.is_finite() && g.abs() <= 1.0) {
+                return bad(
+                    &format!("row_gain[{k}]"),
+                    format!("must be finite and within [-1, 1], got {g}"),
+                );
+            }
+        }
         Ok(())
     }
 }
@@ -268,6 +292,7 @@ impl Default for SceneSpec {
             contrast: Self::default_contrast(8),
             seed: 1,
             row_lag_s: Vec::new(),
+            row_gain: Vec::new(),
         }
     }
 }
@@ -709,6 +734,13 @@ impl Scene {
         self.m.row_lag(y as usize)
     }
 
+    /// The motion's gain in row `y`: that of the last region of
+    /// [`SceneSpec::row_lag_s`] starting at or above it
+    /// ([`SceneSpec::row_gain`]), 1 above them all.
+    pub fn row_gain(&self, y: u32) -> f64 {
+        self.m.row_gain(y as usize)
+    }
+
     /// Ground-truth displacement of row `y`: the mean of the displacement
     /// over `[t_row, t_row + exposure_s]` with
     /// `t_row = t_s + y · line_delay_s - lag(y)` and the row's lag
@@ -1008,6 +1040,15 @@ impl Model {
         self.spec.amplitude_px * self.signal.value(t_s)
     }
 
+    /// See [`Scene::row_gain`].
+    fn row_gain(&self, y: usize) -> f64 {
+        let lags = &self.spec.row_lag_s;
+        match lags.partition_point(|&(r, _)| r as usize <= y) {
+            0 => 1.0,
+            k => self.spec.row_gain.get(k - 1).copied().unwrap_or(1.0),
+        }
+    }
+
     /// See [`Scene::row_lag_s`].
     fn row_lag(&self, y: usize) -> f64 {
         let lags = &self.spec.row_lag_s;
@@ -1035,9 +1076,10 @@ impl Model {
             for i in 0..EXPOSURE_SUBSAMPLES {
                 acc += self.displacement(t0 + (i as f64 + 0.5) / n * exposure_s);
             }
-            acc / n
+            acc / n * self.row_gain(y)
         } else {
-            self.displacement(t0)
+            // Times a gain of 1 leaves every value bit for bit.
+            self.displacement(t0) * self.row_gain(y)
         }
     }
 
@@ -1249,6 +1291,7 @@ mod tests {
             contrast: SceneSpec::default_contrast(16),
             seed: 11,
             row_lag_s: Vec::new(),
+            row_gain: Vec::new(),
         }
     }
 
@@ -1628,6 +1671,52 @@ mod tests {
                 zero.render_clean(t, &mut clean_z);
                 assert_eq!(clean_g, clean_z);
             }
+        }
+    }
+
+    /// Issue 15 (per-region gain): rows of a region with a gain show the
+    /// rigid object's rows moved by the gain times its displacement (a
+    /// negative gain: in antiphase); a gain of 1 renders bit for bit as
+    /// none; bad gains are refused naming the entry.
+    #[test]
+    fn rows_with_a_gain_move_by_it() {
+        let (w, h) = (64u32, 64u32);
+        let rect = [8u32, 8, 48, 48];
+        let lag = vec![(32u32, 0.0)];
+        let scene = |gain: Vec<f64>, amp: f64| {
+            let spec = SceneSpec {
+                row_lag_s: lag.clone(),
+                row_gain: gain,
+                ..spec16(w, h, rect, amp, 0.0)
+            };
+            Scene::new(spec, tone(50.0)).unwrap()
+        };
+        let t = 0.004; // a displacement near the peak
+        let mut one = scene(vec![1.0], 0.4);
+        let mut none = scene(Vec::new(), 0.4);
+        assert_eq!(frame16(&mut one, 0, t), frame16(&mut none, 0, t));
+        let mut half = scene(vec![-0.5], 0.4);
+        assert_eq!((half.row_gain(31), half.row_gain(32)), (1.0, -0.5));
+        let d = half.displacement_px(t);
+        // Rows 32 on equal the rigid scene moved by -d/2 (amplitude scaled:
+        // the same texture, a displacement of -0.5 d).
+        let mut back = scene(vec![1.0], -0.2);
+        let (a, b) = (frame16(&mut half, 0, t), frame16(&mut back, 0, t));
+        let row = (w * 32) as usize;
+        assert_eq!(a[row..], b[row..], "d {d}");
+        assert_eq!(a[..row], frame16(&mut none, 0, t)[..row]);
+        for (g, field) in [
+            (vec![1.0, 0.5], "row_gain"),
+            (vec![1.5], "row_gain[0]"),
+            (vec![f64::NAN], "row_gain[0]"),
+        ] {
+            let spec = SceneSpec {
+                row_lag_s: lag.clone(),
+                row_gain: g,
+                ..spec16(w, h, rect, 0.4, 0.0)
+            };
+            let e = Scene::new(spec, tone(50.0)).err().expect("refused");
+            assert_eq!(e.field(), field, "{e}");
         }
     }
 

@@ -254,6 +254,13 @@ pub fn recover_strips(
         decl.stages.retain(|s| !branch.contains(&s.id.as_str()));
     }
     let temps: Vec<TempPath> = rows.iter().map(|_| TempPath::new("strip.wav")).collect();
+    // With the region (calibrate), each strip's bands too, before `align`
+    // chooses its polarity: their signs against the reference tell which
+    // parts move against which ([`cal::Strips::bands`]).
+    let band_temps: Vec<TempPath> = match whole {
+        true => rows.iter().map(|_| TempPath::new("bands.csv")).collect(),
+        false => Vec::new(),
+    };
     let origin = pipeline::by("calibrate (a strip of rows)");
     for (k, (&(a, b), tmp)) in rows.iter().zip(&temps).enumerate() {
         for st in &originals {
@@ -296,6 +303,21 @@ pub fn recover_strips(
             pipeline::path_value(tmp.path()),
             origin.clone(),
         )?;
+        if let Some(b) = band_temps.get(k) {
+            let mut sink = pipeline::new_stage(
+                &format!("bands_{k}"),
+                "csv",
+                &[&format!("phase_{k}")],
+                origin.clone(),
+            );
+            crate::engine::config::set_param(
+                &mut sink,
+                "path",
+                pipeline::path_value(b.path()),
+                origin.clone(),
+            );
+            decl.stages.push(sink);
+        }
     }
     let report = pipeline::run(&decl, run)?;
     let signals = temps
@@ -306,11 +328,36 @@ pub fn recover_strips(
         true => Some(crate::io::wav::read_mono(tmp0.path())?.1),
         false => None,
     };
+    let bands = band_temps
+        .iter()
+        .map(|t| read_bands(t.path()))
+        .collect::<Result<_>>()?;
     Ok(StripRun {
         whole,
         signals,
+        bands,
         report,
     })
+}
+
+/// The channels of a `csv` sink's samples (`t_s,ch0,ch1,...`), one list
+/// per channel.
+fn read_bands(path: &Path) -> Result<Vec<Vec<f64>>> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, e.to_string()))?;
+    let mut bands: Vec<Vec<f64>> = Vec::new();
+    for line in text.lines().skip(1) {
+        for (c, v) in line.split(',').skip(1).enumerate() {
+            let v: f64 = v
+                .trim()
+                .parse()
+                .map_err(|_| Error::input(path, format!("not a number: {v:?}")))?;
+            if bands.len() <= c {
+                bands.push(Vec::new());
+            }
+            bands[c].push(v);
+        }
+    }
+    Ok(bands)
 }
 
 /// What [`recover_strips`] recovered.
@@ -319,6 +366,8 @@ pub struct StripRun {
     pub whole: Option<Vec<f64>>,
     /// One signal per strip.
     pub signals: Vec<Vec<f64>>,
+    /// Each strip's bands (`phase`'s channels), with the region only.
+    pub bands: Vec<Vec<Vec<f64>>>,
     pub report: crate::engine::RunReport,
 }
 
@@ -452,17 +501,27 @@ fn recover_all(
     opts: Option<&Options>,
     run: RunSettings,
 ) -> Result<(f64, Vec<f64>, Option<cal::Strips>)> {
-    if opts.is_none_or(|o| o.effects.contains(&EffectKind::CaptureTime)) {
+    let wanted = |o: &Options| {
+        o.effects
+            .iter()
+            .any(|k| matches!(k, EffectKind::CaptureTime | EffectKind::RegionGain))
+    };
+    if opts.is_none_or(wanted) {
         let layout = strip_rows(video, region)?;
         if layout.rows.len() >= 3 {
             let fs = frame_rate(video, fps)?;
-            let StripRun { whole, signals, .. } =
-                recover_strips(video, fps, region, (layout.cols, &layout.rows), true, run)?;
+            let StripRun {
+                whole,
+                signals,
+                bands,
+                ..
+            } = recover_strips(video, fps, region, (layout.cols, &layout.rows), true, run)?;
             let y =
                 whole.ok_or_else(|| Error::Analysis("the region's recovery is missing".into()))?;
             let strips = cal::Strips {
                 rows: layout.rows,
                 signals,
+                bands,
             };
             return Ok((fs, y, Some(strips)));
         }

@@ -166,9 +166,12 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         }
     }
     if let Some(c) = corrections.as_deref() {
-        if c.iter()
-            .any(|c| matches!(c, Correction::CaptureTime { .. }))
-        {
+        if c.iter().any(|c| {
+            matches!(
+                c,
+                Correction::CaptureTime { .. } | Correction::RegionGain { .. }
+            )
+        }) {
             return listen_strips(o, c, method);
         }
     }
@@ -291,21 +294,27 @@ fn listen_strips(
     corrections: &[Correction],
     method: Option<Method>,
 ) -> Result<ListenReport> {
-    let Some(Correction::CaptureTime {
-        rows,
-        delays_s,
-        weights,
-        ..
-    }) = corrections
-        .iter()
-        .find(|c| matches!(c, Correction::CaptureTime { .. }))
-    else {
-        return Err(Error::Analysis("no capture time in the calibration".into()));
+    let (rows, delays_s, weights, name) = match corrections.iter().find(|c| {
+        matches!(
+            c,
+            Correction::CaptureTime { .. } | Correction::RegionGain { .. }
+        )
+    }) {
+        Some(Correction::CaptureTime {
+            rows,
+            delays_s,
+            weights,
+            ..
+        }) => (rows, delays_s.clone(), weights, "capture_time"),
+        Some(Correction::RegionGain { rows, weights }) => {
+            (rows, vec![0.0; rows.len()], weights, "region_gain")
+        }
+        _ => return Err(Error::Analysis("no strips in the calibration".into())),
     };
     let refuse = |flag: &str| {
         Error::usage(
             flag,
-            "not available yet with a calibration that holds a capture time across the image (capture_time)",
+            format!("not available yet with a calibration that recombines strips of rows ({name})"),
         )
     };
     if o.denoise != Denoise::None {
@@ -321,7 +330,7 @@ fn listen_strips(
         return Err(Error::input(
             calibration,
             format!(
-                "its capture_time strips reach row {end}, but {} has {height} rows: it was fitted on another camera or frame size",
+                "its {name} strips reach row {end}, but {} has {height} rows: it was fitted on another camera or frame size",
                 o.video.display()
             ),
         ));
@@ -332,7 +341,7 @@ fn listen_strips(
         report: run,
         ..
     } = crate::calibrate::recover_strips(&o.video, o.fps, &o.region, (cols, rows), false, o.run)?;
-    let y = crate::math::calibrate::combine(&signals, weights, delays_s, fs);
+    let y = crate::math::calibrate::combine(&signals, weights, &delays_s, fs);
     crate::io::wav::write_mono_f32(&o.output, fs.round() as u32, &y)?;
     corrections::apply_to_wav(&o.output, corrections, Denoise::None)?;
     finish_wav(o, true)?;

@@ -25,7 +25,7 @@ use super::correlation::recurrence;
 use super::gain_drift::chi2_level;
 use super::model::{Fit, Model};
 use super::report::{Unexplained, UnexplainedKind};
-use super::signal::{jackknife, sample_at, stft_len};
+use super::signal::{gain_sse, jackknife, redo_highpass, sample_at, stft_len};
 use super::{Candidate, Correction, Uncertainty};
 
 /// Recoveries of horizontal strips of the region: the image's row axis.
@@ -35,6 +35,13 @@ pub struct Strips {
     pub rows: Vec<(u32, u32)>,
     /// Each strip's recovery at the frame rate, as long as the region's.
     pub signals: Vec<Vec<f64>>,
+    /// Each strip's bands before they are aligned and summed (its `phase`
+    /// stage's channels, not high-passed), or empty. A strip's recovery
+    /// takes its polarity from the band its `align` stage chose, and a
+    /// band whose orientation is across the motion sees it with a sign
+    /// that depends on the texture; the bands tell the parts' physical
+    /// signs ([`physical_signs`]).
+    pub bands: Vec<Vec<Vec<f64>>>,
 }
 
 /// One strip's linear model against the target.
@@ -50,6 +57,8 @@ pub(super) struct StripFit {
     pub(super) gain: f64,
     /// Residual variance on the fit part.
     pub(super) noise: f64,
+    /// The fit's matched-filter SNR (amplitude; 0 without a fit).
+    pub(super) snr: f64,
 }
 
 impl StripFit {
@@ -89,6 +98,7 @@ pub(super) fn read(m: &Model, y: &[f64], strips: &Strips, fit: &Fit) -> Vec<Stri
                 sigma_s: f64::INFINITY,
                 gain: 0.0,
                 noise: 0.0,
+                snr: 0.0,
             };
             // Each strip's own delay near the region's (a part may lag it
             // by samples), then refined.
@@ -112,6 +122,7 @@ pub(super) fn read(m: &Model, y: &[f64], strips: &Strips, fit: &Fit) -> Vec<Stri
                 },
                 gain: t.gain,
                 noise: t.noise,
+                snr: t.snr,
             }
         })
         .collect()
@@ -470,6 +481,15 @@ pub(super) struct Decision {
     pub(super) rejected: Vec<(Correction, f64)>,
 }
 
+/// Whether `strips` can be read against `fit`: a signal per strip, at
+/// least three, each as long as the recovery.
+fn usable_strips(strips: &Strips, fit: &Fit) -> bool {
+    let n = fit.t.len();
+    strips.signals.len() == strips.rows.len()
+        && strips.signals.len() >= 3
+        && strips.signals.iter().all(|s| s.len() == n)
+}
+
 /// Reads the image axis and, when the delays move across the rows, fits
 /// both members and keeps the better by held-out gain (the linear one
 /// unless the per-region one gains `min_gain_db` more), if it gains
@@ -481,11 +501,7 @@ pub(super) fn decide(
     fit: &Fit,
     min_gain_db: f64,
 ) -> Decision {
-    let n = fit.t.len();
-    if strips.signals.len() != strips.rows.len()
-        || strips.signals.len() < 3
-        || strips.signals.iter().any(|s| s.len() != n)
-    {
+    if !usable_strips(strips, fit) {
         return Decision::default();
     }
     let fits = read(m, y, strips, fit);
@@ -546,6 +562,226 @@ pub(super) fn decide(
         } else {
             out.rejected.push((t.0.correction, t.1));
         }
+    }
+    out
+}
+
+/// Each strip's physical sign (+1 or -1, 0 where it cannot be told): the
+/// sign of its gain against the target in the one band whose sum over the
+/// strips is the strongest. A band oriented along the motion sees every
+/// part of a rigid object with one sign; a band across it sees each part
+/// with a sign its texture decides, so its sum over the strips partly
+/// cancels and another band is chosen. Each band is high-passed as the
+/// recovery is; a strip whose band has a matched-filter SNR below
+/// [`MIN_STRIP_SNR`] gets 0. `None` without the strips' bands.
+pub(super) fn physical_signs(m: &Model, strips: &Strips, fit: &Fit) -> Option<Vec<f64>> {
+    let n = fit.t.len();
+    let nb = strips.bands.first()?.len();
+    if nb == 0
+        || strips.bands.len() != strips.signals.len()
+        || strips.bands.iter().any(|b| b.len() != nb)
+    {
+        return None;
+    }
+    let t = m.masked(&fit.t);
+    let tt: f64 = t.iter().map(|v| v * v).sum();
+    if tt.is_nan() || tt <= 0.0 {
+        return None;
+    }
+    let nf = m.nfit(n) as f64;
+    // (gain, SNR) of each strip's each band.
+    let g: Vec<Vec<(f64, f64)>> = strips
+        .bands
+        .iter()
+        .map(|bands| {
+            bands
+                .iter()
+                .map(|x| {
+                    let mut x = x.clone();
+                    x.resize(n, 0.0);
+                    let h = m.masked(&redo_highpass(&x, m.fs, m.opts.highpass));
+                    let (gain, sse) = gain_sse(&t, &h);
+                    (gain, gain.abs() * tt.sqrt() / (sse / nf).sqrt().max(1e-300))
+                })
+                .collect()
+        })
+        .collect();
+    let sum = |b: usize| g.iter().map(|k| k[b].0).sum::<f64>().abs();
+    let best = (0..nb).max_by(|&a, &b| sum(a).total_cmp(&sum(b)))?;
+    Some(
+        g.iter()
+            .map(|k| match k[best] {
+                (gain, snr) if snr >= MIN_STRIP_SNR => gain.signum(),
+                _ => 0.0,
+            })
+            .collect(),
+    )
+}
+
+/// What summing the usable strips as one rigid object loses against
+/// summing them with their own signs, dB, predicted from their fits and
+/// physical signs `signs` ([`physical_signs`]): with `q_k = |w_k g_k|` and
+/// `s` the share of `q` in strips whose physical sign is the other than
+/// the strongest's, the rigid sum's signal falls by `|1 - 2 s|` at the
+/// same noise. `None` without usable strips.
+fn rigid_loss_db(fits: &[StripFit], signs: &[f64]) -> Option<f64> {
+    let usable: Vec<(&StripFit, f64)> = fits
+        .iter()
+        .zip(signs)
+        .filter(|(f, p)| f.sigma_s.is_finite() && **p != 0.0)
+        .map(|(f, p)| (f, *p))
+        .collect();
+    let top = usable
+        .iter()
+        .max_by(|a, b| a.0.weight().abs().total_cmp(&b.0.weight().abs()))?;
+    let q = |f: &StripFit| (f.weight() * f.gain).abs();
+    let total: f64 = usable.iter().map(|(f, _)| q(f)).sum();
+    let against: f64 = usable
+        .iter()
+        .filter(|(_, p)| *p != top.1)
+        .map(|(f, _)| q(f))
+        .sum();
+    (total > 0.0).then(|| -20.0 * (1.0 - 2.0 * against / total).abs().max(1e-6).log10())
+}
+
+/// The residual's image axis by gain: strips that move in antiphase with
+/// the strongest (by their physical signs), when summing the strips as
+/// one rigid object would lose at least `min_gain_db` for it
+/// ([`rigid_loss_db`]). Each sign counted is at least [`MIN_STRIP_SNR`]
+/// standard deviations from zero, so it is not noise; the threshold asks
+/// that it matter.
+pub(super) fn gain_across_rows(
+    fits: &[StripFit],
+    signs: &[f64],
+    min_gain_db: f64,
+) -> Option<Unexplained> {
+    let loss = rigid_loss_db(fits, signs)?;
+    if loss < min_gain_db {
+        return None;
+    }
+    let (top, p0) = fits
+        .iter()
+        .zip(signs)
+        .filter(|(f, p)| f.sigma_s.is_finite() && **p != 0.0)
+        .max_by(|a, b| a.0.weight().abs().total_cmp(&b.0.weight().abs()))?;
+    let gains: Vec<f64> = fits
+        .iter()
+        .zip(signs)
+        .map(|(f, p)| {
+            if f.sigma_s.is_finite() && *p != 0.0 {
+                (p * p0 * (f.gain / top.gain).abs() * 1000.0).round() / 1000.0
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    let against: Vec<String> = fits
+        .iter()
+        .zip(&gains)
+        .filter(|(_, g)| **g < 0.0)
+        .map(|(f, g)| format!("row {:.1} at {g:+.2}", f.centre))
+        .collect();
+    let description = format!(
+        "strips of rows move in antiphase with the strongest ({}, gains relative to it, signs read in the band that sees the motion along its orientation): summed as one rigid object they cancel, {loss:.1} dB below their sum with their own signs: parts of the object that move in opposite directions (a non-rigid object's mode, two objects)",
+        against.join(", ")
+    );
+    Some(Unexplained::GainAcrossImage {
+        axis: "rows",
+        description,
+        frequencies_hz: [],
+        gains,
+        kind: UnexplainedKind::GainAcrossImage,
+        loss_db: loss,
+        rows: fits.iter().map(|f| f.centre).collect(),
+    })
+}
+
+/// Region-wise gain (j): when the strips move in antiphase
+/// ([`gain_across_rows`]), the strips summed at one time with their
+/// maximal-ratio weights and the signs they move with, scored on held-out
+/// blocks against the same strips summed as one rigid object (the
+/// weights' magnitudes, each strip's polarity set by its physical sign)
+/// and against the region's own recovery `y`; kept when it gains
+/// `min_gain_db` over both. Its gain is reported against the region's
+/// recovery, what would be used without it.
+pub(super) fn decide_gain(
+    m: &Model,
+    y: &[f64],
+    strips: &Strips,
+    fit: &Fit,
+    min_gain_db: f64,
+) -> Decision {
+    let n = fit.t.len();
+    if !usable_strips(strips, fit) {
+        return Decision::default();
+    }
+    let Some(signs) = physical_signs(m, strips, fit) else {
+        return Decision::default();
+    };
+    let fits = read(m, y, strips, fit);
+    let Some(evidence) = gain_across_rows(&fits, &signs, min_gain_db) else {
+        return Decision::default();
+    };
+    // Weights with physical signs, the strongest strip's +1 (a strip
+    // whose sign cannot be told keeps the strongest's).
+    let w = weights(&fits);
+    let k0 = (0..w.len())
+        .max_by(|&a, &b| w[a].abs().total_cmp(&w[b].abs()))
+        .unwrap_or(0);
+    let p0 = if signs[k0] != 0.0 { signs[k0] } else { 1.0 };
+    let physical: Vec<f64> = w
+        .iter()
+        .zip(&signs)
+        .map(|(v, p)| v.abs() * if *p != 0.0 { p * p0 } else { 1.0 })
+        .collect();
+    let zero = vec![0.0; fits.len()];
+    let signed = combine(&strips.signals, &w, &zero, m.fs);
+    // As one rigid object: each strip's recovery turned to its physical
+    // sign (its polarity against the target times that sign), with the
+    // weight's magnitude.
+    let mut rigid = vec![0.0; n];
+    for ((s, f), p) in strips.signals.iter().zip(&fits).zip(&physical) {
+        let c = p * f.gain.signum() * f.weight().abs();
+        for (o, v) in rigid.iter_mut().zip(s) {
+            *o += c * v;
+        }
+    }
+    let snr = |z: &[f64]| m.errors(z, &m.fit_linear(z)).snr_db;
+    let e = snr(&signed);
+    let (over_rigid, over_region) = (e - snr(&rigid), e - m.errors(y, fit).snr_db);
+    tracing::info!(
+        effect = "region_gain",
+        gain_db = over_region,
+        over_rigid_db = over_rigid,
+        "candidate"
+    );
+    let candidate = Candidate {
+        correction: Correction::RegionGain {
+            rows: strips.rows.clone(),
+            weights: physical.clone(),
+        },
+        uncertainty: Uncertainty::RegionGain {
+            weights: fits
+                .iter()
+                .zip(&physical)
+                .map(|(f, wk)| {
+                    if f.snr > 0.0 {
+                        wk.abs() / f.snr
+                    } else {
+                        f64::INFINITY
+                    }
+                })
+                .collect(),
+        },
+    };
+    let mut out = Decision {
+        evidence: Some(evidence),
+        ..Decision::default()
+    };
+    if over_rigid >= min_gain_db && over_region.is_finite() && over_region >= min_gain_db {
+        out.kept = Some((candidate, over_region, signed));
+    } else {
+        out.rejected.push((candidate.correction, over_region));
     }
     out
 }

@@ -89,6 +89,16 @@ pub enum Correction {
         line_delay_s: f64,
         per_region: bool,
     },
+    /// Sum strips of rows (first and end row each) at one time, weighted
+    /// by the magnitudes of `weights` with each strip's sign taken from
+    /// the recording ([`super::combine`]): parts that move in antiphase add
+    /// instead of cancelling. It acts on the strips' recoveries, so on one
+    /// recovery it does nothing. The signs of `weights` are those fitted
+    /// (reported: negative strips moved against the strongest).
+    RegionGain {
+        rows: Vec<(u32, u32)>,
+        weights: Vec<f64>,
+    },
 }
 
 /// Most boost the exposure inverse applies (the `exposure` stage's -12 dB floor).
@@ -108,6 +118,7 @@ impl Correction {
             Correction::Polynomial { .. } => EffectKind::Polynomial,
             Correction::GainDrift { .. } => EffectKind::GainDrift,
             Correction::CaptureTime { .. } => EffectKind::CaptureTime,
+            Correction::RegionGain { .. } => EffectKind::RegionGain,
         }
     }
 
@@ -121,6 +132,7 @@ impl Correction {
                 | Correction::Transfer { .. }
                 | Correction::Polynomial { .. }
                 | Correction::CaptureTime { .. }
+                | Correction::RegionGain { .. }
         )
     }
 
@@ -156,7 +168,7 @@ impl Correction {
                 super::gain_drift::apply(z, coefs, *samples)
             }
             // Applied to the strips (`super::combine`), not here.
-            Correction::CaptureTime { .. } => z.to_vec(),
+            Correction::CaptureTime { .. } | Correction::RegionGain { .. } => z.to_vec(),
             Correction::Exposure { .. } | Correction::Transfer { .. } => equalize(z, fs, |f| {
                 self.response(f).unwrap_or(Complex::new(1.0, 0.0))
             }),

@@ -152,14 +152,22 @@ pub enum EffectKind {
     /// recoveries ([`calibrate_strips`]); decided before the others, since
     /// it changes what the others are fitted on.
     CaptureTime,
+    /// (j) Parts of the object move in antiphase (a non-rigid object's
+    /// mode, two objects), so a sum over the region cancels them: the
+    /// strips of rows summed with the signs and maximal-ratio weights
+    /// they move with ([`capture_time::decide_gain`]). Decided after the
+    /// capture time (whose sum already carries the signs), when it was
+    /// not kept.
+    RegionGain,
 }
 
 /// The catalog in the order it is tried: the capture time across the image
 /// (before the rest, on the strips), time base, then frames, then the
 /// spectral effects, then the nonlinearities, then (last, and only in a
 /// round where nothing else gains) a drifting gain.
-pub const CATALOG: [EffectKind; 9] = [
+pub const CATALOG: [EffectKind; 10] = [
     EffectKind::CaptureTime,
+    EffectKind::RegionGain,
     EffectKind::TimeBase,
     EffectKind::Frames,
     EffectKind::Exposure,
@@ -182,6 +190,7 @@ impl EffectKind {
             EffectKind::Polynomial => "static_nonlinearity",
             EffectKind::GainDrift => "gain_drift",
             EffectKind::CaptureTime => "capture_time",
+            EffectKind::RegionGain => "region_gain",
         }
     }
 }
@@ -336,52 +345,54 @@ pub fn calibrate_strips(
     let mut linear_residual = unexplained(&m, y, &fit0);
     let mut kept: Vec<Kept> = Vec::new();
     let mut rejected = Vec::new();
-    // (i) The image's row axis, read first: a capture time that changes
-    // across the rows changes the recovery every other effect is fitted
-    // on (the strips, each advanced by its delay, then summed).
+    // (i), (j) The image's row axis, read first: a capture time that
+    // changes across the rows, or parts that move in antiphase, change the
+    // recovery every other effect is fitted on (the strips, each advanced
+    // by its delay or signed, weighted, then summed). The gain is tried
+    // only when the capture time was not kept (its sum carries the signs).
     let mut capture: Option<EffectReport> = None;
     let mut kept_capture: Option<Correction> = None;
-    let timed: Vec<f64>;
-    let y: &[f64] = match strips.filter(|_| opts.effects.contains(&EffectKind::CaptureTime)) {
-        Some(s) => {
-            on_step(Step {
-                round: 1,
-                effect: EffectKind::CaptureTime,
-                index: 0,
-                of: opts.effects.len(),
+    let mut timed: Vec<f64> = Vec::new();
+    for kind in [EffectKind::CaptureTime, EffectKind::RegionGain] {
+        let Some(s) = strips.filter(|_| opts.effects.contains(&kind) && capture.is_none()) else {
+            continue;
+        };
+        on_step(Step {
+            round: 1,
+            effect: kind,
+            index: 0,
+            of: opts.effects.len(),
+        });
+        let d = match kind {
+            EffectKind::CaptureTime => capture_time::decide(&m, y, s, &fit0, opts.min_gain_db),
+            _ => capture_time::decide_gain(&m, y, s, &fit0, opts.min_gain_db),
+        };
+        linear_residual.extend(d.evidence.clone());
+        for (c, gain) in d.rejected {
+            rejected.push(Rejected {
+                name: kind.name(),
+                parameters: c.parameters(fs, fit0.g),
+                snr_gain_db: gain,
             });
-            let d = capture_time::decide(&m, y, s, &fit0, opts.min_gain_db);
-            linear_residual.extend(d.evidence.clone());
-            for (c, gain) in d.rejected {
-                rejected.push(Rejected {
-                    name: EffectKind::CaptureTime.name(),
-                    parameters: c.parameters(fs, fit0.g),
-                    snr_gain_db: gain,
-                });
-            }
-            match d.kept {
-                Some((c, gain, z)) => {
-                    capture = Some(EffectReport {
-                        name: EffectKind::CaptureTime.name().to_string(),
-                        parameters: c.correction.parameters(fs, fit0.g),
-                        uncertainty: c.uncertainty.clone(),
-                        snr_gain_db: gain,
-                        evidence: d.evidence.into_iter().collect(),
-                    });
-                    timed = z;
-                    kept_capture = Some(c.correction);
-                    &timed
-                }
-                None => y,
-            }
         }
-        None => y,
-    };
+        if let Some((c, gain, z)) = d.kept {
+            capture = Some(EffectReport {
+                name: kind.name().to_string(),
+                parameters: c.correction.parameters(fs, fit0.g),
+                uncertainty: c.uncertainty.clone(),
+                snr_gain_db: gain,
+                evidence: d.evidence.into_iter().collect(),
+            });
+            timed = z;
+            kept_capture = Some(c.correction);
+        }
+    }
+    let y: &[f64] = if capture.is_some() { &timed } else { y };
     // Greedy, best first: each round fits every effect not yet kept (in
     // catalog order) on the current corrected recovery and keeps the one
     // with the largest held-out gain, if it reaches `min_gain_db`.
     let mut left: Vec<EffectKind> = opts.effects.clone();
-    left.retain(|&k| k != EffectKind::CaptureTime);
+    left.retain(|&k| !matches!(k, EffectKind::CaptureTime | EffectKind::RegionGain));
     // What the greedy loop starts from: the linear model on the recovery
     // as it now is (the strips' timed sum when the capture time was kept),
     // and its residual.
@@ -627,7 +638,7 @@ fn fit_effect(kind: EffectKind, m: &Model, z: &[f64], fit: &Fit) -> Option<Candi
         EffectKind::Polynomial => polynomial::fit_polynomial(m, z, fit),
         EffectKind::GainDrift => gain_drift::fit_gain_drift(m, z, fit),
         // Fitted on the strips, before the loop.
-        EffectKind::CaptureTime => None,
+        EffectKind::CaptureTime | EffectKind::RegionGain => None,
     }
 }
 

@@ -87,6 +87,14 @@ pub enum Parameters {
         member: &'static str,
         weights: Vec<f64>,
     },
+    /// Strips of rows (first and end row each) summed at one time with
+    /// these weights (negative: the strip moved against the strongest).
+    RegionGain {
+        axis: &'static str,
+        end_rows: Vec<u32>,
+        first_rows: Vec<u32>,
+        weights: Vec<f64>,
+    },
     Polynomial {
         coefficients: Vec<f64>,
         highpass_hz: Option<f64>,
@@ -184,6 +192,17 @@ impl fmt::Display for Parameters {
                 write!(f, ", delays_us ")?;
                 list(f, delays_us)
             }
+            Parameters::RegionGain {
+                first_rows,
+                weights,
+                ..
+            } => {
+                write!(f, "first_rows ")?;
+                let rows: Vec<f64> = first_rows.iter().map(|&r| r as f64).collect();
+                list(f, &rows)?;
+                write!(f, ", weights ")?;
+                list(f, weights)
+            }
             Parameters::Polynomial {
                 inverse_in_reference_units,
                 order,
@@ -247,6 +266,10 @@ pub enum Uncertainty {
         delays_us: Vec<f64>,
         line_delay_us: f64,
     },
+    /// Of each strip's weight (from its gain's).
+    RegionGain {
+        weights: Vec<f64>,
+    },
 }
 
 /// A structure of the residual no accepted effect explains; `kind` names
@@ -302,6 +325,19 @@ pub enum Unexplained {
         /// The spread's chi-square over the level chance reaches (> 1).
         significance: f64,
     },
+    /// Strips that move in antiphase with the strongest: each strip's gain
+    /// relative to the strongest's (null where a strip holds no usable
+    /// signal) at its central row, and what summing them as one rigid
+    /// object loses against summing them with their own signs (dB).
+    GainAcrossImage {
+        axis: &'static str,
+        description: String,
+        frequencies_hz: [f64; 0],
+        gains: Vec<f64>,
+        kind: UnexplainedKind,
+        loss_db: f64,
+        rows: Vec<f64>,
+    },
     /// A lag that changes over time.
     LagOverTime {
         description: String,
@@ -322,6 +358,7 @@ pub enum UnexplainedKind {
     LagOverTime,
     GainOverTime,
     LagAcrossImage,
+    GainAcrossImage,
 }
 
 impl Unexplained {
@@ -333,7 +370,8 @@ impl Unexplained {
             | Unexplained::LagVsFrequency { kind, .. }
             | Unexplained::LagOverTime { kind, .. }
             | Unexplained::GainOverTime { kind, .. }
-            | Unexplained::LagAcrossImage { kind, .. } => *kind,
+            | Unexplained::LagAcrossImage { kind, .. }
+            | Unexplained::GainAcrossImage { kind, .. } => *kind,
         }
     }
 
@@ -345,7 +383,8 @@ impl Unexplained {
             | Unexplained::LagVsFrequency { description, .. }
             | Unexplained::LagOverTime { description, .. }
             | Unexplained::GainOverTime { description, .. }
-            | Unexplained::LagAcrossImage { description, .. } => description,
+            | Unexplained::LagAcrossImage { description, .. }
+            | Unexplained::GainAcrossImage { description, .. } => description,
         }
     }
 }
@@ -427,6 +466,12 @@ impl Correction {
                 first_rows: rows.iter().map(|r| r.0).collect(),
                 line_delay_us: line_delay_s * 1e6,
                 member: if *per_region { "per_region" } else { "linear" },
+                weights: weights.clone(),
+            },
+            Correction::RegionGain { rows, weights } => Parameters::RegionGain {
+                axis: "rows",
+                end_rows: rows.iter().map(|r| r.1).collect(),
+                first_rows: rows.iter().map(|r| r.0).collect(),
                 weights: weights.clone(),
             },
             Correction::Polynomial {
@@ -617,6 +662,7 @@ fn from_report(
         EffectKind::Transfer,
         EffectKind::Polynomial,
         EffectKind::CaptureTime,
+        EffectKind::RegionGain,
     ]
     .into_iter()
     .find(|k| k.name() == name);
@@ -736,16 +782,25 @@ fn from_report(
                 highpass,
             })
         }
-        Some(EffectKind::CaptureTime) => {
-            let (first, end) = (list("first_rows")?, list("end_rows")?);
-            let (delays, weights) = (list("delays_us")?, list("weights")?);
+        Some(kind @ (EffectKind::CaptureTime | EffectKind::RegionGain)) => {
+            let timed = kind == EffectKind::CaptureTime;
+            let (first, end, weights) = (list("first_rows")?, list("end_rows")?, list("weights")?);
             let k = first.len();
+            let delays = if timed {
+                list("delays_us")?
+            } else {
+                vec![0.0; k]
+            };
             if k == 0 || k > MAX_STRIPS || [end.len(), delays.len(), weights.len()] != [k; 3] {
                 return Err(ReportError::OutOfRange {
                     index,
                     name: name.to_string(),
                     key: "first_rows",
-                    range: "1 to 64 strips, as many as end_rows, delays_us and weights",
+                    range: if timed {
+                        "1 to 64 strips, as many as end_rows, delays_us and weights"
+                    } else {
+                        "1 to 64 strips, as many as end_rows and weights"
+                    },
                     value: k as f64,
                 });
             }
@@ -768,19 +823,24 @@ fn from_report(
             if weights.iter().all(|w| *w == 0.0) {
                 return Err(field("weights", "a list of numbers, not all zero"));
             }
-            Some(Correction::CaptureTime {
-                rows: first
-                    .iter()
-                    .zip(&end)
-                    .map(|(&a, &b)| (a as u32, b as u32))
-                    .collect(),
-                delays_s: delays.iter().map(|d| d * 1e-6).collect(),
-                weights,
-                line_delay_s: match p.get("line_delay_us") {
-                    Some(Stored::Num(v)) if v.is_finite() => v * 1e-6,
-                    _ => 0.0,
-                },
-                per_region: false,
+            let rows = first
+                .iter()
+                .zip(&end)
+                .map(|(&a, &b)| (a as u32, b as u32))
+                .collect();
+            Some(if timed {
+                Correction::CaptureTime {
+                    rows,
+                    delays_s: delays.iter().map(|d| d * 1e-6).collect(),
+                    weights,
+                    line_delay_s: match p.get("line_delay_us") {
+                        Some(Stored::Num(v)) if v.is_finite() => v * 1e-6,
+                        _ => 0.0,
+                    },
+                    per_region: false,
+                }
+            } else {
+                Correction::RegionGain { rows, weights }
             })
         }
         // Per recording: the level is in the recovery's units, which

@@ -349,6 +349,21 @@ fn report_round_trips_a_static_nonlinearity_and_refuses_bad_ones() {
     }
 }
 
+/// The reference's and the strips' rates of the tests on synthetic strips.
+const STRIP_FR: f64 = 8000.0;
+const STRIP_FS: f64 = 2200.0;
+
+/// The model of the tests on synthetic strips: reference `r` at
+/// [`STRIP_FR`], recovery at [`STRIP_FS`].
+fn strip_model<'a>(r: &'a [f64], o: &'a Options) -> Model<'a> {
+    Model {
+        r,
+        fr: STRIP_FR,
+        fs: STRIP_FS,
+        opts: o,
+    }
+}
+
 /// Family (i) on synthetic strips: eight strips of a recovery, the lower
 /// four 1 ms later than the upper four (each with its own noise). The
 /// image axis reads the step, `capture_time` is kept first (its
@@ -357,18 +372,11 @@ fn report_round_trips_a_static_nonlinearity_and_refuses_bad_ones() {
 /// claimed.
 #[test]
 fn capture_time_aligns_strips_that_lag() {
-    let fr = 8000.0;
-    let r = chirp(fr, 2.2, 100.0, 1000.0);
-    let fs = 2200.0;
-    let o = opts();
-    let m = Model {
-        r: &r,
-        fr,
-        fs,
-        opts: &o,
-    };
-    let n = 4400;
+    let (fr, fs, n) = (STRIP_FR, STRIP_FS, 4400);
+    let (r, o) = (chirp(fr, 2.2, 100.0, 1000.0), opts());
+    let m = strip_model(&r, &o);
     let strips = |step_s: f64| Strips {
+        bands: Vec::new(),
         rows: (0..8).map(|k| (8 * k, 8 * k + 8)).collect(),
         signals: (0..8)
             .map(|k| {
@@ -411,6 +419,92 @@ fn capture_time_aligns_strips_that_lag() {
         .linear_residual
         .iter()
         .any(|u| u.kind() == UnexplainedKind::LagAcrossImage));
+}
+
+/// Region-wise gain (j) on synthetic strips: the lower half moves in
+/// antiphase at half the amplitude. Each strip's recovery has the polarity
+/// of the band its `align` chose (one upper strip's is flipped, as a band
+/// across the motion does with some textures); its bands say the physical
+/// sign (band 0 along the motion; band 1 across it, with a sign the
+/// texture decides). The antiphase is read and the strips summed with
+/// their signs; on the rigid object with the same flipped polarity nothing
+/// is read or claimed.
+#[test]
+fn region_gain_sums_parts_that_move_in_antiphase() {
+    let (fr, fs, n) = (STRIP_FR, STRIP_FS, 4400);
+    let (r, o) = (chirp(fr, 2.2, 100.0, 1000.0), opts());
+    let m = strip_model(&r, &o);
+    let t = m.target(n, 0, 0.0, 0.0);
+    let scaled = |g: f64, seed: u64| -> Vec<f64> {
+        noisy(&t.iter().map(|v| g * v).collect::<Vec<_>>(), seed)
+    };
+    let strips = |lower: f64| {
+        let physical = |k: u32| if k >= 4 { lower } else { 1.0 };
+        // Strip 1's align chose a band that sees it inverted.
+        let polarity = |k: u32| if k == 1 { -1.0 } else { 1.0 };
+        let across = |k: u32| if k.is_multiple_of(3) { 0.3 } else { -0.3 };
+        Strips {
+            rows: (0..8).map(|k| (8 * k, 8 * k + 8)).collect(),
+            signals: (0..8)
+                .map(|k| scaled(physical(k) * polarity(k), 10 + k as u64))
+                .collect(),
+            bands: (0..8)
+                .map(|k| {
+                    vec![
+                        scaled(physical(k), 30 + k as u64),
+                        scaled(physical(k) * across(k), 50 + k as u64),
+                    ]
+                })
+                .collect(),
+        }
+    };
+    // The region: every part with its physical sign, A²-weighted alike.
+    let region = |lower: f64| -> Vec<f64> { scaled((4.0 + 4.0 * lower) / 8.0, 99) };
+    let kinds = |cal: &Calibration| -> Vec<UnexplainedKind> {
+        cal.report
+            .linear_residual
+            .iter()
+            .map(|u| u.kind())
+            .collect()
+    };
+    let s = strips(-0.5);
+    let cal = calibrate_strips(&region(-0.5), Some(&s), fs, &r, fr, &o, &mut |_| {}).unwrap();
+    let names: Vec<&str> = cal.report.effects.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(names.first(), Some(&"region_gain"), "{:?}", cal.report);
+    assert!(kinds(&cal).contains(&UnexplainedKind::GainAcrossImage));
+    let p = serde_json::to_value(&cal.report.effects[0].parameters).unwrap();
+    let w: Vec<f64> = serde_json::from_value(p["weights"].clone()).unwrap();
+    assert!(
+        w[..4].iter().all(|v| *v > 0.0) && w[4..].iter().all(|v| *v < 0.0),
+        "{w:?}"
+    );
+    assert!(cal.report.after.snr_db > cal.report.before.snr_db + 3.0);
+    // The rigid object, strip 1's polarity still flipped.
+    let s = strips(1.0);
+    let cal = calibrate_strips(&region(1.0), Some(&s), fs, &r, fr, &o, &mut |_| {}).unwrap();
+    assert!(cal.report.effects.is_empty(), "{:?}", cal.report.effects);
+    assert!(!kinds(&cal).contains(&UnexplainedKind::GainAcrossImage));
+}
+
+/// A stored region gain reads back as it was written (rows, weights),
+/// and one without its weights is refused naming the field.
+#[test]
+fn report_round_trips_a_region_gain() {
+    let c = Correction::RegionGain {
+        rows: vec![(0, 8), (8, 16), (16, 24)],
+        weights: vec![1.0, 0.5, -0.25],
+    };
+    let e = json!({"name": "region_gain", "parameters": c.parameters(2200.0, 1.0)});
+    let back = reusable_from_report(&json!({ "effects": [e.clone()] })).unwrap();
+    assert_eq!(back, vec![c]);
+    let mut bad = e.clone();
+    bad["parameters"]["weights"] = json!([1.0, 0.5]);
+    let err = reusable_from_report(&json!({ "effects": [bad] })).unwrap_err();
+    assert!(err.to_string().contains("first_rows"), "{err}");
+    let mut bad = e;
+    bad["parameters"]["weights"] = json!([0.0, 0.0, 0.0]);
+    let err = reusable_from_report(&json!({ "effects": [bad] })).unwrap_err();
+    assert!(err.to_string().contains("weights"), "{err}");
 }
 
 /// A stored capture time reads back as it was written (delays in µs,

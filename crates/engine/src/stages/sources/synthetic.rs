@@ -50,6 +50,7 @@ pub struct SyntheticParams {
     pub gain_decay_s: Option<f64>,
     pub row_lag_rows: Vec<u64>,
     pub row_lag_us: Vec<f64>,
+    pub row_gain: Vec<f64>,
 }
 
 /// A narrowband motion added to the object's.
@@ -156,6 +157,9 @@ pub const PARAMS: &[ParamSpec] = &[
         .floats(-MAX_ROW_LAG_US, MAX_ROW_LAG_US)
         .unit("µs")
         .doc("the lag of each region of row_lag_rows: its rows show amplitude_px * signal(t - lag) at their capture time t (with a rolling shutter too); frames are then rendered row by row"),
+    ParamSpec::new("row_gain", ParamType::Floats, Def::Toml("[]"))
+        .floats(-1.0, 1.0)
+        .doc("the gain of each region of row_lag_rows (with row_lag_us): its rows move gain times as far, negative in antiphase (a non-rigid object's mode); empty: 1"),
 ];
 
 /// Largest `|row_lag_us|` (1 s, the simulator's [`sim::scene::MAX_ROW_LAG_S`]).
@@ -203,6 +207,7 @@ impl Default for SyntheticParams {
             gain_decay_s: None,
             row_lag_rows: Vec::new(),
             row_lag_us: Vec::new(),
+            row_gain: Vec::new(),
         }
     }
 }
@@ -347,6 +352,7 @@ impl SyntheticParams {
             contrast: self.contrast.unwrap_or(0.15 * full),
             seed: self.seed,
             row_lag_s: self.row_lags(),
+            row_gain: self.row_gain.clone(),
         };
         // Frame, object and amplitudes first: a picture is resized to the
         // object, so an object past the frame must fail before that.
@@ -481,6 +487,8 @@ impl SyntheticParams {
                 "response_poly"
             } else if m.contains("gain_decay_s") {
                 "gain_decay_s"
+            } else if m.contains("row_gain") {
+                "row_gain"
             } else if m.contains("row_lag") {
                 "row_lag_us"
             } else if m.contains("resonances") {
@@ -529,6 +537,16 @@ impl SyntheticParams {
                 format!(
                     "needs one lag per first row in row_lag_rows: {} lags for {} rows",
                     lags.len(),
+                    rows.len()
+                ),
+            ));
+        }
+        if !self.row_gain.is_empty() && self.row_gain.len() != rows.len() {
+            return Err((
+                "row_gain",
+                format!(
+                    "needs one gain per first row in row_lag_rows: {} gains for {} rows",
+                    self.row_gain.len(),
                     rows.len()
                 ),
             ));
@@ -864,6 +882,16 @@ mod tests {
                 "row_lag_rows",
             ),
             ("row_lag_us = [1.0]", "row_lag_us", "row_lag_rows"),
+            (
+                "row_lag_rows = [16]\nrow_lag_us = [0.0]\nrow_gain = [0.5, 1.0]",
+                "row_gain",
+                "row_lag_rows",
+            ),
+            (
+                "row_lag_rows = [16]\nrow_lag_us = [0.0]\nrow_gain = [nan]",
+                "row_gain",
+                "row_gain[0]",
+            ),
             (
                 &format!("row_lag_rows = [1]\nrow_lag_us = [1.0]\n{modal}"),
                 "row_lag_rows",
