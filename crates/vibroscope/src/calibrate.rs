@@ -468,6 +468,13 @@ pub fn calibrate_video_from(
         }
     };
     let (fr, r) = read_input_wav(reference)?;
+    if r.iter().all(|v| v.abs() <= cal::SILENT_PEAK) {
+        // Named here, before the recovery: the file is the user's mistake.
+        return Err(Error::input(
+            reference,
+            "is silent (no sample above one 16-bit step): there is nothing to calibrate against",
+        ));
+    }
     let fs = frame_rate(video, fps)?;
     if fr < fs {
         return Err(Error::input(
@@ -492,8 +499,9 @@ pub fn calibrate_video_from(
 }
 
 /// The region's recovery `(frame rate, samples)` and, when the effects to
-/// try include the capture time (the default) and the region has rows
-/// enough for three strips, the strips' recoveries from the same run.
+/// try include the capture time or the region gain (the default) and the
+/// region has rows enough for three strips, the strips' recoveries and
+/// bands from the same run.
 fn recover_all(
     video: &Path,
     fps: Option<f64>,
@@ -546,9 +554,11 @@ fn calibrate_recovery(
             (h.0)(s)
         }
     };
-    let c = cal::calibrate_strips(&y, strips.as_ref(), fs, &r, fr, &opts, &mut hook)
-        .map_err(|e| Error::input(video, e.to_string()))?;
+    let c = cal::calibrate_strips(&y, strips.as_ref(), fs, &r, fr, &opts, &mut hook);
+    // A signal during the fit wins over what the fit concluded (a refusal
+    // included): the user asked to stop.
     pipeline::check_interrupt()?;
+    let c = c.map_err(|e| Error::input(video, e.to_string()))?;
     Ok(Calibrated {
         frame_rate_hz: fs,
         reference_rate_hz: fr,

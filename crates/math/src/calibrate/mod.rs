@@ -70,6 +70,7 @@ mod identify;
 mod interference;
 mod model;
 mod polynomial;
+mod relation;
 mod report;
 mod residual;
 mod signal;
@@ -80,6 +81,7 @@ mod transfer;
 pub use capture_time::{combine, Strips};
 pub use correction::{Correction, FrameEvent, Line};
 pub use identify::Confound;
+pub use relation::{LINE_DB, MARGIN_DB, SILENT_PEAK};
 pub use report::{
     reusable_from_report, EventReport, LineReport, LineUncertainty, Parameters, ReportError,
     Uncertainty, Unexplained, UnexplainedKind,
@@ -161,8 +163,8 @@ pub enum EffectKind {
     RegionGain,
 }
 
-/// The catalog in the order it is tried: the capture time across the image
-/// (before the rest, on the strips), time base, then frames, then the
+/// The catalog in the order it is tried: the capture time and the gain
+/// across the image (before the rest, on the strips), time base, then frames, then the
 /// spectral effects, then the nonlinearities, then (last, and only in a
 /// round where nothing else gains) a drifting gain.
 pub const CATALOG: [EffectKind; 10] = [
@@ -264,6 +266,12 @@ pub enum CalError {
     TooShort { len: usize, min_len: usize, fs: f64 },
     #[error("non-finite samples")]
     NonFinite,
+    #[error("the reference is silent (peak {peak:e}): there is nothing to calibrate against")]
+    Silent { peak: f64 },
+    #[error("the recovery does not follow the reference: held-out SNR {snr_db:.1} dB, within {} dB of what the same search reaches against a reference that was not played ({chance_db:.1} dB, the reference reversed in time); is it the signal that was played during the recording, and does the region see the object?", relation::MARGIN_DB)]
+    Unrelated { snr_db: f64, chance_db: f64 },
+    #[error("the recovery does not hold the reference's tone: at {hz:.1} Hz it stands {db:.1} dB above the recovery's spectrum around it, less than {} dB; is it the tone that was played, and does the region see the object?", relation::LINE_DB)]
+    NoLine { hz: f64, db: f64 },
 }
 
 /// A fitted correction with its uncertainty.
@@ -339,7 +347,9 @@ pub fn calibrate_strips(
     {
         return Err(CalError::NonFinite);
     }
+    relation::check_silent(r)?;
     let m = Model { r, fr, fs, opts };
+    let recovery = y;
     let fit0 = m.fit_linear(y);
     let before = m.errors(y, &fit0);
     let mut linear_residual = unexplained(&m, y, &fit0);
@@ -353,14 +363,17 @@ pub fn calibrate_strips(
     let mut capture: Option<EffectReport> = None;
     let mut kept_capture: Option<Correction> = None;
     let mut timed: Vec<f64> = Vec::new();
-    for kind in [EffectKind::CaptureTime, EffectKind::RegionGain] {
+    for (index, kind) in [EffectKind::CaptureTime, EffectKind::RegionGain]
+        .into_iter()
+        .enumerate()
+    {
         let Some(s) = strips.filter(|_| opts.effects.contains(&kind) && capture.is_none()) else {
             continue;
         };
         on_step(Step {
             round: 1,
             effect: kind,
-            index: 0,
+            index,
             of: opts.effects.len(),
         });
         let d = match kind {
@@ -608,6 +621,7 @@ pub fn calibrate_strips(
     // The capture time comes first: it is applied to the strips.
     let effects: Vec<EffectReport> = capture.into_iter().chain(effects).collect();
     let corrections: Vec<Correction> = kept_capture.into_iter().chain(corrections).collect();
+    relation::check_follows(&m, recovery, cur.snr_db)?;
     let unexplained = unexplained(&m, &z, &fit);
     let g = if fit.g != 0.0 { fit.g } else { 1.0 };
     Ok(Calibration {

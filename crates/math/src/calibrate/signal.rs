@@ -62,8 +62,15 @@ pub fn sample_at(x: &[f64], rate: f64, times: impl Iterator<Item = f64>) -> Vec<
             if !p.is_finite() || p < -(h as f64) || p > (n + h) as f64 {
                 return 0.0;
             }
-            let c = p.floor() as isize;
-            let frac = p - c as f64;
+            // Within 1e-9 of a sample, the sample: the kernel's `1 / d`
+            // below would divide by a distance that rounds to 0 (`p` just
+            // below an integer), inf times 0.
+            let near = p.round();
+            let (c, frac) = if (p - near).abs() < 1e-9 {
+                (near as isize, 0.0)
+            } else {
+                (p.floor() as isize, p - p.floor())
+            };
             if frac == 0.0 {
                 return if (0..n).contains(&c) {
                     x[c as usize]

@@ -593,3 +593,34 @@ fn the_lag_over_time_against_a_tone_follows_the_period() {
     assert!(lag.0 < 3.0, "{lag:?}");
     assert!((lag.1.abs() - 600.0).abs() < 150.0, "{lag:?}");
 }
+
+/// A time that rounds to just below a sample reads that sample: the
+/// interpolation kernel divided by a distance that rounded to 0 (inf, then
+/// NaN through the high-pass: the target at delay 0 of a tone sampled at
+/// four times the frame rate).
+#[test]
+fn sample_at_a_hair_from_a_sample_is_that_sample() {
+    let x: Vec<f64> = (0..64).map(|i| (i as f64 * 0.3).sin()).collect();
+    let times = [12.0 - 2e-15, 12.0 + 2e-15, 12.0 - 1e-10, 40.0 - 1e-14];
+    let v = sample_at(&x, 1.0, times.into_iter());
+    for (t, v) in times.iter().zip(&v) {
+        let want = x[t.round() as usize];
+        assert!(
+            v.is_finite() && (v - want).abs() < 1e-6,
+            "{t}: {v} for {want}"
+        );
+    }
+    // The tone's target at delay 0, as `calibrate` builds it.
+    let fr = 8800.0;
+    let r: Vec<f64> = (0..35200)
+        .map(|i| (std::f64::consts::TAU * (300.0 * i as f64 / fr).fract()).sin())
+        .collect();
+    let o = Options::for_rate(2200.0);
+    let m = Model {
+        r: &r,
+        fr,
+        fs: 2200.0,
+        opts: &o,
+    };
+    assert!(m.target(6600, 0, 0.0, 0.0).iter().all(|v| v.is_finite()));
+}

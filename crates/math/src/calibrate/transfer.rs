@@ -46,20 +46,11 @@ impl Sums {
 /// same frames, smoothed over three bins. The thesis' coefficients are
 /// magnitudes; without the phase, a resonance leaves a lag that changes
 /// with frequency, which other effects then try to explain.
-pub(super) fn transfer_coefficients(
-    m: &Model,
-    z: &[f64],
-    fit: &Fit,
-) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let (blocks, _) = block_sums(m, z, fit);
-    let mut all = Sums::new(blocks.first().map_or(0, |b| b.num.len()));
-    blocks.iter().for_each(|b| all.add(b, 1.0));
-    curve(m, &all, fit.g)
-}
-
-/// The sums of each fit block's frames (frames centred in the fit part,
-/// grouped by the block their centre is in), and the STFT length.
-fn block_sums(m: &Model, z: &[f64], fit: &Fit) -> (Vec<Sums>, usize) {
+///
+/// Returns the sums of each fit block's frames (frames centred in the fit
+/// part, grouped by the block their centre is in) and their total; the
+/// coefficients are [`curve`] of the total.
+fn block_sums(m: &Model, z: &[f64], fit: &Fit) -> (Vec<Sums>, Sums) {
     let nfft = stft_len(m.fs);
     let (fz, ft) = (stft(z, nfft), stft(&fit.t, nfft));
     let nb = nfft / 2 + 1;
@@ -84,7 +75,10 @@ fn block_sums(m: &Model, z: &[f64], fit: &Fit) -> (Vec<Sums>, usize) {
             s.cross[k] += a[k] * b[k].conj() * fit.g.signum();
         }
     }
-    (blocks.into_iter().map(|(_, s)| s).collect(), nfft)
+    let blocks: Vec<Sums> = blocks.into_iter().map(|(_, s)| s).collect();
+    let mut all = Sums::new(nb);
+    blocks.iter().for_each(|b| all.add(b, 1.0));
+    (blocks, all)
 }
 
 /// The frequencies, smoothed coefficients (dB) and phases (degrees) of the
@@ -166,18 +160,15 @@ pub fn peak(freqs_hz: &[f64], coef_db: &[f64]) -> Option<(f64, f64)> {
 
 /// The delete-one-block jackknife's standard deviations of [`peak`]'s
 /// frequency and height (infinite with fewer than three fit blocks).
-fn peak_sd(m: &Model, z: &[f64], fit: &Fit) -> (f64, f64) {
-    let (blocks, _) = block_sums(m, z, fit);
+fn peak_sd(m: &Model, (blocks, all): &(Vec<Sums>, Sums), g: f64) -> (f64, f64) {
     if blocks.len() < 3 {
         return (f64::INFINITY, f64::INFINITY);
     }
-    let mut all = Sums::new(blocks[0].num.len());
-    blocks.iter().for_each(|b| all.add(b, 1.0));
     let mut loo = Vec::with_capacity(blocks.len());
-    for b in &blocks {
+    for b in blocks {
         let mut s = all.clone();
         s.add(b, -1.0);
-        let (f, c, _) = curve(m, &s, fit.g);
+        let (f, c, _) = curve(m, &s, g);
         match peak(&f, &c) {
             Some(p) => loo.push(p),
             None => return (f64::INFINITY, f64::INFINITY),
@@ -190,7 +181,8 @@ fn peak_sd(m: &Model, z: &[f64], fit: &Fit) -> (f64, f64) {
 }
 
 pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
-    let (freqs, coef, phase) = transfer_coefficients(m, z, fit);
+    let sums = block_sums(m, z, fit);
+    let (freqs, coef, phase) = curve(m, &sums.1, fit.g);
     if freqs.len() < 3 {
         return None;
     }
@@ -214,7 +206,7 @@ pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate>
     let (k, sse) = golden(|k| eq_sse(m, z, fit, &corr(k)), lo.max(0.0), hi, 16);
     let nf = m.nfit(z.len());
     let sd = curvature_sigma(|k| eq_sse(m, z, fit, &corr(k)), k, 0.02, sse / nf as f64);
-    let (peak_hz, peak_db) = peak_sd(m, z, fit);
+    let (peak_hz, peak_db) = peak_sd(m, &sums, fit.g);
     Some(Candidate {
         correction: corr(k),
         uncertainty: Uncertainty::Transfer {
