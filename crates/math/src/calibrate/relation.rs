@@ -26,8 +26,9 @@ pub(super) fn check_silent(r: &[f64]) -> Result<(), CalError> {
     Ok(())
 }
 
-/// `Err` when the recovery `y` does not follow the reference. A reference
-/// that repeats within half a second (a tone) has its fundamental read in
+/// `Err` when the recovery `y` does not follow the reference. A tone (a
+/// reference that repeats within half a second with half its power or more
+/// in one line, which reversed in time is itself) has that line read in
 /// the recovery's spectrum: the strongest bin of the reference's, within a
 /// bin, at least [`LINE_DB`] above the median of the recovery's bins 3 to
 /// 24 bins away from it. Any other has the
@@ -39,12 +40,22 @@ pub(super) fn check_follows(m: &Model, y: &[f64], snr_db: f64) -> Result<(), Cal
     let n = y.len();
     let t = m.target(n, 0, 0.0, 0.0);
     let max = ((0.5 * m.fs) as usize).min(n / 4);
-    if recurrence(&t, max, true).is_some() {
-        let nfft = stft_len(m.fs);
-        let (pt, py) = (welch(&t, nfft), welch(y, nfft));
-        let k0 = (1..pt.len())
-            .max_by(|&a, &b| pt[a].total_cmp(&pt[b]))
-            .unwrap_or(1);
+    let nfft = stft_len(m.fs);
+    let pt = welch(&t, nfft);
+    let k0 = (1..pt.len())
+        .max_by(|&a, &b| pt[a].total_cmp(&pt[b]))
+        .unwrap_or(1);
+    // A tone: periodic, and half its power or more in its strongest line
+    // (sweeps repeated every 0.4 s are periodic too, but reverse into
+    // other sweeps).
+    let around = |p: &[f64]| -> f64 {
+        p[k0.saturating_sub(1)..(k0 + 2).min(p.len())]
+            .iter()
+            .sum::<f64>()
+    };
+    let tonal = around(&pt) >= 0.5 * pt[1..].iter().sum::<f64>();
+    if tonal && recurrence(&t, max, true).is_some() {
+        let py = welch(y, nfft);
         let line = py[k0.saturating_sub(1)..(k0 + 2).min(py.len())]
             .iter()
             .fold(0.0f64, |a, v| a.max(*v));

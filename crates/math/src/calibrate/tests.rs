@@ -624,3 +624,35 @@ fn sample_at_a_hair_from_a_sample_is_that_sample() {
     };
     assert!(m.target(6600, 0, 0.0, 0.0).iter().all(|v| v.is_finite()));
 }
+
+/// The reference must be followed (`relation::check_follows`): a recovery
+/// of the reference passes and one of another signal is refused, for
+/// sweeps repeated every 0.4 s (periodic, not a tone: the reversed
+/// reference is the null) and for a tone (its line against its
+/// neighbourhood).
+#[test]
+fn a_reference_the_recovery_does_not_follow_is_refused() {
+    let (r_sweeps, r_tone): (Vec<f64>, Vec<f64>) = {
+        let one = chirp(STRIP_FR, 0.4, 100.0, 1000.0);
+        let sweeps = (0..8).flat_map(|_| one.iter().copied()).collect();
+        let tone = (0..(STRIP_FR * 3.2) as usize)
+            .map(|i| (2.0 * PI * 300.0 * i as f64 / STRIP_FR).sin())
+            .collect();
+        (sweeps, tone)
+    };
+    let o = opts();
+    let other = noisy(&vec![0.0; 6600], 5);
+    for (name, r) in [("sweeps", &r_sweeps), ("tone", &r_tone)] {
+        let m = strip_model(r, &o);
+        let own = noisy(&m.target(6600, 0, 1e-3, 0.0), 3);
+        let snr = m.errors(&own, &m.fit_linear(&own)).snr_db;
+        assert!(
+            super::relation::check_follows(&m, &own, snr).is_ok(),
+            "{name}: its own recovery refused"
+        );
+        let snr = m.errors(&other, &m.fit_linear(&other)).snr_db;
+        let e = super::relation::check_follows(&m, &other, snr).expect_err(name);
+        let tonal = matches!(e, CalError::NoLine { .. });
+        assert_eq!(tonal, name == "tone", "{name}: {e}");
+    }
+}
