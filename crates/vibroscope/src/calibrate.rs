@@ -468,7 +468,7 @@ pub fn calibrate_video_from(
         }
     };
     let (fr, r) = read_input_wav(reference)?;
-    if r.iter().all(|v| v.abs() <= cal::SILENT_PEAK) {
+    if cal::check_silent(&r).is_err() {
         // Named here, before the recovery: the file is the user's mistake.
         return Err(Error::input(
             reference,

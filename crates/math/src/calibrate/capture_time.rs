@@ -483,7 +483,7 @@ pub(super) struct Decision {
 
 /// Whether `strips` can be read against `fit`: a signal per strip, at
 /// least three, each as long as the recovery.
-fn usable_strips(strips: &Strips, fit: &Fit) -> bool {
+pub(super) fn usable_strips(strips: &Strips, fit: &Fit) -> bool {
     let n = fit.t.len();
     strips.signals.len() == strips.rows.len()
         && strips.signals.len() >= 3
@@ -496,28 +496,22 @@ fn usable_strips(strips: &Strips, fit: &Fit) -> bool {
 /// `min_gain_db` over the strips summed without delays.
 pub(super) fn decide(
     m: &Model,
-    y: &[f64],
-    strips: &Strips,
-    fit: &Fit,
+    (strips, fits): (&Strips, &[StripFit]),
     min_gain_db: f64,
 ) -> Decision {
-    if !usable_strips(strips, fit) {
-        return Decision::default();
-    }
-    let fits = read(m, y, strips, fit);
-    let Some(l) = line(&fits) else {
+    let Some(l) = line(fits) else {
         return Decision::default();
     };
-    let Some(evidence) = lag_across_rows(&fits, &l) else {
+    let Some(evidence) = lag_across_rows(fits, &l) else {
         return Decision::default();
     };
-    let w = weights(&fits);
+    let w = weights(fits);
     let zero = vec![0.0; fits.len()];
     let base = combine(&strips.signals, &w, &zero, m.fs);
     let e0 = m.errors(&base, &m.fit_linear(&base)).snr_db;
     let mut tried: Vec<(Candidate, f64, Vec<f64>)> = Vec::new();
     for member in [Member::Linear, Member::PerRegion] {
-        let (d, sd, sigma_b) = delays(&fits, &l, member);
+        let (d, sd, sigma_b) = delays(fits, &l, member);
         let z = combine(&strips.signals, &w, &d, m.fs);
         let gain = m.errors(&z, &m.fit_linear(&z)).snr_db - e0;
         let correction = Correction::CaptureTime {
@@ -707,24 +701,20 @@ pub(super) fn gain_across_rows(
 pub(super) fn decide_gain(
     m: &Model,
     y: &[f64],
-    strips: &Strips,
+    (strips, fits): (&Strips, &[StripFit]),
     fit: &Fit,
     min_gain_db: f64,
 ) -> Decision {
     let n = fit.t.len();
-    if !usable_strips(strips, fit) {
-        return Decision::default();
-    }
     let Some(signs) = physical_signs(m, strips, fit) else {
         return Decision::default();
     };
-    let fits = read(m, y, strips, fit);
-    let Some(evidence) = gain_across_rows(&fits, &signs, min_gain_db) else {
+    let Some(evidence) = gain_across_rows(fits, &signs, min_gain_db) else {
         return Decision::default();
     };
     // Weights with physical signs, the strongest strip's +1 (a strip
     // whose sign cannot be told keeps the strongest's).
-    let w = weights(&fits);
+    let w = weights(fits);
     let k0 = (0..w.len())
         .max_by(|&a, &b| w[a].abs().total_cmp(&w[b].abs()))
         .unwrap_or(0);
@@ -740,7 +730,7 @@ pub(super) fn decide_gain(
     // sign (its polarity against the target times that sign), with the
     // weight's magnitude.
     let mut rigid = vec![0.0; n];
-    for ((s, f), p) in strips.signals.iter().zip(&fits).zip(&physical) {
+    for ((s, f), p) in strips.signals.iter().zip(fits).zip(&physical) {
         let c = p * f.gain.signum() * f.weight().abs();
         for (o, v) in rigid.iter_mut().zip(s) {
             *o += c * v;

@@ -81,7 +81,7 @@ mod transfer;
 pub use capture_time::{combine, Strips};
 pub use correction::{Correction, FrameEvent, Line};
 pub use identify::Confound;
-pub use relation::{LINE_DB, MARGIN_DB, SILENT_PEAK};
+pub use relation::{check_silent, LINE_DB, MARGIN_DB, SILENT_PEAK};
 pub use report::{
     reusable_from_report, EventReport, LineReport, LineUncertainty, Parameters, ReportError,
     Uncertainty, Unexplained, UnexplainedKind,
@@ -363,11 +363,24 @@ pub fn calibrate_strips(
     let mut capture: Option<EffectReport> = None;
     let mut kept_capture: Option<Correction> = None;
     let mut timed: Vec<f64> = Vec::new();
+    // The strips' fits, read once for both effects.
+    let fits = strips
+        .filter(|s| {
+            capture_time::usable_strips(s, &fit0)
+                && opts
+                    .effects
+                    .iter()
+                    .any(|k| matches!(k, EffectKind::CaptureTime | EffectKind::RegionGain))
+        })
+        .map(|s| (s, capture_time::read(&m, y, s, &fit0)));
     for (index, kind) in [EffectKind::CaptureTime, EffectKind::RegionGain]
         .into_iter()
         .enumerate()
     {
-        let Some(s) = strips.filter(|_| opts.effects.contains(&kind) && capture.is_none()) else {
+        let Some((s, f)) = fits
+            .as_ref()
+            .filter(|_| opts.effects.contains(&kind) && capture.is_none())
+        else {
             continue;
         };
         on_step(Step {
@@ -377,8 +390,8 @@ pub fn calibrate_strips(
             of: opts.effects.len(),
         });
         let d = match kind {
-            EffectKind::CaptureTime => capture_time::decide(&m, y, s, &fit0, opts.min_gain_db),
-            _ => capture_time::decide_gain(&m, y, s, &fit0, opts.min_gain_db),
+            EffectKind::CaptureTime => capture_time::decide(&m, (s, f), opts.min_gain_db),
+            _ => capture_time::decide_gain(&m, y, (s, f), &fit0, opts.min_gain_db),
         };
         linear_residual.extend(d.evidence.clone());
         for (c, gain) in d.rejected {

@@ -18,7 +18,7 @@ pub const MARGIN_DB: f64 = 10.0;
 pub const LINE_DB: f64 = 10.0;
 
 /// `Err` when `r` is silent (its peak at most [`SILENT_PEAK`]).
-pub(super) fn check_silent(r: &[f64]) -> Result<(), CalError> {
+pub fn check_silent(r: &[f64]) -> Result<(), CalError> {
     let peak = r.iter().fold(0.0f64, |a, v| a.max(v.abs()));
     if peak <= SILENT_PEAK {
         return Err(CalError::Silent { peak });
