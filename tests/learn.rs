@@ -7,25 +7,20 @@ use common::*;
 use std::path::Path;
 use vibroscope::learn::model::pearson;
 
-/// Generates a small dataset in `dir/ds`.
-fn generate(dir: &Path, materials: &str, conditions: &str, seconds: &str) {
-    let o = run_in(
-        dir,
-        &[
-            "learn",
-            "generate",
-            "-o",
-            "ds",
-            "--materials",
-            materials,
-            "--per-condition",
-            "2",
-            "--conditions",
-            conditions,
-            "--seconds",
-            seconds,
-        ],
-    );
+/// Generates a dataset in `dir/ds` (`more`: further flags).
+fn generate(dir: &Path, materials: &str, conditions: &str, more: &[&str]) {
+    let mut args = vec![
+        "learn",
+        "generate",
+        "-o",
+        "ds",
+        "--materials",
+        materials,
+        "--conditions",
+        conditions,
+    ];
+    args.extend_from_slice(more);
+    let o = run_in(dir, &args);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
 }
 
@@ -39,8 +34,9 @@ fn r_of(out: &str, target: &str) -> f64 {
     after.split_whitespace().next().unwrap().parse().unwrap()
 }
 
-fn evaluate_al(dir: &Path) -> std::process::Output {
-    let args = [
+/// `learn evaluate` trained and tested on A/L (`more`: further flags).
+fn evaluate_al(dir: &Path, more: &[&str]) -> std::process::Output {
+    let mut args = vec![
         "learn",
         "evaluate",
         "ds/DATASET.toml",
@@ -49,28 +45,39 @@ fn evaluate_al(dir: &Path) -> std::process::Output {
         "--test-on",
         "A/L",
     ];
+    args.extend_from_slice(more);
     run_in(dir, &args)
 }
 
-/// Leave-one-fabric-out on unseen fabrics, same condition, 24 fabrics x 2
-/// takes (about 45 s on 2 cores): area weight R >= 0.9 and stiffness R >=
-/// 0.5. Measured 0.948 and 0.596 here; on the documented 30 x 3 dataset
-/// 0.972 and 0.839 (issue 19 asks 0.9 for both; docs/learning.md has
-/// where stiffness stands). Stiffness shows only in the upper modes, so it
-/// needs the local spectra (tiles) and more fabrics: with 12 it is 0.36.
+/// Leave-one-fabric-out on unseen fabrics, same condition: the default
+/// dataset's A/L part (30 fabrics x 3 takes, 60 s, 128 px; about 2 min on
+/// 2 cores). Area weight R >= 0.9 and stiffness R >= 0.7. Issue 19 asks
+/// 0.9 for both; stiffness measures 0.81-0.92 over the generator's seeds
+/// 1-3 (docs/learning.md has where it stands and why), so 0.9 is not
+/// asserted. Stiffness shows only in the upper modes, near the noise floor:
+/// with 64 px, 30 s videos it was 0.60-0.79.
 #[test]
 fn same_condition_leave_one_out_predicts_both_properties() {
     let d = tempfile::tempdir().unwrap();
-    generate(d.path(), "24", "A/L", "30");
-    let o = evaluate_al(d.path());
+    generate(d.path(), "30", "A/L", &[]);
+    let o = evaluate_al(d.path(), &[]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let out = stdout(&o);
     println!("{out}");
     assert!(r_of(&out, "area_weight") >= 0.9, "{out}");
-    assert!(r_of(&out, "stiffness") >= 0.5, "{out}");
+    assert!(r_of(&out, "stiffness") >= 0.7, "{out}");
     // Cached features: a second run renders nothing and agrees.
-    let o2 = evaluate_al(d.path());
+    let o2 = evaluate_al(d.path(), &[]);
     assert_eq!(stdout(&o2), out);
+    // The bound: the same learning on the videos' expected spectra (no
+    // texture, sensor, pyramid or estimation noise). Under ambient forcing
+    // it carries stiffness (0.92-0.94 on seeds 1-3).
+    let o = evaluate_al(d.path(), &["--exact"]);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let bound = stdout(&o);
+    println!("{bound}");
+    assert!(bound.contains("exact expected spectra"), "{bound}");
+    assert!(r_of(&bound, "stiffness") >= 0.85, "{bound}");
 }
 
 /// Thesis ch. 3: the motion spectrum is a property of the object, not of
@@ -79,7 +86,17 @@ fn same_condition_leave_one_out_predicts_both_properties() {
 #[test]
 fn features_are_more_alike_across_views_than_across_fabrics() {
     let d = tempfile::tempdir().unwrap();
-    generate(d.path(), "6", "A/L,A/R", "20");
+    let small = [
+        "--per-condition",
+        "2",
+        "--seconds",
+        "20",
+        "--size",
+        "64",
+        "--segments",
+        "4",
+    ];
+    generate(d.path(), "6", "A/L,A/R", &small);
     let ds = vibroscope::learn::Dataset::load(&d.path().join("ds/DATASET.toml")).unwrap();
     let f = ds.features(Default::default(), &mut |_, _, _| {}).unwrap();
     let pick = |obj: &str, cond: &str| -> Vec<f64> {
@@ -227,4 +244,13 @@ fn bad_datasets_and_models_are_refused_by_name() {
     let o = run_in(dir, &["learn", "predict", "m.json", "v0.y4m"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     assert!(stdout(&o).contains("95% interval"), "{}", stdout(&o));
+
+    // The bound needs the scene each video was rendered from.
+    let o = run_in(dir, &["learn", "evaluate", "few.toml", "--exact"]);
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("video[0]") && stderr(&o).contains("scenes"),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -390,6 +390,9 @@ pub struct Fabric {
     taps: Vec<[f32; TAPS]>,
     /// The time `q` was computed for.
     q_t: f64,
+    /// Sound: one pressure field drives every mode with the same line
+    /// phases; ambient: each mode's phases are its own.
+    coherent: bool,
 }
 
 impl Fabric {
@@ -545,12 +548,66 @@ impl Fabric {
             peak,
             taps,
             q_t: f64::NAN,
+            coherent: spec.excitation == Excitation::Sound,
         })
     }
 
     /// The modes (frequency, damping, mass), in the order of the coordinates.
     pub fn modes(&self) -> &[FabricMode] {
         &self.modes
+    }
+
+    /// The expected motion power spectrum of thesis Eq. 3.17 with nothing
+    /// between the cloth and the spectrum: the object cut into `tiles` x
+    /// `tiles` equal parts, each part's mean displacement, their power
+    /// spectra added; no texture, sensor, pyramid or estimation noise, the
+    /// expectation over the forcing's random phases (ambient: the modes'
+    /// powers add; sound: one field, their amplitudes add). One value per
+    /// excitation line, px² (line `j` lies within 0.005 Hz of
+    /// `(j + 1/2) ·` [`LINE_SPACING_HZ`]). What the features could see at
+    /// best: the learning bound of `docs/learning.md`.
+    pub fn expected_tile_power(&self, tiles: usize) -> Vec<f64> {
+        let tiles = tiles.max(1);
+        // The mean of part `i` of `tiles` of a shape (at least one sample).
+        let part = |v: &[f64], i: usize| -> f64 {
+            let n = v.len();
+            let a = i * n / tiles;
+            let b = ((i + 1) * n / tiles).max(a + 1).min(n);
+            if a >= b {
+                0.0
+            } else {
+                v[a..b].iter().sum::<f64>() / (b - a) as f64
+            }
+        };
+        let mut power = vec![0.0; self.freqs.len()];
+        for tr in 0..tiles {
+            for tc in 0..tiles {
+                let w: Vec<f64> = self
+                    .modes
+                    .iter()
+                    .map(|md| {
+                        part(&self.along[md.along as usize - 1], tr)
+                            * part(&self.across[md.across as usize], tc)
+                    })
+                    .collect();
+                for (j, p) in power.iter_mut().enumerate() {
+                    if self.coherent {
+                        let (mut re, mut im) = (0.0, 0.0);
+                        for (wk, row) in w.iter().zip(&self.coef) {
+                            re += wk * row[j].0;
+                            im += wk * row[j].1;
+                        }
+                        *p += 0.5 * (re * re + im * im);
+                    } else {
+                        for (wk, row) in w.iter().zip(&self.coef) {
+                            let (re, im) = row[j];
+                            *p += 0.5 * wk * wk * (re * re + im * im);
+                        }
+                    }
+                }
+            }
+        }
+        power
     }
 
     /// An upper bound of |displacement| anywhere, px.
@@ -645,6 +702,54 @@ impl Fabric {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    /// Under sound the expected power is the realised one (one field, its
+    /// phases fixed): Parseval against the mean square of each part's mean
+    /// displacement at random times.
+    #[test]
+    fn expected_tile_power_is_the_parts_mean_square() {
+        let spec = FabricSpec {
+            excitation: Excitation::Sound,
+            modes_along: 3,
+            modes_across: 1,
+            ..FabricSpec::default()
+        };
+        let (ow, oh) = (8, 6);
+        let mut f = Fabric::new(&spec, ow, oh, 3).unwrap();
+        let want: f64 = f.expected_tile_power(2).iter().sum();
+        let mut rng = Xoshiro256::new(11);
+        let n = 20_000;
+        let mut got = 0.0;
+        for _ in 0..n {
+            let t = 1e6 * rng.next_f64();
+            for (r0, r1, c0, c1) in [(0, 3, 0, 4), (0, 3, 4, 8), (3, 6, 0, 4), (3, 6, 4, 8)] {
+                let mut m = 0.0;
+                for r in r0..r1 {
+                    for c in c0..c1 {
+                        m += f.displacement_px(c, r, t);
+                    }
+                }
+                m /= ((r1 - r0) * (c1 - c0)) as f64;
+                got += m * m;
+            }
+        }
+        got /= n as f64;
+        assert!((got / want - 1.0).abs() < 0.05, "{got} vs {want}");
+        // Ambient: the modes' powers add, whatever the phases drawn.
+        let amb = Fabric::new(
+            &FabricSpec {
+                excitation: Excitation::Ambient,
+                ..spec
+            },
+            ow,
+            oh,
+            3,
+        )
+        .unwrap();
+        let one = amb.expected_tile_power(1);
+        assert_eq!(one.len(), LINES);
+        assert!(one.iter().all(|p| p.is_finite() && *p >= 0.0));
+    }
 
     #[test]
     fn j1_is_minus_the_derivative_of_j0() {

@@ -252,6 +252,50 @@ pub fn spectrum_features(
     }
 }
 
+/// The features of the expected spectrum of the video a scene file
+/// renders ([`crate::sim::Fabric::expected_tile_power`] with the features'
+/// `tiles`): what the features could be with nothing between the cloth
+/// and the spectrum, for the learning bound (`learn evaluate --exact`).
+/// The scene must hold `object = [x, y, w, h]` and a `fabric` table.
+pub fn exact_features(scene: &Path, params: &FeatureParams) -> Result<Vec<f64>> {
+    let text = std::fs::read_to_string(scene)
+        .map_err(|e| Error::input(scene, format!("cannot read: {e}")))?;
+    let table: toml::Table =
+        toml::from_str(&text).map_err(|e| Error::input(scene, format!("not a scene file: {e}")))?;
+    let fabric: crate::sim::FabricSpec = table
+        .get("fabric")
+        .ok_or_else(|| Error::input(scene, "has no `fabric` table (not a fabric scene)"))?
+        .clone()
+        .try_into()
+        .map_err(|e| Error::input(scene, format!("fabric: {e}")))?;
+    let size = |k: usize| -> Option<usize> {
+        let v = table.get("object")?.as_array()?.get(k)?.as_integer()?;
+        usize::try_from(v)
+            .ok()
+            .filter(|&v| (1..=1 << 16).contains(&v))
+    };
+    let (Some(w), Some(h)) = (size(2), size(3)) else {
+        return Err(Error::input(
+            scene,
+            "needs `object = [x, y, w, h]` with 1 <= w, h <= 65536",
+        ));
+    };
+    let seed = table
+        .get("seed")
+        .and_then(|v| v.as_integer())
+        .map_or(0, |v| v as u64);
+    let f = crate::sim::Fabric::new(&fabric, w, h, seed)
+        .map_err(|e| Error::input(scene, e.to_string()))?;
+    let power = f.expected_tile_power(params.tiles);
+    let df = crate::sim::fabric::LINE_SPACING_HZ;
+    let s = SpectrumDb {
+        f0_hz: 0.5 * df,
+        resolution_hz: df,
+        power_db: power.iter().map(|p| 10.0 * p.max(1e-300).log10()).collect(),
+    };
+    params.from_spectrum(&s).map_err(|m| Error::input(scene, m))
+}
+
 /// The features of a stored spectrum JSON (`vibroscope spectrum --include-spectrum`).
 pub fn from_spectrum_json(path: &Path, params: &FeatureParams) -> Result<Vec<f64>> {
     let text = std::fs::read(path).map_err(|e| Error::input(path, format!("cannot read: {e}")))?;

@@ -45,10 +45,10 @@ impl Default for GenerateOptions {
             materials: 30,
             per_condition: 3,
             conditions: CONDITIONS.iter().map(|c| c.to_string()).collect(),
-            seconds: 30.0,
-            size: 64,
+            seconds: 60.0,
+            size: 128,
             seed: 1,
-            segments: 4,
+            segments: 16,
             run: RunSettings::default(),
         }
     }

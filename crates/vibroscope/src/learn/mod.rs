@@ -180,6 +180,41 @@ impl Dataset {
         Ok(out)
     }
 
+    /// The scene file the generator wrote for entry `e`:
+    /// `DIR/scenes/NAME.toml` for `DIR/videos/NAME.y4m`.
+    pub fn scene_of(&self, e: &Entry) -> PathBuf {
+        let video = self.resolve(&e.path);
+        let stem = video.file_stem().unwrap_or_default().to_os_string();
+        let dir = video
+            .parent()
+            .and_then(Path::parent)
+            .map(Path::to_path_buf)
+            .unwrap_or_default();
+        dir.join("scenes").join(stem).with_extension("toml")
+    }
+
+    /// The features of every entry's expected spectrum, from the scene
+    /// files the generator wrote ([`features::exact_features`]): the
+    /// learning bound. An entry without its scene is named.
+    pub fn exact_features(&self) -> Result<Array2<f64>> {
+        let mut rows = Vec::with_capacity(self.video.len());
+        for (i, e) in self.video.iter().enumerate() {
+            let scene = self.scene_of(e);
+            if !scene.is_file() {
+                return Err(Error::input(
+                    &scene,
+                    format!(
+                        "video[{i}] ({}): --exact needs the scene file `learn generate` wrote beside it, and it does not exist",
+                        e.path.display()
+                    ),
+                ));
+            }
+            rows.push(features::exact_features(&scene, &self.features)?);
+        }
+        let p = rows.first().map_or(0, Vec::len);
+        Ok(Array2::from_shape_fn((rows.len(), p), |(i, j)| rows[i][j]))
+    }
+
     /// The log targets, n × targets.
     pub fn log_targets(&self) -> Array2<f64> {
         let t = self.targets();
@@ -378,13 +413,14 @@ pub fn fit(o: &FitOptions, progress: &mut dyn FnMut(usize, usize, &Path)) -> Res
         let p: Vec<f64> = held.iter().map(|h| h.0[0]).collect();
         let t: Vec<f64> = rows.iter().map(|&i| y[[i, k]]).collect();
         let dist: Vec<Distance> = held.iter().map(|h| h.1).collect();
+        let ob: Vec<String> = rows.iter().map(|&i| objects[i].clone()).collect();
         let yt = yk.select(ndarray::Axis(0), &rows);
         let m = model::fit(o.method, sw.chosen, &xt, &yt).map_err(Error::Analysis)?;
         models.push(TargetModel {
             target,
             model: m,
             sweep: sw,
-            cv: model::metrics(&p, &t),
+            cv: model::metrics(&p, &t, Some(&ob)),
             t2_limit: percentile(dist.iter().map(|d| d.t2).collect(), 0.99),
             q_limit: percentile(dist.iter().map(|d| d.q).collect(), 0.99),
         });
@@ -516,6 +552,9 @@ pub struct EvaluateOptions {
     pub test_on: Vec<String>,
     pub methods: Vec<Method>,
     pub max_components: usize,
+    /// Learn from the expected spectra of the generator's scenes instead
+    /// of the videos (the bound: what perfect measurement would reach).
+    pub exact: bool,
     pub png: Option<PathBuf>,
     pub json: Option<PathBuf>,
     pub run: RunSettings,
@@ -571,11 +610,15 @@ pub fn evaluate(
             format!("{objs} objects in the training rows: leave-one-object-out needs at least 3"),
         ));
     }
-    let f = d.features(o.run, progress)?;
-    let x = matrix(&f);
+    let x = if o.exact {
+        d.exact_features()?
+    } else {
+        matrix(&d.features(o.run, progress)?)
+    };
     let y = d.log_targets();
     let objects: Vec<String> = d.video.iter().map(|e| e.object.clone()).collect();
     let max = o.max_components.min(objs - 2).min(x.ncols()).max(1);
+    let test_objects: Vec<String> = test.iter().map(|&i| objects[i].clone()).collect();
     let mut methods = Vec::new();
     for &method in &o.methods {
         let (mut sweeps, mut predicted) = (Vec::new(), Vec::new());
@@ -592,7 +635,7 @@ pub fn evaluate(
         let metrics = (0..y.ncols())
             .map(|k| {
                 let t: Vec<f64> = test.iter().map(|&i| y[[i, k]]).collect();
-                model::metrics(&predicted[k], &t)
+                model::metrics(&predicted[k], &t, Some(&test_objects))
             })
             .collect();
         methods.push(MethodEvaluation {
@@ -612,7 +655,7 @@ pub fn evaluate(
         truth: (0..y.ncols())
             .map(|k| test.iter().map(|&i| y[[i, k]]).collect())
             .collect(),
-        test_objects: test.iter().map(|&i| objects[i].clone()).collect(),
+        test_objects,
         methods,
         written: Vec::new(),
     };

@@ -1,6 +1,6 @@
 //! Regression from features to the logs of material properties (thesis
 //! 5.5.1): Partial Least Squares (`linfa-pls`) or Principal Components
-//! Regression (`linfa-reduction`'s PCA, then least squares on the scores),
+//! Regression (PCA by nalgebra's SVD, then least squares on the scores),
 //! the number of components chosen by leave-one-object-out
 //! cross-validation; metrics of Table 5.4 (Pearson R, mean % error,
 //! Kendall τ); a prediction interval from the cross-validation residuals;
@@ -10,7 +10,6 @@
 
 use linfa::prelude::*;
 use linfa_pls::PlsRegression;
-use linfa_reduction::Pca;
 use ndarray::{Array1, Array2, Axis};
 use serde::{Deserialize, Serialize};
 
@@ -66,6 +65,26 @@ fn standardise(x: &Array2<f64>) -> (Array1<f64>, Array1<f64>) {
     let mut sd = x.std_axis(Axis(0), 1.0);
     sd.mapv_inplace(|v| if v > 1e-12 && v.is_finite() { v } else { 1.0 });
     (mean, sd)
+}
+
+/// The `k` leading principal axes of the centred rows `x` (p × k, by
+/// decreasing singular value): nalgebra's SVD, which smooth, nearly
+/// collinear features (expected spectra) do not upset. Axes beyond the
+/// rows' rank are zero, so their scores are zero and add nothing.
+fn principal_axes(x: &Array2<f64>, k: usize) -> Result<Array2<f64>, String> {
+    let (n, p) = x.dim();
+    let m = nalgebra::DMatrix::from_fn(n, p, |i, j| x[[i, j]]);
+    let svd = nalgebra::linalg::SVD::try_new(m, false, true, f64::EPSILON, 0)
+        .ok_or("PCA: the SVD did not converge")?;
+    let vt = svd.v_t.ok_or("PCA: the SVD gave no axes")?;
+    let sv = &svd.singular_values;
+    let mut order: Vec<usize> = (0..sv.len()).collect();
+    order.sort_by(|&a, &b| sv[b].total_cmp(&sv[a]));
+    let top = order.first().map_or(0.0, |&i| sv[i]);
+    Ok(Array2::from_shape_fn((p, k), |(i, a)| match order.get(a) {
+        Some(&r) if sv[r] > 1e-12 * top => vt[(r, i)],
+        _ => 0.0,
+    }))
 }
 
 /// An affine map `f(xs) = b + xs · A`, read off `f` at 0 and at each unit vector.
@@ -125,12 +144,9 @@ pub fn fit(
             (cb, c, rb, r, load)
         }
         Method::Pcr => {
-            let ds = DatasetBase::from(xs.clone());
-            let pca = Pca::params(components)
-                .fit(&ds)
-                .map_err(|e| format!("PCA fit: {e}"))?;
-            let (rb, r) = probe(p, |v| pca.predict(v));
-            let t = pca.predict(&xs);
+            let axes = principal_axes(&xs, components)?;
+            let (rb, r) = probe(p, |v| v.dot(&axes));
+            let t = xs.dot(&axes);
             // Least squares on the (orthogonal) scores, with an intercept.
             let ym = y
                 .mean_axis(Axis(0))
@@ -304,6 +320,11 @@ pub fn nan_or<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
 pub struct Metrics {
     #[serde(deserialize_with = "nan_or")]
     pub r: f64,
+    /// R of each object's mean prediction against its property: the R
+    /// of thesis Fig. 5-10 ("averaged across video samples containing the
+    /// same fabric"). NaN with fewer than three objects or none given.
+    #[serde(default = "nan", deserialize_with = "nan_or")]
+    pub r_objects: f64,
     #[serde(deserialize_with = "nan_or")]
     pub pct_error: f64,
     #[serde(deserialize_with = "nan_or")]
@@ -313,11 +334,49 @@ pub struct Metrics {
     pub resid_sd: f64,
 }
 
-pub fn metrics(pred: &[f64], truth: &[f64]) -> Metrics {
+fn nan() -> f64 {
+    f64::NAN
+}
+
+/// The mean of `v` over each object's rows (`object[i]` is row i's), in
+/// the order of the objects' first rows.
+pub fn object_means(v: &[f64], object: &[String]) -> Vec<f64> {
+    let mut order: Vec<&String> = Vec::new();
+    let mut sums: Vec<(f64, usize)> = Vec::new();
+    for (x, o) in v.iter().zip(object) {
+        let k = match order.iter().position(|p| *p == o) {
+            Some(k) => k,
+            None => {
+                order.push(o);
+                sums.push((0.0, 0));
+                order.len() - 1
+            }
+        };
+        sums[k].0 += x;
+        sums[k].1 += 1;
+    }
+    sums.iter().map(|&(s, n)| s / n as f64).collect()
+}
+
+/// The metrics of held-out predictions against the truth; with `object`
+/// (each row's object) also the R of the objects' means.
+pub fn metrics(pred: &[f64], truth: &[f64], object: Option<&[String]>) -> Metrics {
     let n = pred.len().min(truth.len());
     let ms = (0..n).map(|i| (pred[i] - truth[i]).powi(2)).sum::<f64>() / n.max(1) as f64;
+    let r_objects = match object {
+        Some(o) if o.len() == n => {
+            let (p, t) = (object_means(&pred[..n], o), object_means(&truth[..n], o));
+            if p.len() >= 3 {
+                pearson(&p, &t)
+            } else {
+                f64::NAN
+            }
+        }
+        _ => f64::NAN,
+    };
     Metrics {
         r: pearson(pred, truth),
+        r_objects,
         pct_error: mean_pct_error(pred, truth),
         kendall_tau: kendall_tau(pred, truth),
         resid_sd: ms.sqrt(),
@@ -370,6 +429,14 @@ mod tests {
         assert!((pearson(&[1.0, 2.0, 3.0], &[2.0, 4.0, 6.5]) - 0.9986).abs() < 1e-3);
         assert!((kendall_tau(&[1.0, 2.0, 3.0], &[3.0, 2.0, 1.0]) + 1.0).abs() < 1e-12);
         assert!((mean_pct_error(&[0.1f64.ln()], &[0.2f64.ln()]) - 50.0).abs() < 1e-9);
+        // Per-video scatter around each object's truth averages out.
+        let o: Vec<String> = ["a", "a", "b", "b", "c", "c"].map(String::from).to_vec();
+        let truth = [1.0, 1.0, 2.0, 2.0, 3.0, 3.0];
+        let pred = [0.0, 2.0, 3.0, 1.0, 3.5, 2.5];
+        assert_eq!(object_means(&pred, &o), vec![1.0, 2.0, 3.0]);
+        let m = metrics(&pred, &truth, Some(&o));
+        assert!((m.r_objects - 1.0).abs() < 1e-12 && m.r < 0.9, "{m:?}");
+        assert!(metrics(&pred, &truth, None).r_objects.is_nan());
     }
 
     #[test]
