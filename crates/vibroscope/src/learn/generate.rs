@@ -216,6 +216,7 @@ pub fn generate(
         version: DATASET_VERSION,
         features: super::FeatureParams {
             segments: Some(o.segments),
+            subtract_floor: true,
             ..Default::default()
         },
         video: entries,
