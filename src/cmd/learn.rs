@@ -62,26 +62,26 @@ struct GenerateArgs {
     #[arg(short, long, value_name = "DIR")]
     output: PathBuf,
     /// Number of fabrics.
-    #[arg(long, default_value_t = 30)]
+    #[arg(long, default_value_t = GenerateOptions::default().materials)]
     materials: usize,
     /// Videos per fabric per condition.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = GenerateOptions::default().per_condition)]
     per_condition: usize,
     /// Conditions to film (comma-separated; A/L, A/R, S/L, S/R).
     #[arg(long, value_delimiter = ',', default_value = "A/L,A/R,S/L,S/R")]
     conditions: Vec<String>,
     /// Length of each video, s (the thesis's were about a minute).
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = GenerateOptions::default().seconds)]
     seconds: f64,
     /// Frame side, px (fewer pixels: a higher noise floor, which hides the
     /// upper modes where stiffness shows).
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, default_value_t = GenerateOptions::default().size)]
     size: u32,
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = GenerateOptions::default().seed)]
     seed: u64,
     /// Welch segments of each spectrum (the dataset's [features] segments;
     /// 16 over 60 s: 7 s segments, 0.14 Hz bins).
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = GenerateOptions::default().segments)]
     segments: usize,
 }
 

@@ -48,17 +48,13 @@ pub(super) fn check_follows(m: &Model, y: &[f64], snr_db: f64) -> Result<(), Cal
     // A tone: periodic, and half its power or more in its strongest line
     // (sweeps repeated every 0.4 s are periodic too, but reverse into
     // other sweeps).
-    let around = |p: &[f64]| -> f64 {
-        p[k0.saturating_sub(1)..(k0 + 2).min(p.len())]
-            .iter()
-            .sum::<f64>()
-    };
-    let tonal = around(&pt) >= 0.5 * pt[1..].iter().sum::<f64>();
+    // The line's bins: the strongest and one either side.
+    let around =
+        |p: &[f64]| -> Vec<f64> { p[k0.saturating_sub(1)..(k0 + 2).min(p.len())].to_vec() };
+    let tonal = around(&pt).iter().sum::<f64>() >= 0.5 * pt[1..].iter().sum::<f64>();
     if tonal && recurrence(&t, max, true).is_some() {
         let py = welch(y, nfft);
-        let line = py[k0.saturating_sub(1)..(k0 + 2).min(py.len())]
-            .iter()
-            .fold(0.0f64, |a, v| a.max(*v));
+        let line = around(&py).iter().fold(0.0f64, |a, v| a.max(*v));
         // Against its own neighbourhood (a strong line elsewhere leaks
         // into every bin of a short window's spectrum).
         let mut sorted: Vec<f64> = (1..py.len())
