@@ -51,7 +51,8 @@ fn evaluate_al(dir: &Path, more: &[&str]) -> std::process::Output {
 
 /// Leave-one-fabric-out on unseen fabrics, same condition: the default
 /// dataset's A/L part (30 fabrics x 3 takes, 60 s, 128 px; about 2 min on
-/// 2 cores). Area weight R >= 0.9 and stiffness R >= 0.7. Issue 19 asks
+/// 2 cores; the takes are scene files rendered in memory: as videos they
+/// would fill 3.5 GB). Area weight R >= 0.9 and stiffness R >= 0.7. Issue 19 asks
 /// 0.9 for both; stiffness measures 0.85-0.94 over the generator's seeds
 /// (0.896 here; docs/learning.md has where it stands and why), so 0.9 is
 /// not asserted. Stiffness shows only in the upper modes, near the noise
@@ -163,6 +164,16 @@ fn tiny(dir: &Path) -> String {
     s
 }
 
+/// `learn fit DATASET -o m2.json` exits 2 with every one of `needles` in
+/// its message, and writes no model.
+fn fit_refused(dir: &Path, dataset: &str, needles: &[&str]) {
+    let o = run_in(dir, &["learn", "fit", dataset, "-o", "m2.json"]);
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(needles.iter().all(|n| e.contains(n)), "{e}");
+    assert!(!dir.join("m2.json").exists());
+}
+
 /// Bad input: a clear message naming the entry, exit 2, no panic.
 #[test]
 fn bad_datasets_and_models_are_refused_by_name() {
@@ -240,10 +251,39 @@ fn bad_datasets_and_models_are_refused_by_name() {
         stderr(&o)
     );
     assert!(!stderr(&o).contains("panicked"));
-    // The current model predicts, with an interval.
+    // The current model predicts, with an interval; from the scene file
+    // (rendered in memory) exactly as from the video it renders to.
     let o = run_in(dir, &["learn", "predict", "m.json", "v0.y4m"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     assert!(stdout(&o).contains("95% interval"), "{}", stdout(&o));
+    let o2 = run_in(dir, &["learn", "predict", "m.json", "s0.toml"]);
+    assert_eq!(code(&o2), 0, "{}", stderr(&o2));
+    assert_eq!(
+        stdout(&o2).replace("s0.toml", "v0.y4m"),
+        stdout(&o),
+        "{}",
+        stdout(&o2)
+    );
+
+    // Scene entries: one of `path` and `scene`, the scene must exist, and
+    // a mistake in it is told against the scene file and its key.
+    let scenes = good
+        .replace("path = \"v", "scene = \"s")
+        .replace(".y4m", ".toml");
+    let both = good.replacen(
+        "path = \"v0.y4m\"",
+        "path = \"v0.y4m\"\nscene = \"s0.toml\"",
+        1,
+    );
+    write(dir, "both.toml", &both);
+    fit_refused(dir, "both.toml", &["video[0]", "not both"]);
+    write(dir, "gone.toml", &scenes.replace("s2.toml", "s9.toml"));
+    fit_refused(dir, "gone.toml", &["video[2]", "scene file", "s9.toml"]);
+    let bad = std::fs::read_to_string(dir.join("s1.toml")).unwrap();
+    write(dir, "s1.toml", &bad.replace("fps = 40.0", "fps = -40.0"));
+    write(dir, "scenes.toml", &scenes);
+    fit_refused(dir, "scenes.toml", &["s1.toml:3", "field `fps`"]);
+    assert!(!dir.join("m2.json").exists());
 
     // The bound needs the scene each video was rendered from.
     let o = run_in(dir, &["learn", "evaluate", "few.toml", "--exact"]);

@@ -20,7 +20,7 @@ use vibroscope::pipeline::RunSettings;
 #[command(after_help = "Examples:\n  \
     vibroscope learn generate -o fabrics --materials 30\n  \
     vibroscope learn fit fabrics/DATASET.toml -o fabric-model.json --condition A/L\n  \
-    vibroscope learn predict fabric-model.json fabrics/videos/m000-AL-0.y4m\n  \
+    vibroscope learn predict fabric-model.json fabrics/scenes/m000-AL-0.toml\n  \
     vibroscope learn evaluate fabrics/DATASET.toml --train-on A/L --test-on S/R --png corr.png")]
 pub struct Args {
     #[command(subcommand)]
@@ -54,8 +54,10 @@ impl From<MethodArg> for Method {
 ///
 /// Fabrics spread over bending rigidity 1e-6..1e-4 N m and area weight
 /// 30..400 g/m^2; conditions A/S (ambient air, sound) x L/R (viewpoints).
-/// Writes DIR/scenes/*.toml, DIR/videos/*.y4m, DIR/DATASET.toml and the
-/// feature cache.
+/// Writes DIR/scenes/*.toml (one per take), DIR/DATASET.toml and the
+/// feature cache. The dataset lists the scenes, which fit, evaluate and
+/// predict render in memory (the same frames `vibroscope simulate` writes);
+/// --videos also writes each take as DIR/videos/*.y4m and lists those.
 #[derive(clap::Args)]
 struct GenerateArgs {
     /// Output directory.
@@ -64,7 +66,7 @@ struct GenerateArgs {
     /// Number of fabrics.
     #[arg(long, default_value_t = GenerateOptions::default().materials)]
     materials: usize,
-    /// Videos per fabric per condition.
+    /// Takes per fabric per condition.
     #[arg(long, default_value_t = GenerateOptions::default().per_condition)]
     per_condition: usize,
     /// Conditions to film (comma-separated; A/L, A/R, S/L, S/R).
@@ -83,6 +85,10 @@ struct GenerateArgs {
     /// 16 over 60 s: 7 s segments, 0.14 Hz bins).
     #[arg(long, default_value_t = GenerateOptions::default().segments)]
     segments: usize,
+    /// Also write every take as a Y4M video and list the videos in the
+    /// dataset (at the defaults about 40-50 MB each, 16 GB for all 360).
+    #[arg(long)]
+    videos: bool,
 }
 
 /// Fit a model on a dataset (components by leave-one-object-out CV).
@@ -111,7 +117,8 @@ struct FitArgs {
 struct PredictArgs {
     /// The model file (from `learn fit`).
     model: PathBuf,
-    /// A video, or a spectrum JSON written with `spectrum --include-spectrum`.
+    /// A video, a scene file (.toml, rendered in memory), or a spectrum
+    /// JSON written with `spectrum --include-spectrum`.
     input: PathBuf,
     #[command(flatten)]
     video: VideoArgs,
@@ -168,15 +175,17 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 size: g.size,
                 seed: g.seed,
                 segments: g.segments,
+                videos: g.videos,
                 run,
             };
             let bar = super::Bar::start(true);
             let r = generate::generate(&o, &mut labelled(&bar));
             drop(bar);
+            let takes = if o.videos { "videos" } else { "scenes" };
             eprintln!(
-                "wrote {} (videos in {})",
+                "wrote {} (its takes are the {takes} in {})",
                 r?.display(),
-                o.dir.join("videos").display()
+                o.dir.join(takes).display()
             );
         }
         Sub::Fit(f) => {

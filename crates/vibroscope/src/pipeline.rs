@@ -96,6 +96,13 @@ fn one_source(decl: &PipelineDecl, what: &str) -> Result<usize> {
     Err(Error::input(&decl.file, format!("{what}: {message}")))
 }
 
+/// The id of `decl`'s one source (none when it has none or several).
+pub fn source_id(decl: &PipelineDecl) -> Option<&str> {
+    one_source(decl, "")
+        .ok()
+        .map(|i| decl.stages[i].id.as_str())
+}
+
 /// Replay: the source becomes a `file` source of the same id, feeding the
 /// same stages; every edge blocks (a replay never drops).
 pub fn apply_replay(decl: &mut PipelineDecl, path: &Path) -> Result<()> {
@@ -106,12 +113,98 @@ pub fn apply_replay(decl: &mut PipelineDecl, path: &Path) -> Result<()> {
     st.kind_origin = origin.clone();
     st.params.clear();
     set_param(st, "path", path_value(path), origin);
+    block_every_edge(decl);
+    Ok(())
+}
+
+/// Every edge blocks: a recording (or a scene rendered as fast as it can
+/// be) is never dropped from.
+fn block_every_edge(decl: &mut PipelineDecl) {
     for s in &mut decl.stages {
         s.policy = None;
         for inp in &mut s.inputs {
             inp.policy = None;
         }
     }
+}
+
+/// A scene file: the `synthetic` source's parameters at its top level
+/// (`vibroscope simulate`'s input, `learn generate`'s takes).
+#[derive(Clone, Debug)]
+pub struct SceneFile {
+    pub path: PathBuf,
+    text: String,
+    table: toml::Table,
+}
+
+impl SceneFile {
+    /// Reads and parses a scene file (errors name the file and the line).
+    pub fn read(path: &Path) -> Result<SceneFile> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
+        let table: toml::Table = toml::from_str(&text)
+            .map_err(|e| config::toml_error(&path.display().to_string(), &text, &e))?;
+        Ok(SceneFile {
+            path: path.to_path_buf(),
+            text,
+            table,
+        })
+    }
+
+    /// The scene's parameters become stage `id`'s (which is made a
+    /// `synthetic` source), each with its line in the file.
+    pub fn fill(&self, decl: &mut PipelineDecl, id: &str) -> Result<()> {
+        let st = stage_mut(decl, id)?;
+        st.kind = "synthetic".into();
+        st.kind_origin = Origin::Builtin(format!("scene {}", self.path.display()));
+        st.params.clear();
+        for (k, v) in &self.table {
+            let line = self
+                .text
+                .lines()
+                .position(|l| {
+                    l.trim_start()
+                        .strip_prefix(k.as_str())
+                        .is_some_and(|r| r.trim_start().starts_with('='))
+                })
+                .map_or(0, |i| i + 1);
+            set_param(st, k, v.clone(), Origin::Line(line));
+        }
+        Ok(())
+    }
+
+    /// A configuration error about stage `id` (filled by [`Self::fill`]),
+    /// told against the scene file: its line when the field is in the
+    /// file, no line when the field took its default.
+    pub fn told(&self, e: Error, id: &str) -> Error {
+        match e {
+            Error::Config(mut c) if c.stage.as_deref() == Some(id) => {
+                let given = c
+                    .field
+                    .as_deref()
+                    .is_some_and(|f| self.table.contains_key(f));
+                c.origin = match c.origin {
+                    Some(Origin::Line(n)) if given && n > 0 => Some(Origin::Line(n)),
+                    Some(Origin::Set(s)) => Some(Origin::Set(s)),
+                    _ => None,
+                };
+                c.file = self.path.display().to_string();
+                c.stage = None;
+                Error::Config(c)
+            }
+            e => e,
+        }
+    }
+}
+
+/// Scene replay: the source becomes the `synthetic` source of `scene`,
+/// rendering the frames `vibroscope simulate` would write to a file, and
+/// every edge blocks, as on a replay.
+pub fn apply_scene(decl: &mut PipelineDecl, scene: &SceneFile) -> Result<()> {
+    let i = one_source(decl, "a scene")?;
+    let id = decl.stages[i].id.clone();
+    scene.fill(decl, &id)?;
+    block_every_edge(decl);
     Ok(())
 }
 

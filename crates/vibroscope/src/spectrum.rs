@@ -28,6 +28,10 @@ pub const SPECTROGRAM_WINDOW: usize = 256;
 #[derive(Clone, Debug)]
 pub struct SpectrumOptions {
     pub video: PathBuf,
+    /// Render this scene file through the forward model instead of reading
+    /// `video`: the frames `vibroscope simulate` would write (bit for bit),
+    /// with no file between.
+    pub scene: Option<PathBuf>,
     /// Output JSON: sample_rate_hz, resolution_hz and the peaks.
     pub json: PathBuf,
     pub fps: Option<f64>,
@@ -104,6 +108,7 @@ impl SpectrumOptions {
     pub fn new(video: impl Into<PathBuf>, json: impl Into<PathBuf>) -> SpectrumOptions {
         SpectrumOptions {
             video: video.into(),
+            scene: None,
             json: json.into(),
             fps: None,
             peaks: 5,
@@ -135,9 +140,15 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
     let mut decl = pipeline::prepare(&PipelineOptions {
         pipeline: "live-spectrum".into(),
         set: Vec::new(),
-        replay: Some(o.video.clone()),
-        fps: o.fps,
+        replay: o.scene.is_none().then(|| o.video.clone()),
+        fps: None,
     })?;
+    if let Some(scene) = &o.scene {
+        pipeline::apply_scene(&mut decl, &pipeline::SceneFile::read(scene)?)?;
+    }
+    if let Some(f) = o.fps {
+        pipeline::apply_fps(&mut decl, f)?;
+    }
     o.region.apply(&mut decl, "phase")?;
     pipeline::set(
         &mut decl,
@@ -268,7 +279,16 @@ pub fn run_spectrum_with(
     if let Some(d) = disp {
         d.add(&mut decl)?;
     }
-    let run = pipeline::run(&decl, o.run)?;
+    let run = pipeline::run(&decl, o.run).map_err(|e| {
+        // A scene's mistakes are told against its file, not the graph's source.
+        match (&o.scene, pipeline::source_id(&decl)) {
+            (Some(p), Some(src)) => match pipeline::SceneFile::read(p) {
+                Ok(f) => f.told(e, src),
+                Err(_) => e,
+            },
+            _ => e,
+        }
+    })?;
     let mut report: SpectrumReport = crate::json::read(tmp.path(), "the peaks document")?;
     report.combine = Some(o.combine.name());
     if let Some(tap) = tap {

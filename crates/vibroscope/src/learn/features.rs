@@ -178,7 +178,8 @@ impl FeatureParams {
                 .collect();
             if tail.len() < 3 {
                 return Err(format!(
-                    "subtract_floor reads the noise floor from {lo:.1} Hz up, and the spectrum ends at {top:.2} Hz (a frame rate above {:.0} fps is needed, or subtract_floor = false)",
+                    "subtract_floor reads the noise floor from {lo:.1} to {hi:.2} Hz, and the spectrum's {:.3} Hz bins put fewer than 3 there (a frame rate above {:.0} fps, a longer video, or subtract_floor = false)",
+                    s.resolution_hz,
                     2.0 * lo / 0.95
                 ));
             }
@@ -231,16 +232,38 @@ fn stamp(p: &Path) -> Result<(u64, f64)> {
     Ok((m.len(), t))
 }
 
-/// Computes the features of `video` (with `region`, at `fps`).
-pub fn from_video(
-    video: &Path,
+/// What features are measured from.
+#[derive(Clone, Copy, Debug)]
+pub enum Source<'a> {
+    /// A recording.
+    Video(&'a Path),
+    /// A scene file, rendered in memory through the forward model: the
+    /// frames `vibroscope simulate` would write to a video, bit for bit.
+    Scene(&'a Path),
+}
+
+impl Source<'_> {
+    pub fn path(&self) -> &Path {
+        match self {
+            Source::Video(p) | Source::Scene(p) => p,
+        }
+    }
+}
+
+/// Computes the features of a video or a scene (with `region`, at `fps`).
+pub fn measure(
+    source: Source,
     fps: Option<f64>,
     region: &Region,
     params: &FeatureParams,
     run: RunSettings,
 ) -> Result<VideoFeatures> {
+    let video = source.path();
     let (bytes, mtime) = stamp(video)?;
     let mut o = SpectrumOptions::new(video, PathBuf::from("unused.json"));
+    if let Source::Scene(p) = source {
+        o.scene = Some(p.to_path_buf());
+    }
     o.fps = fps;
     // The features' pyramid, whatever the caller's region says.
     o.region = Region {
@@ -342,22 +365,25 @@ pub fn from_spectrum_json(path: &Path, params: &FeatureParams) -> Result<Vec<f64
     spectrum_features(&report, params).map_err(|m| Error::input(path, m))
 }
 
-/// The cache file beside a video: `VIDEO.features.json`.
+/// The cache file beside a video (or scene): `VIDEO.features.json`.
 pub fn cache_path(video: &Path) -> PathBuf {
     let mut s = video.as_os_str().to_owned();
     s.push(".features.json");
     PathBuf::from(s)
 }
 
-/// Features from the cache when it matches the video and the settings,
-/// else computed and cached (written atomically).
+/// Features from the cache when it matches the video (or scene file) and
+/// the settings, else computed and cached (written atomically). A scene's
+/// cache is keyed on the scene file: a change to the simulator's physics
+/// must raise [`CACHE_VERSION`].
 pub fn cached(
-    video: &Path,
+    source: Source,
     fps: Option<f64>,
     region: &Region,
     params: &FeatureParams,
     run: RunSettings,
 ) -> Result<VideoFeatures> {
+    let video = source.path();
     let (bytes, mtime) = stamp(video)?;
     let cache = cache_path(video);
     if let Ok(text) = std::fs::read(&cache) {
@@ -382,7 +408,7 @@ pub fn cached(
             }
         }
     }
-    let f = from_video(video, fps, region, params, run)?;
+    let f = measure(source, fps, region, params, run)?;
     if let Ok(bytes) = serde_json::to_vec(&f) {
         // A cache that cannot be written is only slower next time.
         let _ = crate::io::atomic::write_atomic(&cache, &bytes);

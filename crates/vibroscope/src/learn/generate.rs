@@ -5,8 +5,11 @@
 //! filmed `per_condition` times (new forcing and texture each time) under
 //! each condition: excitation `A` (ambient air) or `S` (sound, a chirp),
 //! viewpoint `L` or `R` (different framing, crop of the cloth,
-//! perspective, frame rate and noise). Writes `scenes/*.toml`,
-//! `videos/*.y4m` and `DATASET.toml`, then caches every video's features.
+//! perspective, frame rate and noise). Writes `scenes/*.toml` and
+//! `DATASET.toml`, whose entries are the scenes (rendered in memory when
+//! their features are measured: the default dataset's 360 takes would be
+//! 16 GB of Y4M), or with `videos` also `videos/*.y4m`, whose entries are
+//! the videos; then caches every take's features.
 
 use super::{Dataset, Entry, DATASET_VERSION};
 use crate::error::{Error, Result};
@@ -35,6 +38,8 @@ pub struct GenerateOptions {
     pub seed: u64,
     /// Welch segments of each video's spectrum (written to the dataset's [features]).
     pub segments: usize,
+    /// Also write each take as a Y4M (the entries are then the videos).
+    pub videos: bool,
     pub run: RunSettings,
 }
 
@@ -49,6 +54,7 @@ impl Default for GenerateOptions {
             size: 128,
             seed: 1,
             segments: 16,
+            videos: false,
             run: RunSettings::default(),
         }
     }
@@ -149,7 +155,9 @@ pub fn generate(
         std::fs::create_dir_all(p).map_err(|e| Error::input(p, format!("cannot create: {e}")))
     };
     mk(&o.dir.join("scenes"))?;
-    mk(&o.dir.join("videos"))?;
+    if o.videos {
+        mk(&o.dir.join("videos"))?;
+    }
     let mats = materials(o.materials, o.seed);
     let total = mats.len() * o.conditions.len() * o.per_condition;
     let mut entries = Vec::with_capacity(total);
@@ -186,17 +194,24 @@ pub fn generate(
                     amp = v.amplitude,
                     per = v.perspective,
                 );
-                let scene_path = o.dir.join("scenes").join(format!("{name}.toml"));
+                let scene_rel = PathBuf::from("scenes").join(format!("{name}.toml"));
+                let scene_path = o.dir.join(&scene_rel);
                 crate::io::atomic::write_atomic(&scene_path, scene.as_bytes())?;
-                let video = PathBuf::from("videos").join(format!("{name}.y4m"));
-                progress(k, total, &video);
-                crate::simulate::simulate(&crate::simulate::SimulateOptions {
-                    scene: scene_path,
-                    output: o.dir.join(&video),
-                    set: Vec::new(),
-                    run: o.run,
-                })?;
+                let video = if o.videos {
+                    let video = PathBuf::from("videos").join(format!("{name}.y4m"));
+                    progress(k, total, &video);
+                    crate::simulate::simulate(&crate::simulate::SimulateOptions {
+                        scene: scene_path,
+                        output: o.dir.join(&video),
+                        set: Vec::new(),
+                        run: o.run,
+                    })?;
+                    Some(video)
+                } else {
+                    None
+                };
                 entries.push(Entry {
+                    scene: video.is_none().then_some(scene_rel),
                     path: video,
                     object: format!("m{mi:03}"),
                     condition: cond.clone(),

@@ -14,7 +14,8 @@
 //! max_hz = 15.0
 //! n = 150
 //! [[video]]
-//! path = "videos/m00-A-L-0.y4m"
+//! path = "videos/m00-A-L-0.y4m"  # or scene = "scenes/m00-A-L-0.toml": a
+//!                       # scene file rendered in memory (`learn generate`)
 //! object = "m00"        # all videos of one object are held out together
 //! condition = "A/L"     # excitation/viewpoint label
 //! fps = 40.0            # optional: the capture rate when the file lies
@@ -44,11 +45,16 @@ pub const MODEL_VERSION: u32 = 2;
 /// The prediction interval's coverage (normal quantile 1.96: 95%).
 pub const INTERVAL_Z: f64 = 1.96;
 
-/// One video of a dataset.
+/// One video of a dataset: a recording (`path`) or a scene file
+/// (`scene`) rendered in memory through the forward model, the frames
+/// `vibroscope simulate` would write (one of the two).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Entry {
-    pub path: PathBuf,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path: Option<PathBuf>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<PathBuf>,
     pub object: String,
     pub condition: String,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -58,6 +64,18 @@ pub struct Entry {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mask: Option<PathBuf>,
     pub properties: BTreeMap<String, f64>,
+}
+
+impl Entry {
+    /// What the entry is measured from (as written, relative to the dataset).
+    pub fn source(&self) -> features::Source<'_> {
+        match (&self.path, &self.scene) {
+            (Some(p), _) => features::Source::Video(p),
+            (None, Some(s)) => features::Source::Scene(s),
+            // Dataset::load refuses an entry with neither.
+            (None, None) => features::Source::Video(Path::new("")),
+        }
+    }
 }
 
 /// A dataset file.
@@ -101,7 +119,20 @@ impl Dataset {
             return Err(Error::input(path, "video[0] has no properties"));
         }
         for (i, e) in d.video.iter().enumerate() {
-            let at = format!("video[{i}] ({})", e.path.display());
+            if e.path.is_some() == e.scene.is_some() {
+                return Err(Error::input(
+                    path,
+                    format!(
+                        "video[{i}]: needs `path` (a recording) or `scene` (a scene file), {}",
+                        if e.path.is_some() {
+                            "not both"
+                        } else {
+                            "and has neither"
+                        }
+                    ),
+                ));
+            }
+            let at = format!("video[{i}] ({})", e.source().path().display());
             let keys: Vec<&String> = e.properties.keys().collect();
             if keys != names.iter().collect::<Vec<_>>() {
                 return Err(Error::input(
@@ -117,11 +148,15 @@ impl Dataset {
                     ));
                 }
             }
-            let p = d.resolve(&e.path);
+            let p = d.resolve(e.source().path());
             if !p.is_file() {
+                let what = match e.source() {
+                    features::Source::Video(_) => "video",
+                    features::Source::Scene(_) => "scene file",
+                };
                 return Err(Error::input(
                     path,
-                    format!("{at}: the video {} does not exist", p.display()),
+                    format!("{at}: the {what} {} does not exist", p.display()),
                 ));
             }
             if let Some(r) = &e.roi {
@@ -165,7 +200,7 @@ impl Dataset {
         let n = self.video.len();
         let mut out = Vec::with_capacity(n);
         for (i, e) in self.video.iter().enumerate() {
-            let p = self.resolve(&e.path);
+            let p = self.resolve(e.source().path());
             progress(i, n, &p);
             let region = Region {
                 roi: match &e.roi {
@@ -175,15 +210,28 @@ impl Dataset {
                 mask: e.mask.as_ref().map(|m| self.resolve(m)),
                 ..Region::default()
             };
-            out.push(features::cached(&p, e.fps, &region, &self.features, run)?);
+            let source = match e.source() {
+                features::Source::Video(_) => features::Source::Video(&p),
+                features::Source::Scene(_) => features::Source::Scene(&p),
+            };
+            out.push(features::cached(
+                source,
+                e.fps,
+                &region,
+                &self.features,
+                run,
+            )?);
         }
         Ok(out)
     }
 
-    /// The scene file the generator wrote for entry `e`:
+    /// The scene file the generator wrote for entry `e`: its `scene`, or
     /// `DIR/scenes/NAME.toml` for `DIR/videos/NAME.y4m`.
     pub fn scene_of(&self, e: &Entry) -> PathBuf {
-        let video = self.resolve(&e.path);
+        if let Some(s) = &e.scene {
+            return self.resolve(s);
+        }
+        let video = self.resolve(e.source().path());
         let stem = video.file_stem().unwrap_or_default().to_os_string();
         let dir = video
             .parent()
@@ -205,7 +253,7 @@ impl Dataset {
                     &scene,
                     format!(
                         "video[{i}] ({}): --exact needs the scene file `learn generate` wrote beside it, and it does not exist",
-                        e.path.display()
+                        e.source().path().display()
                     ),
                 ));
             }
@@ -493,7 +541,8 @@ pub struct Prediction {
 #[derive(Clone, Debug)]
 pub struct PredictOptions {
     pub model: PathBuf,
-    /// A video, or a spectrum JSON (`vibroscope spectrum --include-spectrum`).
+    /// A video, a scene file (`.toml`, rendered in memory), or a spectrum
+    /// JSON (`vibroscope spectrum --include-spectrum`).
     pub input: PathBuf,
     pub fps: Option<f64>,
     pub region: Region,
@@ -504,14 +553,20 @@ pub struct PredictOptions {
 /// Predicts the properties of one video with the model.
 pub fn predict(o: &PredictOptions) -> Result<Prediction> {
     let m = load_model(&o.model)?;
-    let is_json = o
-        .input
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-    let x = if is_json {
+    let ext = |x: &str| {
+        o.input
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case(x))
+    };
+    let x = if ext("json") {
         features::from_spectrum_json(&o.input, &m.features)?
     } else {
-        features::from_video(&o.input, o.fps, &o.region, &m.features, o.run)?.features
+        let source = if ext("toml") {
+            features::Source::Scene(&o.input)
+        } else {
+            features::Source::Video(&o.input)
+        };
+        features::measure(source, o.fps, &o.region, &m.features, o.run)?.features
     };
     let properties: Vec<PropertyPrediction> = m
         .models
