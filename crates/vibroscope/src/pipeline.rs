@@ -7,6 +7,7 @@ use crate::engine::config::{
 };
 use crate::engine::{self, Control, RunReport};
 use crate::error::{Error, Result, UsageError};
+use crate::stages::sources::synthetic::{self, SyntheticParams};
 use crate::stages::{self, REGISTRY};
 use crate::{io, pipelines};
 use std::fmt;
@@ -149,6 +150,24 @@ impl SceneFile {
             text,
             table,
         })
+    }
+
+    /// The scene as the `synthetic` source reads it: its declared
+    /// defaults for what the file omits, its ranges and its checks; errors
+    /// name the file, the line and the field.
+    pub fn synthetic(&self) -> Result<SyntheticParams> {
+        let file = self.path.display().to_string();
+        let mut decl = config::parse(&file, "[[stage]]\nid = \"cam\"\nkind = \"synthetic\"\n")?;
+        self.fill(&mut decl, "cam")?;
+        let p = config::Params {
+            file: &file,
+            stage: &decl.stages[0],
+        };
+        // The `synthetic` kind's own plan: resolve, then check.
+        let resolved = p
+            .resolve::<SyntheticParams>(synthetic::PARAMS)
+            .and_then(|v| v.check().map(|()| v).map_err(|(f, m)| p.error(f, m)));
+        resolved.map_err(|e| self.told(Error::Config(e), "cam"))
     }
 
     /// The scene's parameters become stage `id`'s (which is made a

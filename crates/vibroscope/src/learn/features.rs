@@ -248,6 +248,22 @@ impl Source<'_> {
             Source::Video(p) | Source::Scene(p) => p,
         }
     }
+
+    /// The same kind of source at `p` (e.g. resolved against a directory).
+    pub fn at<'b>(&self, p: &'b Path) -> Source<'b> {
+        match self {
+            Source::Video(_) => Source::Video(p),
+            Source::Scene(_) => Source::Scene(p),
+        }
+    }
+
+    /// What it is, for messages.
+    pub fn noun(&self) -> &'static str {
+        match self {
+            Source::Video(_) => "video",
+            Source::Scene(_) => "scene file",
+        }
+    }
 }
 
 /// Computes the features of a video or a scene (with `region`, at `fps`).
@@ -312,35 +328,16 @@ pub fn spectrum_features(
 /// renders ([`crate::sim::Fabric::expected_tile_power`] with the features'
 /// `tiles`): what the features could be with nothing between the cloth
 /// and the spectrum, for the learning bound (`learn evaluate --exact`).
-/// The scene must hold `object = [x, y, w, h]` and a `fabric` table.
+/// The scene is read as the `synthetic` source reads it, and must hold a
+/// `fabric` table.
 pub fn exact_features(scene: &Path, params: &FeatureParams) -> Result<Vec<f64>> {
-    let text = std::fs::read_to_string(scene)
-        .map_err(|e| Error::input(scene, format!("cannot read: {e}")))?;
-    let table: toml::Table =
-        toml::from_str(&text).map_err(|e| Error::input(scene, format!("not a scene file: {e}")))?;
-    let fabric: crate::sim::FabricSpec = table
-        .get("fabric")
-        .ok_or_else(|| Error::input(scene, "has no `fabric` table (not a fabric scene)"))?
-        .clone()
-        .try_into()
-        .map_err(|e| Error::input(scene, format!("fabric: {e}")))?;
-    let size = |k: usize| -> Option<usize> {
-        let v = table.get("object")?.as_array()?.get(k)?.as_integer()?;
-        usize::try_from(v)
-            .ok()
-            .filter(|&v| (1..=1 << 16).contains(&v))
-    };
-    let (Some(w), Some(h)) = (size(2), size(3)) else {
-        return Err(Error::input(
-            scene,
-            "needs `object = [x, y, w, h]` with 1 <= w, h <= 65536",
-        ));
-    };
-    let seed = table
-        .get("seed")
-        .and_then(|v| v.as_integer())
-        .map_or(0, |v| v as u64);
-    let f = crate::sim::Fabric::new(&fabric, w, h, seed)
+    let p = crate::pipeline::SceneFile::read(scene)?.synthetic()?;
+    let fabric = p
+        .fabric
+        .as_ref()
+        .ok_or_else(|| Error::input(scene, "has no `fabric` table (not a fabric scene)"))?;
+    let [_, _, w, h] = p.object_rect();
+    let f = crate::sim::Fabric::new(fabric, w as usize, h as usize, p.seed)
         .map_err(|e| Error::input(scene, e.to_string()))?;
     let power = f.expected_tile_power(params.tiles);
     // Nothing to take out: the expected spectrum has no noise floor.

@@ -150,13 +150,13 @@ impl Dataset {
             }
             let p = d.resolve(e.source().path());
             if !p.is_file() {
-                let what = match e.source() {
-                    features::Source::Video(_) => "video",
-                    features::Source::Scene(_) => "scene file",
-                };
                 return Err(Error::input(
                     path,
-                    format!("{at}: the {what} {} does not exist", p.display()),
+                    format!(
+                        "{at}: the {} {} does not exist",
+                        e.source().noun(),
+                        p.display()
+                    ),
                 ));
             }
             if let Some(r) = &e.roi {
@@ -210,10 +210,7 @@ impl Dataset {
                 mask: e.mask.as_ref().map(|m| self.resolve(m)),
                 ..Region::default()
             };
-            let source = match e.source() {
-                features::Source::Video(_) => features::Source::Video(&p),
-                features::Source::Scene(_) => features::Source::Scene(&p),
-            };
+            let source = e.source().at(&p);
             out.push(features::cached(
                 source,
                 e.fps,

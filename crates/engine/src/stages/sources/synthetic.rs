@@ -244,6 +244,14 @@ impl SyntheticParams {
         }
     }
 
+    /// The object's rectangle `[x, y, w, h]`: `object`, or by default the
+    /// middle half of the frame.
+    pub fn object_rect(&self) -> [u32; 4] {
+        let (w, h) = (self.width, self.height);
+        self.object
+            .unwrap_or([w / 4, h / 4, (w / 2).max(1), (h / 2).max(1)])
+    }
+
     /// The `modal` key with the recording's length filled in (a noise-driven
     /// mode needs more lines the longer it is watched; see
     /// `sim::modal::noise_lines`).
@@ -336,9 +344,7 @@ impl SyntheticParams {
             .and_then(|s| s.plus_tones(&tones))
             .map_err(|e| e.to_string())?;
         let (w, h) = (self.width, self.height);
-        let object = self
-            .object
-            .unwrap_or([w / 4, h / 4, (w / 2).max(1), (h / 2).max(1)]);
+        let object = self.object_rect();
         let full = ((1u32 << self.bits.clamp(1, 16)) - 1) as f64;
         let spec = SceneSpec {
             width: w,
