@@ -279,6 +279,15 @@ fn bad_datasets_and_models_are_refused_by_name() {
     fit_refused(dir, "both.toml", &["video[0]", "not both"]);
     write(dir, "gone.toml", &scenes.replace("s2.toml", "s9.toml"));
     fit_refused(dir, "gone.toml", &["video[2]", "scene file", "s9.toml"]);
+    let rate = scenes.replacen("condition = \"A/L\"", "condition = \"A/L\"\nfps = 30.0", 1);
+    write(dir, "rate.toml", &rate);
+    fit_refused(dir, "rate.toml", &["video[0]", "fps = 30", "its own `fps`"]);
+    let o = run_in(
+        dir,
+        &["learn", "predict", "m.json", "s0.toml", "--fps", "30"],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
+    assert!(stderr(&o).contains("its own `fps`"), "{}", stderr(&o));
     let bad = std::fs::read_to_string(dir.join("s1.toml")).unwrap();
     write(dir, "s1.toml", &bad.replace("fps = 40.0", "fps = -40.0"));
     write(dir, "scenes.toml", &scenes);

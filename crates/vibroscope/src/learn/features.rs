@@ -275,6 +275,15 @@ pub fn measure(
     run: RunSettings,
 ) -> Result<VideoFeatures> {
     let video = source.path();
+    if let (Source::Scene(p), Some(f)) = (source, fps) {
+        return Err(Error::usage(
+            "--fps",
+            format!(
+                "{f}: {} renders at its own `fps`; --fps states a recording's true rate",
+                p.display()
+            ),
+        ));
+    }
     let (bytes, mtime) = stamp(video)?;
     let mut o = SpectrumOptions::new(video, PathBuf::from("unused.json"));
     if let Source::Scene(p) = source {

@@ -18,7 +18,7 @@
 //!                       # scene file rendered in memory (`learn generate`)
 //! object = "m00"        # all videos of one object are held out together
 //! condition = "A/L"     # excitation/viewpoint label
-//! fps = 40.0            # optional: the capture rate when the file lies
+//! fps = 40.0            # optional: the capture rate when the file lies (videos only)
 //! properties = { stiffness_nm = 1.2e-5, area_weight_kg_m2 = 0.11 }
 //! ```
 
@@ -157,6 +157,12 @@ impl Dataset {
                         e.source().noun(),
                         p.display()
                     ),
+                ));
+            }
+            if let (features::Source::Scene(_), Some(f)) = (e.source(), e.fps) {
+                return Err(Error::input(
+                    path,
+                    format!("{at}: fps = {f}: a scene renders at its own `fps`; an entry's fps states a recording's true rate"),
                 ));
             }
             if let Some(r) = &e.roi {
