@@ -15,7 +15,7 @@ use vibroscope::pipeline::RunSettings;
 /// maps it to the logs of the properties; leave-one-object-out
 /// cross-validation chooses the number of components and measures Pearson
 /// R, mean % error and Kendall tau. Features are cached beside each video
-/// (VIDEO.features.json). See docs/learning.md.
+/// or scene file (VIDEO.features.json). See docs/learning.md.
 #[derive(clap::Args)]
 #[command(after_help = "Examples:\n  \
     vibroscope learn generate -o fabrics --materials 30\n  \
