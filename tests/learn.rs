@@ -164,13 +164,21 @@ fn tiny(dir: &Path) -> String {
     s
 }
 
-/// `learn fit DATASET -o m2.json` exits 2 with every one of `needles` in
-/// its message, and writes no model.
-fn fit_refused(dir: &Path, dataset: &str, needles: &[&str]) {
-    let o = run_in(dir, &["learn", "fit", dataset, "-o", "m2.json"]);
+/// `vibroscope ARGS` exits 2, without a panic, with every one of
+/// `needles` in its message.
+fn refused(dir: &Path, args: &[&str], needles: &[&str]) {
+    let o = run_in(dir, args);
     assert_eq!(code(&o), 2, "{}", stderr(&o));
     let e = stderr(&o);
     assert!(needles.iter().all(|n| e.contains(n)), "{e}");
+    assert!(!e.contains("panicked"), "{e}");
+}
+
+/// `learn fit DATASET -o m2.json [MORE]` is [`refused`] and writes no model.
+fn fit_refused(dir: &Path, dataset: &str, more: &[&str], needles: &[&str]) {
+    let mut args = vec!["learn", "fit", dataset, "-o", "m2.json"];
+    args.extend_from_slice(more);
+    refused(dir, &args, needles);
     assert!(!dir.join("m2.json").exists());
 }
 
@@ -182,45 +190,21 @@ fn bad_datasets_and_models_are_refused_by_name() {
     let good = tiny(dir);
 
     write(dir, "missing.toml", &good.replace("v1.y4m", "nothere.y4m"));
-    let o = run_in(dir, &["learn", "fit", "missing.toml", "-o", "m.json"]);
-    assert_eq!(code(&o), 2, "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("video[1]") && stderr(&o).contains("nothere.y4m"),
-        "{}",
-        stderr(&o)
-    );
+    fit_refused(dir, "missing.toml", &[], &["video[1]", "nothere.y4m"]);
 
     write(
         dir,
         "zero.toml",
         &good.replace("area_weight_kg_m2 = 0.3", "area_weight_kg_m2 = 0.0"),
     );
-    let o = run_in(dir, &["learn", "fit", "zero.toml", "-o", "m.json"]);
-    assert_eq!(code(&o), 2, "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("video[2]") && stderr(&o).contains("area_weight_kg_m2"),
-        "{}",
-        stderr(&o)
-    );
+    fit_refused(dir, "zero.toml", &[], &["video[2]", "area_weight_kg_m2"]);
 
     write(dir, "few.toml", &good);
-    let o = run_in(
+    fit_refused(
         dir,
-        &[
-            "learn",
-            "fit",
-            "few.toml",
-            "-o",
-            "m.json",
-            "--components",
-            "2",
-        ],
-    );
-    assert_eq!(code(&o), 2, "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("3 objects for 2 components"),
-        "{}",
-        stderr(&o)
+        "few.toml",
+        &["--components", "2"],
+        &["3 objects for 2 components"],
     );
 
     // A model of another version.
@@ -243,14 +227,11 @@ fn bad_datasets_and_models_are_refused_by_name() {
         "old.json",
         &text.replacen("\"version\": 2", "\"version\": 0", 1),
     );
-    let o = run_in(dir, &["learn", "predict", "old.json", "v0.y4m"]);
-    assert_eq!(code(&o), 2, "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("old.json") && stderr(&o).contains("version 0"),
-        "{}",
-        stderr(&o)
+    refused(
+        dir,
+        &["learn", "predict", "old.json", "v0.y4m"],
+        &["old.json", "version 0"],
     );
-    assert!(!stderr(&o).contains("panicked"));
     // The current model predicts, with an interval; from the scene file
     // (rendered in memory) exactly as from the video it renders to.
     let o = run_in(dir, &["learn", "predict", "m.json", "v0.y4m"]);
@@ -276,30 +257,36 @@ fn bad_datasets_and_models_are_refused_by_name() {
         1,
     );
     write(dir, "both.toml", &both);
-    fit_refused(dir, "both.toml", &["video[0]", "not both"]);
+    fit_refused(dir, "both.toml", &[], &["video[0]", "not both"]);
     write(dir, "gone.toml", &scenes.replace("s2.toml", "s9.toml"));
-    fit_refused(dir, "gone.toml", &["video[2]", "scene file", "s9.toml"]);
+    fit_refused(
+        dir,
+        "gone.toml",
+        &[],
+        &["video[2]", "scene file", "s9.toml"],
+    );
     let rate = scenes.replacen("condition = \"A/L\"", "condition = \"A/L\"\nfps = 30.0", 1);
     write(dir, "rate.toml", &rate);
-    fit_refused(dir, "rate.toml", &["video[0]", "fps = 30", "its own `fps`"]);
-    let o = run_in(
+    fit_refused(
+        dir,
+        "rate.toml",
+        &[],
+        &["video[0]", "fps = 30", "its own `fps`"],
+    );
+    refused(
         dir,
         &["learn", "predict", "m.json", "s0.toml", "--fps", "30"],
+        &["its own `fps`"],
     );
-    assert_eq!(code(&o), 2, "{}", stderr(&o));
-    assert!(stderr(&o).contains("its own `fps`"), "{}", stderr(&o));
     let bad = std::fs::read_to_string(dir.join("s1.toml")).unwrap();
     write(dir, "s1.toml", &bad.replace("fps = 40.0", "fps = -40.0"));
     write(dir, "scenes.toml", &scenes);
-    fit_refused(dir, "scenes.toml", &["s1.toml:3", "field `fps`"]);
-    assert!(!dir.join("m2.json").exists());
+    fit_refused(dir, "scenes.toml", &[], &["s1.toml:3", "field `fps`"]);
 
     // The bound needs the scene each video was rendered from.
-    let o = run_in(dir, &["learn", "evaluate", "few.toml", "--exact"]);
-    assert_eq!(code(&o), 2, "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("video[0]") && stderr(&o).contains("scenes"),
-        "{}",
-        stderr(&o)
+    refused(
+        dir,
+        &["learn", "evaluate", "few.toml", "--exact"],
+        &["video[0]", "scenes"],
     );
 }
