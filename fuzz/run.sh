@@ -9,6 +9,11 @@
 # pipeline_toml) are read only; what the fuzzer adds goes to fuzz/work/
 # (not committed), crash inputs to fuzz/artifacts/TARGET/. Prints one line
 # per target (executions, coverage) and exits 1 when any target failed.
+# With DEADLINE=EPOCH_SECONDS in the environment (CI's time budget) each
+# target gets at most SECONDS and no more than its share of the time left
+# after the build (3 s of it for starting the target); a target whose
+# share falls below 5 s is skipped and said so (not counted as a pass), as
+# is every target when the build itself does not finish in time.
 # Needs the nightly toolchain and cargo-fuzz (`cargo install --locked cargo-fuzz`).
 set -uo pipefail
 cd "$(dirname "$0")"
@@ -27,9 +32,34 @@ scratch_base=/dev/shm
 VIBROSCOPE_FUZZ_DIR=$(mktemp -d "$scratch_base/vibroscope-fuzz.XXXXXX") || exit 1
 export VIBROSCOPE_FUZZ_DIR
 trap 'rm -rf "$VIBROSCOPE_FUZZ_DIR"' EXIT
-cargo +nightly fuzz build "${flags[@]}" || exit 1
+if [ -n "${DEADLINE:-}" ]; then
+  # The build is bounded by the deadline too (it takes 4-8 min from scratch).
+  left=$((DEADLINE - $(date +%s)))
+  rc=124
+  [ "$left" -gt 0 ] && { timeout "$left" cargo +nightly fuzz build "${flags[@]}"; rc=$?; }
+  if [ "$rc" -eq 124 ]; then
+    echo "fuzz: SKIPPED, no time to finish the build before DEADLINE; run fuzz/run.sh $secs by hand"
+    exit 0
+  fi
+  [ "$rc" -eq 0 ] || exit 1
+else
+  cargo +nightly fuzz build "${flags[@]}" || exit 1
+fi
 failed=()
+skipped=()
+left_targets=${#targets[@]}
 for t in "${targets[@]}"; do
+  run_secs=$secs
+  if [ -n "${DEADLINE:-}" ]; then
+    share=$(( (DEADLINE - $(date +%s)) / left_targets - 3 ))
+    [ "$share" -lt "$run_secs" ] && run_secs=$share
+  fi
+  left_targets=$((left_targets - 1))
+  if [ "$run_secs" -lt 5 ]; then
+    echo "fuzz $t: SKIPPED, the time budget is spent (DEADLINE); run fuzz/run.sh $secs $t by hand"
+    skipped+=("$t")
+    continue
+  fi
   work="work/$t"
   mkdir -p "$work" "artifacts/$t"
   seeds=("corpus/$t")
@@ -37,7 +67,7 @@ for t in "${targets[@]}"; do
   log="work/$t.log"
   for attempt in 1 2 3; do
     cargo +nightly fuzz run "${flags[@]}" "$t" "$work" "${seeds[@]}" -- \
-      -max_total_time="$secs" -rss_limit_mb=1024 -timeout=1 -max_len=65536 \
+      -max_total_time="$run_secs" -rss_limit_mb=1024 -timeout=1 -max_len=65536 \
       -artifact_prefix="artifacts/$t/" -print_final_stats=1 ${RUNS:+-runs=$RUNS} >"$log" 2>&1
     rc=$?
     # libFuzzer's timeout is wall-clock: on a loaded machine a process
@@ -60,13 +90,14 @@ for t in "${targets[@]}"; do
     took=$(grep -o 'Done [0-9]* runs in [0-9]* second' "$log" | grep -o '[0-9]* second' | grep -o '[0-9]*')
     rss=$(grep -o 'stat::peak_rss_mb: *[0-9]*' "$log" | grep -o '[0-9]*$')
     slow=$(grep -o 'stat::slowest_unit_time_sec: *[0-9]*' "$log" | grep -o '[0-9]*$')
-    echo "fuzz $t: ok, ${runs:-?} runs in ${took:-$secs} s, ${cov:-no coverage line}, peak RSS ${rss:-?} MB, slowest input ${slow:-?} s"
+    echo "fuzz $t: ok, ${runs:-?} runs in ${took:-$run_secs} s, ${cov:-no coverage line}, peak RSS ${rss:-?} MB, slowest input ${slow:-?} s"
   else
     echo "fuzz $t: FAILED (exit $rc), see fuzz/$log; crash input in fuzz/artifacts/$t/"
     grep -E 'panicked|ERROR: libFuzzer|SUMMARY' "$log" | head -5
     failed+=("$t")
   fi
 done
+[ "${#skipped[@]}" -gt 0 ] && echo "fuzz: skipped for time: ${skipped[*]}"
 if [ "${#failed[@]}" -gt 0 ]; then
   echo "fuzz: failed: ${failed[*]}"
   exit 1

@@ -50,35 +50,37 @@ fn evaluate_al(dir: &Path, more: &[&str]) -> std::process::Output {
 }
 
 /// Leave-one-fabric-out on unseen fabrics, same condition: the default
-/// dataset's A/L part (30 fabrics x 3 takes, 60 s, 128 px; about 2 min on
-/// 2 cores; the takes are scene files rendered in memory: as videos they
-/// would fill 3.5 GB). Area weight R >= 0.9 and stiffness R >= 0.7. Issue 19 asks
-/// 0.9 for both; stiffness measures 0.85-0.94 over the generator's seeds
-/// (0.896 here; docs/learning.md has where it stands and why), so 0.9 is
-/// not asserted. Stiffness shows only in the upper modes, near the noise
-/// floor: with 64 px, 30 s videos it was 0.60-0.79.
+/// dataset's A/L part with one take a fabric in place of three (60
+/// fabrics x 1 take, 60 s, 128 px; about 2 min on 2 cores; the takes are
+/// scene files rendered in memory: as videos they would fill 2.4 GB).
+/// Area weight R >= 0.9 and stiffness R >= 0.8. Issue 19 asks 0.9 for
+/// both: stiffness measures 0.907 here, too near 0.9 to assert across
+/// draws of fabrics (docs/learning.md has the full dataset's tables).
+/// Stiffness shows only in the upper modes, near the noise floor: with
+/// 64 px, 30 s videos it was 0.60-0.79, and it needs many fabrics (30
+/// fabrics x 2 takes: 0.876, its bound 0.922).
 #[test]
 fn same_condition_leave_one_out_predicts_both_properties() {
     let d = tempfile::tempdir().unwrap();
-    generate(d.path(), "30", "A/L", &[]);
+    generate(d.path(), "60", "A/L", &["--per-condition", "1"]);
     let o = evaluate_al(d.path(), &[]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let out = stdout(&o);
     println!("{out}");
     assert!(r_of(&out, "area_weight") >= 0.9, "{out}");
-    assert!(r_of(&out, "stiffness") >= 0.7, "{out}");
+    assert!(r_of(&out, "stiffness") >= 0.8, "{out}");
     // Cached features: a second run renders nothing and agrees.
     let o2 = evaluate_al(d.path(), &[]);
     assert_eq!(stdout(&o2), out);
     // The bound: the same learning on the videos' expected spectra (no
     // texture, sensor, pyramid or estimation noise). Under ambient forcing
-    // it carries stiffness (0.92-0.94 on seeds 1-3).
+    // it carries stiffness (0.979 here; 0.92-0.94 with 30 fabrics).
     let o = evaluate_al(d.path(), &["--exact"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let bound = stdout(&o);
     println!("{bound}");
     assert!(bound.contains("exact expected spectra"), "{bound}");
-    assert!(r_of(&bound, "stiffness") >= 0.85, "{bound}");
+    assert!(r_of(&bound, "stiffness") >= 0.95, "{bound}");
 }
 
 /// Thesis ch. 3: the motion spectrum is a property of the object, not of
@@ -289,4 +291,22 @@ fn bad_datasets_and_models_are_refused_by_name() {
         &["learn", "evaluate", "few.toml", "--exact"],
         &["video[0]", "scenes"],
     );
+
+    // The generator's sound: a kick level out of range; a scene's kick
+    // that would start after the forcing repeats.
+    refused(
+        dir,
+        &["learn", "generate", "-o", "g", "--kick-db", "99"],
+        &["--kick-db", "99"],
+    );
+    assert!(!dir.join("g").exists());
+    let kick = std::fs::read_to_string(dir.join("s2.toml"))
+        .unwrap()
+        .replace(
+            "fabric = {",
+            "fabric = { excitation = \"kick\", kick_at_s = 49.5,",
+        );
+    write(dir, "s2.toml", &kick);
+    write(dir, "s1.toml", &bad);
+    fit_refused(dir, "scenes.toml", &[], &["s2.toml", "kick_at_s"]);
 }

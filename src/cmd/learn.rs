@@ -41,6 +41,12 @@ enum MethodArg {
     Pcr,
 }
 
+#[derive(clap::ValueEnum, Clone, Copy)]
+enum SoundArg {
+    Kick,
+    Chirp,
+}
+
 impl From<MethodArg> for Method {
     fn from(m: MethodArg) -> Method {
         match m {
@@ -63,7 +69,8 @@ struct GenerateArgs {
     /// Output directory.
     #[arg(short, long, value_name = "DIR")]
     output: PathBuf,
-    /// Number of fabrics.
+    /// Number of fabrics (stiffness needs many: with 30 even perfect
+    /// measurement reaches R 0.92-0.94, with 60 0.98; docs/learning.md).
     #[arg(long, default_value_t = GenerateOptions::default().materials)]
     materials: usize,
     /// Takes per fabric per condition.
@@ -86,9 +93,23 @@ struct GenerateArgs {
     #[arg(long, default_value_t = GenerateOptions::default().segments)]
     segments: usize,
     /// Also write every take as a Y4M video and list the videos in the
-    /// dataset (at the defaults about 40-50 MB each, 16 GB for all 360).
+    /// dataset (at the defaults about 40-50 MB each, 32 GB for all 720).
     #[arg(long)]
     videos: bool,
+    /// What the S conditions play. kick: the thesis's (5.5), ambient air
+    /// throughout plus a one-second 15-100 Hz logarithmic sweep at a random
+    /// time; chirp: a stationary 0.3-20 Hz logarithmic chirp alone.
+    #[arg(long, value_enum, default_value = "kick")]
+    sound: SoundArg,
+    /// The kick's motion power over the ambient air's, over the take, dB
+    /// (docs/learning.md: what it changes).
+    #[arg(long, default_value_t = GenerateOptions::default().kick_db, allow_hyphen_values = true)]
+    kick_db: f64,
+    /// Write the scenes and DATASET.toml only: the features are measured
+    /// (and cached) when fit or evaluate first need them, and evaluate
+    /// --exact (the bound) needs none.
+    #[arg(long, conflicts_with = "videos")]
+    no_features: bool,
 }
 
 /// Fit a model on a dataset (components by leave-one-object-out CV).
@@ -176,6 +197,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 seed: g.seed,
                 segments: g.segments,
                 videos: g.videos,
+                sound: match g.sound {
+                    SoundArg::Kick => generate::Sound::Kick,
+                    SoundArg::Chirp => generate::Sound::Chirp,
+                },
+                kick_db: g.kick_db,
+                measure: !g.no_features,
                 run,
             };
             let bar = super::Bar::start(true);

@@ -21,8 +21,10 @@
 //!
 //! Excitation is a force per area with a known spectrum: `ambient` (air
 //! currents: each mode driven independently, power ∝ 1 / (1 + (f/f_c)²),
-//! the low-frequency tilt) or `sound` (a logarithmic chirp, one pressure
-//! field for all modes, slightly uneven across the width). Each modal
+//! the low-frequency tilt), `sound` (a logarithmic chirp, one pressure
+//! field for all modes, slightly uneven across the width) or `kick` (the
+//! thesis's sound condition: the ambient forcing plus a one-second
+//! 15-100 Hz sweep through that pressure field, at `kick_db` over it). Each modal
 //! coordinate is the exact steady-state response of its mode to a
 //! multisine of [`LINES`] lines (0.02 Hz apart, jittered) with that
 //! spectrum, so it is a function of continuous time, deterministic from the
@@ -57,6 +59,11 @@ pub enum Excitation {
     Ambient,
     /// A loudspeaker's logarithmic chirp: one coherent pressure field.
     Sound,
+    /// The thesis's sound condition (5.5): the ambient forcing throughout,
+    /// plus a loudspeaker's short logarithmic sweep (a "kick", one second
+    /// from 15 to 100 Hz) at one time in the take: one coherent pressure
+    /// field.
+    Kick,
 }
 
 /// The `fabric` key of a scene. Defaults: the thesis's hanging length and
@@ -84,6 +91,13 @@ pub struct FabricSpec {
     pub corner_hz: f64,
     /// Sound: the chirp's band, Hz.
     pub chirp_hz: [f64; 2],
+    /// Kick: the sweep's band, Hz, its length and start, s, and its motion
+    /// power over the ambient forcing's (over the lines' period,
+    /// 1 / [`LINE_SPACING_HZ`] = 50 s), dB.
+    pub kick_hz: [f64; 2],
+    pub kick_s: f64,
+    pub kick_at_s: f64,
+    pub kick_db: f64,
     /// Air density, kg/m³, and linearised drag, N·s/m³.
     pub air_density: f64,
     pub air_drag: f64,
@@ -107,6 +121,10 @@ impl Default for FabricSpec {
             perspective: 0.0,
             corner_hz: 2.0,
             chirp_hz: [0.3, 20.0],
+            kick_hz: [15.0, 100.0],
+            kick_s: 1.0,
+            kick_at_s: 10.0,
+            kick_db: 0.0,
             air_density: 1.2,
             air_drag: 0.15,
             material_damping: 0.02,
@@ -321,6 +339,41 @@ impl FabricSpec {
                 format!("must be [lo, hi] with 0 < lo < hi, got {:?}", self.chirp_hz),
             );
         }
+        let [a, b] = self.kick_hz;
+        if !(a.is_finite() && b.is_finite() && a > 0.0 && a < b && b <= 1000.0) {
+            return bad(
+                "kick_hz",
+                format!(
+                    "must be [lo, hi] with 0 < lo < hi <= 1000, got {:?}",
+                    self.kick_hz
+                ),
+            );
+        }
+        let period = 1.0 / LINE_SPACING_HZ;
+        if !(self.kick_s.is_finite() && self.kick_s >= 0.01 && self.kick_s <= 10.0) {
+            return bad(
+                "kick_s",
+                format!("must be 0.01..=10 s, got {}", self.kick_s),
+            );
+        }
+        if !(self.kick_at_s.is_finite()
+            && self.kick_at_s >= 0.0
+            && self.kick_at_s + self.kick_s <= period)
+        {
+            return bad(
+                "kick_at_s",
+                format!(
+                    "must be >= 0 with kick_at_s + kick_s <= {period} s (the forcing repeats every {period} s), got {}",
+                    self.kick_at_s
+                ),
+            );
+        }
+        if !(self.kick_db.is_finite() && self.kick_db.abs() <= 60.0) {
+            return bad(
+                "kick_db",
+                format!("must be within ±60 dB, got {}", self.kick_db),
+            );
+        }
         if !(1..=60).contains(&self.modes_along) || self.modes_across > 8 {
             return bad(
                 "modes_along",
@@ -336,7 +389,7 @@ impl FabricSpec {
     /// Force spectrum amplitude (relative) and phase (turns) of line `f`.
     fn force(&self, f: f64, rng: &mut Xoshiro256) -> (f64, f64) {
         match self.excitation {
-            Excitation::Ambient => (
+            Excitation::Ambient | Excitation::Kick => (
                 1.0 / (1.0 + (f / self.corner_hz).powi(2)).sqrt(),
                 rng.next_f64(),
             ),
@@ -393,6 +446,82 @@ pub struct Fabric {
     /// Sound: one pressure field drives every mode with the same line
     /// phases; ambient: each mode's phases are its own.
     coherent: bool,
+    /// Kick: the sweep's part of `coef` (one field); the rest is ambient.
+    kick: Option<Vec<Vec<(f64, f64)>>>,
+}
+
+/// Mean square displacement over an 8x8 grid of the object of modal line
+/// coefficients `coef` (this realisation's phases).
+fn grid_mean_square(
+    coef: &[Vec<(f64, f64)>],
+    modes: &[FabricMode],
+    along: &[Vec<f64>],
+    across: &[Vec<f64>],
+    ow: usize,
+    oh: usize,
+) -> f64 {
+    let pts = 8usize;
+    let lines = coef.first().map_or(0, Vec::len);
+    let mut ms = 0.0;
+    let mut re = vec![0.0; lines];
+    let mut im = vec![0.0; lines];
+    for pr in 0..pts {
+        let r = (pr * oh + oh / 2) / pts;
+        for pc in 0..pts {
+            let c = (pc * ow + ow / 2) / pts;
+            re.fill(0.0);
+            im.fill(0.0);
+            for (k, md) in modes.iter().enumerate() {
+                let phi = along[md.along as usize - 1][r.min(oh - 1)]
+                    * across[md.across as usize][c.min(ow - 1)];
+                for (j, &(a, b)) in coef[k].iter().enumerate() {
+                    re[j] += phi * a;
+                    im[j] += phi * b;
+                }
+            }
+            ms += re.iter().zip(&im).map(|(a, b)| a * a + b * b).sum::<f64>() / 2.0;
+        }
+    }
+    ms / (pts * pts) as f64
+}
+
+/// The kick's force lines: complex amplitude at each of `freqs`
+/// of a logarithmic sweep `sin(2π φ(t))`, `φ(t) = f0 T (r^(t/T) - 1) / ln r`,
+/// `r = f1 / f0`, from `kick_at_s` for `kick_s` seconds, started and
+/// stopped abruptly: its Fourier transform (the midpoint rule at 20
+/// samples per cycle of `f1`), so the lines below `f0` hold the leakage
+/// of its onset and end.
+fn sweep_lines(spec: &FabricSpec, freqs: &[f64]) -> Vec<(f64, f64)> {
+    let [f0, f1] = spec.kick_hz;
+    let t_len = spec.kick_s;
+    let n = (20.0 * f1 * t_len).ceil().max(16.0) as usize;
+    let dt = t_len / n as f64;
+    let lr = detmath::ln(f1 / f0);
+    let x: Vec<f64> = (0..n)
+        .map(|i| {
+            let t = (i as f64 + 0.5) * dt;
+            let phi = f0 * t_len * (detmath::exp(lr * t / t_len) - 1.0) / lr;
+            detmath::sin_cos_turns(phi.rem_euclid(1.0)).0
+        })
+        .collect();
+    freqs
+        .iter()
+        .map(|&f| {
+            // X(f) = Σ x(t) e^{-2πi f (t0 + t)} dt, the phasor advanced by a
+            // rotation each sample.
+            let (s0, c0) =
+                detmath::sin_cos_turns((-f * (spec.kick_at_s + 0.5 * dt)).rem_euclid(1.0));
+            let (sw, cw) = detmath::sin_cos_turns((-f * dt).rem_euclid(1.0));
+            let (mut zr, mut zi) = (c0, s0);
+            let (mut ar, mut ai) = (0.0, 0.0);
+            for &v in &x {
+                ar += v * zr;
+                ai += v * zi;
+                (zr, zi) = (zr * cw - zi * sw, zr * sw + zi * cw);
+            }
+            (ar * dt, ai * dt)
+        })
+        .collect()
 }
 
 impl Fabric {
@@ -428,31 +557,43 @@ impl Fabric {
 
         // Generalised force per mode: ambient = independent unit forces;
         // sound = the projection of a pressure 1 + 0.3 (u - 1/2) on the shape.
+        let projection = |md: &FabricMode| -> f64 {
+            let k = 400;
+            let (mut num, mut den) = (0.0, 0.0);
+            for i in 0..k {
+                let u = (i as f64 + 0.5) / k as f64;
+                let x = detmath::sin_cos_turns(0.5 * md.across as f64 * u).1;
+                num += (1.0 + 0.3 * (u - 0.5)) * x;
+                den += x * x;
+            }
+            let (mut ny, mut dy) = (0.0, 0.0);
+            let j = bessel_j0_zero(md.along);
+            for i in 0..k {
+                let s = (i as f64 + 0.5) / k as f64;
+                let y = bessel_j0(j * (1.0 - s).sqrt());
+                ny += y;
+                dy += y * y;
+            }
+            (num / den) * (ny / dy)
+        };
         let participation: Vec<f64> = modes
             .iter()
             .map(|md| match spec.excitation {
-                Excitation::Ambient => 1.0,
-                Excitation::Sound => {
-                    let k = 400;
-                    let (mut num, mut den) = (0.0, 0.0);
-                    for i in 0..k {
-                        let u = (i as f64 + 0.5) / k as f64;
-                        let x = detmath::sin_cos_turns(0.5 * md.across as f64 * u).1;
-                        num += (1.0 + 0.3 * (u - 0.5)) * x;
-                        den += x * x;
-                    }
-                    let (mut ny, mut dy) = (0.0, 0.0);
-                    let j = bessel_j0_zero(md.along);
-                    for i in 0..k {
-                        let s = (i as f64 + 0.5) / k as f64;
-                        let y = bessel_j0(j * (1.0 - s).sqrt());
-                        ny += y;
-                        dy += y * y;
-                    }
-                    (num / den) * (ny / dy)
-                }
+                Excitation::Ambient | Excitation::Kick => 1.0,
+                Excitation::Sound => projection(md),
             })
             .collect();
+        // The mode's response to a unit force line: px at unit shape,
+        // H = 1 / (m (ωk² - ω² + 2iξωkω)), times `a` of phase `ph` turns.
+        let respond = |md: &FabricMode, f: f64, a: f64, ph: f64| -> (f64, f64) {
+            let wk = 2.0 * PI * md.freq_hz;
+            let w = 2.0 * PI * f;
+            let (re, im) = (wk * wk - w * w, 2.0 * md.damping * wk * w);
+            let d = md.mass_kg_m2 * (re * re + im * im);
+            let (hr, hi) = (re / d, -im / d);
+            let (s, c) = detmath::sin_cos_turns(ph);
+            (a * (hr * c - hi * s), a * (hr * s + hi * c))
+        };
 
         let mut rng = Xoshiro256::new(hash2(seed ^ 0x6661_6272_6963, 0));
         let freqs: Vec<f64> = (0..LINES)
@@ -462,59 +603,69 @@ impl Fabric {
         let mut coef: Vec<Vec<(f64, f64)>> = Vec::with_capacity(modes.len());
         for (k, md) in modes.iter().enumerate() {
             let mut mrng = Xoshiro256::new(hash2(seed ^ 0x6661_6272_6963, 1 + k as u64));
-            let wk = 2.0 * PI * md.freq_hz;
             let row = freqs
                 .iter()
                 .zip(&shared)
                 .map(|(&f, &(amp, ph))| {
                     let ph = match spec.excitation {
-                        Excitation::Ambient => mrng.next_f64(),
+                        Excitation::Ambient | Excitation::Kick => mrng.next_f64(),
                         Excitation::Sound => ph,
                     };
-                    let w = 2.0 * PI * f;
-                    // H = 1 / (m (ωk² - ω² + 2iξωkω)).
-                    let (re, im) = (wk * wk - w * w, 2.0 * md.damping * wk * w);
-                    let d = md.mass_kg_m2 * (re * re + im * im);
-                    let (hr, hi) = (re / d, -im / d);
-                    let (c, s) = {
-                        let (s, c) = detmath::sin_cos_turns(ph);
-                        (c, s)
-                    };
-                    let a = amp * participation[k];
-                    (a * (hr * c - hi * s), a * (hr * s + hi * c))
+                    respond(md, f, amp * participation[k], ph)
                 })
                 .collect();
             coef.push(row);
         }
+        let ms = |coef: &[Vec<(f64, f64)>]| grid_mean_square(coef, &modes, &along, &across, ow, oh);
+        // Kick: the sweep's lines through each mode's projection, at
+        // `kick_db` over the ambient part's power; the two add.
+        let mut kick = None;
+        if spec.excitation == Excitation::Kick {
+            let x = sweep_lines(spec, &freqs);
+            let mut kc: Vec<Vec<(f64, f64)>> = modes
+                .iter()
+                .map(|md| {
+                    let p = projection(md);
+                    freqs
+                        .iter()
+                        .zip(&x)
+                        .map(|(&f, &(xr, xi))| {
+                            let (hr, hi) = respond(md, f, p, 0.0);
+                            (hr * xr - hi * xi, hr * xi + hi * xr)
+                        })
+                        .collect()
+                })
+                .collect();
+            let (ma, mk) = (ms(&coef), ms(&kc));
+            let g = if mk > 0.0 {
+                (detmath::exp(spec.kick_db / 10.0 * std::f64::consts::LN_10) * ma / mk).sqrt()
+            } else {
+                0.0
+            };
+            for (row, krow) in coef.iter_mut().zip(kc.iter_mut()) {
+                for (v, kv) in row.iter_mut().zip(krow.iter_mut()) {
+                    kv.0 *= g;
+                    kv.1 *= g;
+                    v.0 += kv.0;
+                    v.1 += kv.1;
+                }
+            }
+            kick = Some(kc);
+        }
 
         // Scale: √2 × RMS displacement over an 8x8 grid of the object = amplitude_px.
-        let pts = 8usize;
-        let mut ms = 0.0;
-        let mut re = vec![0.0; LINES];
-        let mut im = vec![0.0; LINES];
-        for pr in 0..pts {
-            let r = (pr * oh + oh / 2) / pts;
-            for pc in 0..pts {
-                let c = (pc * ow + ow / 2) / pts;
-                re.fill(0.0);
-                im.fill(0.0);
-                for (k, md) in modes.iter().enumerate() {
-                    let phi = along[md.along as usize - 1][r.min(oh - 1)]
-                        * across[md.across as usize][c.min(ow - 1)];
-                    for (j, &(a, b)) in coef[k].iter().enumerate() {
-                        re[j] += phi * a;
-                        im[j] += phi * b;
-                    }
-                }
-                ms += re.iter().zip(&im).map(|(a, b)| a * a + b * b).sum::<f64>() / 2.0;
-            }
-        }
-        let rms = (ms / (pts * pts) as f64).sqrt();
+        let rms = ms(&coef).sqrt();
         let scale = if rms > 0.0 {
             spec.amplitude_px / (2f64.sqrt() * rms)
         } else {
             0.0
         };
+        if let Some(kc) = kick.as_mut() {
+            for v in kc.iter_mut().flatten() {
+                v.0 *= scale;
+                v.1 *= scale;
+            }
+        }
         let mut peak = 0.0;
         for (k, md) in modes.iter().enumerate() {
             let pa = along[md.along as usize - 1]
@@ -549,6 +700,7 @@ impl Fabric {
             taps,
             q_t: f64::NAN,
             coherent: spec.excitation == Excitation::Sound,
+            kick,
         })
     }
 
@@ -562,7 +714,7 @@ impl Fabric {
     /// `tiles` equal parts, each part's mean displacement, their power
     /// spectra added; no texture, sensor, pyramid or estimation noise, the
     /// expectation over the forcing's random phases (ambient: the modes'
-    /// powers add; sound: one field, their amplitudes add). One value per
+    /// powers add; sound: one field, their amplitudes add; kick: both). One value per
     /// excitation line, px² (line `j` lies within 0.005 Hz of
     /// `(j + 1/2) ·` [`LINE_SPACING_HZ`]). What the features could see at
     /// best: the learning bound of `docs/learning.md`.
@@ -596,6 +748,17 @@ impl Fabric {
                         for (wk, row) in w.iter().zip(&self.coef) {
                             re += wk * row[j].0;
                             im += wk * row[j].1;
+                        }
+                        *p += 0.5 * (re * re + im * im);
+                    } else if let Some(kick) = &self.kick {
+                        // Ambient (the rest of `coef`) plus one field.
+                        let (mut re, mut im) = (0.0, 0.0);
+                        for ((wk, row), krow) in w.iter().zip(&self.coef).zip(kick) {
+                            let (kr, ki) = krow[j];
+                            let (ar, ai) = (row[j].0 - kr, row[j].1 - ki);
+                            *p += 0.5 * wk * wk * (ar * ar + ai * ai);
+                            re += wk * kr;
+                            im += wk * ki;
                         }
                         *p += 0.5 * (re * re + im * im);
                     } else {
@@ -749,6 +912,69 @@ mod tests {
         let one = amb.expected_tile_power(1);
         assert_eq!(one.len(), LINES);
         assert!(one.iter().all(|p| p.is_finite() && *p >= 0.0));
+    }
+
+    /// The kick is a transient where `kick_at_s` says, at `kick_db` over
+    /// the ambient part, and the expectation adds the two parts.
+    #[test]
+    fn the_kick_rings_when_it_is_played_over_the_ambient_forcing() {
+        let spec = FabricSpec {
+            excitation: Excitation::Kick,
+            kick_db: 20.0,
+            kick_at_s: 20.0,
+            modes_along: 6,
+            modes_across: 1,
+            ..FabricSpec::default()
+        };
+        let (ow, oh) = (8, 8);
+        let mut f = Fabric::new(&spec, ow, oh, 5).unwrap();
+        let mut ms = |t0: f64, t1: f64| {
+            let n = 400;
+            (0..n)
+                .map(|i| {
+                    let d = f.displacement_px(4, 6, t0 + (t1 - t0) * i as f64 / n as f64);
+                    d * d
+                })
+                .sum::<f64>()
+                / n as f64
+        };
+        let (before, during, later) = (ms(8.0, 18.0), ms(20.0, 22.0), ms(35.0, 45.0));
+        // 20 dB over the 50 s period, most of it in a few seconds.
+        assert!(during > 30.0 * before, "{during} vs {before}");
+        assert!(during > 30.0 * later, "{during} vs {later}");
+        // The expected power is the ambient part's plus the kick's, so it
+        // exceeds the ambient part alone by about the kick's share.
+        let amb = FabricSpec {
+            excitation: Excitation::Ambient,
+            ..spec.clone()
+        };
+        let quiet = FabricSpec {
+            kick_db: -40.0,
+            ..spec.clone()
+        };
+        let sum = |s: &FabricSpec| -> f64 {
+            Fabric::new(s, ow, oh, 5)
+                .unwrap()
+                .expected_tile_power(2)
+                .iter()
+                .sum()
+        };
+        let (a, q) = (sum(&amb), sum(&quiet));
+        assert!((q / a - 1.0).abs() < 0.02, "{q} vs {a}");
+        let bad = FabricSpec {
+            kick_at_s: 49.5,
+            ..spec.clone()
+        };
+        assert!(bad
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("kick_at_s"));
+        let bad = FabricSpec {
+            kick_hz: [100.0, 15.0],
+            ..spec
+        };
+        assert!(bad.validate().unwrap_err().to_string().contains("kick_hz"));
     }
 
     #[test]

@@ -3,13 +3,15 @@
 //! rigidity (1e-6 to 1e-4 N·m) and area weight (30 to 400 g/m²) are spread
 //! log-uniformly by a Latin hypercube (independent of each other), each
 //! filmed `per_condition` times (new forcing and texture each time) under
-//! each condition: excitation `A` (ambient air) or `S` (sound, a chirp),
+//! each condition: excitation `A` (ambient air) or `S` (sound: by default
+//! the thesis's one-second 15-100 Hz "kick" at `kick_db` over the ambient
+//! forcing, which is present throughout; or a stationary chirp alone),
 //! viewpoint `L` or `R` (different framing, crop of the cloth,
 //! perspective, frame rate and noise). Writes `scenes/*.toml` and
 //! `DATASET.toml`, whose entries are the scenes (rendered in memory when
-//! their features are measured: the default dataset's 360 takes would be
-//! 16 GB of Y4M), or with `videos` also `videos/*.y4m`, whose entries are
-//! the videos; then caches every take's features.
+//! their features are measured: the default dataset's 720 takes would be
+//! 32 GB of Y4M), or with `videos` also `videos/*.y4m`, whose entries are
+//! the videos; then caches every take's features (unless asked not to).
 
 use super::{Dataset, Entry, DATASET_VERSION};
 use crate::error::{Error, Result};
@@ -24,6 +26,22 @@ pub const STIFFNESS_NM: (f64, f64) = (1e-6, 1e-4);
 pub const AREA_WEIGHT_KG_M2: (f64, f64) = (0.03, 0.4);
 /// The four conditions.
 pub const CONDITIONS: [&str; 4] = ["A/L", "A/R", "S/L", "S/R"];
+
+/// What the `S` conditions play.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sound {
+    /// The thesis's: ambient forcing throughout, plus a one-second
+    /// logarithmic sweep from 15 to 100 Hz at a random time (`excitation =
+    /// "kick"`).
+    Kick,
+    /// A stationary logarithmic chirp from 0.3 to 20 Hz alone (`excitation
+    /// = "sound"`; the first datasets').
+    Chirp,
+}
+
+/// The kick's start is drawn in this part of the take (so that a 60 s
+/// take holds one kick and its ring-down, and not its repeat 50 s later).
+pub const KICK_AT: (f64, f64) = (0.2, 0.55);
 
 /// What `learn generate` is asked.
 #[derive(Clone, Debug)]
@@ -40,6 +58,14 @@ pub struct GenerateOptions {
     pub segments: usize,
     /// Also write each take as a Y4M (the entries are then the videos).
     pub videos: bool,
+    /// What the `S` conditions play, and the kick's motion power over the
+    /// ambient forcing's, dB.
+    pub sound: Sound,
+    pub kick_db: f64,
+    /// Measure (and cache) every take's features now; otherwise `fit` or
+    /// `evaluate` measure them when they first need them (`evaluate
+    /// --exact` needs none).
+    pub measure: bool,
     pub run: RunSettings,
 }
 
@@ -47,7 +73,7 @@ impl Default for GenerateOptions {
     fn default() -> Self {
         Self {
             dir: PathBuf::from("fabrics"),
-            materials: 30,
+            materials: 60,
             per_condition: 3,
             conditions: CONDITIONS.iter().map(|c| c.to_string()).collect(),
             seconds: 60.0,
@@ -55,6 +81,9 @@ impl Default for GenerateOptions {
             seed: 1,
             segments: 16,
             videos: false,
+            sound: Sound::Kick,
+            kick_db: 0.0,
+            measure: true,
             run: RunSettings::default(),
         }
     }
@@ -143,6 +172,12 @@ pub fn generate(
             format!("must be 32..=1024, got {}", o.size),
         ));
     }
+    if !(o.kick_db.is_finite() && o.kick_db.abs() <= 60.0) {
+        return Err(Error::usage(
+            "--kick-db",
+            format!("must be within ±60 dB, got {}", o.kick_db),
+        ));
+    }
     for c in &o.conditions {
         if !CONDITIONS.contains(&c.as_str()) {
             return Err(Error::usage(
@@ -171,12 +206,28 @@ pub fn generate(
                 let s = o.size as f64;
                 let obj = v.object.map(|f| (f * s).round() as u32);
                 let seed = hash2(o.seed, k as u64 + 1) >> 1;
+                let excitation = match (exc, o.sound) {
+                    ("S", Sound::Chirp) => "excitation = \"sound\"".to_string(),
+                    ("S", Sound::Kick) => {
+                        // Its start, from the take's seed: within KICK_AT
+                        // of the take, and before 48 s (the forcing
+                        // repeats every 50 s).
+                        let u = Xoshiro256::new(hash2(seed, 0x6b69_636b)).next_f64();
+                        let d = o.seconds.min(48.0 / KICK_AT.1);
+                        let at = d * (KICK_AT.0 + (KICK_AT.1 - KICK_AT.0) * u);
+                        format!(
+                            "excitation = \"kick\", kick_db = {:?}, kick_at_s = {at:.3}",
+                            o.kick_db
+                        )
+                    }
+                    _ => "excitation = \"ambient\"".to_string(),
+                };
                 let scene = format!(
                     "# fabric {mi}: B = {b:.4e} N m, rho_A = {rho:.4} kg/m^2, condition {cond}, take {rep}\n\
                      width = {w}\nheight = {w}\nfps = {fps}\nduration_s = {dur}\n\
                      object = [{}, {}, {}, {}]\nnoise_std = {noise}\nseed = {seed}\n\
                      signal = {{ type = \"tone\", freq_hz = 1.0 }}\n\
-                     fabric = {{ stiffness_nm = {b:e}, area_weight_kg_m2 = {rho:e}, excitation = \"{ex}\", \
+                     fabric = {{ stiffness_nm = {b:e}, area_weight_kg_m2 = {rho:e}, {excitation}, \
                      amplitude_px = {amp}, view = [{}, {}, {}, {}], perspective = {per} }}\n",
                     obj[0],
                     obj[1],
@@ -190,7 +241,6 @@ pub fn generate(
                     fps = v.fps,
                     dur = o.seconds,
                     noise = v.noise,
-                    ex = if exc == "S" { "sound" } else { "ambient" },
                     amp = v.amplitude,
                     per = v.perspective,
                 );
@@ -243,12 +293,22 @@ pub fn generate(
         message: format!("cannot encode the dataset: {e}"),
     })?;
     let head = format!(
-        "# Generated by `vibroscope learn generate` (seed {}): {} fabrics x {:?} x {} takes, {} s each.\n",
-        o.seed, o.materials, o.conditions, o.per_condition, o.seconds
+        "# Generated by `vibroscope learn generate` (seed {}): {} fabrics x {:?} x {} takes, {} s each; sound: {}.\n",
+        o.seed,
+        o.materials,
+        o.conditions,
+        o.per_condition,
+        o.seconds,
+        match o.sound {
+            Sound::Kick => format!("a 1 s 15-100 Hz kick at {} dB over ambient air", o.kick_db),
+            Sound::Chirp => "a stationary 0.3-20 Hz chirp alone".to_string(),
+        }
     );
     crate::io::atomic::write_atomic(&path, format!("{head}{text}").as_bytes())?;
     // Features now, so fit/evaluate read them from the cache.
-    let d = Dataset::load(&path)?;
-    d.features(o.run, progress)?;
+    if o.measure {
+        let d = Dataset::load(&path)?;
+        d.features(o.run, progress)?;
+    }
     Ok(path)
 }

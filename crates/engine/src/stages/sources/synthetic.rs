@@ -137,7 +137,7 @@ pub const PARAMS: &[ParamSpec] = &[
         "the object as a vibrating cantilever: { modes = [{ freq_hz, amplitude_px, shape, ... }] }",
     ),
     ParamSpec::new("fabric", ParamType::Table, Def::Optional).doc(
-        "the object as a hanging fabric: { stiffness_nm, area_weight_kg_m2, excitation = \"ambient\" | \"sound\", ... } (docs/learning.md)",
+        "the object as a hanging fabric: { stiffness_nm, area_weight_kg_m2, excitation = \"ambient\" | \"sound\" | \"kick\", ... } (docs/learning.md)",
     ),
     ParamSpec::new("soft_clip_px", ParamType::Float, Def::Optional)
         .unit("px")
