@@ -101,8 +101,9 @@ struct GenerateArgs {
     /// time; chirp: a stationary 0.3-20 Hz logarithmic chirp alone.
     #[arg(long, value_enum, default_value = "kick")]
     sound: SoundArg,
-    /// The kick's motion power over the ambient air's, over the take, dB
-    /// (docs/learning.md: what it changes).
+    /// The kick's motion power over the ambient air's, dB, over the
+    /// forcing's 50 s period (about a 60 s take; docs/learning.md: what
+    /// the level changes).
     #[arg(long, default_value_t = GenerateOptions::default().kick_db, allow_hyphen_values = true)]
     kick_db: f64,
     /// Write the scenes and DATASET.toml only: the features are measured
