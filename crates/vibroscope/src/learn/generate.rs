@@ -172,12 +172,13 @@ pub fn generate(
             format!("must be 32..=1024, got {}", o.size),
         ));
     }
-    if !(o.kick_db.is_finite() && o.kick_db.abs() <= 60.0) {
-        return Err(Error::usage(
-            "--kick-db",
-            format!("must be within ±60 dB, got {}", o.kick_db),
-        ));
+    // The fabric's own check of the level, before anything is written.
+    crate::sim::FabricSpec {
+        kick_db: o.kick_db,
+        ..Default::default()
     }
+    .validate()
+    .map_err(|e| Error::usage("--kick-db", e.to_string()))?;
     for c in &o.conditions {
         if !CONDITIONS.contains(&c.as_str()) {
             return Err(Error::usage(
@@ -210,10 +211,11 @@ pub fn generate(
                     ("S", Sound::Chirp) => "excitation = \"sound\"".to_string(),
                     ("S", Sound::Kick) => {
                         // Its start, from the take's seed: within KICK_AT
-                        // of the take, and before 48 s (the forcing
-                        // repeats every 50 s).
+                        // of the take, and 2 s before the forcing repeats
+                        // (every 50 s), so the 1 s sweep fits.
+                        let latest = 1.0 / crate::sim::fabric::LINE_SPACING_HZ - 2.0;
                         let u = Xoshiro256::new(hash2(seed, 0x6b69_636b)).next_f64();
-                        let d = o.seconds.min(48.0 / KICK_AT.1);
+                        let d = o.seconds.min(latest / KICK_AT.1);
                         let at = d * (KICK_AT.0 + (KICK_AT.1 - KICK_AT.0) * u);
                         format!(
                             "excitation = \"kick\", kick_db = {:?}, kick_at_s = {at:.3}",
