@@ -13,7 +13,8 @@
 # target gets at most SECONDS and no more than its share of the time left
 # after the build (3 s of it for starting the target); a target whose
 # share falls below 5 s is skipped and said so (not counted as a pass), as
-# is every target when the build itself does not finish in time.
+# is every target when the build itself does not finish in time, and a
+# target still running at DEADLINE is stopped and named as skipped.
 # Needs the nightly toolchain and cargo-fuzz (`cargo install --locked cargo-fuzz`).
 set -uo pipefail
 cd "$(dirname "$0")"
@@ -66,7 +67,16 @@ for t in "${targets[@]}"; do
   [ "$t" = pipeline_toml ] && seeds+=(../pipelines)
   log="work/$t.log"
   for attempt in 1 2 3; do
-    cargo +nightly fuzz run "${flags[@]}" "$t" "$work" "${seeds[@]}" -- \
+    # Under DEADLINE the run itself is bounded too: libFuzzer's
+    # -max_total_time does not count loading the corpus, and a retry
+    # below starts the clock again.
+    bound=()
+    if [ -n "${DEADLINE:-}" ]; then
+      left=$((DEADLINE - $(date +%s)))
+      [ "$left" -lt 5 ] && { rc=124; break; }
+      bound=(timeout "$left")
+    fi
+    "${bound[@]}" cargo +nightly fuzz run "${flags[@]}" "$t" "$work" "${seeds[@]}" -- \
       -max_total_time="$run_secs" -rss_limit_mb=1024 -timeout=1 -max_len=65536 \
       -artifact_prefix="artifacts/$t/" -print_final_stats=1 ${RUNS:+-runs=$RUNS} >"$log" 2>&1
     rc=$?
@@ -84,6 +94,11 @@ for t in "${targets[@]}"; do
     echo "fuzz $t: under 1 s of CPU alone: the machine was loaded, not the input slow; running again"
     mv "$art" "work/$t.spurious-$(basename "$art")"
   done
+  if [ "$rc" -eq 124 ] && [ -n "${DEADLINE:-}" ]; then
+    echo "fuzz $t: SKIPPED, stopped at DEADLINE before it finished; run fuzz/run.sh $secs $t by hand"
+    skipped+=("$t")
+    continue
+  fi
   runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
   cov=$(grep -oE 'cov: [0-9]+ ft: [0-9]+' "$log" | tail -1)
   if [ "$rc" -eq 0 ]; then

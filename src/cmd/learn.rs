@@ -64,6 +64,8 @@ impl From<MethodArg> for Method {
 /// feature cache. The dataset lists the scenes, which fit, evaluate and
 /// predict render in memory (the same frames `vibroscope simulate` writes);
 /// --videos also writes each take as DIR/videos/*.y4m and lists those.
+/// Each take is listed with its region (`roi`, the cloth's rectangle);
+/// give it to `learn predict --roi` too.
 #[derive(clap::Args)]
 struct GenerateArgs {
     /// Output directory.

@@ -427,6 +427,54 @@ pub fn cached(
 mod tests {
     use super::*;
 
+    /// The cache is keyed on the video's mtime as an f64 of seconds, so it
+    /// must read back exactly: serde_json's default float parser reads
+    /// about one mtime in eight back one bit off (this one among them),
+    /// and those takes were measured again on every run.
+    #[test]
+    fn a_cache_is_found_again_whatever_the_videos_mtime() {
+        let d = tempfile::tempdir().unwrap();
+        let video = d.path().join("v.y4m");
+        // Not a video: a cache miss is an error, not a silent re-measure.
+        std::fs::write(&video, b"not a video").unwrap();
+        let t = std::time::UNIX_EPOCH + std::time::Duration::from_nanos(1_795_818_818_468_119_820);
+        std::fs::File::options()
+            .write(true)
+            .open(&video)
+            .unwrap()
+            .set_modified(t)
+            .unwrap();
+        let (video_bytes, video_mtime_s) = stamp(&video).unwrap();
+        let params = FeatureParams::default();
+        let f = VideoFeatures {
+            cache_version: CACHE_VERSION,
+            video: video.clone(),
+            params,
+            video_bytes,
+            video_mtime_s,
+            fps: None,
+            roi: Some("1,2,3,4".into()),
+            mask: None,
+            sample_rate_hz: 40.0,
+            resolution_hz: 0.1,
+            features: vec![-2.0; params.n],
+        };
+        std::fs::write(cache_path(&video), serde_json::to_vec(&f).unwrap()).unwrap();
+        let region = Region {
+            roi: Some("1,2,3,4".parse().unwrap()),
+            ..Region::default()
+        };
+        let got = cached(
+            Source::Video(&video),
+            None,
+            &region,
+            &params,
+            RunSettings::default(),
+        )
+        .unwrap_or_else(|e| panic!("the cache was not found again: {e}"));
+        assert_eq!(got.features, f.features);
+    }
+
     #[test]
     fn a_peak_lands_where_it_is_and_sums_to_one() {
         let p = FeatureParams::default();

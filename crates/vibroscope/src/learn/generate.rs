@@ -11,7 +11,9 @@
 //! `DATASET.toml`, whose entries are the scenes (rendered in memory when
 //! their features are measured: the default dataset's 720 takes would be
 //! 32 GB of Y4M), or with `videos` also `videos/*.y4m`, whose entries are
-//! the videos; then caches every take's features (unless asked not to).
+//! the videos, each with its region (`roi`, the cloth's rectangle, as a
+//! user marks a real recording); then caches every take's features
+//! (unless asked not to).
 
 use super::{Dataset, Entry, DATASET_VERSION};
 use crate::error::{Error, Result};
@@ -268,7 +270,12 @@ pub fn generate(
                     object: format!("m{mi:03}"),
                     condition: cond.clone(),
                     fps: None,
-                    roi: None,
+                    // The cloth's rectangle, as a user marks the region
+                    // of a real recording: the tiles then cut the cloth
+                    // (as the bound's do), not the cloth and the wall
+                    // beside it (A/R stiffness R 0.898 -> 0.929,
+                    // docs/learning.md).
+                    roi: Some(format!("{},{},{},{}", obj[0], obj[1], obj[2], obj[3])),
                     mask: None,
                     properties: BTreeMap::from([
                         ("area_weight_kg_m2".to_string(), rho),
