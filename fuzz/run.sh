@@ -33,19 +33,22 @@ scratch_base=/dev/shm
 VIBROSCOPE_FUZZ_DIR=$(mktemp -d "$scratch_base/vibroscope-fuzz.XXXXXX") || exit 1
 export VIBROSCOPE_FUZZ_DIR
 trap 'rm -rf "$VIBROSCOPE_FUZZ_DIR"' EXIT
-if [ -n "${DEADLINE:-}" ]; then
-  # The build is bounded by the deadline too (it takes 4-8 min from scratch).
-  left=$((DEADLINE - $(date +%s)))
-  rc=124
-  [ "$left" -gt 0 ] && { timeout "$left" cargo +nightly fuzz build "${flags[@]}"; rc=$?; }
-  if [ "$rc" -eq 124 ]; then
-    echo "fuzz: SKIPPED, no time to finish the build before DEADLINE; run fuzz/run.sh $secs by hand"
-    exit 0
-  fi
-  [ "$rc" -eq 0 ] || exit 1
-else
-  cargo +nightly fuzz build "${flags[@]}" || exit 1
+# COMMAND...: run it, within DEADLINE when that is set; 124 when it was
+# cut off there, or not started for want of 5 s.
+bounded() {
+  [ -n "${DEADLINE:-}" ] || { "$@"; return; }
+  local left=$((DEADLINE - $(date +%s)))
+  [ "$left" -ge 5 ] || return 124
+  timeout "$left" "$@"
+}
+# The build is bounded by the deadline too (it takes 4-8 min from scratch).
+bounded cargo +nightly fuzz build "${flags[@]}"
+rc=$?
+if [ "$rc" -eq 124 ] && [ -n "${DEADLINE:-}" ]; then
+  echo "fuzz: SKIPPED, no time to finish the build before DEADLINE; run fuzz/run.sh $secs by hand"
+  exit 0
 fi
+[ "$rc" -eq 0 ] || exit 1
 failed=()
 skipped=()
 left_targets=${#targets[@]}
@@ -70,13 +73,7 @@ for t in "${targets[@]}"; do
     # Under DEADLINE the run itself is bounded too: libFuzzer's
     # -max_total_time does not count loading the corpus, and a retry
     # below starts the clock again.
-    bound=()
-    if [ -n "${DEADLINE:-}" ]; then
-      left=$((DEADLINE - $(date +%s)))
-      [ "$left" -lt 5 ] && { rc=124; break; }
-      bound=(timeout "$left")
-    fi
-    "${bound[@]}" cargo +nightly fuzz run "${flags[@]}" "$t" "$work" "${seeds[@]}" -- \
+    bounded cargo +nightly fuzz run "${flags[@]}" "$t" "$work" "${seeds[@]}" -- \
       -max_total_time="$run_secs" -rss_limit_mb=1024 -timeout=1 -max_len=65536 \
       -artifact_prefix="artifacts/$t/" -print_final_stats=1 ${RUNS:+-runs=$RUNS} >"$log" 2>&1
     rc=$?

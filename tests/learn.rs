@@ -55,7 +55,8 @@ fn evaluate_al(dir: &Path, more: &[&str]) -> std::process::Output {
 /// scene files rendered in memory: as videos they would fill 2.4 GB).
 /// Area weight R >= 0.9 and stiffness R >= 0.8. Issue 19 asks 0.9 for
 /// both: stiffness measures 0.889 here (0.907 when the tiles cut the
-/// whole frame), too near 0.9 to assert across draws of fabrics (docs/learning.md has the full dataset's tables).
+/// whole frame), too near 0.9 to assert across draws of fabrics
+/// (docs/learning.md has the full dataset's tables).
 /// Stiffness shows only in the upper modes, near the noise floor: with
 /// 64 px, 30 s videos it was 0.60-0.79, and it needs many fabrics (30
 /// fabrics x 2 takes: 0.876, its bound 0.922).

@@ -17,7 +17,7 @@
 
 use super::{Dataset, Entry, DATASET_VERSION};
 use crate::error::{Error, Result};
-use crate::pipeline::RunSettings;
+use crate::pipeline::{Roi, RunSettings};
 use crate::sim::rng::{hash2, Xoshiro256};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -275,7 +275,15 @@ pub fn generate(
                     // (as the bound's do), not the cloth and the wall
                     // beside it (A/R stiffness R 0.898 -> 0.929,
                     // docs/learning.md).
-                    roi: Some(format!("{},{},{},{}", obj[0], obj[1], obj[2], obj[3])),
+                    roi: Some(
+                        Roi {
+                            x: obj[0],
+                            y: obj[1],
+                            w: obj[2],
+                            h: obj[3],
+                        }
+                        .to_string(),
+                    ),
                     mask: None,
                     properties: BTreeMap::from([
                         ("area_weight_kg_m2".to_string(), rho),
