@@ -53,10 +53,11 @@ fn evaluate_al(dir: &Path, more: &[&str]) -> std::process::Output {
 /// dataset's A/L part with one take a fabric in place of three (60
 /// fabrics x 1 take, 60 s, 128 px; about 2 min on 2 cores; the takes are
 /// scene files rendered in memory: as videos they would fill 2.4 GB).
-/// Area weight R >= 0.9 and stiffness R >= 0.8. Issue 19 asks 0.9 for
-/// both: stiffness measures 0.889 here (0.907 when the tiles cut the
-/// whole frame), too near 0.9 to assert across draws of fabrics
-/// (docs/learning.md has the full dataset's tables).
+/// Area weight and stiffness R >= 0.9, issue 19's bar (measured 0.982
+/// and 0.913 with each tile counted alike, `normalise = "channel"`;
+/// 0.889 for stiffness before, when tiles weighed by their texture; this
+/// draw of fabrics only, the generator's seed 1; docs/learning.md has the
+/// full dataset's tables).
 /// Stiffness shows only in the upper modes, near the noise floor: with
 /// 64 px, 30 s videos it was 0.60-0.79, and it needs many fabrics (30
 /// fabrics x 2 takes: 0.876, its bound 0.922).
@@ -69,7 +70,7 @@ fn same_condition_leave_one_out_predicts_both_properties() {
     let out = stdout(&o);
     println!("{out}");
     assert!(r_of(&out, "area_weight") >= 0.9, "{out}");
-    assert!(r_of(&out, "stiffness") >= 0.8, "{out}");
+    assert!(r_of(&out, "stiffness") >= 0.9, "{out}");
     // Cached features: a second run renders nothing and agrees.
     let o2 = evaluate_al(d.path(), &[]);
     assert_eq!(stdout(&o2), out);

@@ -494,6 +494,61 @@ fn tiles_keep_a_twist_that_the_mean_motion_cancels() {
     assert!(twist_db[1] > -8.0, "{twist_db:?}");
 }
 
+/// The `phase` stage's `normalise`: under a rigid motion of an object
+/// that fills the frame, each of 2 x 2 tiles reads about what the whole
+/// region reads when every channel is divided by its own tile's A²
+/// and band (`channel`, the tile's mean phase change), and about a
+/// quarter of it when all are divided by the region's total (`region`,
+/// the default: each tile weighs by its share of the texture).
+#[test]
+fn channel_normalisation_makes_each_tile_a_mean() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // RMS of each channel of the first scale, by tiles and normalise.
+    let rms = |tiles: usize, normalise: &str| -> Vec<f64> {
+        std::fs::write(
+            d.join("p.toml"),
+            format!(
+                "[[stage]]\nid = \"src\"\nkind = \"synthetic\"\nwidth = 64\nheight = 64\n\
+                 fps = 100.0\nduration_s = 2.0\nnoise_std = 0.5\nobject = [0, 0, 64, 64]\n\
+                 amplitude_px = 0.2\nsignal = {{ type = \"tone\", freq_hz = 5.0 }}\n\
+                 [[stage]]\nid = \"phase\"\nkind = \"phase\"\ninput = \"src\"\n\
+                 pyramid = \"riesz\"\nscales = 2\norientations = 1\ntiles = {tiles}\n\
+                 normalise = \"{normalise}\"\nreference_interval_s = 0.0\n\
+                 [[stage]]\nid = \"out\"\nkind = \"csv\"\ninput = \"phase\"\npath = \"m.csv\"\n"
+            ),
+        )
+        .unwrap();
+        let o = run_in(d, &["run", "p.toml", "-q"]);
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        let text = std::fs::read_to_string(d.join("m.csv")).unwrap();
+        let rows: Vec<Vec<f64>> = text
+            .lines()
+            .filter_map(|l| l.split(',').map(|v| v.parse::<f64>().ok()).collect())
+            .collect();
+        assert!(rows.len() > 100, "{text:.200}");
+        // Columns: t_s, then tile-major channels of 2 bands (scales 0, 1).
+        (0..tiles * tiles)
+            .map(|t| {
+                let c = 1 + t * 2;
+                (rows.iter().map(|r| r[c] * r[c]).sum::<f64>() / rows.len() as f64).sqrt()
+            })
+            .collect()
+    };
+    // One tile: the band's mean, or its share of both bands' A².
+    let (mean, share) = (rms(1, "channel")[0], rms(1, "region")[0]);
+    let by_tile = rms(2, "channel");
+    let shared = rms(2, "region");
+    eprintln!(
+        "whole region: channel {mean:.4}, region {share:.4}; 2 x 2 tiles: channel {by_tile:.4?}, region {shared:.4?}"
+    );
+    assert!(mean > share && share > 0.01, "{mean} {share}");
+    for (c, r) in by_tile.iter().zip(&shared) {
+        assert!((c / mean - 1.0).abs() < 0.25, "{c} against {mean}");
+        assert!((r / share - 0.25).abs() < 0.1, "{r} against {share}");
+    }
+}
+
 /// Bad input: exit 2 naming the field and value, or 1 naming the file.
 #[test]
 fn bad_input_is_reported_not_panicked() {

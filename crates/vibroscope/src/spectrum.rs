@@ -79,6 +79,9 @@ pub struct SpectrumOptions {
     /// each by how far it stands out of its own noise floor (the
     /// `spectrum` stage's `combine`), `Sum` adds them (Eq. 3.17).
     pub combine: Combine,
+    /// With `tiles`: each tile's and band's signal divided by its own A²
+    /// (the `phase` stage's `normalise = "channel"`), not by the region's.
+    pub normalise_channels: bool,
     pub run: RunSettings,
 }
 
@@ -130,6 +133,7 @@ impl SpectrumOptions {
             filters: Vec::new(),
             tiles: 1,
             combine: Combine::default(),
+            normalise_channels: false,
             run: RunSettings::default(),
         }
     }
@@ -166,6 +170,15 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
     )?;
     if o.tiles > 1 {
         pipeline::set(&mut decl, "phase", "tiles", int(o.tiles), by("tiles"))?;
+    }
+    if o.normalise_channels {
+        pipeline::set(
+            &mut decl,
+            "phase",
+            "normalise",
+            Value::String("channel".into()),
+            by("normalise"),
+        )?;
     }
     let st = pipeline::stage_mut(&mut decl, "spectrum")?;
     st.params

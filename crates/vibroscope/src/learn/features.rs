@@ -51,6 +51,40 @@ pub struct FeatureParams {
     /// the view as much as the cloth (`docs/learning.md`). Needs a frame
     /// rate above about `2 (max_hz + 1) / 0.95` (34 fps for 15 Hz).
     pub subtract_floor: bool,
+    /// How the tiles' local motion signals are scaled before their power
+    /// spectra are added. `channel` (the default): each tile and band by
+    /// its own texture's A², so a tile's signal is its weighted mean phase
+    /// change and every tile counts alike, as the cloth's own tiles do in
+    /// the bound. `region`: all by the region's total A², so a tile weighs
+    /// as the square of its texture's A², which differs from take to take
+    /// (what features were before this setting; a file without it means
+    /// that). `docs/learning.md` has the comparison.
+    #[serde(
+        default = "Normalise::before",
+        skip_serializing_if = "Normalise::is_before"
+    )]
+    pub normalise: Normalise,
+}
+
+/// [`FeatureParams::normalise`]: the `phase` stage's `normalise`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Normalise {
+    #[default]
+    Channel,
+    Region,
+}
+
+impl Normalise {
+    /// What a dataset, model or cache written without the setting used.
+    fn before() -> Self {
+        Normalise::Region
+    }
+
+    /// Written as nothing, so files from before still match their caches.
+    fn is_before(&self) -> bool {
+        *self == Self::before()
+    }
 }
 
 impl Default for FeatureParams {
@@ -64,6 +98,7 @@ impl Default for FeatureParams {
             tiles: DEFAULT_TILES,
             pyramid: Pyramid::Riesz,
             subtract_floor: false,
+            normalise: Normalise::Channel,
         }
     }
 }
@@ -298,6 +333,7 @@ pub fn measure(
     o.include_spectrum = true;
     o.segments = params.segments;
     o.tiles = params.tiles;
+    o.normalise_channels = params.normalise == Normalise::Channel;
     // Eq. 3.17's plain sum of the local spectra: the relative heights of
     // a fabric's modes are the features, and weighing the tiles by their
     // own lines would make those heights depend on where the lines stood
@@ -474,6 +510,25 @@ mod tests {
         )
         .unwrap_or_else(|e| panic!("the cache was not found again: {e}"));
         assert_eq!(got.features, f.features);
+    }
+
+    /// Settings written before `normalise` existed (a dataset, a model, a
+    /// cache) read as `region`, what they were measured with, and `region`
+    /// is written as nothing so they keep matching; new settings default
+    /// to `channel` and say so.
+    #[test]
+    fn settings_without_normalise_mean_region() {
+        let old: FeatureParams = toml::from_str("tiles = 8\nsubtract_floor = true").unwrap();
+        assert_eq!(old.normalise, Normalise::Region);
+        let json = serde_json::to_value(old).unwrap();
+        assert!(json.get("normalise").is_none(), "{json}");
+        let new = FeatureParams::default();
+        assert_eq!(new.normalise, Normalise::Channel);
+        let text = toml::to_string(&new).unwrap();
+        assert!(text.contains("normalise = \"channel\""), "{text}");
+        let back: FeatureParams = toml::from_str(&text).unwrap();
+        assert_eq!(back, new);
+        assert!(toml::from_str::<FeatureParams>("normalise = \"tile\"").is_err());
     }
 
     #[test]

@@ -28,8 +28,8 @@ pub mod model;
 
 use crate::error::{Error, Result};
 use crate::pipeline::{Region, Roi, RunSettings};
-pub use features::FeatureParams;
 use features::VideoFeatures;
+pub use features::{FeatureParams, Normalise};
 use model::{Distance, Linear, Method, Metrics};
 use ndarray::Array2;
 use serde::{Deserialize, Serialize};

@@ -35,7 +35,13 @@
 //! channels are divided by one constant, the reference's total A² over all
 //! bands, which keeps their relative weights (Eq. 3.6 sums them
 //! unnormalised) and gives values of the order of radians of phase instead
-//! of millions.
+//! of millions. With `normalise = "channel"` each channel is divided by
+//! its own tile's and band's total A² instead: its value is then the
+//! A²-weighted mean phase change of that tile and band, whatever the
+//! texture's contrast there, so that tiles count alike in a sum of their
+//! power spectra (a tile of strong texture otherwise weighs as the square
+//! of its A²; `vibroscope learn`'s features, `docs/learning.md`). A tile
+//! with no weight in a band reads zero there.
 
 use super::audio_out::Batcher;
 use super::pyramid::{
@@ -65,6 +71,17 @@ struct P {
     reference_interval_s: f64,
     reference_overlap: usize,
     tiles: usize,
+    normalise: Normalise,
+}
+
+/// What each channel is divided by.
+#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[serde(rename_all = "lowercase")]
+enum Normalise {
+    /// The reference's total A² over every band of the region.
+    Region,
+    /// The reference's A² over the channel's own tile and band.
+    Channel,
 }
 
 /// `reference_interval_s`, shared with `tile_motion`.
@@ -97,6 +114,12 @@ const PARAMS: &[ParamSpec] = &[
         .ints(1, 32)
         .unit("per side")
         .doc("cut the region into tiles x tiles local regions, one channel per band per tile (tile-major), so a spectrum sums local power spectra (Eq. 3.17)"),
+    ParamSpec::new(
+        "normalise",
+        ParamType::Choice(&["region", "channel"]),
+        Def::Str("region"),
+    )
+    .doc("divide every channel by the region's total A² (keeps the bands' and tiles' relative weights), or each by its own tile's and band's A² (its A²-weighted mean phase change: tiles of weak and strong texture count alike)"),
 ];
 
 pub const KIND: KindSpec = KindSpec {
@@ -134,6 +157,7 @@ impl Plan for PhasePlan {
             renewal: Renewal {
                 interval_s: v.reference_interval_s,
                 overlap: v.reference_overlap,
+                per_channel: v.normalise == Normalise::Channel,
             },
             engine: None,
             pending: Vec::with_capacity(threads),
@@ -168,8 +192,11 @@ struct Reference<C> {
     c: C,
     /// A(t_ref)² per band, zero outside the mask.
     weights: Vec<Vec<f32>>,
-    /// Σ A² over every band's region (output scale).
-    norm: f64,
+    /// Per channel, what its sum is divided by: Σ A² over every band's
+    /// region (the output scale), or with
+    /// `normalise = "channel"` Σ A² over its tile and band (infinite
+    /// where that is zero, so the channel reads zero).
+    divisor: Vec<f64>,
     t_ns: i64,
     /// Added per channel to this reference's normalised sums, so the output
     /// continues across renewals.
@@ -207,6 +234,7 @@ struct Engine<A: Analyzer> {
     /// Renew the reference this long after the last one (None = never).
     interval_ns: Option<i64>,
     overlap: usize,
+    per_channel: bool,
     bands: Vec<BandState>,
     /// Tiles per side of the region.
     tiles: usize,
@@ -220,11 +248,13 @@ struct Engine<A: Analyzer> {
     height: usize,
 }
 
-/// How `phase` renews its reference.
+/// How `phase` renews its reference, and what each channel is divided by.
 #[derive(Clone, Copy)]
 struct Renewal {
     interval_s: f64,
     overlap: usize,
+    /// `normalise = "channel"`.
+    per_channel: bool,
 }
 
 /// The object-safe face of [`Engine`] (one per pyramid kind).
@@ -319,6 +349,7 @@ impl<A: Analyzer> Engine<A> {
             spare: None,
             interval_ns,
             overlap: renewal.overlap,
+            per_channel: renewal.per_channel,
             bands,
             tiles,
             scales,
@@ -344,7 +375,7 @@ impl<A: Analyzer> Engine<A> {
             None => Reference {
                 c: self.workers[0].an.alloc(),
                 weights: self.bands.iter().map(|b| vec![0.0; b.len]).collect(),
-                norm: 0.0,
+                divisor: vec![0.0; nb],
                 t_ns: 0,
                 offset: vec![0.0; nb],
             },
@@ -368,7 +399,21 @@ impl<A: Analyzer> Engine<A> {
                     .sum::<f64>();
             }
         }
-        r.norm = total;
+        if self.per_channel {
+            let (nbands, tiles) = (self.bands.len(), self.tiles);
+            for (i, (b, wt)) in self.bands.iter().zip(&r.weights).enumerate() {
+                for t in 0..tiles * tiles {
+                    let (ty, tx) = (t / tiles, t % tiles);
+                    let sum: f64 = (b.ys[ty]..b.ys[ty + 1])
+                        .flat_map(|y| &wt[y * b.width + b.xs[tx]..y * b.width + b.xs[tx + 1]])
+                        .map(|&w| w as f64)
+                        .sum();
+                    r.divisor[t * nbands + i] = if sum > 0.0 { sum } else { f64::INFINITY };
+                }
+            }
+        } else {
+            r.divisor.iter_mut().for_each(|d| *d = total);
+        }
         r.t_ns = t_ns;
         r.offset.iter_mut().for_each(|o| *o = 0.0);
         if total > 0.0 {
@@ -429,12 +474,14 @@ impl<A: Analyzer> Engine<A> {
         });
         for (w, f) in workers.iter_mut().zip(batch) {
             std::mem::replace(&mut w.result, Ok(()))?;
-            for ((v, s), o) in self.vals.iter_mut().zip(&w.sums).zip(&reference.offset) {
-                *v = (o + s / reference.norm) as f32;
+            let now = self.vals.iter_mut().zip(&w.sums).zip(&reference.offset);
+            for (((v, s), o), d) in now.zip(&reference.divisor) {
+                *v = (o + s / d) as f32;
             }
             if let Some(h) = self.handover.as_mut() {
-                for ((a, v), s) in self.acc.iter_mut().zip(&self.vals).zip(&w.next_sums) {
-                    *a += *v as f64 - s / h.next.norm;
+                let next = self.acc.iter_mut().zip(&self.vals).zip(&w.next_sums);
+                for (((a, v), s), d) in next.zip(&h.next.divisor) {
+                    *a += *v as f64 - s / d;
                 }
                 h.n += 1;
                 h.left = h.left.saturating_sub(1);
