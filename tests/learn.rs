@@ -250,6 +250,73 @@ fn bad_datasets_and_models_are_refused_by_name() {
         stdout(&o2)
     );
 
+    // A region that parses but does not fit the frame (32 x 32).
+    let outside = good.replacen(
+        "condition = \"A/L\"",
+        "condition = \"A/L\"\nroi = \"30,0,8,8\"",
+        1,
+    );
+    write(dir, "outside.toml", &outside);
+    fit_refused(
+        dir,
+        "outside.toml",
+        &[],
+        &["video[0]", "v0.y4m", "30,0,8,8", "32 x 32"],
+    );
+
+    // `evaluate` measures only the conditions it is asked: an entry of
+    // another condition whose video is no video is left alone, and is
+    // named once it is asked for.
+    write(dir, "junk.y4m", "not a video");
+    let other = format!(
+        "{good}[[video]]\npath = \"junk.y4m\"\nobject = \"o9\"\ncondition = \"S/R\"\n\
+         properties = {{ stiffness_nm = 1e-5, area_weight_kg_m2 = 0.5 }}\n"
+    );
+    write(dir, "other.toml", &other);
+    let asked = |test_on: &str| {
+        let args = [
+            "learn",
+            "evaluate",
+            "other.toml",
+            "--train-on",
+            "A/L",
+            "--test-on",
+            test_on,
+        ];
+        run_in(dir, &args)
+    };
+    let o = asked("A/L");
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    assert!(stdout(&o).contains("3 test videos"), "{}", stdout(&o));
+    let o = asked("S/R");
+    assert_ne!(code(&o), 0, "{}", stdout(&o));
+    assert!(stderr(&o).contains("junk.y4m"), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+    // An entry is named by its place in the file, also after the
+    // conditions not asked are left out (video[3], not the third A/L).
+    let junk_first = format!(
+        "version = 1\n[[video]]\npath = \"junk.y4m\"\nobject = \"o9\"\ncondition = \"S/R\"\n\
+         properties = {{ stiffness_nm = 1e-5, area_weight_kg_m2 = 0.5 }}\n{}",
+        good.trim_start_matches("version = 1\n").replace(
+            "path = \"v2.y4m\"",
+            "path = \"v2.y4m\"\nroi = \"0,20,8,16\"",
+        )
+    );
+    write(dir, "shifted.toml", &junk_first);
+    refused(
+        dir,
+        &[
+            "learn",
+            "evaluate",
+            "shifted.toml",
+            "--train-on",
+            "A/L",
+            "--test-on",
+            "A/L",
+        ],
+        &["video[3]", "v2.y4m", "0,20,8,16", "32 x 32"],
+    );
+
     // Scene entries: one of `path` and `scene`, the scene must exist, and
     // a mistake in it is told against the scene file and its key.
     let scenes = good

@@ -497,11 +497,13 @@ fn tiles_keep_a_twist_that_the_mean_motion_cancels() {
 /// The `phase` stage's `normalise`: under a rigid motion of an object
 /// that fills the frame, each of 2 x 2 tiles reads about what the whole
 /// region reads when every channel is divided by its own tile's A²
-/// and band (`channel`, the tile's mean phase change), and about a
-/// quarter of it when all are divided by the region's total (`region`,
-/// the default: each tile weighs by its share of the texture).
+/// and band (`channel`, the tile's mean phase change) or by its own
+/// tile's A² over all bands (`tile`, the tile's share of each band as
+/// the whole region's), and about a quarter of it when all are divided
+/// by the region's total (`region`, the default: each tile weighs by its
+/// share of the texture).
 #[test]
-fn channel_normalisation_makes_each_tile_a_mean() {
+fn channel_and_tile_normalisation_make_each_tile_count_alike() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // RMS of each channel of the first scale, by tiles and normalise.
@@ -537,15 +539,24 @@ fn channel_normalisation_makes_each_tile_a_mean() {
     };
     // One tile: the band's mean, or its share of both bands' A².
     let (mean, share) = (rms(1, "channel")[0], rms(1, "region")[0]);
-    let by_tile = rms(2, "channel");
+    // With one tile, the tile is the region.
+    let whole_tile = rms(1, "tile")[0];
+    let by_channel = rms(2, "channel");
     let shared = rms(2, "region");
+    let by_tile = rms(2, "tile");
     eprintln!(
-        "whole region: channel {mean:.4}, region {share:.4}; 2 x 2 tiles: channel {by_tile:.4?}, region {shared:.4?}"
+        "whole region: channel {mean:.4}, region {share:.4}, tile {whole_tile:.4}; \
+         2 x 2 tiles: channel {by_channel:.4?}, region {shared:.4?}, tile {by_tile:.4?}"
     );
     assert!(mean > share && share > 0.01, "{mean} {share}");
-    for (c, r) in by_tile.iter().zip(&shared) {
+    assert!(
+        (whole_tile / share - 1.0).abs() < 1e-4,
+        "{whole_tile} {share}"
+    );
+    for ((c, r), t) in by_channel.iter().zip(&shared).zip(&by_tile) {
         assert!((c / mean - 1.0).abs() < 0.25, "{c} against {mean}");
         assert!((r / share - 0.25).abs() < 0.1, "{r} against {share}");
+        assert!((t / share - 1.0).abs() < 0.25, "{t} against {share}");
     }
 }
 

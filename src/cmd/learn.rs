@@ -152,6 +152,9 @@ struct PredictArgs {
 }
 
 /// Train on one condition, test on another (Table 5.3), leave-one-object-out.
+///
+/// Only the videos of the conditions asked are measured (the others'
+/// features are neither computed nor needed).
 #[derive(clap::Args)]
 struct EvaluateArgs {
     dataset: PathBuf,

@@ -79,10 +79,35 @@ pub struct SpectrumOptions {
     /// each by how far it stands out of its own noise floor (the
     /// `spectrum` stage's `combine`), `Sum` adds them (Eq. 3.17).
     pub combine: Combine,
-    /// With `tiles`: each tile's and band's signal divided by its own A²
-    /// (the `phase` stage's `normalise = "channel"`), not by the region's.
-    pub normalise_channels: bool,
+    /// With `tiles`: what each tile's and band's signal is divided by (the
+    /// `phase` stage's `normalise`).
+    pub normalise: PhaseNormalise,
     pub run: RunSettings,
+}
+
+/// What the `phase` stage divides each tile's and band's signal by (its
+/// `normalise`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PhaseNormalise {
+    /// Its own tile's and band's A²: every tile and band counts alike.
+    Channel,
+    /// Its own tile's A² over all bands: every tile counts alike, the
+    /// bands keep their relative weights within it.
+    Tile,
+    /// The region's total A²: tiles and bands keep their relative weights.
+    Region,
+}
+
+impl PhaseNormalise {
+    /// The `phase` stage's value.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            PhaseNormalise::Channel => "channel",
+            PhaseNormalise::Tile => "tile",
+            PhaseNormalise::Region => "region",
+        }
+    }
 }
 
 /// How the channels' spectra make one (the `spectrum` stage's `combine`).
@@ -133,7 +158,7 @@ impl SpectrumOptions {
             filters: Vec::new(),
             tiles: 1,
             combine: Combine::default(),
-            normalise_channels: false,
+            normalise: PhaseNormalise::Region,
             run: RunSettings::default(),
         }
     }
@@ -171,12 +196,12 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
     if o.tiles > 1 {
         pipeline::set(&mut decl, "phase", "tiles", int(o.tiles), by("tiles"))?;
     }
-    if o.normalise_channels {
+    if o.normalise != PhaseNormalise::Region {
         pipeline::set(
             &mut decl,
             "phase",
             "normalise",
-            Value::String("channel".into()),
+            Value::String(o.normalise.as_str().into()),
             by("normalise"),
         )?;
     }

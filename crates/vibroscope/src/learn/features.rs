@@ -58,33 +58,27 @@ pub struct FeatureParams {
     /// the bound. `region`: all by the region's total A², so a tile weighs
     /// as the square of its texture's A², which differs from take to take
     /// (what features were before this setting; a file without it means
-    /// that). `docs/learning.md` has the comparison.
+    /// that). `tile`: each tile by its own texture's A² over all bands, so
+    /// tiles count alike and bands keep their weights within a tile
+    /// (measured, not adopted). `docs/learning.md` has the comparisons.
     #[serde(
-        default = "Normalise::before",
-        skip_serializing_if = "Normalise::is_before"
+        default = "normalise_before",
+        skip_serializing_if = "normalise_is_before"
     )]
     pub normalise: Normalise,
 }
 
 /// [`FeatureParams::normalise`]: the `phase` stage's `normalise`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Normalise {
-    #[default]
-    Channel,
-    Region,
+pub use crate::spectrum::PhaseNormalise as Normalise;
+
+/// What a dataset, model or cache written without the setting used.
+fn normalise_before() -> Normalise {
+    Normalise::Region
 }
 
-impl Normalise {
-    /// What a dataset, model or cache written without the setting used.
-    fn before() -> Self {
-        Normalise::Region
-    }
-
-    /// Written as nothing, so files from before still match their caches.
-    fn is_before(&self) -> bool {
-        *self == Self::before()
-    }
+/// Written as nothing, so files from before still match their caches.
+fn normalise_is_before(n: &Normalise) -> bool {
+    *n == normalise_before()
 }
 
 impl Default for FeatureParams {
@@ -333,7 +327,7 @@ pub fn measure(
     o.include_spectrum = true;
     o.segments = params.segments;
     o.tiles = params.tiles;
-    o.normalise_channels = params.normalise == Normalise::Channel;
+    o.normalise = params.normalise;
     // Eq. 3.17's plain sum of the local spectra: the relative heights of
     // a fabric's modes are the features, and weighing the tiles by their
     // own lines would make those heights depend on where the lines stood
@@ -528,7 +522,9 @@ mod tests {
         assert!(text.contains("normalise = \"channel\""), "{text}");
         let back: FeatureParams = toml::from_str(&text).unwrap();
         assert_eq!(back, new);
-        assert!(toml::from_str::<FeatureParams>("normalise = \"tile\"").is_err());
+        let tile: FeatureParams = toml::from_str("normalise = \"tile\"").unwrap();
+        assert_eq!(tile.normalise, Normalise::Tile);
+        assert!(toml::from_str::<FeatureParams>("normalise = \"band\"").is_err());
     }
 
     #[test]

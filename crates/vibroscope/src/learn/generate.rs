@@ -269,6 +269,7 @@ pub fn generate(
                     path: video,
                     object: format!("m{mi:03}"),
                     condition: cond.clone(),
+                    index: entries.len(),
                     fps: None,
                     // The cloth's rectangle, as a user marks the region
                     // of a real recording: the tiles then cut the cloth

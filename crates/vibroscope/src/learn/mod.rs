@@ -64,6 +64,10 @@ pub struct Entry {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mask: Option<PathBuf>,
     pub properties: BTreeMap<String, f64>,
+    /// Its place in the dataset file (`video[index]` in messages, also
+    /// once `evaluate` has left out the conditions it was not asked).
+    #[serde(skip)]
+    pub index: usize,
 }
 
 impl Entry {
@@ -91,6 +95,29 @@ pub struct Dataset {
     pub dir: PathBuf,
 }
 
+/// When entry `i`'s measurement failed: a usage error naming the entry
+/// if its `roi` does not fit its frame (the engine, which finds that
+/// out once frames arrive, names neither), `None` otherwise.
+fn roi_outside(i: usize, source: features::Source, fps: Option<f64>, r: Roi) -> Option<Error> {
+    let (w, h) = match source {
+        features::Source::Scene(p) => {
+            let s = crate::pipeline::SceneFile::read(p).ok()?.synthetic().ok()?;
+            (s.width, s.height)
+        }
+        features::Source::Video(p) => {
+            let v = crate::probe::probe(p, fps).ok()?;
+            (v.width, v.height)
+        }
+    };
+    let fits = r.x.checked_add(r.w)? <= w && r.y.checked_add(r.h)? <= h;
+    (!fits).then(|| {
+        Error::input(
+            source.path(),
+            format!("video[{i}]: roi = \"{r}\" does not fit its {w} x {h} frame"),
+        )
+    })
+}
+
 impl Dataset {
     /// Reads and checks a dataset file: every entry's video exists, every
     /// property is > 0 and every entry has the same properties.
@@ -113,6 +140,9 @@ impl Dataset {
             .validate(&format!("{} [features]", path.display()))?;
         if d.video.is_empty() {
             return Err(Error::input(path, "lists no [[video]]"));
+        }
+        for (i, e) in d.video.iter_mut().enumerate() {
+            e.index = i;
         }
         let names: Vec<String> = d.video[0].properties.keys().cloned().collect();
         if names.is_empty() {
@@ -217,13 +247,11 @@ impl Dataset {
                 ..Region::default()
             };
             let source = e.source().at(&p);
-            out.push(features::cached(
-                source,
-                e.fps,
-                &region,
-                &self.features,
-                run,
-            )?);
+            let f = features::cached(source, e.fps, &region, &self.features, run);
+            out.push(f.map_err(|err| match region.roi {
+                Some(r) => roi_outside(e.index, source, e.fps, r).unwrap_or(err),
+                None => err,
+            })?);
         }
         Ok(out)
     }
@@ -656,9 +684,16 @@ pub fn evaluate(
     outs.extend(o.png.as_deref());
     outs.extend(o.json.as_deref());
     crate::error::check_outputs(&[&o.dataset], &outs)?;
-    let d = Dataset::load(&o.dataset)?;
+    let mut d = Dataset::load(&o.dataset)?;
     check_conditions(&d, &o.train_on, "--train-on")?;
     check_conditions(&d, &o.test_on, "--test-on")?;
+    // Only the entries of the conditions asked are measured: the others
+    // would cost their features and change nothing (no condition given
+    // means every entry).
+    if !o.train_on.is_empty() && !o.test_on.is_empty() {
+        d.video
+            .retain(|e| o.train_on.contains(&e.condition) || o.test_on.contains(&e.condition));
+    }
     let train = rows_of(&d, &o.train_on);
     let test = rows_of(&d, &o.test_on);
     let objs = n_objects(&d, &train);

@@ -82,6 +82,8 @@ enum Normalise {
     Region,
     /// The reference's A² over the channel's own tile and band.
     Channel,
+    /// The reference's A² over the channel's own tile, every band.
+    Tile,
 }
 
 /// `reference_interval_s`, shared with `tile_motion`.
@@ -116,10 +118,10 @@ const PARAMS: &[ParamSpec] = &[
         .doc("cut the region into tiles x tiles local regions, one channel per band per tile (tile-major), so a spectrum sums local power spectra (Eq. 3.17)"),
     ParamSpec::new(
         "normalise",
-        ParamType::Choice(&["region", "channel"]),
+        ParamType::Choice(&["region", "channel", "tile"]),
         Def::Str("region"),
     )
-    .doc("divide every channel by the region's total A² (keeps the bands' and tiles' relative weights), or each by its own tile's and band's A² (its A²-weighted mean phase change: tiles of weak and strong texture count alike)"),
+    .doc("divide every channel by the region's total A² (keeps the bands' and tiles' relative weights), by its own tile's and band's A² (its A²-weighted mean phase change: tiles of weak and strong texture count alike, and so do bands), or by its own tile's A² over all bands (tiles count alike, bands keep their relative weights within a tile)"),
 ];
 
 pub const KIND: KindSpec = KindSpec {
@@ -157,7 +159,7 @@ impl Plan for PhasePlan {
             renewal: Renewal {
                 interval_s: v.reference_interval_s,
                 overlap: v.reference_overlap,
-                per_channel: v.normalise == Normalise::Channel,
+                normalise: v.normalise,
             },
             engine: None,
             pending: Vec::with_capacity(threads),
@@ -193,9 +195,9 @@ struct Reference<C> {
     /// A(t_ref)² per band, zero outside the mask.
     weights: Vec<Vec<f32>>,
     /// Per channel, what its sum is divided by: Σ A² over every band's
-    /// region (the output scale), or with
-    /// `normalise = "channel"` Σ A² over its tile and band (infinite
-    /// where that is zero, so the channel reads zero).
+    /// region (the output scale); with `normalise = "channel"` Σ A² over
+    /// its tile and band, with `"tile"` over its tile and every band
+    /// (infinite where that is zero, so the channel reads zero).
     divisor: Vec<f64>,
     t_ns: i64,
     /// Added per channel to this reference's normalised sums, so the output
@@ -234,7 +236,7 @@ struct Engine<A: Analyzer> {
     /// Renew the reference this long after the last one (None = never).
     interval_ns: Option<i64>,
     overlap: usize,
-    per_channel: bool,
+    normalise: Normalise,
     bands: Vec<BandState>,
     /// Tiles per side of the region.
     tiles: usize,
@@ -253,8 +255,8 @@ struct Engine<A: Analyzer> {
 struct Renewal {
     interval_s: f64,
     overlap: usize,
-    /// `normalise = "channel"`.
-    per_channel: bool,
+    /// What each channel is divided by.
+    normalise: Normalise,
 }
 
 /// The object-safe face of [`Engine`] (one per pyramid kind).
@@ -349,7 +351,7 @@ impl<A: Analyzer> Engine<A> {
             spare: None,
             interval_ns,
             overlap: renewal.overlap,
-            per_channel: renewal.per_channel,
+            normalise: renewal.normalise,
             bands,
             tiles,
             scales,
@@ -399,20 +401,29 @@ impl<A: Analyzer> Engine<A> {
                     .sum::<f64>();
             }
         }
-        if self.per_channel {
+        if self.normalise == Normalise::Region {
+            r.divisor.iter_mut().for_each(|d| *d = total);
+        } else {
+            // Σ A² per tile and band (tile-major, as the channels).
             let (nbands, tiles) = (self.bands.len(), self.tiles);
             for (i, (b, wt)) in self.bands.iter().zip(&r.weights).enumerate() {
                 for t in 0..tiles * tiles {
                     let (ty, tx) = (t / tiles, t % tiles);
-                    let sum: f64 = (b.ys[ty]..b.ys[ty + 1])
+                    r.divisor[t * nbands + i] = (b.ys[ty]..b.ys[ty + 1])
                         .flat_map(|y| &wt[y * b.width + b.xs[tx]..y * b.width + b.xs[tx + 1]])
                         .map(|&w| w as f64)
                         .sum();
-                    r.divisor[t * nbands + i] = if sum > 0.0 { sum } else { f64::INFINITY };
                 }
             }
-        } else {
-            r.divisor.iter_mut().for_each(|d| *d = total);
+            if self.normalise == Normalise::Tile {
+                for tile in r.divisor.chunks_mut(nbands) {
+                    let sum: f64 = tile.iter().sum();
+                    tile.iter_mut().for_each(|d| *d = sum);
+                }
+            }
+            for d in r.divisor.iter_mut().filter(|d| **d <= 0.0) {
+                *d = f64::INFINITY;
+            }
         }
         r.t_ns = t_ns;
         r.offset.iter_mut().for_each(|o| *o = 0.0);
