@@ -264,7 +264,7 @@ fn bad_datasets_and_models_are_refused_by_name() {
         &["video[0]", "v0.y4m", "30,0,8,8", "32 x 32"],
     );
 
-    // `evaluate` measures only the conditions it is asked: an entry of
+    // `evaluate` and `fit` measure only the conditions they are asked: an entry of
     // another condition whose video is no video is left alone, and is
     // named once it is asked for.
     write(dir, "junk.y4m", "not a video");
@@ -288,6 +288,22 @@ fn bad_datasets_and_models_are_refused_by_name() {
     let o = asked("A/L");
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     assert!(stdout(&o).contains("3 test videos"), "{}", stdout(&o));
+    let o = run_in(
+        dir,
+        &[
+            "learn",
+            "fit",
+            "other.toml",
+            "--condition",
+            "A/L",
+            "-o",
+            "m3.json",
+            "--components",
+            "1",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    assert!(dir.join("m3.json").exists());
     let o = asked("S/R");
     assert_ne!(code(&o), 0, "{}", stdout(&o));
     assert!(stderr(&o).contains("junk.y4m"), "{}", stderr(&o));

@@ -125,7 +125,8 @@ struct FitArgs {
     output: PathBuf,
     #[arg(long, value_enum, default_value = "pls")]
     method: MethodArg,
-    /// Train on these conditions only (comma-separated; default all).
+    /// Train on these conditions only (comma-separated; default all); only
+    /// their videos are measured.
     #[arg(long, value_delimiter = ',')]
     condition: Vec<String>,
     /// Try 1..=N components.

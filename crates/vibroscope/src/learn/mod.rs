@@ -456,8 +456,12 @@ fn percentile(mut v: Vec<f64>, p: f64) -> f64 {
 /// Fits a model on a dataset (see [`FitOptions`]).
 pub fn fit(o: &FitOptions, progress: &mut dyn FnMut(usize, usize, &Path)) -> Result<ModelFile> {
     crate::error::check_outputs(&[&o.dataset], &[&o.output])?;
-    let d = Dataset::load(&o.dataset)?;
+    let mut d = Dataset::load(&o.dataset)?;
     check_conditions(&d, &o.conditions, "--condition")?;
+    // Only the entries of the conditions asked are measured.
+    if !o.conditions.is_empty() {
+        d.video.retain(|e| o.conditions.contains(&e.condition));
+    }
     let rows = rows_of(&d, &o.conditions);
     let objs = n_objects(&d, &rows);
     let need = o.components.unwrap_or(1);
