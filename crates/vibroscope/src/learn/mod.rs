@@ -309,10 +309,22 @@ fn matrix(f: &[VideoFeatures]) -> Array2<f64> {
 }
 
 /// Rows whose condition is one of `conds` (all rows when empty).
+/// Whether `condition` is among `conds` (none given: every condition).
+fn asked(conds: &[String], condition: &str) -> bool {
+    conds.is_empty() || conds.iter().any(|c| c == condition)
+}
+
 fn rows_of(d: &Dataset, conds: &[String]) -> Vec<usize> {
     (0..d.video.len())
-        .filter(|&i| conds.is_empty() || conds.iter().any(|c| *c == d.video[i].condition))
+        .filter(|&i| asked(conds, &d.video[i].condition))
         .collect()
+}
+
+/// Leaves out the entries of conditions in none of `sets`, so that only
+/// what is asked is measured (an empty set asks for every condition).
+fn keep_asked(d: &mut Dataset, sets: &[&[String]]) {
+    d.video
+        .retain(|e| sets.iter().any(|s| asked(s, &e.condition)));
 }
 
 fn check_conditions(d: &Dataset, conds: &[String], flag: &str) -> Result<()> {
@@ -458,10 +470,7 @@ pub fn fit(o: &FitOptions, progress: &mut dyn FnMut(usize, usize, &Path)) -> Res
     crate::error::check_outputs(&[&o.dataset], &[&o.output])?;
     let mut d = Dataset::load(&o.dataset)?;
     check_conditions(&d, &o.conditions, "--condition")?;
-    // Only the entries of the conditions asked are measured.
-    if !o.conditions.is_empty() {
-        d.video.retain(|e| o.conditions.contains(&e.condition));
-    }
+    keep_asked(&mut d, &[&o.conditions]);
     let rows = rows_of(&d, &o.conditions);
     let objs = n_objects(&d, &rows);
     let need = o.components.unwrap_or(1);
@@ -691,13 +700,7 @@ pub fn evaluate(
     let mut d = Dataset::load(&o.dataset)?;
     check_conditions(&d, &o.train_on, "--train-on")?;
     check_conditions(&d, &o.test_on, "--test-on")?;
-    // Only the entries of the conditions asked are measured: the others
-    // would cost their features and change nothing (no condition given
-    // means every entry).
-    if !o.train_on.is_empty() && !o.test_on.is_empty() {
-        d.video
-            .retain(|e| o.train_on.contains(&e.condition) || o.test_on.contains(&e.condition));
-    }
+    keep_asked(&mut d, &[&o.train_on, &o.test_on]);
     let train = rows_of(&d, &o.train_on);
     let test = rows_of(&d, &o.test_on);
     let objs = n_objects(&d, &train);
