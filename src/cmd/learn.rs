@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use vibroscope::learn::generate::{self, GenerateOptions};
 use vibroscope::learn::model::Method;
-use vibroscope::learn::{self, EvaluateOptions, FitOptions, PredictOptions};
+use vibroscope::learn::{self, EvaluateOptions, FitOptions, PredictOptions, SceneMeasure};
 use vibroscope::pipeline::RunSettings;
 
 /// Learn material properties (stiffness, area weight) from motion spectra.
@@ -110,7 +110,7 @@ struct GenerateArgs {
     kick_db: f64,
     /// Write the scenes and DATASET.toml only: the features are measured
     /// (and cached) when fit or evaluate first need them, and evaluate
-    /// --exact (the bound) needs none.
+    /// --exact (the bound) and --true-motion need none.
     #[arg(long, conflicts_with = "videos")]
     no_features: bool,
 }
@@ -173,6 +173,12 @@ struct EvaluateArgs {
     /// or estimation noise): the bound perfect measurement would reach.
     #[arg(long)]
     exact: bool,
+    /// Learn from each take's true motion instead (the cloth's parts'
+    /// mean displacement, every frame, from the scene file `learn
+    /// generate` wrote, through the videos' spectral estimator: no
+    /// texture, sensor or pyramid): what one take of its length holds.
+    #[arg(long, conflicts_with = "exact")]
+    true_motion: bool,
     /// Correlation plot of the PLSR predictions (Fig. 5-10).
     #[arg(long, value_name = "OUT.png")]
     png: Option<PathBuf>,
@@ -299,7 +305,13 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 test_on: e.test_on,
                 methods: vec![Method::Pls, Method::Pcr],
                 max_components: e.max_components,
-                exact: e.exact,
+                from: if e.exact {
+                    Some(SceneMeasure::Expected)
+                } else if e.true_motion {
+                    Some(SceneMeasure::TrueMotion)
+                } else {
+                    None
+                },
                 png: e.png,
                 json: e.json,
                 run,
@@ -321,10 +333,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 all(&r.test_on),
                 r.objects,
                 r.test_videos,
-                if e.exact {
-                    ", exact expected spectra (the bound)"
-                } else {
-                    ""
+                match o.from {
+                    Some(SceneMeasure::Expected) => ", exact expected spectra (the bound)",
+                    Some(SceneMeasure::TrueMotion) =>
+                        ", the takes' true motion (no texture, sensor or pyramid)",
+                    None => "",
                 }
             );
             for m in &r.methods {

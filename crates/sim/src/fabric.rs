@@ -719,8 +719,44 @@ impl Fabric {
     /// `(j + 1/2) ·` [`LINE_SPACING_HZ`]). What the features could see at
     /// best: the learning bound of `docs/learning.md`.
     pub fn expected_tile_power(&self, tiles: usize) -> Vec<f64> {
+        let mut power = vec![0.0; self.freqs.len()];
+        for w in self.tile_shapes(tiles) {
+            for (j, p) in power.iter_mut().enumerate() {
+                if self.coherent {
+                    let (mut re, mut im) = (0.0, 0.0);
+                    for (wk, row) in w.iter().zip(&self.coef) {
+                        re += wk * row[j].0;
+                        im += wk * row[j].1;
+                    }
+                    *p += 0.5 * (re * re + im * im);
+                } else if let Some(kick) = &self.kick {
+                    // Ambient (the rest of `coef`) plus one field.
+                    let (mut re, mut im) = (0.0, 0.0);
+                    for ((wk, row), krow) in w.iter().zip(&self.coef).zip(kick) {
+                        let (kr, ki) = krow[j];
+                        let (ar, ai) = (row[j].0 - kr, row[j].1 - ki);
+                        *p += 0.5 * wk * wk * (ar * ar + ai * ai);
+                        re += wk * kr;
+                        im += wk * ki;
+                    }
+                    *p += 0.5 * (re * re + im * im);
+                } else {
+                    for (wk, row) in w.iter().zip(&self.coef) {
+                        let (re, im) = row[j];
+                        *p += 0.5 * wk * wk * (re * re + im * im);
+                    }
+                }
+            }
+        }
+        power
+    }
+
+    /// The object cut into `tiles` x `tiles` equal parts (row-major): per
+    /// part, each mode's shape averaged over it (at least one sample), so
+    /// that a part's mean displacement is `Σ_k shape[k] · q_k` with `q` the
+    /// [`Fabric::coordinates`].
+    pub fn tile_shapes(&self, tiles: usize) -> Vec<Vec<f64>> {
         let tiles = tiles.max(1);
-        // The mean of part `i` of `tiles` of a shape (at least one sample).
         let part = |v: &[f64], i: usize| -> f64 {
             let n = v.len();
             let a = i * n / tiles;
@@ -731,46 +767,28 @@ impl Fabric {
                 v[a..b].iter().sum::<f64>() / (b - a) as f64
             }
         };
-        let mut power = vec![0.0; self.freqs.len()];
+        let mut out = Vec::with_capacity(tiles * tiles);
         for tr in 0..tiles {
             for tc in 0..tiles {
-                let w: Vec<f64> = self
-                    .modes
-                    .iter()
-                    .map(|md| {
-                        part(&self.along[md.along as usize - 1], tr)
-                            * part(&self.across[md.across as usize], tc)
-                    })
-                    .collect();
-                for (j, p) in power.iter_mut().enumerate() {
-                    if self.coherent {
-                        let (mut re, mut im) = (0.0, 0.0);
-                        for (wk, row) in w.iter().zip(&self.coef) {
-                            re += wk * row[j].0;
-                            im += wk * row[j].1;
-                        }
-                        *p += 0.5 * (re * re + im * im);
-                    } else if let Some(kick) = &self.kick {
-                        // Ambient (the rest of `coef`) plus one field.
-                        let (mut re, mut im) = (0.0, 0.0);
-                        for ((wk, row), krow) in w.iter().zip(&self.coef).zip(kick) {
-                            let (kr, ki) = krow[j];
-                            let (ar, ai) = (row[j].0 - kr, row[j].1 - ki);
-                            *p += 0.5 * wk * wk * (ar * ar + ai * ai);
-                            re += wk * kr;
-                            im += wk * ki;
-                        }
-                        *p += 0.5 * (re * re + im * im);
-                    } else {
-                        for (wk, row) in w.iter().zip(&self.coef) {
-                            let (re, im) = row[j];
-                            *p += 0.5 * wk * wk * (re * re + im * im);
-                        }
-                    }
-                }
+                out.push(
+                    self.modes
+                        .iter()
+                        .map(|md| {
+                            part(&self.along[md.along as usize - 1], tr)
+                                * part(&self.across[md.across as usize], tc)
+                        })
+                        .collect(),
+                );
             }
         }
-        power
+        out
+    }
+
+    /// The modal coordinates at `t_s` (px at unit shape), in the order of
+    /// [`Fabric::modes`]: what every pixel's displacement is made of.
+    pub fn coordinates(&mut self, t_s: f64) -> &[f64] {
+        self.phasors(t_s);
+        &self.q
     }
 
     /// An upper bound of |displacement| anywhere, px.
@@ -912,6 +930,40 @@ mod tests {
         let one = amb.expected_tile_power(1);
         assert_eq!(one.len(), LINES);
         assert!(one.iter().all(|p| p.is_finite() && *p >= 0.0));
+    }
+
+    /// A part's mean displacement is its shapes times the coordinates
+    /// (what `learn evaluate --true-motion` measures), parts row-major.
+    #[test]
+    fn tile_shapes_times_coordinates_are_the_parts_mean_displacement() {
+        let spec = FabricSpec {
+            excitation: Excitation::Kick,
+            ..FabricSpec::default()
+        };
+        let (ow, oh) = (9, 7);
+        let mut f = Fabric::new(&spec, ow, oh, 5).unwrap();
+        let shapes = f.tile_shapes(2);
+        assert_eq!(shapes.len(), 4);
+        let mut moved = 0.0;
+        for t in [0.0, 0.37, 12.5, 31.25] {
+            let q = f.coordinates(t).to_vec();
+            for (i, (r0, r1, c0, c1)) in [(0, 3, 0, 4), (0, 3, 4, 9), (3, 7, 0, 4), (3, 7, 4, 9)]
+                .into_iter()
+                .enumerate()
+            {
+                let mut m = 0.0;
+                for r in r0..r1 {
+                    for c in c0..c1 {
+                        m += f.displacement_px(c, r, t);
+                    }
+                }
+                m /= ((r1 - r0) * (c1 - c0)) as f64;
+                let got: f64 = shapes[i].iter().zip(&q).map(|(w, q)| w * q).sum();
+                assert!((got - m).abs() < 1e-9, "part {i} at {t} s: {got} vs {m}");
+                moved += m.abs();
+            }
+        }
+        assert!(moved > 1e-3, "the cloth should move: {moved}");
     }
 
     /// The kick is a transient where `kick_at_s` says, at `kick_db` over

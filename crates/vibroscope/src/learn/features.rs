@@ -370,14 +370,7 @@ pub fn spectrum_features(
 /// The scene is read as the `synthetic` source reads it, and must hold a
 /// `fabric` table.
 pub fn exact_features(scene: &Path, params: &FeatureParams) -> Result<Vec<f64>> {
-    let p = crate::pipeline::SceneFile::read(scene)?.synthetic()?;
-    let fabric = p
-        .fabric
-        .as_ref()
-        .ok_or_else(|| Error::input(scene, "has no `fabric` table (not a fabric scene)"))?;
-    let [_, _, w, h] = p.object_rect();
-    let f = crate::sim::Fabric::new(fabric, w as usize, h as usize, p.seed)
-        .map_err(|e| Error::input(scene, e.to_string()))?;
+    let (_, f) = scene_fabric(scene)?;
     let power = f.expected_tile_power(params.tiles);
     // Nothing to take out: the expected spectrum has no noise floor.
     let params = FeatureParams {
@@ -389,6 +382,76 @@ pub fn exact_features(scene: &Path, params: &FeatureParams) -> Result<Vec<f64>> 
         f0_hz: 0.5 * df,
         resolution_hz: df,
         power_db: power.iter().map(|p| 10.0 * p.max(1e-300).log10()).collect(),
+    };
+    params.from_spectrum(&s).map_err(|m| Error::input(scene, m))
+}
+
+/// A fabric scene's settings and its cloth, as the `synthetic` source
+/// builds them.
+fn scene_fabric(
+    scene: &Path,
+) -> Result<(
+    crate::stages::sources::synthetic::SyntheticParams,
+    crate::sim::Fabric,
+)> {
+    let p = crate::pipeline::SceneFile::read(scene)?.synthetic()?;
+    let fabric = p
+        .fabric
+        .as_ref()
+        .ok_or_else(|| Error::input(scene, "has no `fabric` table (not a fabric scene)"))?;
+    let [_, _, w, h] = p.object_rect();
+    let f = crate::sim::Fabric::new(fabric, w as usize, h as usize, p.seed)
+        .map_err(|e| Error::input(scene, e.to_string()))?;
+    Ok((p, f))
+}
+
+/// The features of the true motion of the take a scene file renders:
+/// the cloth cut into the features' tiles, each part's mean displacement
+/// at every frame ([`crate::sim::Fabric::tile_shapes`]), through the
+/// estimator the videos' spectra go through (the `spectrum` stage's
+/// whole-recording Welch average, Hann segments) and the same features;
+/// no texture, sensor noise or pyramid. Between the bound (the expected
+/// spectrum) and the camera: what one take of this length holds.
+pub fn true_motion_features(scene: &Path, params: &FeatureParams) -> Result<Vec<f64>> {
+    use crate::stages::transform::spectrum::{whole_segments, SegmentFft, Taper};
+    let (p, mut f) = scene_fabric(scene)?;
+    let frames = p.frame_count() as usize;
+    if frames < 8 {
+        return Err(Error::input(
+            scene,
+            format!("{frames} frames: a spectrum needs at least 8"),
+        ));
+    }
+    let shapes = f.tile_shapes(params.tiles);
+    let ch = shapes.len();
+    crate::engine::memory::check(
+        (frames as u64).saturating_mul(ch as u64 * 4),
+        &format!("the true motion of {frames} frames x {ch} tiles"),
+        "a shorter scene or fewer `tiles`",
+    )
+    .map_err(|m| Error::input(scene, m))?;
+    let mut data = vec![0f32; frames * ch];
+    for (k, row) in data.chunks_exact_mut(ch).enumerate() {
+        let q = f.coordinates(k as f64 / p.fps);
+        for (x, w) in row.iter_mut().zip(&shapes) {
+            *x = w.iter().zip(q).map(|(a, b)| a * b).sum::<f64>() as f32;
+        }
+    }
+    let (n, starts) = whole_segments(frames, None, None, params.segments);
+    let mut fft = SegmentFft::new(n, Taper::Hann, p.fps);
+    let mut acc = vec![0.0; fft.bins()];
+    for &a in &starts {
+        for c in 0..ch {
+            fft.accumulate(&data[a * ch..(a + n) * ch], ch, c, &mut acc);
+        }
+    }
+    let s = SpectrumDb {
+        f0_hz: 0.0,
+        resolution_hz: p.fps / n as f64,
+        power_db: acc
+            .iter()
+            .map(|v| 10.0 * (v / starts.len() as f64).max(1e-300).log10())
+            .collect(),
     };
     params.from_spectrum(&s).map_err(|m| Error::input(scene, m))
 }

@@ -272,23 +272,34 @@ impl Dataset {
         dir.join("scenes").join(stem).with_extension("toml")
     }
 
-    /// The features of every entry's expected spectrum, from the scene
-    /// files the generator wrote ([`features::exact_features`]): the
-    /// learning bound. An entry without its scene is named.
-    pub fn exact_features(&self) -> Result<Array2<f64>> {
+    /// The features of every entry computed from the scene file the
+    /// generator wrote (`learn evaluate`'s `--exact` or `--true-motion`),
+    /// `progress(i, n, scene)` before each. An entry without its scene is
+    /// named.
+    pub fn scene_features(
+        &self,
+        from: SceneMeasure,
+        progress: &mut dyn FnMut(usize, usize, &Path),
+    ) -> Result<Array2<f64>> {
+        let flag = from.flag();
         let mut rows = Vec::with_capacity(self.video.len());
         for (i, e) in self.video.iter().enumerate() {
             let scene = self.scene_of(e);
+            progress(i, self.video.len(), &scene);
             if !scene.is_file() {
                 return Err(Error::input(
                     &scene,
                     format!(
-                        "video[{i}] ({}): --exact needs the scene file `learn generate` wrote beside it, and it does not exist",
+                        "video[{}] ({}): {flag} needs the scene file `learn generate` wrote beside it, and it does not exist",
+                        e.index,
                         e.source().path().display()
                     ),
                 ));
             }
-            rows.push(features::exact_features(&scene, &self.features)?);
+            rows.push(match from {
+                SceneMeasure::Expected => features::exact_features(&scene, &self.features)?,
+                SceneMeasure::TrueMotion => features::true_motion_features(&scene, &self.features)?,
+            });
         }
         let p = rows.first().map_or(0, Vec::len);
         Ok(Array2::from_shape_fn((rows.len(), p), |(i, j)| rows[i][j]))
@@ -643,6 +654,26 @@ pub fn predict(o: &PredictOptions) -> Result<Prediction> {
     Ok(p)
 }
 
+/// What a take's features are computed from in place of its video, from
+/// the scene file the generator wrote (no texture, sensor or pyramid).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneMeasure {
+    /// The expected spectrum ([`features::exact_features`]).
+    Expected,
+    /// The take's own motion ([`features::true_motion_features`]).
+    TrueMotion,
+}
+
+impl SceneMeasure {
+    /// `learn evaluate`'s flag for it, for messages.
+    pub fn flag(self) -> &'static str {
+        match self {
+            SceneMeasure::Expected => "--exact",
+            SceneMeasure::TrueMotion => "--true-motion",
+        }
+    }
+}
+
 /// What `learn evaluate` is asked.
 #[derive(Clone, Debug)]
 pub struct EvaluateOptions {
@@ -651,9 +682,10 @@ pub struct EvaluateOptions {
     pub test_on: Vec<String>,
     pub methods: Vec<Method>,
     pub max_components: usize,
-    /// Learn from the expected spectra of the generator's scenes instead
-    /// of the videos (the bound: what perfect measurement would reach).
-    pub exact: bool,
+    /// Learn from what the generator's scenes say instead of the videos:
+    /// the expected spectra (the bound: what perfect measurement would
+    /// reach) or each take's true motion (what one take holds).
+    pub from: Option<SceneMeasure>,
     pub png: Option<PathBuf>,
     pub json: Option<PathBuf>,
     pub run: RunSettings,
@@ -710,10 +742,9 @@ pub fn evaluate(
             format!("{objs} objects in the training rows: leave-one-object-out needs at least 3"),
         ));
     }
-    let x = if o.exact {
-        d.exact_features()?
-    } else {
-        matrix(&d.features(o.run, progress)?)
+    let x = match o.from {
+        Some(from) => d.scene_features(from, progress)?,
+        None => matrix(&d.features(o.run, progress)?),
     };
     let y = d.log_targets();
     let objects: Vec<String> = d.video.iter().map(|e| e.object.clone()).collect();

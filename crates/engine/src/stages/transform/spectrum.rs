@@ -228,6 +228,40 @@ impl Plan for SpectrumPlan {
     }
 }
 
+/// `mode = "whole"`'s segments of a recording of `frames` (at least 8):
+/// their length and the first frame of each. `window` (else the length
+/// that lets about `segments` half-overlapping segments cover the
+/// recording, else one per [`AUTO_FRAMES_PER_SEGMENT`] frames), `hop`
+/// (else half the length); the segments are spread evenly so that the
+/// first starts at 0 and the last ends at the last frame (no data left
+/// out at the end).
+pub fn whole_segments(
+    frames: usize,
+    window: Option<usize>,
+    hop: Option<usize>,
+    segments: Option<usize>,
+) -> (usize, Vec<usize>) {
+    let n = match window {
+        Some(w) => w.min(frames & !1),
+        None => {
+            let k =
+                segments.unwrap_or((frames / AUTO_FRAMES_PER_SEGMENT).clamp(1, AUTO_MAX_SEGMENTS));
+            ((2 * frames) / (k + 1)).clamp(8, frames) & !1
+        }
+    };
+    let hop = hop.unwrap_or(n / 2).clamp(1, n);
+    let nseg = (frames - n) / hop + 1;
+    let spread = if nseg > 1 {
+        (frames - n) as f64 / (nseg - 1) as f64
+    } else {
+        0.0
+    };
+    let starts = (0..nseg)
+        .map(|s| ((s as f64 * spread).round() as usize).min(frames - n))
+        .collect();
+    (n, starts)
+}
+
 /// The FFT plan and every buffer one segment needs (allocated once).
 pub struct SegmentFft {
     n: usize,
@@ -399,16 +433,7 @@ impl SpectrumStage {
                 "spectrum: mode = \"whole\" needs at least 8 samples, got {frames}"
             )));
         }
-        let n = match self.window {
-            Some(w) => w.min(frames & !1),
-            None => {
-                let k = self
-                    .segments
-                    .unwrap_or((frames / AUTO_FRAMES_PER_SEGMENT).clamp(1, AUTO_MAX_SEGMENTS));
-                ((2 * frames) / (k + 1)).clamp(8, frames) & !1
-            }
-        };
-        let hop = self.hop.unwrap_or(n / 2).clamp(1, n);
+        let (n, starts) = whole_segments(frames, self.window, self.hop, self.segments);
         let mut fft = SegmentFft::new(n, self.taper, self.rate);
         let bins = fft.bins();
         // One spectrum per channel when they are weighed, else one sum.
@@ -426,24 +451,13 @@ impl SpectrumStage {
             })?;
         }
         let mut acc = vec![0.0; rows * bins];
-        let mut count = 0usize;
-        // Segments are spread evenly so that the first starts at 0 and the
-        // last ends at the last frame (no data left out at the end).
-        let nseg = (frames - n) / hop + 1;
-        let spread = if nseg > 1 {
-            (frames - n) as f64 / (nseg - 1) as f64
-        } else {
-            0.0
-        };
-        for s in 0..nseg {
-            let a = (s as f64 * spread).round() as usize;
-            let start = a.min(frames - n);
+        let count = starts.len();
+        for &start in &starts {
             let seg = &self.hist[start * ch..(start + n) * ch];
             for c in 0..ch {
                 let row = if per_channel { c } else { 0 };
                 fft.accumulate(seg, ch, c, &mut acc[row * bins..(row + 1) * bins]);
             }
-            count += 1;
         }
         acc.iter_mut().for_each(|p| *p /= count as f64);
         if per_channel {
