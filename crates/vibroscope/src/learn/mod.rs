@@ -319,12 +319,12 @@ fn matrix(f: &[VideoFeatures]) -> Array2<f64> {
     Array2::from_shape_fn((f.len(), p), |(i, j)| f[i].features[j])
 }
 
-/// Rows whose condition is one of `conds` (all rows when empty).
 /// Whether `condition` is among `conds` (none given: every condition).
 fn asked(conds: &[String], condition: &str) -> bool {
     conds.is_empty() || conds.iter().any(|c| c == condition)
 }
 
+/// Rows whose condition is one of `conds` (all rows when empty).
 fn rows_of(d: &Dataset, conds: &[String]) -> Vec<usize> {
     (0..d.video.len())
         .filter(|&i| asked(conds, &d.video[i].condition))
