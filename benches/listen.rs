@@ -109,13 +109,13 @@ fn rss_of_stream(dir: &Path, seconds: u32) -> f64 {
 }
 
 /// One HTTP GET on a fresh connection: the status and the body.
-fn http_get(port: u16, target: &str) -> std::io::Result<(u16, Vec<u8>)> {
+fn http_get(port: u16, token: &str, target: &str) -> std::io::Result<(u16, Vec<u8>)> {
     use std::io::{Read, Write};
     let mut s = std::net::TcpStream::connect(("127.0.0.1", port))?;
     s.set_read_timeout(Some(std::time::Duration::from_secs(10)))?;
     write!(
         s,
-        "GET {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n"
+        "GET {target} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nx-vibroscope-token: {token}\r\nConnection: close\r\n\r\n"
     )?;
     let mut out = Vec::new();
     s.read_to_end(&mut out)?;
@@ -152,11 +152,14 @@ fn under_studio(dir: &Path, pipeline: &Path) -> Result<String, String> {
     let mut line = String::new();
     let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
     out.read_line(&mut line).map_err(|e| e.to_string())?;
-    let port: u16 = line
-        .rsplit(':')
-        .next()
-        .and_then(|p| p.trim().trim_end_matches('/').parse().ok())
+    // http://127.0.0.1:PORT/?token=TOKEN
+    let (port, token) = line
+        .trim()
+        .rsplit_once(':')
+        .and_then(|(_, rest)| rest.split_once("/?token="))
+        .and_then(|(p, t)| Some((p.parse::<u16>().ok()?, t.to_owned())))
         .ok_or_else(|| format!("no URL printed: {line:?}"))?;
+    let token2 = token.clone();
     // The page's socket: every update read and dropped.
     let ws = std::thread::spawn(move || -> usize {
         let Ok(mut s) = std::net::TcpStream::connect(("127.0.0.1", port)) else {
@@ -164,7 +167,7 @@ fn under_studio(dir: &Path, pipeline: &Path) -> Result<String, String> {
         };
         let _ = write!(
             s,
-            "GET /api/live/ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n"
+            "GET /api/live/ws HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nx-vibroscope-token: {token2}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n"
         );
         let mut n = 0;
         let mut buf = vec![0u8; 1 << 16];
@@ -180,13 +183,13 @@ fn under_studio(dir: &Path, pipeline: &Path) -> Result<String, String> {
     let mut tick = 0u64;
     let result = loop {
         std::thread::sleep(std::time::Duration::from_millis(100));
-        let _ = http_get(port, "/api/live/frame");
+        let _ = http_get(port, &token, "/api/live/frame");
         // The end of the run, looked for twice a second.
         tick += 1;
         if !tick.is_multiple_of(5) {
             continue;
         }
-        let Ok((200, body)) = http_get(port, "/api/live") else {
+        let Ok((200, body)) = http_get(port, &token, "/api/live") else {
             continue;
         };
         let u: serde_json::Value = serde_json::from_slice(&body).map_err(|e| e.to_string())?;

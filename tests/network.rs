@@ -962,12 +962,13 @@ fn a_receiving_pipeline_skips_garbage_and_keeps_the_rest() {
 }
 
 /// GET `path` from a local HTTP server; the body.
-fn http_get(port: u16, path: &str) -> Option<String> {
+/// A GET to the studio on `port` with its `token`; the body.
+fn http_get(port: u16, token: &str, path: &str) -> Option<String> {
     use std::io::{Read, Write};
     let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).ok()?;
     write!(
         s,
-        "GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n"
+        "GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nx-vibroscope-token: {token}\r\nConnection: close\r\n\r\n"
     )
     .ok()?;
     let mut text = String::new();
@@ -994,10 +995,21 @@ fn the_studio_shows_the_monitors_alarm() {
     let mut studio = bin()
         .current_dir(dir.path())
         .args(["studio", "--monitor", &ep, "--port", &web.to_string()])
-        .stdout(Stdio::null())
+        .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
+    // The token, from the URL the studio prints first.
+    // (The pipe stays open while the studio runs.)
+    let mut line = String::new();
+    let mut out = std::io::BufReader::new(studio.stdout.take().unwrap());
+    std::io::BufRead::read_line(&mut out, &mut line).unwrap();
+    let token = line
+        .trim()
+        .rsplit_once("?token=")
+        .map(|(_, t)| t.to_owned())
+        .unwrap_or_else(|| panic!("no token in the studio's URL: {line:?}"));
+    let http_get = |port: u16, path: &str| http_get(port, &token, path);
     let t0 = Instant::now();
     while http_get(web, "/api/session").is_none() {
         assert!(

@@ -105,6 +105,10 @@ fuzz_target!(|data: &[u8]| {
         target.push_str(TOKEN);
     }
     let mut req = Request::builder().method(method).uri(target.as_str());
+    if sel & 32 == 0 {
+        // The studio answers only its own names (a foreign or missing Host is refused).
+        req = req.header("host", "127.0.0.1");
+    }
     if sel & 8 != 0 {
         req = req.header("x-vibroscope-token", TOKEN);
     }

@@ -29,10 +29,22 @@ use vibroscope_studio::{Studio, StudioOptions};
 /// pipeline: the studio keeps only the latest of each and drops what the
 /// page has not taken.
 ///
-/// By default the server listens on 127.0.0.1 only, on a free port. With
-/// --bind ADDRESS it listens there and the printed URL carries a random
-/// token that every request must present. Only files under --root (by
-/// default the video's directory) can be opened. Stop with Ctrl-C (with a
+/// By default the server listens on 127.0.0.1 only, on a free port, and
+/// the printed URL carries a random token (128 bits from the operating
+/// system) that every request must present: opening the URL puts it in a
+/// cookie (HttpOnly, SameSite=Strict) and takes it out of the address bar.
+/// Requests whose Host header is not localhost, the address listened on or
+/// a name given with --allow-host are refused (a web page whose name was
+/// rebound to 127.0.0.1 cannot reach the studio), and so are requests made
+/// by another site's page, another port of this machine included (Origin,
+/// Sec-Fetch-Site). To use the studio from another machine, keep it on
+/// 127.0.0.1 and forward its port over SSH (ssh -L 8080:127.0.0.1:8080
+/// HOST, then open the printed URL with your local port); --bind ADDRESS
+/// listens on another address instead, on the network as plain HTTP. At
+/// most two analyses run at once and eight wait (more get 429), and one
+/// request's analysis reads at most --max-work pixel-frames. Only files
+/// under --root (by default the video's directory) can be opened, and no
+/// answer names the root's absolute path. Stop with Ctrl-C (with a
 /// live pipeline, the first Ctrl-C stops it, its outputs are finalised and
 /// the studio exits; a second exits at once).
 #[derive(clap::Args)]
@@ -40,7 +52,8 @@ use vibroscope_studio::{Studio, StudioOptions};
     vibroscope studio beam.y4m\n  \
     vibroscope studio ../shared/data/guitar.mp4 --fps 600 --port 8080\n  \
     vibroscope studio --pipeline live-spectrum --set src.duration_s=60\n  \
-    vibroscope studio --root recordings --bind 0.0.0.0 --port 8080\n  \
+    vibroscope studio --root recordings --port 8080     # on a remote HOST; then, locally:\n  \
+    ssh -N -L 8080:127.0.0.1:8080 HOST                    # and open the printed URL\n  \
     vibroscope studio --monitor tcp/127.0.0.1:7447     # a monitor's sources and alarms")]
 pub struct Args {
     /// The recording opened first (.y4m, .cine, .mraw/.cih, or anything
@@ -50,10 +63,22 @@ pub struct Args {
     /// directory, else the current one).
     #[arg(long, value_name = "DIR")]
     root: Option<PathBuf>,
-    /// Listen on this address instead of 127.0.0.1 (then a token is
-    /// required: it is in the printed URL).
+    /// Listen on this address instead of 127.0.0.1 (plain HTTP: prefer an
+    /// SSH tunnel to a studio on 127.0.0.1).
     #[arg(long, value_name = "ADDRESS")]
     bind: Option<IpAddr>,
+    /// Serve without a token (loopback addresses only): every program and
+    /// every user of this machine can then use the studio. Not advised.
+    #[arg(long)]
+    no_token: bool,
+    /// Also answer requests for this host name (the Host header), beside
+    /// localhost and the address listened on; repeatable.
+    #[arg(long = "allow-host", value_name = "NAME")]
+    allow_host: Vec<String>,
+    /// The largest analysis one request may ask for, in G pixel-frames
+    /// (region width x height x frames; 2^30 each).
+    #[arg(long, value_name = "GPIX", default_value_t = 4.0)]
+    max_work: f64,
     /// Port to listen on (0: any free one).
     #[arg(long, default_value_t = 0)]
     port: u16,
@@ -78,10 +103,23 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    if !(a.max_work.is_finite() && a.max_work > 0.0) {
+        return Err(vibroscope::UsageError::new(
+            "studio",
+            format!(
+                "--max-work {}: must be a positive number of G pixel-frames",
+                a.max_work
+            ),
+        )
+        .into());
+    }
     let o = StudioOptions {
         video: a.video,
         root: a.root,
         bind: a.bind,
+        no_token: a.no_token,
+        allow_hosts: a.allow_host,
+        max_work: Some((a.max_work * (1u64 << 30) as f64).max(1.0) as u64),
         port: a.port,
         fps: a.fps,
         max_body: None,
@@ -105,8 +143,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if let Some(p) = &o_pipeline {
         eprintln!("running the live pipeline {p}: its view is on the page");
     }
-    if studio.token.is_some() {
-        eprintln!("listening beyond this machine: every request needs the token in the URL");
+    if studio.token.is_none() {
+        eprintln!(
+            "warning: --no-token: any program or user of this machine can use this studio and read the files under its root"
+        );
+    } else if !studio.addr.ip().is_loopback() {
+        eprintln!(
+            "listening beyond this machine, as plain HTTP: every request needs the token in the URL"
+        );
     }
     if studio.serve() {
         // Ctrl-C stopped the live pipeline; its sinks finalised.

@@ -55,13 +55,14 @@ BUSYBOX=$(command -v busybox || true)
 # compiles nothing, where `cargo build --bin` would rebuild the dependencies
 # without the dev-dependencies' features (4 min on two cores).
 cargo test --release --test vm_check --no-run
-BIN=$ROOT/target/release/vibroscope
+TARGET=${CARGO_TARGET_DIR:-$ROOT/target}
+BIN=$TARGET/release/vibroscope
 # VM_NOKHWA=1 also builds the `nokhwa` kind (feature input-v4l) and runs it
 # on vivid; off by default (nokhwa's dependencies add minutes of build).
 NOKHWA_BIN=""
 if [ "${VM_NOKHWA:-0}" = 1 ]; then
-  CARGO_TARGET_DIR=$ROOT/target/nokhwa cargo build --release --features input-v4l --bin vibroscope
-  NOKHWA_BIN=$ROOT/target/nokhwa/release/vibroscope
+  CARGO_TARGET_DIR=$TARGET/nokhwa cargo build --release --features input-v4l --bin vibroscope
+  NOKHWA_BIN=$TARGET/nokhwa/release/vibroscope
 fi
 
 echo "vm test: building the initramfs for kernel $KVER"

@@ -24,7 +24,8 @@
 
 pub mod idv;
 
-use crate::guard::{self, Refusal};
+use crate::guard::{self, Hosts, Refusal};
+use crate::limits::{self, Queue};
 use crate::live::Live;
 
 /// What the Monitor panel shows: a monitor's events over zenoh.
@@ -43,7 +44,7 @@ use axum::routing::{get, post};
 use axum::Router;
 use serde::Deserialize;
 use serde_json::{json, Value};
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -75,7 +76,24 @@ pub struct App {
     monitor: Option<Arc<MonitorFeed>>,
     /// Raised when the studio stops: open WebSockets close.
     closing: tokio::sync::watch::Sender<bool>,
+    /// The `Host` names answered.
+    hosts: Hosts,
+    /// The cookie carrying the token (named after the port: cookies are
+    /// shared by every port of a host, so two studios keep one each).
+    cookie: String,
+    /// Analyses and reads under way and waiting.
+    analyses: Queue,
+    reads: Queue,
+    /// The largest analysis a request may ask for (pixel-frames).
+    max_pixel_frames: u64,
+    /// The root's absolute path as it could appear in an answer: taken out.
+    root_forms: Vec<String>,
+    /// The latest refusals (also printed on standard error).
+    log: Mutex<VecDeque<String>>,
 }
+
+/// How many refusals [`App::log`] keeps.
+const LOG_LINES: usize = 200;
 
 /// A reader left open: its file and the index of the next frame it gives.
 type OpenReader = (PathBuf, u64, Box<dyn VideoReader>);
@@ -87,6 +105,7 @@ impl App {
         fps: Option<f64>,
         token: Option<String>,
     ) -> App {
+        let root_forms = limits::path_forms(&root);
         App {
             root,
             video,
@@ -97,7 +116,78 @@ impl App {
             live: None,
             monitor: None,
             closing: tokio::sync::watch::Sender::new(false),
+            hosts: Hosts {
+                bound: std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST),
+                allowed: Vec::new(),
+            },
+            cookie: TOKEN_COOKIE.to_owned(),
+            analyses: Queue::new(
+                "analyses",
+                limits::ANALYSES_RUNNING,
+                limits::ANALYSES_WAITING,
+            ),
+            reads: Queue::new("frame reads", limits::READS_RUNNING, limits::READS_WAITING),
+            max_pixel_frames: limits::MAX_PIXEL_FRAMES,
+            root_forms,
+            log: Mutex::new(VecDeque::new()),
         }
+    }
+
+    /// Answers the `Host` names of `hosts`; the token's cookie is named
+    /// after `port`.
+    pub fn with_access(mut self, hosts: Hosts, port: u16) -> App {
+        self.hosts = hosts;
+        self.cookie = format!("{TOKEN_COOKIE}_{port}");
+        self
+    }
+
+    /// Bounds an analysis to `max_pixel_frames` (region x frames).
+    pub fn with_max_work(mut self, max_pixel_frames: u64) -> App {
+        self.max_pixel_frames = max_pixel_frames;
+        self
+    }
+
+    /// Also takes `dir` (the root as given, before symlinks were resolved)
+    /// out of every answer.
+    pub fn hiding(mut self, dir: &Path) -> App {
+        for f in limits::path_forms(dir) {
+            if !self.root_forms.contains(&f) {
+                self.root_forms.push(f);
+            }
+        }
+        // Longest first: a form inside another is taken out after it.
+        self.root_forms.sort_by_key(|f| std::cmp::Reverse(f.len()));
+        self
+    }
+
+    /// The latest refusals, oldest first.
+    pub fn log(&self) -> Vec<String> {
+        self.log
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .iter()
+            .cloned()
+            .collect()
+    }
+
+    /// A request refused: logged (standard error and [`App::log`]) and
+    /// answered with `status` and `message`. The log names the method,
+    /// the path (never the query: it may hold the token) and the reason.
+    fn refuse(&self, req: &Request, status: StatusCode, message: String) -> Response {
+        let line = format!(
+            "studio: refused {} {} ({}): {message}",
+            req.method(),
+            req.uri().path(),
+            status.as_u16()
+        );
+        eprintln!("{line}");
+        let mut log = self.log.lock().unwrap_or_else(|p| p.into_inner());
+        if log.len() >= LOG_LINES {
+            log.pop_front();
+        }
+        log.push_back(line);
+        drop(log);
+        ApiError::new(status, message).into_response()
     }
 
     /// Serves `live`'s updates too.
@@ -256,77 +346,178 @@ async fn json_errors(req: Request, next: Next) -> Response {
 /// script and stylesheet are loaded by URLs without `?token=`).
 const TOKEN_COOKIE: &str = "vibroscope_token";
 
-/// Every request: no encoded separators in the path; the token when one
-/// is set (query `token=`, header `x-vibroscope-token`, or the cookie set
-/// when the page was opened with it): missing 401, wrong 403.
+/// Every request, WebSocket upgrades included, before any route:
+/// - no encoded separators in the path (400);
+/// - a `Host` that names this studio ([`Hosts::accepts`]), else 403: a
+///   page whose name was rebound to this machine's address is refused;
+/// - no other site's page ([`guard::cross_origin`]: `Origin`,
+///   `Sec-Fetch-Site`), else 403, another port of this machine included;
+/// - the token when one is set (query `token=`, header
+///   `x-vibroscope-token`, or the cookie set when the page was opened
+///   with it), else 403. The page's URL with `?token=` answers with the
+///   cookie (`HttpOnly`, `SameSite=Strict`) and a redirect to the page
+///   without the token, so it stays out of the address bar and history.
+///
+/// Every refusal is logged ([`App::log`]). Answers carry the security
+/// headers, are bounded in size and never hold the root's absolute path
+/// ([`limits::bounded`]).
 async fn gate(State(app): State<Arc<App>>, req: Request, next: Next) -> Response {
-    if guard::has_encoded_separator(req.uri().path()) {
-        return ApiError::bad("encoded slashes, backslashes or NULs are not allowed in a path")
-            .into_response();
-    }
-    let mut set_cookie = None;
-    if let Some(expected) = &app.token {
-        let from_query = req.uri().query().and_then(|q| {
-            q.split('&')
-                .find_map(|kv| kv.strip_prefix("token=").map(str::to_owned))
-        });
-        let from_header = || {
-            req.headers()
-                .get("x-vibroscope-token")
-                .and_then(|v| v.to_str().ok())
-                .map(str::to_owned)
-        };
-        let from_cookie = || {
-            req.headers()
-                .get_all(header::COOKIE)
-                .iter()
-                .filter_map(|v| v.to_str().ok())
-                .flat_map(|v| v.split(';'))
-                .find_map(|kv| {
-                    kv.trim()
-                        .strip_prefix(TOKEN_COOKIE)
-                        .and_then(|r| r.strip_prefix('='))
-                        .map(str::to_owned)
-                })
-        };
-        let in_query = from_query.is_some();
-        match from_query.or_else(from_header).or_else(from_cookie) {
-            None => {
-                return ApiError::new(
-                    StatusCode::UNAUTHORIZED,
-                    "this studio needs the token printed in its URL",
-                )
-                .into_response()
-            }
-            Some(t) if !guard::same_token(&t, expected) => {
-                return ApiError::new(StatusCode::FORBIDDEN, "wrong token").into_response()
-            }
-            Some(_) if in_query => {
-                set_cookie = HeaderValue::from_str(&format!(
-                    "{TOKEN_COOKIE}={expected}; HttpOnly; SameSite=Strict; Path=/"
-                ))
-                .ok();
-            }
-            Some(_) => {}
-        }
-    }
-    let mut resp = next.run(req).await;
-    let h = resp.headers_mut();
-    h.insert(
-        "x-content-type-options",
-        HeaderValue::from_static("nosniff"),
-    );
+    let set_cookie = match access(&app, &req) {
+        Access::Answer(resp) => return resp,
+        Access::Pass { set_cookie } => set_cookie,
+    };
+    let resp = next.run(req).await;
+    let mut resp = limits::bounded(resp, &app.root_forms).await;
+    security_headers(&mut resp);
     if let Some(c) = set_cookie {
-        h.insert(header::SET_COOKIE, c);
+        resp.headers_mut().insert(header::SET_COOKIE, c);
     }
     resp
 }
 
+/// What [`gate`] decides before the request goes on.
+enum Access {
+    /// Refused, or redirected: this is the answer.
+    Answer(Response),
+    /// Let in, setting the token's cookie when it came in the query.
+    Pass { set_cookie: Option<HeaderValue> },
+}
+
+fn header_text(req: &Request, name: &str) -> Option<String> {
+    req.headers().get(name).map(|v| {
+        v.to_str()
+            .map_or_else(|_| "(not text)".to_owned(), str::to_owned)
+    })
+}
+
+fn access(app: &App, req: &Request) -> Access {
+    if guard::has_encoded_separator(req.uri().path()) {
+        return Access::Answer(
+            ApiError::bad("encoded slashes, backslashes or NULs are not allowed in a path")
+                .into_response(),
+        );
+    }
+    let Some(host) =
+        header_text(req, "host").or_else(|| req.uri().authority().map(|a| a.to_string()))
+    else {
+        return Access::Answer(app.refuse(req, StatusCode::BAD_REQUEST, "no Host header".into()));
+    };
+    if !app.hosts.accepts(&host) {
+        let message = format!(
+            "Host: {host} does not name this studio (it answers localhost and its own address; start it with --allow-host NAME for another name)"
+        );
+        return Access::Answer(app.refuse(req, StatusCode::FORBIDDEN, message));
+    }
+    let origin = header_text(req, "origin");
+    let site = header_text(req, "sec-fetch-site");
+    if let Some(why) = guard::cross_origin(origin.as_deref(), site.as_deref(), &host) {
+        let message = format!("cross-origin request refused: {why}");
+        return Access::Answer(app.refuse(req, StatusCode::FORBIDDEN, message));
+    }
+    let Some(expected) = &app.token else {
+        return Access::Pass { set_cookie: None };
+    };
+    let from_query = req.uri().query().and_then(|q| {
+        q.split('&')
+            .find_map(|kv| kv.strip_prefix("token=").map(str::to_owned))
+    });
+    let from_cookie = || {
+        req.headers()
+            .get_all(header::COOKIE)
+            .iter()
+            .filter_map(|v| v.to_str().ok())
+            .flat_map(|v| v.split(';'))
+            .find_map(|kv| {
+                kv.trim()
+                    .strip_prefix(app.cookie.as_str())
+                    .and_then(|r| r.strip_prefix('='))
+                    .map(str::to_owned)
+            })
+    };
+    let in_query = from_query.is_some();
+    let given = from_query
+        .or_else(|| header_text(req, "x-vibroscope-token"))
+        .or_else(from_cookie);
+    match given {
+        None => {
+            let message =
+                "this studio needs its token: open the URL it printed (it ends in ?token=...)"
+                    .to_owned();
+            Access::Answer(app.refuse(req, StatusCode::FORBIDDEN, message))
+        }
+        Some(t) if !guard::same_token(&t, expected) => {
+            Access::Answer(app.refuse(req, StatusCode::FORBIDDEN, "wrong token".into()))
+        }
+        Some(_) if in_query => {
+            let set_cookie = HeaderValue::from_str(&format!(
+                "{}={expected}; HttpOnly; SameSite=Strict; Path=/",
+                app.cookie
+            ))
+            .ok();
+            if req.method() != axum::http::Method::GET || req.uri().path() != "/" {
+                return Access::Pass { set_cookie };
+            }
+            // The page's URL: the cookie, and the page again without the token.
+            let rest: Vec<&str> = req
+                .uri()
+                .query()
+                .unwrap_or("")
+                .split('&')
+                .filter(|kv| !kv.is_empty() && !kv.starts_with("token="))
+                .collect();
+            let to = if rest.is_empty() {
+                "/".to_owned()
+            } else {
+                format!("/?{}", rest.join("&"))
+            };
+            let mut resp = StatusCode::SEE_OTHER.into_response();
+            if let Ok(to) = HeaderValue::from_str(&to) {
+                resp.headers_mut().insert(header::LOCATION, to);
+            }
+            if let Some(c) = set_cookie {
+                resp.headers_mut().insert(header::SET_COOKIE, c);
+            }
+            security_headers(&mut resp);
+            Access::Answer(resp)
+        }
+        Some(_) => Access::Pass { set_cookie: None },
+    }
+}
+
+/// The page may run only its own script and style, load images and sound
+/// from itself or from `data:`/`blob:` URLs it made, and talk only to the
+/// studio; no other site may frame it.
+const CSP: &str = "default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data: blob:; media-src 'self' data: blob:; connect-src 'self' data: blob:; base-uri 'none'; form-action 'none'; frame-ancestors 'none'";
+
+fn security_headers(resp: &mut Response) {
+    let h = resp.headers_mut();
+    h.insert(
+        header::CONTENT_SECURITY_POLICY,
+        HeaderValue::from_static(CSP),
+    );
+    h.insert(
+        header::X_CONTENT_TYPE_OPTIONS,
+        HeaderValue::from_static("nosniff"),
+    );
+    h.insert(
+        header::REFERRER_POLICY,
+        HeaderValue::from_static("no-referrer"),
+    );
+    h.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
+}
+
 async fn session(State(app): State<Arc<App>>) -> axum::Json<Value> {
+    let (running, waiting) = app.analyses.load();
+    // The root's own name, never its absolute path.
+    let root = app
+        .root
+        .file_name()
+        .map_or_else(|| ".".to_owned(), |n| n.to_string_lossy().into_owned());
     axum::Json(json!({
         "video": app.video,
         "fps": app.fps,
-        "root": app.root,
+        "root": root,
+        "analyses": { "running": running, "waiting": waiting },
         "token_required": app.token.is_some(),
         "live": app.live.as_ref().map(|l| json!({ "pipeline": l.name, "has_spectrum": l.has_spectrum })),
         "monitor": app.monitor.is_some(),
@@ -395,7 +586,7 @@ async fn live_mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Jso
     let live = live_of(&app)?;
     let r: LiveModeRequest = body(&b)?;
     check_frequency(r.freq_hz)?;
-    let mut v = blocking(move || {
+    let mut v = app.analyses.run(move || {
         let video = vibroscope::io::atomic::TempPath::new("studio-live.y4m");
         let (frames, span_s, fps) = live
             .history_video(video.path())
@@ -520,9 +711,14 @@ async fn info(
     let q = query(q)?;
     let path = guard::resolve(&app.root, &q.video)?;
     let fps = fps_of(&app, q.fps)?;
-    let r = blocking(move || Ok(vibroscope::probe::probe(&path, fps)?)).await?;
+    let r = app
+        .reads
+        .run(move || Ok(vibroscope::probe::probe(&path, fps)?))
+        .await?;
     let mut v = serde_json::to_value(&r).map_err(|e| ApiError::bad(e.to_string()))?;
     v["video"] = json!(q.video);
+    // The file as the page named it, relative to the root.
+    v["file"] = json!(q.video);
     Ok(axum::Json(v))
 }
 
@@ -533,7 +729,8 @@ async fn frame(
     let q = query(q)?;
     let path = guard::resolve(&app.root, &q.video)?;
     let i = q.i.unwrap_or(0);
-    let png = blocking(move || read_frame_png(&app, &path, i)).await?;
+    let a = app.clone();
+    let png = app.reads.run(move || read_frame_png(&a, &path, i)).await?;
     Ok((
         [(header::CONTENT_TYPE, HeaderValue::from_static("image/png"))],
         png,
@@ -686,10 +883,14 @@ fn with_units(v: &mut Value, scale: Option<&vibroscope::units::Scale>) {
 }
 
 /// The video's size and rate, and `roi` checked against the frame.
+/// The video's size and rate, and `roi` checked against the frame and
+/// against the work a request may ask for (`max_pixel_frames`: region x
+/// frames).
 fn check_roi(
     path: &Path,
     fps: Option<f64>,
     roi: Option<[u32; 4]>,
+    max_pixel_frames: u64,
 ) -> ApiResult<(vibroscope::probe::ProbeReport, [u32; 4])> {
     let p = vibroscope::probe::probe(path, fps)?;
     let r = roi.unwrap_or([0, 0, p.width, p.height]);
@@ -700,6 +901,7 @@ fn check_roi(
             p.width, p.height
         )));
     }
+    limits::check_work(w, h, p.frames, max_pixel_frames)?;
     Ok((p, r))
 }
 
@@ -803,8 +1005,9 @@ fn select(
     fps: Option<f64>,
     roi: Option<[u32; 4]>,
     mask: Option<&str>,
+    max_pixel_frames: u64,
 ) -> ApiResult<Selection> {
-    let (probe, whole) = check_roi(path, fps, roi)?;
+    let (probe, whole) = check_roi(path, fps, roi, max_pixel_frames)?;
     let Some(mask) = mask else {
         return Ok(Selection {
             probe,
@@ -876,18 +1079,21 @@ async fn region_answer(
     let path = guard::resolve(&app.root, &r.video)?;
     let fps = fps_of(&app, r.fps)?;
     let key = region_key(what, &path, r.roi, r.mask.as_deref(), fps);
-    let (v, was_cached) = blocking(move || {
-        region_cached(
-            &app,
-            key,
-            &path,
-            fps,
-            (r.roi, r.mask.as_deref()),
-            compute,
-            |_| Ok(()),
-        )
-    })
-    .await?;
+    let queue = app.clone();
+    let (v, was_cached) = queue
+        .analyses
+        .run(move || {
+            region_cached(
+                &app,
+                key,
+                &path,
+                fps,
+                (r.roi, r.mask.as_deref()),
+                compute,
+                |_| Ok(()),
+            )
+        })
+        .await?;
     Ok(answer(&v, was_cached, t0.elapsed().as_secs_f64() * 1e3))
 }
 
@@ -906,7 +1112,7 @@ fn region_cached(
     if let Some(v) = cached(app, &key) {
         return Ok((v, true));
     }
-    let sel = select(path, fps, roi, mask)?;
+    let sel = select(path, fps, roi, mask, app.max_pixel_frames)?;
     check(&sel)?;
     let mut v = compute(path, fps, &sel)?;
     sel.describe(&mut v);
@@ -959,42 +1165,45 @@ async fn damping(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<
     let path = guard::resolve(&app.root, &r.video)?;
     let fps = fps_of(&app, r.fps)?;
     let key = region_key("motion", &path, r.roi, r.mask.as_deref(), fps);
-    let v = blocking(move || {
-        // A range the recording cannot have is refused before the work.
-        let check = |sel: &Selection| match sel.probe.fps {
-            Some(rate) => Ok(vibroscope::damping::check_range(
+    let queue = app.clone();
+    let v = queue
+        .analyses
+        .run(move || {
+            // A range the recording cannot have is refused before the work.
+            let check = |sel: &Selection| match sel.probe.fps {
+                Some(rate) => Ok(vibroscope::damping::check_range(
+                    (r.lo_hz, r.hi_hz),
+                    rate,
+                    RANGE_FIELDS,
+                )?),
+                None => Ok(()),
+            };
+            let sel = (r.roi, r.mask.as_deref());
+            let (m, _) = region_cached(&app, key, &path, fps, sel, region_motion, check)?;
+            let internal = |what: &str| {
+                ApiError::new(
+                    StatusCode::INTERNAL_SERVER_ERROR,
+                    format!("the region's {what} is missing"),
+                )
+            };
+            let sp: vibroscope::peaks::SpectrumDb =
+                serde_json::from_value(m["spectrum"].clone()).map_err(|_| internal("spectrum"))?;
+            let motion: Vec<f64> = serde_json::from_value(m[PRIVATE_MOTION].clone())
+                .map_err(|_| internal("motion"))?;
+            let fs = m["sample_rate_hz"]
+                .as_f64()
+                .ok_or_else(|| internal("sample rate"))?;
+            let d = vibroscope::damping::damping_over(
+                &sp,
+                fs,
+                m["taper"].as_str(),
+                &motion,
                 (r.lo_hz, r.hi_hz),
-                rate,
                 RANGE_FIELDS,
-            )?),
-            None => Ok(()),
-        };
-        let sel = (r.roi, r.mask.as_deref());
-        let (m, _) = region_cached(&app, key, &path, fps, sel, region_motion, check)?;
-        let internal = |what: &str| {
-            ApiError::new(
-                StatusCode::INTERNAL_SERVER_ERROR,
-                format!("the region's {what} is missing"),
-            )
-        };
-        let sp: vibroscope::peaks::SpectrumDb =
-            serde_json::from_value(m["spectrum"].clone()).map_err(|_| internal("spectrum"))?;
-        let motion: Vec<f64> =
-            serde_json::from_value(m[PRIVATE_MOTION].clone()).map_err(|_| internal("motion"))?;
-        let fs = m["sample_rate_hz"]
-            .as_f64()
-            .ok_or_else(|| internal("sample rate"))?;
-        let d = vibroscope::damping::damping_over(
-            &sp,
-            fs,
-            m["taper"].as_str(),
-            &motion,
-            (r.lo_hz, r.hi_hz),
-            RANGE_FIELDS,
-        )?;
-        Ok(json!({ "roi": r.roi, "sample_rate_hz": fs, "damping": d }))
-    })
-    .await?;
+            )?;
+            Ok(json!({ "roi": r.roi, "sample_rate_hz": fs, "damping": d }))
+        })
+        .await?;
     Ok(answer(&v, false, t0.elapsed().as_secs_f64() * 1e3))
 }
 
@@ -1022,26 +1231,29 @@ async fn idv_basis(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Jso
     let choice = idv::Choice::parse(r.modes.as_deref(), r.max_modes)?;
     let tag = format!("idv-basis|{}|{}", choice.text, choice.max_modes);
     let key = region_key(&tag, &path, r.roi, r.mask.as_deref(), fps);
-    let (v, was_cached) = blocking(move || {
-        let c2 = choice.clone();
-        let name = r.video.clone();
-        region_cached(
-            &app,
-            key,
-            &path,
-            fps,
-            (r.roi, r.mask.as_deref()),
-            move |p, f, sel| {
-                let mut v = idv::basis_answer(&name, p, f, sel, &c2)?;
-                if v["payload_bytes"].as_u64().unwrap_or(u64::MAX) > idv::MAX_CACHED_PAYLOAD {
-                    v[PRIVATE_NO_CACHE] = json!(true);
-                }
-                Ok(v)
-            },
-            |sel| choice.check_size(sel),
-        )
-    })
-    .await?;
+    let queue = app.clone();
+    let (v, was_cached) = queue
+        .analyses
+        .run(move || {
+            let c2 = choice.clone();
+            let name = r.video.clone();
+            region_cached(
+                &app,
+                key,
+                &path,
+                fps,
+                (r.roi, r.mask.as_deref()),
+                move |p, f, sel| {
+                    let mut v = idv::basis_answer(&name, p, f, sel, &c2)?;
+                    if v["payload_bytes"].as_u64().unwrap_or(u64::MAX) > idv::MAX_CACHED_PAYLOAD {
+                        v[PRIVATE_NO_CACHE] = json!(true);
+                    }
+                    Ok(v)
+                },
+                |sel| choice.check_size(sel),
+            )
+        })
+        .await?;
     Ok(answer(&v, was_cached, t0.elapsed().as_secs_f64() * 1e3))
 }
 
@@ -1126,22 +1338,24 @@ async fn mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Json<Val
         return Ok(axum::Json(v));
     }
     let app2 = app.clone();
-    let v = blocking(move || {
-        let (p, roi) = check_roi(&path, fps, r.roi)?;
-        let rate = p
-            .fps
-            .ok_or_else(|| ApiError::unprocessable("the video states no frame rate: give fps"))?;
-        if r.freq_hz > rate / 2.0 {
-            return Err(ApiError::unprocessable(format!(
-                "frequency {} Hz is above the Nyquist frequency {} Hz (frame rate {rate} Hz)",
-                r.freq_hz,
-                rate / 2.0
-            )));
-        }
-        let v = modal_image(&path, fps, r.roi.map(|_| roi), r.freq_hz)?;
-        Ok(remember(&app2, key, v))
-    })
-    .await?;
+    let v = app
+        .analyses
+        .run(move || {
+            let (p, roi) = check_roi(&path, fps, r.roi, app2.max_pixel_frames)?;
+            let rate = p.fps.ok_or_else(|| {
+                ApiError::unprocessable("the video states no frame rate: give fps")
+            })?;
+            if r.freq_hz > rate / 2.0 {
+                return Err(ApiError::unprocessable(format!(
+                    "frequency {} Hz is above the Nyquist frequency {} Hz (frame rate {rate} Hz)",
+                    r.freq_hz,
+                    rate / 2.0
+                )));
+            }
+            let v = modal_image(&path, fps, r.roi.map(|_| roi), r.freq_hz)?;
+            Ok(remember(&app2, key, v))
+        })
+        .await?;
     let axum::Json(mut v) = answer(&v, false, t0.elapsed().as_secs_f64() * 1e3);
     mode_units(&mut v, scale.as_ref());
     Ok(axum::Json(v))

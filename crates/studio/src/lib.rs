@@ -6,7 +6,11 @@
 //! - [`Studio::start`] binds (127.0.0.1 by default, port 0 = any free one),
 //!   serves on a thread of its own and returns the URL to print;
 //! - [`guard`]: files only under the root given at start; a token in every
-//!   request when bound beyond the loopback address;
+//!   request (loopback included, unless `--no-token`), a `Host` that names
+//!   the studio and no other site's `Origin` (DNS rebinding, other pages);
+//! - [`limits`]: bounded work per client (analyses at once, their size,
+//!   the answers' size; the work of a client that went away stopped), and
+//!   no absolute path of the root in any answer;
 //! - [`api`]: the JSON API (video info, frames as PNG, a region's motion,
 //!   spectrum and peaks, the modal image at a frequency), each answer
 //!   computed by the recipes of the `vibroscope` crate and cached per video;
@@ -15,6 +19,7 @@
 
 pub mod api;
 pub mod guard;
+pub mod limits;
 pub mod live;
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
@@ -29,9 +34,17 @@ pub struct StudioOptions {
     /// Files are served only from under this directory (default: the
     /// video's directory, else the current directory).
     pub root: Option<PathBuf>,
-    /// Address to bind (default 127.0.0.1); any other one requires the
-    /// token printed in the URL.
+    /// Address to bind (default 127.0.0.1).
     pub bind: Option<IpAddr>,
+    /// Serve without a token (loopback addresses only): any program or
+    /// page of this machine that can reach the port can then use it.
+    pub no_token: bool,
+    /// More names accepted in the `Host` header (beside `localhost` and
+    /// the address listened on): a name this machine is reached by.
+    pub allow_hosts: Vec<String>,
+    /// The largest analysis a request may ask for, pixel-frames (region
+    /// width x height x frames; default [`limits::MAX_PIXEL_FRAMES`]).
+    pub max_work: Option<u64>,
     /// Port (0: one the operating system gives).
     pub port: u16,
     /// The capture rate, when the file states the wrong one.
@@ -120,7 +133,7 @@ pub struct Studio {
     /// The URL to open (with `?token=…` when one is needed).
     pub url: String,
     pub addr: SocketAddr,
-    /// The token every request needs (none on the loopback address).
+    /// The token every request needs (none with `--no-token`).
     pub token: Option<String>,
     /// The directory files are served from (canonical).
     pub root: PathBuf,
@@ -130,6 +143,12 @@ pub struct Studio {
 }
 
 impl Studio {
+    /// The latest requests refused (Host, Origin, token), oldest first, as
+    /// printed on standard error.
+    pub fn log(&self) -> Vec<String> {
+        self.app.log()
+    }
+
     /// Binds and starts serving on a thread of its own.
     pub fn start(o: &StudioOptions) -> Result<Studio, StartError> {
         let root_arg: PathBuf = match (&o.root, &o.video) {
@@ -186,7 +205,32 @@ impl Studio {
             Some((endpoints, key)) => Some(start_monitor_feed(endpoints, key)?),
         };
         let ip = o.bind.unwrap_or(IpAddr::V4(Ipv4Addr::LOCALHOST));
-        let token = (!ip.is_loopback()).then(guard::new_token);
+        let token = if o.no_token {
+            if !ip.is_loopback() {
+                return Err(StartError::Usage(format!(
+                    "--no-token: only on a loopback address; listening on {ip} every request needs the token"
+                )));
+            }
+            None
+        } else {
+            Some(guard::new_token().map_err(StartError::Runtime)?)
+        };
+        let mut allowed = Vec::new();
+        for h in &o.allow_hosts {
+            match guard::host_name(h) {
+                Some(n) if !h.contains(':') || h.starts_with('[') => allowed.push(n),
+                _ => {
+                    return Err(StartError::Usage(format!(
+                        "--allow-host {h:?}: give a host name (letters, digits, dots, dashes), without a port"
+                    )))
+                }
+            }
+        }
+        if o.max_work == Some(0) {
+            return Err(StartError::Usage(
+                "--max-work 0: an analysis must be allowed some pixels".into(),
+            ));
+        }
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)
             .on_thread_start(lower_priority)
@@ -203,8 +247,12 @@ impl Studio {
             (Some(d), Some(name)) => Some(live::Live::start(name, d).map_err(StartError::Runtime)?),
             _ => None,
         };
+        let given_root = std::path::absolute(&root_arg).unwrap_or_else(|_| root_arg.clone());
         let app = Arc::new(
             api::App::new(root.clone(), video, o.fps, token.clone())
+                .with_access(guard::Hosts { bound: ip, allowed }, addr.port())
+                .with_max_work(o.max_work.unwrap_or(limits::MAX_PIXEL_FRAMES))
+                .hiding(&given_root)
                 .with_live(live)
                 .with_monitor(monitor),
         );

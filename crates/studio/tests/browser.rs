@@ -38,6 +38,8 @@ use vibroscope::modes::ModesOptions;
 use vibroscope::sim::modal::cantilever_shape;
 use vibroscope_studio::{Studio, StudioOptions};
 
+mod common;
+
 const CHROMIUM: &str = "/usr/bin/chromium";
 const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
 
@@ -279,6 +281,20 @@ fn img_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/img")
 }
 
+/// The simulated beam of [`scene`] rendered in `dir` (`beam.y4m`).
+fn beam_video(dir: &Path) -> PathBuf {
+    let scene_path = dir.join("beam.toml");
+    std::fs::write(&scene_path, scene()).unwrap();
+    let video = dir.join("beam.y4m");
+    vibroscope::simulate::simulate(&vibroscope::simulate::SimulateOptions {
+        scene: scene_path,
+        output: video.clone(),
+        ..Default::default()
+    })
+    .unwrap();
+    video
+}
+
 /// One browser test at a time: the live test measures a real-time
 /// pipeline, which the other test's computations would slow on two cores.
 static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
@@ -300,15 +316,7 @@ fn recording_view_modal_images_and_a_region_in_headless_chromium() {
     }
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let dir = tempfile::tempdir().unwrap();
-    let scene_path = dir.path().join("beam.toml");
-    std::fs::write(&scene_path, scene()).unwrap();
-    let video = dir.path().join("beam.y4m");
-    vibroscope::simulate::simulate(&vibroscope::simulate::SimulateOptions {
-        scene: scene_path,
-        output: video.clone(),
-        ..Default::default()
-    })
-    .unwrap();
+    let video = beam_video(dir.path());
     let studio = Studio::start(&StudioOptions {
         video: Some(video.clone()),
         ..StudioOptions::default()
@@ -1671,4 +1679,125 @@ async fn drive_idv(c: &Client, studio: &Studio, video: &Path) {
     assert!(bench["loop_fps"].as_f64().unwrap() > 0.0);
     assert!(bench["raf_fps"].as_f64().unwrap() > 0.0);
     assert_eq!(counter(c, "errorSeq").await, errors, "no error shown");
+}
+
+/// Serves `page` (HTML) at every path of a second local origin
+/// (127.0.0.1, another port) until the process ends; its port.
+fn serve_page(page: String) -> u16 {
+    use std::io::{Read, Write};
+    let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = l.local_addr().unwrap().port();
+    std::thread::spawn(move || {
+        for s in l.incoming() {
+            let Ok(mut s) = s else { continue };
+            let _ = s.set_read_timeout(Some(Duration::from_secs(5)));
+            let mut buf = [0u8; 4096];
+            let _ = s.read(&mut buf);
+            let _ = write!(
+                s,
+                "HTTP/1.1 200 OK\r\nContent-Type: text/html\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{page}",
+                page.len()
+            );
+        }
+    });
+    port
+}
+
+/// Issue 54: a page of another local origin (another port of 127.0.0.1:
+/// the same site, so the studio's `SameSite=Strict` cookie goes along)
+/// tries to read the studio with `fetch`, a no-cors `fetch`, an image and
+/// a WebSocket, after the same browser opened the studio with its token.
+/// Every one fails in the page, and the studio's log names each refusal.
+/// The studio's own page, opened through its URL, still works (the
+/// cookie, not the URL, carries the token once the page is open).
+#[test]
+fn another_local_origin_cannot_reach_the_studio_in_headless_chromium() {
+    if browser_missing() {
+        return;
+    }
+    let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
+    let dir = tempfile::tempdir().unwrap();
+    let video = beam_video(dir.path());
+    // A live pipeline too, so that its WebSocket would open if let in.
+    let studio = Studio::start(&StudioOptions {
+        video: Some(video),
+        ..common::live_options(dir.path())
+    })
+    .unwrap();
+    let token = studio.token.clone().expect("a token by default");
+    let sp = studio.addr.port();
+    let page = format!(
+        r#"<!doctype html><title>elsewhere</title><script>
+window.result = {{}};
+const S = "http://127.0.0.1:{sp}";
+fetch(S + "/api/session", {{ credentials: "include" }})
+  .then(r => r.text().then(t => {{ window.result.fetch = "read " + r.status + " " + t; }}))
+  .catch(e => {{ window.result.fetch = "failed: " + e; }});
+fetch(S + "/api/info?video=beam.y4m", {{ mode: "no-cors", credentials: "include" }})
+  .then(r => {{ window.result.nocors = "opaque " + r.type; }})
+  .catch(e => {{ window.result.nocors = "failed: " + e; }});
+const img = new Image();
+img.onload = () => {{ window.result.img = "loaded " + img.width; }};
+img.onerror = () => {{ window.result.img = "failed"; }};
+img.src = S + "/api/frame?video=beam.y4m&i=0";
+const ws = new WebSocket("ws://127.0.0.1:{sp}/api/live/ws");
+ws.onopen = () => {{ window.result.ws = "open"; }};
+ws.onerror = () => {{ window.result.ws = "failed"; }};
+</script>"#
+    );
+    let other = serve_page(page);
+    let s = &studio;
+    in_browser(|c| async move {
+        // The studio's own page, through its URL: the token becomes a cookie
+        // and leaves the address bar; the page opens the video.
+        c.goto(&s.url).await.unwrap();
+        wait_for(&c, "motionSeq", 0, 0).await;
+        let here = c.current_url().await.unwrap();
+        assert!(!here.as_str().contains("token"), "{here}");
+        assert_eq!(here.port(), Some(sp));
+        let cookie = js(&c, "return document.cookie;").await;
+        assert_eq!(cookie, json!(""), "the token's cookie is HttpOnly");
+        // The other origin's page, in the same browser.
+        c.goto(&format!("http://127.0.0.1:{other}/")).await.unwrap();
+        let t0 = Instant::now();
+        let result = loop {
+            let r = js(&c, "return window.result;").await;
+            let done = ["fetch", "nocors", "img", "ws"]
+                .iter()
+                .all(|k| r[k].is_string());
+            if done {
+                break r;
+            }
+            assert!(t0.elapsed() < Duration::from_secs(20), "no outcome: {r}");
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        };
+        println!("the other origin's page saw: {result}");
+        let fetch = result["fetch"].as_str().unwrap();
+        assert!(fetch.starts_with("failed"), "{fetch}");
+        assert_eq!(result["img"], "failed", "{result}");
+        assert_eq!(result["ws"], "failed", "{result}");
+        c
+    });
+    let log = studio.log();
+    println!("the studio's log:\n{}", log.join("\n"));
+    let origin = format!("Origin: http://127.0.0.1:{other}");
+    for path in ["/api/session", "/api/live/ws"] {
+        assert!(
+            log.iter()
+                .any(|l| l.contains(&format!("refused GET {path} (403)")) && l.contains(&origin)),
+            "{path}: {log:?}"
+        );
+    }
+    for path in ["/api/info", "/api/frame"] {
+        assert!(
+            log.iter()
+                .any(|l| l.contains(&format!("refused GET {path} (403)"))
+                    && (l.contains(&origin) || l.contains("Sec-Fetch-Site: same-site"))),
+            "{path}: {log:?}"
+        );
+    }
+    assert!(
+        log.iter().all(|l| !l.contains(&token)),
+        "the log never holds the token"
+    );
 }

@@ -9,18 +9,19 @@
 
 use serde_json::Value;
 use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use std::net::TcpStream;
 use std::time::Duration;
 use vibroscope::idv::{extract_basis, BasisOptions, ModeChoice};
 use vibroscope::pipeline::{Region, Roi};
 use vibroscope_studio::api::base64_decode;
 use vibroscope_studio::{Studio, StudioOptions};
 
-fn post(addr: SocketAddr, target: &str, body: &str) -> (u16, Value) {
-    let mut s = TcpStream::connect(("127.0.0.1", addr.port())).unwrap();
+fn post(studio: &Studio, target: &str, body: &str) -> (u16, Value) {
+    let mut s = TcpStream::connect(("127.0.0.1", studio.addr.port())).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(120))).unwrap();
+    let token = studio.token.as_deref().unwrap_or("");
     let head = format!(
-        "POST {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n",
+        "POST {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\nx-vibroscope-token: {token}\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n",
         body.len()
     );
     s.write_all(head.as_bytes()).unwrap();
@@ -80,7 +81,7 @@ fn the_basis_answer_is_the_library_basis_over_the_region() {
     .unwrap();
     let roi = [4u32, 6, 88, 36];
     let body = format!(r#"{{"video":"beam.y4m","roi":{roi:?},"modes":"7.3,45.8"}}"#);
-    let (st, v) = post(studio.addr, "/api/idv/basis", &body);
+    let (st, v) = post(&studio, "/api/idv/basis", &body);
     assert_eq!(st, 200, "{v}");
     assert_eq!(v["cached"], Value::Bool(false));
 
@@ -133,7 +134,7 @@ fn the_basis_answer_is_the_library_basis_over_the_region() {
         }
         assert!(peak > 0.0, "the shape moves somewhere");
     }
-    let (st, again) = post(studio.addr, "/api/idv/basis", &body);
+    let (st, again) = post(&studio, "/api/idv/basis", &body);
     assert_eq!(st, 200);
     assert_eq!(again["cached"], Value::Bool(true));
     assert_eq!(again["modes"], v["modes"]);

@@ -7,67 +7,14 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
+mod common;
+
+use common::*;
 use std::io::{Read, Write};
-use std::net::{IpAddr, Ipv4Addr, SocketAddr, TcpStream};
+use std::net::{IpAddr, Ipv4Addr, TcpStream};
 use std::path::Path;
 use std::time::Duration;
 use vibroscope_studio::{Studio, StudioOptions};
-
-/// One request; the status and the body.
-fn request(
-    addr: SocketAddr,
-    method: &str,
-    target: &str,
-    headers: &str,
-    body: &[u8],
-) -> (u16, String) {
-    let mut s = TcpStream::connect(("127.0.0.1", addr.port())).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-    let head = format!(
-        "{method} {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n{headers}Content-Length: {}\r\n\r\n",
-        body.len()
-    );
-    s.write_all(head.as_bytes()).unwrap();
-    // The server may answer (413) and close before reading a large body.
-    let _ = s.write_all(body);
-    let mut out = Vec::new();
-    let _ = s.read_to_end(&mut out);
-    let text = String::from_utf8_lossy(&out).into_owned();
-    let status = text
-        .split(' ')
-        .nth(1)
-        .and_then(|c| c.parse().ok())
-        .unwrap_or_else(|| panic!("no status line in {text:?}"));
-    let body = text
-        .split_once("\r\n\r\n")
-        .map_or("", |(_, b)| b)
-        .to_string();
-    (status, body)
-}
-
-fn get(addr: SocketAddr, target: &str) -> (u16, String) {
-    request(addr, "GET", target, "", b"")
-}
-
-fn post(addr: SocketAddr, target: &str, body: &str) -> (u16, String) {
-    request(
-        addr,
-        "POST",
-        target,
-        "Content-Type: application/json\r\n",
-        body.as_bytes(),
-    )
-}
-
-/// A small valid Y4M (mono, 16x16, 8 frames at 100 Hz).
-fn write_y4m(p: &Path) {
-    let mut v = b"YUV4MPEG2 W16 H16 F100:1 Ip A1:1 Cmono\n".to_vec();
-    for i in 0..8u8 {
-        v.extend_from_slice(b"FRAME\n");
-        v.extend((0..256u32).map(|k| (k as u8).wrapping_mul(7).wrapping_add(i)));
-    }
-    std::fs::write(p, v).unwrap();
-}
 
 /// A root with a video, a file that is not one, and a symlink to a video
 /// outside the root.
@@ -84,11 +31,6 @@ fn setup() -> (tempfile::TempDir, std::path::PathBuf) {
     (d, root)
 }
 
-fn error_of(body: &str) -> String {
-    let v: serde_json::Value = serde_json::from_str(body).unwrap_or_else(|e| panic!("{e}: {body}"));
-    v["error"].as_str().expect("an error message").to_string()
-}
-
 #[test]
 fn paths_bodies_and_malformed_requests_get_the_right_status() {
     let (_d, root) = setup();
@@ -98,8 +40,9 @@ fn paths_bodies_and_malformed_requests_get_the_right_status() {
     })
     .unwrap();
     assert!(s.addr.ip().is_loopback(), "binds 127.0.0.1 by default");
-    assert!(s.token.is_none() && !s.url.contains("token"));
-    let a = s.addr;
+    let t = s.token.as_deref().expect("a token on loopback too");
+    assert!(s.url.ends_with(&format!("/?token={t}")), "{}", s.url);
+    let a = &s;
 
     // What is allowed works.
     let (st, body) = get(a, "/api/info?video=sub/clip.y4m");
@@ -336,18 +279,25 @@ fn beyond_loopback_every_request_needs_the_token() {
         "/nothing",
     ] {
         let sep = if path.contains('?') { '&' } else { '?' };
-        assert_eq!(get(a, path).0, 401, "{path} without a token");
+        assert_eq!(raw_get(a, path).0, 403, "{path} without a token");
         assert_eq!(
-            get(a, &format!("{path}{sep}token={wrong}")).0,
+            raw_get(a, &format!("{path}{sep}token={wrong}")).0,
             403,
             "{path} wrong token"
         );
         assert_eq!(
-            get(a, &format!("{path}{sep}token=")).0,
+            raw_get(a, &format!("{path}{sep}token=")).0,
             403,
             "{path} empty token"
         );
-        let right = get(a, &format!("{path}{sep}token={token}")).0;
+        let right = raw_get(a, &format!("{path}{sep}token={token}")).0;
+        // The page's URL with the token: the cookie, and the page without it.
+        let right = if path == "/" {
+            assert_eq!(right, 303);
+            200
+        } else {
+            right
+        };
         // No live pipeline here: its routes are 404 once the token passes.
         let want = if path == "/nothing" || path.starts_with("/api/live") {
             404
@@ -360,29 +310,35 @@ fn beyond_loopback_every_request_needs_the_token() {
     assert_eq!(request(a, "GET", "/api/session", &h, b"").0, 200);
     let h = format!("x-vibroscope-token: {wrong}\r\n");
     assert_eq!(request(a, "GET", "/api/session", &h, b"").0, 403);
-    assert_eq!(post(a, "/api/motion", "{}").0, 401);
+    assert_eq!(raw_post(a, "/api/motion", "{}").0, 403);
     // The page opened with the token gets it as a cookie, which its script
     // and stylesheet requests (URLs without the token) then carry.
     let mut s2 = TcpStream::connect(("127.0.0.1", a.port())).unwrap();
     write!(
         s2,
-        "GET /?token={token} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"
+        "GET /?token={token} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n"
     )
     .unwrap();
     let mut head = String::new();
     let _ = s2.read_to_string(&mut head);
     assert!(
-        head.to_ascii_lowercase()
-            .contains(&format!("set-cookie: vibroscope_token={token}")),
+        head.to_ascii_lowercase().contains(&format!(
+            "set-cookie: vibroscope_token_{}={token}; httponly; samesite=strict",
+            a.port()
+        )),
         "{head}"
     );
-    let h = format!("Cookie: other=1; vibroscope_token={token}\r\n");
+    assert!(
+        head.to_ascii_lowercase().contains("\r\nlocation: /\r\n"),
+        "{head}"
+    );
+    let h = format!("Cookie: other=1; vibroscope_token_{}={token}\r\n", a.port());
     assert_eq!(request(a, "GET", "/app.js", &h, b"").0, 200);
-    let h = format!("Cookie: vibroscope_token={wrong}\r\n");
+    let h = format!("Cookie: vibroscope_token_{}={wrong}\r\n", a.port());
     assert_eq!(request(a, "GET", "/app.js", &h, b"").0, 403);
     // The guard runs before the body is looked at.
     let big = "x".repeat(200_000);
-    assert_eq!(post(a, "/api/motion", &big).0, 401);
+    assert_eq!(raw_post(a, "/api/motion", &big).0, 403);
 }
 
 #[test]
@@ -414,41 +370,6 @@ fn a_root_that_does_not_exist_is_a_usage_error() {
     );
 }
 
-/// A WebSocket upgrade request for `target`: the status, and the body
-/// when it is not a 101 (a 101 keeps the connection open for the socket).
-fn upgrade(addr: SocketAddr, target: &str) -> (u16, String) {
-    let mut s = TcpStream::connect(("127.0.0.1", addr.port())).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-    write!(
-        s,
-        "GET {target} HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n"
-    )
-    .unwrap();
-    let mut out = Vec::new();
-    let mut b = [0u8; 1];
-    while !out.ends_with(b"\r\n\r\n") && s.read(&mut b).unwrap_or(0) == 1 {
-        out.push(b[0]);
-    }
-    let head = String::from_utf8_lossy(&out).into_owned();
-    let status: u16 = head
-        .split(' ')
-        .nth(1)
-        .and_then(|c| c.parse().ok())
-        .unwrap_or_else(|| panic!("no status line in {head:?}"));
-    // The connection stays open after the answer: read just its body.
-    let len: usize = head
-        .lines()
-        .find_map(|l| {
-            let (k, v) = l.split_once(':')?;
-            k.eq_ignore_ascii_case("content-length")
-                .then(|| v.trim().parse().ok())?
-        })
-        .unwrap_or(0);
-    let mut body = vec![0u8; if status == 101 { 0 } else { len }];
-    s.read_exact(&mut body).unwrap();
-    (status, String::from_utf8_lossy(&body).into_owned())
-}
-
 #[test]
 fn live_routes_without_and_with_a_pipeline() {
     let (_d, root) = setup();
@@ -459,13 +380,13 @@ fn live_routes_without_and_with_a_pipeline() {
     })
     .unwrap();
     for path in ["/api/live", "/api/live/frame", "/api/live/ws"] {
-        let (st, body) = get(s.addr, path);
+        let (st, body) = get(&s, path);
         assert_eq!(st, 404, "{path}: {body}");
         assert!(error_of(&body).contains("--pipeline"), "{path}: {body}");
     }
-    let (st, body) = upgrade(s.addr, "/api/live/ws");
+    let (st, body) = upgrade(s.addr, "/api/live/ws", &auth(&s));
     assert_eq!(st, 404, "{body}");
-    let (st, body) = post(s.addr, "/api/live/mode", "{\"freq_hz\":10}");
+    let (st, body) = post(&s, "/api/live/mode", "{\"freq_hz\":10}");
     assert_eq!(st, 404, "{body}");
     drop(s);
     // Bad pipelines are refused at start, naming what is wrong.
@@ -495,28 +416,17 @@ fn live_routes_without_and_with_a_pipeline() {
     // With a live pipeline: the update, the frame, the WebSocket upgrade
     // (101), a plain GET of the socket route (400), and the token guard.
     let s = Studio::start(&StudioOptions {
-        root: Some(root.clone()),
-        pipeline: Some("live-spectrum".into()),
-        set: vec![
-            "src.fps=200.0".into(),
-            "src.width=32".into(),
-            "src.height=32".into(),
-            "src.duration_s=60.0".into(),
-            "spectrum.window=64".into(),
-            "spectrum.hop=16".into(),
-            format!("out.path=\"{}\"", root.join("live.json").display()),
-        ],
         bind: Some(IpAddr::V4(Ipv4Addr::UNSPECIFIED)),
-        ..StudioOptions::default()
+        ..live_options(&root)
     })
     .unwrap();
     let t = s.token.clone().unwrap();
     let a = s.addr;
-    assert_eq!(get(a, "/api/live").0, 401);
-    assert_eq!(upgrade(a, "/api/live/ws").0, 401);
+    assert_eq!(raw_get(a, "/api/live").0, 403);
+    assert_eq!(upgrade(a, "/api/live/ws", "").0, 403);
     let t0 = std::time::Instant::now();
     let u = loop {
-        let (st, body) = get(a, &format!("/api/live?token={t}"));
+        let (st, body) = raw_get(a, &format!("/api/live?token={t}"));
         assert_eq!(st, 200, "{body}");
         let u: serde_json::Value = serde_json::from_str(&body).unwrap();
         if !u["spectrum"].is_null() && !u["frame"].is_null() {
@@ -528,16 +438,16 @@ fn live_routes_without_and_with_a_pipeline() {
     assert_eq!(u["state"], "running", "{u}");
     assert_eq!(u["frame"]["width"], 32);
     assert!(u["stages"].as_array().unwrap().len() >= 7, "{u}");
-    let (st, body) = get(a, &format!("/api/live/frame?token={t}"));
+    let (st, body) = raw_get(a, &format!("/api/live/frame?token={t}"));
     assert_eq!(st, 200);
     assert!(body.len() > 8, "a PNG");
-    assert_eq!(upgrade(a, &format!("/api/live/ws?token={t}")).0, 101);
-    let (st, body) = get(a, &format!("/api/live/ws?token={t}"));
+    assert_eq!(upgrade(a, &format!("/api/live/ws?token={t}"), "").0, 101);
+    let (st, body) = raw_get(a, &format!("/api/live/ws?token={t}"));
     assert_eq!(st, 400, "{body}");
     assert!(error_of(&body).contains("WebSocket"), "{body}");
     // A clicked peak's modal image from the last frames; bad requests.
-    let mode = |b: &str| post(a, &format!("/api/live/mode?token={t}"), b);
-    assert_eq!(post(a, "/api/live/mode", "{\"freq_hz\":10}").0, 401);
+    let mode = |b: &str| raw_post(a, &format!("/api/live/mode?token={t}"), b);
+    assert_eq!(raw_post(a, "/api/live/mode", "{\"freq_hz\":10}").0, 403);
     for (b, want) in [
         ("{\"freq_hz\":\"ten\"}", 400),
         ("{\"freq_hz\":10,\"x\":1}", 400),
@@ -590,7 +500,7 @@ fn idv_basis_refuses_bad_requests_with_json_errors() {
         ..StudioOptions::default()
     })
     .unwrap();
-    let a = s.addr;
+    let a = &s;
     let route = "/api/idv/basis";
     for (body, want, says) in [
         (
@@ -663,4 +573,294 @@ fn idv_basis_refuses_bad_requests_with_json_errors() {
         200,
         "still answering"
     );
+}
+
+/// A refusal's body: only `{"error": ...}`, nothing of what was asked.
+fn refused_without_data(status: u16, body: &str, what: &str) {
+    assert_eq!(status, 403, "{what}: {body}");
+    let v: serde_json::Value =
+        serde_json::from_str(body).unwrap_or_else(|e| panic!("{what}: {e}: {body}"));
+    let keys: Vec<&String> = v.as_object().expect("an object").keys().collect();
+    assert_eq!(keys, ["error"], "{what}: {body}");
+}
+
+/// Issue 54: on loopback too, every route (WebSocket upgrades included)
+/// refuses with 403 and no data a foreign Host, a cross-site Origin,
+/// another port's Origin, `Sec-Fetch-Site: cross-site` or `same-site`, no
+/// token, a wrong token, and the token of another studio (another port),
+/// as header, query and cookie; and answers the right token, `localhost`,
+/// its own Origin and the page's security headers.
+#[test]
+fn foreign_hosts_origins_and_tokens_are_refused_on_every_route() {
+    let (_d, root) = setup();
+    let s = Studio::start(&live_options(&root)).unwrap();
+    let other = Studio::start(&StudioOptions {
+        root: Some(root.clone()),
+        ..StudioOptions::default()
+    })
+    .unwrap();
+    let (a, port) = (s.addr, s.addr.port());
+    let t = s.token.clone().expect("a token on loopback by default");
+    let ot = other.token.clone().unwrap();
+    assert_ne!(t, ot);
+    let op = other.addr.port();
+    let right = format!("x-vibroscope-token: {t}\r\n");
+    let routes: [(&str, &str, &str); 7] = [
+        ("GET", "/", ""),
+        ("GET", "/app.js", ""),
+        ("GET", "/api/session", ""),
+        ("GET", "/api/info?video=sub/clip.y4m", ""),
+        ("GET", "/api/frame?video=sub/clip.y4m&i=1", ""),
+        ("POST", "/api/motion", "{\"video\":\"sub/clip.y4m\"}"),
+        ("WS", "/api/live/ws", ""),
+    ];
+    let send = |method: &str, target: &str, headers: &str, body: &str| -> (u16, String) {
+        if method == "WS" {
+            upgrade(a, target, headers)
+        } else {
+            let h = format!("Content-Type: application/json\r\n{headers}");
+            request(a, method, target, &h, body.as_bytes())
+        }
+    };
+    for (method, target, body) in routes {
+        let sep = if target.contains('?') { '&' } else { '?' };
+        let cases: Vec<(String, String, String)> = vec![
+            (
+                "a foreign Host".into(),
+                target.into(),
+                format!("Host: attacker.example:{port}\r\n{right}"),
+            ),
+            (
+                "a foreign Host without a port".into(),
+                target.into(),
+                format!("Host: attacker.example\r\n{right}"),
+            ),
+            (
+                "a cross-site Origin".into(),
+                target.into(),
+                format!("Origin: http://attacker.example\r\n{right}"),
+            ),
+            (
+                "another port's Origin".into(),
+                target.into(),
+                format!("Origin: http://127.0.0.1:{op}\r\n{right}"),
+            ),
+            (
+                "an opaque Origin".into(),
+                target.into(),
+                format!("Origin: null\r\n{right}"),
+            ),
+            (
+                "Sec-Fetch-Site: cross-site".into(),
+                target.into(),
+                format!("Sec-Fetch-Site: cross-site\r\n{right}"),
+            ),
+            (
+                "Sec-Fetch-Site: same-site".into(),
+                target.into(),
+                format!("Sec-Fetch-Site: same-site\r\n{right}"),
+            ),
+            ("no token".into(), target.into(), String::new()),
+            (
+                "a wrong token".into(),
+                target.into(),
+                format!("x-vibroscope-token: {}\r\n", "f".repeat(32)),
+            ),
+            (
+                "the other studio's token".into(),
+                target.into(),
+                format!("x-vibroscope-token: {ot}\r\n"),
+            ),
+            (
+                "the other studio's token in its URL".into(),
+                format!("{target}{sep}token={ot}"),
+                String::new(),
+            ),
+            (
+                "the other studio's cookie".into(),
+                target.into(),
+                format!("Cookie: vibroscope_token_{op}={ot}\r\n"),
+            ),
+            (
+                "this token in the other port's cookie name".into(),
+                target.into(),
+                format!("Cookie: vibroscope_token_{op}={t}\r\n"),
+            ),
+        ];
+        for (what, target, headers) in cases {
+            let (st, b) = send(method, &target, &headers, body);
+            refused_without_data(st, &b, &format!("{method} {target}, {what}"));
+        }
+        // What belongs gets in: the token, `localhost`, the page's own Origin.
+        let want = match (method, target) {
+            ("WS", _) => 101,
+            _ => 200,
+        };
+        for headers in [
+            right.clone(),
+            format!("Host: localhost:{port}\r\n{right}"),
+            format!("Origin: http://127.0.0.1:{port}\r\nSec-Fetch-Site: same-origin\r\n{right}"),
+            format!("Cookie: vibroscope_token_{port}={t}\r\n"),
+        ] {
+            let (st, b) = send(method, target, &headers, body);
+            assert_eq!(st, want, "{method} {target} {headers:?}: {b}");
+        }
+        let (st, _) = send(method, &format!("{target}{sep}token={t}"), "", body);
+        let want = if target == "/" { 303 } else { want };
+        assert_eq!(st, want, "{method} {target} with ?token=");
+    }
+    // Every refusal above was logged, without the token.
+    let log = s.log();
+    assert!(log.len() >= 7 * 13, "{} refusals logged", log.len());
+    assert!(log.iter().any(|l| l.contains("attacker.example")));
+    assert!(log.iter().all(|l| !l.contains(&t)), "{log:?}");
+    // The page's security headers.
+    let (st, head, _) = exchange(a, "GET", "/", &right, b"");
+    assert_eq!(st, 200);
+    let head = head.to_ascii_lowercase();
+    for h in [
+        "content-security-policy: default-src 'none'; script-src 'self'; style-src 'self';",
+        "x-content-type-options: nosniff",
+        "referrer-policy: no-referrer",
+        "x-frame-options: deny",
+    ] {
+        assert!(head.contains(h), "{h}: {head}");
+    }
+    // Without a token, by choice: still Host and Origin.
+    let open = Studio::start(&StudioOptions {
+        root: Some(root.clone()),
+        no_token: true,
+        ..StudioOptions::default()
+    })
+    .unwrap();
+    assert!(open.token.is_none() && !open.url.contains("token"));
+    assert_eq!(raw_get(open.addr, "/api/session").0, 200);
+    let h = "Host: attacker.example\r\n";
+    assert_eq!(request(open.addr, "GET", "/api/session", h, b"").0, 403);
+    let h = "Origin: http://attacker.example\r\n";
+    assert_eq!(request(open.addr, "GET", "/api/session", h, b"").0, 403);
+    // Names given with --allow-host are answered; bad ones are refused at start.
+    let named = Studio::start(&StudioOptions {
+        root: Some(root.clone()),
+        allow_hosts: vec!["Studio.Lan".into()],
+        ..StudioOptions::default()
+    })
+    .unwrap();
+    let h = format!("Host: studio.lan:9000\r\n{}", auth(&named));
+    assert_eq!(request(named.addr, "GET", "/api/session", &h, b"").0, 200);
+    for (o, says) in [
+        (
+            StudioOptions {
+                root: Some(root.clone()),
+                no_token: true,
+                bind: Some(IpAddr::V4(Ipv4Addr::UNSPECIFIED)),
+                ..StudioOptions::default()
+            },
+            "--no-token",
+        ),
+        (
+            StudioOptions {
+                root: Some(root.clone()),
+                allow_hosts: vec!["host:8080".into()],
+                ..StudioOptions::default()
+            },
+            "--allow-host",
+        ),
+    ] {
+        let e = Studio::start(&o).err().expect("refused");
+        assert!(e.is_usage() && e.to_string().contains(says), "{e}");
+    }
+}
+
+/// Issue 54: no answer of any route, error or not, holds the root's
+/// absolute path, neither as resolved nor as given (through a symlink).
+#[test]
+fn no_answer_names_the_roots_absolute_path() {
+    let (d, real_root) = setup();
+    let given = d.path().join("via-link");
+    std::os::unix::fs::symlink(&real_root, &given).unwrap();
+    let s = Studio::start(&StudioOptions {
+        root: Some(given.clone()),
+        ..live_options(&given)
+    })
+    .unwrap();
+    let forbidden = [
+        real_root.display().to_string(),
+        given.display().to_string(),
+        d.path().display().to_string(),
+    ];
+    let mut answers = Vec::new();
+    let mut ask = |method: &str, target: &str, body: &str| {
+        let (st, b) = if method == "GET" {
+            get(&s, target)
+        } else {
+            post(&s, target, body)
+        };
+        answers.push((format!("{method} {target} {body} -> {st}"), b));
+    };
+    let t0 = std::time::Instant::now();
+    while get(&s, "/api/live").0 != 200 {
+        assert!(t0.elapsed() < Duration::from_secs(30), "no live update");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    for target in [
+        "/",
+        "/app.js",
+        "/style.css",
+        "/api/session",
+        "/api/info?video=sub/clip.y4m",
+        "/api/info?video=notes.y4m",
+        "/api/info?video=missing.y4m",
+        "/api/info?video=link.y4m",
+        "/api/info?video=../outside/secret.y4m",
+        "/api/frame?video=sub/clip.y4m&i=2",
+        "/api/frame?video=notes.y4m&i=0",
+        "/api/frame?video=sub/clip.y4m&i=99",
+        "/api/monitor",
+        "/api/live",
+        "/api/live/frame",
+        "/api/live/ws",
+        "/nothing",
+    ] {
+        ask("GET", target, "");
+    }
+    for (target, body) in [
+        ("/api/motion", "{\"video\":\"sub/clip.y4m\"}"),
+        ("/api/motion", "{\"video\":\"notes.y4m\"}"),
+        (
+            "/api/motion",
+            "{\"video\":\"sub/clip.y4m\",\"roi\":[0,0,99,99]}",
+        ),
+        ("/api/mode", "{\"video\":\"sub/clip.y4m\",\"freq_hz\":20}"),
+        ("/api/mode", "{\"video\":\"notes.y4m\",\"freq_hz\":20}"),
+        ("/api/listen", "{\"video\":\"sub/clip.y4m\"}"),
+        ("/api/listen", "{\"video\":\"notes.y4m\"}"),
+        (
+            "/api/damping",
+            "{\"video\":\"sub/clip.y4m\",\"lo_hz\":5,\"hi_hz\":30}",
+        ),
+        (
+            "/api/damping",
+            "{\"video\":\"notes.y4m\",\"lo_hz\":5,\"hi_hz\":30}",
+        ),
+        ("/api/idv/basis", "{\"video\":\"sub/clip.y4m\"}"),
+        ("/api/idv/basis", "{\"video\":\"notes.y4m\"}"),
+        ("/api/live/mode", "{\"freq_hz\":20}"),
+        ("/api/motion", "not json"),
+    ] {
+        ask("POST", target, body);
+    }
+    let (st, b) = upgrade(s.addr, "/api/live/ws", &auth(&s));
+    answers.push((format!("WS /api/live/ws -> {st}"), b));
+    let mut errors = 0;
+    for (what, body) in &answers {
+        println!("{what}: {} bytes", body.len());
+        errors += usize::from(body.contains("\"error\""));
+        for f in &forbidden {
+            assert!(!body.contains(f.as_str()), "{what} names {f}: {body}");
+        }
+    }
+    assert!(errors >= 10, "the error answers were exercised: {errors}");
+    let session: serde_json::Value = serde_json::from_str(&get(&s, "/api/session").1).unwrap();
+    assert_eq!(session["root"], "root", "its name only: {session}");
 }

@@ -713,6 +713,69 @@ impl Drop for Steps {
     }
 }
 
+/// A caller's own stop, apart from the process's Ctrl-C: the runs made
+/// on the thread that entered [`Cancel::scope`] stop when [`Cancel::cancel`]
+/// is called from anywhere (the studio cancels a request's analysis when
+/// its client goes away). A stopped run's recipe returns
+/// [`Error::Interrupted`], as on Ctrl-C; the sinks finalise what they had.
+/// Runs that a recipe starts on threads of its own are not covered.
+#[derive(Default)]
+pub struct Cancel {
+    cancelled: AtomicBool,
+    run: Mutex<Option<Arc<Control>>>,
+}
+
+thread_local! {
+    static CANCEL: std::cell::RefCell<Option<Arc<Cancel>>> = const { std::cell::RefCell::new(None) };
+}
+
+impl Cancel {
+    pub fn new() -> Arc<Cancel> {
+        Arc::new(Cancel::default())
+    }
+
+    /// Stops the run under way in the scope, and every later one.
+    pub fn cancel(&self) {
+        self.cancelled.store(true, Ordering::SeqCst);
+        if let Some(c) = self.run.lock().unwrap_or_else(|p| p.into_inner()).as_ref() {
+            c.stop();
+        }
+    }
+
+    pub fn is_cancelled(&self) -> bool {
+        self.cancelled.load(Ordering::SeqCst)
+    }
+
+    /// Runs `f` with `this` as the calling thread's cancel scope.
+    pub fn scope<T>(this: &Arc<Cancel>, f: impl FnOnce() -> T) -> T {
+        struct Restore(Option<Arc<Cancel>>);
+        impl Drop for Restore {
+            fn drop(&mut self) {
+                let old = self.0.take();
+                CANCEL.with(|c| *c.borrow_mut() = old);
+            }
+        }
+        let _restore = Restore(CANCEL.with(|c| c.borrow_mut().replace(Arc::clone(this))));
+        f()
+    }
+
+    fn current() -> Option<Arc<Cancel>> {
+        CANCEL.with(|c| c.borrow().clone())
+    }
+
+    /// Ties `control` to the scope (stopped at once when already cancelled).
+    fn attach(&self, control: &Arc<Control>) {
+        *self.run.lock().unwrap_or_else(|p| p.into_inner()) = Some(Arc::clone(control));
+        if self.is_cancelled() {
+            control.stop();
+        }
+    }
+
+    fn detach(&self) {
+        *self.run.lock().unwrap_or_else(|p| p.into_inner()) = None;
+    }
+}
+
 /// An interruption that arrived while no run was under way: the next run
 /// or [`check_interrupt`] returns [`Error::Interrupted`]. Returns whether a
 /// recipe will see it ([`Steps`]); when not, the caller should exit now.
@@ -724,7 +787,7 @@ pub fn interrupt() -> bool {
 /// `Err(Error::Interrupted)` once [`interrupt`] was called: recipes call it
 /// between their steps, before writing their outputs.
 pub fn check_interrupt() -> Result<()> {
-    if INTERRUPTED.load(Ordering::SeqCst) {
+    if INTERRUPTED.load(Ordering::SeqCst) || Cancel::current().is_some_and(|c| c.is_cancelled()) {
         return Err(interrupted());
     }
     Ok(())
@@ -793,6 +856,10 @@ fn run_inner(
         // Interrupted between the check above and now: stop at once.
         control.stop();
     }
+    let cancel = Cancel::current();
+    if let Some(c) = &cancel {
+        c.attach(&control);
+    }
     let report = engine::run(
         graph,
         Arc::clone(&control),
@@ -802,6 +869,9 @@ fn run_inner(
         file: decl.file.clone(),
         source: Box::new(source),
     });
+    if let Some(c) = &cancel {
+        c.detach();
+    }
     if let Ok(mut g) = CURRENT.lock() {
         *g = None;
     }
