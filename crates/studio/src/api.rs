@@ -24,7 +24,8 @@
 
 pub mod idv;
 
-use crate::guard::{self, Hosts, Refusal};
+pub use crate::error::ApiError;
+use crate::guard::{self, Hosts};
 use crate::limits::{self, Queue};
 use crate::live::Live;
 
@@ -212,56 +213,6 @@ impl App {
         if let Some(l) = &self.live {
             l.stop();
         }
-    }
-}
-
-/// An error answer: a status and a message the page shows.
-#[derive(Debug)]
-pub struct ApiError {
-    pub status: StatusCode,
-    pub message: String,
-}
-
-impl ApiError {
-    pub(crate) fn new(status: StatusCode, message: impl Into<String>) -> ApiError {
-        ApiError {
-            status,
-            message: message.into(),
-        }
-    }
-    fn bad(message: impl Into<String>) -> ApiError {
-        ApiError::new(StatusCode::BAD_REQUEST, message)
-    }
-    pub(crate) fn unprocessable(message: impl Into<String>) -> ApiError {
-        ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, message)
-    }
-}
-
-impl From<Refusal> for ApiError {
-    fn from(r: Refusal) -> ApiError {
-        match r {
-            Refusal::Bad(m) => ApiError::bad(m),
-            Refusal::Outside(m) => ApiError::new(StatusCode::FORBIDDEN, m),
-            Refusal::Missing(m) => ApiError::new(StatusCode::NOT_FOUND, m),
-        }
-    }
-}
-
-impl From<vibroscope::Error> for ApiError {
-    /// The recipe's message; a usage error (a bad value or file) is the
-    /// request's fault (422), anything else the computation's (500).
-    fn from(e: vibroscope::Error) -> ApiError {
-        let status = match e.kind() {
-            vibroscope::ErrorKind::Usage => StatusCode::UNPROCESSABLE_ENTITY,
-            _ => StatusCode::INTERNAL_SERVER_ERROR,
-        };
-        ApiError::new(status, e.to_string())
-    }
-}
-
-impl IntoResponse for ApiError {
-    fn into_response(self) -> Response {
-        (self.status, axum::Json(json!({ "error": self.message }))).into_response()
     }
 }
 

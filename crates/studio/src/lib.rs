@@ -14,10 +14,12 @@
 //! - [`api`]: the JSON API (video info, frames as PNG, a region's motion,
 //!   spectrum and peaks, the modal image at a frequency), each answer
 //!   computed by the recipes of the `vibroscope` crate and cached per video;
+//! - [`error`]: the error answers (`{"error": MESSAGE}` with a status);
 //! - [`api::idv`]: the modal basis of a region for interactive dynamic video in
 //!   the page (thesis ch. 6: drag the object, see it respond).
 
 pub mod api;
+pub mod error;
 pub mod guard;
 pub mod limits;
 pub mod live;

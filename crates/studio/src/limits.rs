@@ -3,7 +3,7 @@
 //! answer may be, and the work of a request whose client went away
 //! stopped. Also what no answer may carry: the root's absolute path.
 
-use crate::api::ApiError;
+use crate::error::ApiError;
 use axum::http::{header, StatusCode};
 use axum::response::{IntoResponse, Response};
 use std::sync::atomic::{AtomicUsize, Ordering};
