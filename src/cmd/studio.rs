@@ -77,7 +77,12 @@ pub struct Args {
     allow_host: Vec<String>,
     /// The largest analysis one request may ask for, in G pixel-frames
     /// (region width x height x frames; 2^30 each).
-    #[arg(long, value_name = "GPIX", default_value_t = 4.0)]
+    #[arg(
+        long,
+        value_name = "GPIX",
+        default_value_t = 4.0,
+        allow_negative_numbers = true
+    )]
     max_work: f64,
     /// Port to listen on (0: any free one).
     #[arg(long, default_value_t = 0)]
