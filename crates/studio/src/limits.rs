@@ -19,9 +19,10 @@ pub const ANALYSES_WAITING: usize = 8;
 /// recording's frame can take a decoder's time).
 pub const READS_RUNNING: usize = 2;
 pub const READS_WAITING: usize = 16;
-/// The largest answer sent, bytes (a region's sound of 600 s is 9.6 MB of
-/// WAV in base64; a modal basis is bounded by its own check).
-pub const MAX_ANSWER: usize = 64 << 20;
+/// The largest answer sent, bytes: above the largest modal basis the IDV
+/// route lets through (64 MiB of base64, `api::idv::MAX_PAYLOAD`, plus the
+/// JSON around it); a region's sound of 600 s is 9.6 MB of WAV in base64.
+pub const MAX_ANSWER: usize = 96 << 20;
 /// The largest analysis a request may ask for by default: region width x
 /// height x frames (4 G pixel-frames is 1920x1080 for 2000 frames, about
 /// a minute of work on two cores).
