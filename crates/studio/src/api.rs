@@ -3,7 +3,7 @@
 //!
 //! | request | answer |
 //! |---|---|
-//! | `GET /api/session` | the video opened at start, the root, whether a token is needed |
+//! | `GET /api/session` | the video opened at start, the root's name (never its path), whether a token is needed, the analyses running and waiting |
 //! | `GET /api/info?video=P[&fps=F]` | [`vibroscope::probe`]'s report |
 //! | `GET /api/frame?video=P&i=N` | frame N as an 8-bit grey PNG |
 //! | `POST /api/motion {video, roi?, mask?, fps?, scale_mm_per_px?}` | the region's waveform (px, and in µm/mm with a scale), spectrum (dB) and peaks (amplitudes likewise) |
@@ -293,8 +293,9 @@ async fn json_errors(req: Request, next: Next) -> Response {
     ApiError::new(status, message).into_response()
 }
 
-/// The cookie that carries the token for the page's own requests (its
-/// script and stylesheet are loaded by URLs without `?token=`).
+/// The cookie that carries the token for the page's own requests, once
+/// the page's URL has set it (its script, stylesheet and API calls go
+/// without `?token=`): this name, then `_PORT` ([`App::with_access`]).
 const TOKEN_COOKIE: &str = "vibroscope_token";
 
 /// Every request, WebSocket upgrades included, before any route:
@@ -833,7 +834,6 @@ fn with_units(v: &mut Value, scale: Option<&vibroscope::units::Scale>) {
     v["scale_mm_per_px"] = json!(scale.map(|s| s.mm_per_px));
 }
 
-/// The video's size and rate, and `roi` checked against the frame.
 /// The video's size and rate, and `roi` checked against the frame and
 /// against the work a request may ask for (`max_pixel_frames`: region x
 /// frames).
