@@ -247,6 +247,30 @@ fn modes_command_writes_png_and_npy() {
         .unwrap();
     let at = format!(" at ({}, {})", i % w, i / w);
     assert!(stderr(&o).contains(&at), "want{at}: {}", stderr(&o));
+    // The beam's second mode is a standing wave: its image's phases are
+    // collinear (issue 51's mode-shape check). Between the modes the
+    // image holds only noise, and says so.
+    let mpc = |said: &str| -> f64 {
+        said.split("MPC ")
+            .nth(1)
+            .and_then(|t| t.split(',').next())
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("no MPC printed: {said}"))
+    };
+    let at_mode = mpc(&stderr(&o));
+    let o2 = run_in(
+        dir.path(),
+        &[
+            "modes", "beam.y4m", "--at", "40", "-o", "n.png", "--motion", "y", "--sigma", "1.5",
+        ],
+    );
+    assert_eq!(code(&o2), 0, "{}", stderr(&o2));
+    let between = mpc(&stderr(&o2));
+    eprintln!("MPC at the mode {at_mode:.3}, between modes {between:.3}");
+    assert!(
+        at_mode > 0.9 && between < at_mode - 0.3,
+        "{at_mode} {between}"
+    );
     // Deterministic: the same command again gives identical files.
     let args2: Vec<&str> = args
         .iter()

@@ -161,6 +161,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 r.freq_hz
             ),
         }
+        if let Some(c) = &r.shape {
+            eprintln!(
+                "  mode-shape checks: MPC {:.3}, MPD {:.1}° ({})",
+                c.mpc,
+                c.mpd_deg,
+                if c.mpc >= 0.8 {
+                    "a standing mode's shape: its parts move in phase or in antiphase"
+                } else {
+                    "not a standing mode's shape: noise, a travelling wave or mixed modes (a real mode gives MPC near 1, MPD near 0)"
+                }
+            );
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

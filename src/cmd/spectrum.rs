@@ -209,8 +209,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The strongest peaks first.
+/// The resonances, strongest first (the largest power above its own
+/// floor), then the peaks that are not resonances, with the reason.
 fn summary(r: &SpectrumReport) {
+    others(r);
     if r.peaks.is_empty() {
         eprintln!(
             "no resonance stands out (resolution {:.3} Hz at {} Hz)",
@@ -220,9 +222,9 @@ fn summary(r: &SpectrumReport) {
         return;
     }
     let mut peaks: Vec<_> = r.peaks.iter().collect();
-    peaks.sort_by(|a, b| b.power_db.total_cmp(&a.power_db));
+    peaks.sort_by(|a, b| b.above_floor_db().total_cmp(&a.above_floor_db()));
     eprintln!(
-        "{} peaks, strongest first (resolution {:.3} Hz at {} Hz sampling):",
+        "{} resonances, strongest (most power above its own floor) first (resolution {:.3} Hz at {} Hz sampling):",
         peaks.len(),
         r.resolution_hz,
         short(r.sample_rate_hz)
@@ -243,11 +245,15 @@ fn summary(r: &SpectrumReport) {
         eprintln!("  {} amplitudes in {} ({scale})", m.quantity.name(), m.unit);
     }
     for p in peaks.iter().take(5) {
-        // A frequency uncertainty wider than the band says the fit failed.
-        let f_std = if p.frequency_std_hz > 0.0 && p.frequency_std_hz < r.sample_rate_hz / 2.0 {
-            format!("± {}", super::num(p.frequency_std_hz, 3))
+        // A resonance's uncertainty is below a tenth of its frequency (the
+        // resonance test); one the fit could not give is the bin's.
+        let f_std = if p.frequency_std_hz.is_finite() && p.frequency_std_hz > 0.0 {
+            format!("± {}", significant(p.frequency_std_hz))
         } else {
-            "(uncertainty n/a)".into()
+            format!(
+                "± {} (the bin's quantisation)",
+                significant(r.resolution_hz / 12f64.sqrt())
+            )
         };
         let damping = if p.damping_method.starts_with("resolution_limit") {
             format!(
@@ -255,12 +261,30 @@ fn summary(r: &SpectrumReport) {
                 super::num(p.damping_ratio, 4)
             )
         } else {
+            let std = if p.damping_ratio_std.is_finite() {
+                format!("± {}", significant(p.damping_ratio_std))
+            } else {
+                // One estimate, no scatter to measure it by.
+                "(one estimate: uncertainty at most the value)".into()
+            };
             format!(
-                "damping {} ± {} ({})",
-                super::num(p.damping_ratio, 4),
-                super::num(p.damping_ratio_std, 4),
+                "damping {} {std} ({})",
+                significant(p.damping_ratio),
                 p.damping_method
             )
+        };
+        // A struck object's ring-down, beside the main estimate.
+        let damping = match p
+            .damping_estimates
+            .iter()
+            .find(|e| e.method == "free_decay")
+        {
+            Some(e) => format!(
+                "{damping}; free decay {} ± {}",
+                significant(e.damping_ratio),
+                significant(e.damping_ratio_std)
+            ),
+            None => damping,
         };
         let amp = match (p.amplitude, &r.motion) {
             (Some(a), Some(m)) => format!("  {} {}", significant(a), m.unit),
@@ -283,6 +307,29 @@ fn summary(r: &SpectrumReport) {
             "  {:>10} {f_std} Hz{amp}  {damping}  {} dB above its surroundings{chance}",
             super::num(p.frequency_hz, 3),
             super::num(p.prominence_db, 1)
+        );
+    }
+}
+
+/// The peaks the resonance test turned away (drift, broadband), never
+/// ranked among the resonances.
+fn others(r: &SpectrumReport) {
+    if r.others.is_empty() {
+        return;
+    }
+    eprintln!(
+        "{} peaks that are not resonances (not ranked; see docs/resonances.md):",
+        r.others.len()
+    );
+    for p in &r.others {
+        let class = serde_json::to_value(p.class)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_owned))
+            .unwrap_or_default();
+        eprintln!(
+            "  {:>10} Hz  {class}: {}",
+            super::num(p.frequency_hz, 3),
+            p.class_reason
         );
     }
 }

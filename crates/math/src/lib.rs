@@ -40,6 +40,7 @@ pub mod rng;
 pub mod rod;
 pub mod row_phase;
 pub mod rs_calibrate;
+pub mod sinefit;
 pub mod ssi;
 pub mod stft;
 pub mod truth;

@@ -782,6 +782,59 @@ fn bilinear<T: Lerp>(g: &[T], w: usize, h: usize, x: f64, y: f64) -> T {
     row(y0) * (1.0 - fy) + row(y1) * fy
 }
 
+/// A complex mode shape's checks (issue 51): how far it is from a real,
+/// standing mode, whose parts all move in phase or in antiphase.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct ShapeChecks {
+    /// Modal phase collinearity: ((Sxx - Syy)² + 4 Sxy²) / (Sxx + Syy)²
+    /// over the shape's real and imaginary parts (Pappa, Elliott and
+    /// Schenk 1993, in its eigenvalue form): 1 when every point lies on one
+    /// line through the origin of the complex plane, 0 when they spread
+    /// evenly about it (noise, a travelling wave).
+    pub mpc: f64,
+    /// Mean phase deviation, degrees: each point's angle from the shape's
+    /// principal line, weighted by its magnitude (Reynders, Houbrechts and
+    /// De Roeck 2012): 0 for a real mode, 45 for phases spread evenly.
+    pub mpd_deg: f64,
+}
+
+/// [`ShapeChecks`] of `shape` (its non-finite points left out); `None`
+/// when it holds no motion.
+pub fn shape_checks(shape: &[Complex32]) -> Option<ShapeChecks> {
+    let pts = shape
+        .iter()
+        .filter(|c| c.re.is_finite() && c.im.is_finite())
+        .map(|c| (f64::from(c.re), f64::from(c.im)));
+    let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
+    for (x, y) in pts.clone() {
+        sxx += x * x;
+        syy += y * y;
+        sxy += x * y;
+    }
+    let total = sxx + syy;
+    if !(total.is_finite() && total > 0.0) {
+        return None;
+    }
+    let mpc = ((sxx - syy).powi(2) + 4.0 * sxy * sxy) / (total * total);
+    // The principal line's angle (the scatter's major axis).
+    let alpha = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let (sa, ca) = alpha.sin_cos();
+    let (mut num, mut den) = (0.0, 0.0);
+    for (x, y) in pts {
+        let m = x.hypot(y);
+        if m > 0.0 {
+            // The component across the line over the magnitude.
+            let across = (-x * sa + y * ca).abs() / m;
+            num += m * across.clamp(0.0, 1.0).asin();
+            den += m;
+        }
+    }
+    Some(ShapeChecks {
+        mpc: mpc.clamp(0.0, 1.0),
+        mpd_deg: (num / den).to_degrees(),
+    })
+}
+
 /// Separable Gaussian blur in place (std `sx`, `sy` grid pixels, kernel
 /// to ±3σ), zero outside the grid: with the ratio of ch. 3.5.2 that is
 /// normalised convolution, exact at the borders.
@@ -1094,5 +1147,28 @@ mod tests {
         let base = (64.0f32 * (1.0 - 128.0 / 255.0)).round() as u8;
         assert_eq!(&out[6..9], &[base, base + 128, base + 128]);
         assert_eq!(overlay_rgb(&rgb, &gray[..2]), rgb.to_vec());
+    }
+
+    #[test]
+    fn a_real_shape_is_collinear_and_noise_is_not() {
+        use crate::rng::Xoshiro256;
+        // A standing shape at any phase: MPC 1, MPD 0.
+        let rot = Complex32::from_polar(1.0, 0.7);
+        let real: Vec<Complex32> = (0..200).map(|i| rot * ((i as f32 * 0.05).sin())).collect();
+        let c = shape_checks(&real).unwrap();
+        assert!(c.mpc > 0.9999 && c.mpd_deg < 0.01, "{c:?}");
+        // Random phases: MPC near 0, MPD near 45 degrees.
+        let mut rng = Xoshiro256::new(3);
+        let noise: Vec<Complex32> = (0..20_000)
+            .map(|_| Complex32::from_polar(1.0, (rng.next_f64() * std::f64::consts::TAU) as f32))
+            .collect();
+        let c = shape_checks(&noise).unwrap();
+        assert!(c.mpc < 0.05 && (c.mpd_deg - 45.0).abs() < 3.0, "{c:?}");
+        // A travelling wave (phase along the shape): not collinear.
+        let wave: Vec<Complex32> = (0..200)
+            .map(|i| Complex32::from_polar(1.0, i as f32 * 0.1))
+            .collect();
+        assert!(shape_checks(&wave).unwrap().mpc < 0.2);
+        assert!(shape_checks(&[Complex32::new(0.0, 0.0); 4]).is_none());
     }
 }

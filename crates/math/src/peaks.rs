@@ -75,6 +75,233 @@ impl Default for PeakOptions {
     }
 }
 
+/// The largest damping ratio a resonance may have (issue 51). A mode's
+/// half-power band is 2ζ f wide: at ζ = 0.25 it spans half the mode's
+/// frequency, and above ζ = 1/√2 a driven oscillator's displacement has no
+/// peak at all. Structures measured by vibrometry ring far below it (ζ of
+/// 0.001-0.1); a hump broader than this is coloured noise, a drift's knee
+/// or several lines smeared together, not a mode to name. The bound
+/// applies to a measured damping, not to the upper bound an unresolved
+/// peak carries.
+pub const MAX_MODE_DAMPING: f64 = 0.25;
+/// A resonance's frequency uncertainty must be below this fraction of its
+/// frequency (the line is resolved or bounded): a "peak" at 0.5 ± 18 Hz
+/// is the spectrum's slope, not a line. A quarter lets a line two bins
+/// from zero through (its bin quantisation, df/√12, is 14% of it): the
+/// slowest sway a record's spectrum can show, which the drift test then
+/// measures against the drift floor.
+pub const MAX_RELATIVE_FREQUENCY_STD: f64 = 0.25;
+
+/// The steepest floor taken for a drift (a random walk's is 2; see
+/// `classify`).
+pub const MAX_DRIFT_BETA: f64 = 2.5;
+
+/// What a spectral peak is (issue 51's resonance test).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PeakClass {
+    /// A line: resolved or bounded, damping plausible for a mode, above
+    /// both its local floor and the spectrum's fitted drift floor.
+    Resonance,
+    /// The low-frequency continuation of a drift (1/f^β) spectrum: not
+    /// above the drift floor fitted to the spectrum's low end.
+    Drift,
+    /// Too broad, or its frequency too uncertain, to be a mode.
+    Broadband,
+}
+
+/// A spectrum's floor as a drift plus white noise: P(f) ≈ A f^-β + C.
+/// The white level C is the median of the upper half of the spectrum; A
+/// and β are fitted (least squares in log-log, bands sticking out above
+/// the fit left out) to the medians of log-spaced bands of at least three
+/// bins, over the run of lowest bands that stand at least twice above C.
+/// No such run: A = 0 (no drift).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct DriftFloor {
+    pub a: f64,
+    pub beta: f64,
+    pub white: f64,
+}
+
+impl DriftFloor {
+    /// The floor's mean power at `f` Hz.
+    pub fn at(&self, f: f64) -> f64 {
+        self.drift(f) + self.white
+    }
+
+    /// The drift's part at `f` Hz.
+    pub fn drift(&self, f: f64) -> f64 {
+        if self.a > 0.0 && f > 0.0 {
+            self.a * f.powf(-self.beta)
+        } else {
+            0.0
+        }
+    }
+
+    /// Fits the floor of `power` (`power[k]` at `f0 + k df`, `k_avg`
+    /// spectra averaged).
+    pub fn fit(power: &[f64], f0_hz: f64, df_hz: f64, k_avg: usize) -> DriftFloor {
+        Self::fit_without(power, f0_hz, df_hz, k_avg, 0..0)
+    }
+
+    /// [`DriftFloor::fit`] with the bins of `skip` left out of its bands
+    /// (a candidate's own lobe, which would otherwise hold the fit up at
+    /// its own frequency).
+    pub fn fit_without(
+        power: &[f64],
+        f0_hz: f64,
+        df_hz: f64,
+        k_avg: usize,
+        skip: std::ops::Range<usize>,
+    ) -> DriftFloor {
+        let to_mean = 1.0 / chi2_ratio_median(k_avg.max(1));
+        let first = (1..power.len()).find(|&i| f0_hz + i as f64 * df_hz > 0.0);
+        let Some(first) = first else {
+            return DriftFloor {
+                a: 0.0,
+                beta: 0.0,
+                white: 0.0,
+            };
+        };
+        let median = |v: &mut Vec<f64>| -> f64 {
+            v.retain(|x| x.is_finite());
+            if v.is_empty() {
+                return 0.0;
+            }
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let upper: Vec<f64> = power[(power.len() / 2).max(first)..].to_vec();
+        let white = median(&mut upper.clone()) * to_mean;
+        // Log-spaced bands: a quarter octave, at least three bins.
+        let mut bands: Vec<(f64, f64)> = Vec::new();
+        let mut i = first;
+        while i + 3 <= power.len() {
+            let w = ((i as f64) * 0.19).round().max(3.0) as usize;
+            let j = (i + w).min(power.len());
+            if i < skip.end && j > skip.start {
+                // Overlaps the lobe left out: skipped, the run goes on.
+                i = j;
+                continue;
+            }
+            let mut v = power[i..j].to_vec();
+            let m = median(&mut v) * to_mean;
+            let f = f0_hz + 0.5 * (i + j - 1) as f64 * df_hz;
+            if m.is_nan() || m <= 2.0 * white {
+                break;
+            }
+            bands.push((f.ln(), (m - white).ln()));
+            i = j;
+        }
+        if bands.len() < 2 {
+            return DriftFloor {
+                a: 0.0,
+                beta: 0.0,
+                white,
+            };
+        }
+        let mut keep = vec![true; bands.len()];
+        let mut fit = (0.0, 0.0);
+        for _ in 0..3 {
+            let pts: Vec<&(f64, f64)> = bands
+                .iter()
+                .zip(&keep)
+                .filter_map(|(b, &k)| k.then_some(b))
+                .collect();
+            if pts.len() < 2 {
+                break;
+            }
+            let n = pts.len() as f64;
+            let (mx, my) = (
+                pts.iter().map(|p| p.0).sum::<f64>() / n,
+                pts.iter().map(|p| p.1).sum::<f64>() / n,
+            );
+            let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+            let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+            let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+            fit = (my - slope * mx, slope);
+            // Bands sticking out above the line by more than 6 dB hold a
+            // line of their own: left out of the next fit.
+            for (b, k) in bands.iter().zip(keep.iter_mut()) {
+                *k = b.1 - (fit.0 + fit.1 * b.0) < 4f64.ln();
+            }
+        }
+        let beta = (-fit.1).clamp(0.0, 6.0);
+        DriftFloor {
+            a: fit.0.exp(),
+            beta,
+            white,
+        }
+    }
+}
+
+/// Why a peak is not a resonance by its shape alone (frequency
+/// uncertainty, damping), or `None`: [`shape_refusal_of`] on its fields.
+pub fn shape_refusal(p: &Peak) -> Option<(PeakClass, String)> {
+    shape_refusal_of(
+        p.frequency_hz,
+        p.frequency_std_hz,
+        (p.damping_ratio, p.damping_ratio_std),
+        &p.damping_method,
+    )
+}
+
+/// The method name of a damping fitted in the time domain to a record of
+/// few cycles (set by the recipe layer, which has the record).
+pub const TIME_FIT: &str = "time_fit";
+
+/// Standard deviations a [`TIME_FIT`] damping's 95% interval spans:
+/// Student's t at 97.5% for 4 degrees of freedom. The fit's uncertainty is
+/// the larger of the residual's and a five-block jackknife's
+/// ([`crate::sinefit`]), and the jackknife's spread has four degrees of
+/// freedom, so the normal distribution's 1.96 would claim too much.
+pub const TIME_FIT_COVERAGE: f64 = 2.776;
+
+/// Why a peak of frequency `f` ± `f_std` Hz and damping ratio `zeta` ±
+/// `zeta_std` (by `method`; a `resolution_limit` is only an upper bound,
+/// which says nothing against a mode) is not a resonance, or `None`.
+/// Applied again after a time-domain refinement changes a peak's damping.
+/// A [`TIME_FIT`] damping is the only measure a few-cycle record gives, and
+/// it must show the damping below [`MAX_MODE_DAMPING`] at 95% confidence
+/// ([`TIME_FIT_COVERAGE`] standard deviations): two or three cycles of a
+/// slow wander fit a damped sinusoid too, with a damping the fit cannot
+/// pin down.
+pub fn shape_refusal_of(
+    f: f64,
+    f_std: f64,
+    (zeta, zeta_std): (f64, f64),
+    method: &str,
+) -> Option<(PeakClass, String)> {
+    if !(f.is_finite() && f > 0.0) {
+        return Some((PeakClass::Broadband, "no positive frequency".into()));
+    }
+    if !(f_std.is_finite() && f_std <= MAX_RELATIVE_FREQUENCY_STD * f) {
+        return Some((
+            PeakClass::Broadband,
+            format!(
+                "frequency {f:.4} ± {f_std:.4} Hz: its uncertainty is not below {:.0}% of it, so no line is resolved there",
+                MAX_RELATIVE_FREQUENCY_STD * 100.0
+            ),
+        ));
+    }
+    if !method.starts_with("resolution_limit") && zeta.is_finite() && zeta > MAX_MODE_DAMPING {
+        return Some((
+            PeakClass::Broadband,
+            format!("damping ratio {zeta:.3} ({method}) is above {MAX_MODE_DAMPING}, broader than a mode"),
+        ));
+    }
+    let bounded = zeta + TIME_FIT_COVERAGE * zeta_std <= MAX_MODE_DAMPING;
+    if method == TIME_FIT && !bounded {
+        return Some((
+            PeakClass::Broadband,
+            format!(
+                "damping ratio {zeta:.3} ± {zeta_std:.3} ({method}): too few cycles in the record to bound it below {MAX_MODE_DAMPING} (at 95% confidence), so a mode cannot be told from a wander"
+            ),
+        ));
+    }
+    None
+}
+
 /// One damping estimate.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct DampingEstimate {
@@ -109,6 +336,10 @@ pub struct Peak {
     /// above its floor anywhere in the band searched (the per-bin
     /// probability times the bins searched, at most 1).
     pub false_alarm: f64,
+    /// What the resonance test made of it.
+    pub class: PeakClass,
+    /// Why it is not a resonance (empty for a resonance).
+    pub class_reason: String,
 }
 
 /// A local maximum with its prominence and the valleys that bound it.
@@ -261,8 +492,20 @@ fn significance(p: &[f64], i: usize, k: usize, searched: usize) -> (f64, f64) {
 /// ([`PeakOptions::max_false_alarm`]) and estimates each one's damping.
 /// Peaks come back strongest first.
 pub fn find_peaks(power: &[f64], f0_hz: f64, df_hz: f64, opts: &PeakOptions) -> Vec<Peak> {
+    find_peaks_classified(power, f0_hz, df_hz, opts).0
+}
+
+/// [`find_peaks`], and beside the resonances the peaks the resonance test
+/// turned away (drift, broadband), each with its class and reason: at
+/// most `max_peaks` of each, strongest first.
+pub fn find_peaks_classified(
+    power: &[f64],
+    f0_hz: f64,
+    df_hz: f64,
+    opts: &PeakOptions,
+) -> (Vec<Peak>, Vec<Peak>) {
     if power.len() < 5 || !(df_hz.is_finite() && df_hz > 0.0) {
-        return Vec::new();
+        return (Vec::new(), Vec::new());
     }
     let floor = power
         .iter()
@@ -311,23 +554,102 @@ pub fn find_peaks(power: &[f64], f0_hz: f64, df_hz: f64, opts: &PeakOptions) -> 
         let mut pk = analyse(&opts.window_kernel, power, &db, f0_hz, df_hz, c);
         pk.floor_db = 10.0 * floor.max(f64::MIN_POSITIVE).log10();
         pk.false_alarm = p;
+        let (s, quantum) = (pk.frequency_std_hz, df_hz / 12f64.sqrt());
+        if !(s.is_finite() && s > 0.0) || (s > quantum && !pk.resolved) {
+            // A fit too exact to scatter, or one that scattered over a
+            // line no wider than the bins: the peak bin bounds the line,
+            // to its quantisation.
+            pk.frequency_std_hz = quantum;
+        }
+        classify(&mut pk, (power, f0_hz, df_hz), k, searched, alpha);
         let gamma = (pk.damping_ratio * pk.frequency_hz).max(df_hz);
         lines.push((pk.frequency_hz, gamma, (power[c.bin] - floor).max(0.0)));
         peaks.push(pk);
     }
-    // The most prominent `max_peaks`, then strongest first.
-    peaks.sort_by(|a, b| {
-        b.prominence_db
-            .total_cmp(&a.prominence_db)
-            .then(a.frequency_hz.total_cmp(&b.frequency_hz))
-    });
-    peaks.truncate(opts.max_peaks);
-    peaks.sort_by(|a, b| {
-        b.power_db
-            .total_cmp(&a.power_db)
-            .then(a.frequency_hz.total_cmp(&b.frequency_hz))
-    });
-    peaks
+    let (mut peaks, mut others): (Vec<Peak>, Vec<Peak>) = peaks
+        .into_iter()
+        .partition(|p| p.class == PeakClass::Resonance);
+    for list in [&mut peaks, &mut others] {
+        // The most prominent `max_peaks`, then strongest first.
+        list.sort_by(|a, b| {
+            b.prominence_db
+                .total_cmp(&a.prominence_db)
+                .then(a.frequency_hz.total_cmp(&b.frequency_hz))
+        });
+        list.truncate(opts.max_peaks);
+        list.sort_by(|a, b| {
+            b.power_db
+                .total_cmp(&a.power_db)
+                .then(a.frequency_hz.total_cmp(&b.frequency_hz))
+        });
+    }
+    (peaks, others)
+}
+
+/// The resonance test of one peak of `power` (`power[i]` at `f0 + i df`):
+/// where the drift fitted without the peak's own lobe
+/// ([`DriftFloor::fit_without`]) dominates the white floor, its lobe's height
+/// above the drift floor, which must be as unlikely from noise as `alpha`
+/// (default [`DEFAULT_FALSE_ALARM`]) over the `searched` bins; then its
+/// shape ([`shape_refusal`]). The lobe is the bins within the peak's half
+/// width (at least its own bin): their mean of m bins of K averages
+/// scatters as χ²₂ₖₘ/2Km, and the band holds searched/m such lobes, so a
+/// broad mode is tested by all of its power, not by its top bin's.
+fn classify(
+    pk: &mut Peak,
+    (power, f0_hz, df_hz): (&[f64], f64, f64),
+    k: usize,
+    searched: usize,
+    alpha: Option<f64>,
+) {
+    let f = pk.frequency_hz;
+    let centre = ((f - f0_hz) / df_hz).round();
+    // The floor without this peak's own lobe (at least 3 bins either side).
+    let own = ((pk.damping_ratio * f / df_hz).ceil()).clamp(3.0, 64.0);
+    let drift = &DriftFloor::fit_without(
+        power,
+        f0_hz,
+        df_hz,
+        k,
+        (centre - own).max(0.0) as usize..(centre + own + 1.0).max(0.0) as usize,
+    );
+    let half = ((pk.damping_ratio * f / df_hz).floor()).clamp(0.0, 64.0);
+    let (lo, hi) = (
+        (centre - half).max(1.0) as usize,
+        ((centre + half) as usize).min(power.len().saturating_sub(1)),
+    );
+    let (mut lobe, mut floor) = (0.0, 0.0);
+    for i in lo..=hi.max(lo) {
+        let fi = f0_hz + i as f64 * df_hz;
+        lobe += power.get(i).copied().unwrap_or(0.0);
+        floor += drift.at(fi);
+    }
+    let m = hi.max(lo) - lo + 1;
+    // A drift falls as 1/f^β with β from 1 (flicker) to 2 (a random
+    // walk): a flatter floor is coloured noise, which the local floor
+    // already measures a peak against, and a steeper one is the skirt of a
+    // line (a Lorentzian falls as 1/(f - f0)², steeper than 2 in log f),
+    // which must not be extrapolated back over the line itself.
+    if (1.0..=MAX_DRIFT_BETA).contains(&drift.beta) && drift.drift(f) > drift.white {
+        let r = lobe / floor.max(f64::MIN_POSITIVE);
+        let lobes = (searched.max(1) as f64 / m as f64).max(1.0);
+        let p = (chi2_ratio_sf(r, k * m) * lobes).min(1.0);
+        let alpha = alpha.unwrap_or(DEFAULT_FALSE_ALARM);
+        if p > alpha {
+            pk.class = PeakClass::Drift;
+            pk.class_reason = format!(
+                "{:.1} dB above the drift floor fitted to the spectrum's low end (1/f^{:.1}) over its {m} bin(s); a line needs {:.1} dB (false alarm {alpha})",
+                10.0 * r.max(f64::MIN_POSITIVE).log10(),
+                drift.beta,
+                10.0 * chi2_ratio_isf(alpha / lobes, k * m).log10()
+            );
+            return;
+        }
+    }
+    if let Some((class, why)) = shape_refusal(pk) {
+        pk.class = class;
+        pk.class_reason = why;
+    }
 }
 
 fn analyse(kernel: &[f64], p: &[f64], db: &[f64], f0_hz: f64, df: f64, c: &Candidate) -> Peak {
@@ -446,6 +768,8 @@ fn analyse(kernel: &[f64], p: &[f64], db: &[f64], f0_hz: f64, df: f64, c: &Candi
         resolved,
         floor_db: f64::NAN,
         false_alarm: f64::NAN,
+        class: PeakClass::Resonance,
+        class_reason: String::new(),
     }
 }
 
@@ -1054,5 +1378,45 @@ mod tests {
         assert!(find_peaks(&[1.0; 100], 0.0, 1.0, &PeakOptions::default()).is_empty());
         assert!(find_peaks(&[f64::NAN; 100], 0.0, 1.0, &PeakOptions::default()).is_empty());
         assert!(find_peaks(&[1.0; 10], 0.0, 0.0, &PeakOptions::default()).is_empty());
+    }
+
+    #[test]
+    fn the_drift_floor_finds_a_random_walks_slope_and_the_resonance_test_its_bounds() {
+        // 1/f^2 below, white above: β near 2, C near the white level.
+        let df = 0.05;
+        let p: Vec<f64> = (0..4000)
+            .map(|i| {
+                let f = i as f64 * df;
+                if f > 0.0 {
+                    1e-2 / (f * f) + 1e-4
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let d = DriftFloor::fit(&p, 0.0, df, 1);
+        assert!((d.beta - 2.0).abs() < 0.2, "{d:?}");
+        assert!(
+            (d.white / 1e-4 / chi2_ratio_median(1).recip() - 1.0).abs() < 0.5,
+            "{d:?}"
+        );
+        assert!(d.drift(1.0) > d.white && d.drift(50.0) < d.white, "{d:?}");
+        // A flat spectrum has no drift.
+        let flat = vec![1.0; 1000];
+        assert_eq!(DriftFloor::fit(&flat, 0.0, df, 1).a, 0.0);
+        // The shape rules.
+        assert!(shape_refusal_of(0.525, 18.366, (0.05, 0.01), "lorentzian_ls").is_some());
+        assert!(shape_refusal_of(6.72, 0.1, (0.45, 0.01), "ssi_cov").is_some());
+        assert!(shape_refusal_of(
+            6.72,
+            0.1,
+            (0.45, f64::NAN),
+            "resolution_limit (upper bound)"
+        )
+        .is_none());
+        assert!(shape_refusal_of(5.46, 0.5, (0.136, 0.344), TIME_FIT).is_some());
+        assert!(shape_refusal_of(0.2, 0.001, (0.001, 0.01), TIME_FIT).is_none());
+        assert!(shape_refusal_of(64.0, 0.08, (0.001, f64::NAN), "ssi_cov").is_none());
+        assert!(shape_refusal_of(f64::NAN, 0.1, (0.01, 0.0), "x").is_some());
     }
 }

@@ -239,6 +239,82 @@ fn near(poles: &[Pole], target_hz: f64, tol_hz: f64) -> Option<(f64, f64, f64, u
     Some((f, xi, 1.4826 * mad, best.len()))
 }
 
+/// Stable poles that agree on one mode (issue 51): their mean and spread.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct PoleCluster {
+    pub frequency_hz: f64,
+    pub frequency_std_hz: f64,
+    pub damping_ratio: f64,
+    pub damping_ratio_std: f64,
+    /// Model orders with a pole in it (one pole counted per order).
+    pub orders: usize,
+}
+
+/// The stable poles of `poles` clustered into modes: sorted by frequency,
+/// a pole joins the cluster before it when within `rel_tol` of its mean
+/// frequency (and ties at one pole per order, the nearest kept); clusters
+/// with poles at fewer than `min_orders` orders are spurious and left out.
+/// Strongest evidence (most orders) first.
+pub fn cluster_poles(poles: &[Pole], rel_tol: f64, min_orders: usize) -> Vec<PoleCluster> {
+    let mut stable: Vec<&Pole> = poles
+        .iter()
+        .filter(|p| p.stable && p.frequency_hz.is_finite() && p.damping_ratio.is_finite())
+        .collect();
+    stable.sort_by(|a, b| a.frequency_hz.total_cmp(&b.frequency_hz));
+    let mut groups: Vec<Vec<&Pole>> = Vec::new();
+    for p in stable {
+        let joins = groups.last().is_some_and(|g| {
+            let mean = g.iter().map(|q| q.frequency_hz).sum::<f64>() / g.len() as f64;
+            (p.frequency_hz - mean).abs() <= rel_tol * mean
+        });
+        if joins {
+            let g = groups.last_mut().expect("a last group");
+            let mean = g.iter().map(|q| q.frequency_hz).sum::<f64>() / g.len() as f64;
+            match g.iter_mut().find(|q| q.order == p.order) {
+                Some(q) => {
+                    if (p.frequency_hz - mean).abs() < (q.frequency_hz - mean).abs() {
+                        *q = p;
+                    }
+                }
+                None => g.push(p),
+            }
+        } else {
+            groups.push(vec![p]);
+        }
+    }
+    let stats = |v: Vec<f64>| {
+        let n = v.len() as f64;
+        let m = v.iter().sum::<f64>() / n;
+        let var = if v.len() > 1 {
+            v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)
+        } else {
+            f64::NAN
+        };
+        (m, var.sqrt())
+    };
+    let mut out: Vec<PoleCluster> = groups
+        .into_iter()
+        .filter(|g| g.len() >= min_orders.max(1))
+        .map(|g| {
+            let (f, fs) = stats(g.iter().map(|p| p.frequency_hz).collect());
+            let (z, zs) = stats(g.iter().map(|p| p.damping_ratio).collect());
+            PoleCluster {
+                frequency_hz: f,
+                frequency_std_hz: fs,
+                damping_ratio: z,
+                damping_ratio_std: zs,
+                orders: g.len(),
+            }
+        })
+        .collect();
+    out.sort_by(|a, b| {
+        b.orders
+            .cmp(&a.orders)
+            .then(a.frequency_hz.total_cmp(&b.frequency_hz))
+    });
+    out
+}
+
 /// The damping's uncertainty from the spread over `orders` stable orders
 /// and over segments: NaN when there is neither (one order, under two
 /// segments), since one estimate says nothing of its own error.
@@ -353,5 +429,48 @@ mod tests {
         assert!(identify(&[], 300.0, 50.0, 1.0, &o).is_none());
         assert!(identify(&[0.0; 10000], 300.0, 50.0, 1.0, &o).is_none());
         assert!(identify(&[f64::NAN; 10000], 300.0, 50.0, 1.0, &o).is_none());
+    }
+
+    /// Two modes' stable poles over many orders cluster into two modes with
+    /// their means; a pole seen at one order only is left out.
+    #[test]
+    fn stable_poles_cluster_into_modes() {
+        let fs = 300.0;
+        let y: Vec<f64> = (0..3000)
+            .map(|n| {
+                let t = n as f64 / fs;
+                [(58.3, 0.002), (128.0, 0.005)]
+                    .iter()
+                    .map(|&(f, xi): &(f64, f64)| {
+                        let w = 2.0 * std::f64::consts::PI * f;
+                        (-xi * w * t).exp() * (w * (1.0 - xi * xi).sqrt() * t).sin()
+                    })
+                    .sum::<f64>()
+            })
+            .collect();
+        let o = SsiOptions::default();
+        let i = block_rows_for(fs, 58.3, &o);
+        let mut poles = stabilisation(&autocorrelation(&y, 2 * i), fs, i, &o);
+        poles.push(Pole {
+            order: 4,
+            frequency_hz: 90.0,
+            damping_ratio: 0.01,
+            stable: true,
+        });
+        let c = cluster_poles(&poles, 0.01, 3);
+        assert!(
+            c.iter()
+                .any(|c| (c.frequency_hz - 58.3).abs() < 0.01 && c.orders >= 3),
+            "{c:?}"
+        );
+        assert!(
+            c.iter().any(|c| (c.frequency_hz - 128.0).abs() < 0.01),
+            "{c:?}"
+        );
+        assert!(
+            c.iter().all(|c| (c.frequency_hz - 90.0).abs() > 1.0),
+            "{c:?}"
+        );
+        assert!(cluster_poles(&[], 0.01, 3).is_empty());
     }
 }

@@ -80,11 +80,123 @@ pub fn add_ssi(report: &mut SpectrumReport, y: &[f64], opts: &SsiOptions) {
                 stable_orders: m.stable_orders,
                 block_rows: m.block_rows,
             }),
+            window_s: None,
         });
         if !pk.resolved {
             pk.damping_ratio = m.damping_ratio;
             pk.damping_ratio_std = m.damping_ratio_std;
             pk.damping_method = "ssi_cov".into();
+        }
+    }
+    add_time_domain(report, y);
+    // A damping measured in the time domain may show a peak broader than
+    // a mode, and a fit may resolve a sway the bins could not.
+    report.recheck();
+}
+
+/// Fewer cycles than this in the record and a peak's frequency and damping
+/// come from a time-domain fit when it is tighter than the spectrum's
+/// (issue 51, item 2): below it a spectral peak is a few bins wide and the
+/// bins, not the line, set its precision.
+pub const FEW_CYCLES: f64 = 10.0;
+
+/// The time-domain measures of `report`'s peaks from the motion `y`:
+/// - a peak with fewer than [`FEW_CYCLES`] cycles in the record (a
+///   resonance, or one turned away as broadband, never a drift) gets a
+///   damped sinusoid fitted by least squares
+///   ([`crate::math::sinefit::fit_damped_sinusoid`]), `"method":
+///   "time_fit"` among its estimates. Where the spectrum could not resolve
+///   the peak (its damping only bounded, its frequency set by the bins),
+///   the fit's frequency and damping become the peak's, with their
+///   uncertainties, which the resonance test then weighs
+///   ([`crate::math::peaks::shape_refusal_of`]); a resolved peak takes the
+///   fit's frequency only when it is tighter;
+/// - every resonance whose envelope falls after a maximum (a struck
+///   object) gets its free-decay damping
+///   ([`crate::math::sinefit::fit_free_decay`]), `"method": "free_decay"`,
+///   beside the Lorentzian and SSI values.
+pub fn add_time_domain(report: &mut SpectrumReport, y: &[f64]) {
+    use crate::math::peaks::{PeakClass, TIME_FIT};
+    use crate::math::sinefit::{fit_damped_sinusoid, fit_free_decay};
+    let fs = report.sample_rate_hz;
+    let df = report.resolution_hz;
+    if !(fs.is_finite() && fs > 0.0) || y.is_empty() {
+        return;
+    }
+    let record_s = y.len() as f64 / fs;
+    let lines: Vec<f64> = report
+        .peaks
+        .iter()
+        .chain(&report.others)
+        .map(|p| p.frequency_hz)
+        .collect();
+    for pk in report.peaks.iter_mut().chain(report.others.iter_mut()) {
+        let f = pk.frequency_hz;
+        if pk.class == PeakClass::Drift || !(f.is_finite() && f > 0.0) {
+            continue;
+        }
+        if f * record_s < FEW_CYCLES {
+            let guess = if pk.damping_ratio.is_finite() {
+                pk.damping_ratio.min(0.2)
+            } else {
+                0.02
+            };
+            if let Some(fit) = fit_damped_sinusoid(y, fs, f, guess) {
+                let zeta = fit.damping_ratio.max(0.0);
+                pk.damping_estimates.push(DampingEstimate {
+                    method: TIME_FIT.into(),
+                    damping_ratio: zeta,
+                    damping_ratio_std: fit.damping_ratio_std,
+                    ssi: None,
+                    window_s: Some([fit.start_s, fit.duration_s]),
+                });
+                // An unresolved peak a few bins from zero has no spectral
+                // frequency to trust (its bins, the window's leakage from
+                // zero and a trend set it, whatever its fit claims): the
+                // fit's is taken. A resolved one keeps the tighter.
+                if fit.frequency_std_hz.is_finite()
+                    && fit.frequency_std_hz > 0.0
+                    && (!pk.resolved
+                        || pk.frequency_std_hz.is_nan()
+                        || fit.frequency_std_hz < pk.frequency_std_hz)
+                {
+                    pk.frequency_hz = fit.frequency_hz;
+                    pk.frequency_std_hz = fit.frequency_std_hz;
+                }
+                // The spectrum could only bound the damping; the fit
+                // measures it, with its uncertainty (which the resonance
+                // test then weighs).
+                if !pk.resolved && fit.damping_ratio_std.is_finite() {
+                    pk.damping_ratio = zeta;
+                    pk.damping_ratio_std = fit.damping_ratio_std;
+                    pk.damping_method = TIME_FIT.into();
+                }
+            }
+        }
+        if pk.class != PeakClass::Resonance {
+            continue;
+        }
+        // The envelope's band: wider than the mode (five half-widths, at
+        // least three bins), narrower than half the way to the next line.
+        let next = lines
+            .iter()
+            .filter(|&&g| (g - f).abs() > 0.5 * df)
+            .map(|&g| (g - f).abs())
+            .fold(f64::INFINITY, f64::min);
+        let zeta = if pk.damping_ratio.is_finite() {
+            pk.damping_ratio
+        } else {
+            0.0
+        };
+        let band = (5.0 * zeta * f).max(3.0 * df).min(0.5 * next).min(0.5 * f);
+        if let Some(d) = fit_free_decay(y, fs, f, band) {
+            pk.damping_estimates.push(DampingEstimate {
+                method: "free_decay".into(),
+                damping_ratio: d.damping_ratio,
+                damping_ratio_std: d.damping_ratio_std,
+                ssi: None,
+                window_s: Some([d.start_s, d.duration_s]),
+            });
         }
     }
 }
@@ -111,6 +223,9 @@ pub struct RangeDamping {
     /// The mode the stable poles agree on in the range (with its
     /// uncertainty over orders and segments), if any.
     pub ssi: Option<crate::math::ssi::SsiMode>,
+    /// The range's stable poles clustered into modes (within 1% in
+    /// frequency, at three orders or more), each with its mean and spread.
+    pub clusters: Vec<crate::math::ssi::PoleCluster>,
 }
 
 /// A Lorentzian over a chosen range ([`crate::math::peaks::fit_range`]).
@@ -226,6 +341,7 @@ pub fn damping_over(
     } else {
         (Vec::new(), None)
     };
+    let clusters = crate::math::ssi::cluster_poles(&poles, 0.01, 3);
     Ok(RangeDamping {
         lo_hz,
         hi_hz,
@@ -237,5 +353,6 @@ pub fn damping_over(
         max_order: opts.max_order,
         block_rows: i,
         ssi,
+        clusters,
     })
 }

@@ -86,6 +86,10 @@ pub struct ModalImagesReport {
     pub unit: Unit,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scale: Option<Scale>,
+    /// The image's mode-shape checks (MPC, MPD): near 1 and 0 for a real
+    /// standing mode; none for an all-zero image.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shape: Option<crate::math::modal::ShapeChecks>,
 }
 
 /// Where a modal image is largest.
@@ -316,6 +320,7 @@ pub fn modes_all(o: &ModesOptions) -> Result<(Vec<ModalImagesReport>, RunReport)
             .max_by(|a, b| a.1.total_cmp(&b.1))
             .filter(|(_, a)| *a > 0.0);
         let largest = peak.map_or(0.0, |(_, a)| f64::from(a));
+        let shape = crate::math::modal::shape_checks(&data);
         let unit = if o.unnormalized {
             Unit::default()
         } else {
@@ -359,6 +364,7 @@ pub fn modes_all(o: &ModesOptions) -> Result<(Vec<ModalImagesReport>, RunReport)
             }),
             unit,
             scale,
+            shape,
         });
     }
     if let Some(path) = &o.figure {

@@ -41,6 +41,10 @@ pub struct DampingEstimate {
     /// Present for `ssi_cov`.
     #[serde(flatten, skip_serializing_if = "Option::is_none", default)]
     pub ssi: Option<SsiDetail>,
+    /// The stretch of the record a time-domain fit used (`time_fit`,
+    /// `free_decay`): start and length, seconds.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window_s: Option<[f64; 2]>,
 }
 
 /// A resonance (see [`crate::math::peaks::Peak`]).
@@ -75,6 +79,28 @@ pub struct Peak {
     /// `motion.unit` (`spectrum` only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub amplitude: Option<f64>,
+    /// The resonance test's verdict (reports written before it: a
+    /// resonance).
+    #[serde(default = "resonance")]
+    pub class: crate::math::peaks::PeakClass,
+    /// Why it is not a resonance (empty for one).
+    #[serde(default)]
+    pub class_reason: String,
+}
+
+fn resonance() -> crate::math::peaks::PeakClass {
+    crate::math::peaks::PeakClass::Resonance
+}
+
+impl Peak {
+    /// Its power above its own floor, dB: what "strongest" ranks by.
+    pub fn above_floor_db(&self) -> f64 {
+        if self.floor_db.is_finite() {
+            self.power_db - self.floor_db
+        } else {
+            self.prominence_db
+        }
+    }
 }
 
 /// The mean spectrum, in dB.
@@ -88,7 +114,11 @@ pub struct SpectrumDb {
 /// What `spectrum` found: serialises to the JSON it writes.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SpectrumReport {
+    /// The resonances (issue 51's test).
     pub peaks: Vec<Peak>,
+    /// Peaks that are not resonances (drift, broadband), with the reason.
+    #[serde(default)]
+    pub others: Vec<Peak>,
     pub resolution_hz: f64,
     pub sample_rate_hz: f64,
     pub spectra_averaged: usize,
@@ -119,5 +149,49 @@ impl SpectrumReport {
         self.peaks
             .iter()
             .max_by(|x, y| x.prominence_db.total_cmp(&y.prominence_db))
+    }
+
+    /// The resonance test again on each peak's shape (its frequency
+    /// uncertainty and damping), after a time-domain refinement changed
+    /// them: a resonance that fails moves to `others`, and a peak turned
+    /// away as broadband that now passes (a few-cycle sway the fit
+    /// resolved) moves to `peaks`. Drift stays drift: that test is the
+    /// spectrum's. Both lists end strongest first.
+    pub fn recheck(&mut self) {
+        use crate::math::peaks::{shape_refusal_of, PeakClass};
+        let all = std::mem::take(&mut self.peaks)
+            .into_iter()
+            .chain(std::mem::take(&mut self.others));
+        for mut p in all {
+            if p.class != PeakClass::Drift {
+                match shape_refusal_of(
+                    p.frequency_hz,
+                    p.frequency_std_hz,
+                    (p.damping_ratio, p.damping_ratio_std),
+                    &p.damping_method,
+                ) {
+                    Some((class, why)) => {
+                        p.class = class;
+                        p.class_reason = why;
+                    }
+                    None => {
+                        p.class = PeakClass::Resonance;
+                        p.class_reason.clear();
+                    }
+                }
+            }
+            if p.class == PeakClass::Resonance {
+                self.peaks.push(p);
+            } else {
+                self.others.push(p);
+            }
+        }
+        for list in [&mut self.peaks, &mut self.others] {
+            list.sort_by(|a, b| {
+                b.power_db
+                    .total_cmp(&a.power_db)
+                    .then(a.frequency_hz.total_cmp(&b.frequency_hz))
+            });
+        }
     }
 }

@@ -13,8 +13,13 @@
 //!             "damping_ratio_std", "damping_method", "power_db",
 //!             "prominence_db", "floor_db", "false_alarm",
 //!             "damping_estimates": [{"method", "damping_ratio",
-//!             "damping_ratio_std"}], "fit_range_hz", "resolved"}]}
+//!             "damping_ratio_std"}], "fit_range_hz", "resolved",
+//!             "class": "resonance", "class_reason": ""}],
+//!  "others": [...]}
 //! ```
+//! `peaks` holds the resonances only; `others` the peaks the resonance test
+//! turned away (`class` `drift` or `broadband`, with `class_reason`), never
+//! ranked among them ([`vibroscope_math::peaks::find_peaks_classified`]).
 //! `include_spectrum = true` adds `"spectrum": {"f0_hz", "resolution_hz",
 //! "power_db": [...]}`.
 
@@ -22,7 +27,7 @@ use crate::*;
 use serde::Deserialize;
 use std::path::PathBuf;
 use std::sync::Arc;
-use vibroscope_math::peaks::{find_peaks, PeakOptions};
+use vibroscope_math::peaks::{find_peaks_classified, PeakOptions};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -190,7 +195,7 @@ impl Stage for Peaks {
             last,
             self.count,
         );
-        let peaks = find_peaks(&mean, self.f0, self.df, &opts);
+        let (peaks, others) = find_peaks_classified(&mean, self.f0, self.df, &opts);
         for pk in &peaks {
             tracing::info!(
                 frequency_hz = pk.frequency_hz,
@@ -205,6 +210,7 @@ impl Stage for Peaks {
             "resolution_hz": self.df,
             "spectra_averaged": self.count,
             "peaks": peaks,
+            "others": others,
         });
         if self.p.include_spectrum {
             let db: Vec<f64> = mean
