@@ -462,15 +462,20 @@ pub fn fit_free_decay(y: &[f64], fs: f64, f_hz: f64, band_hz: f64) -> Option<Fre
         })
         .unzip();
     // The envelope's low-pass: cutoff `band_hz`, about four of its periods
-    // long; its ends (half a kernel) are left out of the fit.
+    // long, evaluated every `step` samples (eight a period of the band: the
+    // envelope holds nothing faster, and a long record's kernel costs
+    // nothing per sample skipped); its ends (half a kernel) are left out of
+    // the fit. Envelope sample k is the record's sample k·step.
     let fc = (band_hz / fs).min(0.25);
     let half = ((2.0 / fc).ceil() as usize).clamp(4, y.len() / 4);
+    let step = ((fs / (8.0 * band_hz)).floor() as usize).clamp(1, half);
     let (er, ei) = (
-        lowpass_decimate(&re, fc, half, 1),
-        lowpass_decimate(&im, fc, half, 1),
+        lowpass_decimate(&re, fc, half, step),
+        lowpass_decimate(&im, fc, half, step),
     );
     let env: Vec<f64> = er.iter().zip(&ei).map(|(a, b)| 2.0 * a.hypot(*b)).collect();
-    let (lo, hi) = (half, env.len().saturating_sub(half));
+    let skip = half.div_ceil(step);
+    let (lo, hi) = (skip, env.len().saturating_sub(skip));
     if hi <= lo + 8 {
         return None;
     }
@@ -479,17 +484,17 @@ pub fn fit_free_decay(y: &[f64], fs: f64, f_hz: f64, band_hz: f64) -> Option<Fre
             (0, 0.0f64),
             |b, (i, &v)| if v > b.1 { (i + lo, v) } else { b },
         );
-    // The noise's envelope: the median of the record's quietest fifth.
+    // The noise's envelope: the envelope's 10th percentile.
     let mut sorted: Vec<f64> = env[lo..hi].to_vec();
     sorted.sort_by(f64::total_cmp);
     let noise = sorted[sorted.len() / 10];
     // From half a kernel after the maximum (the low-pass smears the strike
     // over a kernel's length; after it an exponential stays exponential,
     // the filter only scales it) to where the envelope first comes within
-    // 10x (20 dB) of the noise (nearer, the noise and a camera.s
+    // 10x (20 dB) of the noise (nearer, the noise and a camera's
     // quantisation bend it).
     let floor = 10.0 * noise;
-    let peak_i = peak_i + half;
+    let peak_i = peak_i + skip;
     if peak_i + 8 >= hi {
         return None;
     }
@@ -499,8 +504,9 @@ pub fn fit_free_decay(y: &[f64], fs: f64, f_hz: f64, band_hz: f64) -> Option<Fre
     }
     let end = (peak_i..hi).find(|&i| env[i] <= floor).unwrap_or(hi);
     let fall_db = 20.0 * (peak / env[end.min(hi - 1)].max(f64::MIN_POSITIVE)).log10();
+    let dt = step as f64 / fs;
     // At least two cycles: less is a transient, not a ring-down.
-    if end < peak_i + 8 || fall_db < MIN_DECAY_DB || ((end - peak_i) as f64 / fs) * f_hz < 2.0 {
+    if end < peak_i + 8 || fall_db < MIN_DECAY_DB || (end - peak_i) as f64 * dt * f_hz < 2.0 {
         return None;
     }
     // The log-envelope's line, weighted by the envelope's power (where it
@@ -509,7 +515,7 @@ pub fn fit_free_decay(y: &[f64], fs: f64, f_hz: f64, band_hz: f64) -> Option<Fre
         .map(|i| {
             let e = env[i];
             let snr = (e / noise.max(f64::MIN_POSITIVE)).powi(2);
-            (i as f64 / fs, e.ln(), snr / (1.0 + snr))
+            (i as f64 * dt, e.ln(), snr / (1.0 + snr))
         })
         .collect();
     let sw: f64 = pts.iter().map(|p| p.2).sum();
@@ -530,15 +536,41 @@ pub fn fit_free_decay(y: &[f64], fs: f64, f_hz: f64, band_hz: f64) -> Option<Fre
     // independent sample per envelope correlation time (1/(2 band)).
     let resid = (syy - slope * sxy).max(0.0) / sw;
     let m = pts.len() as f64;
-    let independent = (m * 2.0 * band_hz / fs).clamp(2.0, m);
-    let slope_std = (resid / (sxx / sw) / (independent - 1.0).max(1.0)).sqrt();
+    let independent = (m * 2.0 * band_hz * dt).clamp(2.0, m);
+    let mut slope_std = (resid / (sxx / sw) / (independent - 1.0).max(1.0)).sqrt();
+    // And the delete-a-block jackknife's spread, when larger: a decay that
+    // bends (a camera's response, a second line in the band) shows there.
+    let g = JACKKNIFE_BLOCKS;
+    let parts: Vec<f64> = (0..g)
+        .filter_map(|b| {
+            let (lo, hi) = (b * pts.len() / g, (b + 1) * pts.len() / g);
+            let keep = || {
+                pts.iter()
+                    .enumerate()
+                    .filter(move |(i, _)| *i < lo || *i >= hi)
+                    .map(|(_, p)| p)
+            };
+            let sw: f64 = keep().map(|p| p.2).sum();
+            let mx = keep().map(|p| p.2 * p.0).sum::<f64>() / sw;
+            let my = keep().map(|p| p.2 * p.1).sum::<f64>() / sw;
+            let sxx: f64 = keep().map(|p| p.2 * (p.0 - mx).powi(2)).sum();
+            let sxy: f64 = keep().map(|p| p.2 * (p.0 - mx) * (p.1 - my)).sum();
+            (sxx > 0.0).then(|| sxy / sxx)
+        })
+        .collect();
+    if parts.len() == g {
+        let k = g as f64;
+        let mean = parts.iter().sum::<f64>() / k;
+        let jack = ((k - 1.0) / k * parts.iter().map(|v| (v - mean).powi(2)).sum::<f64>()).sqrt();
+        slope_std = slope_std.max(jack);
+    }
     let sigma = -slope;
     let wr = 2.0 * PI * f_hz;
     Some(FreeDecay {
         damping_ratio: sigma / sigma.hypot(wr),
         damping_ratio_std: slope_std / wr,
-        start_s: peak_i as f64 / fs,
-        duration_s: (end - peak_i) as f64 / fs,
+        start_s: peak_i as f64 * dt,
+        duration_s: (end - peak_i) as f64 * dt,
         fall_db,
         r_squared,
     })

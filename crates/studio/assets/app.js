@@ -207,7 +207,7 @@ async function loadMotion() {
     S.damp = null; $("damppanel").hidden = true;
     clearError();
     $("plottitle").textContent = title() + (m.mask_pixels ? ` (${m.mask_pixels} px, in ${m.roi.join(",")})` : "") +
-      ` — ${m.peaks.length} peaks, resolution ${m.resolution_hz.toFixed(3)} Hz` + (m.cached ? " (cached)" : "");
+      ` — ${m.peaks.length} resonances, resolution ${m.resolution_hz.toFixed(3)} Hz` + (m.cached ? " (cached)" : "");
     drawWaveform(); drawSpectrum(); fillPeaks();
     return true;
   } catch (e) { $("plottitle").textContent = "Error"; showError(e.message); return false; }
@@ -275,9 +275,10 @@ function drawSpectrum() {
   }
 }
 
-// An uncertainty that may be unknown (JSON null for NaN): "n/a".
-function fixedOrNa(v, digits) {
-  return v == null || !Number.isFinite(v) ? "n/a" : v.toFixed(digits);
+// An uncertainty, or where it is unknown (JSON null for NaN) the bound
+// `unknown` says in its place: never "n/a" (issue 51).
+function plusMinus(v, digits, unknown) {
+  return v == null || !Number.isFinite(v) ? unknown : v.toFixed(digits);
 }
 
 function fillPeaks() {
@@ -287,8 +288,8 @@ function fillPeaks() {
     const tr = document.createElement("tr");
     // A peak narrower than the bins gives only an upper bound on damping.
     const bound = p.damping_method.startsWith("resolution_limit");
-    const cells = [p.frequency_hz.toFixed(3), fixedOrNa(p.frequency_std_hz, 3),
-      (bound ? "≤ " : "") + p.damping_ratio.toFixed(4), bound ? "–" : fixedOrNa(p.damping_ratio_std, 4),
+    const cells = [p.frequency_hz.toFixed(3), plusMinus(p.frequency_std_hz, 3, "≤ ½ bin"),
+      (bound ? "≤ " : "") + p.damping_ratio.toFixed(4), bound ? "–" : plusMinus(p.damping_ratio_std, 4, `≤ ${p.damping_ratio.toFixed(4)}`),
       p.prominence_db.toFixed(1), p.false_alarm == null ? "–" : p.false_alarm < 1e-12 ? "< 1e-12" : p.false_alarm.toExponential(1), p.amplitude.toPrecision(3)];
     tr.innerHTML = cells.map((v) => `<td>${v}</td>`).join("");
     tr.title = `show the modal image at ${p.frequency_hz.toFixed(3)} Hz (damping: ${p.damping_method})`;
@@ -296,6 +297,11 @@ function fillPeaks() {
     if (S.mode && Math.abs(S.mode.freq_hz - p.frequency_hz) < 1e-9) tr.className = "sel";
     tb.appendChild(tr);
   });
+  // Peaks the resonance test turned away, apart and unranked, with why.
+  const others = S.motion.others || [];
+  $("others").textContent = others.length
+    ? "Not resonances: " + others.map((p) => `${p.frequency_hz.toFixed(3)} Hz (${p.class}: ${p.class_reason})`).join("; ")
+    : "";
 }
 
 // ---- modal image ----
@@ -381,12 +387,13 @@ async function showDamping(lo, hi) {
       (sel.mask ? " (the mask)" : roi ? ` (region ${roi.join(",")})` : " (whole frame)");
     $("damptext").textContent = f
       ? `Lorentzian least squares over ${d.bins} bins (${d.taper} taper): f₀ = ${fmt(f.f0_hz, 3)} ± ${fmt(f.f0_std_hz, 3)} Hz, ` +
-        `damping ζ = ${f.resolved ? "" : "≤ "}${f.damping_ratio.toFixed(4)} ± ${fixedOrNa(f.damping_ratio_std, 4)}` +
+        `damping ζ = ${f.resolved ? "" : "≤ "}${f.damping_ratio.toFixed(4)} ± ${plusMinus(f.damping_ratio_std, 4, "at most itself")}` +
         ` (half width γ = ${f.gamma_hz.toFixed(3)} Hz${f.resolved ? "" : "; narrower than the bins resolve: an upper bound"})`
       : d.fit_refusal;
     const m = d.ssi;
     $("stabtext").textContent = m
-      ? `SSI-cov (orders 2–${d.max_order}, ${d.block_rows} block rows): ζ = ${m.damping_ratio.toFixed(4)} ± ${fixedOrNa(m.damping_ratio_std, 4)} at ${fmt(m.frequency_hz, 3)} Hz, ${m.stable_orders} stable orders agree`
+      ? `SSI-cov (orders 2–${d.max_order}, ${d.block_rows} block rows): ζ = ${m.damping_ratio.toFixed(4)} ± ${plusMinus(m.damping_ratio_std, 4, "at most itself (one order)")} at ${fmt(m.frequency_hz, 3)} Hz, ${m.stable_orders} stable orders agree` +
+        (d.clusters.length ? `; stable poles cluster at ${d.clusters.map((c) => `${fmt(c.frequency_hz, 2)} Hz (ζ ${c.damping_ratio.toFixed(4)}, ${c.orders} orders)`).join(", ")}` : "")
       : `SSI-cov (orders 2–${d.max_order}, ${d.block_rows} block rows): no stable poles agree in this range` +
         (d.poles.length ? "" : " (the recording is too short for these block rows, or the range holds no pole)");
     drawDampFit(); drawStab(); drawSpectrum();
@@ -427,7 +434,7 @@ function drawDampFit() {
     f.curve_hz.forEach((fr, k) => { const y = Y(f.curve_db[k]); k ? g.lineTo(X(fr), y) : g.moveTo(X(fr), y); });
     g.stroke(); g.lineWidth = 1;
     g.strokeStyle = "#ffcc33"; g.setLineDash([4, 3]); g.beginPath(); g.moveTo(X(f.f0_hz), 8); g.lineTo(X(f.f0_hz), 8 + H); g.stroke(); g.setLineDash([]);
-    g.fillStyle = "#ff9933"; g.fillText(`Lorentzian fit: ζ = ${f.damping_ratio.toFixed(4)} ± ${fixedOrNa(f.damping_ratio_std, 4)}`, 60, 22);
+    g.fillStyle = "#ff9933"; g.fillText(`Lorentzian fit: ζ = ${f.damping_ratio.toFixed(4)} ± ${plusMinus(f.damping_ratio_std, 4, "at most itself")}`, 60, 22);
   }
   g.fillStyle = "#66dd88"; g.fillText("spectrum", 60, 36);
   g.fillStyle = "#aaa"; g.fillText(hi.toFixed(0), 4, 18); g.fillText(lo.toFixed(0), 4, 8 + H);
@@ -719,7 +726,7 @@ function fillLivePeaks(sp) {
     const tr = document.createElement("tr");
     tr.title = `the modal image at ${p.frequency_hz.toFixed(2)} Hz from the last seconds of frames`;
     tr.onclick = () => showLiveMode(p.frequency_hz);
-    for (const v of [p.frequency_hz.toFixed(2), fixedOrNa(p.frequency_std_hz, 2), p.prominence_db.toFixed(1),
+    for (const v of [p.frequency_hz.toFixed(2), plusMinus(p.frequency_std_hz, 2, "≤ ½ bin"), p.prominence_db.toFixed(1),
       p.damping_ratio.toExponential(2)]) {
       const td = document.createElement("td"); td.textContent = v; tr.appendChild(td);
     }

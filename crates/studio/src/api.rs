@@ -1263,6 +1263,12 @@ fn region_motion(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Va
         "spectrum": report.spectrum,
         "taper": report.taper,
         "peaks": peaks,
+        // What the resonance test turned away, with why (issue 51).
+        "others": report.others.iter().map(|p| json!({
+            "frequency_hz": p.frequency_hz,
+            "class": p.class,
+            "class_reason": p.class_reason,
+        })).collect::<Vec<Value>>(),
         "waveform": { "rate_hz": m.rate_hz, "t_s": m.t_s, "x_px": m.x, "y_px": m.y },
     });
     // Kept on the server, not sent (see `answer`).

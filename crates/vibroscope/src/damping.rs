@@ -94,10 +94,10 @@ pub fn add_ssi(report: &mut SpectrumReport, y: &[f64], opts: &SsiOptions) {
     report.recheck();
 }
 
-/// Fewer cycles than this in the record and a peak's frequency and damping
-/// come from a time-domain fit when it is tighter than the spectrum's
-/// (issue 51, item 2): below it a spectral peak is a few bins wide and the
-/// bins, not the line, set its precision.
+/// Fewer cycles than this in the record and a peak is also fitted in the
+/// time domain (issue 51, item 2; [`add_time_domain`] says when the fit's
+/// values replace the spectrum's): below it a spectral peak is a few bins
+/// wide and the bins, not the line, set its precision.
 pub const FEW_CYCLES: f64 = 10.0;
 
 /// The time-domain measures of `report`'s peaks from the motion `y`:
@@ -176,8 +176,10 @@ pub fn add_time_domain(report: &mut SpectrumReport, y: &[f64]) {
         if pk.class != PeakClass::Resonance {
             continue;
         }
-        // The envelope's band: wider than the mode (five half-widths, at
-        // least three bins), narrower than half the way to the next line.
+        // The envelope's band: as wide as the neighbours allow (half the
+        // way to the next line, a quarter of the frequency), so its kernel,
+        // which smears the strike, stays short; at least five half-widths
+        // of the mode and three bins.
         let next = lines
             .iter()
             .filter(|&&g| (g - f).abs() > 0.5 * df)
@@ -188,7 +190,11 @@ pub fn add_time_domain(report: &mut SpectrumReport, y: &[f64]) {
         } else {
             0.0
         };
-        let band = (5.0 * zeta * f).max(3.0 * df).min(0.5 * next).min(0.5 * f);
+        let band = (0.5 * next)
+            .min(0.25 * f)
+            .max(5.0 * zeta * f)
+            .max(3.0 * df)
+            .min(0.5 * f);
         if let Some(d) = fit_free_decay(y, fs, f, band) {
             pk.damping_estimates.push(DampingEstimate {
                 method: "free_decay".into(),
