@@ -1,6 +1,6 @@
 //! Small numeric helpers shared across the crate (and by the command line):
-//! the greatest common divisor, the median, the modified Bessel function
-//! `I0` (Kaiser windows).
+//! the greatest common divisor, the median, the delete-one jackknife's
+//! spread, the modified Bessel function `I0` (Kaiser windows).
 
 /// Greatest common divisor (`gcd(a, 0) = a`).
 pub fn gcd(mut a: u64, mut b: u64) -> u64 {
@@ -23,6 +23,14 @@ pub fn median(v: &mut [f64]) -> f64 {
     } else {
         0.5 * (v[n / 2 - 1] + v[n / 2])
     }
+}
+
+/// The delete-one jackknife's standard deviation of the estimates `loo`
+/// (each made with one part of the data left out).
+pub fn jackknife_std(loo: impl Iterator<Item = f64> + Clone) -> f64 {
+    let k = loo.clone().count() as f64;
+    let mean = loo.clone().sum::<f64>() / k;
+    ((k - 1.0) / k * loo.map(|v| (v - mean).powi(2)).sum::<f64>()).sqrt()
 }
 
 /// Modified Bessel function of the first kind, order 0 (power series).

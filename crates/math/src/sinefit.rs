@@ -20,6 +20,8 @@
 // Small dense systems (6x6) read clearest indexed.
 #![allow(clippy::needless_range_loop)]
 
+use crate::numeric::jackknife_std;
+use nalgebra::{SMatrix, SVector};
 use std::f64::consts::PI;
 
 /// A damped sinusoid fitted to a record.
@@ -87,57 +89,29 @@ fn lowpass_decimate(y: &[f64], fc: f64, half: usize, step: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Solves the symmetric positive system `a x = b` (n ≤ 8) by Cholesky;
-/// `None` when it is not positive definite.
-fn cholesky_solve<const N: usize>(a: &[[f64; N]; N], b: &[f64; N]) -> Option<[f64; N]> {
-    let mut l = [[0.0; N]; N];
-    for i in 0..N {
-        for j in 0..=i {
-            let mut s = a[i][j];
-            for k in 0..j {
-                s -= l[i][k] * l[j][k];
-            }
-            if i == j {
-                if !(s > 0.0 && s.is_finite()) {
-                    return None;
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
-    }
-    let mut z = [0.0; N];
-    for i in 0..N {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[i][k] * z[k];
-        }
-        z[i] = s / l[i][i];
-    }
-    let mut x = [0.0; N];
-    for i in (0..N).rev() {
-        let mut s = z[i];
-        for k in i + 1..N {
-            s -= l[k][i] * x[k];
-        }
-        x[i] = s / l[i][i];
-    }
-    Some(x)
+/// `a` (symmetric, row-major) as nalgebra's matrix.
+fn matrix<const N: usize>(a: &[[f64; N]; N]) -> Option<SMatrix<f64, N, N>> {
+    let m = SMatrix::<f64, N, N>::from_fn(|r, c| a[r][c]);
+    m.iter().all(|v| v.is_finite()).then_some(m)
 }
 
-/// The inverse of a symmetric positive matrix (column by column).
+/// Solves the symmetric positive system `a x = b` by Cholesky (nalgebra);
+/// `None` when it is not positive definite or not finite.
+fn cholesky_solve<const N: usize>(a: &[[f64; N]; N], b: &[f64; N]) -> Option<[f64; N]> {
+    let x = matrix(a)?
+        .cholesky()?
+        .solve(&SVector::<f64, N>::from_column_slice(b));
+    x.iter()
+        .all(|v| v.is_finite())
+        .then(|| std::array::from_fn(|i| x[i]))
+}
+
+/// The inverse of a symmetric positive matrix (Cholesky, nalgebra).
 fn inverse<const N: usize>(a: &[[f64; N]; N]) -> Option<[[f64; N]; N]> {
-    let mut inv = [[0.0; N]; N];
-    for c in 0..N {
-        let mut e = [0.0; N];
-        e[c] = 1.0;
-        let x = cholesky_solve(a, &e)?;
-        for r in 0..N {
-            inv[r][c] = x[r];
-        }
-    }
-    Some(inv)
+    let inv = matrix(a)?.cholesky()?.inverse();
+    inv.iter()
+        .all(|v| v.is_finite())
+        .then(|| std::array::from_fn(|r| std::array::from_fn(|c| inv[(r, c)])))
 }
 
 /// The model's basis at time `t` for (ω, σ): [1, t, e cos, e sin].
@@ -297,15 +271,10 @@ fn jackknife(t: &[f64], z: &[f64], p: &[f64; 6]) -> Option<(f64, f64)> {
         let (q, _) = levenberg_marquardt(&ts, &zs, *p)?;
         est.push((q[4], q[5]));
     }
-    let k = g as f64;
-    let (mw, ms) = (
-        est.iter().map(|e| e.0).sum::<f64>() / k,
-        est.iter().map(|e| e.1).sum::<f64>() / k,
-    );
-    let var = |f: &dyn Fn(&(f64, f64)) -> f64, m: f64| {
-        (k - 1.0) / k * est.iter().map(|e| (f(e) - m).powi(2)).sum::<f64>()
-    };
-    Some((var(&|e| e.0, mw).sqrt(), var(&|e| e.1, ms).sqrt()))
+    Some((
+        jackknife_std(est.iter().map(|e| e.0)),
+        jackknife_std(est.iter().map(|e| e.1)),
+    ))
 }
 
 /// Fits `c0 + c1 t + e^(-σt)(a cos ωt + b sin ωt)` to `y` (sampled at
@@ -419,6 +388,36 @@ pub fn fit_damped_sinusoid(y: &[f64], fs: f64, f_guess: f64, zeta_guess: f64) ->
     })
 }
 
+/// A weighted least-squares line through points (x, y, weight): its
+/// weighted sums about the means and its slope.
+struct Line {
+    sw: f64,
+    sxx: f64,
+    sxy: f64,
+    syy: f64,
+    slope: f64,
+}
+
+/// [`Line`] through `pts`; `None` when the x do not spread (or no weight).
+fn weighted_line<'a>(pts: impl Iterator<Item = &'a (f64, f64, f64)> + Clone) -> Option<Line> {
+    let sw: f64 = pts.clone().map(|p| p.2).sum();
+    let mx = pts.clone().map(|p| p.2 * p.0).sum::<f64>() / sw;
+    let my = pts.clone().map(|p| p.2 * p.1).sum::<f64>() / sw;
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in pts {
+        sxx += p.2 * (p.0 - mx).powi(2);
+        sxy += p.2 * (p.0 - mx) * (p.1 - my);
+        syy += p.2 * (p.1 - my).powi(2);
+    }
+    (sxx > 0.0).then(|| Line {
+        sw,
+        sxx,
+        sxy,
+        syy,
+        slope: sxy / sxx,
+    })
+}
+
 /// A ring-down's damping from its envelope.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct FreeDecay {
@@ -518,16 +517,16 @@ pub fn fit_free_decay(y: &[f64], fs: f64, f_hz: f64, band_hz: f64) -> Option<Fre
             (i as f64 * dt, e.ln(), snr / (1.0 + snr))
         })
         .collect();
-    let sw: f64 = pts.iter().map(|p| p.2).sum();
-    let mx = pts.iter().map(|p| p.2 * p.0).sum::<f64>() / sw;
-    let my = pts.iter().map(|p| p.2 * p.1).sum::<f64>() / sw;
-    let sxx: f64 = pts.iter().map(|p| p.2 * (p.0 - mx).powi(2)).sum();
-    let sxy: f64 = pts.iter().map(|p| p.2 * (p.0 - mx) * (p.1 - my)).sum();
-    let syy: f64 = pts.iter().map(|p| p.2 * (p.1 - my).powi(2)).sum();
-    if !(sxx > 0.0 && syy > 0.0) {
+    let Line {
+        sw,
+        sxx,
+        sxy,
+        syy,
+        slope,
+    } = weighted_line(pts.iter())?;
+    if syy.is_nan() || syy <= 0.0 {
         return None;
     }
-    let slope = sxy / sxx;
     let r_squared = sxy * sxy / (sxx * syy);
     if !(slope < 0.0 && r_squared >= MIN_DECAY_R2) {
         return None;
@@ -544,25 +543,16 @@ pub fn fit_free_decay(y: &[f64], fs: f64, f_hz: f64, band_hz: f64) -> Option<Fre
     let parts: Vec<f64> = (0..g)
         .filter_map(|b| {
             let (lo, hi) = (b * pts.len() / g, (b + 1) * pts.len() / g);
-            let keep = || {
-                pts.iter()
-                    .enumerate()
-                    .filter(move |(i, _)| *i < lo || *i >= hi)
-                    .map(|(_, p)| p)
-            };
-            let sw: f64 = keep().map(|p| p.2).sum();
-            let mx = keep().map(|p| p.2 * p.0).sum::<f64>() / sw;
-            let my = keep().map(|p| p.2 * p.1).sum::<f64>() / sw;
-            let sxx: f64 = keep().map(|p| p.2 * (p.0 - mx).powi(2)).sum();
-            let sxy: f64 = keep().map(|p| p.2 * (p.0 - mx) * (p.1 - my)).sum();
-            (sxx > 0.0).then(|| sxy / sxx)
+            let kept = pts
+                .iter()
+                .enumerate()
+                .filter(move |(i, _)| *i < lo || *i >= hi)
+                .map(|(_, p)| p);
+            weighted_line(kept).map(|l| l.slope)
         })
         .collect();
     if parts.len() == g {
-        let k = g as f64;
-        let mean = parts.iter().sum::<f64>() / k;
-        let jack = ((k - 1.0) / k * parts.iter().map(|v| (v - mean).powi(2)).sum::<f64>()).sqrt();
-        slope_std = slope_std.max(jack);
+        slope_std = slope_std.max(jackknife_std(parts.iter().copied()));
     }
     let sigma = -slope;
     let wr = 2.0 * PI * f_hz;

@@ -219,12 +219,7 @@ pub(super) fn curvature_sigma(mut sse: impl FnMut(f64) -> f64, x: f64, h: f64, s
     }
 }
 
-/// The delete-one jackknife's standard deviation of the estimates `loo`.
-pub(super) fn jackknife(loo: impl Iterator<Item = f64> + Clone) -> f64 {
-    let k = loo.clone().count() as f64;
-    let mean = loo.clone().sum::<f64>() / k;
-    ((k - 1.0) / k * loo.map(|v| (v - mean).powi(2)).sum::<f64>()).sqrt()
-}
+pub(super) use crate::numeric::jackknife_std as jackknife;
 
 /// Least-squares gain of `z ≈ g t` and the squared error left.
 pub(super) fn gain_sse(t: &[f64], z: &[f64]) -> (f64, f64) {
