@@ -120,7 +120,7 @@ pub struct SampleBlock {
 /// The taper a spectrum's segments were multiplied by: it decides how one
 /// spectral line looks, so it travels with the spectrum (see
 /// `stages::transform::spectrum` for its coefficients and power kernel).
-#[derive(serde::Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[derive(serde::Deserialize, serde::Serialize, Clone, Copy, PartialEq, Eq, Debug)]
 #[serde(rename_all = "lowercase")]
 pub enum Taper {
     Hann,

@@ -39,5 +39,8 @@ pub use observe::{
 pub use runner::{
     error_chain, run, thousands, RunError, RunOptions, RunReport, SourceProgress, StageReport,
 };
-pub use spec::{Def, InPort, OutPort, OutType, ParamSpec, ParamType, Range, NO_INPUTS, NO_OUTPUTS};
+pub use spec::{
+    Def, InPort, Key, KindParams, OutPort, OutType, ParamSpec, ParamType, Range, StageId,
+    NO_INPUTS, NO_OUTPUTS,
+};
 pub use stage::{Control, EmitError, Emitter, Node, Source, SourceCtx, Stage, StageError};

@@ -85,9 +85,116 @@ pub fn description(s: &Shipped) -> String {
         .unwrap_or_default()
 }
 
+/// Declares the typed ids of a shipped pipeline's stages (one module per
+/// pipeline, one constant per stage a recipe edits) and lists them for the
+/// test that checks each against the file.
+macro_rules! stage_ids {
+    ($(
+        $(#[$doc:meta])*
+        $module:ident = $pipeline:literal {
+            $($name:ident: $params:ty = $id:literal),* $(,)?
+        }
+    )*) => {
+        $(
+            $(#[$doc])*
+            pub mod $module {
+                #[allow(unused_imports)]
+                use crate::stages::params::*;
+                use crate::spec::StageId;
+                /// The shipped pipeline's name.
+                pub const PIPELINE: &str = $pipeline;
+                $(
+                    #[doc = concat!("Stage `", $id, "` of `", $pipeline, "`.")]
+                    pub const $name: StageId<$params> = StageId::new($id);
+                )*
+            }
+        )*
+        /// Every typed id: (pipeline, stage id, the kinds its parameters fit).
+        pub fn typed_ids() -> Vec<(&'static str, &'static str, &'static [&'static str])> {
+            #[allow(unused_imports)]
+            use crate::spec::KindParams;
+            #[allow(unused_imports)]
+            use crate::stages::params::*;
+            vec![$($(($pipeline, $id, <$params as KindParams>::KINDS)),*),*]
+        }
+    };
+}
+
+/// The stages of the shipped pipelines that recipes edit, as typed ids: a
+/// recipe sets `magnify::MAG`'s `MagnifyParams::factor`, and the compiler
+/// checks that the parameter exists, belongs to that kind and takes that
+/// type; `typed_ids_match_the_files` checks each id and kind against the
+/// TOML file.
+pub mod stage {
+    stage_ids! {
+        magnify = "magnify" {
+            MAG: MagnifyParams = "mag",
+            OUT: Y4mParams = "out",
+        }
+        visual_microphone = "visual-microphone" {
+            PHASE: PhaseParams = "phase",
+            ALIGN: AlignParams = "align",
+            HIGHPASS: HighpassParams = "highpass",
+            OUT: WavParams = "out",
+        }
+        tile_microphone = "tile-microphone" {
+            MOTION: TileMotionParams = "motion",
+            ALIGN: AlignParams = "align",
+            HIGHPASS: HighpassParams = "highpass",
+            OUT: WavParams = "out",
+        }
+        live_microphone = "live-microphone" {
+            PHASE: PhaseParams = "phase",
+            ALIGN: AlignParams = "align",
+            HIGHPASS: HighpassParams = "highpass",
+            OUT: WavParams = "out",
+        }
+        rolling_shutter = "rolling-shutter" {
+            ROWS: RowsParams = "rows",
+            FILL: GapFillParams = "fill",
+            EXPOSURE: ExposureParams = "exposure",
+            OUT: WavParams = "out",
+        }
+        live_spectrum = "live-spectrum" {
+            PHASE: PhaseParams = "phase",
+            SPECTRUM: SpectrumParams = "spectrum",
+            OUT: PeaksParams = "out",
+        }
+        render = "render" {
+            OUT: Y4mParams = "out",
+        }
+        demo = "demo" {
+            MOTION: GradientMotionParams = "motion",
+            OUT: WavParams = "out",
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each typed stage id names a stage of its pipeline whose kind takes
+    /// the id's parameters.
+    #[test]
+    fn typed_ids_match_the_files() {
+        let ids = stage::typed_ids();
+        assert!(ids.len() >= 20, "{} typed ids", ids.len());
+        for (pipeline, id, kinds) in ids {
+            let s = find(pipeline).unwrap_or_else(|| panic!("no shipped pipeline {pipeline}"));
+            let decl = crate::config::parse(s.name, s.text).unwrap_or_else(|e| panic!("{e}"));
+            let st = decl
+                .stages
+                .iter()
+                .find(|st| st.id == id)
+                .unwrap_or_else(|| panic!("{pipeline} has no stage `{id}`"));
+            assert!(
+                kinds.contains(&st.kind.as_str()),
+                "{pipeline}: stage `{id}` is a `{}`, its typed id says {kinds:?}",
+                st.kind
+            );
+        }
+    }
 
     /// Every file under `pipelines/` parses and validates (kinds, declared
     /// parameters, ports) against the registry.

@@ -202,6 +202,16 @@ pub struct ParamSpec {
 }
 
 impl ParamSpec {
+    /// A parameter without its name yet: [`params!`](crate::params) names
+    /// it after its field.
+    pub const fn of(ty: ParamType, default: Def) -> Self {
+        Self::new("", ty, default)
+    }
+    /// The same parameter named `name` (a shared declaration, such as the
+    /// region's, under a field's name).
+    pub const fn named(self, name: &'static str) -> Self {
+        Self { name, ..self }
+    }
     pub const fn new(name: &'static str, ty: ParamType, default: Def) -> Self {
         Self {
             name,
@@ -388,6 +398,148 @@ pub fn or_list(items: &[&str]) -> String {
     }
 }
 
+/// The typed parameters of one or more stage kinds: a struct declared
+/// with [`params!`](crate::params), the one place each parameter's name,
+/// Rust type, TOML type, default, range, unit and doc are written. The
+/// kind validates a stage against [`KindParams::PARAMS`], reads the stage
+/// into the struct ([`Params::resolve_typed`]), and `vibroscope kinds`
+/// prints the same table; a recipe edits a stage through the struct's
+/// typed [`Key`]s (one associated constant per field, named as the field).
+pub trait KindParams: DeserializeOwned {
+    /// The TOML `kind`s whose parameters these are (first: the main one).
+    const KINDS: &'static [&'static str];
+    /// Every parameter, in declaration order.
+    const PARAMS: &'static [ParamSpec];
+}
+
+/// One parameter of the kinds whose parameters are `K`, of Rust type `T`:
+/// `MagnifyParams::factor` is a `Key<MagnifyParams, f64>`. A recipe can
+/// only set a parameter that exists, on a stage of a kind that has it,
+/// to a value of its type.
+pub struct Key<K, T> {
+    pub name: &'static str,
+    _of: std::marker::PhantomData<fn() -> (K, T)>,
+}
+
+impl<K, T> Clone for Key<K, T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<K, T> Copy for Key<K, T> {}
+
+impl<K: KindParams, T> Key<K, T> {
+    pub const fn new(name: &'static str) -> Self {
+        Self {
+            name,
+            _of: std::marker::PhantomData,
+        }
+    }
+    /// The parameter's declaration (its default, range, unit and doc).
+    pub fn spec(&self) -> &'static ParamSpec {
+        // Every key is generated from a field of `K::PARAMS`.
+        K::PARAMS
+            .iter()
+            .find(|s| s.name == self.name)
+            .unwrap_or(&K::PARAMS[0])
+    }
+}
+
+impl<K: KindParams, T: DeserializeOwned> Key<K, T> {
+    /// The declared default (`None` for required and automatic ones).
+    pub fn default_value(&self) -> Option<T> {
+        default_of(K::PARAMS, self.name)
+    }
+}
+
+/// The id of a stage of a kind whose parameters are `K`, in a shipped
+/// pipeline (`pipelines::magnify::MAG`) or made by a recipe.
+pub struct StageId<K> {
+    pub id: &'static str,
+    _of: std::marker::PhantomData<fn() -> K>,
+}
+
+impl<K> Clone for StageId<K> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<K> Copy for StageId<K> {}
+
+impl<K: KindParams> StageId<K> {
+    pub const fn new(id: &'static str) -> Self {
+        Self {
+            id,
+            _of: std::marker::PhantomData,
+        }
+    }
+}
+
+/// Declares a stage kind's parameters once: the public struct the stage
+/// reads (`serde`, unknown fields refused), its [`KindParams`] table and
+/// one typed [`Key`] per field.
+///
+/// ```
+/// use vibroscope_engine::params;
+/// use vibroscope_engine::spec::{Def, KindParams, ParamSpec, ParamType::*};
+/// params! {
+///     /// `demo`'s parameters.
+///     pub struct DemoParams for "demo" {
+///         fps: f64 = ParamSpec::of(Float, Def::Float(2200.0))
+///             .above(0.0)
+///             .unit("Hz")
+///             .doc("frame rate"),
+///         path: String = ParamSpec::of(Path, Def::Required).doc("output file"),
+///     }
+/// }
+/// assert_eq!(DemoParams::PARAMS[0].name, "fps");
+/// assert_eq!(DemoParams::fps.default_value(), Some(2200.0));
+/// ```
+#[macro_export]
+macro_rules! params {
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $name:ident for $($kind:literal),+ {
+            $(
+                $(#[$fmeta:meta])*
+                $field:ident : $ty:ty = $spec:expr
+            ),* $(,)?
+        }
+    ) => {
+        #[derive(Clone, Debug, serde::Deserialize)]
+        #[serde(deny_unknown_fields)]
+        $(#[$meta])*
+        $vis struct $name {
+            $( $(#[$fmeta])* pub $field: $ty, )*
+        }
+        impl $crate::spec::KindParams for $name {
+            const KINDS: &'static [&'static str] = &[$($kind),+];
+            const PARAMS: &'static [$crate::spec::ParamSpec] = &[
+                $( $spec.named($crate::spec::unraw(stringify!($field))), )*
+            ];
+        }
+        #[allow(non_upper_case_globals)]
+        impl $name {
+            $(
+                #[doc = concat!("The `", stringify!($field), "` parameter.")]
+                pub const $field: $crate::spec::Key<$name, $ty> =
+                    $crate::spec::Key::new($crate::spec::unraw(stringify!($field)));
+            )*
+        }
+    };
+}
+
+/// A field's name as its parameter's: `r#type` is `type`.
+pub const fn unraw(s: &'static str) -> &'static str {
+    match s.as_bytes() {
+        [b'r', b'#', rest @ ..] => match std::str::from_utf8(rest) {
+            Ok(r) => r,
+            Err(_) => s,
+        },
+        _ => s,
+    }
+}
+
 /// The value `name` defaults to, deserialized (`None` when the kind has no
 /// such parameter or it has no default). For `Default` impls of
 /// parameter types that are also read without [`Params::resolve`].
@@ -397,6 +549,11 @@ pub fn default_of<T: DeserializeOwned>(specs: &[ParamSpec], name: &str) -> Optio
 }
 
 impl Params<'_> {
+    /// [`Params::resolve`] against `K`'s own table.
+    pub fn resolve_typed<K: KindParams>(&self) -> Result<K, ConfigError> {
+        self.resolve(K::PARAMS)
+    }
+
     /// Validates the stage's parameters against `specs` (unknown keys,
     /// types, ranges and choices, required fields), fills in the declared
     /// defaults and deserializes `T`. Every error names the file, line,

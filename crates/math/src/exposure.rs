@@ -17,7 +17,7 @@
 use std::f64::consts::PI;
 
 /// Which response the exposure filter has.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Mode {
     Lowpass,

@@ -60,7 +60,7 @@ pub use rustfft::num_complex::{Complex32, Complex64};
 use std::f64::consts::TAU;
 
 /// Which motion the image shows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Motion {
     X,

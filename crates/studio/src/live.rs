@@ -15,10 +15,11 @@ use serde_json::{json, Value};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-use vibroscope::engine::config::{self, Origin, PipelineDecl};
+use vibroscope::engine::config::{Origin, PipelineDecl};
 use vibroscope::engine::{Latest, Observer, PortType, TapFrame, TapSlot};
 use vibroscope::math::peaks::{find_peaks, PeakOptions};
 use vibroscope::pipeline::{self as pl, PipelineOptions};
+use vibroscope::stages::params::TapParams;
 
 /// Largest number of spectrum values sent per update: longer spectra are
 /// reduced to this many by keeping each group's largest value (a peak
@@ -37,7 +38,7 @@ const TAP_HISTORY: &str = "studio_history";
 /// Seconds of frames kept for a modal image of the live view, and the
 /// memory they may take (older frames go first).
 pub const HISTORY_S: f64 = 4.0;
-const HISTORY_MB: i64 = 256;
+const HISTORY_MB: u64 = 256;
 
 /// At least this many frames before a live modal image is made.
 pub const MIN_HISTORY_FRAMES: usize = 32;
@@ -118,25 +119,29 @@ pub fn prepare(pipeline: &str, set: &[String]) -> Result<PipelineDecl, String> {
     let origin = Origin::Builtin("vibroscope studio's live view".into());
     // A tap never waits, but its thread can be descheduled for a while on
     // a busy machine: its ring holds more than a plain stage's.
-    let mut tap = |id: &str, from: &str, name: &str, every_ms: f64| {
-        let mut st = pl::new_stage(id, "tap", &[from], origin.clone());
+    let tap = |id: &str, from: &str, name: &str, every_ms: f64| {
+        let mut st = pl::new_stage::<TapParams>(id, &[from], origin.clone());
         st.capacity = Some((TAP_CAPACITY, origin.clone()));
-        config::set_param(&mut st, "name", name.into(), origin.clone());
-        config::set_param(&mut st, "every_ms", every_ms.into(), origin.clone());
-        decl.stages.push(st);
+        pl::put(&mut st, TapParams::name, name.to_string(), origin.clone())?;
+        pl::put(&mut st, TapParams::every_ms, every_ms, origin.clone())?;
+        Ok::<_, vibroscope::Error>(st)
     };
-    tap(TAP_FRAME, &source, "frame", 100.0);
+    let mut taps = vec![tap(TAP_FRAME, &source, "frame", 100.0)];
     if let Some(f) = &feeds {
-        tap(TAP_SAMPLES, f, "samples", 40.0);
+        taps.push(tap(TAP_SAMPLES, f, "samples", 40.0));
     }
     if let Some(sp) = &spectrum_id {
-        tap(TAP_SPECTRUM, sp, "spectrum", 0.0);
+        taps.push(tap(TAP_SPECTRUM, sp, "spectrum", 0.0));
         // Every frame of the last seconds, for a clicked peak's modal image.
-        tap(TAP_HISTORY, &source, "history", 0.0);
-        if let Some(st) = decl.stages.last_mut() {
-            config::set_param(st, "history_s", HISTORY_S.into(), origin.clone());
-            config::set_param(st, "history_mb", HISTORY_MB.into(), origin.clone());
-        }
+        let history = tap(TAP_HISTORY, &source, "history", 0.0).and_then(|mut st| {
+            pl::put(&mut st, TapParams::history_s, HISTORY_S, origin.clone())?;
+            pl::put(&mut st, TapParams::history_mb, HISTORY_MB, origin.clone())?;
+            Ok(st)
+        });
+        taps.push(history);
+    }
+    for st in taps {
+        decl.stages.push(st.map_err(|e| e.to_string())?);
     }
     // Errors naming the user's stages and fields, before anything runs.
     vibroscope::engine::graph::validate(&decl, vibroscope::stages::REGISTRY)
@@ -478,7 +483,7 @@ mod tests {
             .iter()
             .find(|s| s.id == TAP_HISTORY)
             .expect("history");
-        let hs = h.params.iter().find(|p| p.key == "history_s");
+        let hs = h.params().iter().find(|p| p.key == "history_s");
         assert_eq!(hs.and_then(|p| p.value.as_float()), Some(HISTORY_S));
         // No spectrum: the level comes from the last stage giving audio.
         let d = prepare("live-microphone", &[]).expect("the shipped live microphone");

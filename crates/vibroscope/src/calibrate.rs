@@ -3,12 +3,17 @@
 //! listen pipeline (the same graph `listen` runs), the math from
 //! [`crate::math::calibrate`].
 
+use crate::engine::config::StageDecl;
+use crate::engine::spec::Key;
 use crate::error::{Error, Result};
 use crate::io::atomic::TempPath;
 use crate::math::calibrate::{self as cal, Calibration, Options};
 use crate::microphone::{listen_pipeline, Method};
 use crate::pipeline::Denoise;
 use crate::pipeline::{self, Region, RunSettings};
+use crate::pipelines::stage::visual_microphone::{ALIGN, HIGHPASS, OUT, PHASE};
+use crate::stages::params::{AlignParams, CsvParams, PhaseParams, PyramidParams, WavParams};
+use serde::de::DeserializeOwned;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -224,28 +229,14 @@ pub fn recover_strips(
     // One pyramid per frame for every branch: `phase` computes it over the
     // whole frame whatever its region, so nine branches would compute it
     // nine times.
-    let mut pyr = pipeline::new_stage(
-        "pyramid",
+    let mut pyr = pipeline::new_stage::<PyramidParams>(
         "pyramid",
         &[],
         pipeline::by("calibrate (the strips' shared pyramid)"),
     );
-    for st in &decl.stages {
-        if st.id == "phase" {
-            for p in st.params.iter().filter(|p| {
-                ["pyramid", "scales", "orientations", "threads"].contains(&p.key.as_str())
-            }) {
-                crate::engine::config::set_param(
-                    &mut pyr,
-                    &p.key,
-                    p.value.clone(),
-                    p.origin.clone(),
-                );
-            }
-        }
-    }
-    pipeline::insert_before(&mut decl, "phase", pyr)?;
-    let branch = ["phase", "align", "highpass", "out"];
+    shared_pyramid(decl.stage(PHASE)?, &mut pyr)?;
+    pipeline::insert_before(&mut decl, PHASE.id, pyr)?;
+    let branch = [PHASE.id, ALIGN.id, HIGHPASS.id, OUT.id];
     let originals: Vec<_> = branch
         .iter()
         .map(|id| pipeline::stage_mut(&mut decl, id).map(|s| s.clone()))
@@ -279,43 +270,39 @@ pub fn recover_strips(
             w: cols.1,
             h: b - a,
         };
-        pipeline::set(
-            &mut decl,
-            &format!("phase_{k}"),
-            "roi",
-            roi.value(),
+        pipeline::put(
+            pipeline::stage_mut(&mut decl, &format!("{}_{k}", PHASE.id))?,
+            PhaseParams::roi,
+            Some(roi.param()),
             origin.clone(),
         )?;
         // The bands of a strip see its motion at one time: a lag chosen
         // per recording would move the strip's delay by whole samples
         // from one recording to the next, and the delays are reused.
-        pipeline::set(
-            &mut decl,
-            &format!("align_{k}"),
-            "max_lag",
-            toml::Value::Integer(0),
+        pipeline::put(
+            pipeline::stage_mut(&mut decl, &format!("{}_{k}", ALIGN.id))?,
+            AlignParams::max_lag,
+            0,
             origin.clone(),
         )?;
-        pipeline::set(
-            &mut decl,
-            &format!("out_{k}"),
-            "path",
-            pipeline::path_value(tmp.path()),
+        pipeline::put(
+            pipeline::stage_mut(&mut decl, &format!("{}_{k}", OUT.id))?,
+            WavParams::path,
+            tmp.path().to_path_buf(),
             origin.clone(),
         )?;
         if let Some(b) = band_temps.get(k) {
-            let mut sink = pipeline::new_stage(
+            let mut sink = pipeline::new_stage::<CsvParams>(
                 &format!("bands_{k}"),
-                "csv",
-                &[&format!("phase_{k}")],
+                &[&format!("{}_{k}", PHASE.id)],
                 origin.clone(),
             );
-            crate::engine::config::set_param(
+            pipeline::put(
                 &mut sink,
-                "path",
-                pipeline::path_value(b.path()),
+                CsvParams::path,
+                b.path().to_path_buf(),
                 origin.clone(),
-            );
+            )?;
             decl.stages.push(sink);
         }
     }
@@ -338,6 +325,44 @@ pub fn recover_strips(
         bands,
         report,
     })
+}
+
+/// The shared `pyramid` stage `pyr` builds the pyramid `phase` would: it
+/// takes the phase stage's `pyramid`, `scales`, `orientations` and
+/// `threads` where the phase stage sets them (in the phase stage's order,
+/// each with its origin); the others keep their defaults, which are the
+/// phase stage's.
+fn shared_pyramid(phase: &StageDecl, pyr: &mut StageDecl) -> Result<()> {
+    /// `pyr`'s `to` takes `phase`'s `from` when `p` is that parameter.
+    fn copy<T: Serialize + DeserializeOwned>(
+        (phase, p): (&StageDecl, &crate::engine::config::Param),
+        from: Key<PhaseParams, T>,
+        pyr: &mut StageDecl,
+        to: Key<PyramidParams, T>,
+    ) -> Result<()> {
+        if p.key != from.name {
+            return Ok(());
+        }
+        // A value not of its type is left out: the phase stage's own
+        // validation names it.
+        if let Some(v) = phase.get(from) {
+            pipeline::put(pyr, to, v, p.origin.clone())?;
+        }
+        Ok(())
+    }
+    for p in phase.params() {
+        let from = (phase, p);
+        copy(from, PhaseParams::pyramid, pyr, PyramidParams::pyramid)?;
+        copy(from, PhaseParams::scales, pyr, PyramidParams::scales)?;
+        copy(
+            from,
+            PhaseParams::orientations,
+            pyr,
+            PyramidParams::orientations,
+        )?;
+        copy(from, PhaseParams::threads, pyr, PyramidParams::threads)?;
+    }
+    Ok(())
 }
 
 /// The channels of a `csv` sink's samples (`t_s,ch0,ch1,...`), one list

@@ -6,13 +6,14 @@
 //! used), and a peak the spectrum cannot resolve (`resolved: false`) takes
 //! it as its `damping_ratio` and `damping_method`.
 
-use crate::engine::config::{set_param, PipelineDecl};
+use crate::engine::config::PipelineDecl;
 use crate::engine::Origin;
 use crate::error::Result;
 use crate::io::atomic::TempPath;
 use crate::math::ssi::{identify, SsiOptions};
 use crate::peaks::{DampingEstimate, SpectrumReport, SsiDetail};
-use crate::pipeline::{self, path_value};
+use crate::pipeline;
+use crate::stages::params::{AlignParams, WavParams};
 use std::path::{Path, PathBuf};
 
 /// Where the motion goes: a file the user keeps, or a scratch file.
@@ -31,14 +32,14 @@ impl MotionTap {
         };
         let origin = Origin::Builtin("spectrum (time-domain damping)".into());
         pipeline::position(decl, "phase")?;
-        decl.stages.push(pipeline::new_stage(
+        decl.stages.push(pipeline::new_stage::<AlignParams>(
             "ssi_align",
-            "align",
             &["phase"],
             origin.clone(),
         ));
-        let mut wav = pipeline::new_stage("ssi_motion", "wav", &["ssi_align"], origin.clone());
-        set_param(&mut wav, "path", path_value(tap.path()), origin);
+        let mut wav =
+            pipeline::new_stage::<WavParams>("ssi_motion", &["ssi_align"], origin.clone());
+        pipeline::put(&mut wav, WavParams::path, tap.path().to_path_buf(), origin)?;
         decl.stages.push(wav);
         Ok(tap)
     }

@@ -4,7 +4,9 @@
 use crate::engine::config::apply_set;
 use crate::engine::Params;
 use crate::error::{Error, Result};
-use crate::pipeline::{self, by, path_value, RunSettings};
+use crate::pipeline::{self, by, RunSettings};
+use crate::pipelines::stage::demo;
+use crate::stages::params::WavParams;
 use crate::stages::sources::synthetic::SyntheticParams;
 use serde::Serialize;
 use std::path::PathBuf;
@@ -46,7 +48,13 @@ pub struct DemoReport {
 fn setup(o: &DemoOptions) -> Result<(crate::engine::PipelineDecl, SyntheticParams)> {
     let mut decl = pipeline::load("demo")?;
     let out = format!("-o {}", o.output.display());
-    pipeline::set(&mut decl, "out", "path", path_value(&o.output), by(&out))?;
+    pipeline::set(
+        &mut decl,
+        demo::OUT,
+        WavParams::path,
+        o.output.clone(),
+        by(&out),
+    )?;
     for s in &o.set {
         apply_set(&mut decl, s)?;
     }

@@ -13,18 +13,25 @@
 
 use crate::corrections;
 use crate::engine::config::PipelineDecl;
+use crate::engine::pipelines::stage::{rolling_shutter, tile_microphone, visual_microphone};
+use crate::engine::spec::KindParams;
 use crate::engine::RunReport;
 use crate::error::{Error, Result};
 use crate::math::calibrate::Correction;
+use crate::math::exposure::Mode as ExposureMode;
 use crate::microphone::listen_pipeline;
 pub use crate::microphone::Method;
 pub use crate::pipeline::BandFilter;
 pub use crate::pipeline::Denoise;
-use crate::pipeline::{self, by, path_value, PipelineOptions, Region, RunSettings};
+use crate::pipeline::{self, by, PipelineOptions, Region, RunSettings};
+use crate::stages::params::{
+    AlignParams, ExposureParams, GapFillParams, ResampleParams, RowsParams, SpeakerParams,
+    WavParams,
+};
+use crate::stages::transform::gap_fill::FillMethod;
 use crate::stages::transform::resample::{default_rate_hz, resample_all};
 use serde::Serialize;
 use std::path::PathBuf;
-use toml::Value;
 
 /// Filling of a rolling-shutter camera's frame-delay gaps.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -197,13 +204,12 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
             let mut decl =
                 listen_pipeline(&o.video, &o.output, o.fps, (&o.region, method), o.denoise)?;
             if let Some(n) = o.sources {
-                pipeline::set(
-                    &mut decl,
-                    "align",
-                    "components",
-                    Value::Integer(n as i64),
-                    by(&format!("--sources {n}")),
-                )?;
+                let align = match method {
+                    Method::Phase => visual_microphone::ALIGN,
+                    Method::Gradient => tile_microphone::ALIGN,
+                };
+                let origin = by(&format!("--sources {n}"));
+                pipeline::set(&mut decl, align, AlignParams::components, n, origin)?;
             }
             decl
         }
@@ -232,9 +238,9 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
             OutputRate::Hz(r) => format!("--rate {r}"),
             _ => "listen's default output rate".into(),
         });
-        let mut st = pipeline::new_stage("resample", "resample", &[], origin.clone());
+        let mut st = pipeline::new_stage::<ResampleParams>("resample", &[], origin.clone());
         if let OutputRate::Hz(r) = o.rate {
-            crate::engine::config::set_param(&mut st, "rate_hz", Value::Float(r.into()), origin);
+            pipeline::put(&mut st, ResampleParams::rate_hz, Some(f64::from(r)), origin)?;
         }
         pipeline::insert_before(&mut decl, "out", st)?;
     }
@@ -417,10 +423,10 @@ fn add_speaker(decl: &mut PipelineDecl, device: &str) -> Result<()> {
     let origin = by(&format!("--speaker {device}"));
     let mut st = decl.stages[out].clone();
     st.id = "speaker".into();
-    st.kind = "speaker".into();
+    st.kind = SpeakerParams::KINDS[0].into();
     st.kind_origin = origin.clone();
-    st.params.clear();
-    crate::engine::config::set_param(&mut st, "device", Value::String(device.into()), origin);
+    st.clear_params();
+    pipeline::put(&mut st, SpeakerParams::device, device.to_string(), origin)?;
     decl.stages.push(st);
     Ok(())
 }
@@ -444,63 +450,39 @@ fn rs_pipeline(
             "required with --rolling-shutter (estimate it with `vibroscope rs-calibrate`)",
         ));
     };
-    let f = Value::Float;
-    pipeline::set(
-        &mut decl,
-        "rows",
-        "line_delay_us",
-        f(d),
-        by(&format!("--line-delay-us {d}")),
-    )?;
+    let (rows, fill, exposure) = (
+        rolling_shutter::ROWS,
+        rolling_shutter::FILL,
+        rolling_shutter::EXPOSURE,
+    );
+    let origin = by(&format!("--line-delay-us {d}"));
+    pipeline::set(&mut decl, rows, RowsParams::line_delay_us, Some(d), origin)?;
     if let Some(g) = a.frame_delay_us {
-        pipeline::set(
-            &mut decl,
-            "rows",
-            "frame_delay_us",
-            f(g),
-            by(&format!("--frame-delay-us {g}")),
-        )?;
+        let origin = by(&format!("--frame-delay-us {g}"));
+        pipeline::set(&mut decl, rows, RowsParams::frame_delay_us, Some(g), origin)?;
     }
     // The shipped region is the simulator's object: a recording starts from the whole frame.
-    pipeline::stage_mut(&mut decl, "rows")?
-        .params
-        .retain(|p| p.key != "roi");
-    if let Some(r) = &o.region.roi {
-        pipeline::set(
-            &mut decl,
-            "rows",
-            "roi",
-            r.value(),
-            by(&format!("--roi {r}")),
-        )?;
-    }
-    let method = match a.fill {
-        Fill::Ar => "ar",
-        Fill::Linear => "linear",
+    let roi = o.region.roi.map(|r| r.param());
+    let origin = match &o.region.roi {
+        Some(r) => by(&format!("--roi {r}")),
+        None => by("a recording's whole frame"),
     };
-    pipeline::set(
-        &mut decl,
-        "fill",
-        "method",
-        Value::String(method.into()),
-        by("--fill"),
-    )?;
+    pipeline::set(&mut decl, rows, RowsParams::roi, roi, origin)?;
+    let method = match a.fill {
+        Fill::Ar => FillMethod::Ar,
+        Fill::Linear => FillMethod::Linear,
+    };
+    pipeline::set(&mut decl, fill, GapFillParams::method, method, by("--fill"))?;
     match a.exposure_us {
         Some(e) => {
-            pipeline::set(
-                &mut decl,
-                "exposure",
-                "exposure_us",
-                f(e),
-                by(&format!("--exposure-us {e}")),
-            )?;
+            let origin = by(&format!("--exposure-us {e}"));
+            pipeline::set(&mut decl, exposure, ExposureParams::exposure_us, e, origin)?;
             if a.compensate_exposure {
-                let v = Value::String("compensate".into());
                 pipeline::set(
                     &mut decl,
-                    "exposure",
-                    "mode",
-                    v,
+                    exposure,
+                    ExposureParams::mode,
+                    ExposureMode::Compensate,
                     by("--compensate-exposure"),
                 )?;
             }
@@ -513,10 +495,17 @@ fn rs_pipeline(
                 "no --exposure-us: the output is not band-limited to the exposure's first null"
                     .into(),
             );
-            decl.stages.retain(|s| s.id != "exposure");
-            pipeline::rewire(&mut decl, "out", "fill")?;
+            decl.stages.retain(|s| s.id != exposure.id);
+            pipeline::rewire(&mut decl, rolling_shutter::OUT.id, fill.id)?;
         }
     }
-    pipeline::set(&mut decl, "out", "path", path_value(&o.output), by("-o"))?;
+    let output = o.output.clone();
+    pipeline::set(
+        &mut decl,
+        rolling_shutter::OUT,
+        WavParams::path,
+        output,
+        by("-o"),
+    )?;
     Ok(decl)
 }

@@ -13,17 +13,17 @@
 //! yuv420p in any other container). Without ffmpeg the output is grey and
 //! the report says so.
 
+use crate::engine::pipelines::stage;
 use crate::engine::RunReport;
 use crate::error::{Error, Result};
 use crate::io;
 use crate::math::magnify::{MagnifyError, MagnifyParams};
-use crate::pipeline::{
-    self, by, int, path_value, BandFilter, PipelineOptions, Pyramid, Roi, RunSettings,
-};
+use crate::pipeline::{self, by, BandFilter, PipelineOptions, Pyramid, Roi, RunSettings};
+use crate::stages::params::{MagnifyParams as M, Y4mParams};
+use crate::stages::transform::roi::RoiParam;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use toml::Value;
 
 /// What `magnify` is asked.
 #[derive(Clone, Debug, Default)]
@@ -126,91 +126,58 @@ pub fn magnify_pipeline(
     size: (u32, u32),
 ) -> Result<crate::engine::PipelineDecl> {
     let mut decl = pipeline::prepare(&PipelineOptions {
-        pipeline: "magnify".into(),
+        pipeline: stage::magnify::PIPELINE.into(),
         set: Vec::new(),
         replay: Some(o.video.clone()),
         fps: o.fps,
     })?;
-    pipeline::set(&mut decl, "out", "path", path_value(y4m), by("-o"))?;
+    let (mag, out) = (stage::magnify::MAG, stage::magnify::OUT);
+    pipeline::set(&mut decl, out, Y4mParams::path, y4m.to_path_buf(), by("-o"))?;
     let band = format!("--band {},{}", o.lo_hz, o.hi_hz);
-    pipeline::set(&mut decl, "mag", "lo_hz", Value::Float(o.lo_hz), by(&band))?;
-    pipeline::set(&mut decl, "mag", "hi_hz", Value::Float(o.hi_hz), by(&band))?;
-    pipeline::set(
-        &mut decl,
-        "mag",
-        "factor",
-        Value::Float(o.factor),
-        by("--factor"),
-    )?;
-    pipeline::set(
-        &mut decl,
-        "mag",
-        "pyramid",
-        Value::String(o.pyramid.name().into()),
-        by("--pyramid"),
-    )?;
+    pipeline::set(&mut decl, mag, M::lo_hz, o.lo_hz, by(&band))?;
+    pipeline::set(&mut decl, mag, M::hi_hz, o.hi_hz, by(&band))?;
+    pipeline::set(&mut decl, mag, M::factor, o.factor, by("--factor"))?;
+    pipeline::set(&mut decl, mag, M::pyramid, o.pyramid, by("--pyramid"))?;
     if let Some(s) = o.scales {
-        pipeline::set(&mut decl, "mag", "scales", int(s), by("--scales"))?;
+        pipeline::set(&mut decl, mag, M::scales, s, by("--scales"))?;
     }
     if let Some(r) = &o.roi {
-        pipeline::set(
-            &mut decl,
-            "mag",
-            "roi",
-            r.value(),
-            by(&format!("--roi {r}")),
-        )?;
+        let origin = by(&format!("--roi {r}"));
+        pipeline::set(&mut decl, mag, M::roi, Some(r.param()), origin)?;
     }
     if o.side_by_side {
-        pipeline::set(
-            &mut decl,
-            "mag",
-            "side_by_side",
-            Value::Boolean(true),
-            by("--side-by-side"),
-        )?;
+        pipeline::set(&mut decl, mag, M::side_by_side, true, by("--side-by-side"))?;
     }
-    let mut last = "mag".to_string();
+    let mut last = mag.id.to_string();
     for (i, n) in o.notches.iter().enumerate() {
         let ("bandstop", lo_hz, hi_hz) = n.stage() else {
             continue;
         };
         let id = format!("notch{}", i + 1);
         let origin = by(&n.flag());
-        let mut st = pipeline::new_stage(&id, "magnify", &[&last], origin.clone());
-        let f = |v: f64| Value::Float(v);
-        for (k, v) in [
-            ("lo_hz", f(lo_hz)),
-            ("hi_hz", f(hi_hz)),
-            ("factor", f(0.0)),
-            ("pyramid", Value::String(o.pyramid.name().into())),
-        ] {
-            crate::engine::config::set_param(&mut st, k, v, origin.clone());
-        }
+        let mut st = pipeline::new_stage::<M>(&id, &[&last], origin.clone());
+        pipeline::put(&mut st, M::lo_hz, lo_hz, origin.clone())?;
+        pipeline::put(&mut st, M::hi_hz, hi_hz, origin.clone())?;
+        pipeline::put(&mut st, M::factor, 0.0, origin.clone())?;
+        pipeline::put(&mut st, M::pyramid, o.pyramid, origin.clone())?;
         if let Some(sc) = o.scales {
-            crate::engine::config::set_param(&mut st, "scales", int(sc), origin.clone());
+            pipeline::put(&mut st, M::scales, sc, origin.clone())?;
         }
         if o.side_by_side {
-            let (w, h) = (i64::from(size.0), i64::from(size.1));
-            let roi = Value::Array([w, 0, w, h].map(Value::Integer).to_vec());
-            crate::engine::config::set_param(&mut st, "roi", roi, origin.clone());
-            crate::engine::config::set_param(
-                &mut st,
-                "whole_frame",
-                Value::Boolean(true),
-                origin.clone(),
-            );
+            let roi = RoiParam([size.0, 0, size.0, size.1]);
+            pipeline::put(&mut st, M::roi, Some(roi), origin.clone())?;
+            pipeline::put(&mut st, M::whole_frame, true, origin.clone())?;
         }
         let at = decl
             .stages
             .iter()
-            .position(|s| s.id == "out")
+            .position(|s| s.id == out.id)
             .unwrap_or(decl.stages.len());
         decl.stages.insert(at, st);
         last = id;
     }
-    if last != "mag" {
-        pipeline::stage_mut(&mut decl, "out")?.inputs[0].from = last;
+    if last != mag.id {
+        decl.stage_mut(out)?.inputs[0].from = last;
     }
     Ok(decl)
 }

@@ -6,19 +6,24 @@
 //! `listen` and `calibrate`.
 
 use crate::engine::config::PipelineDecl;
+use crate::engine::pipelines::stage::{tile_microphone, visual_microphone};
 use crate::error::Result;
-use crate::pipeline::{self, by, path_value, Denoise, PipelineOptions, Region};
+use crate::pipeline::{self, by, Denoise, PipelineOptions, Region};
+use crate::stages::params::{HighpassParams, WavParams};
+use crate::stages::transform::butterworth::Mode;
 use std::path::Path;
 
 /// Sets the high-pass of a visual-microphone pipeline to the causal IIR:
 /// calibrations are fitted, and applied, on the causal recovery (their
 /// models and their tests were made with it).
 pub fn causal_highpass(decl: &mut PipelineDecl) -> Result<()> {
+    // The same stage in both microphone pipelines.
+    debug_assert_eq!(visual_microphone::HIGHPASS.id, tile_microphone::HIGHPASS.id);
     pipeline::set(
         decl,
-        "highpass",
-        "mode",
-        toml::Value::String("causal".into()),
+        visual_microphone::HIGHPASS,
+        HighpassParams::mode,
+        Mode::Causal,
         by("calibration (fitted on the causal high-pass)"),
     )
 }
@@ -37,11 +42,11 @@ pub enum Method {
 }
 
 impl Method {
-    /// The shipped pipeline and the id of its motion stage.
-    fn pipeline(self) -> (&'static str, &'static str) {
+    /// The shipped pipeline.
+    fn pipeline(self) -> &'static str {
         match self {
-            Method::Gradient => ("tile-microphone", "motion"),
-            Method::Phase => ("visual-microphone", "phase"),
+            Method::Gradient => tile_microphone::PIPELINE,
+            Method::Phase => visual_microphone::PIPELINE,
         }
     }
 
@@ -65,21 +70,30 @@ pub fn listen_pipeline(
     (region, method): (&Region, Method),
     denoise: Denoise,
 ) -> Result<PipelineDecl> {
-    let (name, stage) = method.pipeline();
+    let name = method.pipeline();
     let mut decl = pipeline::prepare(&PipelineOptions {
         pipeline: name.into(),
         set: Vec::new(),
         replay: Some(video.to_path_buf()),
         fps,
     })?;
-    pipeline::set(&mut decl, "out", "path", path_value(output), by("-o"))?;
+    let out = match method {
+        Method::Phase => visual_microphone::OUT,
+        Method::Gradient => tile_microphone::OUT,
+    };
+    pipeline::set(
+        &mut decl,
+        out,
+        WavParams::path,
+        output.to_path_buf(),
+        by("-o"),
+    )?;
     match method {
-        Method::Phase => region.apply(&mut decl, stage)?,
-        Method::Gradient => region.apply_region(&mut decl, stage)?,
+        Method::Phase => region.apply(&mut decl, visual_microphone::PHASE)?,
+        Method::Gradient => region.apply_region(&mut decl, tile_microphone::MOTION)?,
     }
-    if let Some(kind) = denoise.kind() {
+    if let Some(st) = denoise.stage("denoise", &["highpass"], by("--denoise")) {
         let hp = pipeline::position(&decl, "highpass")?;
-        let st = pipeline::new_stage("denoise", kind, &["highpass"], by("--denoise"));
         decl.stages.insert(hp + 1, st);
         pipeline::rewire(&mut decl, "out", "denoise")?;
     }

@@ -10,14 +10,14 @@
 //! information about it (A² g², relative to its largest), not motion: it
 //! takes no scale.
 
-use crate::engine::config::{set_param, PipelineDecl};
+use crate::engine::config::PipelineDecl;
 use crate::engine::RunReport;
 use crate::error::{Error, Result};
-use crate::pipeline::{self, by, int, path_value, Region, RunSettings};
+use crate::pipeline::{self, by, put, Region, RunSettings};
+use crate::stages::params::{FileParams, ModesParams};
 use crate::units::{px_to, Quantity, Scale, ScaleArg, Unit};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use toml::Value;
 
 /// Which motion the image shows.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -26,6 +26,17 @@ pub enum Motion {
     Y,
     #[default]
     Sum,
+}
+
+impl Motion {
+    /// The `modes` stage's value.
+    pub fn param(self) -> crate::math::modal::Motion {
+        match self {
+            Motion::X => crate::math::modal::Motion::X,
+            Motion::Y => crate::math::modal::Motion::Y,
+            Motion::Sum => crate::math::modal::Motion::Sum,
+        }
+    }
 }
 
 /// What `modes` is asked.
@@ -140,8 +151,8 @@ pub fn modes_pipeline(o: &ModesOptions) -> Result<PipelineDecl> {
 /// [`modes_pipeline`] with each frequency's `.npy` given.
 fn pipeline_with(o: &ModesOptions, npys: &[Option<PathBuf>]) -> Result<PipelineDecl> {
     let mut decl = pipeline::empty("modes", "recording -> modal image (vibroscope modes)");
-    let mut src = pipeline::new_stage("src", "file", &[], by("VIDEO"));
-    set_param(&mut src, "path", path_value(&o.video), by("VIDEO"));
+    let mut src = pipeline::new_stage::<FileParams>("src", &[], by("VIDEO"));
+    put(&mut src, FileParams::path, o.video.clone(), by("VIDEO"))?;
     decl.stages.push(src);
     if let Some(f) = o.fps {
         pipeline::apply_fps(&mut decl, f)?;
@@ -150,38 +161,42 @@ fn pipeline_with(o: &ModesOptions, npys: &[Option<PathBuf>]) -> Result<PipelineD
     let many = freqs.len() > 1;
     for (k, (&f, npy)) in freqs.iter().zip(npys).enumerate() {
         let id = stage_id(k);
-        let mut st = pipeline::new_stage(&id, "modes", &["src"], by("vibroscope modes"));
-        set_param(&mut st, "freq_hz", Value::Float(f), by("--at"));
+        let mut st = pipeline::new_stage::<ModesParams>(&id, &["src"], by("vibroscope modes"));
+        put(&mut st, ModesParams::freq_hz, f, by("--at"))?;
         let png = per_frequency(&o.output, f, many);
-        set_param(&mut st, "path", path_value(&png), by("-o"));
+        put(&mut st, ModesParams::path, png, by("-o"))?;
         if let Some(n) = npy {
-            set_param(&mut st, "npy", path_value(n), by("--npy"));
+            put(&mut st, ModesParams::npy, Some(n.clone()), by("--npy"))?;
         }
         if let Some(s) = o.sigma {
-            set_param(&mut st, "sigma_px", Value::Float(s), by("--sigma"));
+            put(&mut st, ModesParams::sigma_px, s, by("--sigma"))?;
         }
-        let m = match o.motion {
-            Motion::X => "x",
-            Motion::Y => "y",
-            Motion::Sum => "sum",
-        };
-        set_param(&mut st, "motion", Value::String(m.into()), by("--motion"));
+        put(
+            &mut st,
+            ModesParams::motion,
+            o.motion.param(),
+            by("--motion"),
+        )?;
         if let Some(e) = o.exponent {
-            set_param(&mut st, "exponent", Value::Float(e), by("--exponent"));
+            put(&mut st, ModesParams::exponent, e, by("--exponent"))?;
         }
         if let Some(s) = o.pyramid_scale {
-            set_param(&mut st, "scale", int(s), by("--pyramid-scale"));
+            // As the TOML integer it is written as (at most i64::MAX).
+            let s = s.min(i64::MAX as usize);
+            put(&mut st, ModesParams::scale, s, by("--pyramid-scale"))?;
         }
         if o.unnormalized {
-            set_param(
-                &mut st,
-                "normalize",
-                Value::Boolean(false),
-                by("--unnormalized"),
-            );
+            put(&mut st, ModesParams::normalize, false, by("--unnormalized"))?;
         }
+        // The region as `Region::apply` sets it: pyramid, roi, mask.
+        put(
+            &mut st,
+            ModesParams::pyramid,
+            o.region.pyramid,
+            by("--pyramid"),
+        )?;
+        o.region.put_region::<ModesParams>(&mut st)?;
         decl.stages.push(st);
-        o.region.apply(&mut decl, &id)?;
     }
     Ok(decl)
 }

@@ -4,16 +4,16 @@
 //! fed by the graph's source, written to a scratch CSV and read back once
 //! into typed waveforms; and the peaks' amplitudes in physical units.
 
-use crate::engine::config::{set_param, PipelineDecl};
+use crate::engine::config::PipelineDecl;
 use crate::engine::Origin;
 use crate::error::{Error, Result};
 use crate::io::atomic::TempPath;
 use crate::math::iir::{Shape, Sos, ZeroPhase};
-use crate::pipeline::{self, path_value, BandFilter};
+use crate::pipeline::{self, BandFilter};
+use crate::stages::params::{CsvParams, DisplacementParams};
 use crate::units::{px_to, tone_amplitude, Quantity, Scale, Unit};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use toml::Value;
 
 /// Adds `src -> displacement -> csv` to a graph and reads the result.
 pub struct DisplacementTap {
@@ -57,22 +57,32 @@ impl DisplacementTap {
     pub fn add(&self, decl: &mut PipelineDecl) -> Result<()> {
         let origin = Origin::Builtin("displacement in physical units".into());
         pipeline::position(decl, "src")?;
-        let mut st = pipeline::new_stage("disp", "displacement", &["src"], origin.clone());
+        let mut st = pipeline::new_stage::<DisplacementParams>("disp", &["src"], origin.clone());
         if !self.rois.is_empty() {
-            let v = self
-                .rois
-                .iter()
-                .flatten()
-                .map(|&n| Value::Integer(i64::from(n)))
-                .collect();
-            set_param(&mut st, "rois", Value::Array(v), pipeline::by("--roi"));
+            let v: Vec<u32> = self.rois.iter().flatten().copied().collect();
+            pipeline::put(
+                &mut st,
+                DisplacementParams::rois,
+                Some(v),
+                pipeline::by("--roi"),
+            )?;
         }
         if let Some(m) = &self.mask {
-            set_param(&mut st, "mask", path_value(m), pipeline::by("--mask"));
+            pipeline::put(
+                &mut st,
+                DisplacementParams::mask,
+                Some(m.clone()),
+                pipeline::by("--mask"),
+            )?;
         }
         decl.stages.push(st);
-        let mut out = pipeline::new_stage("disp_out", "csv", &["disp"], origin.clone());
-        set_param(&mut out, "path", path_value(self.temp.path()), origin);
+        let mut out = pipeline::new_stage::<CsvParams>("disp_out", &["disp"], origin.clone());
+        pipeline::put(
+            &mut out,
+            CsvParams::path,
+            self.temp.path().to_path_buf(),
+            origin,
+        )?;
         decl.stages.push(out);
         Ok(())
     }

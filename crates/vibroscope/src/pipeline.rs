@@ -2,12 +2,16 @@
 //! typed operations (replay a recording, set the frame rate, add or rewire
 //! stages), and run it.
 
-use crate::engine::config::{
-    self, set_param, ConfigError, InputDecl, Origin, PipelineDecl, StageDecl,
-};
+use crate::engine::config::{self, ConfigError, InputDecl, Origin, PipelineDecl, StageDecl};
+use crate::engine::spec::{Key, KindParams, StageId};
 use crate::engine::{self, Control, RunReport};
 use crate::error::{Error, Result, UsageError};
-use crate::stages::sources::synthetic::{self, SyntheticParams};
+use crate::stages::params::{
+    BandParams, FileParams, ModesParams, NokhwaParams, PatternParams, PhaseParams,
+    SpectralSubtractionParams, SpeechEnhanceParams, TileMotionParams, V4l2Params, WienerParams,
+};
+use crate::stages::sources::synthetic::SyntheticParams;
+use crate::stages::transform::roi::RoiParam;
 use crate::stages::{self, REGISTRY};
 use crate::{io, pipelines};
 use std::fmt;
@@ -109,11 +113,12 @@ pub fn source_id(decl: &PipelineDecl) -> Option<&str> {
 pub fn apply_replay(decl: &mut PipelineDecl, path: &Path) -> Result<()> {
     let i = one_source(decl, "--replay")?;
     let origin = Origin::Builtin(format!("--replay {}", path.display()));
+    let file = decl.file.clone();
     let st = &mut decl.stages[i];
-    st.kind = "file".into();
+    st.kind = FileParams::KINDS[0].into();
     st.kind_origin = origin.clone();
-    st.params.clear();
-    set_param(st, "path", path_value(path), origin);
+    st.clear_params();
+    st.set(&file, FileParams::path, path.to_path_buf(), origin)?;
     block_every_edge(decl);
     Ok(())
 }
@@ -165,7 +170,7 @@ impl SceneFile {
         };
         // The `synthetic` kind's own plan: resolve, then check.
         let resolved = p
-            .resolve::<SyntheticParams>(synthetic::PARAMS)
+            .resolve_typed::<SyntheticParams>()
             .and_then(|v| v.check().map(|()| v).map_err(|(f, m)| p.error(f, m)));
         resolved.map_err(|e| self.told(Error::Config(e), "cam"))
     }
@@ -174,21 +179,20 @@ impl SceneFile {
     /// `synthetic` source), each with its line in the file.
     pub fn fill(&self, decl: &mut PipelineDecl, id: &str) -> Result<()> {
         let st = stage_mut(decl, id)?;
-        st.kind = "synthetic".into();
+        st.kind = SyntheticParams::KINDS[0].into();
         st.kind_origin = Origin::Builtin(format!("scene {}", self.path.display()));
-        st.params.clear();
-        for (k, v) in &self.table {
+        config::read_table(st, &self.table, |k| {
             let line = self
                 .text
                 .lines()
                 .position(|l| {
                     l.trim_start()
-                        .strip_prefix(k.as_str())
+                        .strip_prefix(k)
                         .is_some_and(|r| r.trim_start().starts_with('='))
                 })
                 .map_or(0, |i| i + 1);
-            set_param(st, k, v.clone(), Origin::Line(line));
-        }
+            Origin::Line(line)
+        });
         Ok(())
     }
 
@@ -230,21 +234,39 @@ pub fn apply_scene(decl: &mut PipelineDecl, scene: &SceneFile) -> Result<()> {
 /// Sets the source's capture rate (Hz).
 pub fn apply_fps(decl: &mut PipelineDecl, fps: f64) -> Result<()> {
     let i = one_source(decl, "--fps")?;
-    set_param(
-        &mut decl.stages[i],
-        "fps",
-        Value::Float(fps),
-        Origin::Set(format!("--fps {fps}")),
-    );
+    let file = decl.file.clone();
+    let o = Origin::Set(format!("--fps {fps}"));
+    let st = &mut decl.stages[i];
+    if st.is::<FileParams>() {
+        st.set(&file, FileParams::fps, Some(fps), o)?;
+    } else if st.is::<SyntheticParams>() {
+        st.set(&file, SyntheticParams::fps, fps, o)?;
+    } else if st.is::<PatternParams>() {
+        st.set(&file, PatternParams::fps, fps, o)?;
+    } else if st.is::<V4l2Params>() {
+        st.set(&file, V4l2Params::fps, Some(fps), o)?;
+    } else if st.is::<NokhwaParams>() {
+        // nokhwa asks the camera for a whole number of frames a second.
+        if fps.fract() != 0.0 || !(1.0..=f64::from(u32::MAX)).contains(&fps) {
+            return Err(Error::usage(
+                "--fps",
+                format!("the `nokhwa` source takes a whole number of frames a second, got {fps}"),
+            ));
+        }
+        st.set(&file, NokhwaParams::fps, Some(fps as u32), o)?;
+    } else {
+        return Err(Error::input(
+            &file,
+            format!(
+                "--fps: the source `{}` (a `{}`) has no frame rate to set",
+                st.id, st.kind
+            ),
+        ));
+    }
     Ok(())
 }
 
 // ------------------------------------------------------------------ edits
-
-/// A path as a parameter value.
-pub fn path_value(p: &Path) -> Value {
-    Value::String(p.display().to_string())
-}
 
 /// A value set by an option of a recipe (errors name the option).
 pub fn by(option: &str) -> Origin {
@@ -280,32 +302,33 @@ pub fn no_stage(file: &str, id: &str) -> Error {
     })
 }
 
-/// Sets `key` of stage `id`.
-pub fn set(decl: &mut PipelineDecl, id: &str, key: &str, v: Value, origin: Origin) -> Result<()> {
-    set_param(stage_mut(decl, id)?, key, v, origin);
-    Ok(())
+/// Sets the parameter `key` of the shipped stage `id` to `v` (`None`
+/// unsets an optional one): the stage, the parameter and the value's type
+/// are checked by the compiler; a `--pipeline` file whose stage of that id
+/// is another kind is an error naming it.
+pub fn set<K: KindParams, T: serde::Serialize>(
+    decl: &mut PipelineDecl,
+    id: StageId<K>,
+    key: Key<K, T>,
+    v: T,
+    origin: Origin,
+) -> Result<()> {
+    Ok(decl.set(id, key, v, origin)?)
 }
 
-/// A new stage `id` of `kind` reading from `inputs`, without parameters.
-pub fn new_stage(id: &str, kind: &str, inputs: &[&str], origin: Origin) -> StageDecl {
-    StageDecl {
-        id: id.into(),
-        kind: kind.into(),
-        origin: origin.clone(),
-        kind_origin: origin.clone(),
-        inputs: inputs
-            .iter()
-            .map(|from| InputDecl {
-                from: (*from).into(),
-                capacity: None,
-                policy: None,
-                origin: origin.clone(),
-            })
-            .collect(),
-        capacity: None,
-        policy: None,
-        params: Vec::new(),
-    }
+/// Sets the parameter `key` of `st`, a stage this recipe made.
+pub fn put<K: KindParams, T: serde::Serialize>(
+    st: &mut StageDecl,
+    key: Key<K, T>,
+    v: T,
+    origin: Origin,
+) -> Result<()> {
+    Ok(st.set("vibroscope", key, v, origin)?)
+}
+
+/// A new stage `id` of `K`'s kind reading from `inputs`, without parameters.
+pub fn new_stage<K: KindParams>(id: &str, inputs: &[&str], origin: Origin) -> StageDecl {
+    StageDecl::new_of::<K>(id, inputs, origin)
 }
 
 /// An empty pipeline named `name`.
@@ -349,11 +372,6 @@ pub fn insert_before(decl: &mut PipelineDecl, consumer: &str, mut st: StageDecl)
     Ok(())
 }
 
-/// Integer parameter from a count.
-pub fn int(n: usize) -> Value {
-    Value::Integer(i64::try_from(n).unwrap_or(i64::MAX))
-}
-
 // ------------------------------------------------------------ option types
 
 /// A rectangle of the frame, in pixels.
@@ -394,13 +412,8 @@ impl fmt::Display for Roi {
 
 impl Roi {
     /// As a stage's `roi` parameter.
-    pub fn value(&self) -> Value {
-        Value::Array(
-            [self.x, self.y, self.w, self.h]
-                .into_iter()
-                .map(|v| Value::Integer(v.into()))
-                .collect(),
-        )
+    pub fn param(&self) -> RoiParam {
+        RoiParam([self.x, self.y, self.w, self.h])
     }
 }
 
@@ -535,9 +548,10 @@ impl BandFilter {
     pub fn insert(&self, decl: &mut PipelineDecl, id: &str, before: &str) -> Result<()> {
         let (kind, lo, hi) = self.stage();
         let origin = by(&self.flag());
-        let mut st = new_stage(id, kind, &[], origin.clone());
-        set_param(&mut st, "lo_hz", Value::Float(lo), origin.clone());
-        set_param(&mut st, "hi_hz", Value::Float(hi), origin);
+        let mut st = StageDecl::new_kind_of::<BandParams>(id, kind, &[], origin.clone())
+            .ok_or_else(|| Error::input(&decl.file, format!("no band filter kind `{kind}`")))?;
+        put(&mut st, BandParams::lo_hz, lo, origin.clone())?;
+        put(&mut st, BandParams::hi_hz, hi, origin)?;
         insert_before(decl, before, st)
     }
 }
@@ -560,13 +574,13 @@ pub enum Denoise {
 }
 
 impl Denoise {
-    /// The stage kind, if any.
-    pub fn kind(self) -> Option<&'static str> {
+    /// Its stage `id` reading from `inputs`, if any.
+    pub fn stage(self, id: &str, inputs: &[&str], origin: Origin) -> Option<StageDecl> {
         match self {
             Denoise::None => None,
-            Denoise::Subtract => Some("spectral_subtraction"),
-            Denoise::Enhance => Some("speech_enhance"),
-            Denoise::Wiener => Some("wiener"),
+            Denoise::Subtract => Some(new_stage::<SpectralSubtractionParams>(id, inputs, origin)),
+            Denoise::Enhance => Some(new_stage::<SpeechEnhanceParams>(id, inputs, origin)),
+            Denoise::Wiener => Some(new_stage::<WienerParams>(id, inputs, origin)),
         }
     }
 }
@@ -580,31 +594,69 @@ pub struct Region {
     pub pyramid: Pyramid,
 }
 
+/// A kind that reads a region of the frame (`roi`, `mask`).
+pub trait RegionKind: KindParams {
+    const ROI: Key<Self, Option<RoiParam>>;
+    const MASK: Key<Self, Option<PathBuf>>;
+}
+
+/// A region kind that also builds a pyramid (`pyramid`).
+pub trait PyramidRegionKind: RegionKind {
+    const PYRAMID: Key<Self, Pyramid>;
+}
+
+macro_rules! region_kinds {
+    ($($k:ty $(, $pyramid:ident)?);*) => {$(
+        impl RegionKind for $k {
+            const ROI: Key<Self, Option<RoiParam>> = <$k>::roi;
+            const MASK: Key<Self, Option<PathBuf>> = <$k>::mask;
+        }
+        $(impl PyramidRegionKind for $k {
+            const PYRAMID: Key<Self, Pyramid> = <$k>::$pyramid;
+        })?
+    )*};
+}
+region_kinds!(PhaseParams, pyramid; ModesParams, pyramid; TileMotionParams);
+
 impl Region {
-    /// Sets `roi`, `mask` and `pyramid` on the local-phase stage `id`.
-    pub fn apply(&self, decl: &mut PipelineDecl, id: &str) -> Result<()> {
-        set_param(
-            stage_mut(decl, id)?,
-            "pyramid",
-            Value::String(self.pyramid.name().into()),
-            by("--pyramid"),
-        );
+    /// Sets `roi`, `mask` and `pyramid` on the stage `id`.
+    pub fn apply<K: PyramidRegionKind>(
+        &self,
+        decl: &mut PipelineDecl,
+        id: StageId<K>,
+    ) -> Result<()> {
+        set(decl, id, K::PYRAMID, self.pyramid, by("--pyramid"))?;
         self.apply_region(decl, id)
     }
 
-    /// Sets `roi` and `mask` (not the pyramid) on stage `id`.
-    pub fn apply_region(&self, decl: &mut PipelineDecl, id: &str) -> Result<()> {
-        let st = stage_mut(decl, id)?;
+    /// Sets `roi` and `mask` (not the pyramid) on the stage `id`.
+    pub fn apply_region<K: RegionKind>(
+        &self,
+        decl: &mut PipelineDecl,
+        id: StageId<K>,
+    ) -> Result<()> {
         if let Some(r) = &self.roi {
-            set_param(st, "roi", r.value(), by(&format!("--roi {r}")));
+            set(decl, id, K::ROI, Some(r.param()), by(&format!("--roi {r}")))?;
         }
         if let Some(m) = &self.mask {
-            set_param(
+            let origin = by(&format!("--mask {}", m.display()));
+            set(decl, id, K::MASK, Some(m.clone()), origin)?;
+        }
+        Ok(())
+    }
+
+    /// Sets `roi` and `mask` on `st`.
+    pub fn put_region<K: RegionKind>(&self, st: &mut StageDecl) -> Result<()> {
+        if let Some(r) = &self.roi {
+            put(st, K::ROI, Some(r.param()), by(&format!("--roi {r}")))?;
+        }
+        if let Some(m) = &self.mask {
+            put(
                 st,
-                "mask",
-                path_value(m),
+                K::MASK,
+                Some(m.clone()),
                 by(&format!("--mask {}", m.display())),
-            );
+            )?;
         }
         Ok(())
     }
@@ -904,7 +956,7 @@ fn empty_sources(decl: &PipelineDecl, report: &RunReport) -> Result<()> {
             continue;
         }
         let path = s
-            .params
+            .params()
             .iter()
             .find(|p| p.key == "path")
             .and_then(|p| p.value.as_str())
@@ -974,7 +1026,7 @@ pub fn input_files(decl: &PipelineDecl) -> Vec<PathBuf> {
     }
     for s in &decl.stages {
         let sink = stages::kind(&s.kind).is_some_and(|k| k.output() == engine::Output::None);
-        for p in &s.params {
+        for p in s.params() {
             if !(sink && p.key == "path") {
                 walk(&p.value, &mut out);
             }
@@ -988,7 +1040,7 @@ pub fn outputs(decl: &PipelineDecl) -> Vec<PathBuf> {
     decl.stages
         .iter()
         .filter(|s| stages::kind(&s.kind).is_some_and(|k| k.output() == engine::Output::None))
-        .filter_map(|s| s.params.iter().find(|p| p.key == "path"))
+        .filter_map(|s| s.params().iter().find(|p| p.key == "path"))
         .filter_map(|p| p.value.as_str())
         .filter(|p| *p != "-")
         .map(PathBuf::from)

@@ -1,14 +1,16 @@
 //! Record a camera to Y4M (gray) with each frame's capture time in its
 //! header: a `v4l2` source `cam` into a `y4m` sink `rec`.
 
-use crate::engine::config::{set_param, PipelineDecl};
+use crate::engine::config::{ConfigError, PipelineDecl};
 use crate::engine::RunReport;
 use crate::error::Result;
-use crate::pipeline::{self, path_value, RunSettings};
+use crate::pipeline::{self, RunSettings};
+use crate::stages::params::{V4l2Params, Y4mParams};
+use crate::stages::sources::v4l2::PixelFormat;
 use crate::{engine::Origin, io};
-use serde::Serialize;
+use serde::de::IntoDeserializer;
+use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
-use toml::Value;
 
 /// What `record` is asked.
 #[derive(Clone, Debug)]
@@ -55,26 +57,62 @@ pub fn record_pipeline(o: &RecordOptions) -> Result<PipelineDecl> {
     let origin = Origin::Builtin("vibroscope record".into());
     let mut decl = pipeline::empty("record", "camera -> Y4M (vibroscope record)");
     decl.file = "record".into();
-    let mut cam = pipeline::new_stage("cam", "v4l2", &[], origin.clone());
-    let s = |v: &str| Value::String(v.into());
-    set_param(&mut cam, "device", path_value(&o.device), origin.clone());
-    set_param(&mut cam, "format", s(&o.format), origin.clone());
-    for (k, v) in [("width", o.width), ("height", o.height)] {
-        if let Some(v) = v {
-            set_param(&mut cam, k, Value::Integer(v.into()), origin.clone());
+    let mut cam = pipeline::new_stage::<V4l2Params>("cam", &[], origin.clone());
+    let format = pixel_format(&decl.file, &cam, &o.format, &origin)?;
+    pipeline::put(
+        &mut cam,
+        V4l2Params::device,
+        o.device.clone(),
+        origin.clone(),
+    )?;
+    pipeline::put(&mut cam, V4l2Params::format, format, origin.clone())?;
+    for (k, v) in [(V4l2Params::width, o.width), (V4l2Params::height, o.height)] {
+        if v.is_some() {
+            pipeline::put(&mut cam, k, v, origin.clone())?;
         }
     }
     if let Some(f) = o.fps {
-        set_param(&mut cam, "fps", Value::Float(f), origin.clone());
+        pipeline::put(&mut cam, V4l2Params::fps, Some(f), origin.clone())?;
     }
     if let Some(d) = o.seconds {
-        set_param(&mut cam, "duration_s", Value::Float(d), origin.clone());
+        pipeline::put(&mut cam, V4l2Params::duration_s, Some(d), origin.clone())?;
     }
     decl.stages.push(cam);
-    let mut rec = pipeline::new_stage("rec", "y4m", &["cam"], origin.clone());
-    set_param(&mut rec, "path", path_value(&o.output), origin);
+    let mut rec = pipeline::new_stage::<Y4mParams>("rec", &["cam"], origin.clone());
+    pipeline::put(&mut rec, Y4mParams::path, o.output.clone(), origin)?;
     decl.stages.push(rec);
     Ok(decl)
+}
+
+/// `--format` as the `v4l2` source's pixel format; a word it does not
+/// know is the configuration error validation would give (the field, the
+/// words it takes).
+fn pixel_format(
+    file: &str,
+    cam: &crate::engine::config::StageDecl,
+    word: &str,
+    origin: &Origin,
+) -> Result<PixelFormat> {
+    let key = V4l2Params::format;
+    let parsed: std::result::Result<PixelFormat, serde::de::value::Error> =
+        PixelFormat::deserialize(word.into_deserializer());
+    parsed.map_err(|_| {
+        let message = match key.spec().ty {
+            crate::engine::spec::ParamType::Choice(words) => format!(
+                "must be {}, got `{word}`",
+                crate::engine::spec::or_list(words)
+            ),
+            _ => format!("unknown pixel format `{word}`"),
+        };
+        ConfigError {
+            file: file.to_string(),
+            origin: Some(origin.clone()),
+            stage: Some(cam.id.as_str().into()),
+            field: Some(key.name.into()),
+            message,
+        }
+        .into()
+    })
 }
 
 /// Runs `record` (an interrupted recording is a result, not an error).

@@ -6,7 +6,9 @@
 use crate::engine::config::apply_set;
 use crate::engine::RunReport;
 use crate::error::Result;
-use crate::pipeline::{self, by, path_value, RunSettings, SceneFile};
+use crate::pipeline::{self, by, RunSettings, SceneFile};
+use crate::pipelines::stage::render;
+use crate::stages::params::Y4mParams;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -41,7 +43,13 @@ pub fn simulate(o: &SimulateOptions) -> Result<SimulateReport> {
     for s in &o.set {
         apply_set(&mut decl, &format!("cam.{s}"))?;
     }
-    pipeline::set(&mut decl, "out", "path", path_value(&o.output), by("-o"))?;
+    pipeline::set(
+        &mut decl,
+        render::OUT,
+        Y4mParams::path,
+        o.output.clone(),
+        by("-o"),
+    )?;
     let to_stdout = o.output == Path::new("-");
     let run = pipeline::run(
         &decl,

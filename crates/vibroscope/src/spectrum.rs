@@ -9,17 +9,20 @@
 //! damping refinement work on that value in memory.
 
 use crate::damping::MotionTap;
-use crate::engine::config::PipelineDecl;
+use crate::engine::config::{PipelineDecl, StageDecl};
+use crate::engine::spec::{Key, KindParams};
 use crate::engine::RunReport;
 use crate::error::Result;
 use crate::io::atomic::TempPath;
 pub use crate::peaks::SpectrumReport;
-use crate::pipeline::{
-    self, by, int, path_value, BandFilter, PipelineOptions, Region, Roi, RunSettings,
-};
+use crate::pipeline::{self, by, put, BandFilter, PipelineOptions, Region, Roi, RunSettings};
+use crate::pipelines::stage::live_spectrum::{OUT, PHASE, SPECTRUM};
+use crate::stages::params::{PeaksParams, PhaseParams, SpectrumParams, SpectrumPngParams};
+use crate::stages::sinks::spectrum_png::Style;
+use crate::stages::transform::phase::Normalise;
+use crate::stages::transform::spectrum::{Combine as CombineParam, Mode};
 use crate::units::{Quantity, Scale, ScaleArg};
 use std::path::{Path, PathBuf};
-use toml::Value;
 
 /// The spectrogram's default window in frames.
 pub const SPECTROGRAM_WINDOW: usize = 256;
@@ -101,11 +104,11 @@ pub enum PhaseNormalise {
 
 impl PhaseNormalise {
     /// The `phase` stage's value.
-    pub fn as_str(self) -> &'static str {
+    pub fn param(self) -> Normalise {
         match self {
-            PhaseNormalise::Channel => "channel",
-            PhaseNormalise::Tile => "tile",
-            PhaseNormalise::Region => "region",
+            PhaseNormalise::Channel => Normalise::Channel,
+            PhaseNormalise::Tile => Normalise::Tile,
+            PhaseNormalise::Region => Normalise::Region,
         }
     }
 }
@@ -127,6 +130,14 @@ impl Combine {
         match self {
             Combine::Snr => "snr",
             Combine::Sum => "sum",
+        }
+    }
+
+    /// The `spectrum` stage's value.
+    pub fn param(self) -> CombineParam {
+        match self {
+            Combine::Snr => CombineParam::Snr,
+            Combine::Sum => CombineParam::Sum,
         }
     }
 }
@@ -178,116 +189,160 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
     if let Some(f) = o.fps {
         pipeline::apply_fps(&mut decl, f)?;
     }
-    o.region.apply(&mut decl, "phase")?;
-    pipeline::set(
-        &mut decl,
-        "phase",
-        "scales",
-        Value::Integer(4),
-        by("spectrum"),
-    )?;
-    pipeline::set(
-        &mut decl,
-        "phase",
-        "block",
-        Value::Integer(64),
-        by("spectrum"),
-    )?;
+    o.region.apply(&mut decl, PHASE)?;
+    pipeline::set(&mut decl, PHASE, PhaseParams::scales, 4, by("spectrum"))?;
+    pipeline::set(&mut decl, PHASE, PhaseParams::block, 64, by("spectrum"))?;
     if o.tiles > 1 {
-        pipeline::set(&mut decl, "phase", "tiles", int(o.tiles), by("tiles"))?;
-    }
-    if o.normalise != PhaseNormalise::Region {
         pipeline::set(
             &mut decl,
-            "phase",
-            "normalise",
-            Value::String(o.normalise.as_str().into()),
-            by("normalise"),
+            PHASE,
+            PhaseParams::tiles,
+            int(o.tiles),
+            by("tiles"),
         )?;
     }
-    let st = pipeline::stage_mut(&mut decl, "spectrum")?;
-    st.params
-        .retain(|p| !matches!(p.key.as_str(), "window" | "hop" | "welch"));
-    let set = crate::engine::config::set_param;
-    set(st, "mode", Value::String("whole".into()), by("spectrum"));
-    set(
-        st,
-        "combine",
-        Value::String(o.combine.name().into()),
+    if o.normalise != PhaseNormalise::Region {
+        let v = o.normalise.param();
+        pipeline::set(&mut decl, PHASE, PhaseParams::normalise, v, by("normalise"))?;
+    }
+    let st = decl.stage_mut(SPECTRUM)?;
+    st.unset(SpectrumParams::window);
+    st.unset(SpectrumParams::hop);
+    st.unset(SpectrumParams::welch);
+    pipeline::set(
+        &mut decl,
+        SPECTRUM,
+        SpectrumParams::mode,
+        Mode::Whole,
+        by("spectrum"),
+    )?;
+    let combine = o.combine.param();
+    pipeline::set(
+        &mut decl,
+        SPECTRUM,
+        SpectrumParams::combine,
+        combine,
         by("--combine"),
-    );
+    )?;
     if let Some(k) = o.segments {
-        set(st, "segments", int(k), by("--segments"));
+        pipeline::set(
+            &mut decl,
+            SPECTRUM,
+            SpectrumParams::segments,
+            Some(int(k)),
+            by("--segments"),
+        )?;
     }
     if let Some(w) = o.window {
-        set(st, "window", int(w), by("--window"));
+        pipeline::set(
+            &mut decl,
+            SPECTRUM,
+            SpectrumParams::window,
+            Some(int(w)),
+            by("--window"),
+        )?;
     }
-    let st = pipeline::stage_mut(&mut decl, "out")?;
-    set(st, "path", path_value(json), by("--json"));
-    set(st, "peaks", int(o.peaks), by("--peaks"));
-    set(
-        st,
-        "false_alarm",
-        Value::Float(o.false_alarm),
+    pipeline::set(
+        &mut decl,
+        OUT,
+        PeaksParams::path,
+        json.to_path_buf(),
+        by("--json"),
+    )?;
+    pipeline::set(
+        &mut decl,
+        OUT,
+        PeaksParams::peaks,
+        int(o.peaks),
+        by("--peaks"),
+    )?;
+    let fa = o.false_alarm;
+    pipeline::set(
+        &mut decl,
+        OUT,
+        PeaksParams::false_alarm,
+        fa,
         by("--false-alarm"),
-    );
-    band(st, o.min_hz, o.max_hz);
+    )?;
+    let file = decl.file.clone();
+    band(
+        decl.stage_mut(OUT)?,
+        &file,
+        PeaksParams::min_hz,
+        PeaksParams::max_hz,
+        o,
+    )?;
     if o.include_spectrum {
-        set(
-            st,
-            "include_spectrum",
-            Value::Boolean(true),
-            by("--include-spectrum"),
-        );
+        let origin = by("--include-spectrum");
+        pipeline::set(&mut decl, OUT, PeaksParams::include_spectrum, true, origin)?;
     }
     add_plots(&mut decl, o)?;
     Ok(decl)
 }
 
-fn band(st: &mut crate::engine::config::StageDecl, min_hz: Option<f64>, max_hz: Option<f64>) {
-    for (key, v) in [("min_hz", min_hz), ("max_hz", max_hz)] {
-        if let Some(f) = v {
-            let flag = format!("--{}", key.replace('_', "-"));
-            crate::engine::config::set_param(st, key, Value::Float(f), by(&flag));
-        }
+/// `n` as the TOML integer it is written as (at most `i64::MAX`).
+fn int(n: usize) -> usize {
+    n.min(i64::MAX as usize)
+}
+
+/// Sets `o`'s band (`--min-hz`, `--max-hz`) as `min` and `max` of `st`
+/// (`file` names the pipeline in errors).
+fn band<K: KindParams>(
+    st: &mut StageDecl,
+    file: &str,
+    min: Key<K, Option<f64>>,
+    max: Key<K, Option<f64>>,
+    o: &SpectrumOptions,
+) -> Result<()> {
+    if let Some(f) = o.min_hz {
+        st.set(file, min, Some(f), by("--min-hz"))?;
     }
+    if let Some(f) = o.max_hz {
+        st.set(file, max, Some(f), by("--max-hz"))?;
+    }
+    Ok(())
 }
 
 /// Adds `spectrogram_spectrum` -> `spectrogram` (sliding spectra from
 /// `phase`). The `--png` plot is drawn after the run, from the measured
 /// displacement ([`amplitude_png`]), since its axis carries the unit.
 fn add_plots(decl: &mut PipelineDecl, o: &SpectrumOptions) -> Result<()> {
-    let spec = pipeline::position(decl, "spectrum")?;
-    let set = crate::engine::config::set_param;
+    let spec = pipeline::position(decl, SPECTRUM.id)?;
     if let Some(p) = &o.spectrogram {
         let flag = "--spectrogram-window";
         let mut sp = decl.stages[spec].clone();
         sp.id = "spectrogram_spectrum".into();
-        sp.params.clear();
-        let w = i64::try_from(o.spectrogram_window).unwrap_or(i64::MAX);
-        set(
+        sp.clear_params();
+        let w = int(o.spectrogram_window);
+        put(
             &mut sp,
-            "mode",
-            Value::String("sliding".into()),
+            SpectrumParams::mode,
+            Mode::Sliding,
             by("--spectrogram"),
-        );
-        set(&mut sp, "window", Value::Integer(w), by(flag));
-        set(&mut sp, "hop", Value::Integer((w / 8).max(1)), by(flag));
+        )?;
+        put(&mut sp, SpectrumParams::window, Some(w), by(flag))?;
+        put(&mut sp, SpectrumParams::hop, Some((w / 8).max(1)), by(flag))?;
         decl.stages.push(sp);
-        let mut st = pipeline::new_stage(
+        let mut st = pipeline::new_stage::<SpectrumPngParams>(
             "spectrogram",
-            "spectrum_png",
             &["spectrogram_spectrum"],
             by("--spectrogram"),
         );
-        set(&mut st, "path", path_value(p), by("--spectrogram"));
-        set(
+        put(
             &mut st,
-            "style",
-            Value::String("spectrogram".into()),
+            SpectrumPngParams::path,
+            p.clone(),
             by("--spectrogram"),
-        );
-        band(&mut st, o.min_hz, o.max_hz);
+        )?;
+        let style = Style::Spectrogram;
+        put(
+            &mut st,
+            SpectrumPngParams::style,
+            style,
+            by("--spectrogram"),
+        )?;
+        let (min, max) = (SpectrumPngParams::min_hz, SpectrumPngParams::max_hz);
+        band(&mut st, "vibroscope", min, max, o)?;
         decl.stages.push(st);
     }
     Ok(())

@@ -7,6 +7,51 @@ pub mod transform;
 
 use crate::KindSpec;
 
+/// Every kind's typed parameters ([`crate::params!`]), by struct name: a
+/// recipe edits a stage through these (`MagnifyParams::factor`).
+pub mod params {
+    pub use super::sinks::csv::CsvParams;
+    pub use super::sinks::json::JsonParams;
+    pub use super::sinks::modes::ModesParams;
+    pub use super::sinks::null::NullParams;
+    pub use super::sinks::peaks::PeaksParams;
+    pub use super::sinks::speaker::SpeakerParams;
+    pub use super::sinks::spectrum_png::SpectrumPngParams;
+    pub use super::sinks::tap::TapParams;
+    pub use super::sinks::wav::WavParams;
+    pub use super::sinks::y4m::Y4mParams;
+    #[cfg(feature = "net")]
+    pub use super::sinks::zenoh_pub::ZenohPubParams;
+    pub use super::sources::file::FileParams;
+    pub use super::sources::nokhwa::NokhwaParams;
+    pub use super::sources::pattern::PatternParams;
+    pub use super::sources::synthetic::SyntheticParams;
+    pub use super::sources::v4l2::V4l2Params;
+    #[cfg(feature = "net")]
+    pub use super::sources::zenoh_sub::ZenohSubParams;
+    pub use super::transform::align::AlignParams;
+    pub use super::transform::band::BandParams;
+    pub use super::transform::denoise::SpectralSubtractionParams;
+    pub use super::transform::denoise::SpeechEnhanceParams;
+    pub use super::transform::denoise::WienerParams;
+    pub use super::transform::displacement::DisplacementParams;
+    pub use super::transform::exposure::ExposureParams;
+    pub use super::transform::gap_fill::GapFillParams;
+    pub use super::transform::gradient_motion::GradientMotionParams;
+    pub use super::transform::highpass::HighpassParams;
+    pub use super::transform::magnify::MagnifyParams;
+    pub use super::transform::mean::MeanParams;
+    pub use super::transform::passthrough::PassthroughParams;
+    pub use super::transform::phase::PhaseParams;
+    pub use super::transform::pitch::PitchParams;
+    pub use super::transform::pyramid::PyramidParams;
+    pub use super::transform::resample::ResampleParams;
+    pub use super::transform::resonances::ResonancesParams;
+    pub use super::transform::rows::RowsParams;
+    pub use super::transform::spectrum::SpectrumParams;
+    pub use super::transform::tile_motion::TileMotionParams;
+}
+
 /// Every stage kind the engine knows, in the order `vibroscope kinds` lists them.
 pub static REGISTRY: &[KindSpec] = &[
     sources::file::KIND,

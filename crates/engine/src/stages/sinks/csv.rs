@@ -12,19 +12,18 @@
 //! cut off first.
 
 use crate::*;
-use serde::Deserialize;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use vibroscope_io::atomic::Pending;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    path: PathBuf,
+params! {
+    /// `csv`'s parameters.
+    pub struct CsvParams for "csv" {
+        path: PathBuf = ParamSpec::of(ParamType::Path, Def::Required).doc("the CSV file"),
+    }
 }
 
-const PARAMS: &[ParamSpec] =
-    &[ParamSpec::new("path", ParamType::Path, Def::Required).doc("the CSV file")];
+type P = CsvParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "csv",
@@ -36,9 +35,9 @@ pub const KIND: KindSpec = KindSpec {
         PortType::Peaks,
     ])],
     outputs: NO_OUTPUTS,
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         Ok(Box::new(Csv {
             path: v.path,
             out: None,

@@ -6,17 +6,17 @@
 //! "resolution_hz", "power": [...]}]}`.
 
 use crate::*;
-use serde::Deserialize;
 use std::path::PathBuf;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    path: PathBuf,
+params! {
+    /// `json`'s parameters.
+    pub struct JsonParams for "json" {
+        path: PathBuf = ParamSpec::of(ParamType::Path, Def::Required)
+            .doc("the JSON file (written atomically at the end)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[ParamSpec::new("path", ParamType::Path, Def::Required)
-    .doc("the JSON file (written atomically at the end)")];
+type P = JsonParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "json",
@@ -27,9 +27,9 @@ pub const KIND: KindSpec = KindSpec {
         PortType::Spectrum,
     ])],
     outputs: NO_OUTPUTS,
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         Ok(Box::new(Json {
             path: v.path,
             rate: None,

@@ -27,25 +27,8 @@ use crate::stages::transform::pyramid::PyramidKind;
 use crate::stages::transform::roi::{plan_region, resolve_region, Mask, Roi, RoiParam};
 use crate::*;
 use image::ImageEncoder;
-use serde::Deserialize;
 use std::path::PathBuf;
 use vibroscope_math::modal::{npy_complex64, render_rgb, ModalConfig, ModalImager, Motion, Visual};
-
-#[derive(Deserialize, Clone)]
-#[serde(deny_unknown_fields)]
-struct P {
-    freq_hz: f64,
-    path: PathBuf,
-    npy: Option<PathBuf>,
-    roi: Option<RoiParam>,
-    mask: Option<PathBuf>,
-    pyramid: PyramidKind,
-    sigma_px: f64,
-    motion: Motion,
-    scale: usize,
-    exponent: f64,
-    normalize: bool,
-}
 
 /// Default σ_b, input pixels.
 pub const DEFAULT_SIGMA_PX: f64 = 2.0;
@@ -54,51 +37,52 @@ pub const DEFAULT_SIGMA_PX: f64 = 2.0;
 /// the sink warns that the image is mostly noise.
 const TEXTURE_TO_NOISE_WARN: f64 = 1.0;
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("freq_hz", ParamType::Float, Def::Required)
-        .above(0.0)
-        .unit("Hz")
-        .doc("frequency of the mode imaged"),
-    ParamSpec::new("path", ParamType::Path, Def::Required)
-        .doc("the PNG (phase as hue, amplitude as brightness)"),
-    ParamSpec::new("npy", ParamType::Path, Def::Optional)
-        .doc("also write the complex image as .npy (complex64, pixels of motion)"),
-    crate::stages::transform::reduce::ROI,
-    crate::stages::transform::roi::MASK,
-    crate::stages::transform::pyramid::PYRAMID,
-    ParamSpec::new("sigma_px", ParamType::Float, Def::Float(DEFAULT_SIGMA_PX))
-        .floats(0.0, 1000.0)
-        .unit("px")
-        .doc("σ_b of the Gaussian blur, input pixels"),
-    ParamSpec::new(
-        "motion",
-        ParamType::Choice(&["x", "y", "sum"]),
-        Def::Str("sum"),
-    )
-    .doc("motion component imaged"),
-    ParamSpec::new("scale", ParamType::Int, Def::Int(1))
-        .ints(0, 6)
-        .doc("pyramid scale (0 = finest, 4 px wavelength)"),
-    ParamSpec::new("exponent", ParamType::Float, Def::Float(1.0))
-        .range(Range::Float {
-            lo: 0.0,
-            lo_open: true,
-            hi: 100.0,
-            hi_open: false,
-        })
-        .doc("brightness = amplitude^exponent (after min-max)"),
-    ParamSpec::new("normalize", ParamType::Bool, Def::Bool(true))
-        .doc("divide by the blurred weights (ch. 3.5.2)"),
-];
+params! {
+    /// `modes`'s parameters.
+    pub struct ModesParams for "modes" {
+        freq_hz: f64 = ParamSpec::of(ParamType::Float, Def::Required)
+            .above(0.0)
+            .unit("Hz")
+            .doc("frequency of the mode imaged"),
+        path: PathBuf = ParamSpec::of(ParamType::Path, Def::Required)
+            .doc("the PNG (phase as hue, amplitude as brightness)"),
+        npy: Option<PathBuf> = ParamSpec::of(ParamType::Path, Def::Optional)
+            .doc("also write the complex image as .npy (complex64, pixels of motion)"),
+        roi: Option<RoiParam> = crate::stages::transform::reduce::ROI,
+        mask: Option<PathBuf> = crate::stages::transform::roi::MASK,
+        pyramid: PyramidKind = crate::stages::transform::pyramid::PYRAMID,
+        sigma_px: f64 = ParamSpec::of(ParamType::Float, Def::Float(DEFAULT_SIGMA_PX))
+            .floats(0.0, 1000.0)
+            .unit("px")
+            .doc("σ_b of the Gaussian blur, input pixels"),
+        motion: Motion = ParamSpec::of(ParamType::Choice(&["x", "y", "sum"]), Def::Str("sum"))
+            .doc("motion component imaged"),
+        scale: usize = ParamSpec::of(ParamType::Int, Def::Int(1))
+            .ints(0, 6)
+            .doc("pyramid scale (0 = finest, 4 px wavelength)"),
+        exponent: f64 = ParamSpec::of(ParamType::Float, Def::Float(1.0))
+            .range(Range::Float {
+                lo: 0.0,
+                lo_open: true,
+                hi: 100.0,
+                hi_open: false,
+            })
+            .doc("brightness = amplitude^exponent (after min-max)"),
+        normalize: bool = ParamSpec::of(ParamType::Bool, Def::Bool(true))
+            .doc("divide by the blurred weights (ch. 3.5.2)"),
+    }
+}
+
+type P = ModesParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "modes",
     summary: "modal image at freq_hz (Eq. 3.18-3.19): A²-weighted, blurred and normalised spectral-volume slice of a region or mask, as PNG (phase = hue) and .npy",
     inputs: &[InPort::one(&[PortType::Frames])],
     outputs: NO_OUTPUTS,
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         let mask = plan_region(p, v.roi.as_ref(), v.mask.as_ref())?;
         Ok(Box::new(ModesPlan(v, mask)))
     },

@@ -1,11 +1,11 @@
 //! `null`: consumes and discards items (benchmarks, tests).
 
 use crate::*;
-use serde::Deserialize;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {}
+params! {
+    /// `null`'s parameters (none).
+    pub struct NullParams for "null" {}
+}
 
 const ANY: &[PortType] = &[
     PortType::Frames,
@@ -24,9 +24,9 @@ pub const KIND: KindSpec = KindSpec {
         max_edges: 16,
     }],
     outputs: NO_OUTPUTS,
-    params: &[],
+    params: NullParams::PARAMS,
     plan: |p| {
-        let _: P = p.resolve(KIND.params)?;
+        let _: NullParams = p.resolve_typed()?;
         Ok(Box::new(Null))
     },
 };

@@ -24,22 +24,9 @@
 //! "power_db": [...]}`.
 
 use crate::*;
-use serde::Deserialize;
 use std::path::PathBuf;
 use std::sync::Arc;
 use vibroscope_math::peaks::{find_peaks_classified, PeakOptions};
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    path: PathBuf,
-    peaks: usize,
-    min_prominence_db: f64,
-    min_hz: Option<f64>,
-    max_hz: Option<f64>,
-    false_alarm: f64,
-    include_spectrum: bool,
-}
 
 /// `min_hz` and `max_hz`, shared with `spectrum_png`.
 pub(crate) const MIN_HZ: ParamSpec = ParamSpec::new("min_hz", ParamType::Float, Def::Optional)
@@ -62,28 +49,33 @@ pub(crate) const FALSE_ALARM: ParamSpec = ParamSpec::new("false_alarm", ParamTyp
     .floats(1e-12, 1.0)
     .doc("report only peaks that noise alone would put this high anywhere in the band with at most this probability (the spectrum's K averages and its local floor); 1 = every prominent peak, each with its probability");
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("path", ParamType::Path, Def::Required)
-        .doc("the JSON file (written atomically at the end)"),
-    ParamSpec::new("peaks", ParamType::Int, Def::Int(5))
-        .ints(1, 1000)
-        .doc("most prominent peaks reported"),
-    MIN_PROMINENCE,
-    MIN_HZ,
-    MAX_HZ,
-    FALSE_ALARM,
-    ParamSpec::new("include_spectrum", ParamType::Bool, Def::Bool(false))
-        .doc("add the mean spectrum (dB) to the JSON"),
-];
+params! {
+    /// `peaks`'s parameters.
+    pub struct PeaksParams for "peaks" {
+        path: PathBuf = ParamSpec::of(ParamType::Path, Def::Required)
+            .doc("the JSON file (written atomically at the end)"),
+        peaks: usize = ParamSpec::of(ParamType::Int, Def::Int(5))
+            .ints(1, 1000)
+            .doc("most prominent peaks reported"),
+        min_prominence_db: f64 = MIN_PROMINENCE,
+        min_hz: Option<f64> = MIN_HZ,
+        max_hz: Option<f64> = MAX_HZ,
+        false_alarm: f64 = FALSE_ALARM,
+        include_spectrum: bool = ParamSpec::of(ParamType::Bool, Def::Bool(false))
+            .doc("add the mean spectrum (dB) to the JSON"),
+    }
+}
+
+type P = PeaksParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "peaks",
     summary: "picks resonances (prominence) of the mean spectrum, with damping and uncertainties, as JSON at the end",
     inputs: &[InPort::one(&[PortType::Spectrum])],
     outputs: NO_OUTPUTS,
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         check_band(p, v.min_hz, v.max_hz)?;
         Ok(Box::new(PeaksPlan(v)))
     },

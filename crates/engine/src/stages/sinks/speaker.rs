@@ -22,51 +22,48 @@ use crate::stages::transform::resample::Feed;
 use crate::*;
 use ringbuf::traits::{Consumer, Observer, Producer, Split};
 use ringbuf::{HeapCons, HeapProd, HeapRb};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-#[derive(Deserialize, Clone, Debug, PartialEq)]
+/// `gain`: a fixed factor or `"auto"`.
+#[derive(Deserialize, Serialize, Clone, Debug, PartialEq)]
 #[serde(untagged)]
-enum Gain {
+pub enum Gain {
     Fixed(f64),
     Named(String),
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    device: String,
-    rate_hz: Option<u32>,
-    gain: Gain,
-    latency_ms: f64,
+params! {
+    /// `speaker`'s parameters.
+    pub struct SpeakerParams for "speaker" {
+        device: String = ParamSpec::of(ParamType::Str, Def::Str("default"))
+            .doc("\"default\", \"null\" (no sound card), or part of a device's name or id"),
+        rate_hz: Option<u32> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(4000, 384_000)
+            .unit("Hz")
+            .doc("device sample rate; default: the device's own"),
+        gain: Gain = ParamSpec::of(ParamType::NumOr(&["auto"]), Def::Str("auto"))
+            .above(0.0)
+            .doc("\"auto\" (peak-following envelope to -6 dBFS) or a fixed factor"),
+        latency_ms: f64 = ParamSpec::of(ParamType::Float, Def::Float(40.0))
+            .floats(5.0, 2000.0)
+            .unit("ms")
+            .doc("audio kept queued for the device in live runs"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("device", ParamType::Str, Def::Str("default"))
-        .doc("\"default\", \"null\" (no sound card), or part of a device's name or id"),
-    ParamSpec::new("rate_hz", ParamType::Int, Def::Optional)
-        .ints(4000, 384_000)
-        .unit("Hz")
-        .doc("device sample rate; default: the device's own"),
-    ParamSpec::new("gain", ParamType::NumOr(&["auto"]), Def::Str("auto"))
-        .above(0.0)
-        .doc("\"auto\" (peak-following envelope to -6 dBFS) or a fixed factor"),
-    ParamSpec::new("latency_ms", ParamType::Float, Def::Float(40.0))
-        .floats(5.0, 2000.0)
-        .unit("ms")
-        .doc("audio kept queued for the device in live runs"),
-];
+type P = SpeakerParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "speaker",
     summary: "plays audio on a sound card (cpal), resampled to the device rate; `device = \"null\"` for none",
     inputs: &[InPort::one(&[PortType::Audio])],
     outputs: NO_OUTPUTS,
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         if v.device.trim().is_empty() {
             return Err(p.error("device", "must not be empty (use \"default\")"));
         }

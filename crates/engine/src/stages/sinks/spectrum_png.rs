@@ -19,64 +19,55 @@
 //! ```
 
 use crate::*;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use vibroscope_io::plot::{power_plot, spectrogram_plot, TimedSpectrum};
 use vibroscope_math::peaks::{find_peaks, PeakOptions};
 
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[derive(Deserialize, Serialize, Clone, Copy, PartialEq, Eq, Debug)]
 #[serde(rename_all = "lowercase")]
-enum Style {
+pub enum Style {
     Power,
     Spectrogram,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    path: PathBuf,
-    style: Style,
-    peaks: usize,
-    min_hz: Option<f64>,
-    max_hz: Option<f64>,
-    width: u32,
-    height: u32,
-}
-
 const SIDE: (i64, i64) = (vibroscope_io::plot::MIN_SIDE as i64, 8192);
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("path", ParamType::Path, Def::Required)
-        .doc("the PNG file (written atomically at the end)"),
-    ParamSpec::new(
-        "style",
-        ParamType::Choice(&["power", "spectrogram"]),
-        Def::Str("power"),
-    )
-    .doc("mean spectrum in dB with peaks marked, or every spectrum as a column"),
-    ParamSpec::new("peaks", ParamType::Int, Def::Int(5))
-        .ints(0, 100)
-        .doc("power: most prominent peaks marked (0 = none)"),
-    super::peaks::MIN_HZ.doc("lower edge of the band shown; default: the first bin"),
-    super::peaks::MAX_HZ.doc("upper edge of the band shown (> min_hz); default: Nyquist"),
-    ParamSpec::new("width", ParamType::Int, Def::Int(900))
-        .ints(SIDE.0, SIDE.1)
-        .unit("px")
-        .doc("image width"),
-    ParamSpec::new("height", ParamType::Int, Def::Int(450))
-        .ints(SIDE.0, SIDE.1)
-        .unit("px")
-        .doc("image height"),
-];
+params! {
+    /// `spectrum_png`'s parameters.
+    pub struct SpectrumPngParams for "spectrum_png" {
+        path: PathBuf = ParamSpec::of(ParamType::Path, Def::Required)
+            .doc("the PNG file (written atomically at the end)"),
+        style: Style = ParamSpec::of(ParamType::Choice(&["power", "spectrogram"]), Def::Str("power"))
+            .doc("mean spectrum in dB with peaks marked, or every spectrum as a column"),
+        peaks: usize = ParamSpec::of(ParamType::Int, Def::Int(5))
+            .ints(0, 100)
+            .doc("power: most prominent peaks marked (0 = none)"),
+        min_hz: Option<f64> = super::peaks::MIN_HZ
+            .doc("lower edge of the band shown; default: the first bin"),
+        max_hz: Option<f64> = super::peaks::MAX_HZ
+            .doc("upper edge of the band shown (> min_hz); default: Nyquist"),
+        width: u32 = ParamSpec::of(ParamType::Int, Def::Int(900))
+            .ints(SIDE.0, SIDE.1)
+            .unit("px")
+            .doc("image width"),
+        height: u32 = ParamSpec::of(ParamType::Int, Def::Int(450))
+            .ints(SIDE.0, SIDE.1)
+            .unit("px")
+            .doc("image height"),
+    }
+}
+
+type P = SpectrumPngParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "spectrum_png",
     summary: "PNG plot of spectra at the end: style = \"power\" (mean spectrum in dB, peaks marked) or \"spectrogram\"",
     inputs: &[InPort::one(&[PortType::Spectrum])],
     outputs: NO_OUTPUTS,
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         super::peaks::check_band(p, v.min_hz, v.max_hz)?;
         Ok(Box::new(PlotPlan(v)))
     },

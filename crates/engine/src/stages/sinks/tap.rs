@@ -26,35 +26,30 @@
 
 use crate::observe::{HistoryLimits, Pending, TapSlot};
 use crate::*;
-use serde::Deserialize;
 use std::sync::Arc;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    name: String,
-    every_ms: f64,
-    history_s: f64,
-    history_mb: u64,
+params! {
+    /// `tap`'s parameters.
+    pub struct TapParams for "tap" {
+        name: String = ParamSpec::of(ParamType::Str, Def::Required).doc(
+            "the slot a watching program reads (the studio reads `frame`, `samples` and `spectrum`)",
+        ),
+        every_ms: f64 = ParamSpec::of(ParamType::Float, Def::Float(40.0))
+            .floats(0.0, 60_000.0)
+            .unit("ms")
+            .doc("keep at most one item per this much capture time (0: every item)"),
+        history_s: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.0))
+            .floats(0.0, 3600.0)
+            .unit("s")
+            .doc("keep the last this many seconds of frames (8-bit), every one, instead of the latest item (0: the latest only; other items are then ignored)"),
+        history_mb: u64 = ParamSpec::of(ParamType::Int, Def::Int(256))
+            .ints(1, 65_536)
+            .unit("MiB")
+            .doc("at most this much memory for the history (older frames go first)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("name", ParamType::Str, Def::Required).doc(
-        "the slot a watching program reads (the studio reads `frame`, `samples` and `spectrum`)",
-    ),
-    ParamSpec::new("every_ms", ParamType::Float, Def::Float(40.0))
-        .floats(0.0, 60_000.0)
-        .unit("ms")
-        .doc("keep at most one item per this much capture time (0: every item)"),
-    ParamSpec::new("history_s", ParamType::Float, Def::Float(0.0))
-        .floats(0.0, 3600.0)
-        .unit("s")
-        .doc("keep the last this many seconds of frames (8-bit), every one, instead of the latest item (0: the latest only; other items are then ignored)"),
-    ParamSpec::new("history_mb", ParamType::Int, Def::Int(256))
-        .ints(1, 65_536)
-        .unit("MiB")
-        .doc("at most this much memory for the history (older frames go first)"),
-];
+type P = TapParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "tap",
@@ -66,9 +61,9 @@ pub const KIND: KindSpec = KindSpec {
         PortType::Spectrum,
     ])],
     outputs: NO_OUTPUTS,
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         if v.name.trim().is_empty() {
             return Err(p.error("name", "must not be empty"));
         }

@@ -14,40 +14,33 @@
 //! as a full disk, to match the whole samples on disk).
 
 use crate::*;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::io::BufWriter;
 use std::path::PathBuf;
 use vibroscope_io::atomic::Pending;
 use vibroscope_io::wav::{Encoding, MonoWavWriter};
 
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq)]
+#[derive(Deserialize, Serialize, Clone, Copy, PartialEq, Eq, Debug)]
 #[serde(rename_all = "lowercase")]
-enum Format {
+pub enum Format {
     /// 32-bit float, values as the signal has them (pixels of motion, say).
     F32,
     /// 16-bit PCM of `gain * value`, clipped to [-1, 1].
     I16,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    path: PathBuf,
-    format: Format,
-    gain: f64,
+params! {
+    /// `wav`'s parameters.
+    pub struct WavParams for "wav" {
+        path: PathBuf = ParamSpec::of(ParamType::Path, Def::Required).doc("the WAV file"),
+        format: Format = ParamSpec::of(ParamType::Choice(&["f32", "i16"]), Def::Str("f32"))
+            .doc("f32: values as the signal has them; i16: PCM of gain * value, clipped to [-1, 1]"),
+        gain: f64 = ParamSpec::of(ParamType::Float, Def::Float(1.0))
+            .doc("factor applied before writing (i16 clips at ±1)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("path", ParamType::Path, Def::Required).doc("the WAV file"),
-    ParamSpec::new(
-        "format",
-        ParamType::Choice(&["f32", "i16"]),
-        Def::Str("f32"),
-    )
-    .doc("f32: values as the signal has them; i16: PCM of gain * value, clipped to [-1, 1]"),
-    ParamSpec::new("gain", ParamType::Float, Def::Float(1.0))
-        .doc("factor applied before writing (i16 clips at ±1)"),
-];
+type P = WavParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "wav",
@@ -55,9 +48,9 @@ pub const KIND: KindSpec = KindSpec {
         "writes audio to a WAV file (f32 or i16), valid even after Ctrl-C or an upstream error",
     inputs: &[InPort::one(&[PortType::Audio])],
     outputs: NO_OUTPUTS,
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         if v.path.as_os_str().is_empty() {
             return Err(p.error("path", "must not be empty"));
         }

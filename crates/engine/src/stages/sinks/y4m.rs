@@ -11,29 +11,29 @@
 //! partial last frame is cut off first).
 
 use crate::*;
-use serde::Deserialize;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 use vibroscope_io::atomic::Pending;
 use vibroscope_io::{FrameDestRef, Y4mWriter};
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    path: PathBuf,
+params! {
+    /// `y4m`'s parameters.
+    pub struct Y4mParams for "y4m" {
+        path: PathBuf = ParamSpec::of(ParamType::Path, Def::Required)
+            .doc("the Y4M file (`-` for standard output)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[ParamSpec::new("path", ParamType::Path, Def::Required)
-    .doc("the Y4M file (`-` for standard output)")];
+type P = Y4mParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "y4m",
     summary: "records frames to Y4M with per-frame capture timestamps",
     inputs: &[InPort::one(&[PortType::Frames])],
     outputs: NO_OUTPUTS,
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         Ok(Box::new(Rec {
             path: v.path,
             w: None,

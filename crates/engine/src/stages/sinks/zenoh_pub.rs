@@ -12,38 +12,31 @@
 use crate::net::{self, Endpoints};
 use crate::wire::{self, WireRef};
 use crate::*;
-use serde::Deserialize;
 use std::time::{Duration, Instant};
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    key: Option<String>,
-    site: String,
-    camera: String,
-    connect: String,
-    listen: String,
-    wait_s: f64,
+params! {
+    /// `zenoh_pub`'s parameters.
+    pub struct ZenohPubParams for "zenoh_pub" {
+        key: Option<String> = ParamSpec::of(ParamType::Str, Def::Optional)
+            .doc("zenoh key expression published on (no wildcards); default vibroscope/<site>/<camera>/<input stage id>"),
+        site: String = ParamSpec::of(ParamType::Str, Def::Str("site"))
+            .doc("site name in the default key"),
+        camera: String = ParamSpec::of(ParamType::Str, Def::Str("camera"))
+            .doc("camera name in the default key"),
+        connect: String = ParamSpec::of(ParamType::Str, Def::Str(""))
+            .doc("zenoh endpoints to connect to, comma-separated (\"tcp/10.0.0.2:7447\"); retried until they answer"),
+        listen: String = ParamSpec::of(ParamType::Str, Def::Str(""))
+            .doc("zenoh endpoints to listen on, comma-separated (\"tcp/0.0.0.0:7447\")"),
+        wait_s: f64 = ParamSpec::of(ParamType::Float, Def::Float(net::DEFAULT_WAIT_S))
+            .floats(0.0, 86_400.0)
+            .unit("s")
+            .doc("replay: longest wait for a subscriber before the first item (then an error); live runs never wait"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("key", ParamType::Str, Def::Optional)
-        .doc("zenoh key expression published on (no wildcards); default vibroscope/<site>/<camera>/<input stage id>"),
-    ParamSpec::new("site", ParamType::Str, Def::Str("site"))
-        .doc("site name in the default key"),
-    ParamSpec::new("camera", ParamType::Str, Def::Str("camera"))
-        .doc("camera name in the default key"),
-    ParamSpec::new("connect", ParamType::Str, Def::Str(""))
-        .doc("zenoh endpoints to connect to, comma-separated (\"tcp/10.0.0.2:7447\"); retried until they answer"),
-    ParamSpec::new("listen", ParamType::Str, Def::Str(""))
-        .doc("zenoh endpoints to listen on, comma-separated (\"tcp/0.0.0.0:7447\")"),
-    ParamSpec::new("wait_s", ParamType::Float, Def::Float(net::DEFAULT_WAIT_S))
-        .floats(0.0, 86_400.0)
-        .unit("s")
-        .doc("replay: longest wait for a subscriber before the first item (then an error); live runs never wait"),
-];
+type P = ZenohPubParams;
 
 const ACCEPTS: &[PortType] = &[
     PortType::Audio,
@@ -58,9 +51,9 @@ pub const KIND: KindSpec = KindSpec {
     summary: "publishes audio, samples, spectra, peak sets or frames on a zenoh key for another process or host (replay: reliable and blocking; live: drops)",
     inputs: &[InPort::one(ACCEPTS)],
     outputs: NO_OUTPUTS,
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         let ep = net::endpoints(p, &v.connect, &v.listen)?;
         let key = match &v.key {
             Some(k) => k.clone(),

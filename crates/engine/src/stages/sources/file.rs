@@ -8,11 +8,11 @@
 
 use super::{check_fps, nominal_time_ns};
 use crate::*;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use vibroscope_io::{self as io, FrameDest, VideoReader};
 
-#[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Deserialize, Serialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum FormatName {
     #[default]
@@ -35,35 +35,29 @@ impl From<FormatName> for io::Format {
     }
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    path: PathBuf,
-    format: FormatName,
-    fps: Option<f64>,
-    max_frames: Option<u64>,
-    /// (A live source: edges drop the oldest when downstream lags, times
-    /// move onto the run clock, first frame at 0, so sinks can report
-    /// capture-to-sink latency. For rehearsing live pipelines.)
-    realtime: bool,
+params! {
+    /// `file`'s parameters.
+    pub struct FileParams for "file" {
+        path: PathBuf = ParamSpec::of(ParamType::Path, Def::Required)
+            .doc("the recording; `-` reads Y4M from standard input"),
+        format: FormatName = ParamSpec::of(
+            ParamType::Choice(&["auto", "y4m", "cine", "mraw", "ffmpeg"]),
+            Def::Str("auto"),
+        )
+        .doc("container; auto: from the file name"),
+        fps: Option<f64> = super::fps_param(Def::Optional, "capture rate, overriding the file's"),
+        max_frames: Option<u64> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(0, i64::MAX)
+            .doc("stop after this many frames"),
+        /// (A live source: edges drop the oldest when downstream lags, times
+        /// move onto the run clock, first frame at 0, so sinks can report
+        /// capture-to-sink latency. For rehearsing live pipelines.)
+        realtime: bool = ParamSpec::of(ParamType::Bool, Def::Bool(false))
+            .doc("play at the recording's own pace, like the camera that made it (a live source)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("path", ParamType::Path, Def::Required)
-        .doc("the recording; `-` reads Y4M from standard input"),
-    ParamSpec::new(
-        "format",
-        ParamType::Choice(&["auto", "y4m", "cine", "mraw", "ffmpeg"]),
-        Def::Str("auto"),
-    )
-    .doc("container; auto: from the file name"),
-    super::fps_param(Def::Optional, "capture rate, overriding the file's"),
-    ParamSpec::new("max_frames", ParamType::Int, Def::Optional)
-        .ints(0, i64::MAX)
-        .doc("stop after this many frames"),
-    ParamSpec::new("realtime", ParamType::Bool, Def::Bool(false))
-        .doc("play at the recording's own pace, like the camera that made it (a live source)"),
-];
+type P = FileParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "file",
@@ -71,9 +65,9 @@ pub const KIND: KindSpec = KindSpec {
         "frames from a recording: .y4m (or - for stdin), .cine, .mraw/.cih, other video via ffmpeg",
     inputs: NO_INPUTS,
     outputs: &[OutPort::out(PortType::Frames)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         if v.path.as_os_str().is_empty() {
             return Err(p.error("path", "must not be empty"));
         }

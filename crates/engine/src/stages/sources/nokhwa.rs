@@ -15,53 +15,43 @@
 //! enable it.
 
 use crate::*;
-use serde::Deserialize;
 
-#[derive(Deserialize, Clone, Debug)]
-#[serde(deny_unknown_fields)]
-pub struct NokhwaParams {
-    pub index: u32,
-    pub width: Option<u32>,
-    pub height: Option<u32>,
-    pub fps: Option<u32>,
-    pub duration_s: Option<f64>,
-    pub max_frames: Option<u64>,
+params! {
+    /// `nokhwa`'s parameters.
+    pub struct NokhwaParams for "nokhwa" {
+        index: u32 = ParamSpec::of(ParamType::Int, Def::Int(0))
+            .ints(0, u32::MAX as i64)
+            .doc("camera index, as nokhwa's query lists them"),
+        width: Option<u32> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(1, 16384)
+            .unit("px")
+            .doc("requested width; default: the camera's"),
+        height: Option<u32> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(1, 16384)
+            .unit("px")
+            .doc("requested height; default: the camera's"),
+        fps: Option<u32> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(1, u32::MAX as i64)
+            .unit("Hz")
+            .doc("requested frame rate (whole numbers)"),
+        duration_s: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .above(0.0)
+            .unit("s")
+            .doc("stop after this long (run clock)"),
+        max_frames: Option<u64> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(0, i64::MAX)
+            .doc("stop after this many frames"),
+    }
 }
-
-/// Every parameter of the `nokhwa` kind.
-pub const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("index", ParamType::Int, Def::Int(0))
-        .ints(0, u32::MAX as i64)
-        .doc("camera index, as nokhwa's query lists them"),
-    ParamSpec::new("width", ParamType::Int, Def::Optional)
-        .ints(1, 16384)
-        .unit("px")
-        .doc("requested width; default: the camera's"),
-    ParamSpec::new("height", ParamType::Int, Def::Optional)
-        .ints(1, 16384)
-        .unit("px")
-        .doc("requested height; default: the camera's"),
-    ParamSpec::new("fps", ParamType::Int, Def::Optional)
-        .ints(1, u32::MAX as i64)
-        .unit("Hz")
-        .doc("requested frame rate (whole numbers)"),
-    ParamSpec::new("duration_s", ParamType::Float, Def::Optional)
-        .above(0.0)
-        .unit("s")
-        .doc("stop after this long (run clock)"),
-    ParamSpec::new("max_frames", ParamType::Int, Def::Optional)
-        .ints(0, i64::MAX)
-        .doc("stop after this many frames"),
-];
 
 pub const KIND: KindSpec = KindSpec {
     name: "nokhwa",
     summary: "live camera through nokhwa (macOS/Windows; features input-avfoundation, input-msmf, input-v4l)",
     inputs: NO_INPUTS,
     outputs: &[OutPort::out(PortType::Frames)],
-    params: PARAMS,
+    params: NokhwaParams::PARAMS,
     plan: |p| {
-        let v: NokhwaParams = p.resolve(PARAMS)?;
+        let v: NokhwaParams = p.resolve_typed()?;
         Ok(Box::new(v))
     },
 };

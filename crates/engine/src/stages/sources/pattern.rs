@@ -4,40 +4,33 @@
 
 use super::{nominal_frame, side_param, Pacer, BITS};
 use crate::*;
-use serde::Deserialize;
 use vibroscope_io::Depth;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    width: u32,
-    height: u32,
-    fps: f64,
-    frames: u64,
-    bits: u8,
-    realtime: bool,
+params! {
+    /// `pattern`'s parameters.
+    pub struct PatternParams for "pattern" {
+        width: u32 = side_param("width", 256, "frame width"),
+        height: u32 = side_param("height", 256, "frame height"),
+        fps: f64 = super::fps_param(Def::Float(1000.0), "frame rate"),
+        frames: u64 = ParamSpec::of(ParamType::Int, Def::Int(1000))
+            .ints(0, i64::MAX)
+            .doc("frames produced"),
+        bits: u8 = BITS,
+        realtime: bool = ParamSpec::of(ParamType::Bool, Def::Bool(false))
+            .doc("pace frames by the wall clock like a live camera"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    side_param("width", 256, "frame width"),
-    side_param("height", 256, "frame height"),
-    super::fps_param(Def::Float(1000.0), "frame rate"),
-    ParamSpec::new("frames", ParamType::Int, Def::Int(1000))
-        .ints(0, i64::MAX)
-        .doc("frames produced"),
-    BITS,
-    ParamSpec::new("realtime", ParamType::Bool, Def::Bool(false))
-        .doc("pace frames by the wall clock like a live camera"),
-];
+type P = PatternParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "pattern",
     summary: "static test pattern at a chosen size and rate (engine benchmarks; `realtime` = live camera)",
     inputs: NO_INPUTS,
     outputs: &[OutPort::out(PortType::Frames)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         Ok(Box::new(PatternPlan(v)))
     },
 };

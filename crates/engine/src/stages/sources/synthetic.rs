@@ -8,167 +8,131 @@
 use super::{check_fps, nominal_frame, Pacer};
 use crate::spec::default_of;
 use crate::*;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use vibroscope_sim::{self as sim, Scene, SceneSpec, Signal, SignalSpec};
 
-/// Parameters of the synthetic scene (also used by `vibroscope demo`,
-/// `simulate` and tests). Declared in [`PARAMS`]: their defaults (also
-/// [`SyntheticParams::default`], used when a scene file omits a field), ranges,
-/// units and docs.
-#[derive(Deserialize, Clone, Debug, PartialEq)]
-#[serde(deny_unknown_fields, default)]
-pub struct SyntheticParams {
-    pub width: u32,
-    pub height: u32,
-    pub fps: f64,
-    pub duration_s: f64,
-    pub frames: Option<u64>,
-    pub object: Option<[u32; 4]>,
-    pub amplitude_px: f64,
-    pub direction_deg: f64,
-    pub noise_std: f64,
-    pub bits: u8,
-    pub contrast: Option<f64>,
-    pub seed: u64,
-    pub signal: SignalSpec,
-    pub realtime: bool,
-    pub line_delay_us: Option<f64>,
-    pub frame_delay_us: Option<f64>,
-    pub exposure_us: Option<f64>,
-    pub resonances: Vec<sim::Resonance>,
-    pub interference: Vec<Interference>,
-    pub clock_error_ppm: f64,
-    pub drop_frames: Vec<u64>,
-    pub duplicate_frames: Vec<u64>,
-    pub texture: Option<std::path::PathBuf>,
-    pub object_mask: Option<std::path::PathBuf>,
-    pub ruler_period_px: Option<f64>,
-    pub modal: Option<sim::ModalSpec>,
-    pub fabric: Option<sim::FabricSpec>,
-    pub soft_clip_px: Option<f64>,
-    pub response_poly: Vec<f64>,
-    pub gain_decay_s: Option<f64>,
-    pub row_lag_rows: Vec<u64>,
-    pub row_lag_us: Vec<f64>,
-    pub row_gain: Vec<f64>,
+params! {
+    /// Parameters of the synthetic scene (also used by `vibroscope demo`,
+    /// `simulate` and tests). Declared here: their defaults (also
+    /// [`SyntheticParams::default`], used when a scene file omits a field),
+    /// ranges, units and docs ([`KindParams::PARAMS`]).
+    #[derive(PartialEq)]
+    #[serde(default)]
+    pub struct SyntheticParams for "synthetic" {
+        width: u32 = super::side_param("width", 256, "frame width"),
+        height: u32 = super::side_param("height", 256, "frame height"),
+        fps: f64 = super::fps_param(Def::Float(2200.0), "frame rate"),
+        duration_s: f64 = ParamSpec::of(ParamType::Float, Def::Float(1.0))
+            .at_least(0.0)
+            .unit("s")
+            .doc("length (`frames` wins when both are given)"),
+        frames: Option<u64> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(0, i64::MAX)
+            .doc("frames captured; default duration_s * fps"),
+        object: Option<[u32; 4]> = ParamSpec::of(ParamType::Ints, Def::Optional)
+            .ints(0, u32::MAX as i64)
+            .unit("px")
+            .doc("moving object [x, y, w, h]; default: the central half of the frame"),
+        amplitude_px: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.05))
+            .floats(-sim::MAX_AMPLITUDE_PX, sim::MAX_AMPLITUDE_PX)
+            .unit("px")
+            .doc("peak displacement of the object for a signal of 1"),
+        direction_deg: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.0))
+            .unit("deg")
+            .doc("direction of the motion (0 = +x, 90 = +y)"),
+        noise_std: f64 = ParamSpec::of(ParamType::Float, Def::Float(2.0))
+            .at_least(0.0)
+            .unit("DN")
+            .doc("sensor noise, standard deviation"),
+        bits: u8 = super::BITS,
+        contrast: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .unit("DN")
+            .doc("texture contrast (std); default 15% of full scale"),
+        seed: u64 = ParamSpec::of(ParamType::Int, Def::Int(1))
+            .ints(0, i64::MAX)
+            .doc("random seed: the scene is deterministic from it"),
+        signal: SignalSpec = ParamSpec::of(
+            ParamType::Table,
+            Def::Toml("{ type = \"tone\", freq_hz = 440.0 }"),
+        )
+        .doc("the motion's waveform: { type = \"tone\" | \"tones\" | ..., ... } (see vibroscope_sim)"),
+        realtime: bool = ParamSpec::of(ParamType::Bool, Def::Bool(false))
+            .doc("pace frames by the wall clock like a live camera"),
+        line_delay_us: Option<f64> = crate::stages::transform::rows::LINE_DELAY_US
+            .doc("rolling shutter (Eq. 4.4): row y of frame n at n/fps + y*d; absent = global shutter"),
+        frame_delay_us: Option<f64> = crate::stages::transform::rows::FRAME_DELAY_US
+            .doc("stated frame delay, checked against 1/fps - height * line_delay"),
+        exposure_us: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .floats(0.0, 1e7)
+            .unit("µs")
+            .doc("each row averages the motion over this exposure (a boxcar)"),
+        resonances: Vec<sim::Resonance> = ParamSpec::of(ParamType::Tables, Def::Toml("[]"))
+            .doc("sound-to-motion transfer: peaking resonances [{ freq_hz, q, gain_db }]; none = flat"),
+        interference: Vec<Interference> = ParamSpec::of(ParamType::Tables, Def::Toml("[]"))
+            .doc("narrowband motion added to the object's: [{ freq_hz, amplitude_px }]"),
+        clock_error_ppm: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.0))
+            .floats(-1e5, 1e5)
+            .unit("ppm")
+            .doc("true frame rate is fps * (1 + e*1e-6) while frames are stamped at fps"),
+        drop_frames: Vec<u64> = ParamSpec::of(ParamType::Ints, Def::Toml("[]"))
+            .ints(0, i64::MAX)
+            .doc("captured frames the camera loses (0-based capture indices)"),
+        duplicate_frames: Vec<u64> = ParamSpec::of(ParamType::Ints, Def::Toml("[]"))
+            .ints(0, i64::MAX)
+            .doc("captured frames the camera delivers twice"),
+        texture: Option<std::path::PathBuf> = ParamSpec::of(ParamType::Path, Def::Optional)
+            .doc("a picture (PGM/PNG) for the object's texture, resized to the object"),
+        object_mask: Option<std::path::PathBuf> = ParamSpec::of(ParamType::Path, Def::Optional)
+            .doc("the object's silhouette (PGM/PNG, frame size; gray = fraction of object)"),
+        ruler_period_px: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .floats(2.0, 1e4)
+            .unit("px")
+            .doc("the object's texture is a ruler: ticks this far apart across its top half (at object x = P (k + 0.5) + 0.37), random texture below"),
+        modal: Option<sim::ModalSpec> = ParamSpec::of(ParamType::Table, Def::Optional).doc(
+            "the object as a vibrating cantilever: { modes = [{ freq_hz, amplitude_px, shape, ... }] }",
+        ),
+        fabric: Option<sim::FabricSpec> = ParamSpec::of(ParamType::Table, Def::Optional).doc(
+            "the object as a hanging fabric: { stiffness_nm, area_weight_kg_m2, excitation = \"ambient\" | \"sound\" | \"kick\", ... } (docs/learning.md)",
+        ),
+        soft_clip_px: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .unit("px")
+            .doc("excursion saturates softly: L tanh(d / L) with L = soft_clip_px"),
+        response_poly: Vec<f64> = ParamSpec::of(ParamType::Floats, Def::Toml("[]"))
+            .floats(-10.0, 10.0)
+            .doc("static nonlinear response [c2, c3, ...]: x + c2 x² + c3 x³ + ... with x in units of amplitude_px (before soft_clip_px; even terms make even harmonics)"),
+        gain_decay_s: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .floats(1e-3, 1e6)
+            .unit("s")
+            .doc("the motion decays as exp(-t / gain_decay_s) over the recording (a struck object ringing down); interference does not"),
+        row_lag_rows: Vec<u64> = ParamSpec::of(ParamType::Ints, Def::Toml("[]"))
+            .ints(0, 16383)
+            .unit("row")
+            .doc("first rows of regions whose motion lags (two objects stacked vertically, a non-rigid one), strictly ascending; each region ends at the next (or the frame's end), rows above the first have no lag"),
+        row_lag_us: Vec<f64> = ParamSpec::of(ParamType::Floats, Def::Toml("[]"))
+            .floats(-MAX_ROW_LAG_US, MAX_ROW_LAG_US)
+            .unit("µs")
+            .doc("the lag of each region of row_lag_rows: its rows show amplitude_px * signal(t - lag) at their capture time t (with a rolling shutter too); frames are then rendered row by row"),
+        row_gain: Vec<f64> = ParamSpec::of(ParamType::Floats, Def::Toml("[]"))
+            .floats(-1.0, 1.0)
+            .doc("the gain of each region of row_lag_rows (with row_lag_us): its rows move gain times as far, negative in antiphase (a non-rigid object's mode); empty: 1"),
+    }
 }
 
 /// A narrowband motion added to the object's.
-#[derive(Deserialize, Clone, Debug, PartialEq)]
+#[derive(Deserialize, Serialize, Clone, Debug, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Interference {
     pub freq_hz: f64,
     pub amplitude_px: f64,
 }
 
-/// Every parameter of the `synthetic` kind.
-pub const PARAMS: &[ParamSpec] = &[
-    super::side_param("width", 256, "frame width"),
-    super::side_param("height", 256, "frame height"),
-    super::fps_param(Def::Float(2200.0), "frame rate"),
-    ParamSpec::new("duration_s", ParamType::Float, Def::Float(1.0))
-        .at_least(0.0)
-        .unit("s")
-        .doc("length (`frames` wins when both are given)"),
-    ParamSpec::new("frames", ParamType::Int, Def::Optional)
-        .ints(0, i64::MAX)
-        .doc("frames captured; default duration_s * fps"),
-    ParamSpec::new("object", ParamType::Ints, Def::Optional)
-        .ints(0, u32::MAX as i64)
-        .unit("px")
-        .doc("moving object [x, y, w, h]; default: the central half of the frame"),
-    ParamSpec::new("amplitude_px", ParamType::Float, Def::Float(0.05))
-        .floats(-sim::MAX_AMPLITUDE_PX, sim::MAX_AMPLITUDE_PX)
-        .unit("px")
-        .doc("peak displacement of the object for a signal of 1"),
-    ParamSpec::new("direction_deg", ParamType::Float, Def::Float(0.0))
-        .unit("deg")
-        .doc("direction of the motion (0 = +x, 90 = +y)"),
-    ParamSpec::new("noise_std", ParamType::Float, Def::Float(2.0))
-        .at_least(0.0)
-        .unit("DN")
-        .doc("sensor noise, standard deviation"),
-    super::BITS,
-    ParamSpec::new("contrast", ParamType::Float, Def::Optional)
-        .unit("DN")
-        .doc("texture contrast (std); default 15% of full scale"),
-    ParamSpec::new("seed", ParamType::Int, Def::Int(1))
-        .ints(0, i64::MAX)
-        .doc("random seed: the scene is deterministic from it"),
-    ParamSpec::new(
-        "signal",
-        ParamType::Table,
-        Def::Toml("{ type = \"tone\", freq_hz = 440.0 }"),
-    )
-    .doc("the motion's waveform: { type = \"tone\" | \"tones\" | ..., ... } (see vibroscope_sim)"),
-    ParamSpec::new("realtime", ParamType::Bool, Def::Bool(false))
-        .doc("pace frames by the wall clock like a live camera"),
-    crate::stages::transform::rows::LINE_DELAY_US
-        .doc("rolling shutter (Eq. 4.4): row y of frame n at n/fps + y*d; absent = global shutter"),
-    crate::stages::transform::rows::FRAME_DELAY_US
-        .doc("stated frame delay, checked against 1/fps - height * line_delay"),
-    ParamSpec::new("exposure_us", ParamType::Float, Def::Optional)
-        .floats(0.0, 1e7)
-        .unit("µs")
-        .doc("each row averages the motion over this exposure (a boxcar)"),
-    ParamSpec::new("resonances", ParamType::Tables, Def::Toml("[]"))
-        .doc("sound-to-motion transfer: peaking resonances [{ freq_hz, q, gain_db }]; none = flat"),
-    ParamSpec::new("interference", ParamType::Tables, Def::Toml("[]"))
-        .doc("narrowband motion added to the object's: [{ freq_hz, amplitude_px }]"),
-    ParamSpec::new("clock_error_ppm", ParamType::Float, Def::Float(0.0))
-        .floats(-1e5, 1e5)
-        .unit("ppm")
-        .doc("true frame rate is fps * (1 + e*1e-6) while frames are stamped at fps"),
-    ParamSpec::new("drop_frames", ParamType::Ints, Def::Toml("[]"))
-        .ints(0, i64::MAX)
-        .doc("captured frames the camera loses (0-based capture indices)"),
-    ParamSpec::new("duplicate_frames", ParamType::Ints, Def::Toml("[]"))
-        .ints(0, i64::MAX)
-        .doc("captured frames the camera delivers twice"),
-    ParamSpec::new("texture", ParamType::Path, Def::Optional)
-        .doc("a picture (PGM/PNG) for the object's texture, resized to the object"),
-    ParamSpec::new("object_mask", ParamType::Path, Def::Optional)
-        .doc("the object's silhouette (PGM/PNG, frame size; gray = fraction of object)"),
-    ParamSpec::new("ruler_period_px", ParamType::Float, Def::Optional)
-        .floats(2.0, 1e4)
-        .unit("px")
-        .doc("the object's texture is a ruler: ticks this far apart across its top half (at object x = P (k + 0.5) + 0.37), random texture below"),
-    ParamSpec::new("modal", ParamType::Table, Def::Optional).doc(
-        "the object as a vibrating cantilever: { modes = [{ freq_hz, amplitude_px, shape, ... }] }",
-    ),
-    ParamSpec::new("fabric", ParamType::Table, Def::Optional).doc(
-        "the object as a hanging fabric: { stiffness_nm, area_weight_kg_m2, excitation = \"ambient\" | \"sound\" | \"kick\", ... } (docs/learning.md)",
-    ),
-    ParamSpec::new("soft_clip_px", ParamType::Float, Def::Optional)
-        .unit("px")
-        .doc("excursion saturates softly: L tanh(d / L) with L = soft_clip_px"),
-    ParamSpec::new("response_poly", ParamType::Floats, Def::Toml("[]"))
-        .floats(-10.0, 10.0)
-        .doc("static nonlinear response [c2, c3, ...]: x + c2 x² + c3 x³ + ... with x in units of amplitude_px (before soft_clip_px; even terms make even harmonics)"),
-    ParamSpec::new("gain_decay_s", ParamType::Float, Def::Optional)
-        .floats(1e-3, 1e6)
-        .unit("s")
-        .doc("the motion decays as exp(-t / gain_decay_s) over the recording (a struck object ringing down); interference does not"),
-    ParamSpec::new("row_lag_rows", ParamType::Ints, Def::Toml("[]"))
-        .ints(0, 16383)
-        .unit("row")
-        .doc("first rows of regions whose motion lags (two objects stacked vertically, a non-rigid one), strictly ascending; each region ends at the next (or the frame's end), rows above the first have no lag"),
-    ParamSpec::new("row_lag_us", ParamType::Floats, Def::Toml("[]"))
-        .floats(-MAX_ROW_LAG_US, MAX_ROW_LAG_US)
-        .unit("µs")
-        .doc("the lag of each region of row_lag_rows: its rows show amplitude_px * signal(t - lag) at their capture time t (with a rolling shutter too); frames are then rendered row by row"),
-    ParamSpec::new("row_gain", ParamType::Floats, Def::Toml("[]"))
-        .floats(-1.0, 1.0)
-        .doc("the gain of each region of row_lag_rows (with row_lag_us): its rows move gain times as far, negative in antiphase (a non-rigid object's mode); empty: 1"),
-];
-
 /// Largest `|row_lag_us|` (1 s, the simulator's [`sim::scene::MAX_ROW_LAG_S`]).
 const MAX_ROW_LAG_US: f64 = sim::scene::MAX_ROW_LAG_S * 1e6;
 
 impl Default for SyntheticParams {
-    /// The declared defaults ([`PARAMS`]).
+    /// The declared defaults ([`KindParams::PARAMS`]).
     fn default() -> Self {
-        let d = |name| default_of::<toml::Value>(PARAMS, name);
+        let d = |name| default_of::<toml::Value>(Self::PARAMS, name);
         let num = |name| d(name).and_then(|v| v.as_float().or(v.as_integer().map(|i| i as f64)));
         let int = |name| d(name).and_then(|v| v.as_integer()).unwrap_or(0);
         Self {
@@ -184,7 +148,7 @@ impl Default for SyntheticParams {
             bits: int("bits") as u8,
             contrast: None,
             seed: int("seed") as u64,
-            signal: default_of(PARAMS, "signal").unwrap_or(SignalSpec::Tone {
+            signal: Self::signal.default_value().unwrap_or(SignalSpec::Tone {
                 freq_hz: 0.0,
                 phase_rad: 0.0,
             }),
@@ -475,7 +439,7 @@ impl SyntheticParams {
             let named = m
                 .strip_prefix("invalid ")
                 .and_then(|r| r.split([':', '[', '.', ' ']).next())
-                .and_then(|f| PARAMS.iter().find(|p| p.name == f))
+                .and_then(|f| SyntheticParams::PARAMS.iter().find(|p| p.name == f))
                 .map(|p| p.name);
             let field = if let Some(f) = named {
                 f
@@ -621,9 +585,9 @@ pub const KIND: KindSpec = KindSpec {
         "built-in scene: a textured object moving sub-pixel with a known signal (ground truth)",
     inputs: NO_INPUTS,
     outputs: &[OutPort::out(PortType::Frames)],
-    params: PARAMS,
+    params: SyntheticParams::PARAMS,
     plan: |p| {
-        let v: SyntheticParams = p.resolve(PARAMS)?;
+        let v: SyntheticParams = p.resolve_typed()?;
         v.check().map_err(|(field, m)| p.error(field, m))?;
         Ok(Box::new(v))
     },
@@ -810,7 +774,7 @@ mod tests {
             file: "t.toml",
             stage: &decl.stages[0],
         };
-        let resolved: SyntheticParams = p.resolve(PARAMS).unwrap_or_else(|e| panic!("{e}"));
+        let resolved: SyntheticParams = p.resolve_typed().unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(resolved, SyntheticParams::default());
         assert_eq!(resolved.fps, 2200.0);
         assert_eq!(resolved.width, 256);
@@ -925,7 +889,7 @@ mod tests {
             stage: &decl.stages[0],
         };
         let e = p
-            .resolve::<SyntheticParams>(PARAMS)
+            .resolve_typed::<SyntheticParams>()
             .err()
             .unwrap_or_else(|| panic!("-2e6 µs accepted"));
         assert!(e.to_string().contains("row_lag_us"), "{e}");

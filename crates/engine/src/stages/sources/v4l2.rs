@@ -32,11 +32,11 @@
 //! downstream lags. `duration_s` / `max_frames` end the stream (recording).
 
 use crate::*;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
 /// Pixel formats this source turns into gray frames.
-#[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Deserialize, Serialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum PixelFormat {
     /// The first of GREY, YUYV, MJPEG the device offers.
@@ -239,60 +239,49 @@ impl SeqTracker {
     }
 }
 
-#[derive(Deserialize, Clone, Debug)]
-#[serde(deny_unknown_fields)]
-pub struct V4l2Params {
-    pub device: PathBuf,
-    pub width: Option<u32>,
-    pub height: Option<u32>,
-    pub fps: Option<f64>,
-    pub format: PixelFormat,
-    pub buffers: u32,
-    pub duration_s: Option<f64>,
-    pub max_frames: Option<u64>,
+params! {
+    /// `v4l2`'s parameters.
+    pub struct V4l2Params for "v4l2" {
+        device: PathBuf = ParamSpec::of(ParamType::Path, Def::Str("/dev/video0"))
+            .doc("the device node"),
+        width: Option<u32> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(1, 16384)
+            .unit("px")
+            .doc("requested width; the driver may grant another (read back)"),
+        height: Option<u32> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(1, 16384)
+            .unit("px")
+            .doc("requested height; the driver may grant another (read back)"),
+        fps: Option<f64> = super::fps_param(
+            Def::Optional,
+            "requested frame rate; the granted interval is read back",
+        ),
+        format: PixelFormat = ParamSpec::of(
+            ParamType::Choice(&["auto", "grey", "yuyv", "mjpeg"]),
+            Def::Str("auto"),
+        )
+        .doc("pixel format; auto: the first of GREY, YUYV, MJPEG the device offers"),
+        buffers: u32 = ParamSpec::of(ParamType::Int, Def::Int(4))
+            .ints(2, 32)
+            .doc("driver buffers for mmap streaming"),
+        duration_s: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .above(0.0)
+            .unit("s")
+            .doc("stop after this long (by the driver's timestamps)"),
+        max_frames: Option<u64> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(0, i64::MAX)
+            .doc("stop after this many frames"),
+    }
 }
-
-/// Every parameter of the `v4l2` kind.
-pub const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("device", ParamType::Path, Def::Str("/dev/video0")).doc("the device node"),
-    ParamSpec::new("width", ParamType::Int, Def::Optional)
-        .ints(1, 16384)
-        .unit("px")
-        .doc("requested width; the driver may grant another (read back)"),
-    ParamSpec::new("height", ParamType::Int, Def::Optional)
-        .ints(1, 16384)
-        .unit("px")
-        .doc("requested height; the driver may grant another (read back)"),
-    super::fps_param(
-        Def::Optional,
-        "requested frame rate; the granted interval is read back",
-    ),
-    ParamSpec::new(
-        "format",
-        ParamType::Choice(&["auto", "grey", "yuyv", "mjpeg"]),
-        Def::Str("auto"),
-    )
-    .doc("pixel format; auto: the first of GREY, YUYV, MJPEG the device offers"),
-    ParamSpec::new("buffers", ParamType::Int, Def::Int(4))
-        .ints(2, 32)
-        .doc("driver buffers for mmap streaming"),
-    ParamSpec::new("duration_s", ParamType::Float, Def::Optional)
-        .above(0.0)
-        .unit("s")
-        .doc("stop after this long (by the driver's timestamps)"),
-    ParamSpec::new("max_frames", ParamType::Int, Def::Optional)
-        .ints(0, i64::MAX)
-        .doc("stop after this many frames"),
-];
 
 pub const KIND: KindSpec = KindSpec {
     name: "v4l2",
     summary: "live camera through Video4Linux2 (device, width, height, fps, format = grey|yuyv|mjpeg|auto)",
     inputs: NO_INPUTS,
     outputs: &[OutPort::out(PortType::Frames)],
-    params: PARAMS,
+    params: V4l2Params::PARAMS,
     plan: |p| {
-        let v: V4l2Params = p.resolve(PARAMS)?;
+        let v: V4l2Params = p.resolve_typed()?;
         if v.device.as_os_str().is_empty() {
             return Err(p.error("device", "must not be empty"));
         }

@@ -17,52 +17,44 @@ use crate::frame::{FrameMut, PixelsMut};
 use crate::net::{self, Endpoints};
 use crate::wire::{self, WireItem, WirePixels};
 use crate::*;
-use serde::Deserialize;
 use std::collections::HashMap;
 use std::time::Instant;
 use zenoh::handlers::{FifoChannel, FifoChannelHandler, RingChannel, RingChannelHandler};
 use zenoh::sample::{Sample, SampleKind};
 use zenoh::Wait;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    key: String,
-    #[serde(rename = "type")]
-    ty: String,
-    connect: String,
-    listen: String,
-    live: bool,
-    capacity: usize,
-    ends: u64,
-    idle_s: Option<f64>,
-}
-
 const TYPES: &[&str] = &["audio", "samples", "spectrum", "peaks", "frames"];
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("key", ParamType::Str, Def::Required)
-        .doc("zenoh key expression to receive (wildcards allowed: vibroscope/site/*/spectrum)"),
-    ParamSpec::new("type", ParamType::Choice(TYPES), Def::Str("spectrum"))
-        .doc("what the key carries (the output's type)"),
-    ParamSpec::new("connect", ParamType::Str, Def::Str(""))
-        .doc("zenoh endpoints to connect to, comma-separated (\"tcp/10.0.0.1:7447\"); retried until they answer"),
-    ParamSpec::new("listen", ParamType::Str, Def::Str(""))
-        .doc("zenoh endpoints to listen on, comma-separated (\"tcp/0.0.0.0:7447\")"),
-    ParamSpec::new("live", ParamType::Bool, Def::Bool(false))
-        .doc("a live stream: keep the newest `capacity` items, drop (and count) the oldest; false = replay, lose nothing"),
-    ParamSpec::new("capacity", ParamType::Int, Def::Int(64))
-        .ints(1, 1 << 20)
-        .unit("items")
-        .doc("items queued between the network and the pipeline"),
-    ParamSpec::new("ends", ParamType::Int, Def::Int(1))
-        .ints(0, 1 << 20)
-        .doc("end markers (one per publisher) that end the run; 0 = run until stopped or idle"),
-    ParamSpec::new("idle_s", ParamType::Float, Def::Optional)
-        .floats(0.001, 1e6)
-        .unit("s")
-        .doc("end the run after this long with nothing received; default: wait for ever (a publisher killed before its end marker then holds a replay receiver until stopped)"),
-];
+params! {
+    /// `zenoh_sub`'s parameters.
+    pub struct ZenohSubParams for "zenoh_sub" {
+        key: String = ParamSpec::of(ParamType::Str, Def::Required)
+            .doc("zenoh key expression to receive (wildcards allowed: vibroscope/site/*/spectrum)"),
+        // The parameter `type` (a keyword): its name must come out as
+        // "type", not "r#type" (serde already unraws it).
+        r#type: String = ParamSpec::of(ParamType::Choice(TYPES), Def::Str("spectrum"))
+            .doc("what the key carries (the output's type)"),
+        connect: String = ParamSpec::of(ParamType::Str, Def::Str(""))
+            .doc("zenoh endpoints to connect to, comma-separated (\"tcp/10.0.0.1:7447\"); retried until they answer"),
+        listen: String = ParamSpec::of(ParamType::Str, Def::Str(""))
+            .doc("zenoh endpoints to listen on, comma-separated (\"tcp/0.0.0.0:7447\")"),
+        live: bool = ParamSpec::of(ParamType::Bool, Def::Bool(false))
+            .doc("a live stream: keep the newest `capacity` items, drop (and count) the oldest; false = replay, lose nothing"),
+        capacity: usize = ParamSpec::of(ParamType::Int, Def::Int(64))
+            .ints(1, 1 << 20)
+            .unit("items")
+            .doc("items queued between the network and the pipeline"),
+        ends: u64 = ParamSpec::of(ParamType::Int, Def::Int(1))
+            .ints(0, 1 << 20)
+            .doc("end markers (one per publisher) that end the run; 0 = run until stopped or idle"),
+        idle_s: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .floats(0.001, 1e6)
+            .unit("s")
+            .doc("end the run after this long with nothing received; default: wait for ever (a publisher killed before its end marker then holds a replay receiver until stopped)"),
+    }
+}
+
+type P = ZenohSubParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "zenoh_sub",
@@ -72,9 +64,9 @@ pub const KIND: KindSpec = KindSpec {
         name: "out",
         ty: OutType::FromParam("type"),
     }],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         let ep = net::endpoints(p, &v.connect, &v.listen)?;
         net::check_key(&v.key, true).map_err(|m| p.error("key", m))?;
         if v.ends == 0 && v.idle_s.is_none() && !v.live {
@@ -83,7 +75,7 @@ pub const KIND: KindSpec = KindSpec {
                 "a replay receiver with ends = 0 and no idle_s would never finish; set one",
             ));
         }
-        let ty = PortType::from_name(&v.ty).unwrap_or(PortType::Spectrum);
+        let ty = PortType::from_name(&v.r#type).unwrap_or(PortType::Spectrum);
         Ok(Box::new(SubPlan { p: v, ep, ty }))
     },
 };

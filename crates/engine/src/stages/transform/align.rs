@@ -40,67 +40,60 @@
 //! iteration, from fixed starts: replays are bit-identical.
 
 use crate::*;
-use serde::Deserialize;
 use std::collections::VecDeque;
 use std::sync::Arc;
 use vibroscope_math::iir::Sos;
 
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+/// How `align` combines the channels.
+#[derive(serde::Deserialize, serde::Serialize, Clone, Copy, PartialEq, Eq, Debug)]
 #[serde(rename_all = "lowercase")]
-enum Weights {
+pub enum Weights {
     Equal,
     Mrc,
     Principal,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    reference_band: Option<usize>,
-    weights: Weights,
-    max_lag: usize,
-    window: usize,
-    warmup: Option<usize>,
-    components: usize,
+params! {
+    /// `align`'s parameters.
+    pub struct AlignParams for "align" {
+        reference_band: Option<usize> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(0, 1 << 16)
+            .doc("band the others are aligned to; default: the most coherent one"),
+        weights: Weights = ParamSpec::of(
+            ParamType::Choice(&["equal", "mrc", "principal"]),
+            Def::Str("equal"),
+        )
+        .doc("sum the aligned bands equally, by maximum-ratio combining, or project all channels (no lags) on their first principal component (for channels of equal white noise: `tile_motion`)"),
+        max_lag: usize = ParamSpec::of(ParamType::Int, Def::Int(8))
+            .ints(0, 4096)
+            .unit("samples")
+            .doc("largest lag searched"),
+        window: usize = ParamSpec::of(ParamType::Int, Def::Int(2048))
+            .ints(1, 1 << 22)
+            .unit("samples")
+            .doc("samples used to estimate the lags"),
+        components: usize = ParamSpec::of(ParamType::Int, Def::Int(1))
+            .ints(1, MAX_COMPONENTS as i64)
+            .doc("principal: leading components that may be summed (each beyond the first only where it stands out from the noise): 1 hears the strongest source, more also hear independent ones (a second string; a flickering light's residue can stand out too)"),
+        warmup: Option<usize> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(1, 1 << 22)
+            .unit("samples")
+            .doc(
+                "a provisional estimate starts the output after this many (live use); default: window",
+            ),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("reference_band", ParamType::Int, Def::Optional)
-        .ints(0, 1 << 16)
-        .doc("band the others are aligned to; default: the most coherent one"),
-    ParamSpec::new(
-        "weights",
-        ParamType::Choice(&["equal", "mrc", "principal"]),
-        Def::Str("equal"),
-    )
-    .doc("sum the aligned bands equally, by maximum-ratio combining, or project all channels (no lags) on their first principal component (for channels of equal white noise: `tile_motion`)"),
-    ParamSpec::new("max_lag", ParamType::Int, Def::Int(8))
-        .ints(0, 4096)
-        .unit("samples")
-        .doc("largest lag searched"),
-    ParamSpec::new("window", ParamType::Int, Def::Int(2048))
-        .ints(1, 1 << 22)
-        .unit("samples")
-        .doc("samples used to estimate the lags"),
-    ParamSpec::new("components", ParamType::Int, Def::Int(1))
-        .ints(1, MAX_COMPONENTS as i64)
-        .doc("principal: leading components that may be summed (each beyond the first only where it stands out from the noise): 1 hears the strongest source, more also hear independent ones (a second string; a flickering light's residue can stand out too)"),
-    ParamSpec::new("warmup", ParamType::Int, Def::Optional)
-        .ints(1, 1 << 22)
-        .unit("samples")
-        .doc(
-            "a provisional estimate starts the output after this many (live use); default: window",
-        ),
-];
+type P = AlignParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "align",
     summary: "aligns per-band signals to a reference band by cross-correlation lag and sums them (Eq. 3.5-3.6)",
     inputs: &[InPort::one(&[PortType::Samples])],
     outputs: &[OutPort::out(PortType::Audio)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         if let Some(w) = v.warmup {
             if w == 0 || w > v.window {
                 return Err(p.error(
@@ -587,8 +580,8 @@ mod tests {
                 weights: Weights::Equal,
                 max_lag: 8,
                 window: 4096,
-                warmup: None,
                 components: 1,
+                warmup: None,
             },
             channels,
             train: hist.clone(),

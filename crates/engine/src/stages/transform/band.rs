@@ -8,35 +8,30 @@
 
 use super::butterworth::{Design, FilterPlan, Mode, MODE};
 use crate::*;
-use serde::Deserialize;
 use vibroscope_math::iir::Shape;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    order: usize,
-    lo_hz: f64,
-    hi_hz: f64,
-    mode: Mode,
+params! {
+    /// `bandpass`'s and `bandstop`'s parameters.
+    pub struct BandParams for "bandpass", "bandstop" {
+        order: usize = ParamSpec::of(ParamType::Int, Def::Int(2))
+            .ints(1, 8)
+            .doc("prototype order: 2*order poles, 6*order dB per octave at each edge"),
+        lo_hz: f64 = ParamSpec::of(ParamType::Float, Def::Required)
+            .above(0.0)
+            .unit("Hz")
+            .doc("lower -3 dB edge (-6 dB zero-phase)"),
+        hi_hz: f64 = ParamSpec::of(ParamType::Float, Def::Required)
+            .above(0.0)
+            .unit("Hz")
+            .doc("upper -3 dB edge (-6 dB zero-phase); above lo_hz, below half the rate"),
+        mode: Mode = MODE,
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("order", ParamType::Int, Def::Int(2))
-        .ints(1, 8)
-        .doc("prototype order: 2*order poles, 6*order dB per octave at each edge"),
-    ParamSpec::new("lo_hz", ParamType::Float, Def::Required)
-        .above(0.0)
-        .unit("Hz")
-        .doc("lower -3 dB edge (-6 dB zero-phase)"),
-    ParamSpec::new("hi_hz", ParamType::Float, Def::Required)
-        .above(0.0)
-        .unit("Hz")
-        .doc("upper -3 dB edge (-6 dB zero-phase); above lo_hz, below half the rate"),
-    MODE,
-];
+type P = BandParams;
 
 fn plan(p: &Params<'_>, kind: &'static str, stop: bool) -> Result<Box<dyn Plan>, ConfigError> {
-    let v: P = p.resolve(PARAMS)?;
+    let v: P = p.resolve_typed()?;
     if v.hi_hz <= v.lo_hz {
         return Err(p.error(
             "hi_hz",
@@ -61,7 +56,7 @@ pub const BANDPASS_KIND: KindSpec = KindSpec {
     summary: "Butterworth band-pass lo_hz..hi_hz (order); zero-phase on replay, causal live (mode)",
     inputs: &[InPort::one(&[PortType::Audio])],
     outputs: &[OutPort::out(PortType::Audio)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| plan(p, "bandpass", false),
 };
 
@@ -70,6 +65,6 @@ pub const BANDSTOP_KIND: KindSpec = KindSpec {
     summary: "Butterworth band-stop (notch) lo_hz..hi_hz (order); zero-phase on replay, causal live (mode)",
     inputs: &[InPort::one(&[PortType::Audio])],
     outputs: &[OutPort::out(PortType::Audio)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| plan(p, "bandstop", true),
 };

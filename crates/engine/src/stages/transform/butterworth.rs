@@ -18,13 +18,13 @@
 //!   plus as long again); blocks leave with their own timestamps, later.
 
 use crate::*;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::sync::Arc;
 use vibroscope_math::iir::{Shape, Sos, ZeroPhase};
 
 /// How a Butterworth stage filters.
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[derive(Deserialize, Serialize, Clone, Copy, PartialEq, Eq, Debug)]
 #[serde(rename_all = "snake_case")]
 pub enum Mode {
     Auto,

@@ -15,24 +15,12 @@
 //! of latency.
 
 use crate::*;
-use serde::Deserialize;
 use std::collections::VecDeque;
 use std::sync::Arc;
 use vibroscope_math::denoise::{
     DenoiseConfig, DenoiseError, SpectralSubtraction, SpeechEnhance, Wiener, DEFAULT_ALPHA,
     DEFAULT_BETA, LSA_DD_ALPHA, WIENER_DD_ALPHA,
 };
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    frame_ms: f64,
-    overlap: f64,
-    noise_window_s: f64,
-    dd_alpha: Option<f64>,
-    alpha: Option<f64>,
-    beta: Option<f64>,
-}
 
 const FRAME_MS: ParamSpec = ParamSpec::new("frame_ms", ParamType::Float, Def::Float(32.0))
     .above(0.0)
@@ -51,17 +39,21 @@ const NOISE_WINDOW: ParamSpec = ParamSpec::new("noise_window_s", ParamType::Floa
     .unit("s")
     .doc("window of the minimum-statistics noise tracker; on replay also the lead that warms it before the first output (live starts cold)");
 
-const SUBTRACT_PARAMS: &[ParamSpec] = &[
-    FRAME_MS,
-    OVERLAP,
-    NOISE_WINDOW,
-    ParamSpec::new("alpha", ParamType::Float, Def::Float(DEFAULT_ALPHA))
-        .at_least(0.0)
-        .doc("over-subtraction factor"),
-    ParamSpec::new("beta", ParamType::Float, Def::Float(DEFAULT_BETA))
-        .floats(0.0, 1.0)
-        .doc("spectral floor, a fraction of the noise power"),
-];
+params! {
+    /// `spectral_subtraction`'s parameters.
+    pub struct SpectralSubtractionParams for "spectral_subtraction" {
+        frame_ms: f64 = FRAME_MS,
+        overlap: f64 = OVERLAP,
+        noise_window_s: f64 = NOISE_WINDOW,
+        alpha: f64 = ParamSpec::of(ParamType::Float, Def::Float(DEFAULT_ALPHA))
+            .at_least(0.0)
+            .doc("over-subtraction factor"),
+        beta: f64 = ParamSpec::of(ParamType::Float, Def::Float(DEFAULT_BETA))
+            .floats(0.0, 1.0)
+            .doc("spectral floor, a fraction of the noise power"),
+    }
+}
+
 /// The decision-directed weight, whose default differs between the LSA and
 /// Wiener gains ([`WIENER_DD_ALPHA`]).
 const fn dd_alpha(default: f64) -> ParamSpec {
@@ -74,8 +66,26 @@ const fn dd_alpha(default: f64) -> ParamSpec {
         })
         .doc("weight of the previous frame in the decision-directed a-priori SNR (higher: smoother, less musical noise; lower: follows speech faster)")
 }
-const ENHANCE_PARAMS: &[ParamSpec] = &[FRAME_MS, OVERLAP, NOISE_WINDOW, dd_alpha(LSA_DD_ALPHA)];
-const WIENER_PARAMS: &[ParamSpec] = &[FRAME_MS, OVERLAP, NOISE_WINDOW, dd_alpha(WIENER_DD_ALPHA)];
+
+params! {
+    /// `speech_enhance`'s parameters.
+    pub struct SpeechEnhanceParams for "speech_enhance" {
+        frame_ms: f64 = FRAME_MS,
+        overlap: f64 = OVERLAP,
+        noise_window_s: f64 = NOISE_WINDOW,
+        dd_alpha: f64 = dd_alpha(LSA_DD_ALPHA),
+    }
+}
+
+params! {
+    /// `wiener`'s parameters.
+    pub struct WienerParams for "wiener" {
+        frame_ms: f64 = FRAME_MS,
+        overlap: f64 = OVERLAP,
+        noise_window_s: f64 = NOISE_WINDOW,
+        dd_alpha: f64 = dd_alpha(WIENER_DD_ALPHA),
+    }
+}
 
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Method {
@@ -92,26 +102,40 @@ fn plan(p: &Params<'_>, method: Method) -> Result<Box<dyn Plan>, ConfigError> {
             }
         }
     }
-    let v: P = p.resolve(match method {
-        Method::Subtract => SUBTRACT_PARAMS,
-        Method::Enhance => ENHANCE_PARAMS,
-        Method::Wiener => WIENER_PARAMS,
-    })?;
-    let base = match method {
-        Method::Wiener => DenoiseConfig::wiener(),
-        _ => DenoiseConfig::default(),
+    let (cfg, alpha, beta) = match method {
+        Method::Subtract => {
+            let v: SpectralSubtractionParams = p.resolve_typed()?;
+            let cfg = DenoiseConfig {
+                frame_ms: v.frame_ms,
+                overlap: v.overlap,
+                noise_window_s: v.noise_window_s,
+                ..DenoiseConfig::default()
+            };
+            (cfg, v.alpha, v.beta)
+        }
+        Method::Enhance => {
+            let v: SpeechEnhanceParams = p.resolve_typed()?;
+            let cfg = DenoiseConfig {
+                frame_ms: v.frame_ms,
+                overlap: v.overlap,
+                noise_window_s: v.noise_window_s,
+                dd_alpha: v.dd_alpha,
+                ..DenoiseConfig::default()
+            };
+            (cfg, DEFAULT_ALPHA, DEFAULT_BETA)
+        }
+        Method::Wiener => {
+            let v: WienerParams = p.resolve_typed()?;
+            let cfg = DenoiseConfig {
+                frame_ms: v.frame_ms,
+                overlap: v.overlap,
+                noise_window_s: v.noise_window_s,
+                dd_alpha: v.dd_alpha,
+                ..DenoiseConfig::wiener()
+            };
+            (cfg, DEFAULT_ALPHA, DEFAULT_BETA)
+        }
     };
-    let cfg = DenoiseConfig {
-        frame_ms: v.frame_ms,
-        overlap: v.overlap,
-        noise_window_s: v.noise_window_s,
-        dd_alpha: v.dd_alpha.unwrap_or(base.dd_alpha),
-        ..base
-    };
-    let (alpha, beta) = (
-        v.alpha.unwrap_or(DEFAULT_ALPHA),
-        v.beta.unwrap_or(DEFAULT_BETA),
-    );
     // Check the configuration now (at a typical rate) so errors name the field.
     let probe = match method {
         Method::Subtract => SpectralSubtraction::new(8000.0, &cfg, alpha, beta).map(|_| ()),
@@ -157,21 +181,21 @@ const fn audio_kind(
 pub const SUBTRACT_KIND: KindSpec = audio_kind(
     "spectral_subtraction",
     "streaming spectral subtraction (Boll 1979) with a tracked noise floor; alpha, beta, frame_ms, overlap",
-    SUBTRACT_PARAMS,
+    SpectralSubtractionParams::PARAMS,
     |p| plan(p, Method::Subtract),
 );
 
 pub const ENHANCE_KIND: KindSpec = audio_kind(
     "speech_enhance",
     "streaming MMSE log-spectral-amplitude speech enhancement (Ephraim-Malah) with a tracked noise floor",
-    ENHANCE_PARAMS,
+    SpeechEnhanceParams::PARAMS,
     |p| plan(p, Method::Enhance),
 );
 
 pub const WIENER_KIND: KindSpec = audio_kind(
     "wiener",
     "streaming MMSE (Wiener) STFT denoiser, decision-directed a-priori SNR, tracked noise floor: raises SNR, not only segmental SNR",
-    WIENER_PARAMS,
+    WienerParams::PARAMS,
     |p| plan(p, Method::Wiener),
 );
 

@@ -44,48 +44,43 @@ use super::audio_out::Batcher;
 use super::gradient_motion::px;
 use super::roi::{Mask, Roi};
 use crate::*;
-use serde::Deserialize;
 use std::path::PathBuf;
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    rois: Option<Vec<u32>>,
-    mask: Option<PathBuf>,
-    block: usize,
-    reference_frames: usize,
-}
 
 /// Most regions in one stage.
 pub const MAX_REGIONS: usize = 64;
 /// Half-width of the derivative filter (pixels left out at the frame's edge).
 pub const MARGIN: usize = 3;
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("rois", ParamType::Ints, Def::Optional)
-        .ints(0, u32::MAX as i64)
-        .unit("px")
-        .doc("regions, four numbers x, y, w, h each; the whole frame when absent"),
-    ParamSpec::new("mask", ParamType::Path, Def::Optional)
-        .doc("only pixels inside this image (the frame's size, PGM/PNG, > 0 inside) count, in every region"),
-    ParamSpec::new("block", ParamType::Int, Def::Int(64))
-        .ints(1, 1 << 20)
-        .unit("samples")
-        .doc("frames per emitted block"),
-    ParamSpec::new("reference_frames", ParamType::Int, Def::Int(16))
-        .ints(1, 256)
-        .unit("frames")
-        .doc("the reference is the mean of this many first frames (less noise in its gradient)"),
-];
+params! {
+    /// `displacement`'s parameters.
+    pub struct DisplacementParams for "displacement" {
+        rois: Option<Vec<u32>> = ParamSpec::of(ParamType::Ints, Def::Optional)
+            .ints(0, u32::MAX as i64)
+            .unit("px")
+            .doc("regions, four numbers x, y, w, h each; the whole frame when absent"),
+        mask: Option<PathBuf> = ParamSpec::of(ParamType::Path, Def::Optional)
+            .doc("only pixels inside this image (the frame's size, PGM/PNG, > 0 inside) count, in every region"),
+        block: usize = ParamSpec::of(ParamType::Int, Def::Int(64))
+            .ints(1, 1 << 20)
+            .unit("samples")
+            .doc("frames per emitted block"),
+        reference_frames: usize = ParamSpec::of(ParamType::Int, Def::Int(16))
+            .ints(1, 256)
+            .unit("frames")
+            .doc("the reference is the mean of this many first frames (less noise in its gradient)"),
+    }
+}
+
+type P = DisplacementParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "displacement",
     summary: "2-D sub-pixel displacement (px) of one or more regions, channels x0, y0, x1, y1, ...",
     inputs: &[InPort::one(&[PortType::Frames])],
     outputs: &[OutPort::out(PortType::Samples)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         let rois = match &v.rois {
             None => None,
             Some(r) => Some(parse_rois(r).map_err(|m| p.error("rois", m))?),

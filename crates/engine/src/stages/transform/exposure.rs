@@ -13,65 +13,57 @@
 
 use super::gap_fill::LatencyMeter;
 use crate::*;
-use serde::Deserialize;
 use std::sync::Arc;
 use vibroscope_math::exposure::{default_taps, design, CubicResampler, Fir, Mode};
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    exposure_us: f64,
-    mode: Mode,
-    floor_db: f64,
-    taps: Option<usize>,
-    rate_hz: Option<f64>,
-    report_latency: bool,
+params! {
+    /// `exposure`'s parameters.
+    pub struct ExposureParams for "exposure" {
+        exposure_us: f64 = ParamSpec::of(ParamType::Float, Def::Required)
+            .range(Range::Float {
+                lo: 0.0,
+                lo_open: true,
+                hi: 1e7,
+                hi_open: false,
+            })
+            .unit("µs")
+            .doc("each row's exposure time E (the boxcar's length)"),
+        mode: Mode = ParamSpec::of(
+            ParamType::Choice(&["lowpass", "compensate"]),
+            Def::Str("lowpass"),
+        )
+        .doc("keep what lies below the first null 1/E, or also invert the boxcar"),
+        floor_db: f64 = ParamSpec::of(ParamType::Float, Def::Float(-12.0))
+            .range(Range::Float {
+                lo: -60.0,
+                lo_open: false,
+                hi: 0.0,
+                hi_open: true,
+            })
+            .unit("dB")
+            .doc("compensate: lowest boxcar gain inverted"),
+        taps: Option<usize> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(3, 8191)
+            .doc("FIR length (odd); default about eight exposures"),
+        rate_hz: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .floats(100.0, 1e6)
+            .unit("Hz")
+            .doc("resample the output to this rate; default: the input's"),
+        report_latency: bool = ParamSpec::of(ParamType::Bool, Def::Bool(false))
+            .doc("print the output's wall-clock latency at the end (live runs)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("exposure_us", ParamType::Float, Def::Required)
-        .range(Range::Float {
-            lo: 0.0,
-            lo_open: true,
-            hi: 1e7,
-            hi_open: false,
-        })
-        .unit("µs")
-        .doc("each row's exposure time E (the boxcar's length)"),
-    ParamSpec::new(
-        "mode",
-        ParamType::Choice(&["lowpass", "compensate"]),
-        Def::Str("lowpass"),
-    )
-    .doc("keep what lies below the first null 1/E, or also invert the boxcar"),
-    ParamSpec::new("floor_db", ParamType::Float, Def::Float(-12.0))
-        .range(Range::Float {
-            lo: -60.0,
-            lo_open: false,
-            hi: 0.0,
-            hi_open: true,
-        })
-        .unit("dB")
-        .doc("compensate: lowest boxcar gain inverted"),
-    ParamSpec::new("taps", ParamType::Int, Def::Optional)
-        .ints(3, 8191)
-        .doc("FIR length (odd); default about eight exposures"),
-    ParamSpec::new("rate_hz", ParamType::Float, Def::Optional)
-        .floats(100.0, 1e6)
-        .unit("Hz")
-        .doc("resample the output to this rate; default: the input's"),
-    ParamSpec::new("report_latency", ParamType::Bool, Def::Bool(false))
-        .doc("print the output's wall-clock latency at the end (live runs)"),
-];
+type P = ExposureParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "exposure",
     summary: "rolling shutter: low-pass at the exposure boxcar's first null 1/E, or invert it above -12 dB; optional resampling (rate_hz)",
     inputs: &[InPort::one(&[PortType::Audio])],
     outputs: &[OutPort::out(PortType::Audio)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         Ok(Box::new(ExposurePlan(v)))
     },
 };

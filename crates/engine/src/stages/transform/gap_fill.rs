@@ -22,66 +22,58 @@
 //! delivery seen (live runs; see the README).
 
 use crate::*;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 use std::time::Instant;
 use vibroscope_math::ar_interp::{linear_fill, ArInterpolator};
 
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[derive(Deserialize, Serialize, Clone, Copy, PartialEq, Eq, Debug)]
 #[serde(rename_all = "lowercase")]
 pub enum FillMethod {
     Ar,
     Linear,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    method: FillMethod,
-    order: usize,
-    iterations: usize,
-    decimate: usize,
-    context: usize,
-    max_gap_s: f64,
-    report_latency: bool,
+params! {
+    /// `gap_fill`'s parameters.
+    pub struct GapFillParams for "gap_fill" {
+        method: FillMethod = ParamSpec::of(
+            ParamType::Choice(&["ar", "linear"]),
+            Def::Str("ar"),
+        )
+        .doc("fill gaps by AR interpolation (Janssen et al. 1986) or linearly"),
+        order: usize = ParamSpec::of(ParamType::Int, Def::Int(128))
+            .ints(1, 1024)
+            .doc("AR model order"),
+        iterations: usize = ParamSpec::of(ParamType::Int, Def::Int(2))
+            .ints(1, 16)
+            .doc("rounds of estimate-then-interpolate"),
+        decimate: usize = ParamSpec::of(ParamType::Int, Def::Int(8))
+            .ints(1, 64)
+            .doc("bridge gaps at 1/decimate of the row rate (1 = at the row rate)"),
+        context: usize = ParamSpec::of(ParamType::Int, Def::Int(2048))
+            .ints(2, 1 << 20)
+            .unit("samples")
+            .doc("known samples used on each side of a gap"),
+        max_gap_s: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.1))
+            .above_upto(0.0, 10.0)
+            .unit("s")
+            .doc("longest gap bridged"),
+        report_latency: bool = ParamSpec::of(ParamType::Bool, Def::Bool(false))
+            .doc("print the output's wall-clock latency at the end (live runs)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new(
-        "method",
-        ParamType::Choice(&["ar", "linear"]),
-        Def::Str("ar"),
-    )
-    .doc("fill gaps by AR interpolation (Janssen et al. 1986) or linearly"),
-    ParamSpec::new("order", ParamType::Int, Def::Int(128))
-        .ints(1, 1024)
-        .doc("AR model order"),
-    ParamSpec::new("iterations", ParamType::Int, Def::Int(2))
-        .ints(1, 16)
-        .doc("rounds of estimate-then-interpolate"),
-    ParamSpec::new("decimate", ParamType::Int, Def::Int(8))
-        .ints(1, 64)
-        .doc("bridge gaps at 1/decimate of the row rate (1 = at the row rate)"),
-    ParamSpec::new("context", ParamType::Int, Def::Int(2048))
-        .ints(2, 1 << 20)
-        .unit("samples")
-        .doc("known samples used on each side of a gap"),
-    ParamSpec::new("max_gap_s", ParamType::Float, Def::Float(0.1))
-        .above_upto(0.0, 10.0)
-        .unit("s")
-        .doc("longest gap bridged"),
-    ParamSpec::new("report_latency", ParamType::Bool, Def::Bool(false))
-        .doc("print the output's wall-clock latency at the end (live runs)"),
-];
+type P = GapFillParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "gap_fill",
     summary: "rolling shutter: row samples onto a uniform grid at 1/d, frame-delay gaps filled (AR, Janssen et al. 1986, or linear)",
     inputs: &[InPort::one(&[PortType::Samples])],
     outputs: &[OutPort::out(PortType::Audio)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         Ok(Box::new(FillPlan(v)))
     },
 };

@@ -14,34 +14,29 @@ use super::audio_out::AudioBatcher;
 use super::reduce::{check_roi, RowReducer, BLOCK, ROI, THREADS};
 use super::roi::{Roi, RoiParam};
 use crate::*;
-use serde::Deserialize;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    roi: Option<RoiParam>,
-    direction_deg: f64,
-    threads: usize,
-    block: usize,
+params! {
+    /// `gradient_motion`'s parameters.
+    pub struct GradientMotionParams for "gradient_motion" {
+        roi: Option<RoiParam> = ROI,
+        direction_deg: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.0))
+            .unit("deg")
+            .doc("direction of motion to measure (0 = +x, 90 = +y)"),
+        threads: usize = THREADS,
+        block: usize = BLOCK,
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ROI,
-    ParamSpec::new("direction_deg", ParamType::Float, Def::Float(0.0))
-        .unit("deg")
-        .doc("direction of motion to measure (0 = +x, 90 = +y)"),
-    THREADS,
-    BLOCK,
-];
+type P = GradientMotionParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "gradient_motion",
     summary: "sub-pixel motion of a region along a direction (least squares on image gradients), as audio",
     inputs: &[InPort::one(&[PortType::Frames])],
     outputs: &[OutPort::out(PortType::Audio)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         check_roi(p, v.roi.as_ref())?;
         Ok(Box::new(MotionPlan(v)))
     },

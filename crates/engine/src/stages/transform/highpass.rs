@@ -7,36 +7,32 @@
 
 use super::butterworth::{Design, FilterPlan, Mode, MODE};
 use crate::*;
-use serde::Deserialize;
 use vibroscope_math::iir::Shape;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    order: usize,
-    cutoff_hz: Option<f64>,
-    mode: Mode,
+params! {
+    /// `highpass`'s parameters.
+    pub struct HighpassParams for "highpass" {
+        order: usize = ParamSpec::of(ParamType::Int, Def::Int(4))
+            .ints(1, 16)
+            .doc("Butterworth order (second-order sections for even orders)"),
+        cutoff_hz: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .above(0.0)
+            .unit("Hz")
+            .doc("-3 dB corner (-6 dB zero-phase); default fs/40 clamped to 20-100 Hz (and <= fs/4)"),
+        mode: Mode = MODE,
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("order", ParamType::Int, Def::Int(4))
-        .ints(1, 16)
-        .doc("Butterworth order (second-order sections for even orders)"),
-    ParamSpec::new("cutoff_hz", ParamType::Float, Def::Optional)
-        .above(0.0)
-        .unit("Hz")
-        .doc("-3 dB corner (-6 dB zero-phase); default fs/40 clamped to 20-100 Hz (and <= fs/4)"),
-    MODE,
-];
+type P = HighpassParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "highpass",
     summary: "Butterworth high-pass (order, cutoff_hz; default fs/40 clamped to 20-100 Hz); zero-phase on replay, causal live (mode)",
     inputs: &[InPort::one(&[PortType::Audio])],
     outputs: &[OutPort::out(PortType::Audio)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         Ok(Box::new(FilterPlan {
             kind: "highpass",
             order: v.order,

@@ -9,83 +9,58 @@
 use super::reduce::ROI;
 use super::roi::{Roi, RoiParam};
 use crate::*;
-use serde::Deserialize;
 use vibroscope_math::magnify::{
-    Magnifier, MagnifyError, MagnifyParams, PyramidKind, DEFAULT_MAX_PHASE, DEFAULT_ORDER,
-    DEFAULT_ORIENTATIONS, DEFAULT_SIGMA,
+    Magnifier, MagnifyError, MagnifyParams as Method, PyramidKind, DEFAULT_MAX_PHASE,
+    DEFAULT_ORDER, DEFAULT_ORIENTATIONS, DEFAULT_SIGMA,
 };
+use vibroscope_math::pyramid::PyramidKind as Pyramid;
 use vibroscope_math::rng::mix64;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    lo_hz: f64,
-    hi_hz: f64,
-    factor: f64,
-    pyramid: String,
-    scales: usize,
-    orientations: usize,
-    order: usize,
-    sigma_px: f64,
-    max_phase_rad: f64,
-    roi: Option<RoiParam>,
-    side_by_side: bool,
-    whole_frame: bool,
-    threads: usize,
+params! {
+    /// `magnify`'s parameters.
+    pub struct MagnifyParams for "magnify" {
+        lo_hz: f64 = ParamSpec::of(ParamType::Float, Def::Required)
+            .above(0.0)
+            .unit("Hz")
+            .doc("low edge of the band whose motion is magnified"),
+        hi_hz: f64 = ParamSpec::of(ParamType::Float, Def::Required)
+            .above(0.0)
+            .unit("Hz")
+            .doc("high edge of the band (below half the frame rate)"),
+        factor: f64 = ParamSpec::of(ParamType::Float, Def::Float(10.0))
+            .floats(0.0, 1e6)
+            .doc("motion in the band is multiplied by this; below 1 attenuates, 0 removes it"),
+        pyramid: Pyramid = ParamSpec::of(ParamType::Choice(&["csp", "riesz"]), Def::Str("csp"))
+            .doc("csp: complex steerable (quality); riesz: Riesz on a Laplacian pyramid (speed)"),
+        scales: usize = ParamSpec::of(ParamType::Int, Def::Int(4))
+            .ints(1, 16)
+            .doc("pyramid scales (octaves)"),
+        orientations: usize = ParamSpec::of(ParamType::Int, Def::Int(DEFAULT_ORIENTATIONS as i64))
+            .ints(1, 16)
+            .doc("CSP orientations (8: motion in every direction is magnified evenly; the Riesz pyramid finds each pixel's own)"),
+        order: usize = ParamSpec::of(ParamType::Int, Def::Int(DEFAULT_ORDER as i64))
+            .ints(1, 8)
+            .doc("order of the causal Butterworth band-pass applied to each pixel's phase"),
+        sigma_px: f64 = ParamSpec::of(ParamType::Float, Def::Float(DEFAULT_SIGMA as f64))
+            .floats(0.0, 32.0)
+            .unit("band px")
+            .doc("σ of the amplitude-weighted smoothing of the phase (0 = none)"),
+        max_phase_rad: f64 = ParamSpec::of(ParamType::Float, Def::Float(DEFAULT_MAX_PHASE as f64))
+            .above_upto(0.0, 100.0)
+            .unit("rad")
+            .doc("limit of the magnified phase (π/2: a quarter of each band's wavelength)"),
+        roi: Option<RoiParam> = ROI,
+        side_by_side: bool = ParamSpec::of(ParamType::Bool, Def::Bool(false))
+            .doc("write the input (left) and the magnified frame (right) side by side"),
+        whole_frame: bool = ParamSpec::of(ParamType::Bool, Def::Bool(false))
+            .doc("with roi: write the whole frame, the region magnified and the rest as it came (default: only the region)"),
+        threads: usize = ParamSpec::of(ParamType::Int, Def::Int(0))
+            .ints(0, 16)
+            .doc("threads of the steerable pyramid (0 = one per core): its orientations are magnified in two halves, on two threads when there are two, bit-identical for any count; the Riesz pyramid uses one"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("lo_hz", ParamType::Float, Def::Required)
-        .above(0.0)
-        .unit("Hz")
-        .doc("low edge of the band whose motion is magnified"),
-    ParamSpec::new("hi_hz", ParamType::Float, Def::Required)
-        .above(0.0)
-        .unit("Hz")
-        .doc("high edge of the band (below half the frame rate)"),
-    ParamSpec::new("factor", ParamType::Float, Def::Float(10.0))
-        .floats(0.0, 1e6)
-        .doc("motion in the band is multiplied by this; below 1 attenuates, 0 removes it"),
-    ParamSpec::new(
-        "pyramid",
-        ParamType::Choice(&["csp", "riesz"]),
-        Def::Str("csp"),
-    )
-    .doc("csp: complex steerable (quality); riesz: Riesz on a Laplacian pyramid (speed)"),
-    ParamSpec::new("scales", ParamType::Int, Def::Int(4))
-        .ints(1, 16)
-        .doc("pyramid scales (octaves)"),
-    ParamSpec::new("orientations", ParamType::Int, Def::Int(DEFAULT_ORIENTATIONS as i64))
-        .ints(1, 16)
-        .doc("CSP orientations (8: motion in every direction is magnified evenly; the Riesz pyramid finds each pixel's own)"),
-    ParamSpec::new("order", ParamType::Int, Def::Int(DEFAULT_ORDER as i64))
-        .ints(1, 8)
-        .doc("order of the causal Butterworth band-pass applied to each pixel's phase"),
-    ParamSpec::new(
-        "sigma_px",
-        ParamType::Float,
-        Def::Float(DEFAULT_SIGMA as f64),
-    )
-    .floats(0.0, 32.0)
-    .unit("band px")
-    .doc("σ of the amplitude-weighted smoothing of the phase (0 = none)"),
-    ParamSpec::new(
-        "max_phase_rad",
-        ParamType::Float,
-        Def::Float(DEFAULT_MAX_PHASE as f64),
-    )
-    .above_upto(0.0, 100.0)
-    .unit("rad")
-    .doc("limit of the magnified phase (π/2: a quarter of each band's wavelength)"),
-    ROI,
-    ParamSpec::new("side_by_side", ParamType::Bool, Def::Bool(false))
-        .doc("write the input (left) and the magnified frame (right) side by side"),
-    ParamSpec::new("whole_frame", ParamType::Bool, Def::Bool(false))
-        .doc("with roi: write the whole frame, the region magnified and the rest as it came (default: only the region)"),
-    ParamSpec::new("threads", ParamType::Int, Def::Int(0))
-        .ints(0, 16)
-        .doc("threads of the steerable pyramid (0 = one per core): its orientations are magnified in two halves, on two threads when there are two, bit-identical for any count; the Riesz pyramid uses one"),
-];
+type P = MagnifyParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "magnify",
@@ -93,9 +68,9 @@ pub const KIND: KindSpec = KindSpec {
         "phase-based motion magnification of a band (lo_hz..hi_hz, factor): frames in, frames out",
     inputs: &[InPort::one(&[PortType::Frames])],
     outputs: &[OutPort::out(PortType::Frames)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         // (An empty band, lo_hz = hi_hz, is refused with the frame rate.)
         if v.lo_hz > v.hi_hz {
             return Err(p.error(
@@ -159,7 +134,7 @@ impl Magnify {
     /// The magnifier of `range` of the orientations (all, for Riesz).
     fn magnifier(
         roi: Roi,
-        params: MagnifyParams,
+        params: Method,
         range: std::ops::Range<usize>,
         residuals: bool,
     ) -> Result<Magnifier, StageError> {
@@ -180,7 +155,7 @@ impl Magnify {
     fn start(&self, f: &Frame) -> Result<Run, StageError> {
         let fmt = *f.format();
         let roi = Roi::resolve(self.p.roi.as_ref(), f.width(), f.height())?;
-        let csp = self.p.pyramid != "riesz";
+        let csp = self.p.pyramid != Pyramid::Riesz;
         // The pooled output frames beyond the region's size.
         let (w, h) = if self.p.whole_frame {
             (f.width(), f.height())
@@ -213,7 +188,7 @@ impl Magnify {
             field: "memory",
             message,
         })?;
-        let params = MagnifyParams {
+        let params = Method {
             fps: fmt.fps,
             lo_hz: self.p.lo_hz,
             hi_hz: self.p.hi_hz,
@@ -221,10 +196,9 @@ impl Magnify {
             order: self.p.order,
             sigma: self.p.sigma_px as f32,
             max_phase: self.p.max_phase_rad as f32,
-            pyramid: if self.p.pyramid == "riesz" {
-                PyramidKind::Riesz
-            } else {
-                PyramidKind::Csp
+            pyramid: match self.p.pyramid {
+                Pyramid::Csp => PyramidKind::Csp,
+                Pyramid::Riesz => PyramidKind::Riesz,
             },
             scales: self.p.scales,
             orientations: self.p.orientations,
@@ -264,7 +238,7 @@ impl Magnify {
             lo_hz = self.p.lo_hz,
             hi_hz = self.p.hi_hz,
             factor = self.p.factor,
-            pyramid = %self.p.pyramid,
+            pyramid = self.p.pyramid.name(),
             centre_hz = magnifier.bandpass().centre_hz,
             "magnify: {}x{} region at ({}, {})",
             roi.w,

@@ -6,26 +6,26 @@ use super::audio_out::AudioBatcher;
 use super::reduce::{check_roi, RowReducer, BLOCK, ROI, THREADS};
 use super::roi::{Roi, RoiParam};
 use crate::*;
-use serde::Deserialize;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    roi: Option<RoiParam>,
-    threads: usize,
-    block: usize,
+params! {
+    /// `mean`'s parameters.
+    pub struct MeanParams for "mean" {
+        roi: Option<RoiParam> = ROI,
+        threads: usize = THREADS,
+        block: usize = BLOCK,
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[ROI, THREADS, BLOCK];
+type P = MeanParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "mean",
     summary: "mean intensity of a region per frame, as audio (deterministic for any `threads`)",
     inputs: &[InPort::one(&[PortType::Frames])],
     outputs: &[OutPort::out(PortType::Audio)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         check_roi(p, v.roi.as_ref())?;
         Ok(Box::new(MeanPlan(v)))
     },

@@ -2,19 +2,19 @@
 //! `delay_us` makes it deliberately slow, for backpressure tests and demos.
 
 use crate::*;
-use serde::Deserialize;
 use std::time::Duration;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    delay_us: u64,
+params! {
+    /// `passthrough`'s parameters.
+    pub struct PassthroughParams for "passthrough" {
+        delay_us: u64 = ParamSpec::of(ParamType::Int, Def::Int(0))
+            .ints(0, 60_000_000)
+            .unit("µs")
+            .doc("sleep this long per item (simulates a slow stage)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[ParamSpec::new("delay_us", ParamType::Int, Def::Int(0))
-    .ints(0, 60_000_000)
-    .unit("µs")
-    .doc("sleep this long per item (simulates a slow stage)")];
+type P = PassthroughParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "passthrough",
@@ -30,9 +30,9 @@ pub const KIND: KindSpec = KindSpec {
         name: "out",
         ty: OutType::SameAsInput,
     }],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let p: P = p.resolve(PARAMS)?;
+        let p: P = p.resolve_typed()?;
         Ok(Box::new(Pass {
             delay: Duration::from_micros(p.delay_us),
         }))

@@ -50,34 +50,46 @@ use super::pyramid::{
 };
 use super::roi::{plan_region, resolve_region, Mask, Roi, RoiParam};
 use crate::*;
-use serde::Deserialize;
 use vibroscope_math::kernels::MAX_ORIENT;
 use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidError};
 use vibroscope_math::riesz::RieszPyramid;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    pyramid: PyramidKind,
-    scales: usize,
-    orientations: usize,
-    roi: Option<RoiParam>,
-    mask: Option<std::path::PathBuf>,
-    block: usize,
-    /// (The reference is fixed, so frames are independent: each is
-    /// computed whole by one worker. A frame waits for at most
-    /// `threads - 1` later frames.)
-    threads: usize,
-    reference_interval_s: f64,
-    reference_overlap: usize,
-    tiles: usize,
-    normalise: Normalise,
+params! {
+    /// `phase`'s parameters.
+    pub struct PhaseParams for "phase" {
+        pyramid: PyramidKind = PYRAMID,
+        scales: usize = SCALES,
+        orientations: usize = ORIENTATIONS,
+        roi: Option<RoiParam> = super::reduce::ROI,
+        mask: Option<std::path::PathBuf> = super::roi::MASK,
+        block: usize = ParamSpec::of(ParamType::Int, Def::Int(64))
+            .ints(1, 65536)
+            .unit("frames")
+            .doc("frames per emitted block"),
+        /// (The reference is fixed, so frames are independent: each is
+        /// computed whole by one worker. A frame waits for at most
+        /// `threads - 1` later frames.)
+        threads: usize = FRAME_THREADS,
+        reference_interval_s: f64 = REFERENCE_INTERVAL,
+        reference_overlap: usize = REFERENCE_OVERLAP,
+        tiles: usize = ParamSpec::of(ParamType::Int, Def::Int(1))
+            .ints(1, 32)
+            .unit("per side")
+            .doc("cut the region into tiles x tiles local regions, one channel per band per tile (tile-major), so a spectrum sums local power spectra (Eq. 3.17)"),
+        normalise: Normalise = ParamSpec::of(
+            ParamType::Choice(&["region", "channel", "tile"]),
+            Def::Str("region"),
+        )
+        .doc("divide every channel by the region's total A² (keeps the bands' and tiles' relative weights), by its own tile's and band's A² (its A²-weighted mean phase change: tiles of weak and strong texture count alike, and so do bands), or by its own tile's A² over all bands (tiles count alike, bands keep their relative weights within a tile)"),
+    }
 }
 
+type P = PhaseParams;
+
 /// What each channel is divided by.
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[derive(serde::Deserialize, serde::Serialize, Clone, Copy, PartialEq, Eq, Debug)]
 #[serde(rename_all = "lowercase")]
-enum Normalise {
+pub enum Normalise {
     /// The reference's total A² over every band of the region.
     Region,
     /// The reference's A² over the channel's own tile and band.
@@ -99,39 +111,14 @@ pub(super) const REFERENCE_OVERLAP: ParamSpec =
         .unit("frames")
         .doc("frames over which old and next reference run side by side to join them");
 
-const PARAMS: &[ParamSpec] = &[
-    PYRAMID,
-    SCALES,
-    ORIENTATIONS,
-    super::reduce::ROI,
-    super::roi::MASK,
-    ParamSpec::new("block", ParamType::Int, Def::Int(64))
-        .ints(1, 65536)
-        .unit("frames")
-        .doc("frames per emitted block"),
-    FRAME_THREADS,
-    REFERENCE_INTERVAL,
-    REFERENCE_OVERLAP,
-    ParamSpec::new("tiles", ParamType::Int, Def::Int(1))
-        .ints(1, 32)
-        .unit("per side")
-        .doc("cut the region into tiles x tiles local regions, one channel per band per tile (tile-major), so a spectrum sums local power spectra (Eq. 3.17)"),
-    ParamSpec::new(
-        "normalise",
-        ParamType::Choice(&["region", "channel", "tile"]),
-        Def::Str("region"),
-    )
-    .doc("divide every channel by the region's total A² (keeps the bands' and tiles' relative weights), by its own tile's and band's A² (its A²-weighted mean phase change: tiles of weak and strong texture count alike, and so do bands), or by its own tile's A² over all bands (tiles count alike, bands keep their relative weights within a tile)"),
-];
-
 pub const KIND: KindSpec = KindSpec {
     name: "phase",
     summary: "pyramid (csp or riesz) local phase, A²-weighted and summed per band (Eq. 3.1-3.4) -> one channel per band",
     inputs: &[InPort::one(&[PortType::Frames, PortType::Pyramid])],
     outputs: &[OutPort::out(PortType::Samples)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         let mask = plan_region(p, v.roi.as_ref(), v.mask.as_ref())?;
         Ok(Box::new(PhasePlan { p: v, mask }))
     },

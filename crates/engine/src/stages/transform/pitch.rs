@@ -28,50 +28,44 @@
 
 use super::resample::Aligned;
 use crate::*;
-use serde::Deserialize;
 use std::sync::Arc;
 use vibroscope_math::pitch::{self, PitchError, PitchFrame, Silence, Tracker, YinParams};
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    fmin_hz: f64,
-    fmax_hz: f64,
-    threshold: f64,
-    hop_s: f64,
-    silence_db: f64,
+params! {
+    /// `pitch`'s parameters.
+    pub struct PitchParams for "pitch" {
+        fmin_hz: f64 = ParamSpec::of(ParamType::Float, Def::Float(60.0))
+            .floats(1.0, 20_000.0)
+            .unit("Hz")
+            .doc("lowest pitch searched: sets the window (one period of it) and the latency (2/fmin_hz)"),
+        fmax_hz: f64 = ParamSpec::of(ParamType::Float, Def::Float(500.0))
+            .floats(2.0, 100_000.0)
+            .unit("Hz")
+            .doc("highest pitch searched; above fmin_hz and at most a quarter of the input's rate"),
+        threshold: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.15))
+            .floats(0.01, 0.99)
+            .doc("YIN's absolute threshold on the normalised difference (the paper's 0.1; 0.1-0.2 for noisy input): a frame whose dip stays above it is unvoiced"),
+        hop_s: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.01))
+            .floats(1e-4, 10.0)
+            .unit("s")
+            .doc("time between frames (the output's sample period)"),
+        silence_db: f64 = ParamSpec::of(ParamType::Float, Def::Float(40.0))
+            .floats(1.0, 200.0)
+            .unit("dB")
+            .doc("a frame this far under the loudest frame so far is silent (unvoiced)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("fmin_hz", ParamType::Float, Def::Float(60.0))
-        .floats(1.0, 20_000.0)
-        .unit("Hz")
-        .doc("lowest pitch searched: sets the window (one period of it) and the latency (2/fmin_hz)"),
-    ParamSpec::new("fmax_hz", ParamType::Float, Def::Float(500.0))
-        .floats(2.0, 100_000.0)
-        .unit("Hz")
-        .doc("highest pitch searched; above fmin_hz and at most a quarter of the input's rate"),
-    ParamSpec::new("threshold", ParamType::Float, Def::Float(0.15))
-        .floats(0.01, 0.99)
-        .doc("YIN's absolute threshold on the normalised difference (the paper's 0.1; 0.1-0.2 for noisy input): a frame whose dip stays above it is unvoiced"),
-    ParamSpec::new("hop_s", ParamType::Float, Def::Float(0.01))
-        .floats(1e-4, 10.0)
-        .unit("s")
-        .doc("time between frames (the output's sample period)"),
-    ParamSpec::new("silence_db", ParamType::Float, Def::Float(40.0))
-        .floats(1.0, 200.0)
-        .unit("dB")
-        .doc("a frame this far under the loudest frame so far is silent (unvoiced)"),
-];
+type P = PitchParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "pitch",
     summary: "YIN pitch of an audio stream, live: samples with channels f0 Hz, confidence, voiced (1/0), a row every hop_s",
     inputs: &[InPort::one(&[PortType::Audio])],
     outputs: &[OutPort::out(PortType::Samples)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         if v.fmax_hz <= v.fmin_hz {
             return Err(p.error(
                 "fmax_hz",

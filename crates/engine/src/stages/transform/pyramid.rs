@@ -27,7 +27,6 @@
 //! ```
 
 use crate::*;
-use serde::Deserialize;
 use std::sync::Arc;
 use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError};
 use vibroscope_math::riesz::{RieszCoeffs, RieszPyramid};
@@ -205,25 +204,26 @@ impl<C: CarriedKind> Analyzer for Carried<C> {
     }
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    pyramid: PyramidKind,
-    scales: usize,
-    orientations: usize,
-    threads: usize,
+params! {
+    /// `pyramid`'s parameters.
+    pub struct PyramidParams for "pyramid" {
+        pyramid: PyramidKind = PYRAMID,
+        scales: usize = SCALES,
+        orientations: usize = ORIENTATIONS,
+        threads: usize = FRAME_THREADS,
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[PYRAMID, SCALES, ORIENTATIONS, FRAME_THREADS];
+type P = PyramidParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "pyramid",
     summary: "complex steerable or Riesz pyramid per frame (Eq. 3.1) -> local amplitude and phase per band, for phase",
     inputs: &[InPort::one(&[PortType::Frames])],
     outputs: &[OutPort::out(PortType::Pyramid)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         let spec = PyramidSpec {
             kind: v.pyramid,
             scales: v.scales,

@@ -22,7 +22,6 @@ use rubato::{
     Async, FixedAsync, Resampler, SincInterpolationParameters, SincInterpolationType,
     WindowFunction,
 };
-use serde::Deserialize;
 use std::sync::Arc;
 
 /// Audio rates every common player and sound card takes, Hz.
@@ -40,25 +39,26 @@ pub fn default_rate_hz(rate_in: f64) -> f64 {
     }
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    rate_hz: Option<f64>,
+params! {
+    /// `resample`'s parameters.
+    pub struct ResampleParams for "resample" {
+        rate_hz: Option<f64> = ParamSpec::of(ParamType::Float, Def::Optional)
+            .floats(1000.0, 384_000.0)
+            .unit("Hz")
+            .doc("output rate; default: the input's when it is a standard audio rate (8000, 11025, 16000, 22050, 32000, 44100, 48000, 88200, 96000), else 48000"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[ParamSpec::new("rate_hz", ParamType::Float, Def::Optional)
-    .floats(1000.0, 384_000.0)
-    .unit("Hz")
-    .doc("output rate; default: the input's when it is a standard audio rate (8000, 11025, 16000, 22050, 32000, 44100, 48000, 88200, 96000), else 48000")];
+type P = ResampleParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "resample",
     summary: "band-limited (256-tap sinc) resampling to rate_hz (default: a standard audio rate), delay compensated; the speaker's resampler",
     inputs: &[InPort::one(&[PortType::Audio])],
     outputs: &[OutPort::out(PortType::Audio)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         Ok(Box::new(ResamplePlan(v.rate_hz)))
     },
 };

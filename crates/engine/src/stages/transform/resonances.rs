@@ -12,41 +12,34 @@ use super::super::sinks::peaks::{
     check_band, search_options, FALSE_ALARM, MAX_HZ, MIN_HZ, MIN_PROMINENCE,
 };
 use crate::*;
-use serde::Deserialize;
 use vibroscope_math::peaks::find_peaks;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    peaks: usize,
-    min_prominence_db: f64,
-    min_hz: Option<f64>,
-    max_hz: Option<f64>,
-    false_alarm: f64,
-    average: usize,
+params! {
+    /// `resonances`'s parameters.
+    pub struct ResonancesParams for "resonances" {
+        peaks: usize = ParamSpec::of(ParamType::Int, Def::Int(5))
+            .ints(1, 1000)
+            .doc("most prominent peaks in each set"),
+        min_prominence_db: f64 = MIN_PROMINENCE,
+        min_hz: Option<f64> = MIN_HZ,
+        max_hz: Option<f64> = MAX_HZ,
+        false_alarm: f64 = FALSE_ALARM,
+        average: usize = ParamSpec::of(ParamType::Int, Def::Int(1))
+            .ints(1, 100_000)
+            .doc("spectra averaged into each peak set (consecutive, not overlapping)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new("peaks", ParamType::Int, Def::Int(5))
-        .ints(1, 1000)
-        .doc("most prominent peaks in each set"),
-    MIN_PROMINENCE,
-    MIN_HZ,
-    MAX_HZ,
-    FALSE_ALARM,
-    ParamSpec::new("average", ParamType::Int, Def::Int(1))
-        .ints(1, 100_000)
-        .doc("spectra averaged into each peak set (consecutive, not overlapping)"),
-];
+type P = ResonancesParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "resonances",
     summary: "picks the resonances of each spectrum (or of each `average` spectra) and emits them as a peak set: frequency, damping, power, with uncertainties",
     inputs: &[InPort::one(&[PortType::Spectrum])],
     outputs: &[OutPort::out(PortType::Peaks)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         check_band(p, v.min_hz, v.max_hz)?;
         Ok(Box::new(Plan_(v)))
     },

@@ -28,7 +28,7 @@ pub const MASK: ParamSpec = ParamSpec::new("mask", ParamType::Path, Def::Optiona
     .doc("region as an image the frame's size (PGM/PNG, > 0 inside); with roi, both");
 
 /// `[x, y, w, h]` in pixels, as written in TOML.
-#[derive(Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Deserialize, serde::Serialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RoiParam(pub [u32; 4]);
 
 impl RoiParam {

@@ -23,19 +23,8 @@
 
 use super::roi::{Roi, RoiParam};
 use crate::*;
-use serde::Deserialize;
 use std::sync::Arc;
 use vibroscope_math::row_phase::{RowPhase, MAX_WAVELENGTH_PX, MIN_WAVELENGTH_PX};
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    line_delay_us: Option<f64>,
-    frame_delay_us: Option<f64>,
-    wavelengths_px: Vec<f64>,
-    roi: Option<RoiParam>,
-    row_mean_s: f64,
-}
 
 /// `line_delay_us`, shared with `synthetic`.
 pub const LINE_DELAY_US: ParamSpec = ParamSpec::new(
@@ -55,23 +44,24 @@ pub const FRAME_DELAY_US: ParamSpec =
         .unit("µs")
         .doc("blind time between a frame's last row and the next's first (checked only)");
 
-const PARAMS: &[ParamSpec] = &[
-    LINE_DELAY_US,
-    FRAME_DELAY_US,
-    ParamSpec::new(
-        "wavelengths_px",
-        ParamType::Floats,
-        Def::Toml("[8.0, 16.0]"),
-    )
-    .floats(MIN_WAVELENGTH_PX, MAX_WAVELENGTH_PX)
-    .unit("px")
-    .doc("Gabor wavelengths along x, one per scale (1 to 8)"),
-    super::reduce::ROI,
-    ParamSpec::new("row_mean_s", ParamType::Float, Def::Float(0.5))
-        .at_least(0.0)
-        .unit("s")
-        .doc("time constant of the per-row running mean removed (0 = off)"),
-];
+params! {
+    /// `rows`'s parameters.
+    pub struct RowsParams for "rows" {
+        line_delay_us: Option<f64> = LINE_DELAY_US,
+        frame_delay_us: Option<f64> = FRAME_DELAY_US,
+        wavelengths_px: Vec<f64> = ParamSpec::of(ParamType::Floats, Def::Toml("[8.0, 16.0]"))
+            .floats(MIN_WAVELENGTH_PX, MAX_WAVELENGTH_PX)
+            .unit("px")
+            .doc("Gabor wavelengths along x, one per scale (1 to 8)"),
+        roi: Option<RoiParam> = super::reduce::ROI,
+        row_mean_s: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.5))
+            .at_least(0.0)
+            .unit("s")
+            .doc("time constant of the per-row running mean removed (0 = off)"),
+    }
+}
+
+type P = RowsParams;
 
 /// Relative tolerance when a stated frame delay is checked against
 /// 1/fps - rows·d (spec sheets round; the thesis' own DSLR figures are 0.9% apart).
@@ -134,9 +124,9 @@ pub const KIND: KindSpec = KindSpec {
     summary: "rolling shutter: one motion sample per row (1-D local phase along x, A² weights) at its capture time",
     inputs: &[InPort::one(&[PortType::Frames])],
     outputs: &[OutPort::out(PortType::Samples)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         if v.wavelengths_px.is_empty() || v.wavelengths_px.len() > 8 {
             return Err(p.error(
                 "wavelengths_px",

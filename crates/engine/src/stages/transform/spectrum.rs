@@ -39,7 +39,7 @@ use std::collections::VecDeque;
 use std::sync::Arc;
 use vibroscope_math::peaks::KERNEL_STEP;
 
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[derive(Deserialize, serde::Serialize, Clone, Copy, PartialEq, Eq, Debug)]
 #[serde(rename_all = "lowercase")]
 pub enum Mode {
     Sliding,
@@ -95,7 +95,7 @@ impl Taper {
 }
 
 /// How the channels' spectra make one.
-#[derive(Deserialize, Clone, Copy, PartialEq, Eq, Debug)]
+#[derive(Deserialize, serde::Serialize, Clone, Copy, PartialEq, Eq, Debug)]
 #[serde(rename_all = "lowercase")]
 pub enum Combine {
     /// Their sum (Eq. 3.17 as written).
@@ -105,48 +105,37 @@ pub enum Combine {
     Snr,
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    mode: Mode,
-    combine: Combine,
-    window: Option<usize>,
-    hop: Option<usize>,
-    taper: Taper,
-    welch: usize,
-    segments: Option<usize>,
+params! {
+    /// `spectrum`'s parameters.
+    pub struct SpectrumParams for "spectrum" {
+        mode: Mode = ParamSpec::of(ParamType::Choice(&["sliding", "whole"]), Def::Str("sliding"))
+            .doc("a spectrum every `hop` samples, or one of the whole recording at the end"),
+        combine: Combine = ParamSpec::of(ParamType::Choice(&["sum", "snr"]), Def::Str("sum"))
+            .doc("whole: add the channels' power spectra (Eq. 3.17), or `snr`: scale each to its noise floor and weight it by its excess over that floor, so channels of noise only (a band across the motion, tiles off the vibrating part) add nothing"),
+        window: Option<usize> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(8, MAX_WINDOW as i64)
+            .unit("samples")
+            .doc("segment length, even; default 1024 (whole: chosen from `segments`)"),
+        hop: Option<usize> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(1, MAX_WINDOW as i64)
+            .unit("samples")
+            .doc("step between segments, <= window; default window/4 (whole: window/2)"),
+        taper: Taper = ParamSpec::of(
+            ParamType::Choice(&["hann", "hamming", "blackman", "rect"]),
+            Def::Str("hann"),
+        )
+        .doc("taper applied to each segment (travels on the spectrum to `peaks`)"),
+        welch: usize = ParamSpec::of(ParamType::Int, Def::Int(1))
+            .ints(1, 1024)
+            .doc("sliding: the last K window spectra averaged"),
+        segments: Option<usize> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(1, 4096)
+            .doc("whole, without `window`: segments averaged (default frames/2048, 1..=64)"),
+    }
 }
 
-const PARAMS: &[ParamSpec] = &[
-    ParamSpec::new(
-        "mode",
-        ParamType::Choice(&["sliding", "whole"]),
-        Def::Str("sliding"),
-    )
-    .doc("a spectrum every `hop` samples, or one of the whole recording at the end"),
-    ParamSpec::new("combine", ParamType::Choice(&["sum", "snr"]), Def::Str("sum"))
-        .doc("whole: add the channels' power spectra (Eq. 3.17), or `snr`: scale each to its noise floor and weight it by its excess over that floor, so channels of noise only (a band across the motion, tiles off the vibrating part) add nothing"),
-    ParamSpec::new("window", ParamType::Int, Def::Optional)
-        .ints(8, MAX_WINDOW as i64)
-        .unit("samples")
-        .doc("segment length, even; default 1024 (whole: chosen from `segments`)"),
-    ParamSpec::new("hop", ParamType::Int, Def::Optional)
-        .ints(1, MAX_WINDOW as i64)
-        .unit("samples")
-        .doc("step between segments, <= window; default window/4 (whole: window/2)"),
-    ParamSpec::new(
-        "taper",
-        ParamType::Choice(&["hann", "hamming", "blackman", "rect"]),
-        Def::Str("hann"),
-    )
-    .doc("taper applied to each segment (travels on the spectrum to `peaks`)"),
-    ParamSpec::new("welch", ParamType::Int, Def::Int(1))
-        .ints(1, 1024)
-        .doc("sliding: the last K window spectra averaged"),
-    ParamSpec::new("segments", ParamType::Int, Def::Optional)
-        .ints(1, 4096)
-        .doc("whole, without `window`: segments averaged (default frames/2048, 1..=64)"),
-];
+type P = SpectrumParams;
+
 /// Whole mode without `segments`: one segment per this many frames...
 pub const AUTO_FRAMES_PER_SEGMENT: usize = 2048;
 /// ...and at most this many (more buys little noise, costs resolution).
@@ -162,9 +151,9 @@ pub const KIND: KindSpec = KindSpec {
     summary: "global motion power spectrum Σ|F(A² u)|² over channels (Eq. 3.17): sliding window/hop/taper/welch, or mode = \"whole\" at the end",
     inputs: &[InPort::one(&[PortType::Samples, PortType::Audio])],
     outputs: &[OutPort::out(PortType::Spectrum)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         if let Some(w) = v.window {
             if w % 2 != 0 {
                 return Err(p.error(

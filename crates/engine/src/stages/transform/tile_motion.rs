@@ -48,47 +48,40 @@ use super::phase::{REFERENCE_INTERVAL, REFERENCE_OVERLAP};
 use super::reduce::ROI;
 use super::roi::{plan_region, resolve_region, Mask, Roi, RoiParam, MASK};
 use crate::*;
-use serde::Deserialize;
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct P {
-    roi: Option<RoiParam>,
-    mask: Option<std::path::PathBuf>,
-    tile_px: Option<usize>,
-    block: usize,
-    reference_interval_s: f64,
-    reference_overlap: usize,
-}
 
 /// Smallest automatic tile side, px.
 const MIN_TILE_PX: usize = 6;
 /// Most tiles the automatic size gives (two channels each).
 const MAX_AUTO_TILES: usize = 256;
 
-const PARAMS: &[ParamSpec] = &[
-    ROI,
-    MASK,
-    ParamSpec::new("tile_px", ParamType::Int, Def::Optional)
-        .ints(2, 1 << 16)
-        .unit("px")
-        .doc("tile side; default: 6 px, larger when the region would hold more than 256 tiles"),
-    ParamSpec::new("block", ParamType::Int, Def::Int(64))
-        .ints(1, 65536)
-        .unit("frames")
-        .doc("frames per emitted block"),
-    REFERENCE_INTERVAL,
-    REFERENCE_OVERLAP,
-];
+params! {
+    /// `tile_motion`'s parameters.
+    pub struct TileMotionParams for "tile_motion" {
+        roi: Option<RoiParam> = ROI,
+        mask: Option<std::path::PathBuf> = MASK,
+        tile_px: Option<usize> = ParamSpec::of(ParamType::Int, Def::Optional)
+            .ints(2, 1 << 16)
+            .unit("px")
+            .doc("tile side; default: 6 px, larger when the region would hold more than 256 tiles"),
+        block: usize = ParamSpec::of(ParamType::Int, Def::Int(64))
+            .ints(1, 65536)
+            .unit("frames")
+            .doc("frames per emitted block"),
+        reference_interval_s: f64 = REFERENCE_INTERVAL,
+        reference_overlap: usize = REFERENCE_OVERLAP,
+    }
+}
+
+type P = TileMotionParams;
 
 pub const KIND: KindSpec = KindSpec {
     name: "tile_motion",
     summary: "sub-pixel motion per tile (gradient least squares along x and y, whitened by the tile's Fisher matrix) -> two channels per tile",
     inputs: &[InPort::one(&[PortType::Frames])],
     outputs: &[OutPort::out(PortType::Samples)],
-    params: PARAMS,
+    params: P::PARAMS,
     plan: |p| {
-        let v: P = p.resolve(PARAMS)?;
+        let v: P = p.resolve_typed()?;
         let mask = plan_region(p, v.roi.as_ref(), v.mask.as_ref())?;
         Ok(Box::new(TilePlan { p: v, mask }))
     },
