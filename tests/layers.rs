@@ -566,9 +566,16 @@ fn the_checker_sees_a_circle() {
 fn string_edits(code: &str) -> Vec<String> {
     let mut found = Vec::new();
     let stripped = strip(code);
-    for word in ["set_param", "Param {", "read_table"] {
-        if stripped.contains(word) {
-            found.push(format!("uses `{word}`"));
+    for word in ["set_param", "Param {", "Param{", "read_table"] {
+        // As a word: not `RoiParam {` nor `Error::Param {`.
+        let hit = stripped.match_indices(word).any(|(i, _)| {
+            !stripped[..i]
+                .chars()
+                .next_back()
+                .is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':')
+        });
+        if hit {
+            found.push(format!("uses `{}`", word.trim_end_matches([' ', '{'])));
         }
     }
     for line in code.lines() {
@@ -665,6 +672,12 @@ fn the_string_edit_checker_sees_one() {
         1
     );
     assert_eq!(string_edits("config::set_param(st, k, v, o);").len(), 1);
+    assert_eq!(
+        string_edits("st.push(Param { key: k, value: v, origin: o });").len(),
+        1
+    );
+    assert!(string_edits("fn param(&self) -> RoiParam { x }").is_empty());
+    assert!(string_edits("MagnifyError::Param { field, message } => 1,").is_empty());
     assert!(string_edits("// \"a.b=c\" in a comment").is_empty());
     assert!(string_edits("format!(\"{k}={v}\")").is_empty());
 }

@@ -25,9 +25,8 @@
 //! complains, so `unknown field`, `invalid type` and range errors all name
 //! the file, line, stage and field.
 
-use crate::spec::{Key, KindParams, StageId};
 use serde::de::{self, DeserializeSeed, IntoDeserializer, MapAccess, Visitor};
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 use std::cell::Cell;
 use std::fmt;
 use toml::{Spanned, Value};
@@ -111,179 +110,6 @@ pub struct StageDecl {
     pub(crate) params: Vec<Param>,
 }
 
-impl StageDecl {
-    /// A new stage `id` of `K`'s main kind reading from `inputs`, without
-    /// parameters.
-    pub fn new_of<K: KindParams>(id: &str, inputs: &[&str], origin: Origin) -> Self {
-        Self::new_kind(id, K::KINDS[0], inputs, origin)
-    }
-
-    fn new_kind(id: &str, kind: &str, inputs: &[&str], origin: Origin) -> Self {
-        StageDecl {
-            id: id.into(),
-            kind: kind.into(),
-            origin: origin.clone(),
-            kind_origin: origin.clone(),
-            inputs: inputs
-                .iter()
-                .map(|from| InputDecl {
-                    from: (*from).into(),
-                    capacity: None,
-                    policy: None,
-                    origin: origin.clone(),
-                })
-                .collect(),
-            capacity: None,
-            policy: None,
-            params: Vec::new(),
-        }
-    }
-
-    /// A new stage of `kind`, one of those whose parameters are `K`
-    /// (`bandpass` or `bandstop` for the band's); `None` for another kind.
-    pub fn new_kind_of<K: KindParams>(
-        id: &str,
-        kind: &str,
-        inputs: &[&str],
-        origin: Origin,
-    ) -> Option<Self> {
-        let kind = K::KINDS.iter().find(|k| **k == kind)?;
-        Some(Self::new_kind(id, kind, inputs, origin))
-    }
-
-    /// The parameters set, in order, each with its origin.
-    pub fn params(&self) -> &[Param] {
-        &self.params
-    }
-
-    /// Unsets every parameter (the stage is about to become another kind).
-    pub fn clear_params(&mut self) {
-        self.params.clear();
-    }
-
-    /// Unsets `key`: its default applies.
-    pub fn unset<K: KindParams, T>(&mut self, key: Key<K, T>) {
-        self.params.retain(|p| p.key != key.name);
-    }
-
-    /// Whether the stage's kind has the parameters `K`.
-    pub fn is<K: KindParams>(&self) -> bool {
-        K::KINDS.contains(&self.kind.as_str())
-    }
-
-    /// Sets the parameter `key` to `v` (`None`: unsets it, so the default
-    /// applies), remembering `origin` for error messages; refused when the
-    /// stage's kind has no such parameter (a `--pipeline` file whose stage
-    /// of this id is another kind). `file` names the pipeline in the error.
-    pub fn set<K: KindParams, T: Serialize>(
-        &mut self,
-        file: &str,
-        key: Key<K, T>,
-        v: T,
-        origin: Origin,
-    ) -> Result<(), ConfigError> {
-        if !self.is::<K>() {
-            return Err(err(
-                file,
-                Some(origin),
-                Some(&self.id),
-                Some(key.name),
-                format!(
-                    "the stage is a `{}`, which has no parameter `{}` of {} (this command sets it)",
-                    self.kind,
-                    key.name,
-                    K::KINDS.join("/")
-                ),
-            ));
-        }
-        #[derive(Serialize)]
-        struct One<'a, T> {
-            v: &'a T,
-        }
-        let value = toml::Table::try_from(One { v: &v })
-            .map_err(|e| {
-                err(
-                    file,
-                    Some(origin.clone()),
-                    Some(&self.id),
-                    Some(key.name),
-                    format!("cannot be written as TOML: {e}"),
-                )
-            })?
-            .remove("v");
-        match value {
-            Some(value) => set_param(self, key.name, value, origin),
-            None => self.params.retain(|p| p.key != key.name),
-        }
-        Ok(())
-    }
-
-    /// The value of `key`: the one set, else the declared default; `None`
-    /// when neither exists (a required or automatic parameter not set),
-    /// or the stage is of another kind, or the value does not read as `T`.
-    pub fn get<K: KindParams, T: de::DeserializeOwned>(&self, key: Key<K, T>) -> Option<T> {
-        if !self.is::<K>() {
-            return None;
-        }
-        match self.params.iter().find(|p| p.key == key.name) {
-            Some(p) => T::deserialize(p.value.clone()).ok(),
-            None => key.default_value(),
-        }
-    }
-}
-
-impl PipelineDecl {
-    fn missing(&self, id: &str) -> ConfigError {
-        err(
-            &self.file,
-            None,
-            None,
-            None,
-            format!("the pipeline has no stage `{id}`, which this command edits"),
-        )
-    }
-
-    /// The stage `id`.
-    pub fn stage<K: KindParams>(&self, id: StageId<K>) -> Result<&StageDecl, ConfigError> {
-        self.stages
-            .iter()
-            .find(|s| s.id == id.id)
-            .ok_or_else(|| self.missing(id.id))
-    }
-
-    /// The stage `id`, to edit.
-    pub fn stage_mut<K: KindParams>(
-        &mut self,
-        id: StageId<K>,
-    ) -> Result<&mut StageDecl, ConfigError> {
-        match self.stages.iter().position(|s| s.id == id.id) {
-            Some(i) => Ok(&mut self.stages[i]),
-            None => Err(self.missing(id.id)),
-        }
-    }
-
-    /// Sets `key` of the stage `id` ([`StageDecl::set`]).
-    pub fn set<K: KindParams, T: Serialize>(
-        &mut self,
-        id: StageId<K>,
-        key: Key<K, T>,
-        v: T,
-        origin: Origin,
-    ) -> Result<(), ConfigError> {
-        let file = self.file.clone();
-        self.stage_mut(id)?.set(&file, key, v, origin)
-    }
-
-    /// The value of `key` of the stage `id` ([`StageDecl::get`]).
-    pub fn get<K: KindParams, T: de::DeserializeOwned>(
-        &self,
-        id: StageId<K>,
-        key: Key<K, T>,
-    ) -> Result<Option<T>, ConfigError> {
-        Ok(self.stage(id)?.get(key))
-    }
-}
-
 /// A parsed pipeline file.
 #[derive(Clone, Debug)]
 pub struct PipelineDecl {
@@ -344,7 +170,7 @@ pub fn line_of(text: &str, pos: usize) -> usize {
         + 1
 }
 
-fn err(
+pub(crate) fn err(
     file: &str,
     origin: Option<Origin>,
     stage: Option<&str>,
