@@ -7,7 +7,9 @@
 //! prints the crate graph and each crate's module-import graph summary.
 //!
 //! Layers, bottom first: `vibroscope-math` (no threads, no I/O), then
-//! `vibroscope-io`, `vibroscope-sim`, `vibroscope-engine`, `vibroscope`
+//! `vibroscope-io`, `vibroscope-sim`, `vibroscope-core` (the engine's
+//! runtime: no stage kinds, no device drivers), `vibroscope-engine` (the
+//! kinds), `vibroscope`
 //! (typed recipes), `vibroscope-studio` (the web application), `vibroscope-cli` (the binary). A new crate must be
 //! placed in [`LAYERS`].
 //!
@@ -26,6 +28,7 @@ const LAYERS: &[&str] = &[
     "vibroscope-math",
     "vibroscope-io",
     "vibroscope-sim",
+    "vibroscope-core",
     "vibroscope-engine",
     "vibroscope",
     "vibroscope-studio",
@@ -567,12 +570,24 @@ fn string_edits(code: &str) -> Vec<String> {
     let mut found = Vec::new();
     let stripped = strip(code);
     for word in ["set_param", "Param {", "Param{", "read_table"] {
-        // As a word: not `RoiParam {` nor `Error::Param {`.
+        // As a word (not `RoiParam {`), and not an enum's variant
+        // (`MagnifyError::Param {`): `config::Param {` is one.
         let hit = stripped.match_indices(word).any(|(i, _)| {
-            !stripped[..i]
+            let before = &stripped[..i];
+            if before
                 .chars()
                 .next_back()
-                .is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':')
+                .is_some_and(|c| c.is_alphanumeric() || c == '_')
+            {
+                return false;
+            }
+            match before.strip_suffix("::") {
+                Some(path) => !path
+                    .rsplit(|c: char| !(c.is_alphanumeric() || c == '_'))
+                    .next()
+                    .is_some_and(|seg| seg.starts_with(|c: char| c.is_ascii_uppercase())),
+                None => true,
+            }
         });
         if hit {
             found.push(format!("uses `{}`", word.trim_end_matches([' ', '{'])));
@@ -673,6 +688,10 @@ fn the_string_edit_checker_sees_one() {
     );
     assert_eq!(string_edits("config::set_param(st, k, v, o);").len(), 1);
     assert_eq!(
+        string_edits("let p = config::Param { key: k, value: v, origin: o };").len(),
+        1
+    );
+    assert_eq!(
         string_edits("st.push(Param { key: k, value: v, origin: o });").len(),
         1
     );
@@ -680,4 +699,73 @@ fn the_string_edit_checker_sees_one() {
     assert!(string_edits("MagnifyError::Param { field, message } => 1,").is_empty());
     assert!(string_edits("// \"a.b=c\" in a comment").is_empty());
     assert!(string_edits("format!(\"{k}={v}\")").is_empty());
+}
+
+/// Issue 49: the engine's core (runtime, configuration, typed parameters)
+/// builds without the device drivers' and the network's crates; only the
+/// kinds that use them pull them in. `cargo tree` of its normal
+/// dependencies, printed.
+#[test]
+fn the_core_builds_without_device_or_network_crates() {
+    let out = Command::new(env!("CARGO"))
+        .args([
+            "tree",
+            "-p",
+            "vibroscope-core",
+            "-e",
+            "normal",
+            "--prefix",
+            "none",
+            "--offline",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run cargo tree");
+    assert!(
+        out.status.success(),
+        "cargo tree failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let tree = String::from_utf8_lossy(&out.stdout);
+    let crates: BTreeSet<&str> = tree
+        .lines()
+        .filter_map(|l| l.split_whitespace().next())
+        .collect();
+    println!(
+        "vibroscope-core: {} crates in its dependency tree: {}",
+        crates.len(),
+        crates.iter().copied().collect::<Vec<_>>().join(" ")
+    );
+    assert!(crates.contains("vibroscope-core"), "{tree}");
+    for heavy in [
+        "cpal",
+        "v4l",
+        "v4l2-sys-mit",
+        "nokhwa",
+        "zenoh",
+        "alsa-sys",
+        "bindgen",
+    ] {
+        assert!(
+            !crates.contains(heavy),
+            "vibroscope-core depends on {heavy}:\n{tree}"
+        );
+    }
+    // The kinds do pull them in (the check can fail).
+    let out = Command::new(env!("CARGO"))
+        .args([
+            "tree",
+            "-p",
+            "vibroscope-engine",
+            "-e",
+            "normal",
+            "--prefix",
+            "none",
+            "--offline",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("run cargo tree");
+    let engine = String::from_utf8_lossy(&out.stdout);
+    assert!(engine.lines().any(|l| l.starts_with("cpal ")), "{engine}");
 }

@@ -8,7 +8,7 @@
 mod common;
 use common::*;
 use vibroscope::math::peaks::{find_peaks, PeakOptions};
-use vibroscope::stages::transform::spectrum::{SegmentFft, Taper};
+use vibroscope::stages::transform::spectrum::{SegmentFft, Taper, TaperExt};
 
 /// Thesis Table 5.5: the cantilever beam's first three modes (Hz), with
 /// damping ratios of our choosing in the 0.002-0.02 range.

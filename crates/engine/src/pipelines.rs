@@ -1,4 +1,5 @@
-//! Pipelines that ship inside the binary (the files under `pipelines/`).
+//! Pipelines that ship inside the binary (the files under this crate's
+//! `pipelines/`, which the repository's top-level `pipelines/` links to).
 //! `vibroscope run NAME` runs one by name; `vibroscope pipelines` lists them.
 
 /// A shipped pipeline: its name (file stem) and TOML text.
@@ -10,67 +11,67 @@ pub struct Shipped {
 pub static SHIPPED: &[Shipped] = &[
     Shipped {
         name: "demo",
-        text: include_str!("../../../pipelines/demo.toml"),
+        text: include_str!("../pipelines/demo.toml"),
     },
     Shipped {
         name: "visual-microphone",
-        text: include_str!("../../../pipelines/visual-microphone.toml"),
+        text: include_str!("../pipelines/visual-microphone.toml"),
     },
     Shipped {
         name: "tile-microphone",
-        text: include_str!("../../../pipelines/tile-microphone.toml"),
+        text: include_str!("../pipelines/tile-microphone.toml"),
     },
     Shipped {
         name: "live-microphone",
-        text: include_str!("../../../pipelines/live-microphone.toml"),
+        text: include_str!("../pipelines/live-microphone.toml"),
     },
     Shipped {
         name: "live-demo",
-        text: include_str!("../../../pipelines/live-demo.toml"),
+        text: include_str!("../pipelines/live-demo.toml"),
     },
     Shipped {
         name: "live-pitch",
-        text: include_str!("../../../pipelines/live-pitch.toml"),
+        text: include_str!("../pipelines/live-pitch.toml"),
     },
     Shipped {
         name: "rolling-shutter",
-        text: include_str!("../../../pipelines/rolling-shutter.toml"),
+        text: include_str!("../pipelines/rolling-shutter.toml"),
     },
     Shipped {
         name: "motion",
-        text: include_str!("../../../pipelines/motion.toml"),
+        text: include_str!("../pipelines/motion.toml"),
     },
     Shipped {
         name: "intensity",
-        text: include_str!("../../../pipelines/intensity.toml"),
+        text: include_str!("../pipelines/intensity.toml"),
     },
     Shipped {
         name: "render",
-        text: include_str!("../../../pipelines/render.toml"),
+        text: include_str!("../pipelines/render.toml"),
     },
     Shipped {
         name: "live-spectrum",
-        text: include_str!("../../../pipelines/live-spectrum.toml"),
+        text: include_str!("../pipelines/live-spectrum.toml"),
     },
     Shipped {
         name: "magnify",
-        text: include_str!("../../../pipelines/magnify.toml"),
+        text: include_str!("../pipelines/magnify.toml"),
     },
     Shipped {
         name: "live-magnify",
-        text: include_str!("../../../pipelines/live-magnify.toml"),
+        text: include_str!("../pipelines/live-magnify.toml"),
     },
     Shipped {
         name: "camera-node",
-        text: include_str!("../../../pipelines/camera-node.toml"),
+        text: include_str!("../pipelines/camera-node.toml"),
     },
     Shipped {
         name: "sim-node",
-        text: include_str!("../../../pipelines/sim-node.toml"),
+        text: include_str!("../pipelines/sim-node.toml"),
     },
     Shipped {
         name: "passthrough",
-        text: include_str!("../../../pipelines/passthrough.toml"),
+        text: include_str!("../pipelines/passthrough.toml"),
     },
 ];
 
@@ -200,7 +201,7 @@ mod tests {
     /// parameters, ports) against the registry.
     #[test]
     fn shipped_pipelines_validate() {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../../pipelines");
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines");
         let files: Vec<_> = std::fs::read_dir(dir)
             .map(|d| d.filter_map(Result::ok).collect())
             .unwrap_or_default();

@@ -14,6 +14,7 @@ use crate::math::ssi::{identify, SsiOptions};
 use crate::peaks::{DampingEstimate, SpectrumReport, SsiDetail};
 use crate::pipeline;
 use crate::stages::params::{AlignParams, WavParams};
+use crate::stages::transform::spectrum::TaperExt;
 use std::path::{Path, PathBuf};
 
 /// Where the motion goes: a file the user keeps, or a scratch file.

@@ -3,6 +3,7 @@
 
 pub mod sinks;
 pub mod sources;
+mod spec_tests;
 pub mod transform;
 
 use crate::KindSpec;

@@ -23,6 +23,7 @@
 //! `include_spectrum = true` adds `"spectrum": {"f0_hz", "resolution_hz",
 //! "power_db": [...]}`.
 
+use crate::stages::transform::spectrum::TaperExt;
 use crate::*;
 use std::path::PathBuf;
 use std::sync::Arc;

@@ -18,6 +18,7 @@
 //! height = 450
 //! ```
 
+use crate::stages::transform::spectrum::TaperExt;
 use crate::*;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;

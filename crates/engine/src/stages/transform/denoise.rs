@@ -97,7 +97,7 @@ enum Method {
 fn plan(p: &Params<'_>, method: Method) -> Result<Box<dyn Plan>, ConfigError> {
     if method != Method::Subtract {
         for k in ["alpha", "beta"] {
-            if p.stage.params.iter().any(|q| q.key == k) {
+            if p.stage.params().iter().any(|q| q.key == k) {
                 return Err(p.error(k, "only `spectral_subtraction` takes this parameter"));
             }
         }

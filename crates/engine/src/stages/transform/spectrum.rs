@@ -48,10 +48,19 @@ pub enum Mode {
 
 pub use crate::item::Taper;
 
-impl Taper {
+/// A taper's coefficients and power response (the taper is a stream fact
+/// in the core's items; what it computes is this stage's).
+pub trait TaperExt: Copy {
+    /// The periodic taper of length `n`.
+    fn coefficients(self, n: usize) -> Vec<f64>;
+    /// The power response for an `n`-sample segment.
+    fn power_kernel(self, n: usize, half_bins: usize) -> Vec<f64>;
+}
+
+impl TaperExt for Taper {
     /// The periodic taper of length `n` (periodic, so Welch segments at 50%
     /// overlap sum to a constant for Hann).
-    pub fn coefficients(self, n: usize) -> Vec<f64> {
+    fn coefficients(self, n: usize) -> Vec<f64> {
         let tau = 2.0 * std::f64::consts::PI;
         (0..n)
             .map(|i| {
@@ -65,14 +74,12 @@ impl Taper {
             })
             .collect()
     }
-}
 
-impl Taper {
     /// The taper's power response |W(ν)|² for an `n`-sample segment, at
     /// ν = j·[`KERNEL_STEP`] bins for |ν| <= `half_bins`, normalised to sum
     /// to 1: what one spectral line looks like in this stage's output (from
     /// a zero-padded FFT of the taper itself).
-    pub fn power_kernel(self, n: usize, half_bins: usize) -> Vec<f64> {
+    fn power_kernel(self, n: usize, half_bins: usize) -> Vec<f64> {
         let pad = (1.0 / KERNEL_STEP).round() as usize;
         let len = n.max(2) * pad;
         let mut buf = vec![Complex::new(0.0, 0.0); len];

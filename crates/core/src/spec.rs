@@ -9,7 +9,7 @@
 //! longer than the window, `min_hz < max_hz`) stay in the kind's `plan`.
 //!
 //! ```
-//! use vibroscope_engine::spec::{Def, ParamSpec, ParamType::*};
+//! use vibroscope_core::spec::{Def, ParamSpec, ParamType::*};
 //! const PARAMS: &[ParamSpec] = &[
 //!     ParamSpec::new("fps", Float, Def::Float(2200.0))
 //!         .above(0.0)
@@ -590,7 +590,7 @@ impl StageDecl {
     /// The value of `key`: the one set, else the declared default; `None`
     /// when neither exists (a required or automatic parameter not set),
     /// or the stage is of another kind, or the value does not read as `T`.
-    pub fn get<K: KindParams, T: de::DeserializeOwned>(&self, key: Key<K, T>) -> Option<T> {
+    pub fn get<K: KindParams, T: DeserializeOwned>(&self, key: Key<K, T>) -> Option<T> {
         if !self.is::<K>() {
             return None;
         }
@@ -644,7 +644,7 @@ impl PipelineDecl {
     }
 
     /// The value of `key` of the stage `id` ([`StageDecl::get`]).
-    pub fn get<K: KindParams, T: de::DeserializeOwned>(
+    pub fn get<K: KindParams, T: DeserializeOwned>(
         &self,
         id: StageId<K>,
         key: Key<K, T>,
@@ -658,8 +658,8 @@ impl PipelineDecl {
 /// one typed [`Key`] per field.
 ///
 /// ```
-/// use vibroscope_engine::params;
-/// use vibroscope_engine::spec::{Def, KindParams, ParamSpec, ParamType::*};
+/// use vibroscope_core::params;
+/// use vibroscope_core::spec::{Def, KindParams, ParamSpec, ParamType::*};
 /// params! {
 ///     /// `demo`'s parameters.
 ///     pub struct DemoParams for "demo" {
@@ -1025,110 +1025,5 @@ pub trait Plan: Send {
     /// Frames this stage keeps beyond the one it is processing.
     fn frames_held(&self) -> usize {
         0
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::config::parse;
-    use crate::stages::REGISTRY;
-
-    /// A value for a required parameter, for the defaults test; required
-    /// floats grow with their position `i` (a band's `lo_hz` < `hi_hz`).
-    fn sample(spec: &ParamSpec, i: usize) -> Value {
-        match spec.ty {
-            ParamType::Path => Value::String("/tmp/vibroscope-kinds-test/out.x".into()),
-            ParamType::Str => Value::String("x".into()),
-            ParamType::Bool => Value::Boolean(false),
-            ParamType::Int => Value::Integer(match spec.range {
-                Range::Int(lo, _) => lo,
-                _ => 1,
-            }),
-            ParamType::Float => Value::Float(1.0 + i as f64),
-            ParamType::Choice(c) => Value::String(c[0].into()),
-            _ => Value::Array(Vec::new()),
-        }
-    }
-
-    /// Every kind builds its plan from its declared defaults (required
-    /// parameters given a value), and every declared default is itself
-    /// within the declared range.
-    #[test]
-    fn declared_defaults_pass_validation() {
-        for k in REGISTRY {
-            let mut text = format!("[[stage]]\nid = \"s\"\nkind = \"{}\"\n", k.name);
-            for (i, p) in k.params.iter().enumerate() {
-                if let Some(v) = p.default.value() {
-                    assert!(
-                        p.check(&v).is_ok(),
-                        "{}.{}: default {v} fails",
-                        k.name,
-                        p.name
-                    );
-                    assert!(!p.doc.is_empty(), "{}.{} has no doc", k.name, p.name);
-                }
-                if p.default == Def::Required {
-                    text.push_str(&format!("{} = {}\n", p.name, sample(p, i)));
-                }
-            }
-            let decl = parse("t.toml", &text).unwrap();
-            let params = Params {
-                file: "t.toml",
-                stage: &decl.stages[0],
-            };
-            if let Err(e) = (k.plan)(&params) {
-                panic!("kind `{}` rejects its own defaults: {e}", k.name);
-            }
-            assert!(k.inputs.len() <= 1 && k.outputs.len() <= 1, "{}", k.name);
-            let d = k.describe();
-            for p in k.params {
-                assert!(d.contains(p.name), "{}: {d}", k.name);
-            }
-        }
-    }
-
-    #[test]
-    fn listing_names_every_kind() {
-        let l = listing(REGISTRY);
-        assert_eq!(l.lines().count(), REGISTRY.len());
-        for k in REGISTRY {
-            assert!(
-                l.lines()
-                    .any(|line| line.split_whitespace().next() == Some(k.name)),
-                "{} missing: {l}",
-                k.name
-            );
-        }
-    }
-
-    #[test]
-    fn describe_shows_ports_and_params() {
-        let d = crate::stages::kind("spectrum").unwrap().describe();
-        assert!(d.contains("input:   in: samples | audio"), "{d}");
-        assert!(d.contains("output:  out: spectrum"), "{d}");
-        assert!(d.contains("sliding|whole"), "{d}");
-        assert!(d.contains("samples"), "{d}");
-    }
-
-    #[test]
-    fn checks_name_the_value() {
-        let s = ParamSpec::new("fps", ParamType::Float, Def::Float(1.0))
-            .above(0.0)
-            .unit("Hz");
-        assert_eq!(
-            s.check(&Value::Float(0.0)).unwrap_err(),
-            "must be > 0 Hz, got 0"
-        );
-        assert!(s.check(&Value::Float(f64::NAN)).is_err());
-        assert!(s
-            .check(&Value::String("x".into()))
-            .unwrap_err()
-            .contains("invalid type"));
-        let c = ParamSpec::new("m", ParamType::Choice(&["a", "b"]), Def::Str("a"));
-        assert_eq!(
-            c.check(&Value::String("z".into())).unwrap_err(),
-            "must be a or b, got `z`"
-        );
     }
 }

@@ -177,7 +177,7 @@ pub struct HistoryLimits {
 /// The tap's side of a history: frames that came while a reader held it
 /// (handed over at the next frame), and buffers to reuse.
 #[derive(Default)]
-pub(crate) struct Pending {
+pub struct Pending {
     frames: VecDeque<TapFrame>,
     bytes: usize,
     free: Vec<TapFrame>,
@@ -241,13 +241,13 @@ impl TapSlot {
         self.skipped.load(Ordering::Relaxed)
     }
 
-    pub(crate) fn count_skip(&self) {
+    pub fn count_skip(&self) {
         self.skipped.fetch_add(1, Ordering::Relaxed);
     }
 
     /// Keeps `item` unless a reader holds the slot (then counts it
     /// skipped). Never waits. Frames are copied into the slot's own buffer.
-    pub(crate) fn publish(&self, item: &Item) -> bool {
+    pub fn publish(&self, item: &Item) -> bool {
         let mut h = match self.held.try_lock() {
             Ok(h) => h,
             Err(TryLockError::Poisoned(p)) => p.into_inner(),
@@ -304,12 +304,7 @@ impl TapSlot {
     /// Adds `f` to the history, trimmed to `lim`. Never waits: while a
     /// reader holds the history, frames wait in `pending` (up to an eighth
     /// of the history's memory; past that the history starts over).
-    pub(crate) fn record(
-        &self,
-        f: &crate::frame::Frame,
-        lim: HistoryLimits,
-        pending: &mut Pending,
-    ) {
+    pub fn record(&self, f: &crate::frame::Frame, lim: HistoryLimits, pending: &mut Pending) {
         let mut h = match self.history.try_lock() {
             Ok(h) => h,
             Err(TryLockError::Poisoned(p)) => p.into_inner(),
