@@ -4,7 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use vibroscope_engine::config::{self, set_param, Origin};
+use vibroscope_engine::config::{self, Origin};
+use vibroscope_engine::stages::params::Y4mParams;
 use vibroscope_engine::{graph, pipelines, stages};
 
 fuzz_target!(|data: &[u8]| {
@@ -19,18 +20,12 @@ fuzz_target!(|data: &[u8]| {
     let Some(cam) = decl.stages.iter_mut().find(|s| s.id == "cam") else {
         panic!("render has no `cam` stage");
     };
-    cam.params.clear();
-    for (k, v) in table {
-        set_param(cam, &k, v, Origin::Line(1));
-    }
+    // The scene file's reader, as `simulate` uses it.
+    config::read_table(cam, &table, |_| Origin::Line(1));
     // Output to /dev/null: validation must not write anything.
-    if let Some(out) = decl.stages.iter_mut().find(|s| s.id == "out") {
-        set_param(
-            out,
-            "path",
-            toml::Value::String("/dev/null".into()),
-            Origin::Line(1),
-        );
-    }
+    let out = pipelines::stage::render::OUT;
+    let null = std::path::PathBuf::from("/dev/null");
+    decl.set(out, Y4mParams::path, null, Origin::Line(1))
+        .expect("render's `out` is a y4m sink");
     let _ = graph::validate(&decl, stages::REGISTRY);
 });
