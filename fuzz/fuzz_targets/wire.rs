@@ -1,4 +1,4 @@
-//! The network decoder (`crates/engine/src/wire.rs`, issue 21): bytes a
+//! The network decoder (`crates/core/src/wire.rs`, issue 21): bytes a
 //! peer sends on an edge. Decoding must never panic nor allocate more than
 //! the bytes present; an item that decodes must encode back to the same
 //! bytes (the encoding is canonical: one layout per item, floats kept bit
