@@ -49,24 +49,32 @@ struct Package {
     roots: Vec<PathBuf>,
 }
 
-fn metadata() -> Vec<Package> {
+/// What `cargo ARGS` prints, run in the workspace (a failure panics with
+/// its message).
+fn cargo(args: &[&str]) -> String {
     let out = Command::new(env!("CARGO"))
-        .args([
-            "metadata",
-            "--format-version",
-            "1",
-            "--no-deps",
-            "--offline",
-        ])
+        .args(args)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
         .output()
-        .expect("run cargo metadata");
+        .unwrap_or_else(|e| panic!("run cargo {}: {e}", args.join(" ")));
     assert!(
         out.status.success(),
-        "cargo metadata failed: {}",
+        "cargo {} failed: {}",
+        args.join(" "),
         String::from_utf8_lossy(&out.stderr)
     );
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).expect("metadata JSON");
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+fn metadata() -> Vec<Package> {
+    let out = cargo(&[
+        "metadata",
+        "--format-version",
+        "1",
+        "--no-deps",
+        "--offline",
+    ]);
+    let doc: serde_json::Value = serde_json::from_str(&out).expect("metadata JSON");
     let members: BTreeSet<String> = doc["packages"]
         .as_array()
         .expect("packages")
@@ -707,26 +715,19 @@ fn the_string_edit_checker_sees_one() {
 /// dependencies, printed.
 #[test]
 fn the_core_builds_without_device_or_network_crates() {
-    let out = Command::new(env!("CARGO"))
-        .args([
+    let deps = |p: &str| {
+        cargo(&[
             "tree",
             "-p",
-            "vibroscope-core",
+            p,
             "-e",
             "normal",
             "--prefix",
             "none",
             "--offline",
         ])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run cargo tree");
-    assert!(
-        out.status.success(),
-        "cargo tree failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let tree = String::from_utf8_lossy(&out.stdout);
+    };
+    let tree = deps("vibroscope-core");
     let crates: BTreeSet<&str> = tree
         .lines()
         .filter_map(|l| l.split_whitespace().next())
@@ -752,20 +753,6 @@ fn the_core_builds_without_device_or_network_crates() {
         );
     }
     // The kinds do pull them in (the check can fail).
-    let out = Command::new(env!("CARGO"))
-        .args([
-            "tree",
-            "-p",
-            "vibroscope-engine",
-            "-e",
-            "normal",
-            "--prefix",
-            "none",
-            "--offline",
-        ])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run cargo tree");
-    let engine = String::from_utf8_lossy(&out.stdout);
+    let engine = deps("vibroscope-engine");
     assert!(engine.lines().any(|l| l.starts_with("cpal ")), "{engine}");
 }

@@ -601,15 +601,21 @@ impl StageDecl {
     }
 }
 
+/// A pipeline (`file`) that lacks the stage `id` a recipe edits (a file
+/// given with `--pipeline` that is not shaped like the shipped one).
+pub fn no_stage(file: &str, id: &str) -> ConfigError {
+    err(
+        file,
+        None,
+        None,
+        None,
+        format!("the pipeline has no stage `{id}`, which this command edits"),
+    )
+}
+
 impl PipelineDecl {
     fn missing(&self, id: &str) -> ConfigError {
-        err(
-            &self.file,
-            None,
-            None,
-            None,
-            format!("the pipeline has no stage `{id}`, which this command edits"),
-        )
+        no_stage(&self.file, id)
     }
 
     /// The stage `id`.
@@ -641,15 +647,6 @@ impl PipelineDecl {
     ) -> Result<(), ConfigError> {
         let file = self.file.clone();
         self.stage_mut(id)?.set(&file, key, v, origin)
-    }
-
-    /// The value of `key` of the stage `id` ([`StageDecl::get`]).
-    pub fn get<K: KindParams, T: DeserializeOwned>(
-        &self,
-        id: StageId<K>,
-        key: Key<K, T>,
-    ) -> Result<Option<T>, ConfigError> {
-        Ok(self.stage(id)?.get(key))
     }
 }
 

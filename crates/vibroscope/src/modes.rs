@@ -181,8 +181,7 @@ fn pipeline_with(o: &ModesOptions, npys: &[Option<PathBuf>]) -> Result<PipelineD
             put(&mut st, ModesParams::exponent, e, by("--exponent"))?;
         }
         if let Some(s) = o.pyramid_scale {
-            // As the TOML integer it is written as (at most i64::MAX).
-            let s = s.min(i64::MAX as usize);
+            let s = pipeline::count(s);
             put(&mut st, ModesParams::scale, s, by("--pyramid-scale"))?;
         }
         if o.unnormalized {

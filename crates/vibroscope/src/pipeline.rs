@@ -293,13 +293,13 @@ pub fn position(decl: &PipelineDecl, id: &str) -> Result<usize> {
 /// A pipeline that lacks a stage a recipe edits (a pipeline file given
 /// with `--pipeline` that is not shaped like the shipped one).
 pub fn no_stage(file: &str, id: &str) -> Error {
-    Error::Config(ConfigError {
-        file: file.to_string(),
-        origin: None,
-        stage: None,
-        field: None,
-        message: format!("the pipeline has no stage `{id}`, which this command edits"),
-    })
+    Error::Config(crate::engine::spec::no_stage(file, id))
+}
+
+/// A count as the TOML integer a parameter holds it in (at most
+/// `i64::MAX`).
+pub fn count(n: usize) -> usize {
+    n.min(i64::MAX as usize)
 }
 
 /// Sets the parameter `key` of the shipped stage `id` to `v` (`None`

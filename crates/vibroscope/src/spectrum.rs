@@ -197,7 +197,7 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
             &mut decl,
             PHASE,
             PhaseParams::tiles,
-            int(o.tiles),
+            pipeline::count(o.tiles),
             by("tiles"),
         )?;
     }
@@ -229,7 +229,7 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
             &mut decl,
             SPECTRUM,
             SpectrumParams::segments,
-            Some(int(k)),
+            Some(pipeline::count(k)),
             by("--segments"),
         )?;
     }
@@ -238,7 +238,7 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
             &mut decl,
             SPECTRUM,
             SpectrumParams::window,
-            Some(int(w)),
+            Some(pipeline::count(w)),
             by("--window"),
         )?;
     }
@@ -253,7 +253,7 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
         &mut decl,
         OUT,
         PeaksParams::peaks,
-        int(o.peaks),
+        pipeline::count(o.peaks),
         by("--peaks"),
     )?;
     let fa = o.false_alarm;
@@ -278,11 +278,6 @@ pub fn spectrum_pipeline(o: &SpectrumOptions, json: &Path) -> Result<PipelineDec
     }
     add_plots(&mut decl, o)?;
     Ok(decl)
-}
-
-/// `n` as the TOML integer it is written as (at most `i64::MAX`).
-fn int(n: usize) -> usize {
-    n.min(i64::MAX as usize)
 }
 
 /// Sets `o`'s band (`--min-hz`, `--max-hz`) as `min` and `max` of `st`
@@ -313,7 +308,7 @@ fn add_plots(decl: &mut PipelineDecl, o: &SpectrumOptions) -> Result<()> {
         let mut sp = decl.stages[spec].clone();
         sp.id = "spectrogram_spectrum".into();
         sp.clear_params();
-        let w = int(o.spectrogram_window);
+        let w = pipeline::count(o.spectrogram_window);
         put(
             &mut sp,
             SpectrumParams::mode,
