@@ -8,10 +8,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use vibroscope::engine::config::parse;
-use vibroscope::engine::graph::validate;
-use vibroscope::engine::{run, Control, RunOptions};
-use vibroscope::stages::REGISTRY;
+use vibroscope_engine::config::parse;
+use vibroscope_engine::graph::validate;
+use vibroscope_engine::stages::REGISTRY;
+use vibroscope_engine::{run, Control, RunOptions};
 
 const FRAMES: u64 = 20_000;
 

@@ -13,7 +13,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use vibroscope::math::idv::{Complex32, Complex64, Oscillator, Renderer, Shape};
+use vibroscope_math::idv::{Complex32, Complex64, Oscillator, Renderer, Shape};
 
 const W: usize = 512;
 const H: usize = 512;

@@ -22,10 +22,10 @@ use std::process::{Command, Stdio};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-use vibroscope::engine::edge::{edge, Recv};
-use vibroscope::engine::net::{self, zenoh, Endpoints};
-use vibroscope::engine::wire::{self, WireItem, WireRef};
-use vibroscope::engine::{AudioBlock, Item, Policy, Spectrum, Taper};
+use vibroscope_engine::edge::{edge, Recv};
+use vibroscope_engine::net::{self, zenoh, Endpoints};
+use vibroscope_engine::wire::{self, WireItem, WireRef};
+use vibroscope_engine::{AudioBlock, Item, Policy, Spectrum, Taper};
 use zenoh::handlers::FifoChannel;
 use zenoh::sample::SampleKind;
 use zenoh::Wait;
@@ -263,10 +263,10 @@ fn monitor_rate(n: usize) -> f64 {
     let mut buf = Vec::new();
     let t0 = Instant::now();
     for i in 0..n {
-        let set = vibroscope::engine::PeakSet {
+        let set = vibroscope_engine::PeakSet {
             t_ns: (i / 10) as i64 * 500_000_000,
             peaks: (0..5)
-                .map(|j| vibroscope::engine::Resonance {
+                .map(|j| vibroscope_engine::Resonance {
                     frequency_hz: 20.0 * (j + 1) as f64 + 0.01 * ((i * 7 + j) % 13) as f64,
                     frequency_std_hz: 0.05,
                     power_db: -40.0,

@@ -7,10 +7,10 @@
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicU64, Ordering};
-use vibroscope::engine::config::parse;
-use vibroscope::engine::graph::validate;
-use vibroscope::engine::{run, Control, RunOptions};
-use vibroscope::stages::REGISTRY;
+use vibroscope_engine::config::parse;
+use vibroscope_engine::graph::validate;
+use vibroscope_engine::stages::REGISTRY;
+use vibroscope_engine::{run, Control, RunOptions};
 
 struct Counting;
 static ALLOCS: AtomicU64 = AtomicU64::new(0);

@@ -143,9 +143,18 @@ fn crates_depend_only_on_crates_below_them() {
                 )),
                 None => bad.push(format!("{} depends on {d}, which is not placed", p.name)),
             }
-            if p.name == BINARY && d != RECIPES && d != STUDIO {
+            // The narrow faces (issue 49): the binary's code reaches the
+            // layers only through the recipes (and the studio over them),
+            // the studio's only through the recipes. Their tests and
+            // benchmarks (dev-dependencies) may check the layers directly.
+            if kind == "normal" && p.name == BINARY && d != RECIPES && d != STUDIO {
                 bad.push(format!(
                     "the binary depends on {d}; it may use only the recipes ({RECIPES}) and {STUDIO}"
+                ));
+            }
+            if kind == "normal" && p.name == STUDIO && d != RECIPES {
+                bad.push(format!(
+                    "the studio depends on {d}; it may use only the recipes ({RECIPES})"
                 ));
             }
         }
@@ -494,29 +503,101 @@ fn circles(edges: &BTreeMap<String, BTreeSet<String>>) -> Vec<Vec<String>> {
     t.out
 }
 
+/// The paths of a piece of code's `pub use` and `pub(…) use` items
+/// (re-exports), `use` trees expanded.
+fn reexport_paths(code: &str) -> Vec<Vec<String>> {
+    let toks = tokens(code);
+    let mut out = Vec::new();
+    for i in 0..toks.len() {
+        if toks[i] != "use" || i == 0 {
+            continue;
+        }
+        let public = toks[i - 1] == "pub"
+            || (toks[i - 1] == ")" && i >= 4 && toks[i - 4] == "pub" && toks[i - 3] == "(");
+        if !public {
+            continue;
+        }
+        let end = toks[i..]
+            .iter()
+            .position(|t| t == ";")
+            .map_or(toks.len(), |p| i + p);
+        let mut j = i + 1;
+        use_tree(&toks[..end], &mut j, Vec::new(), &mut out);
+    }
+    out
+}
+
+/// The import edges between the modules of one crate (`codes`: module
+/// path -> its code without comments, strings and test module). A path
+/// that names an item one module re-exports from another (`pub use
+/// fabric::Fabric` in the root, named as `super::Fabric`) is an import of
+/// the module that defines it: a circle hidden behind a re-export is a
+/// circle.
+fn module_edges(
+    codes: &BTreeMap<String, String>,
+    mods: &BTreeMap<String, PathBuf>,
+) -> BTreeMap<String, BTreeSet<String>> {
+    // (module, name it re-exports) -> the module the name comes from
+    let mut reexports: BTreeMap<(String, String), String> = BTreeMap::new();
+    for (me, code) in codes {
+        for path in reexport_paths(code) {
+            let Some(name) = path.last().filter(|n| *n != "self") else {
+                continue;
+            };
+            if let Some(target) = resolve(me, &path, mods) {
+                if &target != me {
+                    reexports.insert((me.clone(), name.clone()), target);
+                }
+            }
+        }
+    }
+    let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for (me, code) in codes {
+        for path in paths(code) {
+            let Some(mut target) = resolve(me, &path, mods) else {
+                continue;
+            };
+            if !nested(me, &target) {
+                edges.entry(me.clone()).or_default().insert(target.clone());
+            }
+            // Through re-exports, a few levels deep.
+            for _ in 0..4 {
+                let through = path.iter().find_map(|seg| {
+                    reexports
+                        .get(&(target.clone(), seg.clone()))
+                        .or_else(|| reexports.get(&(target.clone(), "*".to_string())))
+                });
+                let Some(t) = through.cloned() else { break };
+                if !nested(me, &t) {
+                    edges.entry(me.clone()).or_default().insert(t.clone());
+                }
+                target = t;
+            }
+        }
+        edges.entry(me.clone()).or_default();
+    }
+    edges
+}
+
 #[test]
 fn no_module_import_circle() {
     let mut found = Vec::new();
     for p in metadata() {
         for root in &p.roots {
             let mods = modules(root, &p.src);
-            let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
-            for (me, file) in &mods {
-                let code = strip(&std::fs::read_to_string(file).expect("read"));
-                // Test modules may reach anywhere; they are not part of the layering.
-                let code = match test_module(&code) {
-                    Some(i) => &code[..i],
-                    None => &code[..],
-                };
-                for path in paths(code) {
-                    if let Some(target) = resolve(me, &path, &mods) {
-                        if !nested(me, &target) {
-                            edges.entry(me.clone()).or_default().insert(target);
-                        }
-                    }
-                }
-                edges.entry(me.clone()).or_default();
-            }
+            let codes: BTreeMap<String, String> = mods
+                .iter()
+                .map(|(me, file)| {
+                    let code = strip(&std::fs::read_to_string(file).expect("read"));
+                    // Test modules may reach anywhere; they are not part of the layering.
+                    let code = match test_module(&code) {
+                        Some(i) => code[..i].to_string(),
+                        None => code,
+                    };
+                    (me.clone(), code)
+                })
+                .collect();
+            let edges = module_edges(&codes, &mods);
             let n_edges: usize = edges.values().map(BTreeSet::len).sum();
             let cs = circles(&edges);
             println!(
@@ -536,6 +617,33 @@ fn no_module_import_circle() {
         "module import circles:\n  {}",
         found.join("\n  ")
     );
+}
+
+#[test]
+fn the_checker_sees_a_circle_behind_a_reexport() {
+    // lib re-exports fabric's Fabric; scene names it through the root,
+    // and fabric uses scene's constant: scene <-> fabric.
+    let mods: BTreeMap<String, PathBuf> = ["", "scene", "fabric"]
+        .iter()
+        .map(|m| (m.to_string(), PathBuf::new()))
+        .collect();
+    let code = |c: &str| strip(c);
+    let mut codes: BTreeMap<String, String> = BTreeMap::new();
+    codes.insert(
+        "".into(),
+        code("pub mod fabric; pub mod scene; pub use fabric::{Fabric, Spec};"),
+    );
+    codes.insert("scene".into(), code("fn f(x: super::Fabric) {}"));
+    codes.insert("fabric".into(), code("const S: f64 = super::scene::SIGMA;"));
+    let e = module_edges(&codes, &mods);
+    assert_eq!(
+        circles(&e),
+        vec![vec!["fabric".to_string(), "scene".into()]],
+        "{e:?}"
+    );
+    // Without the constant's import, no circle.
+    codes.insert("fabric".into(), code("const S: f64 = 2.0;"));
+    assert!(circles(&module_edges(&codes, &mods)).is_empty());
 }
 
 #[test]
@@ -755,4 +863,68 @@ fn the_core_builds_without_device_or_network_crates() {
     // The kinds do pull them in (the check can fail).
     let engine = deps("vibroscope-engine");
     assert!(engine.lines().any(|l| l.starts_with("cpal ")), "{engine}");
+}
+
+/// Issue 49: the recipe crate's face is its recipes, their report types
+/// and the few items it names on purpose (`files`, `live`, re-exports
+/// beside the recipe that uses them); it re-exports no layer below whole
+/// (`pub use vibroscope_math as math`, `pub use vibroscope_io::*`), so
+/// the binary and the studio cannot reach past it. Returns the offending
+/// lines.
+fn whole_layer_reexports(code: &str) -> Vec<String> {
+    let layers = [
+        "vibroscope_math",
+        "vibroscope_io",
+        "vibroscope_sim",
+        "vibroscope_core",
+        "vibroscope_engine",
+    ];
+    let mut out = Vec::new();
+    for path in reexport_paths(code) {
+        let Some(first) = path.first() else { continue };
+        let whole_crate = path.len() == 1 || path.last().is_some_and(|l| l == "*" || l == "self");
+        let layer_module = path.len() == 2
+            && matches!(first.as_str(), "crate" | "self")
+            && matches!(path[1].as_str(), "math" | "io" | "sim" | "engine" | "core");
+        if (layers.contains(&first.as_str()) && whole_crate) || layer_module {
+            out.push(path.join("::"));
+        }
+    }
+    out
+}
+
+#[test]
+fn the_recipes_reexport_no_layer_whole() {
+    let pkgs = metadata();
+    let recipes = pkgs
+        .iter()
+        .find(|p| p.name == RECIPES)
+        .expect("the recipe crate");
+    let mut bad = Vec::new();
+    for root in &recipes.roots {
+        for (me, file) in modules(root, &recipes.src) {
+            let code = strip(&std::fs::read_to_string(&file).expect("read"));
+            for l in whole_layer_reexports(&code) {
+                bad.push(format!("{} ({me}): pub use {l}", file.display()));
+            }
+        }
+    }
+    println!(
+        "{RECIPES}: no layer below re-exported whole ({} found)",
+        bad.len()
+    );
+    assert!(
+        bad.is_empty(),
+        "the recipes re-export a layer whole:\n  {}",
+        bad.join("\n  ")
+    );
+    // The checker sees one, and lets a named item or a private alias pass.
+    let seen = whole_layer_reexports(&strip(
+        "pub use vibroscope_math as math;\npub use vibroscope_io::*;\npub use crate::engine;",
+    ));
+    assert_eq!(seen.len(), 3, "{seen:?}");
+    let passed = whole_layer_reexports(&strip(
+        "use vibroscope_math as math;\npub use vibroscope_io::atomic::write_atomic;\npub use crate::math::rod::Measured;",
+    ));
+    assert!(passed.is_empty(), "{passed:?}");
 }

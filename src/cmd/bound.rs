@@ -30,7 +30,7 @@ pub struct Args {
     #[arg(long, value_name = "PX", allow_negative_numbers = true)]
     amplitude_px: Option<f64>,
     /// Frames averaged into the reference image.
-    #[arg(long, value_name = "N", default_value_t = vibroscope::math::bound::REFERENCE_FRAMES)]
+    #[arg(long, value_name = "N", default_value_t = vibroscope::bound::REFERENCE_FRAMES)]
     reference_frames: usize,
     /// Read at most this many frames.
     #[arg(long, value_name = "N")]
@@ -78,7 +78,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         super::outln!("note: {n}");
     }
     if let Some(p) = &a.json {
-        vibroscope::io::atomic::write_atomic(p, &serde_json::to_vec_pretty(&r)?)?;
+        vibroscope::files::write_atomic(p, &serde_json::to_vec_pretty(&r)?)?;
         super::wrote(p);
     }
     Ok(ExitCode::SUCCESS)

@@ -204,7 +204,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 /// The numeric parameters of an effect on one line (`key value`, four
 /// decimals, whole numbers as they are; lists of up to four numbers in
 /// full, longer ones as their length).
-fn brief(p: &vibroscope::math::calibrate::Parameters) -> String {
+fn brief(p: &vibroscope::calibrate::Parameters) -> String {
     let Ok(serde_json::Value::Object(m)) = serde_json::to_value(p) else {
         return String::new();
     };

@@ -200,7 +200,7 @@ pub fn stats<T>(
     r
 }
 
-pub use vibroscope::engine::thousands;
+pub use vibroscope::live::thousands;
 
 /// A progress bar over the frames of the runs a recipe makes (drawn on a
 /// terminal only), with a whole-number rate (`4,452/s`).

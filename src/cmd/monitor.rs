@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
-use vibroscope::engine::net;
+use vibroscope::live::net;
 use vibroscope::monitor::{track::TrackConfig, MonitorOptions};
 
 /// Watch the resonances of many cameras: subscribe (zenoh) to the peak sets

@@ -3,8 +3,8 @@
 use super::VideoArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use vibroscope::math::pitch::YinParams;
 use vibroscope::pipeline::RunSettings;
+use vibroscope::pitch::YinParams;
 use vibroscope::pitch::{self, PitchOptions};
 
 /// Track the pitch of a sound, or of the sound in a video (YIN).

@@ -50,7 +50,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     super::warn_playback_rate(&a.file, a.fps);
     if let Some(p) = &a.json {
-        vibroscope::io::atomic::write_atomic(p, &serde_json::to_vec_pretty(&r)?)?;
+        vibroscope::files::write_atomic(p, &serde_json::to_vec_pretty(&r)?)?;
         super::wrote(p);
     }
     Ok(ExitCode::SUCCESS)

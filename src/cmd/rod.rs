@@ -2,7 +2,7 @@
 
 use super::spectrum::SpectrumArgs;
 use std::process::ExitCode;
-use vibroscope::math::rod::Measured;
+use vibroscope::rod::Measured;
 use vibroscope::rod::{self, RodOptions};
 
 /// A clamped rod's fundamental, and Young's modulus or length.

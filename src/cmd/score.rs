@@ -51,7 +51,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         eprintln!("note: {n}");
     }
     if let Some(p) = &a.json {
-        vibroscope::io::atomic::write_atomic(p, (text + "\n").as_bytes())?;
+        vibroscope::files::write_atomic(p, (text + "\n").as_bytes())?;
         super::wrote(p);
     }
     Ok(ExitCode::SUCCESS)

@@ -77,7 +77,7 @@ pub struct SpectrumArgs {
     /// Report only peaks that noise alone would put this high anywhere in
     /// the band with at most this probability (against each peak's local
     /// noise floor and the spectrum's averages; 0 < P <= 1).
-    #[arg(long, value_name = "P", default_value_t = vibroscope::math::peaks::DEFAULT_FALSE_ALARM)]
+    #[arg(long, value_name = "P", default_value_t = vibroscope::peaks::DEFAULT_FALSE_ALARM)]
     pub false_alarm: f64,
     /// Report every prominent peak, significant or not (each with its
     /// false-alarm probability): --false-alarm 1.

@@ -138,14 +138,14 @@ pub fn guitar_with_ffmpeg() -> Option<PathBuf> {
 
 /// Ground truth: the displacement (px) the forward model gave the object in
 /// the first `n` frames of synthetic stage `stage_id` of `decl`.
-pub fn true_motion(decl: &vibroscope::engine::PipelineDecl, stage_id: &str, n: usize) -> Vec<f64> {
-    use vibroscope::stages::sources::synthetic::SyntheticParams;
+pub fn true_motion(decl: &vibroscope_engine::PipelineDecl, stage_id: &str, n: usize) -> Vec<f64> {
+    use vibroscope_engine::stages::sources::synthetic::SyntheticParams;
     let st = decl
         .stages
         .iter()
         .find(|s| s.id == stage_id)
         .expect("synthetic stage");
-    let p: SyntheticParams = vibroscope::engine::Params {
+    let p: SyntheticParams = vibroscope_engine::Params {
         file: &decl.file,
         stage: st,
     }

@@ -682,7 +682,7 @@ impl Fabric {
             }
             peak += pa * pc * sum;
         }
-        let interp = Interp::new(super::scene::OBJECT_SIGMA_PX);
+        let interp = Interp::new(super::texture::OBJECT_SIGMA_PX);
         let taps = (0..=TAP_STEPS)
             .map(|i| interp.taps_f32_reversed(i as f64 / TAP_STEPS as f64))
             .collect();

@@ -50,8 +50,7 @@ use super::rng::{hash2, Xoshiro256, Ziggurat};
 use super::texture::{correlate, Interp, Texture, PAD, TAPS};
 use super::{detmath, Signal, SimError};
 
-/// Texture scale (std of the Gaussian low-pass, px) of the object.
-pub const OBJECT_SIGMA_PX: f64 = 2.0;
+pub use super::texture::OBJECT_SIGMA_PX;
 /// Texture scale of the background.
 pub const BACKGROUND_SIGMA_PX: f64 = 2.5;
 /// Object mean level, as a fraction of full scale.

@@ -31,6 +31,10 @@
 use super::detmath;
 use super::rng::{mix64, unit_f64};
 
+/// Texture scale (std of the Gaussian low-pass, px) of the object: the
+/// rigid object's, the modal beam's and the fabric's.
+pub const OBJECT_SIGMA_PX: f64 = 2.0;
+
 /// Number of interpolation taps; offsets `j = TAP_MIN ..= TAP_MIN + TAPS - 1`.
 pub const TAPS: usize = 16;
 /// First tap offset: taps cover `j = -7..=8` around a fraction in [0, 1).

@@ -49,9 +49,9 @@ use std::collections::{HashMap, VecDeque};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
-use vibroscope::io::{FrameDest, VideoReader};
-use vibroscope::math::modal::{align_phase, read_npy_complex64};
+use vibroscope::files::{FrameDest, VideoReader};
 use vibroscope::modes::ModesOptions;
+use vibroscope::modes::{align_phase, read_npy_complex64};
 use vibroscope::pipeline::{Region, Roi};
 use vibroscope::spectrum::{DisplacementTap, SpectrumOptions};
 
@@ -539,7 +539,7 @@ async fn live_mode(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<axum::Jso
     let r: LiveModeRequest = body(&b)?;
     check_frequency(r.freq_hz)?;
     let mut v = app.analyses.run(move || {
-        let video = vibroscope::io::atomic::TempPath::new("studio-live.y4m");
+        let video = vibroscope::files::TempPath::new("studio-live.y4m");
         let (frames, span_s, fps) = live
             .history_video(video.path())
             .map_err(|(io, m)| {
@@ -696,7 +696,7 @@ fn read_frame_png(app: &App, path: &Path, i: u64) -> ApiResult<Vec<u8>> {
     let mut slot = app.reader.lock().unwrap_or_else(|p| p.into_inner());
     let reuse = matches!(&*slot, Some((p, next, _)) if p == path && *next <= i);
     if !reuse {
-        let r = vibroscope::io::open(path, vibroscope::io::Format::Auto)
+        let r = vibroscope::files::open_video(path, vibroscope::files::Format::Auto)
             .map_err(|e| ApiError::unprocessable(e.to_string()))?;
         *slot = Some((path.to_path_buf(), 0, r));
     }
@@ -712,8 +712,8 @@ fn read_frame_png(app: &App, path: &Path, i: u64) -> ApiResult<Vec<u8>> {
     let mut px16 = vec![0u16; n];
     loop {
         let got = match info.depth {
-            vibroscope::io::Depth::U8 => reader.read_frame(FrameDest::U8(&mut px8)),
-            vibroscope::io::Depth::U16 => reader.read_frame(FrameDest::U16(&mut px16)),
+            vibroscope::files::Depth::U8 => reader.read_frame(FrameDest::U8(&mut px8)),
+            vibroscope::files::Depth::U16 => reader.read_frame(FrameDest::U16(&mut px16)),
         };
         let got = got.map_err(|e| {
             *next = u64::MAX;
@@ -732,8 +732,8 @@ fn read_frame_png(app: &App, path: &Path, i: u64) -> ApiResult<Vec<u8>> {
             break;
         }
     }
-    if info.depth == vibroscope::io::Depth::U16 {
-        vibroscope::io::image::gray8_from_u16(&px16, info.bits, &mut px8);
+    if info.depth == vibroscope::files::Depth::U16 {
+        vibroscope::files::gray8_from_u16(&px16, info.bits, &mut px8);
     }
     encode_png(&px8, info.width, info.height, image::ExtendedColorType::L8)
 }
@@ -924,7 +924,7 @@ pub(crate) struct Selection {
     /// The rectangle the waveform is measured over (`roi` or the frame).
     pub(crate) whole: [u32; 4],
     /// The painted mask, written to a scratch PNG, and its pixels inside.
-    mask: Option<(vibroscope::io::atomic::TempPath, u64)>,
+    mask: Option<(vibroscope::files::TempPath, u64)>,
 }
 
 impl Selection {
@@ -970,7 +970,7 @@ fn select(
     let b64 = mask.strip_prefix("data:image/png;base64,").unwrap_or(mask);
     let bytes = base64_decode(b64)
         .ok_or_else(|| ApiError::bad("mask: not base64 (send the PNG as a data: URL)"))?;
-    let m = vibroscope::stages::transform::roi::Mask::decode(&bytes, Path::new("mask"))
+    let m = vibroscope::live::Mask::decode(&bytes, Path::new("mask"))
         .map_err(ApiError::unprocessable)?;
     if (m.width, m.height) != (probe.width as usize, probe.height as usize) {
         return Err(ApiError::unprocessable(format!(
@@ -1001,7 +1001,7 @@ fn select(
         let (by, bh) = grow(b.y, b.h, probe.height);
         [bx, by, bw, bh]
     });
-    let file = vibroscope::io::atomic::TempPath::new("studio-mask.png");
+    let file = vibroscope::files::TempPath::new("studio-mask.png");
     std::fs::write(file.path(), &bytes).map_err(|e| {
         ApiError::new(
             StatusCode::INTERNAL_SERVER_ERROR,
@@ -1217,11 +1217,11 @@ fn region_motion(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Va
     o.include_spectrum = true;
     o.region = sel.region();
     // The motion the spectrum came from, kept for the damping view's SSI.
-    let wav = vibroscope::io::atomic::TempPath::new("studio-motion.wav");
+    let wav = vibroscope::files::TempPath::new("studio-motion.wav");
     o.motion_wav = Some(wav.path().to_path_buf());
     let tap = DisplacementTap::new(vec![sel.whole]).with_mask(sel.mask_path());
     let (report, _run) = vibroscope::spectrum::run_spectrum_with(&o, true, Some(&tap))?;
-    let (_, signal) = vibroscope::io::wav::read_mono(wav.path()).map_err(|e| {
+    let (_, signal) = vibroscope::files::read_wav_mono(wav.path()).map_err(|e| {
         ApiError::new(
             StatusCode::INTERNAL_SERVER_ERROR,
             format!("the region's motion WAV: {e}"),
@@ -1365,7 +1365,7 @@ fn region_sound(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Val
             }
         }
     }
-    let wav = vibroscope::io::atomic::TempPath::new("studio-listen.wav");
+    let wav = vibroscope::files::TempPath::new("studio-listen.wav");
     let o = vibroscope::listen::ListenOptions {
         video: path.to_path_buf(),
         output: wav.path().to_path_buf(),
@@ -1385,7 +1385,7 @@ fn region_sound(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Val
     let report = vibroscope::listen::listen(&o)?;
     let internal = |m: String| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, m);
     let bytes = std::fs::read(wav.path()).map_err(|e| internal(format!("the sound's WAV: {e}")))?;
-    let (rate, x) = vibroscope::io::wav::read_mono(wav.path())
+    let (rate, x) = vibroscope::files::read_wav_mono(wav.path())
         .map_err(|e| internal(format!("the sound's WAV: {e}")))?;
     let rate = f64::from(rate);
     // Bins up to half the frame rate, about 64 of them; windows overlap 3/4.
@@ -1396,7 +1396,7 @@ fn region_sound(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Val
     let hop = (nfft / 4).max(1);
     let bin_hz = rate / nfft as f64;
     let bins = ((top / bin_hz).floor() as usize + 1).min(nfft / 2 + 1);
-    let columns: Vec<Vec<f32>> = vibroscope::math::stft::stft(&x, nfft, hop)
+    let columns: Vec<Vec<f32>> = vibroscope::spectrum::stft(&x, nfft, hop)
         .iter()
         .map(|col| {
             col[..bins]
@@ -1440,8 +1440,8 @@ fn modal_image(
     roi: Option<[u32; 4]>,
     freq_hz: f64,
 ) -> ApiResult<Value> {
-    let png = vibroscope::io::atomic::TempPath::new("studio-mode.png");
-    let npy = vibroscope::io::atomic::TempPath::new("studio-mode.npy");
+    let png = vibroscope::files::TempPath::new("studio-mode.png");
+    let npy = vibroscope::files::TempPath::new("studio-mode.npy");
     let o = ModesOptions {
         video: path.to_path_buf(),
         at_hz: freq_hz,

@@ -66,7 +66,7 @@ pub struct StudioOptions {
 /// Subscribes to a monitor's events (`--monitor`).
 #[cfg(feature = "net")]
 fn start_monitor_feed(endpoints: &str, key: &str) -> Result<Arc<api::MonitorFeed>, StartError> {
-    use vibroscope::engine::net;
+    use vibroscope::live::net;
     let connect = net::parse_endpoints(endpoints)
         .map_err(|m| StartError::Usage(format!("--monitor: {m}")))?;
     let feed = vibroscope::monitor::feed::Feed::start(

@@ -15,11 +15,10 @@ use serde_json::{json, Value};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-use vibroscope::engine::config::{Origin, PipelineDecl};
-use vibroscope::engine::{Latest, Observer, PortType, TapFrame, TapSlot};
-use vibroscope::math::peaks::{find_peaks, PeakOptions};
+use vibroscope::live::TapParams;
+use vibroscope::live::{Latest, Observer, Origin, PipelineDecl, PortType, TapFrame, TapSlot};
+use vibroscope::peaks::{find_peaks, PeakOptions};
 use vibroscope::pipeline::{self as pl, PipelineOptions};
-use vibroscope::stages::params::TapParams;
 
 /// Largest number of spectrum values sent per update: longer spectra are
 /// reduced to this many by keeping each group's largest value (a peak
@@ -85,8 +84,7 @@ pub fn prepare(pipeline: &str, set: &[String]) -> Result<PipelineDecl, String> {
     })
     .map_err(|e| e.to_string())?;
     // The user's pipeline first: errors name its own stages and fields.
-    let g = vibroscope::engine::graph::validate(&decl, vibroscope::stages::REGISTRY)
-        .map_err(|e| e.to_string())?;
+    let g = pl::validate(&decl).map_err(|e| e.to_string())?;
     let id = |i: usize| g.nodes[i].id.clone();
     let source = g
         .nodes
@@ -144,8 +142,7 @@ pub fn prepare(pipeline: &str, set: &[String]) -> Result<PipelineDecl, String> {
         decl.stages.push(st.map_err(|e| e.to_string())?);
     }
     // Errors naming the user's stages and fields, before anything runs.
-    vibroscope::engine::graph::validate(&decl, vibroscope::stages::REGISTRY)
-        .map_err(|e| e.to_string())?;
+    pl::validate(&decl).map_err(|e| e.to_string())?;
     Ok(decl)
 }
 
@@ -259,16 +256,16 @@ impl Live {
         let fps = (n - 1) as f64 / span_s;
         let write = || -> std::io::Result<()> {
             let file = std::io::BufWriter::new(std::fs::File::create(path)?);
-            let mut w = vibroscope::io::Y4mWriter::new(
+            let mut w = vibroscope::files::Y4mWriter::new(
                 file,
                 first.width,
                 first.height,
-                vibroscope::io::Depth::U8,
+                vibroscope::files::Depth::U8,
                 fps,
             )?;
             for f in &h.frames {
                 w.write_frame(
-                    vibroscope::io::FrameDestRef::U8(&f.gray),
+                    vibroscope::files::FrameDestRef::U8(&f.gray),
                     Some(f.t_ns - first.t_ns),
                 )?;
             }
@@ -380,7 +377,7 @@ impl Live {
     }
 
     /// The peaks of spectrum `seq` (computed once per spectrum).
-    fn peaks_of(&self, seq: u64, sp: &vibroscope::engine::Spectrum) -> Value {
+    fn peaks_of(&self, seq: u64, sp: &vibroscope::live::Spectrum) -> Value {
         let mut g = self.peaks.lock().unwrap_or_else(|p| p.into_inner());
         if g.0 != seq {
             let power: Vec<f64> = sp.power.iter().map(|&v| f64::from(v)).collect();

@@ -33,9 +33,9 @@ use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-use vibroscope::math::modal::read_npy_complex64;
 use vibroscope::modes::ModesOptions;
-use vibroscope::sim::modal::cantilever_shape;
+use vibroscope_math::modal::read_npy_complex64;
+use vibroscope_sim::modal::cantilever_shape;
 use vibroscope_studio::{Studio, StudioOptions};
 
 mod common;
@@ -797,7 +797,7 @@ fn library_damping(video: &Path, dir: &Path, lo: f64, hi: f64) -> Value {
     o.include_spectrum = true;
     o.motion_wav = Some(wav.clone());
     let (report, _) = vibroscope::spectrum::run_spectrum(&o, true).unwrap();
-    let (_, y) = vibroscope::io::wav::read_mono(&wav).unwrap();
+    let (_, y) = vibroscope_io::wav::read_mono(&wav).unwrap();
     let d = vibroscope::damping::damping_over(
         report.spectrum.as_ref().unwrap(),
         report.sample_rate_hz,
@@ -1351,7 +1351,7 @@ async fn same_as_library(c: &Client, video: &Path, region: [u32; 4]) {
     let basis = vibroscope::idv::extract_basis(&o).unwrap();
     let (w, h) = (basis.width, basis.height);
     let [bx, by, bw, bh] = region.map(|v| v as usize);
-    let zero = vibroscope::math::idv::Complex32::new(0.0, 0.0);
+    let zero = vibroscope_math::idv::Complex32::new(0.0, 0.0);
     let shapes: Vec<_> = basis
         .modes
         .iter()
@@ -1368,9 +1368,9 @@ async fn same_as_library(c: &Client, video: &Path, region: [u32; 4]) {
         })
         .collect();
     let q: Vec<_> = (0..rho.len())
-        .map(|i| vibroscope::math::idv::Complex64::new(rho[i], -vel[i] / omega[i]))
+        .map(|i| vibroscope_math::idv::Complex64::new(rho[i], -vel[i] / omega[i]))
         .collect();
-    let mut r = vibroscope::math::idv::Renderer::new(w, h);
+    let mut r = vibroscope_math::idv::Renderer::new(w, h);
     r.displacement(&shapes, &q);
     let mut out = vec![0u8; w * h];
     r.warp(&basis.rest, &mut out);

@@ -5,7 +5,8 @@
 
 use crate::error::{Error, Result};
 use crate::io::{self, Depth, FrameDest};
-use crate::math::bound::{BoundAccumulator, BoundError, RegionBound, REFERENCE_FRAMES};
+pub use crate::math::bound::REFERENCE_FRAMES;
+use crate::math::bound::{BoundAccumulator, BoundError, RegionBound};
 use crate::pipeline::Roi;
 use serde::Serialize;
 use std::path::PathBuf;

@@ -7,6 +7,7 @@ use crate::engine::config::StageDecl;
 use crate::engine::spec::Key;
 use crate::error::{Error, Result};
 use crate::io::atomic::TempPath;
+pub use crate::math::calibrate::Parameters;
 use crate::math::calibrate::{self as cal, Calibration, Options};
 use crate::microphone::{listen_pipeline, Method};
 use crate::pipeline::Denoise;

@@ -13,6 +13,7 @@
 use crate::engine::config::PipelineDecl;
 use crate::engine::RunReport;
 use crate::error::{Error, Result};
+pub use crate::math::modal::{align_phase, read_npy_complex64};
 use crate::pipeline::{self, by, put, Region, RunSettings};
 use crate::stages::params::{FileParams, ModesParams};
 use crate::units::{px_to, Quantity, Scale, ScaleArg, Unit};

@@ -1,6 +1,7 @@
 //! The peaks document: what the engine's `peaks` sink writes (and
 //! `spectrum` writes, with time-domain damping added), as Rust types.
 
+pub use crate::math::peaks::{find_peaks, PeakOptions, DEFAULT_FALSE_ALARM};
 use serde::{Deserialize, Deserializer, Serialize};
 use std::path::PathBuf;
 

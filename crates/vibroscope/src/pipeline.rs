@@ -560,6 +560,13 @@ impl BandFilter {
 /// Riesz (speed).
 pub use crate::math::pyramid::PyramidKind as Pyramid;
 
+/// A pipeline checked against the registry of stage kinds (ports, types,
+/// parameters), before anything runs: its stages in order with their
+/// inputs, or the error naming the stage and field.
+pub fn validate(decl: &PipelineDecl) -> std::result::Result<engine::graph::Graph, ConfigError> {
+    engine::graph::validate(decl, REGISTRY)
+}
+
 /// Denoising after the high-pass.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Denoise {

@@ -6,7 +6,8 @@
 
 use crate::engine::RunReport;
 use crate::error::{Error, Result};
-use crate::math::rod::{self, Measured, RodMode, SpectrumDb, CLAMPED_FREE};
+pub use crate::math::rod::Measured;
+use crate::math::rod::{self, RodMode, SpectrumDb, CLAMPED_FREE};
 use crate::spectrum::{run_spectrum, SpectrumOptions};
 use serde::Serialize;
 use std::path::PathBuf;

@@ -14,6 +14,7 @@ use crate::engine::spec::{Key, KindParams};
 use crate::engine::RunReport;
 use crate::error::Result;
 use crate::io::atomic::TempPath;
+pub use crate::math::stft::stft;
 pub use crate::peaks::SpectrumReport;
 use crate::pipeline::{self, by, put, BandFilter, PipelineOptions, Region, Roi, RunSettings};
 use crate::pipelines::stage::live_spectrum::{OUT, PHASE, SPECTRUM};

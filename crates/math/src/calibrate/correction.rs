@@ -163,10 +163,8 @@ impl Correction {
                 coefs,
                 range,
                 highpass,
-            } => super::polynomial::apply(z, fs, coefs, *range, *highpass),
-            Correction::GainDrift { coefs, samples, .. } => {
-                super::gain_drift::apply(z, coefs, *samples)
-            }
+            } => apply_polynomial(z, fs, coefs, *range, *highpass),
+            Correction::GainDrift { coefs, samples, .. } => apply_gain_drift(z, coefs, *samples),
             // Applied to the strips (`super::combine`), not here.
             Correction::CaptureTime { .. } | Correction::RegionGain { .. } => z.to_vec(),
             Correction::Exposure { .. } | Correction::Transfer { .. } => equalize(z, fs, |f| {
@@ -282,4 +280,69 @@ fn apply_frames(z: &[f64], events: &[FrameEvent]) -> Vec<f64> {
         ar.fill(&mut out[lo..hi], left - lo, missing);
     }
     out
+}
+
+// The static polynomial (family g) and the gain drift (family h), as
+// applied: here, beside the correction that names them, so the families
+// that fit them depend on the correction and not the other way round.
+
+/// The trend may not fall below this fraction of its mean anywhere (a
+/// correction would lift the noise by more than 20 dB).
+pub(super) const MIN_RELATIVE_GAIN: f64 = 0.1;
+
+/// Applies `u + Σ ak u^k` to `u`, the recovery with its high-pass undone,
+/// and high-passes again. Outside the range the calibration saw, the
+/// polynomial's terms are held at the range's edge (a fitted polynomial
+/// must not extrapolate).
+pub(super) fn apply_polynomial(
+    z: &[f64],
+    fs: f64,
+    coefs: &[f64],
+    range: f64,
+    hp: Option<(usize, f64)>,
+) -> Vec<f64> {
+    let u = undo_highpass(z, fs, hp);
+    let p: Vec<f64> = u
+        .iter()
+        .map(|&v| {
+            let x = v.clamp(-range, range);
+            let mut acc = 0.0;
+            for c in coefs.iter().rev() {
+                acc = acc * x + c;
+            }
+            v + acc * x * x
+        })
+        .collect();
+    redo_highpass(&p, fs, hp)
+}
+
+/// Legendre polynomials P0..=order at `x` in [-1, 1].
+pub(super) fn legendre(x: f64, order: usize) -> Vec<f64> {
+    let mut p = vec![1.0, x];
+    for k in 2..=order {
+        let kf = k as f64;
+        let next = ((2.0 * kf - 1.0) * x * p[k - 1] - (kf - 1.0) * p[k - 2]) / kf;
+        p.push(next);
+    }
+    p.truncate(order + 1);
+    p
+}
+
+/// The trend's value at sample `i` of `n`.
+pub(super) fn envelope(coefs: &[f64], i: f64, n: usize) -> f64 {
+    let x = (2.0 * i / n.max(1) as f64 - 1.0).clamp(-1.0, 1.0);
+    legendre(x, coefs.len() - 1)
+        .iter()
+        .zip(coefs)
+        .map(|(p, c)| p * c)
+        .sum()
+}
+
+/// Divides `z` by the trend (sample `i` at its place among the fitted
+/// recording's `samples`).
+pub(super) fn apply_gain_drift(z: &[f64], coefs: &[f64], samples: usize) -> Vec<f64> {
+    z.iter()
+        .enumerate()
+        .map(|(i, v)| v / envelope(coefs, i as f64, samples).max(MIN_RELATIVE_GAIN))
+        .collect()
 }

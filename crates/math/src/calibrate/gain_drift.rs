@@ -8,6 +8,7 @@
 //! [`MAX_ORDER`], chosen by cross-validation within the fit blocks); the
 //! correction divides the recovery by it. It belongs to one recording.
 
+use super::correction::{envelope, legendre, MIN_RELATIVE_GAIN};
 use super::model::{Fit, Model};
 use super::report::{Unexplained, UnexplainedKind};
 use super::signal::{equalize, stft_len};
@@ -17,9 +18,6 @@ use realfft::num_complex::Complex;
 
 /// Highest polynomial order of the gain's trend.
 pub const MAX_ORDER: usize = 4;
-/// The trend may not fall below this fraction of its mean anywhere (a
-/// correction would lift the noise by more than 20 dB).
-const MIN_RELATIVE_GAIN: f64 = 0.1;
 
 /// One block's gain: centre (samples), magnitude, and the target's
 /// energy in it.
@@ -68,18 +66,6 @@ fn block_gains(m: &Model, z: &[f64], t: &[f64], fit_only: bool) -> Vec<BlockGain
     out
 }
 
-/// Legendre polynomials P0..=order at `x` in [-1, 1].
-fn legendre(x: f64, order: usize) -> Vec<f64> {
-    let mut p = vec![1.0, x];
-    for k in 2..=order {
-        let kf = k as f64;
-        let next = ((2.0 * kf - 1.0) * x * p[k - 1] - (kf - 1.0) * p[k - 2]) / kf;
-        p.push(next);
-    }
-    p.truncate(order + 1);
-    p
-}
-
 /// Least squares of the block gains on P0..=order of their normalised time
 /// (`x = 2 centre / n - 1`); the coefficients.
 fn trend(blocks: &[BlockGain], n: usize, order: usize) -> Option<Vec<f64>> {
@@ -101,16 +87,6 @@ fn trend(blocks: &[BlockGain], n: usize, order: usize) -> Option<Vec<f64>> {
     let c = a.lu().solve(&rhs)?;
     let c: Vec<f64> = c.iter().copied().collect();
     c.iter().all(|v| v.is_finite()).then_some(c)
-}
-
-/// The trend's value at sample `i` of `n`.
-fn envelope(coefs: &[f64], i: f64, n: usize) -> f64 {
-    let x = (2.0 * i / n.max(1) as f64 - 1.0).clamp(-1.0, 1.0);
-    legendre(x, coefs.len() - 1)
-        .iter()
-        .zip(coefs)
-        .map(|(p, c)| p * c)
-        .sum()
 }
 
 /// The scatter of one block's gain: from successive differences (robust to
@@ -240,13 +216,4 @@ pub(super) fn fit_gain_drift(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidat
         },
         uncertainty: Uncertainty::GainDrift { coefficients: sd },
     })
-}
-
-/// Divides `z` by the trend (sample `i` at its place among the fitted
-/// recording's `samples`).
-pub(super) fn apply(z: &[f64], coefs: &[f64], samples: usize) -> Vec<f64> {
-    z.iter()
-        .enumerate()
-        .map(|(i, v)| v / envelope(coefs, i as f64, samples).max(MIN_RELATIVE_GAIN))
-        .collect()
 }

@@ -87,7 +87,7 @@ pub use report::{
     Uncertainty, Unexplained, UnexplainedKind,
 };
 pub use signal::{alias, equalize, sample_at, stft_len};
-pub use transfer::{peak, smooth3};
+pub use signal::{peak, smooth3};
 
 use model::{Fit, Model};
 use residual::unexplained;

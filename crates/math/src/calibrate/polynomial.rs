@@ -151,29 +151,3 @@ fn monotonic(b: &[f64]) -> bool {
     let s0 = slope(0.0);
     (-100..=100).all(|i| slope(i as f64 / 100.0) * s0 > 0.0)
 }
-
-/// Applies `u + Σ ak u^k` to `u`, the recovery with its high-pass undone,
-/// and high-passes again. Outside the range the calibration saw, the
-/// polynomial's terms are held at the range's edge (a fitted polynomial
-/// must not extrapolate).
-pub(super) fn apply(
-    z: &[f64],
-    fs: f64,
-    coefs: &[f64],
-    range: f64,
-    hp: Option<(usize, f64)>,
-) -> Vec<f64> {
-    let u = undo_highpass(z, fs, hp);
-    let p: Vec<f64> = u
-        .iter()
-        .map(|&v| {
-            let x = v.clamp(-range, range);
-            let mut acc = 0.0;
-            for c in coefs.iter().rev() {
-                acc = acc * x + c;
-            }
-            v + acc * x * x
-        })
-        .collect();
-    redo_highpass(&p, fs, hp)
-}

@@ -429,7 +429,7 @@ impl Correction {
                 k,
             } => {
                 let (peak_hz, peak_db) =
-                    super::transfer::peak(freqs_hz, coef_db).unwrap_or((f64::NAN, f64::NAN));
+                    super::signal::peak(freqs_hz, coef_db).unwrap_or((f64::NAN, f64::NAN));
                 Parameters::Transfer {
                     coefficients_db: coef_db.clone(),
                     frequencies_hz: freqs_hz.clone(),

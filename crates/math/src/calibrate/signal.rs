@@ -268,3 +268,41 @@ pub(super) fn redo_highpass(x: &[f64], fs: f64, hp: Option<(usize, f64)>) -> Vec
         None => x.to_vec(),
     }
 }
+
+/// `x` averaged over three neighbours (two at the ends): how the
+/// coefficients are smoothed.
+pub fn smooth3(x: &[f64]) -> Vec<f64> {
+    (0..x.len())
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(1), (i + 2).min(x.len()));
+            x[a..b].iter().sum::<f64>() / (b - a) as f64
+        })
+        .collect()
+}
+
+/// The response's highest point: its frequency (Hz, a parabola through
+/// the highest coefficient and its neighbours where they are adjacent
+/// bins) and its height above the curve's median (dB). `None` for fewer
+/// than three coefficients.
+pub fn peak(freqs_hz: &[f64], coef_db: &[f64]) -> Option<(f64, f64)> {
+    if coef_db.len() < 3 || freqs_hz.len() != coef_db.len() {
+        return None;
+    }
+    let (i, &top) = coef_db
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))?;
+    let mut sorted = coef_db.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted[sorted.len() / 2];
+    let mut f = freqs_hz[i];
+    if i > 0 && i + 1 < coef_db.len() {
+        let (df0, df1) = (f - freqs_hz[i - 1], freqs_hz[i + 1] - f);
+        let (a, b) = (coef_db[i - 1], coef_db[i + 1]);
+        let den = a - 2.0 * top + b;
+        if (df0 - df1).abs() < 1e-9 * df0 && den < 0.0 {
+            f += 0.5 * (a - b) / den * df0;
+        }
+    }
+    Some((f, top - median))
+}

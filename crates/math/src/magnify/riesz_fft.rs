@@ -9,7 +9,7 @@
 //! narrow pyramid bands to live there; a Laplacian level reaches from
 //! about π/4 to π, where `sin ω` falls to zero, so the pair is short and
 //! the quaternionic phase reads low. Measured on the simulator's texture
-//! (`cargo test --release --test magnify`): a factor of 10 gave x6.8 and a
+//! (`cargo test --release --test suite magnify::`): a factor of 10 gave x6.8 and a
 //! factor of 0 left the motion only 7 dB down with the 3-tap pair; the
 //! exact pair's figures are in the README.
 

@@ -222,7 +222,7 @@ fn shift_of(a: &[f32], base: &[f32], w: usize, h: usize) -> f64 {
 /// motion, 0 takes most of it away, 10 multiplies it several times (a
 /// smoke test of signs and direction; this texture reaches 0.17
 /// cycles/px, into the CSP's unmagnified high-pass residual, and the
-/// gains are measured on the simulator in `tests/magnify.rs`).
+/// gains are measured on the simulator in `tests/suite/magnify.rs`).
 #[test]
 fn in_band_tone_is_scaled_by_the_factor() {
     let (w, h) = (64, 64);

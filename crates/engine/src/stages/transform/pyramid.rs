@@ -12,7 +12,7 @@
 //!
 //! `phase` reads this payload as well as frames: `pyramid -> phase` gives
 //! the same samples, bit for bit, as `phase` on the frames with the same
-//! pyramid settings (checked in `tests/replay.rs`). The split lets other
+//! pyramid settings (checked in `tests/suite/replay.rs`). The split lets other
 //! consumers share one pyramid; `phase` alone, which builds its pyramid
 //! itself, stays the faster path.
 //!

@@ -27,7 +27,7 @@
 //! a: the maximum-likelihood estimate of s is the projection of z on its
 //! first principal component. On textured rigid motion this reaches the
 //! Cramér-Rao bound of the moving pixels without knowing which ones move
-//! (issue 14: within 1 dB of it on simulated speech, `tests/microphone.rs`),
+//! (issue 14: within 1 dB of it on simulated speech, `tests/suite/microphone.rs`),
 //! where the pyramid's A²-weighted phase sums lose 5-9 dB to the still
 //! background and to the bands' shared noise.
 //!

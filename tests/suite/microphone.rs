@@ -4,8 +4,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 
 /// Frequencies of the `k` strongest local maxima within [lo, hi] Hz.
 fn top_peaks(p: &[f64], df: f64, lo: f64, hi: f64, k: usize) -> Vec<f64> {
@@ -98,13 +97,13 @@ fn snr_of(dir: &std::path::Path, sets: &[String]) -> f64 {
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let (_, est) = read_wav(&dir.join("law.wav"));
     // Ground truth from the same forward model and parameters.
-    let mut decl = vibroscope::engine::config::parse("law.toml", text).unwrap();
+    let mut decl = vibroscope_engine::config::parse("law.toml", text).unwrap();
     for s in sets {
-        vibroscope::engine::config::apply_set(&mut decl, s).unwrap();
+        vibroscope_engine::config::apply_set(&mut decl, s).unwrap();
     }
     let truth = true_motion(&decl, "src", est.len());
     let est: Vec<f64> = est.iter().map(|&v| v as f64).collect();
-    vibroscope::math::truth::snr_db_fit(&truth, &est)
+    vibroscope_math::truth::snr_db_fit(&truth, &est)
 }
 
 /// Thesis Eq. 4.3 in the noise-limited regime, for one driving signal:
@@ -191,7 +190,7 @@ fn speech_reference(d: &std::path::Path) -> bool {
 /// Renders `sp.y4m` in `d`: a `size` x `size` scene moved by `ref.wav`
 /// (`amplitude` a `--set`, `extra` more arguments); returns the reference.
 fn render_speech(d: &std::path::Path, size: usize, amplitude: &str, extra: &[&str]) -> Vec<f64> {
-    let (_, reference) = vibroscope::io::wav::read_mono(&d.join("ref.wav")).unwrap();
+    let (_, reference) = vibroscope_io::wav::read_mono(&d.join("ref.wav")).unwrap();
     let signal = format!(
         "cam.signal={{ type = \"wav\", path = \"{}\" }}",
         d.join("ref.wav").display()
@@ -676,14 +675,14 @@ fn the_wiener_denoiser_reaches_the_stationary_wiener_bound() {
 /// phase`) is scored too, and printed.
 #[test]
 fn listen_comes_within_1_db_of_the_cramer_rao_bound() {
-    use vibroscope::stages::sources::synthetic::SyntheticParams;
+    use vibroscope_engine::stages::sources::synthetic::SyntheticParams;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     if !speech_reference(d) {
         return;
     }
     smooth_picture(&d.join("pic.pgm"), 48);
-    let (_, reference) = vibroscope::io::wav::read_mono(&d.join("ref.wav")).unwrap();
+    let (_, reference) = vibroscope_io::wav::read_mono(&d.join("ref.wav")).unwrap();
     let (size, object) = (96usize, [24usize, 24, 48, 48]);
     let picture = format!("texture = \"{}\"\n", d.join("pic.pgm").display());
     let mut failed = Vec::new();
@@ -777,7 +776,7 @@ fn a_flickering_light_is_not_heard() {
     if !speech_reference(d) {
         return;
     }
-    let (_, reference) = vibroscope::io::wav::read_mono(&d.join("ref.wav")).unwrap();
+    let (_, reference) = vibroscope_io::wav::read_mono(&d.join("ref.wav")).unwrap();
     simulate_speech(d, 96, reference.len(), (0.1, 1.0), "seed = 1\n");
     let steady = listen_snr(d, "sp.y4m", &[]);
     // Y4M: a header line, then per frame a FRAME line and the 8-bit plane.

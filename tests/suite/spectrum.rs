@@ -5,10 +5,9 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
-use vibroscope::math::peaks::{find_peaks, PeakOptions};
-use vibroscope::stages::transform::spectrum::{SegmentFft, Taper, TaperExt};
+use crate::common::*;
+use vibroscope_engine::stages::transform::spectrum::{SegmentFft, Taper, TaperExt};
+use vibroscope_math::peaks::{find_peaks, PeakOptions};
 
 /// Thesis Table 5.5: the cantilever beam's first three modes (Hz), with
 /// damping ratios of our choosing in the 0.002-0.02 range.

@@ -4,9 +4,8 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
-use vibroscope::math::truth::snr_db_fit;
+use crate::common::*;
+use vibroscope_math::truth::snr_db_fit;
 
 const SCENE: &[&str] = &[
     "--set",
@@ -46,7 +45,7 @@ fn replay_recovers_the_rendered_motion() {
     // Ground truth from the same forward model and the same parameters.
     let mut decl = vibroscope::pipeline::load("render").unwrap();
     for pair in SCENE.chunks(2) {
-        vibroscope::engine::config::apply_set(&mut decl, pair[1]).unwrap();
+        vibroscope_engine::config::apply_set(&mut decl, pair[1]).unwrap();
     }
     let truth = true_motion(&decl, "cam", est.len());
     let est: Vec<f64> = est.iter().map(|&v| v as f64).collect();

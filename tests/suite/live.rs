@@ -7,8 +7,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 
 /// (in, out, dropped, queue max, queue capacity) of a `--stats` row.
 fn row(table: &str, id: &str) -> (u64, u64, u64, u64, u64) {
@@ -97,7 +96,7 @@ fn missing_device_is_named_and_leaves_no_invalid_file() {
 
 #[test]
 fn devices_says_no_camera_found_without_one() {
-    let nodes = vibroscope::stages::sources::v4l2::video_nodes();
+    let nodes = vibroscope_engine::stages::sources::v4l2::video_nodes();
     if !nodes.is_empty() {
         eprintln!("skipping: this machine has video nodes ({nodes:?})");
         return;

@@ -2,8 +2,7 @@
 //! simulated hanging fabrics from their motion spectra, and bad input.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::path::Path;
 use vibroscope::learn::model::pearson;
 

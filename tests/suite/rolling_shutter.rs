@@ -5,8 +5,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::path::Path;
 
 /// Power spectrum (Hann window, zero-padded to a power of two >= 2·len) and bin spacing.
@@ -104,8 +103,8 @@ fn two_tones_far_above_the_frame_rate_are_heard() {
 /// Band-limits to 80-2000 Hz (Butterworth high-pass, FIR low-pass): the
 /// band the issue scores speech in; applied identically to truth and test.
 fn band(x: &[f64], fs: f64) -> Vec<f64> {
-    use vibroscope::math::exposure::{design, Fir, Mode};
-    use vibroscope::math::iir::Sos;
+    use vibroscope_math::exposure::{design, Fir, Mode};
+    use vibroscope_math::iir::Sos;
     let mut hp = Sos::butterworth_highpass(4, 80.0, fs).unwrap();
     let mut lp = Fir::new(design(Mode::Lowpass, 1.0 / 2000.0, fs, 129, -12.0));
     x.iter().map(|&v| lp.step(hp.step(v))).collect()
@@ -147,7 +146,7 @@ fn speech_through_a_rolling_shutter_ar_beats_linear() {
         .map(|v| v.split(';').map(String::from).collect())
         .unwrap_or_default();
     for s in sets.iter().chain(&extra) {
-        vibroscope::engine::config::apply_set(&mut decl, s).unwrap();
+        vibroscope_engine::config::apply_set(&mut decl, s).unwrap();
     }
     let mut results = Vec::new();
     for method in ["ar", "linear"] {
@@ -174,7 +173,7 @@ fn speech_through_a_rolling_shutter_ar_beats_linear() {
             band(&t, fs)
         };
         let est: Vec<f64> = band(&est.iter().map(|&v| v as f64).collect::<Vec<_>>(), fs);
-        let s = vibroscope::math::metrics::score(&truth, &est, fs, 800);
+        let s = vibroscope_math::metrics::score(&truth, &est, fs, 800);
         eprintln!(
             "{method}: SNR {:.2} dB, segmental SNR {:.2} dB, STOI {:.3} (80-2000 Hz, against the true motion)",
             s.snr_db, s.ssnr_db, s.stoi
@@ -191,15 +190,10 @@ fn speech_through_a_rolling_shutter_ar_beats_linear() {
 }
 
 /// The object's true displacement at `n` instants `k / fs` (ground truth).
-fn true_motion_at(
-    decl: &vibroscope::engine::PipelineDecl,
-    id: &str,
-    n: usize,
-    fs: f64,
-) -> Vec<f64> {
-    use vibroscope::stages::sources::synthetic::SyntheticParams;
+fn true_motion_at(decl: &vibroscope_engine::PipelineDecl, id: &str, n: usize, fs: f64) -> Vec<f64> {
+    use vibroscope_engine::stages::sources::synthetic::SyntheticParams;
     let st = decl.stages.iter().find(|s| s.id == id).unwrap();
-    let p: SyntheticParams = vibroscope::engine::Params {
+    let p: SyntheticParams = vibroscope_engine::Params {
         file: &decl.file,
         stage: st,
     }
@@ -213,7 +207,7 @@ fn true_motion_at(
 
 /// Any WAV's rate and first channel.
 fn read_wav_any(p: &Path) -> (u32, Vec<f64>) {
-    vibroscope::io::wav::read_mono(p).unwrap()
+    vibroscope_io::wav::read_mono(p).unwrap()
 }
 
 /// Renders the shipped rolling-shutter camera (two tones) to Y4M, 1 s.
@@ -538,7 +532,7 @@ fn tone_ratio_db(path: &Path) -> f64 {
 /// 1/2000 s: -5.2 dB); compensation undoes it.
 #[test]
 fn exposure_compensation_restores_the_tone_balance() {
-    use vibroscope::math::exposure::boxcar_gain;
+    use vibroscope_math::exposure::boxcar_gain;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let e = 1.0 / 2000.0;

@@ -3,8 +3,7 @@
 //! here check behaviour, never wall-clock values.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::path::Path;
 
 fn scene(dir: &Path) -> &'static str {

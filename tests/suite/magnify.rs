@@ -5,14 +5,12 @@
 //! Also its bad input (exit 2, nothing written).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use std::f64::consts::PI;
 use std::path::Path;
 use vibroscope::magnify::{magnify, MagnifyOptions};
-use vibroscope::math::magnify::temporal;
 use vibroscope::pipeline::{self, BandFilter, PipelineOptions, Pyramid, RunSettings};
+use vibroscope_math::magnify::temporal;
 
 const FPS: f64 = 500.0;
 const BAND: (f64, f64) = (35.0, 45.0);

@@ -5,11 +5,10 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::{code, run_in, stderr};
+use crate::common::{code, run_in, stderr};
 use vibroscope::idv::{extract_basis, load_basis, BasisOptions, Poke, PokeKind, Simulation};
-use vibroscope::math::idv::Renderer;
-use vibroscope::sim::modal::{ModalBeam, ModalSpec};
+use vibroscope_math::idv::Renderer;
+use vibroscope_sim::modal::{ModalBeam, ModalSpec};
 
 const FPS: f64 = 300.0;
 /// The beam: 80 columns long, 32 rows tall, in a 96x48 frame.
@@ -224,11 +223,11 @@ fn idv_command_renders_and_reloads_the_basis() {
     assert_eq!(a, bb, "the reloaded basis renders the same frames");
     // Frames differ from the first one after the poke (the beam moves).
     let mut rd =
-        vibroscope::io::open(&dir.path().join("a.y4m"), vibroscope::io::Format::Auto).unwrap();
+        vibroscope_io::open(&dir.path().join("a.y4m"), vibroscope_io::Format::Auto).unwrap();
     let mut frames = Vec::new();
     let mut buf = vec![0u8; 96 * 48];
     while rd
-        .read_frame(vibroscope::io::FrameDest::U8(&mut buf))
+        .read_frame(vibroscope_io::FrameDest::U8(&mut buf))
         .unwrap()
         .is_some()
     {
@@ -424,7 +423,7 @@ fn idv_bad_input() {
     assert_eq!(code(&o), 2, "{}", stderr(&o));
     assert!(stderr(&o).contains("version 7"), "{}", stderr(&o));
     std::fs::write(&manifest, &good).unwrap();
-    let small = vibroscope::math::modal::npy_complex64(&[Default::default(); 12], 4, 3);
+    let small = vibroscope_math::modal::npy_complex64(&[Default::default(); 12], 4, 3);
     std::fs::write(d.join("basis/mode0_x.npy"), small).unwrap();
     let o = run_in(d, &from_basis);
     assert_eq!(code(&o), 2, "{}", stderr(&o));
@@ -582,7 +581,7 @@ fn strongest(dir: &std::path::Path, video: &str, mask: &str) -> (f64, f64) {
 /// fifth of what it does when it is the one plucked (-14 dB).
 #[test]
 fn guitar_plucks_ring_the_plucked_string_and_leave_the_other_nearly_still() {
-    let Some(video) = common::guitar_with_ffmpeg() else {
+    let Some(video) = crate::common::guitar_with_ffmpeg() else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();

@@ -6,8 +6,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::path::Path;
 use std::process::Stdio;
 
@@ -445,8 +444,8 @@ fn assert_whole_wav(p: &Path, what: &str) -> usize {
 /// A Y4M file of whole frames: every frame reads back and the reader saw
 /// no frame cut short. Returns the frames.
 fn assert_whole_y4m(p: &Path, what: &str) -> u64 {
-    use vibroscope::io::{FrameDest, VideoReader};
-    let mut r = vibroscope::io::Y4mReader::open(p)
+    use vibroscope_io::{FrameDest, VideoReader};
+    let mut r = vibroscope_io::Y4mReader::open(p)
         .unwrap_or_else(|e| panic!("{what}: {}: {e}", p.display()));
     let info = r.info().clone();
     assert!(
@@ -459,8 +458,8 @@ fn assert_whole_y4m(p: &Path, what: &str) -> u64 {
     let mut n = 0;
     loop {
         let dst = match info.depth {
-            vibroscope::io::Depth::U8 => FrameDest::U8(&mut b8),
-            vibroscope::io::Depth::U16 => FrameDest::U16(&mut buf),
+            vibroscope_io::Depth::U8 => FrameDest::U8(&mut b8),
+            vibroscope_io::Depth::U16 => FrameDest::U16(&mut buf),
         };
         match r.read_frame(dst) {
             Ok(Some(_)) => n += 1,

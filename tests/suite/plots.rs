@@ -6,9 +6,8 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
-use vibroscope::io::plot::{
+use crate::common::*;
+use vibroscope_io::plot::{
     amplitude_plot, power_plot, spectrogram_plot, PlotArea, Rgb, TimedSpectrum,
 };
 
@@ -52,7 +51,7 @@ fn curve_top(img: &Rgb, a: &PlotArea) -> (i32, i32) {
 fn power_plot_puts_the_peak_and_its_mark_where_the_line_is() {
     let (df, f) = (0.5, 123.0);
     let p = line_spectrum(601, df, f, 1.0, 1e4);
-    let peaks = vibroscope::math::peaks::find_peaks(&p, 0.0, df, &Default::default());
+    let peaks = vibroscope_math::peaks::find_peaks(&p, 0.0, df, &Default::default());
     let (img, area) = power_plot(&p, 0.0, df, (0.0, 300.0), &peaks, (900, 450)).unwrap();
     assert_eq!((img.width, img.height), (900, 450));
     let (x, y) = curve_top(&img, &area);

@@ -3,8 +3,7 @@
 //! `--rate` and the WAV headers every common reader takes.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::path::Path;
 use std::process::Command;
 
@@ -48,7 +47,7 @@ fn replay_is_aligned_with_the_truth_at_lag_0() {
     render(d, LOW_CHIRP, "low.y4m");
     let mut decl = vibroscope::pipeline::load("render").unwrap();
     for s in LOW_CHIRP {
-        vibroscope::engine::config::apply_set(&mut decl, s).unwrap();
+        vibroscope_engine::config::apply_set(&mut decl, s).unwrap();
     }
     let o = run_in(
         d,
@@ -255,8 +254,8 @@ fn sox_and_python_read_every_wav_without_warning() {
         files.push((out, pcm));
     }
     let x: Vec<f64> = (0..1000).map(|i| (i as f64 * 0.1).sin() * 0.5).collect();
-    vibroscope::io::wav::write_mono_f32(&d.join("io-f32.wav"), 8000, &x).unwrap();
-    vibroscope::io::wav::write_mono_i16(&d.join("io-i16.wav"), 8000, &x, 1.0).unwrap();
+    vibroscope_io::wav::write_mono_f32(&d.join("io-f32.wav"), 8000, &x).unwrap();
+    vibroscope_io::wav::write_mono_i16(&d.join("io-i16.wav"), 8000, &x, 1.0).unwrap();
     files.push(("io-f32.wav", false));
     files.push(("io-i16.wav", true));
     let mut checked = 0;

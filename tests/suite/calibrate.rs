@@ -4,12 +4,11 @@
 //! no effect; bad input.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 use serde_json::Value;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
-use vibroscope::math::calibrate::{Calibration, EffectKind, Options, CATALOG};
+use vibroscope_math::calibrate::{Calibration, EffectKind, Options, CATALOG};
 
 /// Renders the scene file `scene` to `y4m` with the `simulate` recipe; its
 /// exit status.
@@ -605,10 +604,10 @@ fn table_4_2_equalised_speech() {
             let (_, y) = read_wav(&d.path().join(&out));
             let (_, r) = read_wav(&d.path().join(&wav));
             let r: Vec<f64> = r.iter().map(|&v| v as f64).collect();
-            let r = vibroscope::math::metrics::resample(&r, 11, 160).unwrap();
+            let r = vibroscope_math::metrics::resample(&r, 11, 160).unwrap();
             let y: Vec<f64> = y.iter().map(|&v| v as f64).collect();
             let n = y.len().min(r.len());
-            ssnr[k] = vibroscope::math::metrics::score(&r[..n], &y[..n], 2200.0, 220).ssnr_db;
+            ssnr[k] = vibroscope_math::metrics::score(&r[..n], &y[..n], 2200.0, 220).ssnr_db;
         }
         rows.push((voice.to_string(), ssnr[0], ssnr[1]));
     }
@@ -848,7 +847,7 @@ fn held_out_snr(recovery: &Path, reference: &Path) -> f64 {
         effects: Vec::new(),
         ..Options::for_rate(fs as f64)
     };
-    vibroscope::math::calibrate::calibrate(&y, fs as f64, &r, fr as f64, &opts)
+    vibroscope_math::calibrate::calibrate(&y, fs as f64, &r, fr as f64, &opts)
         .unwrap()
         .report
         .before
@@ -996,7 +995,7 @@ fn a_decaying_excitation_is_read_on_the_time_axis_and_undone() {
     assert!((change - want).abs() < 1.5, "{change} vs {want}");
     assert!(g >= 1.0, "{g}");
     // Per recording: a stored report gives nothing back for it.
-    let back = vibroscope::math::calibrate::reusable_from_report(&r).unwrap();
+    let back = vibroscope_math::calibrate::reusable_from_report(&r).unwrap();
     assert!(back.is_empty(), "{back:?}");
 }
 
@@ -1188,7 +1187,7 @@ fn a_clock_error_and_a_resonance_are_reported_confounded_on_one_sweep() {
                 .iter()
                 .map(|&x| 20.0 * rbj_peaking_gain(x, 500.0, 3.0, 10.0, 2200.0).log10())
                 .collect();
-            use vibroscope::math::calibrate::{peak, smooth3};
+            use vibroscope_math::calibrate::{peak, smooth3};
             let (true_hz, true_db) = peak(&f, &smooth3(&truth)).unwrap();
             let got = |k: &str| (p[k].as_f64().unwrap(), u[k].as_f64().unwrap());
             let ((hz, hz_sd), (db, db_sd)) = (got("peak_hz"), got("peak_db"));

@@ -3,10 +3,9 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
-use vibroscope::math::rng::{Xoshiro256, Ziggurat};
-use vibroscope::math::ssi::{identify, SsiOptions};
+use crate::common::*;
+use vibroscope_math::rng::{Xoshiro256, Ziggurat};
+use vibroscope_math::ssi::{identify, SsiOptions};
 
 const FPS: f64 = 300.0;
 
@@ -270,7 +269,7 @@ fn spectrum_uses_ssi_for_an_unresolved_mode() {
 /// within 1%, the length within 0.5%, and propagates a stated tolerance.
 #[test]
 fn rod_fundamental_by_voting_despite_interference() {
-    use vibroscope::math::rod::fundamental_hz;
+    use vibroscope_math::rod::fundamental_hz;
     let (d, l, rho, e) = (0.00635, 0.9, 8530.0, 97e9);
     let f1 = fundamental_hz(d, l, e, rho);
     let exact = [1.0, 6.2669, 17.5475, 34.3861];

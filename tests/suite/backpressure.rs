@@ -9,10 +9,10 @@
 
 use proptest::prelude::*;
 use std::sync::Mutex;
-use vibroscope::engine::config::parse;
-use vibroscope::engine::graph::validate;
-use vibroscope::engine::*;
-use vibroscope::stages::REGISTRY;
+use vibroscope_engine::config::parse;
+use vibroscope_engine::graph::validate;
+use vibroscope_engine::stages::REGISTRY;
+use vibroscope_engine::*;
 
 /// Sequence numbers seen by the `collect` sink (tests run it one at a time).
 static SEEN: Mutex<Vec<u64>> = Mutex::new(Vec::new());

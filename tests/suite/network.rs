@@ -5,17 +5,15 @@
 //! namespaces joined by a veth pair when the test can make them (root).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-
-use common::{bin, code, stderr};
+use crate::common::{bin, code, stderr};
 use serde_json::Value;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-use vibroscope::engine::net::{self, zenoh, Endpoints};
-use vibroscope::engine::wire::{self, WireRef};
-use vibroscope::engine::{PeakSet, Resonance};
+use vibroscope_engine::net::{self, zenoh, Endpoints};
+use vibroscope_engine::wire::{self, WireRef};
+use vibroscope_engine::{PeakSet, Resonance};
 use zenoh::Wait;
 
 /// Simulated seconds each camera node records (the issue: at least 10 min).
@@ -815,7 +813,7 @@ fn bad_keys_garbage_peers_and_bad_history_files() {
     version[3] = 99;
     let mut audio = Vec::new();
     wire::encode_into(
-        WireRef::Audio(&vibroscope::engine::AudioBlock {
+        WireRef::Audio(&vibroscope_engine::AudioBlock {
             t0_ns: 0,
             rate_hz: 100.0,
             samples: vec![0.0f32; 8].into(),

@@ -6,13 +6,11 @@
 //! no output.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use std::path::Path;
-use vibroscope::math::numeric::fit_tone;
 use vibroscope::pipeline::{self, PipelineOptions};
-use vibroscope::sim::texture::ruler_tick_px;
+use vibroscope_math::numeric::fit_tone;
+use vibroscope_sim::texture::ruler_tick_px;
 
 const FPS: f64 = 1000.0;
 const FRAMES: usize = 1000;
@@ -432,8 +430,8 @@ fn waveform_filters_notch_and_band() {
 }
 
 /// The complex modal image of a `.npy`.
-fn npy(p: &Path) -> Vec<vibroscope::math::pyramid::Complex32> {
-    vibroscope::math::modal::read_npy_complex64(&std::fs::read(p).unwrap())
+fn npy(p: &Path) -> Vec<vibroscope_math::pyramid::Complex32> {
+    vibroscope_math::modal::read_npy_complex64(&std::fs::read(p).unwrap())
         .unwrap()
         .2
 }

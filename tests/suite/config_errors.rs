@@ -3,8 +3,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 
 /// Writes `text` as p.toml, runs it, and checks exit 2 plus each `needle`.
 fn check(text: &str, needles: &[&str]) {
@@ -186,7 +185,7 @@ fn kinds_lists_and_describes_every_kind() {
     let o = run_in(dir.path(), &["kinds"]);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     let list = String::from_utf8_lossy(&o.stdout).to_string();
-    for k in vibroscope::stages::REGISTRY {
+    for k in vibroscope_engine::stages::REGISTRY {
         assert!(
             list.lines()
                 .any(|l| l.split_whitespace().next() == Some(k.name)),

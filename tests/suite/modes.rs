@@ -5,13 +5,12 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
-use vibroscope::math::modal::{read_npy_complex64, ModalConfig, ModalImager, Motion};
-use vibroscope::math::pyramid::PyramidKind;
-use vibroscope::sim::modal::cantilever_shape;
-use vibroscope::sim::Dest;
-use vibroscope::stages::sources::synthetic::SyntheticParams;
+use crate::common::*;
+use vibroscope_engine::stages::sources::synthetic::SyntheticParams;
+use vibroscope_math::modal::{read_npy_complex64, ModalConfig, ModalImager, Motion};
+use vibroscope_math::pyramid::PyramidKind;
+use vibroscope_sim::modal::cantilever_shape;
+use vibroscope_sim::Dest;
 
 const FPS: f64 = 300.0;
 const FRAMES: u64 = 600;
@@ -469,14 +468,14 @@ fn modes_animate_moves_the_mode_shape() {
     let o = run_in(d, &args);
     assert_eq!(code(&o), 0, "{}", stderr(&o));
     assert!(stderr(&o).contains("wrote a.y4m"), "{}", stderr(&o));
-    let mut rd = vibroscope::io::open(&d.join("a.y4m"), vibroscope::io::Format::Auto).unwrap();
+    let mut rd = vibroscope_io::open(&d.join("a.y4m"), vibroscope_io::Format::Auto).unwrap();
     let (w, h) = (rd.info().width as usize, rd.info().height as usize);
     // 96x48 enlarged 13 times (1280 / 96 = 13.3, 960 / 48 = 20).
     assert_eq!((w, h), (96 * 13, 48 * 13));
     let mut frames = Vec::new();
     let mut buf = vec![0u8; w * h];
     while rd
-        .read_frame(vibroscope::io::FrameDest::U8(&mut buf))
+        .read_frame(vibroscope_io::FrameDest::U8(&mut buf))
         .unwrap()
         .is_some()
     {

@@ -17,13 +17,11 @@
 //! - simulated: a 12 Hz mode struck and ringing down (ζ 0.01): its
 //!   free-decay damping within 10%.
 //!
-//!     cargo test --release --test resonances -- --nocapture
+//!     cargo test --release --test suite resonances:: -- --nocapture
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use serde_json::Value;
 use std::path::Path;
 
@@ -306,7 +304,7 @@ fn the_guitars_interactive_video_rings_a_string() {
             .and_then(|z| z.trim().parse().ok())
             .unwrap_or_else(|| panic!("no damping in {line:?}"));
         assert!(
-            zeta <= vibroscope::math::peaks::MAX_MODE_DAMPING,
+            zeta <= vibroscope_math::peaks::MAX_MODE_DAMPING,
             "a basis mode damped beyond the resonance test's bound: {line}"
         );
         modes += 1;

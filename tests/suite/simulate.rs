@@ -3,8 +3,7 @@
 //! `run motion --replay`) measures on the rendered video.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::path::Path;
 
 const BASE: &str = "width = 64\nheight = 64\nfps = 2200.0\nnoise_std = 0.5\n";
@@ -193,7 +192,7 @@ fn scene_errors_name_the_file_line_and_field() {
 /// object, and bad files are named.
 #[test]
 fn a_picture_texture_and_a_silhouette() {
-    use vibroscope::stages::sources::synthetic::SyntheticParams;
+    use vibroscope_engine::stages::sources::synthetic::SyntheticParams;
     let d = tempfile::tempdir().unwrap();
     let dir = d.path();
     // Smooth stripes and a ramp: 64x64, the object's size.

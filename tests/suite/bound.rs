@@ -4,10 +4,9 @@
 //! textures at three noise levels; and its refusals.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-mod common;
-use common::*;
+use crate::common::*;
 use std::path::Path;
-use vibroscope::stages::sources::synthetic::SyntheticParams;
+use vibroscope_engine::stages::sources::synthetic::SyntheticParams;
 
 /// The region measured: inside the object `[32, 32, 64, 64]`.
 const ROI: [usize; 4] = [40, 40, 48, 48];

@@ -1,0 +1,10 @@
+//! A live view of a running pipeline (the studio's): the tap stage's
+//! parameters, the slots and observers its frames and items arrive
+//! through, the items themselves, and the region mask a page draws.
+
+pub use vibroscope_engine::config::{Origin, PipelineDecl};
+#[cfg(feature = "net")]
+pub use vibroscope_engine::net;
+pub use vibroscope_engine::stages::params::TapParams;
+pub use vibroscope_engine::stages::transform::roi::Mask;
+pub use vibroscope_engine::{thousands, Latest, Observer, PortType, Spectrum, TapFrame, TapSlot};
