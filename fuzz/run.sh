@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs every fuzz target for SECONDS each (default 60), one after another:
+# Runs every fuzz target for SECONDS each (default 60), JOBS at a time:
 #   fuzz/run.sh [SECONDS] [TARGET...]
 # With RUNS=N in the environment a target also stops after N executions
 # (the long run: RUNS=1000000 fuzz/run.sh 1800).
@@ -49,21 +49,20 @@ if [ "$rc" -eq 124 ] && [ -n "${DEADLINE:-}" ]; then
   exit 0
 fi
 [ "$rc" -eq 0 ] || exit 1
-failed=()
-skipped=()
-left_targets=${#targets[@]}
-for t in "${targets[@]}"; do
-  run_secs=$secs
-  if [ -n "${DEADLINE:-}" ]; then
-    share=$(( (DEADLINE - $(date +%s)) / left_targets - 3 ))
-    [ "$share" -lt "$run_secs" ] && run_secs=$share
-  fi
-  left_targets=$((left_targets - 1))
-  if [ "$run_secs" -lt 5 ]; then
-    echo "fuzz $t: SKIPPED, the time budget is spent (DEADLINE); run fuzz/run.sh $secs $t by hand"
-    skipped+=("$t")
-    continue
-  fi
+# BUILT=FILE: touched once the build has finished (.ci/run's record of it).
+[ -z "${BUILT:-}" ] || touch "$BUILT"
+# Targets run JOBS at a time (default: one per core; each libFuzzer
+# process is single-threaded), each its SECONDS: ten targets of 30 s take
+# 2.5 min on two cores where one after another they took 5. Each target's
+# lines are printed together when it ends; a failure or a skip leaves a
+# mark in $marks.
+jobs=${JOBS:-$(nproc 2>/dev/null || echo 1)}
+[ "$jobs" -ge 1 ] 2>/dev/null || jobs=1
+marks=$(mktemp -d "${TMPDIR:-/tmp}/vibroscope-fuzz-marks.XXXXXX") || exit 1
+trap 'rm -rf "$VIBROSCOPE_FUZZ_DIR" "$marks"' EXIT
+# TARGET RUN_SECS: one target's run, its report on stdout.
+one() {
+  local t=$1 run_secs=$2 work log seeds attempt rc art cpu runs cov took rss slow
   work="work/$t"
   mkdir -p "$work" "artifacts/$t"
   seeds=("corpus/$t")
@@ -93,8 +92,8 @@ for t in "${targets[@]}"; do
   done
   if [ "$rc" -eq 124 ] && [ -n "${DEADLINE:-}" ]; then
     echo "fuzz $t: SKIPPED, stopped at DEADLINE before it finished; run fuzz/run.sh $secs $t by hand"
-    skipped+=("$t")
-    continue
+    touch "$marks/skipped.$t"
+    return
   fi
   runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
   cov=$(grep -oE 'cov: [0-9]+ ft: [0-9]+' "$log" | tail -1)
@@ -106,8 +105,39 @@ for t in "${targets[@]}"; do
   else
     echo "fuzz $t: FAILED (exit $rc), see fuzz/$log; crash input in fuzz/artifacts/$t/"
     grep -E 'panicked|ERROR: libFuzzer|SUMMARY' "$log" | head -5
-    failed+=("$t")
+    touch "$marks/failed.$t"
   fi
+}
+left_targets=${#targets[@]}
+running=0
+for t in "${targets[@]}"; do
+  if [ "$running" -ge "$jobs" ]; then
+    wait -n
+    running=$((running - 1))
+  fi
+  run_secs=$secs
+  if [ -n "${DEADLINE:-}" ]; then
+    # The targets not started yet share the time left, JOBS at once.
+    lanes=$((left_targets < jobs ? left_targets : jobs))
+    share=$(( (DEADLINE - $(date +%s)) * lanes / left_targets - 3 ))
+    [ "$share" -lt "$run_secs" ] && run_secs=$share
+  fi
+  left_targets=$((left_targets - 1))
+  if [ "$run_secs" -lt 5 ]; then
+    echo "fuzz $t: SKIPPED, the time budget is spent (DEADLINE); run fuzz/run.sh $secs $t by hand"
+    touch "$marks/skipped.$t"
+    continue
+  fi
+  one "$t" "$run_secs" >"$marks/out.$t" 2>&1 &
+  running=$((running + 1))
+done
+wait
+failed=()
+skipped=()
+for t in "${targets[@]}"; do
+  [ -f "$marks/out.$t" ] && cat "$marks/out.$t"
+  [ -f "$marks/failed.$t" ] && failed+=("$t")
+  [ -f "$marks/skipped.$t" ] && skipped+=("$t")
 done
 [ "${#skipped[@]}" -gt 0 ] && echo "fuzz: skipped for time: ${skipped[*]}"
 if [ "${#failed[@]}" -gt 0 ]; then
