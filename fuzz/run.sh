@@ -15,6 +15,7 @@
 # share falls below 5 s is skipped and said so (not counted as a pass), as
 # is every target when the build itself does not finish in time, and a
 # target still running at DEADLINE is stopped and named as skipped.
+# JOBS=N: targets run N at a time (default: one per core).
 # Needs the nightly toolchain and cargo-fuzz (`cargo install --locked cargo-fuzz`).
 set -uo pipefail
 cd "$(dirname "$0")"

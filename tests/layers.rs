@@ -562,11 +562,9 @@ fn module_edges(
             }
             // Through re-exports, a few levels deep.
             for _ in 0..4 {
-                let through = path.iter().find_map(|seg| {
-                    reexports
-                        .get(&(target.clone(), seg.clone()))
-                        .or_else(|| reexports.get(&(target.clone(), "*".to_string())))
-                });
+                let through = path
+                    .iter()
+                    .find_map(|seg| reexports.get(&(target.clone(), seg.clone())));
                 let Some(t) = through.cloned() else { break };
                 if !nested(me, &t) {
                     edges.entry(me.clone()).or_default().insert(t.clone());
