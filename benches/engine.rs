@@ -10,7 +10,7 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use vibroscope_engine::config::parse;
 use vibroscope_engine::graph::validate;
-use vibroscope_engine::stages::REGISTRY;
+use vibroscope_engine::stages::KINDS;
 use vibroscope_engine::{run, Control, RunOptions};
 
 const FRAMES: u64 = 20_000;
@@ -35,7 +35,7 @@ fn bench(c: &mut Criterion) {
         let decl = parse("bench", &pipeline(stages, 256)).expect("pipeline parses");
         g.bench_with_input(BenchmarkId::new(name, FRAMES), &decl, |b, decl| {
             b.iter(|| {
-                let graph = validate(decl, REGISTRY).expect("valid");
+                let graph = validate(decl, KINDS).expect("valid");
                 let r = run(graph, Control::new(), &RunOptions::default()).expect("runs");
                 assert!(r.errors.is_empty());
                 assert_eq!(r.stages.last().map(|s| s.items_in), Some(FRAMES));

@@ -9,7 +9,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicU64, Ordering};
 use vibroscope_engine::config::parse;
 use vibroscope_engine::graph::validate;
-use vibroscope_engine::stages::REGISTRY;
+use vibroscope_engine::stages::KINDS;
 use vibroscope_engine::{run, Control, RunOptions};
 
 struct Counting;
@@ -48,7 +48,7 @@ fn allocations(frames: u64) -> u64 {
          [[stage]]\nid = \"n\"\nkind = \"null\"\ninput = \"c\"\n"
     );
     let decl = parse("alloc.toml", &text).unwrap();
-    let graph = validate(&decl, REGISTRY).unwrap();
+    let graph = validate(&decl, KINDS).unwrap();
     let before = ALLOCS.load(Ordering::SeqCst);
     let report = run(graph, Control::new(), &RunOptions::default()).unwrap();
     let after = ALLOCS.load(Ordering::SeqCst);
@@ -80,7 +80,7 @@ fn pyramid_allocations(frames: u64, pyramid: &str) -> u64 {
          [[stage]]\nid = \"n\"\nkind = \"null\"\ninput = \"ph\"\n"
     );
     let decl = parse("alloc.toml", &text).unwrap();
-    let graph = validate(&decl, REGISTRY).unwrap();
+    let graph = validate(&decl, KINDS).unwrap();
     let before = ALLOCS.load(Ordering::SeqCst);
     let report = run(graph, Control::new(), &RunOptions::default()).unwrap();
     let after = ALLOCS.load(Ordering::SeqCst);

@@ -9,8 +9,9 @@
 //! Layers, bottom first: `vibroscope-math` (no threads, no I/O), then
 //! `vibroscope-io`, `vibroscope-sim`, `vibroscope-core` (the engine's
 //! runtime: no stage kinds, no device drivers), `vibroscope-engine` (the
-//! kinds), `vibroscope`
-//! (typed recipes), `vibroscope-studio` (the web application), `vibroscope-cli` (the binary). A new crate must be
+//! kinds on computation and files), `vibroscope-devices` (the kinds on
+//! live devices), `vibroscope-net` (the kinds on the network), `vibroscope`
+//! (typed recipes, which assemble the registry), `vibroscope-studio` (the web application), `vibroscope-cli` (the binary). A new crate must be
 //! placed in [`LAYERS`].
 //!
 //! A module import is any path `crate::…`, `super::…`, `self::…` (in a
@@ -30,6 +31,8 @@ const LAYERS: &[&str] = &[
     "vibroscope-sim",
     "vibroscope-core",
     "vibroscope-engine",
+    "vibroscope-devices",
+    "vibroscope-net",
     "vibroscope",
     "vibroscope-studio",
     "vibroscope-cli",
@@ -49,12 +52,22 @@ struct Package {
     roots: Vec<PathBuf>,
 }
 
+/// The package's directory, read when the test runs (cargo sets it and
+/// runs tests there), not compiled in: a build at another path stays
+/// reusable.
+fn manifest_dir() -> PathBuf {
+    std::env::var_os("CARGO_MANIFEST_DIR").map_or_else(
+        || std::env::current_dir().unwrap_or_default(),
+        std::path::PathBuf::from,
+    )
+}
+
 /// What `cargo ARGS` prints, run in the workspace (a failure panics with
 /// its message).
 fn cargo(args: &[&str]) -> String {
     let out = Command::new(env!("CARGO"))
         .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .current_dir(manifest_dir())
         .output()
         .unwrap_or_else(|e| panic!("run cargo {}: {e}", args.join(" ")));
     assert!(
@@ -434,6 +447,47 @@ fn nested(a: &str, b: &str) -> bool {
         || a.starts_with(&format!("{b}::"))
 }
 
+/// The imports between sibling modules that an import between their
+/// descendants makes: `a::x::f -> a::y::g` is also `a::x -> a::y`, so two
+/// folders whose files import each other's form a circle even when no two
+/// files do. An import of a module's own ancestor or descendant adds none.
+fn folder_edges(edges: &BTreeMap<String, BTreeSet<String>>) -> BTreeMap<String, BTreeSet<String>> {
+    let mut out: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for (from, tos) in edges {
+        for to in tos {
+            let (a, b): (Vec<&str>, Vec<&str>) =
+                (from.split("::").collect(), to.split("::").collect());
+            let common = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
+            if common < a.len() && common < b.len() && !from.is_empty() && !to.is_empty() {
+                out.entry(a[..=common].join("::"))
+                    .or_default()
+                    .insert(b[..=common].join("::"));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn the_checker_sees_a_circle_between_folders() {
+    // No two files import each other, but the folders do.
+    let mut e: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    e.entry("stages::sinks::modes".into())
+        .or_default()
+        .insert("stages::transform::roi".into());
+    e.entry("stages::transform::resonances".into())
+        .or_default()
+        .insert("stages::sinks::peaks".into());
+    assert!(circles(&e).is_empty());
+    assert_eq!(
+        circles(&folder_edges(&e)),
+        vec![vec![
+            "stages::sinks".to_string(),
+            "stages::transform".into()
+        ]]
+    );
+}
+
 /// Circles in a directed graph (strongly connected components of size > 1).
 fn circles(edges: &BTreeMap<String, BTreeSet<String>>) -> Vec<Vec<String>> {
     // Tarjan's algorithm, iterative enough for a few hundred modules.
@@ -597,7 +651,12 @@ fn no_module_import_circle() {
                 .collect();
             let edges = module_edges(&codes, &mods);
             let n_edges: usize = edges.values().map(BTreeSet::len).sum();
-            let cs = circles(&edges);
+            let mut cs = circles(&edges);
+            // Folders too: `stages::transform` and `stages::sinks` must
+            // not import each other through any of their files.
+            cs.extend(circles(&folder_edges(&edges)));
+            cs.sort();
+            cs.dedup();
             println!(
                 "{:<18} {:>3} modules, {:>3} imports between them, {} circle(s)",
                 p.name,
@@ -743,7 +802,8 @@ fn string_edits(code: &str) -> Vec<String> {
 /// exempt (they check the readers' errors).
 #[test]
 fn parameters_are_set_only_through_typed_keys() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = manifest_dir();
+    let root = root.as_path();
     let mut found = Vec::new();
     let mut files = 0;
     for dir in ["crates/vibroscope/src", "crates/studio/src", "src"] {
@@ -816,13 +876,14 @@ fn the_string_edit_checker_sees_one() {
 }
 
 /// Issue 49: the engine's core (runtime, configuration, typed parameters)
-/// builds without the device drivers' and the network's crates; only the
-/// kinds that use them pull them in. `cargo tree` of its normal
-/// dependencies, printed.
+/// and the kinds on computation and files build without the device
+/// drivers' and the network's crates; only the crates of the kinds that use
+/// them (`vibroscope-devices`, `vibroscope-net`) pull them in. `cargo tree`
+/// of their normal dependencies, printed.
 #[test]
 fn the_core_builds_without_device_or_network_crates() {
     let deps = |p: &str| {
-        cargo(&[
+        let tree = cargo(&[
             "tree",
             "-p",
             p,
@@ -831,20 +892,21 @@ fn the_core_builds_without_device_or_network_crates() {
             "--prefix",
             "none",
             "--offline",
-        ])
+        ]);
+        let crates: BTreeSet<String> = tree
+            .lines()
+            .filter_map(|l| l.split_whitespace().next())
+            .map(String::from)
+            .collect();
+        println!(
+            "{p}: {} crates in its dependency tree: {}",
+            crates.len(),
+            crates.iter().cloned().collect::<Vec<_>>().join(" ")
+        );
+        assert!(crates.contains(p), "{tree}");
+        crates
     };
-    let tree = deps("vibroscope-core");
-    let crates: BTreeSet<&str> = tree
-        .lines()
-        .filter_map(|l| l.split_whitespace().next())
-        .collect();
-    println!(
-        "vibroscope-core: {} crates in its dependency tree: {}",
-        crates.len(),
-        crates.iter().copied().collect::<Vec<_>>().join(" ")
-    );
-    assert!(crates.contains("vibroscope-core"), "{tree}");
-    for heavy in [
+    const HEAVY: &[&str] = &[
         "cpal",
         "v4l",
         "v4l2-sys-mit",
@@ -852,15 +914,19 @@ fn the_core_builds_without_device_or_network_crates() {
         "zenoh",
         "alsa-sys",
         "bindgen",
-    ] {
-        assert!(
-            !crates.contains(heavy),
-            "vibroscope-core depends on {heavy}:\n{tree}"
-        );
+    ];
+    for light in ["vibroscope-core", "vibroscope-engine"] {
+        let crates = deps(light);
+        for heavy in HEAVY {
+            assert!(!crates.contains(*heavy), "{light} depends on {heavy}");
+        }
     }
-    // The kinds do pull them in (the check can fail).
-    let engine = deps("vibroscope-engine");
-    assert!(engine.lines().any(|l| l.starts_with("cpal ")), "{engine}");
+    // The kinds on devices and the network do pull them in (the check can
+    // fail), and each only its own.
+    let devices = deps("vibroscope-devices");
+    assert!(devices.contains("cpal") && !devices.contains("zenoh"));
+    let net = deps("vibroscope-net");
+    assert!(net.contains("zenoh") && !net.contains("cpal"));
 }
 
 /// Issue 49: the recipe crate's face is its recipes, their report types

@@ -27,5 +27,5 @@ fuzz_target!(|data: &[u8]| {
     let null = std::path::PathBuf::from("/dev/null");
     decl.set(out, Y4mParams::path, null, Origin::Line(1))
         .expect("render's `out` is a y4m sink");
-    let _ = graph::validate(&decl, stages::REGISTRY);
+    let _ = graph::validate(&decl, stages::KINDS);
 });

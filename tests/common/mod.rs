@@ -30,11 +30,19 @@ pub fn code(o: &Output) -> i32 {
     o.status.code().unwrap_or(-1)
 }
 
+/// The package's directory, read when the test runs (cargo sets
+/// `CARGO_MANIFEST_DIR` and runs tests there), not compiled in with `env!`:
+/// a build at another path (a fresh clone elsewhere) stays reusable.
+pub fn manifest_dir() -> PathBuf {
+    std::env::var_os("CARGO_MANIFEST_DIR").map_or_else(
+        || std::env::current_dir().unwrap_or_default(),
+        std::path::PathBuf::from,
+    )
+}
+
 /// `../shared/data` next to the checkout, or None (with a printed reason).
 pub fn shared_data(file: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(file);
+    let p = manifest_dir().join("../shared/data").join(file);
     if p.exists() {
         Some(p)
     } else {

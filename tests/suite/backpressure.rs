@@ -11,7 +11,7 @@ use proptest::prelude::*;
 use std::sync::Mutex;
 use vibroscope_engine::config::parse;
 use vibroscope_engine::graph::validate;
-use vibroscope_engine::stages::REGISTRY;
+use vibroscope_engine::stages::KINDS;
 use vibroscope_engine::*;
 
 /// Sequence numbers seen by the `collect` sink (tests run it one at a time).
@@ -36,17 +36,7 @@ impl Stage for Collect {
 fn registry() -> &'static [KindSpec] {
     static R: std::sync::OnceLock<Vec<KindSpec>> = std::sync::OnceLock::new();
     R.get_or_init(|| {
-        let mut v: Vec<KindSpec> = REGISTRY
-            .iter()
-            .map(|k| KindSpec {
-                name: k.name,
-                summary: k.summary,
-                inputs: k.inputs,
-                outputs: k.outputs,
-                params: k.params,
-                plan: k.plan,
-            })
-            .collect();
+        let mut v: Vec<KindSpec> = KINDS.to_vec();
         v.push(KindSpec {
             name: "collect",
             summary: "test sink",

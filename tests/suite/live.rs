@@ -96,7 +96,7 @@ fn missing_device_is_named_and_leaves_no_invalid_file() {
 
 #[test]
 fn devices_says_no_camera_found_without_one() {
-    let nodes = vibroscope_engine::stages::sources::v4l2::video_nodes();
+    let nodes = vibroscope_devices::v4l2::video_nodes();
     if !nodes.is_empty() {
         eprintln!("skipping: this machine has video nodes ({nodes:?})");
         return;

@@ -11,9 +11,9 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-use vibroscope_engine::net::{self, zenoh, Endpoints};
 use vibroscope_engine::wire::{self, WireRef};
 use vibroscope_engine::{PeakSet, Resonance};
+use vibroscope_net::session::{self as net, zenoh, Endpoints};
 use zenoh::Wait;
 
 /// Simulated seconds each camera node records (the issue: at least 10 min).

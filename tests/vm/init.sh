@@ -21,7 +21,7 @@ cd /out
 export RUST_BACKTRACE=1
 # The emulated CPU cannot keep the sound card fed; one warning per ALSA
 # underrun would flood the log (the speaker sums them up at the end).
-export RUST_LOG=warn,vibroscope::stages::sinks::speaker::cpal_device=error
+export RUST_LOG=warn,vibroscope_devices::speaker::cpal_device=error
 
 # 1. Devices.
 vibroscope devices > devices.txt 2>&1

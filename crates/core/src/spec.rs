@@ -950,7 +950,9 @@ pub enum Output {
 
 /// A stage kind in the registry: the name used as `kind` in TOML, its
 /// named and typed ports, and its parameters declared as data (see
-/// this module).
+/// this module). Copied freely: a registry is assembled from the lists
+/// of several crates.
+#[derive(Clone, Copy)]
 pub struct KindSpec {
     pub name: &'static str,
     pub summary: &'static str,

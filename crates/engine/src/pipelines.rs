@@ -197,11 +197,19 @@ mod tests {
         }
     }
 
-    /// Every file under `pipelines/` parses and validates (kinds, declared
-    /// parameters, ports) against the registry.
+    /// Every file under `pipelines/` is shipped and parses. That each one
+    /// validates against the whole registry (kinds, declared parameters,
+    /// ports; devices and network included) is tested where the registry
+    /// is assembled: the recipes' `stages`.
     #[test]
-    fn shipped_pipelines_validate() {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/pipelines");
+    fn every_pipeline_file_is_shipped_and_parses() {
+        // Read when the test runs (cargo sets it), not compiled in.
+        let dir = std::env::var_os("CARGO_MANIFEST_DIR")
+            .map_or_else(
+                || std::env::current_dir().unwrap_or_default(),
+                std::path::PathBuf::from,
+            )
+            .join("pipelines");
         let files: Vec<_> = std::fs::read_dir(dir)
             .map(|d| d.filter_map(Result::ok).collect())
             .unwrap_or_default();
@@ -211,14 +219,7 @@ mod tests {
             "a file in pipelines/ is not shipped"
         );
         for s in SHIPPED {
-            if cfg!(not(feature = "net")) && s.text.contains("kind = \"zenoh_") {
-                eprintln!("skipping {}: built without the `net` feature", s.name);
-                continue;
-            }
-            let decl = crate::config::parse(s.name, s.text).unwrap_or_else(|e| panic!("{e}"));
-            if let Err(e) = crate::graph::validate(&decl, crate::stages::REGISTRY) {
-                panic!("{e}");
-            }
+            crate::config::parse(s.name, s.text).unwrap_or_else(|e| panic!("{e}"));
         }
     }
 }

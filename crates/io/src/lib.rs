@@ -365,10 +365,17 @@ pub(crate) fn preview(bytes: &[u8]) -> String {
 pub(crate) mod test_util {
     use std::path::PathBuf;
 
-    /// The shared real recordings (`shared/data` beside the repository), if present.
+    /// The shared real recordings (`shared/data` beside the repository), if
+    /// present. The package's directory is read when the test runs (cargo
+    /// sets it), not compiled in: a build at another path stays reusable.
     pub fn data_file(name: &str) -> Option<PathBuf> {
-        let p =
-            PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data")).join(name);
+        let p = std::env::var_os("CARGO_MANIFEST_DIR")
+            .map_or_else(
+                || std::env::current_dir().unwrap_or_default(),
+                std::path::PathBuf::from,
+            )
+            .join("../../../shared/data")
+            .join(name);
         if p.is_file() {
             Some(p)
         } else {

@@ -871,10 +871,17 @@ pub fn score(reference: &[f64], test: &[f64], fs: f64, max_lag: usize) -> Scores
 mod tests {
     use super::*;
 
-    const DATA_DIR: &str = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/data/speech-metrics"
-    );
+    /// The reference speech files beside the repository. The package's
+    /// directory is read when the test runs (cargo sets it, and runs tests
+    /// there), not compiled in: a build at another path stays reusable.
+    fn data_dir() -> std::path::PathBuf {
+        std::env::var_os("CARGO_MANIFEST_DIR")
+            .map_or_else(
+                || std::env::current_dir().unwrap_or_default(),
+                std::path::PathBuf::from,
+            )
+            .join("../../../shared/data/speech-metrics")
+    }
 
     /// A signal confined to the lowest eighth of the band under white noise of the
     /// same power (0 dB): the best fixed filter passes that eighth and stops the rest,
@@ -923,7 +930,7 @@ mod tests {
 
     /// Reads a mono WAV as f64 samples (float, or integer scaled to [-1, 1)).
     fn read_wav(name: &str) -> Option<(Vec<f64>, f64)> {
-        let path = std::path::Path::new(DATA_DIR).join(name);
+        let path = data_dir().join(name);
         if !path.exists() {
             return None;
         }
@@ -957,7 +964,10 @@ mod tests {
         match (clean, noisy, processed) {
             (Some((c, fs)), Some((n, _)), Some((p, _))) => Some((c, n, p, fs)),
             _ => {
-                eprintln!("SKIPPED: reference speech data not found in {DATA_DIR}");
+                eprintln!(
+                    "SKIPPED: reference speech data not found in {}",
+                    data_dir().display()
+                );
                 None
             }
         }

@@ -278,7 +278,14 @@ fn library_mode(video: &Path, dir: &Path, f: f64) -> (Vec<u8>, Vec<f32>) {
 }
 
 fn img_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/img")
+    // Read when the test runs (cargo sets it), not compiled in: a build
+    // at another path stays reusable.
+    std::env::var_os("CARGO_MANIFEST_DIR")
+        .map_or_else(
+            || std::env::current_dir().unwrap_or_default(),
+            std::path::PathBuf::from,
+        )
+        .join("../../docs/img")
 }
 
 /// The simulated beam of [`scene`] rendered in `dir` (`beam.y4m`).

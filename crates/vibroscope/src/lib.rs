@@ -26,7 +26,7 @@
 //! items named here (issue 49; `tests/layers.rs` checks it).
 
 use vibroscope_engine as engine;
-use vibroscope_engine::{pipelines, stages};
+use vibroscope_engine::pipelines;
 use vibroscope_io as io;
 use vibroscope_math as math;
 use vibroscope_sim as sim;
@@ -36,6 +36,7 @@ pub mod files;
 pub mod json;
 pub mod live;
 pub mod pipeline;
+mod stages;
 
 pub mod bound;
 pub mod calibrate;

@@ -3,8 +3,8 @@
 //! through, the items themselves, and the region mask a page draws.
 
 pub use vibroscope_engine::config::{Origin, PipelineDecl};
-#[cfg(feature = "net")]
-pub use vibroscope_engine::net;
 pub use vibroscope_engine::stages::params::TapParams;
 pub use vibroscope_engine::stages::transform::roi::Mask;
 pub use vibroscope_engine::{thousands, Latest, Observer, PortType, Spectrum, TapFrame, TapSlot};
+#[cfg(feature = "net")]
+pub use vibroscope_net::session as net;

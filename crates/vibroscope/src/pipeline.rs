@@ -6,13 +6,13 @@ use crate::engine::config::{self, ConfigError, InputDecl, Origin, PipelineDecl, 
 use crate::engine::spec::{Key, KindParams, StageId};
 use crate::engine::{self, Control, RunReport};
 use crate::error::{Error, Result, UsageError};
+use crate::stages;
 use crate::stages::params::{
     BandParams, FileParams, ModesParams, NokhwaParams, PatternParams, PhaseParams,
     SpectralSubtractionParams, SpeechEnhanceParams, TileMotionParams, V4l2Params, WienerParams,
 };
 use crate::stages::sources::synthetic::SyntheticParams;
 use crate::stages::transform::roi::RoiParam;
-use crate::stages::{self, REGISTRY};
 use crate::{io, pipelines};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -564,7 +564,7 @@ pub use crate::math::pyramid::PyramidKind as Pyramid;
 /// parameters), before anything runs: its stages in order with their
 /// inputs, or the error naming the stage and field.
 pub fn validate(decl: &PipelineDecl) -> std::result::Result<engine::graph::Graph, ConfigError> {
-    engine::graph::validate(decl, REGISTRY)
+    engine::graph::validate(decl, stages::registry())
 }
 
 /// Denoising after the high-pass.
@@ -880,7 +880,7 @@ fn checked(decl: &PipelineDecl) -> Result<engine::Graph> {
         &outs.iter().map(PathBuf::as_path).collect::<Vec<_>>(),
     )?;
     // Errors name the stages the user's pipeline has: validate it first.
-    Ok(engine::graph::validate(decl, REGISTRY)?)
+    Ok(engine::graph::validate(decl, stages::registry())?)
 }
 
 /// Validates and runs `decl`. A stage error or an interruption is an
@@ -1006,7 +1006,7 @@ pub fn shipped() -> Vec<(&'static str, String)> {
 
 /// Every stage kind, one line each: name, role and what it does.
 pub fn kind_listing() -> String {
-    engine::spec::listing(REGISTRY)
+    engine::spec::listing(stages::registry())
 }
 
 /// One kind's declaration as a table: ports, then each parameter's name,

@@ -6,11 +6,11 @@ use crate::engine::RunReport;
 use crate::error::Result;
 use crate::pipeline::{self, RunSettings};
 use crate::stages::params::{V4l2Params, Y4mParams};
-use crate::stages::sources::v4l2::PixelFormat;
 use crate::{engine::Origin, io};
 use serde::de::IntoDeserializer;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
+use vibroscope_devices::v4l2::PixelFormat;
 
 /// What `record` is asked.
 #[derive(Clone, Debug)]

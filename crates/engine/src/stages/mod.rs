@@ -1,5 +1,5 @@
-//! Stage kinds, grouped by role, and the registry that maps a TOML `kind`
-//! to its parameters and constructor.
+//! This crate's stage kinds, grouped by role, and their list: what maps a
+//! TOML `kind` to its parameters and constructor.
 
 pub mod sinks;
 pub mod sources;
@@ -16,20 +16,13 @@ pub mod params {
     pub use super::sinks::modes::ModesParams;
     pub use super::sinks::null::NullParams;
     pub use super::sinks::peaks::PeaksParams;
-    pub use super::sinks::speaker::SpeakerParams;
     pub use super::sinks::spectrum_png::SpectrumPngParams;
     pub use super::sinks::tap::TapParams;
     pub use super::sinks::wav::WavParams;
     pub use super::sinks::y4m::Y4mParams;
-    #[cfg(feature = "net")]
-    pub use super::sinks::zenoh_pub::ZenohPubParams;
     pub use super::sources::file::FileParams;
-    pub use super::sources::nokhwa::NokhwaParams;
     pub use super::sources::pattern::PatternParams;
     pub use super::sources::synthetic::SyntheticParams;
-    pub use super::sources::v4l2::V4l2Params;
-    #[cfg(feature = "net")]
-    pub use super::sources::zenoh_sub::ZenohSubParams;
     pub use super::transform::align::AlignParams;
     pub use super::transform::band::BandParams;
     pub use super::transform::denoise::SpectralSubtractionParams;
@@ -53,15 +46,14 @@ pub mod params {
     pub use super::transform::tile_motion::TileMotionParams;
 }
 
-/// Every stage kind the engine knows, in the order `vibroscope kinds` lists them.
-pub static REGISTRY: &[KindSpec] = &[
+/// The kinds of this crate (computation and files), sources first, in the
+/// order `vibroscope kinds` lists them. The kinds on live devices
+/// (`vibroscope-devices`) and on the network (`vibroscope-net`) live in
+/// crates of their own; the recipes' `stages` assembles the registry.
+pub static KINDS: &[KindSpec] = &[
     sources::file::KIND,
     sources::synthetic::KIND,
     sources::pattern::KIND,
-    sources::v4l2::KIND,
-    sources::nokhwa::KIND,
-    #[cfg(feature = "net")]
-    sources::zenoh_sub::KIND,
     transform::passthrough::KIND,
     transform::mean::KIND,
     transform::gradient_motion::KIND,
@@ -85,7 +77,6 @@ pub static REGISTRY: &[KindSpec] = &[
     transform::resample::KIND,
     transform::pitch::KIND,
     sinks::wav::KIND,
-    sinks::speaker::KIND,
     sinks::csv::KIND,
     sinks::json::KIND,
     sinks::peaks::KIND,
@@ -94,11 +85,9 @@ pub static REGISTRY: &[KindSpec] = &[
     sinks::y4m::KIND,
     sinks::tap::KIND,
     sinks::null::KIND,
-    #[cfg(feature = "net")]
-    sinks::zenoh_pub::KIND,
 ];
 
-/// Looks a kind up by name.
+/// Looks one of this crate's kinds up by name.
 pub fn kind(name: &str) -> Option<&'static KindSpec> {
-    REGISTRY.iter().find(|k| k.name == name)
+    KINDS.iter().find(|k| k.name == name)
 }

@@ -3,10 +3,10 @@
 //! of each source (ok, alarm, stale, ended; its tracks) and the latest
 //! events. The studio shows it (`vibroscope studio --monitor ENDPOINT`).
 
-use crate::engine::net::{self, Endpoints};
 use serde_json::{json, Map, Value};
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::{Arc, Mutex};
+use vibroscope_net::session::{self as net, Endpoints};
 use zenoh::Wait;
 
 /// Events kept, newest last.

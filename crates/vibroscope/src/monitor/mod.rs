@@ -14,7 +14,6 @@ pub mod feed;
 pub mod history;
 pub mod track;
 
-use crate::engine::net::{self, Endpoints};
 use crate::engine::wire::{self, WireItem};
 use crate::engine::PeakSet;
 use crate::error::{Error, Result, UsageError};
@@ -25,6 +24,7 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 use track::{Event, SourceTracker, Stats, TrackConfig};
+use vibroscope_net::session::{self as net, Endpoints};
 use zenoh::handlers::FifoChannel;
 use zenoh::sample::SampleKind;
 use zenoh::Wait;

@@ -3,13 +3,10 @@ pub mod json;
 pub mod modes;
 pub mod null;
 pub mod peaks;
-pub mod speaker;
 pub mod spectrum_png;
 pub mod tap;
 pub mod wav;
 pub mod y4m;
-#[cfg(feature = "net")]
-pub mod zenoh_pub;
 
 use crate::StageError;
 use std::path::Path;

@@ -23,32 +23,13 @@
 //! `include_spectrum = true` adds `"spectrum": {"f0_hz", "resolution_hz",
 //! "power_db": [...]}`.
 
-use crate::stages::transform::spectrum::TaperExt;
+use crate::stages::transform::peak_search::{
+    check_band, search_options, FALSE_ALARM, MAX_HZ, MIN_HZ, MIN_PROMINENCE,
+};
 use crate::*;
 use std::path::PathBuf;
 use std::sync::Arc;
-use vibroscope_math::peaks::{find_peaks_classified, PeakOptions};
-
-/// `min_hz` and `max_hz`, shared with `spectrum_png`.
-pub(crate) const MIN_HZ: ParamSpec = ParamSpec::new("min_hz", ParamType::Float, Def::Optional)
-    .at_least(0.0)
-    .unit("Hz")
-    .doc("lower edge of the band searched; default: the first bin");
-pub(crate) const MAX_HZ: ParamSpec = ParamSpec::new("max_hz", ParamType::Float, Def::Optional)
-    .at_least(0.0)
-    .unit("Hz")
-    .doc("upper edge of the band searched (> min_hz); default: Nyquist");
-
-/// `min_prominence_db`, shared with `resonances`.
-pub(crate) const MIN_PROMINENCE: ParamSpec =
-    ParamSpec::new("min_prominence_db", ParamType::Float, Def::Float(6.0))
-        .at_least(0.0)
-        .unit("dB")
-        .doc("a peak must stand this far above its surroundings");
-/// `false_alarm`, shared with `resonances`.
-pub(crate) const FALSE_ALARM: ParamSpec = ParamSpec::new("false_alarm", ParamType::Float, Def::Float(vibroscope_math::peaks::DEFAULT_FALSE_ALARM))
-    .floats(1e-12, 1.0)
-    .doc("report only peaks that noise alone would put this high anywhere in the band with at most this probability (the spectrum's K averages and its local floor); 1 = every prominent peak, each with its probability");
+use vibroscope_math::peaks::find_peaks_classified;
 
 params! {
     /// `peaks`'s parameters.
@@ -81,46 +62,6 @@ pub const KIND: KindSpec = KindSpec {
         Ok(Box::new(PeaksPlan(v)))
     },
 };
-
-/// Checks that the band (`min_hz`, `max_hz`), which `peaks` and
-/// `spectrum_png` share, is not empty.
-pub(crate) fn check_band(
-    p: &Params<'_>,
-    min_hz: Option<f64>,
-    max_hz: Option<f64>,
-) -> Result<(), ConfigError> {
-    if let (Some(a), Some(b)) = (min_hz, max_hz) {
-        if a >= b {
-            return Err(p.error("max_hz", format!("must exceed min_hz ({a}), got {b}")));
-        }
-    }
-    Ok(())
-}
-
-/// The peak search `peaks` and `resonances` share, for `averaged`
-/// spectra averaged whose facts (taper, window, Welch segments) `facts`
-/// carries.
-pub(crate) fn search_options(
-    max_peaks: usize,
-    min_prominence_db: f64,
-    min_hz: Option<f64>,
-    max_hz: Option<f64>,
-    false_alarm: f64,
-    facts: &Spectrum,
-    averaged: usize,
-) -> PeakOptions {
-    PeakOptions {
-        max_peaks,
-        min_prominence_db,
-        min_hz,
-        max_hz,
-        // The fit sees each line through the taper's spectral window.
-        window_kernel: facts.taper.power_kernel(facts.window, 4),
-        // Welch segments times the spectra averaged.
-        segments: facts.segments.max(1).saturating_mul(averaged),
-        max_false_alarm: (false_alarm < 1.0).then_some(false_alarm),
-    }
-}
 
 struct PeaksPlan(P);
 

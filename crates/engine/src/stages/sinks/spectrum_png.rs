@@ -18,6 +18,7 @@
 //! height = 450
 //! ```
 
+use crate::stages::transform::peak_search;
 use crate::stages::transform::spectrum::TaperExt;
 use crate::*;
 use serde::{Deserialize, Serialize};
@@ -44,9 +45,9 @@ params! {
         peaks: usize = ParamSpec::of(ParamType::Int, Def::Int(5))
             .ints(0, 100)
             .doc("power: most prominent peaks marked (0 = none)"),
-        min_hz: Option<f64> = super::peaks::MIN_HZ
+        min_hz: Option<f64> = peak_search::MIN_HZ
             .doc("lower edge of the band shown; default: the first bin"),
-        max_hz: Option<f64> = super::peaks::MAX_HZ
+        max_hz: Option<f64> = peak_search::MAX_HZ
             .doc("upper edge of the band shown (> min_hz); default: Nyquist"),
         width: u32 = ParamSpec::of(ParamType::Int, Def::Int(900))
             .ints(SIDE.0, SIDE.1)
@@ -69,7 +70,7 @@ pub const KIND: KindSpec = KindSpec {
     params: P::PARAMS,
     plan: |p| {
         let v: P = p.resolve_typed()?;
-        super::peaks::check_band(p, v.min_hz, v.max_hz)?;
+        peak_search::check_band(p, v.min_hz, v.max_hz)?;
         Ok(Box::new(PlotPlan(v)))
     },
 };

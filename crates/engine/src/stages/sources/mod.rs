@@ -1,10 +1,6 @@
 pub mod file;
-pub mod nokhwa;
 pub mod pattern;
 pub mod synthetic;
-pub mod v4l2;
-#[cfg(feature = "net")]
-pub mod zenoh_sub;
 
 use crate::{FrameFormat, FrameMeta, FrameMut, Item};
 use std::time::{Duration, Instant};

@@ -11,6 +11,7 @@ pub mod highpass;
 pub mod magnify;
 pub mod mean;
 pub mod passthrough;
+pub mod peak_search;
 pub mod phase;
 pub mod pitch;
 pub mod pyramid;

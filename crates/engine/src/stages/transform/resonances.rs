@@ -8,9 +8,7 @@
 //! spectra averaged; an empty set (nothing stood out) is still emitted, so a
 //! downstream tracker sees the camera alive.
 
-use super::super::sinks::peaks::{
-    check_band, search_options, FALSE_ALARM, MAX_HZ, MIN_HZ, MIN_PROMINENCE,
-};
+use super::peak_search::{check_band, search_options, FALSE_ALARM, MAX_HZ, MIN_HZ, MIN_PROMINENCE};
 use crate::*;
 use vibroscope_math::peaks::find_peaks;
 

@@ -13,9 +13,9 @@
 //! the ones it listens on (`listen`), so two test runs on one machine never
 //! find each other by accident.
 
-use crate::config::{ConfigError, Params};
-use crate::stage::StageError;
 use std::time::Duration;
+use vibroscope_core::config::{ConfigError, Params};
+use vibroscope_core::stage::StageError;
 pub use zenoh;
 use zenoh::Wait;
 

@@ -18,14 +18,14 @@
 //! on the wall clock and discards them: for machines without a sound card,
 //! and for tests of the pacing and resampling path.
 
-use crate::stages::transform::resample::Feed;
-use crate::*;
 use ringbuf::traits::{Consumer, Observer, Producer, Split};
 use ringbuf::{HeapCons, HeapProd, HeapRb};
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use vibroscope_core::*;
+use vibroscope_engine::stages::transform::resample::Feed;
 
 /// `gain`: a fixed factor or `"auto"`.
 #[derive(Deserialize, Serialize, Clone, Debug, PartialEq)]

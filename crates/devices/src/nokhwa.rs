@@ -14,7 +14,7 @@
 //! validate everywhere) and fails at start with a message saying how to
 //! enable it.
 
-use crate::*;
+use vibroscope_core::*;
 
 params! {
     /// `nokhwa`'s parameters.
@@ -73,13 +73,14 @@ impl Plan for NokhwaParams {
 ))]
 mod imp {
     use super::*;
-    use crate::stages::sources::v4l2::{to_gray, PixelFormat};
+    use crate::v4l2::{to_gray, PixelFormat};
     use nokhwa::pixel_format::LumaFormat;
     use nokhwa::utils::{
         CameraFormat, CameraIndex, FrameFormat as Fourcc, RequestedFormat, RequestedFormatType,
         Resolution,
     };
     use nokhwa::Camera;
+    use vibroscope_engine::stages::sources::{check_fps, describe};
 
     pub(super) fn open(p: NokhwaParams, pool_frames: usize) -> Result<Box<dyn Source>, StageError> {
         let name = format!("nokhwa camera {}", p.index);
@@ -115,7 +116,7 @@ mod imp {
             .map_err(|e| err("cannot start streaming", e))?;
         let res = cam.resolution();
         let fps = f64::from(cam.frame_rate());
-        let fps = super::super::check_fps(fps)
+        let fps = check_fps(fps)
             .map_err(|m| StageError::format(format!("{name}: granted frame rate: {m}")))?;
         if res.width_x == 0 || res.height_y == 0 || res.width_x > 16384 || res.height_y > 16384 {
             return Err(StageError::format(format!(
@@ -131,7 +132,7 @@ mod imp {
             fps,
             row_timing: None,
         };
-        tracing::info!(camera = %name, format = %cam.frame_format(), "negotiated {}", super::super::describe(&format));
+        tracing::info!(camera = %name, format = %cam.frame_format(), "negotiated {}", describe(&format));
         Ok(Box::new(NokhwaSource {
             name,
             cam,

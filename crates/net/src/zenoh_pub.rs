@@ -1,6 +1,6 @@
 //! `zenoh_pub`: publishes every item it receives on a zenoh key, for a
 //! `zenoh_sub` source or `vibroscope monitor` in another process or on
-//! another host ([`crate::net`]: versioned wire encoding, capture times kept,
+//! another host ([`crate::session`]: versioned wire encoding, capture times kept,
 //! a sequence number on each item, an end-of-stream marker).
 //!
 //! The edge policy crosses the network. On a replay the publisher is
@@ -9,10 +9,10 @@
 //! When the graph has a live source it drops instead of holding up the
 //! camera (zenoh's congestion control `drop`); the receiver counts the gaps.
 
-use crate::net::{self, Endpoints};
-use crate::wire::{self, WireRef};
-use crate::*;
+use crate::session::{self as net, Endpoints};
 use std::time::{Duration, Instant};
+use vibroscope_core::wire::{self, WireRef};
+use vibroscope_core::*;
 use zenoh::qos::CongestionControl;
 use zenoh::Wait;
 

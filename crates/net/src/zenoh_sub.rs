@@ -1,6 +1,6 @@
 //! `zenoh_sub`: receives the items a `zenoh_pub` publishes in another
 //! process or on another host, and hands them on with their capture times
-//! ([`crate::net`]). `type` says what the key carries; an item of another
+//! ([`crate::session`]). `type` says what the key carries; an item of another
 //! type, bytes that are not a vibroscope item or an encoding version this
 //! build does not read are reported (the first of each, then a count) and
 //! skipped: the stream goes on.
@@ -13,12 +13,12 @@
 //! ring or the network) is counted from the sequence numbers, as a
 //! camera's dropped frames are.
 
-use crate::frame::{FrameMut, PixelsMut};
-use crate::net::{self, Endpoints};
-use crate::wire::{self, WireItem, WirePixels};
-use crate::*;
+use crate::session::{self as net, Endpoints};
 use std::collections::HashMap;
 use std::time::Instant;
+use vibroscope_core::frame::{FrameMut, PixelsMut};
+use vibroscope_core::wire::{self, WireItem, WirePixels};
+use vibroscope_core::*;
 use zenoh::handlers::{FifoChannel, FifoChannelHandler, RingChannel, RingChannelHandler};
 use zenoh::sample::{Sample, SampleKind};
 use zenoh::Wait;

@@ -31,9 +31,10 @@
 //! It is a live source: its output edges drop the oldest frame when
 //! downstream lags. `duration_s` / `max_frames` end the stream (recording).
 
-use crate::*;
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
+use vibroscope_core::*;
+use vibroscope_engine::stages::sources::fps_param;
 
 /// Pixel formats this source turns into gray frames.
 #[derive(Deserialize, Serialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -252,7 +253,7 @@ params! {
             .ints(1, 16384)
             .unit("px")
             .doc("requested height; the driver may grant another (read back)"),
-        fps: Option<f64> = super::fps_param(
+        fps: Option<f64> = fps_param(
             Def::Optional,
             "requested frame rate; the granted interval is read back",
         ),
@@ -383,6 +384,7 @@ mod imp {
     use v4l::io::traits::{CaptureStream, Stream as _};
     use v4l::video::Capture;
     use v4l::{Device, FourCC};
+    use vibroscope_engine::stages::sources::{check_fps, describe};
 
     const CID_EXPOSURE_ABSOLUTE: u32 = 0x009a_0902;
     const CID_HBLANK: u32 = 0x009e_0902;
@@ -573,7 +575,7 @@ mod imp {
                 ))
             }
         };
-        let fps = super::super::check_fps(fps)
+        let fps = check_fps(fps)
             .map_err(|m| StageError::format(format!("{path}: granted frame rate: {m}")))?;
         let (exposure_ns, line_ns) = row_timing(&dev, got.width);
         let row_timing = line_ns.map(|l| RowTiming {
@@ -595,7 +597,7 @@ mod imp {
             exposure_ns = ?exposure_ns,
             line_ns = ?line_ns,
             "negotiated {}",
-            super::super::describe(&format)
+            describe(&format)
         );
         let mut stream = Stream::with_buffers(&dev, Type::VideoCapture, p.buffers)
             .map_err(|e| err("cannot allocate capture buffers", e))?;
