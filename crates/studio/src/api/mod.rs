@@ -55,9 +55,9 @@ use vibroscope::modes::{align_phase, read_npy_complex64};
 use vibroscope::pipeline::{Region, Roi};
 use vibroscope::spectrum::{DisplacementTap, SpectrumOptions};
 
-const INDEX_HTML: &str = include_str!("../assets/index.html");
-const APP_JS: &str = include_str!("../assets/app.js");
-const STYLE_CSS: &str = include_str!("../assets/style.css");
+const INDEX_HTML: &str = include_str!("../../assets/index.html");
+const APP_JS: &str = include_str!("../../assets/app.js");
+const STYLE_CSS: &str = include_str!("../../assets/style.css");
 
 /// At most this many computed answers are kept (then the cache starts over).
 const CACHE_ENTRIES: usize = 64;
