@@ -50,8 +50,6 @@ if [ "$rc" -eq 124 ] && [ -n "${DEADLINE:-}" ]; then
   exit 0
 fi
 [ "$rc" -eq 0 ] || exit 1
-# BUILT=FILE: touched once the build has finished (.ci/run's record of it).
-[ -z "${BUILT:-}" ] || touch "$BUILT"
 # Targets run JOBS at a time (default: one per core; each libFuzzer
 # process is single-threaded), each its SECONDS: ten targets of 30 s take
 # 2.5 min on two cores where one after another they took 5. Each target's
