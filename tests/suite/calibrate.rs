@@ -30,7 +30,7 @@ fn simulate(scene: &Path, y4m: &Path) -> std::process::ExitCode {
 const REF_RATE: u32 = 32_000;
 
 /// A linear chirp 100-1000 Hz over 2.2 s (longer than the 2 s videos).
-fn write_chirp(path: &Path) -> f64 {
+pub(crate) fn write_chirp(path: &Path) -> f64 {
     write_sweeps(path, 1, 2.2)
 }
 
@@ -765,7 +765,7 @@ fn speech_tools() -> bool {
 
 /// Speech, band-limited to the camera's Nyquist as played (espeak-ng,
 /// sox), or `None` (with the reason printed) when either is missing.
-fn speech_wav(dir: &Path) -> Option<PathBuf> {
+pub(crate) fn speech_wav(dir: &Path) -> Option<PathBuf> {
     if !speech_tools() {
         return None;
     }
@@ -838,7 +838,7 @@ fn speech_with(dir: &Path, speech: &Path, reports: [&str; 2]) -> [f64; 2] {
 /// Held-out SNR (dB) of a recovered WAV against what was played, measured
 /// as `calibrate` measures it (the linear model alone: delay and gain on
 /// the fit blocks, SNR on the held-out ones).
-fn held_out_snr(recovery: &Path, reference: &Path) -> f64 {
+pub(crate) fn held_out_snr(recovery: &Path, reference: &Path) -> f64 {
     let (fs, y) = read_wav(recovery);
     let (fr, r) = read_wav(reference);
     let y: Vec<f64> = y.iter().map(|&v| v as f64).collect();
@@ -923,6 +923,106 @@ fn a_square_law_response_is_found_by_its_harmonic_added_and_helps_speech() {
         snr[1] - snr[0]
     );
     assert!(snr[1] - snr[0] >= 3.0, "{snr:?}");
+}
+
+/// Issue 50, item 2: a static nonlinearity carries to a recording with
+/// another texture (seed 2) and the opposite recovered polarity. The same
+/// square-law object in image coordinates (`x + 0.25 x²` of the motion
+/// along +x) is driven with speech the other way round (`direction_deg =
+/// 180`, `response_poly = [-0.25]`: the motion along +x is `s + 0.25 s²`
+/// with `s` minus the speech), so the recovery's sign against the
+/// reference flips (the linear model's gain). The calibration stores the
+/// recovery against the region's motion in pixels (`pixel_frame`), and
+/// `listen --calibration` measures this recording's and rescales the
+/// polynomial by the ratio it prints (positive here: against the image,
+/// `align` chose the same sign on both textures; a ratio of the other
+/// sign flips the polynomial's even terms). The speech's SNR must not fall
+/// by more than 0.3 dB, nor below the same report applied without its
+/// frame (in the calibration recording's units, as before).
+#[test]
+fn a_static_nonlinearity_carries_to_the_opposite_polarity_and_another_texture() {
+    let d = tempfile::tempdir().unwrap();
+    let Some(speech) = speech_wav(d.path()) else {
+        return;
+    };
+    let chirp = d.path().join("chirp.wav");
+    write_chirp(&chirp);
+    let video = quadratic_object(
+        d.path(),
+        "chirp",
+        &chirp,
+        "response_poly = [0.25]\nseed = 1",
+    );
+    let (after, ra) = calibrate_with(&video, &chirp, CATALOG.to_vec());
+    assert_eq!(kept_by(&after), ["static_nonlinearity"], "{ra}");
+    assert!(ra["pixel_frame"].is_object(), "{ra}");
+    std::fs::write(
+        d.path().join("report.json"),
+        serde_json::to_string(&ra).unwrap(),
+    )
+    .unwrap();
+    let mut bare = ra.clone();
+    bare.as_object_mut().unwrap().remove("pixel_frame");
+    std::fs::write(
+        d.path().join("bare.json"),
+        serde_json::to_string(&bare).unwrap(),
+    )
+    .unwrap();
+    std::fs::write(d.path().join("none.json"), r#"{"effects": []}"#).unwrap();
+    let speech_video = quadratic_object(
+        d.path(),
+        "speech",
+        &speech,
+        "response_poly = [-0.25]\ndirection_deg = 180.0\nseed = 2",
+    );
+    let (linear, _) = calibrate_with(&speech_video, &speech, Vec::new());
+    assert!(
+        linear.gain * after.gain < 0.0,
+        "the recovered polarity against the reference did not flip: gains {} and {}",
+        after.gain,
+        linear.gain
+    );
+    // The ratio listen prints for this recording.
+    let o = run_in(
+        d.path(),
+        &[
+            "listen",
+            "speech.y4m",
+            "-o",
+            "ratio.wav",
+            "--rate",
+            "native",
+            "--float",
+            "--calibration",
+            "report.json",
+        ],
+    );
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    let text = format!("{}{}", stderr(&o), String::from_utf8_lossy(&o.stdout));
+    let ratio: f64 = text
+        .split("rescaled by ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|t| {
+            t.trim_end_matches(|c: char| !c.is_ascii_digit())
+                .parse()
+                .ok()
+        })
+        .unwrap_or_else(|| panic!("no ratio in: {text}"));
+    let [none, framed] = speech_with(d.path(), &speech, ["none.json", "report.json"]);
+    let [_, bare_snr] = speech_with(d.path(), &speech, ["none.json", "bare.json"]);
+    eprintln!(
+        "square law to the opposite polarity (seed 2): gains against the reference {:+.3e} (chirp) and {:+.3e} (speech); frame ratio {ratio:+.3}; speech held-out SNR {none:.2} dB without a calibration, {framed:.2} with it ({:+.2}), {bare_snr:.2} applied in the calibration's units ({:+.2})",
+        after.gain,
+        linear.gain,
+        framed - none,
+        bare_snr - none
+    );
+    assert!(framed >= none - 0.3, "{framed:.2} vs {none:.2}");
+    assert!(
+        framed >= bare_snr - 0.1,
+        "{framed:.2} vs {bare_snr:.2} without the frame"
+    );
 }
 
 /// The same object without the square law, on three scene seeds (texture

@@ -17,6 +17,7 @@ mod backpressure;
 mod bound;
 mod calibrate;
 mod config_errors;
+mod explain;
 mod faults;
 mod filters;
 mod hostile;

@@ -32,7 +32,10 @@ pub mod texture;
 
 pub use fabric::{Excitation, Fabric, FabricSpec};
 pub use modal::{ModalBeam, ModalSpec};
-pub use scene::{Depth, Dest, EdgeMode, Look, Scene, SceneSpec, MAX_AMPLITUDE_PX};
+pub use scene::{
+    Depth, Dest, EdgeMode, LightSpec, Look, MotionSpec, MoverSpec, Scene, SceneSpec, SurroundSpec,
+    MAX_AMPLITUDE_PX,
+};
 pub use signal::{Resonance, Signal, SignalSpec};
 
 /// Errors of the forward model: invalid parameters (naming the field) and

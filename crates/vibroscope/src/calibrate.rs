@@ -13,12 +13,14 @@ use crate::microphone::{listen_pipeline, Method};
 use crate::pipeline::Denoise;
 use crate::pipeline::{self, Region, RunSettings};
 use crate::pipelines::stage::visual_microphone::{ALIGN, HIGHPASS, OUT, PHASE};
-use crate::stages::params::{AlignParams, CsvParams, PhaseParams, PyramidParams, WavParams};
+use crate::stages::params::{
+    AlignParams, CsvParams, DisplacementParams, PhaseParams, PyramidParams, Untextured, WavParams,
+};
 use serde::de::DeserializeOwned;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
-pub use crate::math::calibrate::{EffectKind, Step, CATALOG};
+pub use crate::math::calibrate::{EffectKind, Explanation, Observable, Step, CATALOG};
 
 /// Called before each candidate effect is fitted (a progress display).
 #[derive(Clone)]
@@ -181,6 +183,8 @@ pub struct StripLayout {
     pub rows: Vec<(u32, u32)>,
     /// The frame's height in rows.
     pub height: u32,
+    /// The frame's width in columns.
+    pub width: u32,
 }
 
 /// The region's columns and its rows cut into up to [`STRIPS`] strips of
@@ -209,6 +213,7 @@ pub fn strip_rows(video: &Path, region: &Region) -> Result<StripLayout> {
         cols: (x, rw),
         rows,
         height: h,
+        width: w,
     })
 }
 
@@ -225,8 +230,28 @@ pub fn recover_strips(
     whole: bool,
     run: RunSettings,
 ) -> Result<StripRun> {
+    recover_observed(video, fps, region, (cols, rows), (whole, &[]), run)
+}
+
+/// [`recover_strips`], also measuring the motion (x, y) and mean intensity
+/// of each tile of `tiles` in the same run (one `displacement` stage on
+/// the decoder; [`StripRun::observed`], three channels a tile).
+pub fn recover_observed(
+    video: &Path,
+    fps: Option<f64>,
+    region: &Region,
+    (cols, rows): ((u32, u32), &[(u32, u32)]),
+    (whole, tiles): (bool, &[[u32; 4]]),
+    run: RunSettings,
+) -> Result<StripRun> {
     let tmp0 = TempPath::new("strips.wav");
     let mut decl = recovery_pipeline(video, tmp0.path(), fps, region)?;
+    let source = decl
+        .stage(PHASE)?
+        .inputs
+        .first()
+        .map(|i| i.from.clone())
+        .ok_or_else(|| Error::Analysis("the listen pipeline's phase stage has no input".into()))?;
     // One pyramid per frame for every branch: `phase` computes it over the
     // whole frame whatever its region, so nine branches would compute it
     // nine times.
@@ -307,7 +332,15 @@ pub fn recover_strips(
             decl.stages.push(sink);
         }
     }
+    let observed_temp = TempPath::new("observed.csv");
+    if !tiles.is_empty() {
+        add_observe(&mut decl, &source, tiles, observed_temp.path())?;
+    }
     let report = pipeline::run(&decl, run)?;
+    let observed = match tiles.is_empty() {
+        true => Vec::new(),
+        false => read_observed(observed_temp.path())?,
+    };
     let signals = temps
         .iter()
         .map(|t| Ok(crate::io::wav::read_mono(t.path())?.1))
@@ -324,8 +357,52 @@ pub fn recover_strips(
         whole,
         signals,
         bands,
+        observed,
         report,
     })
+}
+
+/// Adds to `decl` a `displacement` stage on `source` measuring each tile
+/// of `tiles` (motion along x and y in px, mean intensity in DN; a tile
+/// without texture reads no motion) and a CSV sink writing them to `csv`:
+/// the recording's observables (the residual explainer's, and the
+/// region's motion for the recovery's frame).
+pub fn add_observe(
+    decl: &mut crate::engine::config::PipelineDecl,
+    source: &str,
+    tiles: &[[u32; 4]],
+    csv: &Path,
+) -> Result<()> {
+    let origin = pipeline::by("calibration (the recording's observables)");
+    let mut st = pipeline::new_stage::<DisplacementParams>("observe", &[source], origin.clone());
+    let v: Vec<u32> = tiles.iter().flatten().copied().collect();
+    pipeline::put(&mut st, DisplacementParams::rois, Some(v), origin.clone())?;
+    pipeline::put(&mut st, DisplacementParams::intensity, true, origin.clone())?;
+    pipeline::put(
+        &mut st,
+        DisplacementParams::untextured,
+        Untextured::Zero,
+        origin.clone(),
+    )?;
+    decl.stages.push(st);
+    let mut sink = pipeline::new_stage::<CsvParams>("observe_out", &["observe"], origin.clone());
+    pipeline::put(&mut sink, CsvParams::path, csv.to_path_buf(), origin)?;
+    decl.stages.push(sink);
+    Ok(())
+}
+
+/// The channels [`add_observe`]'s CSV holds, three a tile.
+pub fn read_observed(csv: &Path) -> Result<Vec<Vec<f64>>> {
+    read_bands(csv)
+}
+
+/// The region `region` covers in `video`'s frames, `[x, y, w, h]`, as
+/// calibrate measures its motion (clipped to the frame).
+pub fn region_rect(video: &Path, region: &Region) -> Result<[u32; 4]> {
+    let layout = strip_rows(video, region)?;
+    let first = layout.rows.first().map_or(0, |r| r.0);
+    let last = layout.rows.last().map_or(layout.height, |r| r.1);
+    Ok([layout.cols.0, first, layout.cols.1, last - first])
 }
 
 /// The shared `pyramid` stage `pyr` builds the pyramid `phase` would: it
@@ -394,6 +471,9 @@ pub struct StripRun {
     pub signals: Vec<Vec<f64>>,
     /// Each strip's bands (`phase`'s channels), with the region only.
     pub bands: Vec<Vec<Vec<f64>>>,
+    /// Each observed tile's motion along x and y (px) and mean intensity
+    /// (DN), three channels a tile in the order asked.
+    pub observed: Vec<Vec<f64>>,
     pub report: crate::engine::RunReport,
 }
 
@@ -484,13 +564,13 @@ pub fn calibrate_video_from(
                     format!("must be a frequency above 0 and at most {MAX_TONE_HZ} Hz, got {hz}"),
                 ));
             }
-            let (fs, y, strips) = recover_all(video, fps, region, opts.as_ref(), run)?;
+            let (fs, y, strips, observed) = recover_all(video, fps, region, opts.as_ref(), run)?;
             // Sampled well above the frame rate and the tone (the model
             // samples it at the frame times, band-limited), a second
             // longer than the video (the delay is searched over ±0.5 s).
             let fr = (4.0 * fs.max(hz)).ceil();
             let r = tone(hz, fr, y.len() as f64 / fs + 1.0);
-            return calibrate_recovery(video, (y, strips), fs, r, fr, opts, on_step);
+            return calibrate_recovery(video, (y, strips, observed), fs, r, fr, opts, on_step);
         }
     };
     let (fr, r) = read_input_wav(reference)?;
@@ -510,7 +590,7 @@ pub fn calibrate_video_from(
             ),
         ));
     }
-    let (fs, y, strips) = recover_all(video, fps, region, opts.as_ref(), run)?;
+    let (fs, y, strips, observed) = recover_all(video, fps, region, opts.as_ref(), run)?;
     let (dv, dr) = (y.len() as f64 / fs, r.len() as f64 / fr);
     if dr + 0.5 / fs < dv {
         return Err(Error::input(
@@ -521,7 +601,44 @@ pub fn calibrate_video_from(
             ),
         ));
     }
-    calibrate_recovery(video, (y, strips), fs, r, fr, opts, on_step)
+    calibrate_recovery(video, (y, strips, observed), fs, r, fr, opts, on_step)
+}
+
+/// What [`recover_all`] returns: the frame rate, the region's recovery,
+/// the strips' (when read), the recording's observables and the region's
+/// own motion in pixels (x, y).
+type Recovered = (f64, Vec<f64>, Option<cal::Strips>, Observed);
+
+/// The recording's observables for the explainer and the region's own
+/// motion in pixels (x, y; empty when not measured).
+#[derive(Default)]
+struct Observed {
+    covariates: Vec<cal::Covariate>,
+    region_px: (Vec<f64>, Vec<f64>),
+}
+
+/// Most tiles across either axis of the frame the explainer observes.
+pub const OBSERVED_TILES: u32 = 6;
+/// The fewest pixels a tile's side holds.
+const MIN_TILE_PX: u32 = 10;
+
+/// The tiles of a `w`×`h` frame the residual explainer observes (up to
+/// [`OBSERVED_TILES`] a side, at least [`MIN_TILE_PX`] each), each with
+/// whether it overlaps the region `[x, y, w, h]`.
+pub fn observation_tiles(w: u32, h: u32, region: [u32; 4]) -> Vec<([u32; 4], bool)> {
+    let nx = (w / MIN_TILE_PX).clamp(1, OBSERVED_TILES);
+    let ny = (h / MIN_TILE_PX).clamp(1, OBSERVED_TILES);
+    let [rx, ry, rw, rh] = region;
+    let mut out = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            let (x0, x1) = (i * w / nx, (i + 1) * w / nx);
+            let (y0, y1) = (j * h / ny, (j + 1) * h / ny);
+            let overlaps = x0 < rx + rw && rx < x1 && y0 < ry + rh && ry < y1;
+            out.push(([x0, y0, x1 - x0, y1 - y0], overlaps));
+        }
+    }
+    out
 }
 
 /// The region's recovery `(frame rate, samples)` and, when the effects to
@@ -534,7 +651,7 @@ fn recover_all(
     region: &Region,
     opts: Option<&Options>,
     run: RunSettings,
-) -> Result<(f64, Vec<f64>, Option<cal::Strips>)> {
+) -> Result<Recovered> {
     let wanted = |o: &Options| {
         o.effects
             .iter()
@@ -544,12 +661,31 @@ fn recover_all(
         let layout = strip_rows(video, region)?;
         if layout.rows.len() >= 3 {
             let fs = frame_rate(video, fps)?;
+            let first = layout.rows.first().map_or(0, |r| r.0);
+            let last = layout.rows.last().map_or(layout.height, |r| r.1);
+            let rect = [layout.cols.0, first, layout.cols.1, last - first];
+            let mut tiles = match opts.is_none_or(|o| o.explain) {
+                true => observation_tiles(layout.width, layout.height, rect),
+                false => Vec::new(),
+            };
+            // The region itself, last: its motion in pixels is the
+            // recovery's physical frame.
+            tiles.push((rect, true));
+            let rects: Vec<[u32; 4]> = tiles.iter().map(|t| t.0).collect();
             let StripRun {
                 whole,
                 signals,
                 bands,
+                observed,
                 ..
-            } = recover_strips(video, fps, region, (layout.cols, &layout.rows), true, run)?;
+            } = recover_observed(
+                video,
+                fps,
+                region,
+                (layout.cols, &layout.rows),
+                (true, &rects),
+                run,
+            )?;
             let y =
                 whole.ok_or_else(|| Error::Analysis("the region's recovery is missing".into()))?;
             let strips = cal::Strips {
@@ -557,17 +693,42 @@ fn recover_all(
                 signals,
                 bands,
             };
-            return Ok((fs, y, Some(strips)));
+            return Ok((fs, y, Some(strips), observations(&tiles, observed)));
         }
     }
     let (fs, y) = recover(video, fps, region, run)?;
-    Ok((fs, y, None))
+    Ok((fs, y, None, Observed::default()))
+}
+
+/// The observed channels (three a tile: x, y, intensity) as the
+/// explainer's candidates, the last tile's (the region's) motion apart.
+fn observations(tiles: &[([u32; 4], bool)], mut observed: Vec<Vec<f64>>) -> Observed {
+    use cal::Observable::{Intensity, MotionX, MotionY};
+    let mut out = Observed::default();
+    if observed.len() == 3 * tiles.len() && !tiles.is_empty() {
+        let _intensity = observed.pop();
+        let py = observed.pop().unwrap_or_default();
+        let px = observed.pop().unwrap_or_default();
+        out.region_px = (px, py);
+    }
+    for (k, values) in observed.into_iter().enumerate() {
+        let Some(&(rect, inside)) = tiles.get(k / 3) else {
+            break;
+        };
+        out.covariates.push(cal::Covariate {
+            observable: [MotionX, MotionY, Intensity][k % 3],
+            rect,
+            inside,
+            values,
+        });
+    }
+    out
 }
 
 /// The math on a recovery `y` (at `fs`) against `r` (at `fr`).
 fn calibrate_recovery(
     video: &Path,
-    (y, strips): (Vec<f64>, Option<cal::Strips>),
+    (y, strips, observed): (Vec<f64>, Option<cal::Strips>, Observed),
     fs: f64,
     r: Vec<f64>,
     fr: f64,
@@ -580,11 +741,14 @@ fn calibrate_recovery(
             (h.0)(s)
         }
     };
-    let c = cal::calibrate_strips(&y, strips.as_ref(), fs, &r, fr, &opts, &mut hook);
+    let covs = &observed.covariates;
+    let c = cal::calibrate_with(&y, (strips.as_ref(), covs), fs, (&r, fr), &opts, &mut hook);
     // A signal during the fit wins over what the fit concluded (a refusal
     // included): the user asked to stop.
     pipeline::check_interrupt()?;
-    let c = c.map_err(|e| Error::input(video, e.to_string()))?;
+    let mut c = c.map_err(|e| Error::input(video, e.to_string()))?;
+    let (px, py) = &observed.region_px;
+    c.report.pixel_frame = cal::pixel_frame(&y, (px, py), fs, opts.highpass, None);
     Ok(Calibrated {
         frame_rate_hz: fs,
         reference_rate_hz: fr,

@@ -6,13 +6,166 @@ use crate::math::calibrate::{self as cal, Correction};
 use crate::pipeline::Denoise;
 use std::path::Path;
 
-/// The reusable corrections of a stored report (`listen --calibration`).
-pub fn load_calibration(path: &Path) -> Result<Vec<Correction>> {
+/// A stored report, parsed (errors name the file).
+fn read_report(path: &Path) -> Result<serde_json::Value> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| Error::input(path, format!("cannot read: {e}")))?;
-    let v: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not JSON: {e}")))?;
-    cal::reusable_from_report(&v).map_err(|m| Error::input(path, m.to_string()))
+    serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not JSON: {e}")))
+}
+
+/// The reusable corrections of a stored report (`listen --calibration`).
+pub fn load_calibration(path: &Path) -> Result<Vec<Correction>> {
+    cal::reusable_from_report(&read_report(path)?).map_err(|m| Error::input(path, m.to_string()))
+}
+
+/// The recovery's frame stored with a calibration (`pixel_frame` of its
+/// REPORT.json), if any.
+pub fn load_frame(path: &Path) -> Result<Option<cal::PixelFrame>> {
+    cal::frame_from_report(&read_report(path)?).map_err(|m| Error::input(path, m.to_string()))
+}
+
+/// What the explainer kept, as stored with a calibration (`explained` of
+/// its REPORT.json): each term's observable, tiles and FIR.
+pub fn load_explained(path: &Path) -> Result<Vec<cal::StoredTerm>> {
+    cal::explained_from_report(&read_report(path)?).map_err(|m| Error::input(path, m.to_string()))
+}
+
+/// A new recording's observables, measured in the run that recovers it:
+/// the region's motion (the recovery's frame) and the tiles a stored
+/// calibration's explained terms average.
+pub struct Observe {
+    /// The region first, then each term's tiles.
+    rects: Vec<[u32; 4]>,
+    temp: crate::io::atomic::TempPath,
+}
+
+impl Observe {
+    /// Adds the measuring branch to `decl` (on the phase stage's source).
+    pub fn add(
+        decl: &mut crate::engine::config::PipelineDecl,
+        video: &Path,
+        region: &crate::pipeline::Region,
+        terms: &[cal::StoredTerm],
+    ) -> Result<Observe> {
+        use crate::pipelines::stage::visual_microphone::PHASE;
+        let mut rects = vec![crate::calibrate::region_rect(video, region)?];
+        for t in terms {
+            for r in &t.tiles {
+                if !rects[1..].contains(r) {
+                    rects.push(*r);
+                }
+            }
+        }
+        if rects.len() > 64 {
+            return Err(Error::Analysis(format!(
+                "the calibration's explained terms measure {} tiles; at most 63",
+                rects.len() - 1
+            )));
+        }
+        let source = decl
+            .stage(PHASE)?
+            .inputs
+            .first()
+            .map(|i| i.from.clone())
+            .ok_or_else(|| {
+                Error::Analysis("the listen pipeline's phase stage has no input".into())
+            })?;
+        let temp = crate::io::atomic::TempPath::new("observed.csv");
+        crate::calibrate::add_observe(decl, &source, &rects, temp.path())?;
+        Ok(Observe { rects, temp })
+    }
+
+    /// After the run: the recovery in the WAV at `path` brought to the
+    /// calibration's frame. Its scale against the region's motion along
+    /// the stored direction, over the stored scale, gives the ratio; the
+    /// explained terms' parts (their taps times the ratio, on the tiles
+    /// measured here) are subtracted from the WAV in place; the returned
+    /// corrections are `corrections` rescaled by the ratio. Also a note.
+    pub fn apply(
+        &self,
+        path: &Path,
+        corrections: &[Correction],
+        frame: cal::PixelFrame,
+        terms: &[cal::StoredTerm],
+    ) -> Result<(Vec<Correction>, String)> {
+        let (rate, y) = crate::io::wav::read_mono(path)?;
+        let fs = f64::from(rate);
+        let observed = crate::calibrate::read_observed(self.temp.path())?;
+        if observed.len() != 3 * self.rects.len() {
+            return Err(Error::Analysis(format!(
+                "{} channels of observables for {} tiles",
+                observed.len(),
+                self.rects.len()
+            )));
+        }
+        let n = y.len().min(observed[0].len());
+        let hp = cal::Options::for_rate(fs).highpass;
+        let here = cal::pixel_frame(
+            &y[..n],
+            (&observed[0][..n], &observed[1][..n]),
+            fs,
+            hp,
+            Some(frame.direction_deg),
+        )
+        .ok_or_else(|| {
+            Error::Analysis(format!(
+                "{}: the region does not move measurably along {:.1}°, so the calibration cannot be brought to this recording's scale",
+                path.display(),
+                frame.direction_deg
+            ))
+        })?;
+        let ratio = here.recovery_per_px / frame.recovery_per_px;
+        let channel = |o: cal::Observable| match o {
+            cal::Observable::MotionX => 0,
+            cal::Observable::MotionY => 1,
+            cal::Observable::Intensity => 2,
+        };
+        let measured: Vec<(Vec<f64>, Vec<f64>)> = terms
+            .iter()
+            .map(|t| {
+                let mut mean = vec![0.0; n];
+                for r in &t.tiles {
+                    let k = self
+                        .rects
+                        .iter()
+                        .skip(1)
+                        .position(|x| x == r)
+                        .map_or(0, |k| k + 1);
+                    for (m, v) in mean
+                        .iter_mut()
+                        .zip(&observed[3 * k + channel(t.observable)])
+                    {
+                        *m += v / t.tiles.len() as f64;
+                    }
+                }
+                (mean, t.taps.iter().map(|a| a * ratio).collect())
+            })
+            .collect();
+        if !measured.is_empty() {
+            let mut z = cal::remove_explained(&y[..n], &measured, fs, hp);
+            z.extend_from_slice(&y[n..]);
+            crate::io::wav::write_mono_f32(path, rate, &z)?;
+        }
+        let mut note = format!(
+            "the recovery reads {:.4e} per px of motion along {:.1}° here, {:.4e} on the calibration's recording (ratio {ratio:+.4})",
+            here.recovery_per_px, frame.direction_deg, frame.recovery_per_px
+        );
+        if !terms.is_empty() {
+            note.push_str(&format!(
+                "; {} explained term(s) measured again here and subtracted",
+                terms.len()
+            ));
+        }
+        if corrections.iter().any(Correction::needs_frame) {
+            note.push_str(&format!(
+                "; amplitude-dependent corrections rescaled by {ratio:+.4}"
+            ));
+        }
+        Ok((
+            corrections.iter().map(|c| c.rescaled(ratio)).collect(),
+            note,
+        ))
+    }
 }
 
 /// Applies `corrections` to the WAV at `path` in place (at its own rate).

@@ -247,6 +247,30 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     if corrections.is_some() {
         crate::microphone::causal_highpass(&mut decl)?;
     }
+    // A correction that depends on the recovery's scale and sign (a static
+    // nonlinearity), and what the explainer kept (observables of this
+    // recording), are brought to this recording's frame: its region's
+    // motion in pixels and the terms' tiles are measured in the same run.
+    let (frame, terms) = match (&o.calibration, &corrections) {
+        (Some(path), Some(_)) => (
+            corrections::load_frame(path)?,
+            corrections::load_explained(path)?,
+        ),
+        _ => (None, Vec::new()),
+    };
+    let needs = corrections
+        .as_ref()
+        .is_some_and(|c| c.iter().any(Correction::needs_frame))
+        || !terms.is_empty();
+    if needs && frame.is_none() {
+        notes.push("the calibration holds no pixel frame (written before it was measured): its corrections apply in the calibration recording's units and sign, and its explained terms are left out".into());
+    }
+    let observe = match (frame, needs) {
+        (Some(_), true) => Some(corrections::Observe::add(
+            &mut decl, &o.video, &o.region, &terms,
+        )?),
+        _ => None,
+    };
     if let Some(dev) = &o.speaker {
         add_speaker(&mut decl, dev)?;
     }
@@ -254,7 +278,15 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     // Ctrl-C: the WAV holds what was processed; finish it as well.
     if matches!(run, Ok(_) | Err(Error::Interrupted { .. })) && o.output.exists() {
         if let Some(c) = &corrections {
-            corrections::apply_to_wav(&o.output, c, o.denoise)?;
+            let c = match (frame, &observe) {
+                (Some(f), Some(obs)) if run.is_ok() => {
+                    let (c, note) = obs.apply(&o.output, c, f, &terms)?;
+                    notes.push(note);
+                    c
+                }
+                _ => c.clone(),
+            };
+            corrections::apply_to_wav(&o.output, &c, o.denoise)?;
         }
         finish_wav(o, corrections.is_some())?;
     }

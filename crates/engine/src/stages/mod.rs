@@ -28,7 +28,7 @@ pub mod params {
     pub use super::transform::denoise::SpectralSubtractionParams;
     pub use super::transform::denoise::SpeechEnhanceParams;
     pub use super::transform::denoise::WienerParams;
-    pub use super::transform::displacement::DisplacementParams;
+    pub use super::transform::displacement::{DisplacementParams, Untextured};
     pub use super::transform::exposure::ExposureParams;
     pub use super::transform::gap_fill::GapFillParams;
     pub use super::transform::gradient_motion::GradientMotionParams;

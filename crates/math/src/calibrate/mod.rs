@@ -63,7 +63,9 @@
 mod capture_time;
 mod correction;
 mod correlation;
+mod explain;
 mod exposure;
+mod frame;
 mod frames;
 mod gain_drift;
 mod identify;
@@ -80,11 +82,13 @@ mod transfer;
 
 pub use capture_time::{combine, Strips};
 pub use correction::{Correction, FrameEvent, Line};
+pub use explain::{remove_explained, Covariate, Explanation, Observable, StoredTerm, LAGS};
+pub use frame::{pixel_frame, PixelFrame};
 pub use identify::Confound;
 pub use relation::{check_silent, LINE_DB, MARGIN_DB, SILENT_PEAK};
 pub use report::{
-    reusable_from_report, EventReport, LineReport, LineUncertainty, Parameters, ReportError,
-    Uncertainty, Unexplained, UnexplainedKind,
+    explained_from_report, frame_from_report, reusable_from_report, EventReport, LineReport,
+    LineUncertainty, Parameters, ReportError, Uncertainty, Unexplained, UnexplainedKind,
 };
 pub use signal::{alias, equalize, sample_at, stft_len};
 pub use signal::{peak, smooth3};
@@ -104,6 +108,9 @@ pub struct Options {
     pub highpass: Option<(usize, f64)>,
     /// The catalog, in the order effects are tried.
     pub effects: Vec<EffectKind>,
+    /// After the catalog, explain what is left with the recording's own
+    /// observables when they are given ([`calibrate_with`]).
+    pub explain: bool,
 }
 
 impl Options {
@@ -115,6 +122,7 @@ impl Options {
             max_lag_s: 0.5,
             highpass: Some((4, crate::iir::default_highpass_cutoff_hz(fs))),
             effects: CATALOG.to_vec(),
+            explain: true,
         }
     }
 }
@@ -233,6 +241,17 @@ pub struct Report {
     /// other, with the range their parameter spans ([`Confound`]).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub confounded: Vec<Confound>,
+    /// What the residual explainer found in the recording's own
+    /// observables after the catalog ([`explain`]): each kept covariate
+    /// with its likely cause. Per recording: not applied by
+    /// `listen --calibration`.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub explained: Vec<Explanation>,
+    /// The recovery against the region's motion in pixels ([`PixelFrame`]),
+    /// when it was measured: what `listen --calibration` brings a new
+    /// recording's recovery to before applying a static nonlinearity.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pixel_frame: Option<PixelFrame>,
 }
 
 /// A candidate that was fitted but not kept (for logs).
@@ -328,6 +347,20 @@ pub fn calibrate_strips(
     opts: &Options,
     on_step: &mut dyn FnMut(Step),
 ) -> Result<Calibration, CalError> {
+    calibrate_with(y, (strips, &[]), fs, (r, fr), opts, on_step)
+}
+
+/// [`calibrate_strips`] with the recording's observables (tile motions and
+/// intensities, each one value per frame) for the residual explainer
+/// ([`explain`]), run after the catalog when [`Options::explain`].
+pub fn calibrate_with(
+    y: &[f64],
+    (strips, covariates): (Option<&Strips>, &[Covariate]),
+    fs: f64,
+    (r, fr): (&[f64], f64),
+    opts: &Options,
+    on_step: &mut dyn FnMut(Step),
+) -> Result<Calibration, CalError> {
     if !(fs.is_finite() && fs > 0.0 && fr.is_finite() && fr > 0.0) {
         return Err(CalError::Rates { fs, fr });
     }
@@ -340,9 +373,11 @@ pub fn calibrate_strips(
         });
     }
     let strip_values = strips.iter().flat_map(|s| s.signals.iter().flatten());
+    let observed = covariates.iter().flat_map(|c| c.values.iter());
     if y.iter()
         .chain(r)
         .chain(strip_values)
+        .chain(observed)
         .any(|v| !v.is_finite())
     {
         return Err(CalError::NonFinite);
@@ -603,6 +638,21 @@ pub fn calibrate_strips(
             confounded.extend(more);
         }
     }
+    // What is left, explained by the recording's own observables: their
+    // parts are removed from the recovery the catalog's corrections act on.
+    let mut explained = Vec::new();
+    let mut cleaned: Option<Vec<f64>> = None;
+    if opts.explain && !covariates.is_empty() {
+        let all: Vec<Correction> = chain(&kept);
+        if let Some(e) = explain::explain(&m, y, &all, covariates, opts.min_gain_db) {
+            z = apply_all(&all, &e.cleaned, fs);
+            fit = m.fit_linear(&z);
+            cur = m.errors(&z, &fit);
+            explained = e.kept;
+            cleaned = Some(e.cleaned);
+        }
+    }
+    let y: &[f64] = cleaned.as_deref().unwrap_or(y);
     let corrections = chain(&kept);
     let effects: Vec<EffectReport> = corrections
         .iter()
@@ -645,6 +695,8 @@ pub fn calibrate_strips(
             unexplained,
             linear_residual,
             confounded,
+            explained,
+            pixel_frame: None,
         },
         corrections,
         rejected,

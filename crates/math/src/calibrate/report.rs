@@ -598,6 +598,76 @@ struct StoredReport {
     effects: Option<Vec<StoredEffect>>,
 }
 
+/// The part of a report [`explained_from_report`] reads.
+#[derive(serde::Deserialize)]
+struct StoredExplained {
+    #[serde(default)]
+    explained: Vec<super::explain::StoredTerm>,
+}
+
+/// What the residual explainer kept, as stored in a report (`explained`
+/// of `REPORT.json`: each term's observable, tiles and taps); empty when
+/// there is none. Errors name the field.
+pub fn explained_from_report<'de, D: ?Sized>(
+    report: &'de D,
+) -> Result<Vec<super::explain::StoredTerm>, ReportError>
+where
+    &'de D: Deserializer<'de>,
+{
+    let stored = StoredExplained::deserialize(report)
+        .map_err(|e| ReportError::Parse(format!("explained: {e}")))?;
+    for (k, t) in stored.explained.iter().enumerate() {
+        if t.taps.len() != 2 * super::LAGS + 1 || t.taps.iter().any(|v| !v.is_finite()) {
+            return Err(ReportError::Parse(format!(
+                "explained[{k}].taps: {} finite numbers expected",
+                2 * super::LAGS + 1
+            )));
+        }
+        if t.tiles.is_empty()
+            || t.tiles.len() > 64
+            || t.tiles.iter().any(|r| r[2] == 0 || r[3] == 0)
+        {
+            return Err(ReportError::Parse(format!(
+                "explained[{k}].tiles: 1 to 64 rectangles [x, y, w, h] of at least 1x1 expected"
+            )));
+        }
+    }
+    Ok(stored.explained)
+}
+
+/// The part of a report [`frame_from_report`] reads.
+#[derive(serde::Deserialize)]
+struct StoredFrame {
+    pixel_frame: Option<super::PixelFrame>,
+}
+
+/// The recovery's frame stored in a report (`pixel_frame` of
+/// `REPORT.json`), if any; an error names the field when it is there but
+/// damaged.
+pub fn frame_from_report<'de, D: ?Sized>(
+    report: &'de D,
+) -> Result<Option<super::PixelFrame>, ReportError>
+where
+    &'de D: Deserializer<'de>,
+{
+    let stored = StoredFrame::deserialize(report)
+        .map_err(|e| ReportError::Parse(format!("pixel_frame: {e}")))?;
+    match stored.pixel_frame {
+        Some(f)
+            if f.direction_deg.is_finite()
+                && f.recovery_per_px.is_finite()
+                && f.recovery_per_px != 0.0 =>
+        {
+            Ok(Some(f))
+        }
+        Some(_) => Err(ReportError::Parse(
+            "pixel_frame: direction_deg and recovery_per_px must be finite, recovery_per_px not 0"
+                .into(),
+        )),
+        None => Ok(None),
+    }
+}
+
 /// The reusable corrections stored in a report (`effects` of
 /// `REPORT.json`), from a parsed document any serde deserializer reads by
 /// reference (e.g. a `serde_json::Value`); per-recording effects (frames,

@@ -6,6 +6,7 @@ use crate::rng::{hash2, Ziggurat};
 use crate::texture::{Interp, Texture, OBJECT_SIGMA_PX, PAD, TAPS};
 use crate::{detmath, Signal, SimError};
 
+use super::surround::{SurroundSpec, Surroundings};
 use super::{EdgeMode, Look, Model, Scene, SceneSpec, Scratch, MAX_AMPLITUDE_PX};
 
 /// Texture scale of the background.
@@ -34,7 +35,76 @@ fn mean_std(values: impl Iterator<Item = f64> + Clone) -> (f64, f64) {
     (mean, var.sqrt())
 }
 
+/// The object's texture on its lattice padded by `pad` on every side,
+/// normalised to `contrast` over the object (`ow`×`oh`): the grid, its
+/// width, and the shift and scale applied to the raw texture.
+fn object_grid(
+    tex: &Texture,
+    pad: usize,
+    (ow, oh): (usize, usize),
+    contrast: f64,
+) -> (Vec<f32>, usize, f64, f64) {
+    let (gw, gh) = (ow + 2 * pad, oh + 2 * pad);
+    let raw = tex.sample_grid(-(pad as i64), -(pad as i64), gw, gh);
+    let (tex_shift, tex_std) = if ow * oh >= MIN_PIXELS_FOR_EMPIRICAL_NORM {
+        mean_std((0..oh).flat_map(|v| raw[(v + pad) * gw + pad..][..ow].iter().copied()))
+    } else {
+        (0.0, 0.0)
+    };
+    let tex_std = if tex_std > 0.0 {
+        tex_std
+    } else {
+        tex.expected_var().sqrt()
+    };
+    let tex_scale = contrast / tex_std;
+    let grid = raw
+        .iter()
+        .map(|r| ((r - tex_shift) * tex_scale) as f32)
+        .collect();
+    (grid, gw, tex_shift, tex_scale)
+}
+
 impl Scene {
+    /// The scene with effects outside the object ([`super::surround`]):
+    /// the whole image moving, other things in view vibrating, a light
+    /// changing across the image, row offsets. An empty `spec` leaves the
+    /// scene as it was. The camera's motion needs a rigid object (a modal
+    /// beam or a fabric does not move with it).
+    pub fn with_surroundings(mut self, spec: &SurroundSpec) -> Result<Scene, SimError> {
+        if spec.is_empty() {
+            self.m.surround = None;
+            return Ok(self);
+        }
+        let m = &mut self.m;
+        let su = Surroundings::new(spec, (m.w, m.h), m.spec.seed)?;
+        let cam = su.camera_peak();
+        if cam > 0.0 {
+            if m.modal.is_some() || m.fabric.is_some() {
+                return Err(SimError::Invalid {
+                    field: "camera_motion".into(),
+                    msg: "needs a rigid object (no modal or fabric)".into(),
+                });
+            }
+            if m.amp_max + cam > MAX_AMPLITUDE_PX {
+                return Err(SimError::Invalid {
+                    field: "camera_motion".into(),
+                    msg: format!(
+                        "the object's and the camera's largest excursions add to {:.3e} px; at most {MAX_AMPLITUDE_PX} px",
+                        m.amp_max + cam
+                    ),
+                });
+            }
+            // Room on the lattice for the object's excursion and the camera's.
+            let pad = PAD + (m.amp_max + cam).ceil() as usize + 1;
+            let (grid, gw, _, _) = object_grid(&m.tex, pad, (m.ow, m.oh), m.spec.contrast);
+            m.pad = pad;
+            m.grid = grid;
+            m.gw = gw;
+        }
+        self.m.surround = Some(su);
+        Ok(self)
+    }
+
     /// Validates `spec` and precomputes the textures.
     pub fn new(spec: SceneSpec, signal: Signal) -> Result<Scene, SimError> {
         Self::build(spec, signal, None, None, Look::default())
@@ -181,23 +251,7 @@ impl Scene {
         let full = spec.full_scale();
         let (sin, cos) = detmath::sin_cos_turns(spec.direction_deg / 360.0);
         let pad = PAD + amp_max.ceil() as usize + 1;
-        let (gw, gh) = (ow + 2 * pad, oh + 2 * pad);
-        let raw = tex.sample_grid(-(pad as i64), -(pad as i64), gw, gh);
-        let (tex_shift, tex_std) = if ow * oh >= MIN_PIXELS_FOR_EMPIRICAL_NORM {
-            mean_std((0..oh).flat_map(|v| raw[(v + pad) * gw + pad..][..ow].iter().copied()))
-        } else {
-            (0.0, 0.0)
-        };
-        let tex_std = if tex_std > 0.0 {
-            tex_std
-        } else {
-            tex.expected_var().sqrt()
-        };
-        let tex_scale = spec.contrast / tex_std;
-        let grid = raw
-            .iter()
-            .map(|r| ((r - tex_shift) * tex_scale) as f32)
-            .collect();
+        let (grid, gw, tex_shift, tex_scale) = object_grid(&tex, pad, (ow, oh), spec.contrast);
 
         // Background: still, lower contrast, its own seed.
         let bgt = Texture::new(hash2(spec.seed, 2), BACKGROUND_SIGMA_PX);
@@ -261,6 +315,8 @@ impl Scene {
             zig: Ziggurat::new(),
             modal,
             fabric,
+            surround: None,
+            cam: (0.0, 0.0),
         };
         Ok(Scene { m, s })
     }

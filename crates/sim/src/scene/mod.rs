@@ -57,11 +57,13 @@ mod motion;
 mod output;
 mod render;
 mod spec;
+mod surround;
 
 pub use build::{BACKGROUND_CONTRAST, BACKGROUND_MEAN, BACKGROUND_SIGMA_PX, OBJECT_MEAN};
 pub use motion::EXPOSURE_SUBSAMPLES;
 pub use output::Dest;
 pub use spec::{EdgeMode, Look, SceneSpec, MAX_AMPLITUDE_PX, MAX_ROW_LAGS, MAX_ROW_LAG_S};
+pub use surround::{LightSpec, MotionSpec, MoverSpec, SurroundSpec, MAX_LIGHT_DEPTH, MAX_MOVERS};
 
 use output::{dest_out, quantise, Out};
 
@@ -113,6 +115,10 @@ struct Model {
     noise_key: u64,
     modal: Option<super::ModalBeam>,
     fabric: Option<super::Fabric>,
+    /// Effects outside the object ([`surround`]), if any.
+    surround: Option<surround::Surroundings>,
+    /// The camera's shift for the frame or row being drawn (px).
+    cam: (f64, f64),
 }
 
 /// Per-frame working memory, allocated once.
@@ -170,6 +176,14 @@ impl Scene {
 
     /// The motion's lag (s) in row `y`: that of the last region of
     /// [`SceneSpec::row_lag_s`] starting at or above it, 0 above them all.
+    /// The camera's shift `(x, y)` at `t_s` (px; zero without one).
+    pub fn camera_shift_px(&self, t_s: f64) -> (f64, f64) {
+        self.m
+            .surround
+            .as_ref()
+            .map_or((0.0, 0.0), |su| su.camera_shift(t_s))
+    }
+
     pub fn row_lag_s(&self, y: u32) -> f64 {
         self.m.row_lag(y as usize)
     }
@@ -247,7 +261,7 @@ impl Scene {
     /// own range too; a short `dst` gets its whole rows only.
     pub fn render(&mut self, index: u64, t_s: f64, dst: Dest<'_>) {
         let timing = self.timing(t_s);
-        self.run(Some(index), timing, dest_out(dst));
+        self.run(Some(index), t_s, timing, dest_out(dst));
     }
 
     /// Rolling shutter (thesis Eq. 4.4): row `y` shows the displacement
@@ -267,19 +281,19 @@ impl Scene {
             line_delay_s,
             exposure_s,
         };
-        self.run(Some(index), timing, dest_out(dst));
+        self.run(Some(index), t_s, timing, dest_out(dst));
     }
 
     /// Like [`Scene::render`] with an explicit displacement (px) instead of
     /// a time, the same for every row (row lags do not apply).
     pub fn render_displaced(&mut self, index: u64, d_px: f64, dst: Dest<'_>) {
-        self.run(Some(index), Timing::Global(d_px), dest_out(dst));
+        self.run(Some(index), 0.0, Timing::Global(d_px), dest_out(dst));
     }
 
     /// The noise-free, unquantised frame (DN) at `t_s`, global shutter.
     pub fn render_clean(&mut self, t_s: f64, dst: &mut [f32]) {
         let timing = self.timing(t_s);
-        self.run(None, timing, Out::F32(dst));
+        self.run(None, t_s, timing, Out::F32(dst));
     }
 
     /// The modal beam, if the object is one.
@@ -309,7 +323,7 @@ impl Scene {
 
     /// The noise-free, unquantised frame (DN) for displacement `d_px`.
     pub fn render_clean_displaced(&mut self, d_px: f64, dst: &mut [f32]) {
-        self.run(None, Timing::Global(d_px), Out::F32(dst));
+        self.run(None, 0.0, Timing::Global(d_px), Out::F32(dst));
     }
 
     /// The noise-free, unquantised rolling-shutter frame (DN).
@@ -325,10 +339,12 @@ impl Scene {
             line_delay_s,
             exposure_s,
         };
-        self.run(None, timing, Out::F32(dst));
+        self.run(None, t_s, timing, Out::F32(dst));
     }
 
-    fn run(&mut self, index: Option<u64>, timing: Timing, mut out: Out<'_>) {
+    /// Draws a frame: `t_s` is its capture time (the surroundings' clock;
+    /// `timing` says how the object moves).
+    fn run(&mut self, index: Option<u64>, t_s: f64, timing: Timing, mut out: Out<'_>) {
         let Scene { m, s } = self;
         let w = m.w;
         let rows = (out.len() / w).min(m.h);
@@ -337,6 +353,12 @@ impl Scene {
             Some(i) if std > 0.0 => Some(Xoshiro256::new(hash2(m.noise_key, i))),
             _ => None,
         };
+        // The camera's shift at the frame's time (each row's own, below,
+        // with a rolling shutter); the object moves with it.
+        m.cam = m
+            .surround
+            .as_ref()
+            .map_or((0.0, 0.0), |su| su.camera_shift(t_s));
         let global = match timing {
             Timing::Global(d) => m.prepare_global(d, s),
             Timing::Modal(t) => {
@@ -346,7 +368,22 @@ impl Scene {
             Timing::Rolling { .. } => None,
         };
         for y in 0..rows {
-            s.line.copy_from_slice(&m.bg[y * w..(y + 1) * w]);
+            // The row's capture time (a rolling shutter reads rows later).
+            let t_row = match timing {
+                Timing::Rolling {
+                    t_s, line_delay_s, ..
+                } if line_delay_s.is_finite() => t_s + y as f64 * line_delay_s,
+                _ => t_s,
+            };
+            match m.surround.as_mut() {
+                Some(su) => {
+                    if matches!(timing, Timing::Rolling { .. }) {
+                        m.cam = su.camera_shift(t_row);
+                    }
+                    su.background_row(&m.bg, w, y, (t_row, m.cam), &mut s.line);
+                }
+                None => s.line.copy_from_slice(&m.bg[y * w..(y + 1) * w]),
+            }
             match timing {
                 Timing::Global(_) => {
                     if let Some((sx, sy)) = &global {
@@ -362,6 +399,9 @@ impl Scene {
                     let d = m.row_displacement(t_s, y, line_delay_s, exposure_s);
                     m.rolling_row(d, s, y);
                 }
+            }
+            if let Some(su) = m.surround.as_ref() {
+                su.light_and_rows((w, m.h), y, t_row, index, &mut s.line);
             }
             let noise = match rng.as_mut() {
                 Some(r) => {

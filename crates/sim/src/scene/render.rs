@@ -91,8 +91,12 @@ impl Model {
         } else {
             0.0
         };
-        // `+ 0.0` turns -0.0 into +0.0.
-        (d * self.dir.0 + 0.0, d * self.dir.1 + 0.0)
+        // `+ 0.0` turns -0.0 into +0.0; the camera's shift is zero
+        // without one (bit for bit the same).
+        (
+            d * self.dir.0 + self.cam.0 + 0.0,
+            d * self.dir.1 + self.cam.1 + 0.0,
+        )
     }
 
     /// Places the object along one axis: rest origin `o`, length `len`,

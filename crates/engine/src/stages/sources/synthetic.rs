@@ -115,6 +115,16 @@ params! {
         row_gain: Vec<f64> = ParamSpec::of(ParamType::Floats, Def::Toml("[]"))
             .floats(-1.0, 1.0)
             .doc("the gain of each region of row_lag_rows (with row_lag_us): its rows move gain times as far, negative in antiphase (a non-rigid object's mode); empty: 1"),
+        camera_motion: Option<sim::MotionSpec> = ParamSpec::of(ParamType::Table, Def::Optional)
+            .doc("the whole image moves (the camera or its mount): { signal = {...}, amplitude_px, direction_deg }; the object moves with it"),
+        background_motion: Vec<sim::MoverSpec> = ParamSpec::of(ParamType::Tables, Def::Toml("[]"))
+            .doc("other things in view that vibrate: [{ rect = [x, y, w, h], signal = {...}, amplitude_px, direction_deg }], the background inside rect (default the whole frame) moving behind the object"),
+        light: Option<sim::LightSpec> = ParamSpec::of(ParamType::Table, Def::Optional)
+            .doc("a light that changes across the image: { signal = {...}, depth, direction_deg, uniform }; pixels times 1 + depth * signal(t) * (r + uniform), r from -1 to 1 along direction_deg"),
+        row_noise_dn: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.0))
+            .at_least(0.0)
+            .unit("DN")
+            .doc("the sensor's rows: each row takes an offset per frame, this standard deviation"),
     }
 }
 
@@ -172,6 +182,10 @@ impl Default for SyntheticParams {
             row_lag_rows: Vec::new(),
             row_lag_us: Vec::new(),
             row_gain: Vec::new(),
+            camera_motion: None,
+            background_motion: Vec::new(),
+            light: None,
+            row_noise_dn: 0.0,
         }
     }
 }
@@ -236,7 +250,18 @@ impl SyntheticParams {
             (None, Some(f)) => Scene::with_fabric(spec, signal, f, look),
             (None, None) => Scene::with_look(spec, signal, look),
         }
+        .and_then(|s| s.with_surroundings(&self.surroundings()))
         .map_err(|e| e.to_string())
+    }
+
+    /// What changes in the image besides the object.
+    pub fn surroundings(&self) -> sim::SurroundSpec {
+        sim::SurroundSpec {
+            camera: self.camera_motion.clone(),
+            movers: self.background_motion.clone(),
+            light: self.light.clone(),
+            row_noise_dn: self.row_noise_dn,
+        }
     }
 
     /// Every check [`SyntheticParams::scene`] makes, without its work in
@@ -255,6 +280,7 @@ impl SyntheticParams {
             self.fabric.as_ref(),
             &look,
         )
+        .and_then(|_| self.surroundings().check((self.width, self.height)))
         .map_err(|e| e.to_string())
     }
 
@@ -426,6 +452,12 @@ impl SyntheticParams {
             return Err((
                 "fabric",
                 "needs a global shutter (no line_delay_us or exposure_us)".into(),
+            ));
+        }
+        if self.camera_motion.is_some() && (self.modal.is_some() || self.fabric.is_some()) {
+            return Err((
+                "camera_motion",
+                "needs a rigid object (no modal or fabric)".into(),
             ));
         }
         if !self.row_lag_rows.is_empty() && (self.modal.is_some() || self.fabric.is_some()) {

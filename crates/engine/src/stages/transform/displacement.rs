@@ -68,10 +68,25 @@ params! {
             .ints(1, 256)
             .unit("frames")
             .doc("the reference is the mean of this many first frames (less noise in its gradient)"),
+        intensity: bool = ParamSpec::of(ParamType::Bool, Def::Bool(false))
+            .doc("a third channel per region, its mean intensity (DN): channels x0, y0, i0, x1, ..."),
+        untextured: Untextured = ParamSpec::of(ParamType::Choice(&["error", "zero"]), Def::Str("error"))
+            .doc("a region with no texture in two directions: an error, or zero motion (its intensity still measured)"),
     }
 }
 
 type P = DisplacementParams;
+
+/// What a region with no texture in two directions gives.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Untextured {
+    /// The run stops with an error naming the region.
+    #[default]
+    Error,
+    /// Zero motion (a calibration's survey of the whole frame).
+    Zero,
+}
 
 pub const KIND: KindSpec = KindSpec {
     name: "displacement",
@@ -90,12 +105,14 @@ pub const KIND: KindSpec = KindSpec {
             Some(m) => Some((m.clone(), Mask::load(m).map_err(|e| p.error("mask", e))?)),
             None => None,
         };
-        Ok(Box::new(DisplacementPlan(
+        Ok(Box::new(DisplacementPlan {
             rois,
-            v.block,
-            v.reference_frames,
+            block: v.block,
+            reference_frames: v.reference_frames,
             mask,
-        )))
+            intensity: v.intensity,
+            untextured: v.untextured,
+        }))
     },
 };
 
@@ -124,18 +141,28 @@ fn parse_rois(r: &[u32]) -> Result<Vec<[u32; 4]>, String> {
         .collect()
 }
 
-struct DisplacementPlan(Option<Vec<[u32; 4]>>, usize, usize, Option<(PathBuf, Mask)>);
+struct DisplacementPlan {
+    rois: Option<Vec<[u32; 4]>>,
+    block: usize,
+    reference_frames: usize,
+    mask: Option<(PathBuf, Mask)>,
+    intensity: bool,
+    untextured: Untextured,
+}
 
 impl Plan for DisplacementPlan {
     fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
-        let n = self.0.as_ref().map_or(1, Vec::len);
+        let n = self.rois.as_ref().map_or(1, Vec::len);
+        let per = if self.intensity { 3 } else { 2 };
         Ok(Node::Stage(Box::new(Displacement {
-            rois: self.0,
+            rois: self.rois,
             regions: Vec::new(),
-            values: vec![0.0; 2 * n],
-            out: Batcher::samples(self.1, 2 * n),
-            reference_frames: self.2,
-            mask: self.3,
+            values: vec![0.0; per * n],
+            out: Batcher::samples(self.block, per * n),
+            reference_frames: self.reference_frames,
+            mask: self.mask,
+            intensity: self.intensity,
+            untextured: self.untextured,
             held: Vec::new(),
             held_meta: Vec::new(),
             frame_w: 0,
@@ -161,6 +188,9 @@ struct Displacement {
     reference_frames: usize,
     /// Only pixels inside count (checked against the frame size first).
     mask: Option<(PathBuf, Mask)>,
+    /// Each region's mean intensity as a third channel.
+    intensity: bool,
+    untextured: Untextured,
     /// The first frames' region pixels, frame after frame, region after
     /// region (until the reference is made).
     held: Vec<f32>,
@@ -285,6 +315,10 @@ impl Displacement {
             // A region whose gradients all point one way (a straight edge, a
             // flat patch) cannot say where it moved along the other axis.
             if det.is_nan() || det <= 1e-9 * (sxx + syy).powi(2) {
+                if self.untextured == Untextured::Zero {
+                    r.inv = [0.0; 3];
+                    continue;
+                }
                 let r = &r.roi;
                 return Err(StageError::dsp(format!(
                     "region {} [{}, {}, {}, {}] has no texture in two directions (flat, or only straight edges): its 2-D motion cannot be measured",
@@ -310,18 +344,20 @@ impl Displacement {
         let mut off = 0;
         for (j, r) in self.regions.iter().enumerate() {
             let pw = r.roi.w + 2 * MARGIN;
-            let (mut bx, mut by) = (0.0f64, 0.0f64);
+            let (mut bx, mut by, mut sum) = (0.0f64, 0.0f64, 0.0f64);
             for yy in 0..r.roi.h {
                 let o = yy * r.roi.w;
                 let ro = (yy + MARGIN) * pw + MARGIN;
-                let (mut ax, mut ay) = (0.0f32, 0.0f32);
+                let (mut ax, mut ay, mut ai) = (0.0f32, 0.0f32, 0.0f32);
                 match p {
                     Some(p) => {
                         let row = (r.roi.y + yy) * w + r.roi.x;
                         for xx in 0..r.roi.w {
-                            let e = r.reference[ro + xx] - px(p, row + xx);
+                            let v = px(p, row + xx);
+                            let e = r.reference[ro + xx] - v;
                             ax += r.gx[o + xx] * e;
                             ay += r.gy[o + xx] * e;
+                            ai += v;
                         }
                     }
                     None => {
@@ -330,16 +366,22 @@ impl Displacement {
                             let e = r.reference[ro + xx] - h[ro + xx];
                             ax += r.gx[o + xx] * e;
                             ay += r.gy[o + xx] * e;
+                            ai += h[ro + xx];
                         }
                     }
                 }
                 bx += ax as f64;
                 by += ay as f64;
+                sum += ai as f64;
             }
             off += r.reference.len();
             let [a, b, c] = r.inv;
-            self.values[2 * j] = (a * bx + b * by) as f32;
-            self.values[2 * j + 1] = (b * bx + c * by) as f32;
+            let per = if self.intensity { 3 } else { 2 };
+            self.values[per * j] = (a * bx + b * by) as f32;
+            self.values[per * j + 1] = (b * bx + c * by) as f32;
+            if self.intensity {
+                self.values[per * j + 2] = (sum / (r.roi.w * r.roi.h) as f64) as f32;
+            }
         }
         self.out.push(t_ns, fps, self.values.iter().copied(), out);
     }

@@ -1,0 +1,772 @@
+//! The residual explainer (issue 50): after the catalog's effects, what is
+//! left of the residual is regressed on signals measured on the recording
+//! itself, in the same run, that no family models: the motion of every
+//! tile of the frame outside the region (both axes) and the mean
+//! intensity of every tile, inside the region or not. Each candidate enters
+//! through a short FIR (lags -[`LAGS`]..=[`LAGS`] frames), so a gain, a
+//! small lag or a simple transfer function is allowed.
+//!
+//! Selection is forward and greedy on the calibration's own split: every
+//! candidate's FIR is fitted on the fit part of the residual (after the
+//! ones already kept, by projecting them out), candidates are ranked by
+//! how much of the held-out residual they remove, and the best is kept
+//! only when the corrected recovery, linear model refitted, gains at least
+//! [`super::Options::min_gain_db`] of held-out SNR (the penalty for size;
+//! at most [`MAX_KEPT`]). Motion measured inside the region is left out on
+//! purpose: it holds the object's own motion, and a regression on it would
+//! only be a better estimator of the object, not an effect.
+//!
+//! Each kept covariate is reported with what it most likely is, read from
+//! how the other tiles move with it: the camera or its mount when most of
+//! the tiles outside the region move with it, another vibrating thing in
+//! view when only some do (their rectangle is named), the light when the
+//! intensities of many tiles change with it, the sensor's rows when only
+//! tiles on the same rows do.
+
+use super::model::Model;
+use super::signal::redo_highpass;
+use super::{apply_all, Correction};
+
+/// Lags of each covariate's FIR, frames either side.
+pub const LAGS: usize = 2;
+/// Most covariates kept.
+pub const MAX_KEPT: usize = 6;
+/// A tile "moves with" a covariate when their high-passed signals
+/// correlate beyond chance: `|r|` at least `WITH_IT_Z / sqrt(n)` over `n`
+/// samples (and at least [`WITH_IT_MIN`]; a tile alone is noisy, so a
+/// threshold on the correlation's size would miss the tiles a pooled
+/// covariate was made of).
+const WITH_IT_Z: f64 = 6.0;
+const WITH_IT_MIN: f64 = 0.1;
+
+/// What an observable measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Observable {
+    /// Motion along +x, px.
+    MotionX,
+    /// Motion along +y, px.
+    MotionY,
+    /// Mean intensity, DN.
+    Intensity,
+}
+
+/// One candidate explanatory signal, measured on the recording.
+#[derive(Clone, Debug)]
+pub struct Covariate {
+    pub observable: Observable,
+    /// The tile `[x, y, w, h]` it was measured on.
+    pub rect: [u32; 4],
+    /// The tile overlaps the calibrated region.
+    pub inside: bool,
+    /// One value per delivered frame, as the recovery.
+    pub values: Vec<f64>,
+}
+
+/// A covariate the explainer kept.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Explanation {
+    pub observable: Observable,
+    /// The tile `[x, y, w, h]` (for a mean over tiles, the rectangle
+    /// holding them).
+    pub rect: [u32; 4],
+    /// The tiles whose observable is averaged (one for a tile alone):
+    /// what `listen --calibration` measures again on a new recording.
+    pub tiles: Vec<[u32; 4]>,
+    pub inside_region: bool,
+    /// What it most likely is, in words.
+    pub label: String,
+    /// The physical cause: `camera`, `other_object`, `light`, `sensor_rows`.
+    pub cause: &'static str,
+    /// Where the cause is seen: the rectangle holding the tiles that move
+    /// or brighten with it.
+    pub seen_at: [u32; 4],
+    /// Tiles (of the same observable, outside the region for motion) that
+    /// move or brighten with it, and how many were looked at.
+    pub tiles_with_it: usize,
+    pub tiles_of: usize,
+    /// Share of the held-out residual's energy (before the explainer) that
+    /// this covariate's part of the fit removes.
+    pub residual_share: f64,
+    /// Held-out SNR lost without it, the others kept (dB).
+    pub snr_gain_db: f64,
+    /// The FIR from the observable (px or DN) to the recovery (recovery
+    /// units), lags -LAGS..=LAGS frames: what is subtracted at frame n is
+    /// `Σ taps[k] x[n - (k - LAGS)]`.
+    pub taps: Vec<f64>,
+}
+
+/// An explanation as a stored report holds it: what to measure again on a
+/// new recording and the FIR to subtract.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+pub struct StoredTerm {
+    pub observable: Observable,
+    pub tiles: Vec<[u32; 4]>,
+    pub taps: Vec<f64>,
+}
+
+/// What [`explain`] found.
+pub(super) struct Explained {
+    pub(super) kept: Vec<Explanation>,
+    /// The recovery as delivered with the kept covariates' parts removed.
+    pub(super) cleaned: Vec<f64>,
+}
+
+/// `x[n - lag]` for lags `-LAGS..=LAGS` (zero outside).
+fn lagged(x: &[f64]) -> Vec<Vec<f64>> {
+    let n = x.len();
+    (0..=2 * LAGS)
+        .map(|k| {
+            let lag = k as i64 - LAGS as i64;
+            (0..n as i64)
+                .map(|i| {
+                    let j = i - lag;
+                    if j >= 0 && j < n as i64 {
+                        x[j as usize]
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The corrections whose action on a sum is the sum of their actions (a
+/// covariate's part passes through them as the recovery does).
+fn linear(c: &Correction) -> bool {
+    matches!(
+        c,
+        Correction::TimeBase { .. }
+            | Correction::Frames { .. }
+            | Correction::Exposure { .. }
+            | Correction::Transfer { .. }
+            | Correction::GainDrift { .. }
+    )
+}
+
+/// Pearson correlation of two equally long signals.
+fn corr(a: &[f64], b: &[f64]) -> f64 {
+    let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        ab += x * y;
+        aa += x * x;
+        bb += y * y;
+    }
+    if aa > 0.0 && bb > 0.0 {
+        ab / (aa * bb).sqrt()
+    } else {
+        0.0
+    }
+}
+
+/// One candidate as the regression sees it.
+struct Cand {
+    index: usize,
+    /// The high-passed covariate, as delivered.
+    x: Vec<f64>,
+    /// Its lagged columns through the linear corrections, with the kept
+    /// ones' span projected out on the fit part.
+    cols: Vec<Vec<f64>>,
+}
+
+/// Explains what `chain` leaves of the residual of `y` (the recovery as
+/// delivered, or the strips' timed sum) with `covs`; `None` when nothing
+/// is kept.
+pub(super) fn explain(
+    m: &Model,
+    y: &[f64],
+    chain: &[Correction],
+    covs: &[Covariate],
+    min_gain_db: f64,
+) -> Option<Explained> {
+    let t0 = std::time::Instant::now();
+    let n = y.len();
+    // Each tile is noisy alone: means over tiles that share a cause (all
+    // those outside the region, a row of tiles, a column) join the
+    // candidates.
+    let pooled = pool(covs, n);
+    let singles = covs.len();
+    // The tiles each candidate is the mean of.
+    let members: Vec<Vec<[u32; 4]>> = covs
+        .iter()
+        .map(|c| vec![c.rect])
+        .chain(pooled.iter().map(|p| p.1.clone()))
+        .collect();
+    let covs: Vec<Covariate> = covs
+        .iter()
+        .cloned()
+        .chain(pooled.into_iter().map(|p| p.0))
+        .collect();
+    let covs = &covs[..];
+    let usable: Vec<usize> = (0..covs.len())
+        .filter(|&i| {
+            let c = &covs[i];
+            c.values.len() == n
+                && !(c.inside && c.observable != Observable::Intensity)
+                && c.values.iter().all(|v| v.is_finite())
+        })
+        .collect();
+    if usable.is_empty() {
+        return None;
+    }
+    let fs = m.fs;
+    let hp = m.opts.highpass;
+    let lin: Vec<Correction> = chain.iter().filter(|c| linear(c)).cloned().collect();
+    let z = apply_all(chain, y, fs);
+    let fit = m.fit_linear(&z);
+    let start = m.errors(&z, &fit);
+    let len = z.len();
+    let fitw: Vec<f64> = (0..len).map(|i| f64::from(u8::from(m.is_fit(i)))).collect();
+    let dot = |a: &[f64], b: &[f64]| -> f64 {
+        a.iter()
+            .zip(b)
+            .zip(&fitw)
+            .map(|((x, y), w)| x * y * w)
+            .sum()
+    };
+    let held_energy =
+        |a: &[f64]| -> f64 { a.iter().zip(&fitw).map(|(x, w)| x * x * (1.0 - w)).sum() };
+    // The residual of the best model so far.
+    let resid0: Vec<f64> = z.iter().zip(&fit.t).map(|(a, t)| a - fit.g * t).collect();
+    let e0_held = held_energy(&resid0);
+    let mut cands: Vec<Cand> = usable
+        .iter()
+        .filter_map(|&i| {
+            let v = &covs[i].values;
+            let mean = v.iter().sum::<f64>() / n as f64;
+            let x = redo_highpass(&v.iter().map(|a| a - mean).collect::<Vec<_>>(), fs, hp);
+            let through = apply_all(&lin, &x, fs);
+            if through.len() != len || through.iter().all(|&a| a == 0.0) {
+                return None;
+            }
+            Some(Cand {
+                index: i,
+                x,
+                cols: lagged(&through),
+            })
+        })
+        .collect();
+    tracing::debug!(
+        ms = t0.elapsed().as_secs_f64() * 1e3,
+        "explainer's candidates prepared"
+    );
+    // The residual with the kept candidates' span (fit-part inner
+    // product) removed.
+    let mut resid = resid0.clone();
+    let mut kept: Vec<Cand> = Vec::new();
+    let mut cur = start;
+    let mut cleaned = y.to_vec();
+    let mut taps_all: Vec<Vec<f64>> = Vec::new();
+    while kept.len() < MAX_KEPT && !cands.is_empty() {
+        // Rank by the held-out residual energy each removes. Candidates
+        // within 2% of the best carry the same signal (a light reads as
+        // motion on a tile whose gradients do not sum to zero): the more
+        // direct observable is kept, an intensity before a motion, then the
+        // one that pools more of the image.
+        let gains: Vec<f64> = cands
+            .iter()
+            .map(|c| {
+                let q = orthonormal(&c.cols, &dot);
+                let mut after = resid.clone();
+                for b in &q {
+                    let beta = dot(b, &resid);
+                    for (a, v) in after.iter_mut().zip(b) {
+                        *a -= beta * v;
+                    }
+                }
+                held_energy(&resid) - held_energy(&after)
+            })
+            .collect();
+        let top = gains.iter().copied().fold(0.0, f64::max);
+        tracing::debug!(
+            ms = t0.elapsed().as_secs_f64() * 1e3,
+            "explainer's candidates ranked"
+        );
+        let rank = |ci: usize| {
+            let c = &covs[cands[ci].index];
+            let area = u64::from(c.rect[2]) * u64::from(c.rect[3]);
+            (c.observable == Observable::Intensity, area)
+        };
+        let best: Option<(usize, f64)> = (0..cands.len())
+            .filter(|&ci| top > 0.0 && gains[ci] >= 0.98 * top)
+            .max_by_key(|&ci| rank(ci))
+            .map(|ci| (ci, gains[ci]));
+        let Some((ci, removed)) = best else { break };
+        tracing::debug!(
+            candidates = cands.len(),
+            covariate = ?covs[cands[ci].index].observable,
+            rect = ?covs[cands[ci].index].rect,
+            held_out_share = removed / held_energy(&resid).max(1e-300),
+            "explainer's best candidate"
+        );
+        // Verified: the joint fit of every kept covariate and this one,
+        // subtracted from the recovery as delivered, the model refitted.
+        let mut trial: Vec<&Cand> = kept.iter().collect();
+        trial.push(&cands[ci]);
+        let taps = joint_taps(&trial, &resid0, (&lin, fs), &dot);
+        let y2 = subtract(y, &trial, &taps);
+        let z2 = apply_all(chain, &y2, fs);
+        let e2 = m.errors(&z2, &m.fit_linear(&z2));
+        let gain = e2.snr_db - cur.snr_db;
+        tracing::debug!(gain_db = gain, "explainer's candidate verified");
+        if gain.is_nan() || gain < min_gain_db {
+            break;
+        }
+        tracing::info!(
+            covariate = ?covs[cands[ci].index].observable,
+            rect = ?covs[cands[ci].index].rect,
+            gain_db = e2.snr_db - cur.snr_db,
+            "explainer keeps"
+        );
+        cur = e2;
+        cleaned = y2;
+        taps_all = taps;
+        let c = cands.swap_remove(ci);
+        // Its span joins the basis; the others and the residual lose it.
+        let q = orthonormal(&c.cols, &dot);
+        for b in &q {
+            let beta = dot(b, &resid);
+            for (r, v) in resid.iter_mut().zip(b) {
+                *r -= beta * v;
+            }
+            for o in &mut cands {
+                for col in &mut o.cols {
+                    let g = dot(b, col);
+                    for (a, v) in col.iter_mut().zip(b) {
+                        *a -= g * v;
+                    }
+                }
+            }
+        }
+        kept.push(c);
+    }
+    if kept.is_empty() {
+        return None;
+    }
+    let refs: Vec<&Cand> = kept.iter().collect();
+    let explanations = kept
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            // Its own part of the joint fit, on the held-out residual.
+            let mut part = vec![0.0; len];
+            let through = apply_all(&lin, &c.x, fs);
+            for (t, col) in taps_all[k].iter().zip(lagged(&through)) {
+                for (p, v) in part.iter_mut().zip(col) {
+                    *p += t * v;
+                }
+            }
+            let after: Vec<f64> = resid0.iter().zip(&part).map(|(a, b)| a - b).collect();
+            let share = if e0_held > 0.0 {
+                ((e0_held - held_energy(&after)) / e0_held).clamp(-1.0, 1.0)
+            } else {
+                0.0
+            };
+            // Without it, the others kept (as fitted).
+            let others: Vec<&Cand> = refs
+                .iter()
+                .copied()
+                .filter(|o| o.index != c.index)
+                .collect();
+            let others_taps: Vec<Vec<f64>> = taps_all
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != k)
+                .map(|(_, t)| t.clone())
+                .collect();
+            let w = apply_all(chain, &subtract(y, &others, &others_taps), fs);
+            let without = m.errors(&w, &m.fit_linear(&w)).snr_db;
+            let cov = &covs[c.index];
+            let (cause, label, (with_it, of), seen_at) = label(cov, &covs[..singles], fs, hp);
+            Explanation {
+                observable: cov.observable,
+                rect: cov.rect,
+                tiles: members[c.index].clone(),
+                inside_region: cov.inside,
+                label,
+                cause,
+                seen_at,
+                tiles_with_it: with_it,
+                tiles_of: of,
+                residual_share: share,
+                snr_gain_db: cur.snr_db - without,
+                taps: taps_all[k].clone(),
+            }
+        })
+        .collect();
+    Some(Explained {
+        kept: explanations,
+        cleaned,
+    })
+}
+
+/// Means of tiles' observables that share a cause, as candidates: for
+/// motion (each axis), the tiles outside the region, all of them, each
+/// row of tiles and each column; for intensity, every tile, each row and
+/// each column. A mean's rectangle holds its tiles.
+fn pool(covs: &[Covariate], n: usize) -> Vec<(Covariate, Vec<[u32; 4]>)> {
+    let mut out = Vec::new();
+    for obs in [
+        Observable::MotionX,
+        Observable::MotionY,
+        Observable::Intensity,
+    ] {
+        let tiles: Vec<&Covariate> = covs
+            .iter()
+            .filter(|c| {
+                c.observable == obs
+                    && c.values.len() == n
+                    && (obs == Observable::Intensity || !c.inside)
+            })
+            .collect();
+        let mut groups: Vec<Vec<&Covariate>> = vec![tiles.clone()];
+        // Each row of tiles (same rows), then each column (same columns).
+        let rows = |c: &Covariate| (c.rect[1], c.rect[3]);
+        let cols = |c: &Covariate| (c.rect[0], c.rect[2]);
+        for key in [&rows as &dyn Fn(&Covariate) -> (u32, u32), &cols] {
+            let mut keys: Vec<(u32, u32)> = tiles.iter().map(|c| key(c)).collect();
+            keys.sort_unstable();
+            keys.dedup();
+            for k in keys {
+                groups.push(tiles.iter().copied().filter(|c| key(c) == k).collect());
+            }
+        }
+        let mut seen: Vec<Vec<[u32; 4]>> = Vec::new();
+        for g in groups {
+            let rects: Vec<[u32; 4]> = g.iter().map(|c| c.rect).collect();
+            if g.len() < 2 || seen.contains(&rects) {
+                continue;
+            }
+            seen.push(rects);
+            let mut values = vec![0.0; n];
+            for c in &g {
+                for (v, x) in values.iter_mut().zip(&c.values) {
+                    *v += x / g.len() as f64;
+                }
+            }
+            out.push((
+                Covariate {
+                    observable: obs,
+                    rect: bounds(&g),
+                    inside: g.iter().any(|c| c.inside),
+                    values,
+                },
+                g.iter().map(|c| c.rect).collect(),
+            ));
+        }
+    }
+    out
+}
+
+/// `y` (a recovery at `fs`, high-passed by `hp`) with each term's part
+/// removed: a term is an observable measured on the same recording (one
+/// value per frame, as long as `y`) and its FIR taps (lags -LAGS..=LAGS,
+/// in `y`'s units per the observable's), the observable high-passed like
+/// the recovery first. How `listen --calibration` applies what the
+/// explainer kept to a new recording, its observables measured again.
+pub fn remove_explained(
+    y: &[f64],
+    terms: &[(Vec<f64>, Vec<f64>)],
+    fs: f64,
+    hp: Option<(usize, f64)>,
+) -> Vec<f64> {
+    let mut out = y.to_vec();
+    for (values, taps) in terms {
+        if values.len() != y.len() || taps.len() != 2 * LAGS + 1 {
+            continue;
+        }
+        let mean = values.iter().sum::<f64>() / values.len().max(1) as f64;
+        let x = redo_highpass(&values.iter().map(|a| a - mean).collect::<Vec<_>>(), fs, hp);
+        for (k, col) in lagged(&x).iter().enumerate() {
+            for (o, v) in out.iter_mut().zip(col) {
+                *o -= taps[k] * v;
+            }
+        }
+    }
+    out
+}
+
+/// Orthonormal columns (fit-part inner product) spanning `cols`; columns
+/// already in the span of the previous ones are dropped.
+fn orthonormal(cols: &[Vec<f64>], dot: &dyn Fn(&[f64], &[f64]) -> f64) -> Vec<Vec<f64>> {
+    let mut q: Vec<Vec<f64>> = Vec::new();
+    let scale = cols.iter().map(|c| dot(c, c)).fold(0.0, f64::max);
+    for c in cols {
+        let mut v = c.clone();
+        for b in &q {
+            let g = dot(b, &v);
+            for (a, x) in v.iter_mut().zip(b) {
+                *a -= g * x;
+            }
+        }
+        let nn = dot(&v, &v);
+        if nn > 1e-10 * scale && nn > 0.0 {
+            let s = 1.0 / nn.sqrt();
+            v.iter_mut().for_each(|a| *a *= s);
+            q.push(v);
+        }
+    }
+    q
+}
+
+/// The joint least-squares FIR taps (fit part) of `cands` on `resid`, one
+/// list per candidate, by normal equations on their lagged columns through
+/// the linear corrections `lin` (rebuilt: the candidates' stored columns
+/// have earlier ones projected out).
+fn joint_taps(
+    cands: &[&Cand],
+    resid: &[f64],
+    (lin, fs): (&[Correction], f64),
+    dot: &dyn Fn(&[f64], &[f64]) -> f64,
+) -> Vec<Vec<f64>> {
+    let built: Vec<Vec<f64>> = cands
+        .iter()
+        .flat_map(|c| lagged(&apply_all(lin, &c.x, fs)))
+        .collect();
+    let cols: Vec<&Vec<f64>> = built.iter().collect();
+    let k = cols.len();
+    let mut a = nalgebra::DMatrix::<f64>::zeros(k, k);
+    let mut b = nalgebra::DVector::<f64>::zeros(k);
+    for i in 0..k {
+        b[i] = dot(cols[i], resid);
+        for j in 0..=i {
+            let v = dot(cols[i], cols[j]);
+            a[(i, j)] = v;
+            a[(j, i)] = v;
+        }
+    }
+    // A small ridge keeps a nearly dependent set solvable.
+    let ridge = (0..k).map(|i| a[(i, i)]).fold(0.0, f64::max) * 1e-9;
+    for i in 0..k {
+        a[(i, i)] += ridge;
+    }
+    let sol = a
+        .cholesky()
+        .map(|c| c.solve(&b))
+        .unwrap_or_else(|| nalgebra::DVector::zeros(k));
+    let per = 2 * LAGS + 1;
+    cands
+        .iter()
+        .enumerate()
+        .map(|(c, _)| (0..per).map(|l| sol[c * per + l]).collect())
+        .collect()
+}
+
+/// `y` minus each candidate's FIR on its (high-passed) covariate.
+fn subtract(y: &[f64], cands: &[&Cand], taps: &[Vec<f64>]) -> Vec<f64> {
+    let mut out = y.to_vec();
+    for (c, t) in cands.iter().zip(taps) {
+        for (k, col) in lagged(&c.x).iter().enumerate() {
+            for (o, v) in out.iter_mut().zip(col) {
+                *o -= t[k] * v;
+            }
+        }
+    }
+    out
+}
+
+/// What a kept covariate most likely is: its cause, in words, and how
+/// many tiles (of how many) move or brighten with it.
+fn label(
+    cov: &Covariate,
+    covs: &[Covariate],
+    fs: f64,
+    hp: Option<(usize, f64)>,
+) -> (&'static str, String, (usize, usize), [u32; 4]) {
+    let prep = |v: &[f64]| {
+        let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+        redo_highpass(&v.iter().map(|a| a - mean).collect::<Vec<_>>(), fs, hp)
+    };
+    let me = prep(&cov.values);
+    let peers: Vec<&Covariate> = covs
+        .iter()
+        .filter(|c| {
+            c.observable == cov.observable
+                && c.values.len() == cov.values.len()
+                && (cov.observable == Observable::Intensity || !c.inside)
+        })
+        .collect();
+    let threshold = (WITH_IT_Z / (me.len().max(1) as f64).sqrt()).max(WITH_IT_MIN);
+    let with: Vec<&Covariate> = peers
+        .iter()
+        .copied()
+        .filter(|c| corr(&me, &prep(&c.values)).abs() >= threshold)
+        .collect();
+    let (k, of) = (with.len(), peers.len());
+    let [x, y, w, h] = cov.rect;
+    // Intensities that change with a motion: the light, read as motion.
+    let lights: Vec<&Covariate> = covs
+        .iter()
+        .filter(|c| c.observable == Observable::Intensity && c.values.len() == cov.values.len())
+        .collect();
+    let lit = match cov.observable {
+        Observable::Intensity => 0,
+        _ => lights
+            .iter()
+            .filter(|c| corr(&me, &prep(&c.values)).abs() >= threshold)
+            .count(),
+    };
+    match cov.observable {
+        Observable::MotionX | Observable::MotionY if 2 * lit > lights.len() => (
+            "light",
+            format!(
+                "the light: the brightness changes and reads as motion where a tile's texture does not average out ({lit} of the {} tiles' intensities change with the motion at [{x}, {y}, {w}, {h}])",
+                lights.len()
+            ),
+            (lit, lights.len()),
+            cov.rect,
+        ),
+        Observable::MotionX | Observable::MotionY => {
+            let axis = if cov.observable == Observable::MotionX {
+                "x"
+            } else {
+                "y"
+            };
+            if 2 * k > of {
+                (
+                    "camera",
+                    format!(
+                        "the camera or its mount: the whole image moves along {axis} ({k} of the {of} tiles outside the region move with [{x}, {y}, {w}, {h}])"
+                    ),
+                    (k, of),
+                    cov.rect,
+                )
+            } else {
+                let b = bounds(&with);
+                (
+                    "other_object",
+                    format!(
+                        "another vibrating thing in view, moving along {axis} at [{}, {}, {}, {}] ({k} of the {of} tiles outside the region move with it)",
+                        b[0], b[1], b[2], b[3]
+                    ),
+                    (k, of),
+                    b,
+                )
+            }
+        }
+        Observable::Intensity => {
+            let same_rows = with.iter().all(|c| c.rect[1] == y && c.rect[3] == h);
+            let other_rows = peers.iter().any(|c| c.rect[1] != y);
+            if same_rows && other_rows && k > 1 {
+                (
+                    "sensor_rows",
+                    format!(
+                        "the sensor's rows: the intensity of rows {y} to {} changes on its own ({k} tiles on those rows change with it, none elsewhere)",
+                        y + h - 1
+                    ),
+                    (k, of),
+                    bounds(&with),
+                )
+            } else {
+                (
+                    "light",
+                    format!(
+                        "the light: the brightness changes ({k} of the {of} tiles change with [{x}, {y}, {w}, {h}])"
+                    ),
+                    (k, of),
+                    bounds(&with),
+                )
+            }
+        }
+    }
+}
+
+/// The rectangle `[x, y, w, h]` that holds every tile of `tiles`.
+fn bounds(tiles: &[&Covariate]) -> [u32; 4] {
+    let x0 = tiles.iter().map(|c| c.rect[0]).min().unwrap_or(0);
+    let y0 = tiles.iter().map(|c| c.rect[1]).min().unwrap_or(0);
+    let x1 = tiles
+        .iter()
+        .map(|c| c.rect[0] + c.rect[2])
+        .max()
+        .unwrap_or(0);
+    let y1 = tiles
+        .iter()
+        .map(|c| c.rect[1] + c.rect[3])
+        .max()
+        .unwrap_or(0);
+    [x0, y0, x1 - x0, y1 - y0]
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::super::{calibrate_with, sample_at, Options};
+    use super::*;
+    use crate::rng::{Xoshiro256, Ziggurat};
+    use std::f64::consts::PI;
+
+    /// A recovery of a chirp with `leak` times a broadband motion `c` in
+    /// it, and covariates: `c` seen on one tile outside the region (with
+    /// its own noise), an unrelated motion on another, an intensity.
+    fn case(leak: f64, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<Covariate>, Options) {
+        let (fs, fr) = (2200.0, 8800.0);
+        let opts = Options::for_rate(fs);
+        let r: Vec<f64> = (0..(fr * 2.2) as usize)
+            .map(|i| {
+                let t = i as f64 / fr;
+                (2.0 * PI * (100.0 * t + 900.0 * t * t / 4.4)).sin()
+            })
+            .collect();
+        let n = 4400;
+        let mut rng = Xoshiro256::new(seed);
+        let z = Ziggurat::new();
+        let mut noise = |s: f64| -> Vec<f64> { (0..n).map(|_| z.sample(&mut rng) * s).collect() };
+        let c = noise(1.0);
+        let t = sample_at(&r, fr, (0..n).map(|i| i as f64 / fs));
+        let w = noise(0.3);
+        let y: Vec<f64> = (0..n).map(|i| t[i] + leak * c[i] + w[i]).collect();
+        let y = redo_highpass(&y, fs, opts.highpass);
+        let seen: Vec<f64> = c.iter().zip(noise(0.2)).map(|(a, b)| a + b).collect();
+        let covs = vec![
+            Covariate {
+                observable: Observable::MotionX,
+                rect: [0, 0, 10, 10],
+                inside: false,
+                values: seen,
+            },
+            Covariate {
+                observable: Observable::MotionX,
+                rect: [50, 0, 10, 10],
+                inside: false,
+                values: noise(1.0),
+            },
+            Covariate {
+                observable: Observable::Intensity,
+                rect: [20, 20, 10, 10],
+                inside: true,
+                values: noise(3.0),
+            },
+        ];
+        (y, r, covs, opts)
+    }
+
+    /// The leaking motion is found on the tile that sees it, and removing
+    /// it gains; without a leak nothing is kept.
+    #[test]
+    fn a_motion_seen_elsewhere_is_found_and_nothing_without_it() {
+        let (y, r, covs, opts) = case(0.5, 3);
+        let c =
+            calibrate_with(&y, (None, &covs), 2200.0, (&r, 8800.0), &opts, &mut |_| {}).unwrap();
+        let e = &c.report.explained;
+        assert_eq!(e.len(), 1, "{e:#?}");
+        assert_eq!(e[0].rect, [0, 0, 10, 10], "{e:#?}");
+        assert_eq!(e[0].observable, Observable::MotionX);
+        let gain = c.report.after.snr_db - c.report.before.snr_db;
+        assert!(gain > 3.0, "gain {gain} dB");
+        // The middle tap carries the leak (in recovery units, ~0.5 through
+        // the high-pass).
+        assert!((e[0].taps[LAGS] - 0.5).abs() < 0.1, "{:?}", e[0].taps);
+        for seed in [1, 2, 3] {
+            let (y, r, covs, opts) = case(0.0, seed);
+            let c = calibrate_with(&y, (None, &covs), 2200.0, (&r, 8800.0), &opts, &mut |_| {})
+                .unwrap();
+            assert!(
+                c.report.explained.is_empty(),
+                "seed {seed}: {:#?}",
+                c.report.explained
+            );
+        }
+    }
+}
