@@ -6,11 +6,10 @@ use crate::rng::{hash2, Ziggurat};
 use crate::texture::{Interp, Texture, OBJECT_SIGMA_PX, PAD, TAPS};
 use crate::{detmath, Signal, SimError};
 
+use super::spec::BACKGROUND_SIGMA_PX;
 use super::surround::{SurroundSpec, Surroundings};
 use super::{EdgeMode, Look, Model, Scene, SceneSpec, Scratch, MAX_AMPLITUDE_PX};
 
-/// Texture scale of the background.
-pub const BACKGROUND_SIGMA_PX: f64 = 2.5;
 /// Object mean level, as a fraction of full scale.
 pub const OBJECT_MEAN: f64 = 0.5;
 /// Background mean level, as a fraction of full scale.

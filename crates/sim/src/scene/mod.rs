@@ -59,10 +59,12 @@ mod render;
 mod spec;
 mod surround;
 
-pub use build::{BACKGROUND_CONTRAST, BACKGROUND_MEAN, BACKGROUND_SIGMA_PX, OBJECT_MEAN};
+pub use build::{BACKGROUND_CONTRAST, BACKGROUND_MEAN, OBJECT_MEAN};
 pub use motion::EXPOSURE_SUBSAMPLES;
 pub use output::Dest;
-pub use spec::{EdgeMode, Look, SceneSpec, MAX_AMPLITUDE_PX, MAX_ROW_LAGS, MAX_ROW_LAG_S};
+pub use spec::{
+    EdgeMode, Look, SceneSpec, BACKGROUND_SIGMA_PX, MAX_AMPLITUDE_PX, MAX_ROW_LAGS, MAX_ROW_LAG_S,
+};
 pub use surround::{LightSpec, MotionSpec, MoverSpec, SurroundSpec, MAX_LIGHT_DEPTH, MAX_MOVERS};
 
 use output::{dest_out, quantise, Out};

@@ -5,6 +5,9 @@
 use crate::SimError;
 use vibroscope_io::Depth;
 
+/// Texture scale of the background (also how the surroundings interpolate
+/// it when it moves).
+pub const BACKGROUND_SIGMA_PX: f64 = 2.5;
 /// Largest accepted `|amplitude_px|` (bounds the padded texture's size).
 pub const MAX_AMPLITUDE_PX: f64 = 1000.0;
 /// Most regions of [`SceneSpec::row_lag_s`].

@@ -18,8 +18,7 @@ use crate::texture::{Interp, PAD, TAPS};
 use crate::{detmath, Signal, SignalSpec, SimError};
 use serde::Deserialize;
 
-use super::build::BACKGROUND_SIGMA_PX;
-use super::MAX_AMPLITUDE_PX;
+use super::spec::{BACKGROUND_SIGMA_PX, MAX_AMPLITUDE_PX};
 
 /// A motion of its own: `amplitude_px · signal(t)` along `direction_deg`
 /// (0 = +x, 90 = +y).
