@@ -812,27 +812,34 @@ fn band_limited_speech(dir: &Path) -> Option<PathBuf> {
 /// `listen --calibration` of `dir/speech.y4m` with each of two reports
 /// (in `dir`): the held-out SNR of each against `speech`.
 fn speech_with(dir: &Path, speech: &Path, reports: [&str; 2]) -> [f64; 2] {
-    let mut snr = [0.0; 2];
-    for (k, report) in reports.iter().enumerate() {
-        let out = format!("speech-{k}.wav");
-        let o = run_in(
-            dir,
-            &[
-                "listen",
-                "speech.y4m",
-                "-o",
-                &out,
-                "--rate",
-                "native",
-                "--float",
-                "--calibration",
-                report,
-            ],
-        );
-        assert_eq!(code(&o), 0, "{}", stderr(&o));
-        snr[k] = held_out_snr(&dir.join(&out), speech);
-    }
-    snr
+    reports.map(|r| listen_speech(dir, speech, r, &[]).0)
+}
+
+/// `listen speech.y4m --calibration REPORT` (native rate, float, then
+/// `extra`) in `dir`: the held-out SNR of its WAV against `speech`, and
+/// what it printed to stderr.
+pub(crate) fn listen_speech(
+    dir: &Path,
+    speech: &Path,
+    report: &str,
+    extra: &[&str],
+) -> (f64, String) {
+    let out = format!("speech-{}.wav", report.trim_end_matches(".json"));
+    let mut args = vec![
+        "listen",
+        "speech.y4m",
+        "-o",
+        &out,
+        "--rate",
+        "native",
+        "--float",
+        "--calibration",
+        report,
+    ];
+    args.extend_from_slice(extra);
+    let o = run_in(dir, &args);
+    assert_eq!(code(&o), 0, "{}", stderr(&o));
+    (held_out_snr(&dir.join(&out), speech), stderr(&o))
 }
 
 /// Held-out SNR (dB) of a recovered WAV against what was played, measured
@@ -982,23 +989,10 @@ fn a_static_nonlinearity_carries_to_the_opposite_polarity_and_another_texture() 
         after.gain,
         linear.gain
     );
-    // The ratio listen prints for this recording.
-    let o = run_in(
-        d.path(),
-        &[
-            "listen",
-            "speech.y4m",
-            "-o",
-            "ratio.wav",
-            "--rate",
-            "native",
-            "--float",
-            "--calibration",
-            "report.json",
-        ],
-    );
-    assert_eq!(code(&o), 0, "{}", stderr(&o));
-    let text = format!("{}{}", stderr(&o), String::from_utf8_lossy(&o.stdout));
+    let (none, _) = listen_speech(d.path(), &speech, "none.json", &[]);
+    let (framed, text) = listen_speech(d.path(), &speech, "report.json", &[]);
+    let (bare_snr, _) = listen_speech(d.path(), &speech, "bare.json", &[]);
+    // The ratio listen printed for this recording.
     let ratio: f64 = text
         .split("rescaled by ")
         .nth(1)
@@ -1009,8 +1003,6 @@ fn a_static_nonlinearity_carries_to_the_opposite_polarity_and_another_texture() 
                 .ok()
         })
         .unwrap_or_else(|| panic!("no ratio in: {text}"));
-    let [none, framed] = speech_with(d.path(), &speech, ["none.json", "report.json"]);
-    let [_, bare_snr] = speech_with(d.path(), &speech, ["none.json", "bare.json"]);
     eprintln!(
         "square law to the opposite polarity (seed 2): gains against the reference {:+.3e} (chirp) and {:+.3e} (speech); frame ratio {ratio:+.3}; speech held-out SNR {none:.2} dB without a calibration, {framed:.2} with it ({:+.2}), {bare_snr:.2} applied in the calibration's units ({:+.2})",
         after.gain,

@@ -187,6 +187,16 @@ pub struct StripLayout {
     pub width: u32,
 }
 
+impl StripLayout {
+    /// The region the strips cover, `[x, y, w, h]` (the frame's rows when
+    /// there are no strips).
+    pub fn region(&self) -> [u32; 4] {
+        let first = self.rows.first().map_or(0, |r| r.0);
+        let last = self.rows.last().map_or(self.height, |r| r.1);
+        [self.cols.0, first, self.cols.1, last - first]
+    }
+}
+
 /// The region's columns and its rows cut into up to [`STRIPS`] strips of
 /// equal height (the video's header is opened once).
 pub fn strip_rows(video: &Path, region: &Region) -> Result<StripLayout> {
@@ -246,12 +256,11 @@ pub fn recover_observed(
 ) -> Result<StripRun> {
     let tmp0 = TempPath::new("strips.wav");
     let mut decl = recovery_pipeline(video, tmp0.path(), fps, region)?;
-    let source = decl
-        .stage(PHASE)?
-        .inputs
-        .first()
-        .map(|i| i.from.clone())
-        .ok_or_else(|| Error::Analysis("the listen pipeline's phase stage has no input".into()))?;
+    // Before the shared pyramid takes the phase stage's input.
+    let observed_temp = TempPath::new("observed.csv");
+    if !tiles.is_empty() {
+        add_observe(&mut decl, tiles, observed_temp.path())?;
+    }
     // One pyramid per frame for every branch: `phase` computes it over the
     // whole frame whatever its region, so nine branches would compute it
     // nine times.
@@ -332,10 +341,6 @@ pub fn recover_observed(
             decl.stages.push(sink);
         }
     }
-    let observed_temp = TempPath::new("observed.csv");
-    if !tiles.is_empty() {
-        add_observe(&mut decl, &source, tiles, observed_temp.path())?;
-    }
     let report = pipeline::run(&decl, run)?;
     let observed = match tiles.is_empty() {
         true => Vec::new(),
@@ -362,19 +367,25 @@ pub fn recover_observed(
     })
 }
 
-/// Adds to `decl` a `displacement` stage on `source` measuring each tile
+/// Adds to `decl` a `displacement` stage on the listen pipeline's source
+/// (what its phase stage reads) measuring each tile
 /// of `tiles` (motion along x and y in px, mean intensity in DN; a tile
 /// without texture reads no motion) and a CSV sink writing them to `csv`:
 /// the recording's observables (the residual explainer's, and the
 /// region's motion for the recovery's frame).
 pub fn add_observe(
     decl: &mut crate::engine::config::PipelineDecl,
-    source: &str,
     tiles: &[[u32; 4]],
     csv: &Path,
 ) -> Result<()> {
+    let source = decl
+        .stage(PHASE)?
+        .inputs
+        .first()
+        .map(|i| i.from.clone())
+        .ok_or_else(|| Error::Analysis("the listen pipeline's phase stage has no input".into()))?;
     let origin = pipeline::by("calibration (the recording's observables)");
-    let mut st = pipeline::new_stage::<DisplacementParams>("observe", &[source], origin.clone());
+    let mut st = pipeline::new_stage::<DisplacementParams>("observe", &[&source], origin.clone());
     let v: Vec<u32> = tiles.iter().flatten().copied().collect();
     pipeline::put(&mut st, DisplacementParams::rois, Some(v), origin.clone())?;
     pipeline::put(&mut st, DisplacementParams::intensity, true, origin.clone())?;
@@ -399,10 +410,7 @@ pub fn read_observed(csv: &Path) -> Result<Vec<Vec<f64>>> {
 /// The region `region` covers in `video`'s frames, `[x, y, w, h]`, as
 /// calibrate measures its motion (clipped to the frame).
 pub fn region_rect(video: &Path, region: &Region) -> Result<[u32; 4]> {
-    let layout = strip_rows(video, region)?;
-    let first = layout.rows.first().map_or(0, |r| r.0);
-    let last = layout.rows.last().map_or(layout.height, |r| r.1);
-    Ok([layout.cols.0, first, layout.cols.1, last - first])
+    Ok(strip_rows(video, region)?.region())
 }
 
 /// The shared `pyramid` stage `pyr` builds the pyramid `phase` would: it
@@ -661,9 +669,7 @@ fn recover_all(
         let layout = strip_rows(video, region)?;
         if layout.rows.len() >= 3 {
             let fs = frame_rate(video, fps)?;
-            let first = layout.rows.first().map_or(0, |r| r.0);
-            let last = layout.rows.last().map_or(layout.height, |r| r.1);
-            let rect = [layout.cols.0, first, layout.cols.1, last - first];
+            let rect = layout.region();
             let mut tiles = match opts.is_none_or(|o| o.explain) {
                 true => observation_tiles(layout.width, layout.height, rect),
                 false => Vec::new(),

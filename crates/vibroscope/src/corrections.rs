@@ -13,21 +13,26 @@ fn read_report(path: &Path) -> Result<serde_json::Value> {
     serde_json::from_str(&text).map_err(|e| Error::input(path, format!("not JSON: {e}")))
 }
 
-/// The reusable corrections of a stored report (`listen --calibration`).
-pub fn load_calibration(path: &Path) -> Result<Vec<Correction>> {
-    cal::reusable_from_report(&read_report(path)?).map_err(|m| Error::input(path, m.to_string()))
+/// A stored calibration (`listen --calibration`), its file read once.
+pub struct Stored {
+    /// The reusable corrections (`effects`).
+    pub corrections: Vec<Correction>,
+    /// The recovery's frame (`pixel_frame`), if any.
+    pub frame: Option<cal::PixelFrame>,
+    /// What the explainer kept (`explained`): each term's observable,
+    /// tiles and FIR.
+    pub explained: Vec<cal::StoredTerm>,
 }
 
-/// The recovery's frame stored with a calibration (`pixel_frame` of its
-/// REPORT.json), if any.
-pub fn load_frame(path: &Path) -> Result<Option<cal::PixelFrame>> {
-    cal::frame_from_report(&read_report(path)?).map_err(|m| Error::input(path, m.to_string()))
-}
-
-/// What the explainer kept, as stored with a calibration (`explained` of
-/// its REPORT.json): each term's observable, tiles and FIR.
-pub fn load_explained(path: &Path) -> Result<Vec<cal::StoredTerm>> {
-    cal::explained_from_report(&read_report(path)?).map_err(|m| Error::input(path, m.to_string()))
+/// Reads a stored report (errors name the file and the field).
+pub fn load(path: &Path) -> Result<Stored> {
+    let v = read_report(path)?;
+    let named = |m: cal::ReportError| Error::input(path, m.to_string());
+    Ok(Stored {
+        corrections: cal::reusable_from_report(&v).map_err(named)?,
+        frame: cal::frame_from_report(&v).map_err(named)?,
+        explained: cal::explained_from_report(&v).map_err(named)?,
+    })
 }
 
 /// A new recording's observables, measured in the run that recovers it:
@@ -40,14 +45,13 @@ pub struct Observe {
 }
 
 impl Observe {
-    /// Adds the measuring branch to `decl` (on the phase stage's source).
+    /// Adds the measuring branch to `decl` (on the listen pipeline's source).
     pub fn add(
         decl: &mut crate::engine::config::PipelineDecl,
         video: &Path,
         region: &crate::pipeline::Region,
         terms: &[cal::StoredTerm],
     ) -> Result<Observe> {
-        use crate::pipelines::stage::visual_microphone::PHASE;
         let mut rects = vec![crate::calibrate::region_rect(video, region)?];
         for t in terms {
             for r in &t.tiles {
@@ -62,16 +66,8 @@ impl Observe {
                 rects.len() - 1
             )));
         }
-        let source = decl
-            .stage(PHASE)?
-            .inputs
-            .first()
-            .map(|i| i.from.clone())
-            .ok_or_else(|| {
-                Error::Analysis("the listen pipeline's phase stage has no input".into())
-            })?;
         let temp = crate::io::atomic::TempPath::new("observed.csv");
-        crate::calibrate::add_observe(decl, &source, &rects, temp.path())?;
+        crate::calibrate::add_observe(decl, &rects, temp.path())?;
         Ok(Observe { rects, temp })
     }
 
@@ -79,15 +75,16 @@ impl Observe {
     /// calibration's frame. Its scale against the region's motion along
     /// the stored direction, over the stored scale, gives the ratio; the
     /// explained terms' parts (their taps times the ratio, on the tiles
-    /// measured here) are subtracted from the WAV in place; the returned
-    /// corrections are `corrections` rescaled by the ratio. Also a note.
+    /// measured here) are subtracted, then `corrections` rescaled by the
+    /// ratio apply as in [`apply_to_wav`] (with `denoise`); the WAV is
+    /// rewritten once. Returns a note saying what was done.
     pub fn apply(
         &self,
         path: &Path,
-        corrections: &[Correction],
+        (corrections, denoise): (&[Correction], Denoise),
         frame: cal::PixelFrame,
         terms: &[cal::StoredTerm],
-    ) -> Result<(Vec<Correction>, String)> {
+    ) -> Result<String> {
         let (rate, y) = crate::io::wav::read_mono(path)?;
         let fs = f64::from(rate);
         let observed = crate::calibrate::read_observed(self.temp.path())?;
@@ -141,11 +138,10 @@ impl Observe {
                 (mean, t.taps.iter().map(|a| a * ratio).collect())
             })
             .collect();
-        if !measured.is_empty() {
-            let mut z = cal::remove_explained(&y[..n], &measured, fs, hp);
-            z.extend_from_slice(&y[n..]);
-            crate::io::wav::write_mono_f32(path, rate, &z)?;
-        }
+        let mut z = cal::remove_explained(&y[..n], &measured, fs, hp);
+        z.extend_from_slice(&y[n..]);
+        let rescaled: Vec<Correction> = corrections.iter().map(|c| c.rescaled(ratio)).collect();
+        write_corrected(path, (rate, &z), &rescaled, denoise)?;
         let mut note = format!(
             "the recovery reads {:.4e} per px of motion along {:.1}° here, {:.4e} on the calibration's recording (ratio {ratio:+.4})",
             here.recovery_per_px, frame.direction_deg, frame.recovery_per_px
@@ -161,10 +157,7 @@ impl Observe {
                 "; amplitude-dependent corrections rescaled by {ratio:+.4}"
             ));
         }
-        Ok((
-            corrections.iter().map(|c| c.rescaled(ratio)).collect(),
-            note,
-        ))
+        Ok(note)
     }
 }
 
@@ -175,7 +168,17 @@ impl Observe {
 /// again. Samples keep their times.
 pub fn apply_to_wav(path: &Path, corrections: &[Correction], denoise: Denoise) -> Result<()> {
     let (rate, y) = crate::io::wav::read_mono(path)?;
-    let mut z = cal::apply_all(corrections, &y, rate as f64);
+    write_corrected(path, (rate, &y), corrections, denoise)
+}
+
+/// [`apply_to_wav`] on the samples `y` (at `rate`), written to `path`.
+fn write_corrected(
+    path: &Path,
+    (rate, y): (u32, &[f64]),
+    corrections: &[Correction],
+    denoise: Denoise,
+) -> Result<()> {
+    let mut z = cal::apply_all(corrections, y, rate as f64);
     z = denoise_again(&z, rate as f64, denoise)?;
     let peak = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let ypeak = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));

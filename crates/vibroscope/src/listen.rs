@@ -141,7 +141,7 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     } else {
         Some(method(o)?)
     };
-    let corrections = match &o.calibration {
+    let stored = match &o.calibration {
         Some(path) => {
             if o.rolling_shutter.is_some() || o.speaker.is_some() {
                 let flag = if o.speaker.is_some() {
@@ -156,9 +156,13 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
                     ),
                 ));
             }
-            Some(corrections::load_calibration(path)?)
+            Some(corrections::load(path)?)
         }
         None => None,
+    };
+    let (corrections, frame, terms) = match stored {
+        Some(s) => (Some(s.corrections), s.frame, s.explained),
+        None => (None, None, Vec::new()),
     };
     if let OutputRate::Hz(r) = o.rate {
         if !RATE_RANGE.contains(&r) {
@@ -251,13 +255,6 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     // nonlinearity), and what the explainer kept (observables of this
     // recording), are brought to this recording's frame: its region's
     // motion in pixels and the terms' tiles are measured in the same run.
-    let (frame, terms) = match (&o.calibration, &corrections) {
-        (Some(path), Some(_)) => (
-            corrections::load_frame(path)?,
-            corrections::load_explained(path)?,
-        ),
-        _ => (None, Vec::new()),
-    };
     let needs = corrections
         .as_ref()
         .is_some_and(|c| c.iter().any(Correction::needs_frame))
@@ -278,15 +275,12 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     // Ctrl-C: the WAV holds what was processed; finish it as well.
     if matches!(run, Ok(_) | Err(Error::Interrupted { .. })) && o.output.exists() {
         if let Some(c) = &corrections {
-            let c = match (frame, &observe) {
+            match (frame, &observe) {
                 (Some(f), Some(obs)) if run.is_ok() => {
-                    let (c, note) = obs.apply(&o.output, c, f, &terms)?;
-                    notes.push(note);
-                    c
+                    notes.push(obs.apply(&o.output, (c, o.denoise), f, &terms)?);
                 }
-                _ => c.clone(),
-            };
-            corrections::apply_to_wav(&o.output, &c, o.denoise)?;
+                _ => corrections::apply_to_wav(&o.output, c, o.denoise)?,
+            }
         }
         finish_wav(o, corrections.is_some())?;
     }

@@ -24,7 +24,7 @@
 //! tiles on the same rows do.
 
 use super::model::Model;
-use super::signal::redo_highpass;
+use super::signal::centred_highpass;
 use super::{apply_all, Correction};
 
 /// Lags of each covariate's FIR, frames either side.
@@ -233,9 +233,7 @@ pub(super) fn explain(
     let mut cands: Vec<Cand> = usable
         .iter()
         .filter_map(|&i| {
-            let v = &covs[i].values;
-            let mean = v.iter().sum::<f64>() / n as f64;
-            let x = redo_highpass(&v.iter().map(|a| a - mean).collect::<Vec<_>>(), fs, hp);
+            let x = centred_highpass(&covs[i].values, fs, hp);
             let through = apply_all(&lin, &x, fs);
             if through.len() != len || through.iter().all(|&a| a == 0.0) {
                 return None;
@@ -476,8 +474,7 @@ pub fn remove_explained(
         if values.len() != y.len() || taps.len() != 2 * LAGS + 1 {
             continue;
         }
-        let mean = values.iter().sum::<f64>() / values.len().max(1) as f64;
-        let x = redo_highpass(&values.iter().map(|a| a - mean).collect::<Vec<_>>(), fs, hp);
+        let x = centred_highpass(values, fs, hp);
         for (k, col) in lagged(&x).iter().enumerate() {
             for (o, v) in out.iter_mut().zip(col) {
                 *o -= taps[k] * v;
@@ -574,10 +571,7 @@ fn label(
     fs: f64,
     hp: Option<(usize, f64)>,
 ) -> (&'static str, String, (usize, usize), [u32; 4]) {
-    let prep = |v: &[f64]| {
-        let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
-        redo_highpass(&v.iter().map(|a| a - mean).collect::<Vec<_>>(), fs, hp)
-    };
+    let prep = |v: &[f64]| centred_highpass(v, fs, hp);
     let me = prep(&cov.values);
     let peers: Vec<&Covariate> = covs
         .iter()
@@ -692,6 +686,7 @@ fn bounds(tiles: &[&Covariate]) -> [u32; 4] {
 #[cfg(test)]
 #[allow(clippy::unwrap_used)]
 mod tests {
+    use super::super::signal::redo_highpass;
     use super::super::{calibrate_with, sample_at, Options};
     use super::*;
     use crate::rng::{Xoshiro256, Ziggurat};

@@ -14,7 +14,7 @@
 //! either way, where a regression of one on the other would shrink it by
 //! the other's noise.
 
-use super::signal::redo_highpass;
+use super::signal::centred_highpass;
 use super::Correction;
 
 /// The recovery against the region's motion in pixels.
@@ -44,11 +44,7 @@ pub fn pixel_frame(
     if px.len() != n || py.len() != n || n == 0 {
         return None;
     }
-    let prep = |v: &[f64]| {
-        let mean = v.iter().sum::<f64>() / n as f64;
-        redo_highpass(&v.iter().map(|a| a - mean).collect::<Vec<_>>(), fs, hp)
-    };
-    let (x, yy) = (prep(px), prep(py));
+    let (x, yy) = (centred_highpass(px, fs, hp), centred_highpass(py, fs, hp));
     let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
     let theta = match direction_deg {
         Some(d) => d.to_radians(),
