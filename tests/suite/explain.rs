@@ -206,6 +206,30 @@ fn the_camera_explained_on_a_chirp_is_removed_from_speech() {
         (&speech, 0.2),
         &format!("{}\nseed = 2", shake(9, 0.06)),
     );
+    // A report whose term measures a tile outside this frame (fitted on
+    // another camera) is refused before the run, naming the file and the
+    // field, and leaves no WAV.
+    let mut moved = report.clone();
+    moved["explained"][0]["tiles"] = serde_json::json!([[1000, 1000, 10, 10]]);
+    std::fs::write(d.path().join("moved.json"), moved.to_string()).unwrap();
+    let o = crate::common::run_in(
+        d.path(),
+        &[
+            "listen",
+            "speech.y4m",
+            "-o",
+            "moved.wav",
+            "--calibration",
+            "moved.json",
+        ],
+    );
+    let err = crate::common::stderr(&o);
+    assert_eq!(crate::common::code(&o), 2, "{err}");
+    assert!(
+        err.contains("moved.json") && err.contains("explained[0].tiles"),
+        "{err}"
+    );
+    assert!(!d.path().join("moved.wav").exists());
     let roi = ["--roi", "32,32,64,64"];
     let (none, _) = crate::calibrate::listen_speech(d.path(), &speech, "none.json", &roi);
     let (after, text) = crate::calibrate::listen_speech(d.path(), &speech, "report.json", &roi);

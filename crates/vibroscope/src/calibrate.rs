@@ -407,12 +407,6 @@ pub fn read_observed(csv: &Path) -> Result<Vec<Vec<f64>>> {
     read_bands(csv)
 }
 
-/// The region `region` covers in `video`'s frames, `[x, y, w, h]`, as
-/// calibrate measures its motion (clipped to the frame).
-pub fn region_rect(video: &Path, region: &Region) -> Result<[u32; 4]> {
-    Ok(strip_rows(video, region)?.region())
-}
-
 /// The shared `pyramid` stage `pyr` builds the pyramid `phase` would: it
 /// takes the phase stage's `pyramid`, `scales`, `orientations` and
 /// `threads` where the phase stage sets them (in the phase stage's order,

@@ -45,26 +45,44 @@ pub struct Observe {
 }
 
 impl Observe {
-    /// Adds the measuring branch to `decl` (on the listen pipeline's source).
+    /// Adds the measuring branch to `decl` (on the listen pipeline's
+    /// source). A term's tile outside `video`'s frame, or more tiles than
+    /// one stage measures, is an error naming `calibration` (the report
+    /// was fitted on another camera or frame size, or is damaged).
     pub fn add(
         decl: &mut crate::engine::config::PipelineDecl,
-        video: &Path,
-        region: &crate::pipeline::Region,
+        (video, region): (&Path, &crate::pipeline::Region),
+        calibration: &Path,
         terms: &[cal::StoredTerm],
     ) -> Result<Observe> {
-        let mut rects = vec![crate::calibrate::region_rect(video, region)?];
-        for t in terms {
+        let layout = crate::calibrate::strip_rows(video, region)?;
+        let (w, h) = (u64::from(layout.width), u64::from(layout.height));
+        let mut rects = vec![layout.region()];
+        for (k, t) in terms.iter().enumerate() {
             for r in &t.tiles {
+                let [x, y, rw, rh] = r.map(u64::from);
+                if x + rw > w || y + rh > h {
+                    return Err(Error::input(
+                        calibration,
+                        format!(
+                            "explained[{k}].tiles: {r:?} (x, y, w, h) lies outside the {w}x{h} frame of {}: it was fitted on another camera or frame size",
+                            video.display()
+                        ),
+                    ));
+                }
                 if !rects[1..].contains(r) {
                     rects.push(*r);
                 }
             }
         }
         if rects.len() > 64 {
-            return Err(Error::Analysis(format!(
-                "the calibration's explained terms measure {} tiles; at most 63",
-                rects.len() - 1
-            )));
+            return Err(Error::input(
+                calibration,
+                format!(
+                    "explained: its terms measure {} tiles; at most 63",
+                    rects.len() - 1
+                ),
+            ));
         }
         let temp = crate::io::atomic::TempPath::new("observed.csv");
         crate::calibrate::add_observe(decl, &rects, temp.path())?;

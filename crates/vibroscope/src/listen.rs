@@ -262,9 +262,12 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     if needs && frame.is_none() {
         notes.push("the calibration holds no pixel frame (written before it was measured): its corrections apply in the calibration recording's units and sign, and its explained terms are left out".into());
     }
-    let observe = match (frame, needs) {
-        (Some(_), true) => Some(corrections::Observe::add(
-            &mut decl, &o.video, &o.region, &terms,
+    let observe = match (frame, needs, &o.calibration) {
+        (Some(_), true, Some(path)) => Some(corrections::Observe::add(
+            &mut decl,
+            (&o.video, &o.region),
+            path,
+            &terms,
         )?),
         _ => None,
     };
