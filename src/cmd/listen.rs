@@ -123,9 +123,15 @@ pub struct Args {
     stats: bool,
     /// Apply a stored calibration (REPORT.json from `vibroscope
     /// calibrate` on the same object and camera): its time-base,
-    /// exposure and transfer-function corrections, not the per-recording
-    /// ones (dropped frames, interference). With --denoise, the denoiser
-    /// runs again after the correction, as in the thesis' Table 4.2: an
+    /// exposure and transfer-function corrections; its interference lines,
+    /// fitted again here; a static nonlinearity and the explainer's terms
+    /// brought to this recording's scale (its region's motion is measured
+    /// in the same run); not the per-recording ones (dropped frames, soft
+    /// clipping, gain drift). A readout found across the rows
+    /// (capture_time) recombines the strips of rows it was found on, each
+    /// at its delay; with --rolling-shutter, the line delay is the
+    /// calibration's unless --line-delay-us is given. With --denoise, the denoiser runs
+    /// again after the correction, as in the thesis' Table 4.2: an
     /// equaliser lifts the noise in the bands it boosts, so equalising
     /// noisy speech without denoising can lower its segmental SNR.
     #[arg(long, value_name = "REPORT.json")]

@@ -30,6 +30,7 @@ mod modes;
 mod network;
 mod pitch;
 mod plots;
+mod protocol;
 mod replay;
 mod resonances;
 mod rolling_shutter;

@@ -143,17 +143,10 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     };
     let stored = match &o.calibration {
         Some(path) => {
-            if o.rolling_shutter.is_some() || o.speaker.is_some() {
-                let flag = if o.speaker.is_some() {
-                    "--speaker"
-                } else {
-                    "--rolling-shutter"
-                };
+            if o.speaker.is_some() {
                 return Err(Error::usage(
                     "--calibration",
-                    format!(
-                        "not available with {flag} (the correction is applied to the finished WAV)"
-                    ),
+                    "not available with --speaker (the correction is applied to the finished WAV)",
                 ));
             }
             Some(corrections::load(path)?)
@@ -177,6 +170,9 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         }
     }
     if let Some(c) = corrections.as_deref() {
+        if let Some(rs) = &o.rolling_shutter {
+            return listen_rows(o, c, rs, terms.len());
+        }
         if c.iter().any(|c| {
             matches!(
                 c,
@@ -358,18 +354,9 @@ fn listen_strips(
     if !o.filters.is_empty() {
         return Err(refuse("--band/--notch"));
     }
-    let calibration = o.calibration.as_deref().unwrap_or(o.video.as_path());
     let layout = crate::calibrate::strip_rows(&o.video, &o.region)?;
-    let (cols, height) = (layout.cols, layout.height);
-    if let Some(&(_, end)) = rows.iter().find(|r| r.1 > height) {
-        return Err(Error::input(
-            calibration,
-            format!(
-                "its {name} strips reach row {end}, but {} has {height} rows: it was fitted on another camera or frame size",
-                o.video.display()
-            ),
-        ));
-    }
+    let cols = layout.cols;
+    fits(o, rows, name, layout.height)?;
     let fs = crate::calibrate::frame_rate(&o.video, o.fps)?;
     let crate::calibrate::StripRun {
         signals,
@@ -381,6 +368,125 @@ fn listen_strips(
     corrections::apply_to_wav(&o.output, corrections, Denoise::None)?;
     finish_wav(o, true)?;
     Ok(report(o, Some(corrections), method, Vec::new(), run))
+}
+
+/// The time per row of a readout a calibration found (`capture_time`'s
+/// linear member, rows read one after another), µs; `None` for delays of
+/// each strip's own (parts that hear the sound at different times) or a
+/// readout from the bottom up: no one line delay.
+fn readout_us(corrections: &[Correction]) -> Option<f64> {
+    corrections.iter().find_map(|c| match c {
+        Correction::CaptureTime {
+            line_delay_s,
+            per_region: false,
+            ..
+        } if *line_delay_s > 0.0 => Some(line_delay_s * 1e6),
+        _ => None,
+    })
+}
+
+/// `listen --rolling-shutter --calibration` (issue 50, item 3): the row
+/// path, one sample per row at its capture time, with the line delay
+/// given (`--line-delay-us`) or else the one the calibration found
+/// (`capture_time`, rows read one after another), so that what the rows
+/// sampled above the frame rate's Nyquist frequency is heard rather than
+/// aliased; then the report's other corrections at the rows' rate, and
+/// the output rate. `terms`: how many explained terms the report holds
+/// (the row path measures no tiles: they are left out, and said so).
+fn listen_rows(
+    o: &ListenOptions,
+    corrections: &[Correction],
+    rs: &RollingShutter,
+    terms: usize,
+) -> Result<ListenReport> {
+    let found = readout_us(corrections);
+    let Some(d_us) = rs.line_delay_us.or(found) else {
+        return Err(Error::usage(
+            "--line-delay-us",
+            "required with --rolling-shutter: the calibration found no readout across the rows (capture_time) to take it from",
+        ));
+    };
+    let refuse = |flag: &str| Error::usage(flag, "not available with --rolling-shutter yet");
+    if o.denoise != Denoise::None {
+        return Err(refuse("--denoise"));
+    }
+    if !o.filters.is_empty() {
+        return Err(refuse("--band/--notch"));
+    }
+    if o.region.mask.is_some() {
+        return Err(refuse("--mask"));
+    }
+    // The rows must fit in the frame period: a line delay the calibration
+    // found a hair long (its uncertainty) is held at the period over the
+    // rows; one given is checked by the `rows` stage.
+    let fs = crate::calibrate::frame_rate(&o.video, o.fps)?;
+    let height = crate::calibrate::strip_rows(&o.video, &o.region)?.height;
+    for c in corrections {
+        if let Correction::CaptureTime { rows, .. } = c {
+            fits(o, rows, "capture_time", height)?;
+        }
+    }
+    let longest = 1e6 / fs / f64::from(height.max(1));
+    let d = match rs.line_delay_us {
+        Some(_) => d_us,
+        None => d_us.min(longest),
+    };
+    let mut notes = Vec::new();
+    match (rs.line_delay_us, found) {
+        (None, _) => notes.push(format!(
+            "the line delay is the calibration's: rows read one after another, {d_us:.3} µs a row"
+        )),
+        (Some(_), Some(f)) => notes.push(format!(
+            "--line-delay-us {d_us} is used; the calibration found {f:.3} µs a row"
+        )),
+        _ => {}
+    }
+    if d < d_us {
+        notes.push(format!(
+            "{d_us:.3} µs a row over {height} rows is longer than the frame period: held at {d:.3} µs"
+        ));
+    }
+    let rs = RollingShutter {
+        line_delay_us: Some(d),
+        ..rs.clone()
+    };
+    let decl = rs_pipeline(o, &rs, &mut notes)?;
+    let rest: Vec<Correction> = corrections
+        .iter()
+        .filter(|c| {
+            !matches!(
+                c,
+                Correction::CaptureTime { .. } | Correction::RegionGain { .. }
+            ) && !c.needs_frame()
+        })
+        .cloned()
+        .collect();
+    if corrections.iter().any(Correction::needs_frame) || terms > 0 {
+        notes.push("the row path measures no pixel frame or tiles yet: the report's amplitude-dependent corrections and explained terms are left out".into());
+    }
+    let run = pipeline::run(&decl, o.run);
+    if matches!(run, Ok(_) | Err(Error::Interrupted { .. })) && o.output.exists() {
+        corrections::apply_to_wav(&o.output, &rest, Denoise::None)?;
+        finish_wav(o, true)?;
+    }
+    let run = run?;
+    Ok(report(o, Some(&rest), None, notes, run))
+}
+
+/// Whether a stored calibration's strips of rows (`name`'s) lie within
+/// the video's `height` rows; the error names the report.
+fn fits(o: &ListenOptions, rows: &[(u32, u32)], name: &str, height: u32) -> Result<()> {
+    let calibration = o.calibration.as_deref().unwrap_or(o.video.as_path());
+    match rows.iter().find(|r| r.1 > height) {
+        Some(&(_, end)) => Err(Error::input(
+            calibration,
+            format!(
+                "its {name} strips reach row {end}, but {} has {height} rows: it was fitted on another camera or frame size",
+                o.video.display()
+            ),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// The method `o` runs, or why it cannot: a calibration is fitted on the

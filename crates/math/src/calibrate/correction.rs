@@ -36,6 +36,13 @@ pub enum Correction {
     /// Subtract lines (recovery units; phase from sample 0; applied first,
     /// to the recovery as delivered).
     Interference { lines: Vec<Line> },
+    /// Subtract a line at each of `freqs_hz` (Hz, in the recovery as
+    /// delivered), its amplitude and phase fitted by least squares on the
+    /// recovery it is applied to: a line found on one recording (a
+    /// machine, the mains) recurs on the next at the same frequency with
+    /// its own level and phase. What a stored `interference` becomes on a
+    /// new recording (`listen --calibration`); applied first.
+    Lines { freqs_hz: Vec<f64> },
     /// Equalise by `coefficient^-k` (coefficients in dB at frequencies;
     /// 0 dB outside the table), at most ±30 dB, and undo the phase of the
     /// response (degrees at the same frequencies).
@@ -112,7 +119,7 @@ impl Correction {
             Correction::TimeBase { .. } => EffectKind::TimeBase,
             Correction::Frames { .. } => EffectKind::Frames,
             Correction::Exposure { .. } => EffectKind::Exposure,
-            Correction::Interference { .. } => EffectKind::Interference,
+            Correction::Interference { .. } | Correction::Lines { .. } => EffectKind::Interference,
             Correction::Transfer { .. } => EffectKind::Transfer,
             Correction::SoftClip { .. } => EffectKind::SoftClip,
             Correction::Polynomial { .. } => EffectKind::Polynomial,
@@ -131,6 +138,7 @@ impl Correction {
                 | Correction::Exposure { .. }
                 | Correction::Transfer { .. }
                 | Correction::Polynomial { .. }
+                | Correction::Lines { .. }
                 | Correction::CaptureTime { .. }
                 | Correction::RegionGain { .. }
         )
@@ -177,6 +185,25 @@ impl Correction {
                     for (n, v) in out.iter_mut().enumerate() {
                         let p = w * n as f64;
                         *v -= l.a * p.cos() + l.b * p.sin();
+                    }
+                }
+                out
+            }
+            Correction::Lines { freqs_hz } => {
+                let mut out = z.to_vec();
+                for &f in freqs_hz {
+                    let w = 2.0 * PI * f / fs;
+                    if !(w > 0.0 && w < PI) {
+                        continue;
+                    }
+                    let Some((a, b)) =
+                        crate::numeric::fit_cos_sin(out.iter().copied().enumerate(), w)
+                    else {
+                        continue;
+                    };
+                    for (n, v) in out.iter_mut().enumerate() {
+                        let p = w * n as f64;
+                        *v -= a * p.cos() + b * p.sin();
                     }
                 }
                 out

@@ -422,6 +422,16 @@ impl Correction {
                     })
                     .collect(),
             },
+            // Refitted on each recording: no amplitude of its own.
+            Correction::Lines { freqs_hz } => Parameters::Interference {
+                lines: freqs_hz
+                    .iter()
+                    .map(|&freq_hz| LineReport {
+                        amplitude: f64::NAN,
+                        freq_hz,
+                    })
+                    .collect(),
+            },
             Correction::Transfer {
                 freqs_hz,
                 coef_db,
@@ -569,6 +579,9 @@ pub const MAX_STRIPS: usize = 64;
 pub const MAX_ROW: u32 = 1 << 20;
 /// The largest delay of a strip a stored capture time may hold, µs.
 pub const MAX_CAPTURE_DELAY_US: f64 = 1e6;
+/// The most lines a stored interference may hold (the fit finds at most
+/// a handful).
+pub const MAX_LINES: usize = 16;
 
 /// A value in a stored report's `parameters`, as loosely as it may come.
 #[derive(Deserialize)]
@@ -576,6 +589,7 @@ pub const MAX_CAPTURE_DELAY_US: f64 = 1e6;
 enum Stored {
     Num(f64),
     List(Vec<Stored>),
+    Map(BTreeMap<String, Stored>),
     Other(serde::de::IgnoredAny),
 }
 
@@ -693,11 +707,16 @@ where
             out.push(c);
         }
     }
+    // Lines are subtracted first, from the recovery as delivered (as
+    // calibrate fitted them).
+    out.sort_by_key(|c| !matches!(c, Correction::Lines { .. }));
     Ok(out)
 }
 
 /// A reusable correction back from effect `index` of a report; `None` for
-/// per-recording effects (frames, interference, soft clipping, gain drift).
+/// per-recording effects (frames, soft clipping, gain drift). A stored
+/// interference comes back as its lines' frequencies
+/// ([`Correction::Lines`]).
 fn from_report(
     index: usize,
     name: &str,
@@ -729,6 +748,7 @@ fn from_report(
     let kind = [
         EffectKind::TimeBase,
         EffectKind::Exposure,
+        EffectKind::Interference,
         EffectKind::Transfer,
         EffectKind::Polynomial,
         EffectKind::CaptureTime,
@@ -751,6 +771,27 @@ fn from_report(
             }
             Some(Correction::Exposure {
                 exposure_s: e * 1e-6,
+            })
+        }
+        // The lines' frequencies; their level and phase belong to one
+        // recording and are fitted again on the next.
+        Some(EffectKind::Interference) => {
+            let expected = "a list of 1 to 16 lines, each with freq_hz, a frequency > 0";
+            let freqs = match p.get("lines") {
+                Some(Stored::List(a)) if !a.is_empty() && a.len() <= MAX_LINES => a
+                    .iter()
+                    .map(|l| match l {
+                        Stored::Map(m) => match m.get("freq_hz") {
+                            Some(Stored::Num(f)) if f.is_finite() && *f > 0.0 => Some(*f),
+                            _ => None,
+                        },
+                        _ => None,
+                    })
+                    .collect::<Option<Vec<f64>>>(),
+                _ => None,
+            };
+            Some(Correction::Lines {
+                freqs_hz: freqs.ok_or_else(|| field("lines", expected))?,
             })
         }
         Some(EffectKind::Transfer) => {
@@ -913,9 +954,12 @@ fn from_report(
                 Correction::RegionGain { rows, weights }
             })
         }
-        // Per recording: the level is in the recovery's units, which
-        // depend on the texture and region as much as on the object.
-        _ if ["dropped_frames", "interference", "soft_clip", "gain_drift"].contains(&name) => None,
+        // Per recording: frame events and the gain's trend belong to one
+        // recording; soft clipping, tried carried (held at its range,
+        // brought to the next recording by the pixel frame), lowered that
+        // recording's speech by 2.5 dB (tests/suite/protocol.rs's
+        // soft_clip), so it stays fitted on each recording.
+        _ if ["dropped_frames", "soft_clip", "gain_drift"].contains(&name) => None,
         _ => {
             return Err(ReportError::UnknownEffect {
                 index,

@@ -214,6 +214,62 @@ fn report_round_trips_the_reusable_corrections() {
     );
 }
 
+/// Issue 50: a stored interference comes back as its lines' frequencies,
+/// applied first, and is fitted again on the recording it is applied to:
+/// the same line at another phase and level, under a chirp, is removed
+/// (what is left of it at least 30 dB down) and the chirp kept. A line
+/// without a frequency, or none, is refused naming `lines`.
+#[test]
+fn a_stored_line_is_fitted_again_on_the_next_recording() {
+    let fs = 2200.0;
+    let line = Correction::Interference {
+        lines: vec![Line {
+            freq_hz: 137.25,
+            a: 0.3,
+            b: -0.1,
+        }],
+    };
+    let report = json!({"effects": [
+        {"name": "time_base", "parameters": Correction::TimeBase { ppm: 50.0 }.parameters(fs, 1.0)},
+        {"name": "interference", "parameters": line.parameters(fs, 1.0)},
+    ]});
+    let back = reusable_from_report(&report).unwrap();
+    assert_eq!(
+        back[0],
+        Correction::Lines {
+            freqs_hz: vec![137.25]
+        },
+        "{back:?}"
+    );
+    assert_eq!(back[1], Correction::TimeBase { ppm: 50.0 });
+    let x = chirp(fs, 2.0, 100.0, 1000.0);
+    let hum: Vec<f64> = (0..x.len())
+        .map(|n| 0.8 * (2.0 * PI * 137.25 * n as f64 / fs + 2.1).cos())
+        .collect();
+    let y: Vec<f64> = x.iter().zip(&hum).map(|(a, b)| a + b).collect();
+    let z = back[0].apply(&y, fs);
+    let err = |v: &[f64]| v.iter().zip(&x).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+    let before = err(&y);
+    let after = err(&z);
+    assert!(
+        10.0 * (before / after).log10() >= 30.0,
+        "{before} -> {after}"
+    );
+    for bad in [
+        json!({"lines": []}),
+        json!({"lines": [{"amplitude": 1.0}]}),
+        json!({"lines": [{"freq_hz": -3.0}]}),
+        json!({"lines": 137.0}),
+    ] {
+        let err = reusable_from_report(
+            &json!({"effects": [{"name": "interference", "parameters": bad}]}),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.contains("lines"), "{err}");
+    }
+}
+
 /// Issue 20: the other numbers of a stored report have ranges too: an
 /// exposure over a second, a transfer function at a negative frequency
 /// or with a strength outside 0..=10 is refused, naming the field.

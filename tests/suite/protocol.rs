@@ -1,0 +1,544 @@
+//! Issue 50, item 5: the held-out protocol. Each case is an effect the
+//! calibration loop should carry from one recording to the next: a
+//! recording of the chirp (texture seed 1) is calibrated with the whole
+//! catalog and the explainer, and the report is applied by `listen
+//! --calibration` to a second recording of speech, with another texture
+//! (seed 2), the opposite polarity (the object moves along 180°) and,
+//! where the effect is driven by noise, another draw of it. Three
+//! recoveries of the speech are scored as `calibrate` scores (held-out
+//! SNR, [`crate::calibrate::held_out_snr`]):
+//! - `none`: the second recording with an empty report;
+//! - `with`: the second recording with the chirp's report;
+//! - `ceiling`: the same speech recording without the effect (what a
+//!   perfect correction would reach).
+//!
+//! Every case: `with` at most 0.3 dB below `none` (the transfer bar:
+//! nothing found on the chirp makes the next recording worse). The
+//! held-out cases also: `with - none` at least 3 dB, or 1 dB where the
+//! effect is weak, which the test decides by measurement, not by name:
+//! weak when it costs the speech less than 4 dB (`ceiling - none`), so
+//! that 3 dB could only be gained by a correction within 1 dB of perfect.
+//!
+//! Which cases were looked at while the explainer and the carrying of
+//! corrections were designed and tuned (`seen`), and which are run only
+//! by this test, their scenes written down before any of them was run and
+//! their figures reported as they came (`held_out`): see [`SEEN`] and
+//! [`HELD_OUT`]. The seen half reuses the scenes of tests/suite/explain.rs
+//! and of the catalog's tests; the held-out half moves each effect
+//! somewhere new (another place, axis, frequency or family).
+//!
+//! The catalog's families outside that set ([`FAMILIES`]: dropped frames,
+//! the gain's drift, the region's gain) are held to the transfer bar only,
+//! so that every family and the explainer has a transfer test here.
+//!
+//! Two scenes. `Object`: 64x64, 0.1 DN of noise, the object filling the
+//! frame and moving 0.2 px at the peak (the catalog's tests), calibrated
+//! and heard over the whole frame. `Site`: 128x128, 2 DN of noise, the
+//! object [48, 48, 32, 32] moving 0.05 px with the chirp and 0.2 px with
+//! speech, calibrated and heard on the region [32, 32, 64, 64], with the
+//! rest of the frame around it for the explainer to look at.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use crate::calibrate::{held_out_snr, speech_wav, write_chirp};
+use crate::common::{code, run_in, stderr};
+use std::path::Path;
+
+#[derive(Clone, Copy, PartialEq)]
+enum Scene {
+    Object,
+    Site,
+}
+
+/// One effect: where it is rendered, its keys on the chirp's recording
+/// and on the speech's (the same effect; another noise draw where it is
+/// driven by noise).
+struct Case {
+    name: &'static str,
+    scene: Scene,
+    chirp: &'static str,
+    speech: &'static str,
+}
+
+const fn case(name: &'static str, scene: Scene, chirp: &'static str, speech: &'static str) -> Case {
+    Case {
+        name,
+        scene,
+        chirp,
+        speech,
+    }
+}
+
+/// Looked at while the explainer and the carrying of corrections were
+/// designed and tuned (issue 50's first part and this one).
+const SEEN: [Case; 7] = [
+    case(
+        "camera",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2200.0, duration_s = 3.0, seed = 7 }, amplitude_px = 0.03 }"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2200.0, duration_s = 3.0, seed = 9 }, amplitude_px = 0.06 }"#,
+    ),
+    case(
+        "light",
+        Scene::Site,
+        r#"light = { signal = { type = "noise", rate_hz = 400.0, duration_s = 3.0, seed = 3 }, depth = 0.3 }"#,
+        r#"light = { signal = { type = "noise", rate_hz = 400.0, duration_s = 3.0, seed = 13 }, depth = 0.3 }"#,
+    ),
+    case(
+        "other_object",
+        Scene::Site,
+        r#"background_motion = [{ rect = [0, 80, 128, 48], signal = { type = "noise", rate_hz = 1500.0, duration_s = 3.0, seed = 11 }, amplitude_px = 0.3 }]"#,
+        r#"background_motion = [{ rect = [0, 80, 128, 48], signal = { type = "noise", rate_hz = 1500.0, duration_s = 3.0, seed = 12 }, amplitude_px = 0.3 }]"#,
+    ),
+    // The same object in image coordinates: along +x it moves `x + 0.25
+    // x²` of what it hears; driven the other way round on the second
+    // recording, that is `s + 0.25 s²` with `s` minus the speech.
+    case(
+        "square_law",
+        Scene::Object,
+        "response_poly = [0.25]",
+        "response_poly = [-0.25]",
+    ),
+    case(
+        "soft_clip",
+        Scene::Object,
+        "soft_clip_px = 0.12",
+        "soft_clip_px = 0.12",
+    ),
+    case(
+        "rolling_readout",
+        Scene::Object,
+        "line_delay_us = 6.8",
+        "line_delay_us = 6.8",
+    ),
+    case(
+        "interference",
+        Scene::Object,
+        "interference = [{ freq_hz = 137.0, amplitude_px = 0.03 }]",
+        "interference = [{ freq_hz = 137.0, amplitude_px = 0.03 }]",
+    ),
+];
+
+/// Run only by this test: written down before any was run, figures as
+/// they came.
+const HELD_OUT: [Case; 10] = [
+    case(
+        "clock",
+        Scene::Object,
+        "clock_error_ppm = 1500.0",
+        "clock_error_ppm = 1500.0",
+    ),
+    case(
+        "exposure",
+        Scene::Object,
+        "exposure_us = 400.0",
+        "exposure_us = 400.0",
+    ),
+    case(
+        "resonance",
+        Scene::Object,
+        "resonances = [{ freq_hz = 350.0, q = 4.0, gain_db = 12.0 }]",
+        "resonances = [{ freq_hz = 350.0, q = 4.0, gain_db = 12.0 }]",
+    ),
+    case(
+        "mover_left",
+        Scene::Site,
+        r#"background_motion = [{ rect = [0, 0, 28, 128], signal = { type = "noise", rate_hz = 1000.0, duration_s = 3.0, seed = 5 }, amplitude_px = 0.3, direction_deg = 90.0 }]"#,
+        r#"background_motion = [{ rect = [0, 0, 28, 128], signal = { type = "noise", rate_hz = 1000.0, duration_s = 3.0, seed = 6 }, amplitude_px = 0.3, direction_deg = 90.0 }]"#,
+    ),
+    case(
+        "light_vertical",
+        Scene::Site,
+        r#"light = { signal = { type = "noise", rate_hz = 600.0, duration_s = 3.0, seed = 4 }, depth = 0.2, direction_deg = 90.0 }"#,
+        r#"light = { signal = { type = "noise", rate_hz = 600.0, duration_s = 3.0, seed = 8 }, depth = 0.2, direction_deg = 90.0 }"#,
+    ),
+    case(
+        "camera_tone",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "tone", freq_hz = 240.0 }, amplitude_px = 0.04, direction_deg = 60.0 }"#,
+        r#"camera_motion = { signal = { type = "tone", freq_hz = 240.0 }, amplitude_px = 0.04, direction_deg = 60.0 }"#,
+    ),
+    case(
+        "clock_and_resonance",
+        Scene::Object,
+        "clock_error_ppm = -1000.0\nresonances = [{ freq_hz = 600.0, q = 3.0, gain_db = -9.0 }]",
+        "clock_error_ppm = -1000.0\nresonances = [{ freq_hz = 600.0, q = 3.0, gain_db = -9.0 }]",
+    ),
+    case(
+        "light_and_mover",
+        Scene::Site,
+        r#"light = { signal = { type = "noise", rate_hz = 300.0, duration_s = 3.0, seed = 21 }, depth = 0.2, uniform = 1.0 }
+background_motion = [{ rect = [100, 0, 28, 128], signal = { type = "noise", rate_hz = 800.0, duration_s = 3.0, seed = 22 }, amplitude_px = 0.3 }]"#,
+        r#"light = { signal = { type = "noise", rate_hz = 300.0, duration_s = 3.0, seed = 23 }, depth = 0.2, uniform = 1.0 }
+background_motion = [{ rect = [100, 0, 28, 128], signal = { type = "noise", rate_hz = 800.0, duration_s = 3.0, seed = 24 }, amplitude_px = 0.3 }]"#,
+    ),
+    // Added after the eight above had run (three of them turned out to
+    // cost the speech under 1 dB: nothing in the region sees them), and
+    // written down before these two were run.
+    case(
+        "mover_in_region",
+        Scene::Site,
+        r#"background_motion = [{ rect = [32, 32, 64, 12], signal = { type = "noise", rate_hz = 1200.0, duration_s = 3.0, seed = 31 }, amplitude_px = 0.2 }]"#,
+        r#"background_motion = [{ rect = [32, 32, 64, 12], signal = { type = "noise", rate_hz = 1200.0, duration_s = 3.0, seed = 32 }, amplitude_px = 0.2 }]"#,
+    ),
+    case(
+        "camera_vertical",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2200.0, duration_s = 3.0, seed = 33 }, amplitude_px = 0.04, direction_deg = 90.0 }"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2200.0, duration_s = 3.0, seed = 34 }, amplitude_px = 0.04, direction_deg = 90.0 }"#,
+    ),
+];
+
+/// The catalog's other families, outside the protocol's set (they were
+/// designed on these scenes): only the transfer bar. Dropped frames and
+/// the gain's drift belong to one recording and are left out by `listen
+/// --calibration`; the region's gain recombines strips of rows.
+const FAMILIES: [Case; 3] = [
+    case(
+        "dropped_frames",
+        Scene::Object,
+        "drop_frames = [1000, 3000]\nduplicate_frames = [2000]",
+        "drop_frames = [1500]\nduplicate_frames = [2500]",
+    ),
+    case(
+        "gain_drift",
+        Scene::Object,
+        "gain_decay_s = 2.0",
+        "gain_decay_s = 2.0",
+    ),
+    case(
+        "region_gain",
+        Scene::Object,
+        "row_lag_rows = [32]\nrow_lag_us = [0.0]\nrow_gain = [-0.5]",
+        "row_lag_rows = [32]\nrow_lag_us = [0.0]\nrow_gain = [-0.5]",
+    ),
+];
+
+/// The scene's keys for `signal` at `amplitude_px` (the scene's own for
+/// the chirp when `None`), then `extra`.
+fn scene_text(scene: Scene, wav: &Path, amplitude_px: Option<f64>, extra: &str) -> String {
+    let (head, chirp_px) = match scene {
+        Scene::Object => ("width = 64\nheight = 64\nnoise_std = 0.1\n", 0.2),
+        Scene::Site => (
+            "width = 128\nheight = 128\nnoise_std = 2.0\nobject = [48, 48, 32, 32]\n",
+            0.05,
+        ),
+    };
+    format!(
+        "{head}fps = 2200.0\nduration_s = 2.0\namplitude_px = {}\nsignal = {{ type = \"wav\", path = {:?} }}\n{extra}\n",
+        amplitude_px.unwrap_or(chirp_px),
+        wav.display().to_string()
+    )
+}
+
+/// Renders `text` to `dir/NAME.y4m`.
+fn render(dir: &Path, name: &str, text: &str) {
+    let toml = dir.join(format!("{name}.toml"));
+    std::fs::write(&toml, text).unwrap();
+    let o = vibroscope::simulate::SimulateOptions {
+        scene: toml,
+        output: dir.join(format!("{name}.y4m")),
+        ..Default::default()
+    };
+    vibroscope::simulate::simulate(&o).unwrap();
+}
+
+/// The region both commands use on `scene`.
+fn roi(scene: Scene) -> &'static [&'static str] {
+    match scene {
+        Scene::Object => &[],
+        Scene::Site => &["--roi", "32,32,64,64"],
+    }
+}
+
+/// What one case measured.
+struct Outcome {
+    none: f64,
+    with: f64,
+    ceiling: f64,
+    kept: String,
+}
+
+impl Outcome {
+    fn gain(&self) -> f64 {
+        self.with - self.none
+    }
+    fn cost(&self) -> f64 {
+        self.ceiling - self.none
+    }
+}
+
+/// Runs `c`: the chirp's calibration, then the speech with an empty
+/// report, with the chirp's, and without the effect. `None` (printed)
+/// without espeak-ng or sox.
+fn run(c: &Case) -> Option<Outcome> {
+    let d = tempfile::tempdir().unwrap();
+    // PROTOCOL_KEEP=1 keeps each case's files (printed).
+    let dir = &if std::env::var_os("PROTOCOL_KEEP").is_some() {
+        let kept = d.keep();
+        eprintln!("protocol {}: files kept in {}", c.name, kept.display());
+        kept
+    } else {
+        d.path().to_path_buf()
+    };
+    let speech = speech_wav(dir)?;
+    let chirp = dir.join("chirp.wav");
+    write_chirp(&chirp);
+    render(
+        dir,
+        "chirp",
+        &scene_text(c.scene, &chirp, None, &format!("{}\nseed = 1", c.chirp)),
+    );
+    let speech_px = Some(0.2);
+    let second = "direction_deg = 180.0\nseed = 2";
+    render(
+        dir,
+        "speech",
+        &scene_text(
+            c.scene,
+            &speech,
+            speech_px,
+            &format!("{}\n{second}", c.speech),
+        ),
+    );
+    render(
+        dir,
+        "control",
+        &scene_text(c.scene, &speech, speech_px, second),
+    );
+    let mut args = vec![
+        "calibrate",
+        "chirp.y4m",
+        "--reference",
+        "chirp.wav",
+        "--json",
+        "report.json",
+    ];
+    args.extend_from_slice(roi(c.scene));
+    let o = run_in(dir, &args);
+    assert_eq!(code(&o), 0, "{}: {}", c.name, stderr(&o));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
+    let mut kept: Vec<String> = report["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["name"].as_str().unwrap().to_string())
+        .collect();
+    kept.extend(
+        report["explained"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|e| format!("explained:{}", e["cause"].as_str().unwrap_or("?"))),
+    );
+    std::fs::write(dir.join("none.json"), r#"{"effects": []}"#).unwrap();
+    let listen = |video: &str, report: &str| -> (f64, String) {
+        let out = format!("{video}-{}.wav", report.trim_end_matches(".json"));
+        let mut args = vec![
+            "listen",
+            video,
+            "-o",
+            &out,
+            "--rate",
+            "native",
+            "--float",
+            "--calibration",
+            report,
+        ];
+        args.extend_from_slice(roi(c.scene));
+        let o = run_in(dir, &args);
+        assert_eq!(code(&o), 0, "{}: {}", c.name, stderr(&o));
+        (held_out_snr(&dir.join(&out), &speech), stderr(&o))
+    };
+    let (none, _) = listen("speech.y4m", "none.json");
+    let (with, notes) = listen("speech.y4m", "report.json");
+    let (ceiling, _) = listen("control.y4m", "none.json");
+    let out = Outcome {
+        none,
+        with,
+        ceiling,
+        kept: kept.join(", "),
+    };
+    eprintln!(
+        "protocol {}: chirp {:.2} -> {:.2} dB kept [{}]; speech {none:.2} -> {with:.2} dB ({:+.2}), {ceiling:.2} without the effect (it costs {:.2} dB)\n  listen said: {}",
+        c.name,
+        report["before"]["snr_db"].as_f64().unwrap_or(f64::NAN),
+        report["after"]["snr_db"].as_f64().unwrap_or(f64::NAN),
+        out.kept,
+        out.gain(),
+        out.cost(),
+        notes.trim().replace('\n', "\n  ")
+    );
+    Some(out)
+}
+
+/// A bar checked on a case: met, or known to be missed today. A case
+/// marked as missing a bar (`Some(why)`: the figure it missed by when it
+/// was first run, and the reason where known) must still miss it: a
+/// change that meets it fails here, so that the mark is removed and the
+/// figure reported. Issue 50 stays open while any mark remains.
+fn bar(name: &str, what: &str, met: bool, figure: String, short: Option<&str>) {
+    match short {
+        None => assert!(met, "{name}: {what} not met: {figure}"),
+        Some(why) => {
+            assert!(
+                !met,
+                "{name}: {what} is now met ({figure}): remove its mark ({why}) and report the figure"
+            );
+            eprintln!("protocol {name}: {what} NOT MET (known: {why}): {figure}");
+        }
+    }
+}
+
+/// The transfer bar, for every case (`short`: see [`bar`]).
+fn carries(c: &Case, short: Option<&str>) -> Option<Outcome> {
+    let o = run(c)?;
+    bar(
+        c.name,
+        "the transfer bar (at most 0.3 dB lost)",
+        o.gain() >= -0.3,
+        format!(
+            "the chirp's calibration changes the speech's SNR by {:+.2} dB (kept {})",
+            o.gain(),
+            o.kept
+        ),
+        short,
+    );
+    Some(o)
+}
+
+fn seen(name: &str, short: Option<&str>) {
+    let c = SEEN.iter().find(|c| c.name == name).unwrap();
+    carries(c, short);
+}
+
+fn family(name: &str) {
+    let c = FAMILIES.iter().find(|c| c.name == name).unwrap();
+    carries(c, None);
+}
+
+/// The transfer bar, then the gain asked of a held-out case (`short`:
+/// see [`bar`]).
+fn held_out(name: &str, short: Option<&str>) {
+    let c = HELD_OUT.iter().find(|c| c.name == name).unwrap();
+    let Some(o) = carries(c, None) else { return };
+    let weak = o.cost() < 4.0;
+    let need = if weak { 1.0 } else { 3.0 };
+    bar(
+        c.name,
+        &format!("the gain asked of a held-out effect ({need} dB)"),
+        o.gain() >= need,
+        format!(
+            "speech {:.2} -> {:.2} dB ({:+.2}); the effect costs {:.2} dB{} (kept {})",
+            o.none,
+            o.with,
+            o.gain(),
+            o.cost(),
+            if weak { ", weak" } else { "" },
+            o.kept
+        ),
+        short,
+    );
+}
+
+#[test]
+fn seen_camera() {
+    seen("camera", None);
+}
+#[test]
+fn seen_light() {
+    seen("light", None);
+}
+#[test]
+fn seen_other_object() {
+    seen("other_object", None);
+}
+#[test]
+fn seen_square_law() {
+    seen("square_law", None);
+}
+#[test]
+fn seen_soft_clip() {
+    seen("soft_clip", None);
+}
+#[test]
+fn seen_rolling_readout() {
+    seen(
+        "rolling_readout",
+        Some("first run -1.70 dB: the strips' delays, applied at the frame rate, misalign what the rows sampled above its Nyquist frequency (speech through sox's lowpass 1000 keeps energy to 2 kHz); the row path (item 3) is noisier than the frame path on this scene, so it is not chosen by itself"),
+    );
+}
+#[test]
+fn seen_interference() {
+    seen("interference", None);
+}
+#[test]
+fn held_out_clock() {
+    held_out("clock", None);
+}
+#[test]
+fn held_out_exposure() {
+    held_out(
+        "exposure",
+        Some("first run +1.28 dB of the 7.84 dB the exposure costs. Looked at afterwards (nothing changed): calibrate on the speech recording against the speech itself gains the same +1.31 dB; the rest of the cost is the speech above the frame rate's Nyquist frequency, which the exposure filters at its own frequency before the camera folds it, so no correction at the frame rate undoes it (the chirp stays below 1 kHz and gains 12 dB)"),
+    );
+}
+#[test]
+fn held_out_resonance() {
+    held_out("resonance", None);
+}
+#[test]
+fn held_out_mover_left() {
+    held_out(
+        "mover_left",
+        Some("first run: the effect costs the speech 0.00 dB (the mover lies outside the region and the recovery does not see it); nothing kept, nothing to gain"),
+    );
+}
+#[test]
+fn held_out_light_vertical() {
+    held_out(
+        "light_vertical",
+        Some("first run: the effect costs 0.17 dB (the phase recovery barely sees the light); nothing kept, nothing to gain"),
+    );
+}
+#[test]
+fn held_out_camera_tone() {
+    held_out("camera_tone", None);
+}
+#[test]
+fn held_out_clock_and_resonance() {
+    held_out("clock_and_resonance", None);
+}
+#[test]
+fn held_out_light_and_mover() {
+    held_out(
+        "light_and_mover",
+        Some("first run: the effects cost 0.51 dB; nothing kept, nothing to gain"),
+    );
+}
+#[test]
+fn family_dropped_frames() {
+    family("dropped_frames");
+}
+#[test]
+fn family_gain_drift() {
+    family("gain_drift");
+}
+#[test]
+fn family_region_gain() {
+    family("region_gain");
+}
+#[test]
+fn held_out_mover_in_region() {
+    held_out(
+        "mover_in_region",
+        Some("first run: the effect costs 0.21 dB; nothing kept, nothing to gain"),
+    );
+}
+#[test]
+fn held_out_camera_vertical() {
+    held_out(
+        "camera_vertical",
+        Some("first run -1.19 dB with the stored FIR; looked at afterwards, the FIR is now fitted again on the new recording: no loss, and no gain of the 4.02 dB the shake costs (the camera term kept on the chirp explains 0.5% of the speech recording)"),
+    );
+}
