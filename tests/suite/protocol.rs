@@ -31,9 +31,10 @@
 //! the gain's drift, the region's gain) are held to the transfer bar only,
 //! so that every family and the explainer has a transfer test here.
 //!
-//! Two scenes. `Object`: 64x64, 0.1 DN of noise, the object filling the
-//! frame and moving 0.2 px at the peak (the catalog's tests), calibrated
-//! and heard over the whole frame. `Site`: 128x128, 2 DN of noise, the
+//! Two scenes. `Object`: 64x64, 0.1 DN of noise, the object the central
+//! half of the frame ([16, 16, 32, 32], the simulator's default) moving
+//! 0.2 px at the peak (the catalog's tests), calibrated and heard over the
+//! whole frame. `Site`: 128x128, 2 DN of noise, the
 //! object [48, 48, 32, 32] moving 0.05 px with the chirp and 0.2 px with
 //! speech, calibrated and heard on the region [32, 32, 64, 64], with the
 //! rest of the frame around it for the explainer to look at.
