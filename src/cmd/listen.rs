@@ -124,11 +124,10 @@ pub struct Args {
     /// Apply a stored calibration (REPORT.json from `vibroscope
     /// calibrate` on the same object and camera): its time-base,
     /// exposure and transfer-function corrections; its interference lines,
-    /// fitted again here; a static nonlinearity brought to this
-    /// recording's scale (its region's motion is measured in the same
-    /// run); the explainer's terms, their tiles measured in the same run
-    /// and fitted again here; not the per-recording ones (dropped frames,
-    /// soft clipping, gain drift). A readout found across the rows
+    /// fitted again here; a static nonlinearity and the explainer's terms
+    /// brought to this recording's scale (its region's motion and the
+    /// terms' tiles are measured in the same run); not the per-recording
+    /// ones (dropped frames, soft clipping, gain drift). A readout found across the rows
     /// (capture_time) recombines the strips of rows it was found on, each
     /// at its delay; with --rolling-shutter, the line delay is the
     /// calibration's unless --line-delay-us is given. With --denoise, the denoiser runs

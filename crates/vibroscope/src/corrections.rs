@@ -91,12 +91,9 @@ impl Observe {
 
     /// After the run: the recovery in the WAV at `path` brought to the
     /// calibration's frame. Its scale against the region's motion along
-    /// the stored direction, over the stored scale, gives the ratio. The
-    /// explained terms' observables (their tiles, measured here) are
-    /// subtracted through FIRs fitted on this recording
-    /// ([`cal::refit_explained`]: the stored taps hold the calibration
-    /// texture's coupling, which another texture changes when the motion
-    /// is across the measured axis); then `corrections` rescaled by the
+    /// the stored direction, over the stored scale, gives the ratio; the
+    /// explained terms' parts (their taps times the ratio, on the tiles
+    /// measured here) are subtracted, then `corrections` rescaled by the
     /// ratio apply as in [`apply_to_wav`] (with `denoise`); the WAV is
     /// rewritten once. Returns a note saying what was done.
     pub fn apply(
@@ -138,7 +135,7 @@ impl Observe {
             cal::Observable::MotionY => 1,
             cal::Observable::Intensity => 2,
         };
-        let observables: Vec<Vec<f64>> = terms
+        let measured: Vec<(Vec<f64>, Vec<f64>)> = terms
             .iter()
             .map(|t| {
                 let mut mean = vec![0.0; n];
@@ -156,10 +153,10 @@ impl Observe {
                         *m += v / t.tiles.len() as f64;
                     }
                 }
-                mean
+                (mean, t.taps.iter().map(|a| a * ratio).collect())
             })
             .collect();
-        let (mut z, removed) = cal::refit_explained(&y[..n], &observables, fs, hp);
+        let mut z = cal::remove_explained(&y[..n], &measured, fs, hp);
         z.extend_from_slice(&y[n..]);
         let rescaled: Vec<Correction> = corrections.iter().map(|c| c.rescaled(ratio)).collect();
         write_corrected(path, (rate, &z), &rescaled, denoise)?;
@@ -169,9 +166,8 @@ impl Observe {
         );
         if !terms.is_empty() {
             note.push_str(&format!(
-                "; {} explained term(s) measured again here, fitted to this recording and subtracted ({:.1}% of its energy)",
-                terms.len(),
-                100.0 * removed
+                "; {} explained term(s) measured again here and subtracted",
+                terms.len()
             ));
         }
         if corrections.iter().any(Correction::needs_frame) {

@@ -97,9 +97,7 @@ pub struct Explanation {
 }
 
 /// An explanation as a stored report holds it: what to measure again on a
-/// new recording, and the FIR the calibration fitted (checked when read;
-/// `listen --calibration` fits the FIR again on the new recording,
-/// [`refit_explained`]).
+/// new recording and the FIR to subtract.
 #[derive(Clone, Debug, PartialEq, serde::Deserialize)]
 pub struct StoredTerm {
     pub observable: Observable,
@@ -459,43 +457,31 @@ fn pool(covs: &[Covariate], n: usize) -> Vec<(Covariate, Vec<[u32; 4]>)> {
     out
 }
 
-/// `y` (a recovery at `fs`, high-passed by `hp`) with what `observables`
-/// (measured on the same recording, one value per frame, as long as `y`)
-/// explain removed, their FIR taps (lags -LAGS..=LAGS) fitted on `y`
-/// itself by least squares: unbiased when the observables do not follow
-/// what the object hears (the explainer's terms lie outside the region,
-/// and the sound is independent of a shaking mount or a light), and right
-/// on a recording whose texture couples the observable into the recovery
-/// differently from the calibration's (motion across the measured axis is
-/// seen through the texture's orientations). Returns the corrected
-/// recovery and the share of its energy removed.
-pub fn refit_explained(
+/// `y` (a recovery at `fs`, high-passed by `hp`) with each term's part
+/// removed: a term is an observable measured on the same recording (one
+/// value per frame, as long as `y`) and its FIR taps (lags -LAGS..=LAGS,
+/// in `y`'s units per the observable's), the observable high-passed like
+/// the recovery first. How `listen --calibration` applies what the
+/// explainer kept to a new recording, its observables measured again.
+pub fn remove_explained(
     y: &[f64],
-    observables: &[Vec<f64>],
+    terms: &[(Vec<f64>, Vec<f64>)],
     fs: f64,
     hp: Option<(usize, f64)>,
-) -> (Vec<f64>, f64) {
-    let mut cols = Vec::new();
-    for values in observables {
-        if values.len() == y.len() {
-            cols.extend(lagged(&centred_highpass(values, fs, hp)));
-        }
-    }
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
+) -> Vec<f64> {
     let mut out = y.to_vec();
-    for q in orthonormal(&cols, &dot) {
-        let g = dot(&q, &out);
-        for (o, v) in out.iter_mut().zip(&q) {
-            *o -= g * v;
+    for (values, taps) in terms {
+        if values.len() != y.len() || taps.len() != 2 * LAGS + 1 {
+            continue;
+        }
+        let x = centred_highpass(values, fs, hp);
+        for (k, col) in lagged(&x).iter().enumerate() {
+            for (o, v) in out.iter_mut().zip(col) {
+                *o -= taps[k] * v;
+            }
         }
     }
-    let e = |v: &[f64]| dot(v, v);
-    let share = if e(y) > 0.0 {
-        1.0 - e(&out) / e(y)
-    } else {
-        0.0
-    };
-    (out, share)
+    out
 }
 
 /// Orthonormal columns (fit-part inner product) spanning `cols`; columns

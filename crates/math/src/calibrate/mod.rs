@@ -82,7 +82,7 @@ mod transfer;
 
 pub use capture_time::{combine, Strips};
 pub use correction::{Correction, FrameEvent, Line};
-pub use explain::{refit_explained, Covariate, Explanation, Observable, StoredTerm, LAGS};
+pub use explain::{remove_explained, Covariate, Explanation, Observable, StoredTerm, LAGS};
 pub use frame::{pixel_frame, PixelFrame};
 pub use identify::Confound;
 pub use relation::{check_silent, LINE_DB, MARGIN_DB, SILENT_PEAK};
