@@ -144,7 +144,8 @@ pub struct Args {
 #[derive(clap::Args, Debug, Clone)]
 struct RollingArgs {
     /// One sample per image row instead of per frame: hears far above the
-    /// frame rate (needs --line-delay-us).
+    /// frame rate (needs --line-delay-us, or a --calibration that found the
+    /// rows' readout).
     #[arg(long)]
     rolling_shutter: bool,
     /// Time between consecutive rows, µs (see `vibroscope rs-calibrate`).
