@@ -824,10 +824,25 @@ pub(crate) fn listen_speech(
     report: &str,
     extra: &[&str],
 ) -> (f64, String) {
-    let out = format!("speech-{}.wav", report.trim_end_matches(".json"));
+    listen_video(dir, speech, ("speech.y4m", report), extra)
+}
+
+/// [`listen_speech`] of another video in `dir` (its WAV named after the
+/// video and the report).
+pub(crate) fn listen_video(
+    dir: &Path,
+    speech: &Path,
+    (video, report): (&str, &str),
+    extra: &[&str],
+) -> (f64, String) {
+    let out = format!(
+        "{}-{}.wav",
+        video.trim_end_matches(".y4m"),
+        report.trim_end_matches(".json")
+    );
     let mut args = vec![
         "listen",
-        "speech.y4m",
+        video,
         "-o",
         &out,
         "--rate",

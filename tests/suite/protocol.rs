@@ -40,7 +40,7 @@
 //! rest of the frame around it for the explainer to look at.
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use crate::calibrate::{held_out_snr, speech_wav, write_chirp};
+use crate::calibrate::{listen_video, speech_wav, write_chirp};
 use crate::common::{code, run_in, stderr};
 use std::path::Path;
 
@@ -333,24 +333,8 @@ fn run(c: &Case) -> Option<Outcome> {
             .map(|e| format!("explained:{}", e["cause"].as_str().unwrap_or("?"))),
     );
     std::fs::write(dir.join("none.json"), r#"{"effects": []}"#).unwrap();
-    let listen = |video: &str, report: &str| -> (f64, String) {
-        let out = format!("{video}-{}.wav", report.trim_end_matches(".json"));
-        let mut args = vec![
-            "listen",
-            video,
-            "-o",
-            &out,
-            "--rate",
-            "native",
-            "--float",
-            "--calibration",
-            report,
-        ];
-        args.extend_from_slice(roi(c.scene));
-        let o = run_in(dir, &args);
-        assert_eq!(code(&o), 0, "{}: {}", c.name, stderr(&o));
-        (held_out_snr(&dir.join(&out), &speech), stderr(&o))
-    };
+    let listen =
+        |video: &str, report: &str| listen_video(dir, &speech, (video, report), roi(c.scene));
     let (none, _) = listen("speech.y4m", "none.json");
     let (with, notes) = listen("speech.y4m", "report.json");
     let (ceiling, _) = listen("control.y4m", "none.json");

@@ -181,11 +181,7 @@ impl Correction {
             Correction::Interference { lines } => {
                 let mut out = z.to_vec();
                 for l in lines {
-                    let w = 2.0 * PI * l.freq_hz / fs;
-                    for (n, v) in out.iter_mut().enumerate() {
-                        let p = w * n as f64;
-                        *v -= l.a * p.cos() + l.b * p.sin();
-                    }
+                    subtract_line(&mut out, 2.0 * PI * l.freq_hz / fs, (l.a, l.b));
                 }
                 out
             }
@@ -196,14 +192,10 @@ impl Correction {
                     if !(w > 0.0 && w < PI) {
                         continue;
                     }
-                    let Some((a, b)) =
+                    if let Some(ab) =
                         crate::numeric::fit_cos_sin(out.iter().copied().enumerate(), w)
-                    else {
-                        continue;
-                    };
-                    for (n, v) in out.iter_mut().enumerate() {
-                        let p = w * n as f64;
-                        *v -= a * p.cos() + b * p.sin();
+                    {
+                        subtract_line(&mut out, w, ab);
                     }
                 }
                 out
@@ -256,6 +248,15 @@ impl Correction {
             }
         }
         l
+    }
+}
+
+/// `x[n] -= a cos(w n) + b sin(w n)`: a line (`w` radians per sample)
+/// taken out of a recovery.
+fn subtract_line(x: &mut [f64], w: f64, (a, b): (f64, f64)) {
+    for (n, v) in x.iter_mut().enumerate() {
+        let p = w * n as f64;
+        *v -= a * p.cos() + b * p.sin();
     }
 }
 
