@@ -35,6 +35,7 @@ const LAYERS: &[&str] = &[
     "vibroscope-net",
     "vibroscope",
     "vibroscope-studio",
+    "vibroscope-python",
     "vibroscope-cli",
 ];
 

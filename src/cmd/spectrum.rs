@@ -16,7 +16,8 @@ use vibroscope::units::Quantity;
 #[derive(clap::Args, Clone)]
 #[command(after_help = "Examples:\n  \
     vibroscope spectrum ../shared/data/guitar.mp4 --fps 600 -o guitar.json\n  \
-    vibroscope spectrum beam.y4m --json beam.json --peaks 3 --roi 0,0,64,64")]
+    vibroscope spectrum beam.y4m --json beam.json --peaks 3 --roi 0,0,64,64\n  \
+    vibroscope spectrum beam.y4m -o beam.json --uff beam.uff --region 0,0,32,32 --region 32,0,32,32")]
 pub struct Args {
     #[command(flatten)]
     pub spectrum: SpectrumArgs,
@@ -32,16 +33,24 @@ pub struct Args {
     /// --region, OUT.roi1.csv, OUT.roi2.csv, ... (the list is printed).
     #[arg(long, value_name = "OUT.csv")]
     pub waveform: Option<PathBuf>,
-    /// A region for --waveform, X,Y,W,H in pixels; repeat for several
+    /// Also write each region's motion as a Universal File (UFF, ASCII):
+    /// a node per region at its centre (data set 15; image axes, +x
+    /// right, +y down; mm with a scale, else px; data set 164 says mm),
+    /// and per region and axis the time response of --quantity and its
+    /// amplitude spectrum (data sets 58; node k is region k, direction 1
+    /// is +x, 2 is +y). pyuff, ME'scope and most modal tools read it.
+    #[arg(long, value_name = "OUT.uff")]
+    pub uff: Option<PathBuf>,
+    /// A region for --waveform and --uff, X,Y,W,H in pixels; repeat for several
     /// (all measured in the same pass; default: the --roi, or the whole frame).
     #[arg(long = "region", value_name = "X,Y,W,H", value_parser = super::parse_roi, action = clap::ArgAction::Append)]
     pub regions: Vec<vibroscope::pipeline::Roi>,
-    /// Band-pass the --waveform exports to LO,HI Hz (zero-phase
+    /// Band-pass the --waveform and --uff exports to LO,HI Hz (zero-phase
     /// Butterworth, as listen --band); the peaks are not filtered.
     #[arg(long, value_name = "LO,HI", value_parser = parse_band, action = clap::ArgAction::Append)]
     pub band: Vec<BandFilter>,
     /// Take out F Hz (band-stop F-WIDTH/2..F+WIDTH/2, WIDTH default F/10)
-    /// from the --waveform exports; repeat for several.
+    /// from the --waveform and --uff exports; repeat for several.
     #[arg(long, value_name = "F[,WIDTH]", value_parser = parse_notch, action = clap::ArgAction::Append)]
     pub notch: Vec<BandFilter>,
     /// Print the per-stage summary at exit.
@@ -175,10 +184,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     o.scale = a.units.scale();
     o.quantity = a.quantity.into();
     o.waveform = a.waveform.clone();
+    o.uff = a.uff.clone();
     o.regions = a.regions.clone();
     o.filters = a.band.iter().chain(&a.notch).copied().collect();
-    if o.waveform.is_none() && !(o.regions.is_empty() && o.filters.is_empty()) {
-        eprintln!("error: --region, --band and --notch apply to the --waveform exports: give --waveform OUT.csv");
+    if o.waveform.is_none() && o.uff.is_none() && !(o.regions.is_empty() && o.filters.is_empty()) {
+        eprintln!("error: --region, --band and --notch apply to the --waveform and --uff exports: give --waveform OUT.csv or --uff OUT.uff");
         return Ok(ExitCode::from(2));
     }
     super::warn_playback_rate(&o.video, o.fps);
@@ -190,6 +200,17 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         super::wrote(p);
     }
     summary(&r);
+    if let Some(u) = &r.uff {
+        eprintln!(
+            "UFF {}: {} nodes (region centres, {}), {} records ({} in {}: time responses and amplitude spectra, x and y)",
+            u.path.display(),
+            u.nodes,
+            u.coordinates,
+            u.records,
+            u.quantity.name(),
+            u.unit
+        );
+    }
     for w in &r.waveforms {
         let roi = w.roi.map_or("whole frame".to_string(), |[x, y, ww, hh]| {
             format!("{x},{y},{ww},{hh}")

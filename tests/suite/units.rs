@@ -297,27 +297,32 @@ fn amp_at(x: &[f32], y: &[f32], f: f64) -> f64 {
         .hypot(fit_tone(y, f, FPS, 0..n).0)
 }
 
+/// `spectrum` of `two_regions`' recording, its two regions' waveforms
+/// exported at 0.02 mm/px (`w.roi1.csv`, ...), and `extra` flags.
+fn two_region_spectrum(dir: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "spectrum",
+        "ab.y4m",
+        "--scale",
+        "0.02",
+        "--region",
+        "36,36,56,56",
+        "--region",
+        "164,36,56,56",
+        "--waveform",
+        "w.csv",
+        "-o",
+        "ab.json",
+    ];
+    args.extend_from_slice(extra);
+    run_in(dir, &args)
+}
+
 #[test]
 fn two_regions_give_two_waveforms_and_spectra_in_one_run() {
     let dir = tempfile::tempdir().unwrap();
     let (ta, tb) = two_regions(dir.path());
-    let o = run_in(
-        dir.path(),
-        &[
-            "spectrum",
-            "ab.y4m",
-            "--scale",
-            "0.02",
-            "--region",
-            "36,36,56,56",
-            "--region",
-            "164,36,56,56",
-            "--waveform",
-            "w.csv",
-            "-o",
-            "ab.json",
-        ],
-    );
+    let o = two_region_spectrum(dir.path(), &[]);
     let e = stderr(&o);
     assert_eq!(code(&o), 0, "{e}");
     for f in [
@@ -601,4 +606,115 @@ fn a_mask_limits_the_displacement_to_its_pixels() {
     let e = stderr(&o);
     assert!(e.contains("a.pgm") && e.contains("region 2"), "{e}");
     assert!(!d.join("b.json").exists());
+}
+
+/// The data sets of a Universal File by their `-1` delimiters: (number,
+/// lines).
+fn uff_sets(text: &str) -> Vec<(u32, Vec<&str>)> {
+    let mut sets = Vec::new();
+    let mut lines = text.lines();
+    while let Some(l) = lines.next() {
+        assert_eq!(l.trim(), "-1", "a data set starts with -1");
+        let n: u32 = lines.next().unwrap().trim().parse().unwrap();
+        let body: Vec<&str> = lines.by_ref().take_while(|l| l.trim() != "-1").collect();
+        sets.push((n, body));
+    }
+    sets
+}
+
+/// `spectrum --uff` (issue 53): a node per region at its centre in mm,
+/// and per region and axis a time response and an amplitude spectrum of
+/// the quantity, whose values are the waveform export's (read here by
+/// their fixed columns; python/tests reads the same files with pyuff).
+#[test]
+fn the_uff_export_holds_each_regions_motion_and_nodes() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ta, tb) = two_regions(dir.path());
+    let o = two_region_spectrum(dir.path(), &["--uff", "ab.uff"]);
+    let e = stderr(&o);
+    assert_eq!(code(&o), 0, "{e}");
+    assert!(e.contains("UFF ab.uff: 2 nodes"), "{e}");
+    let text = std::fs::read_to_string(dir.path().join("ab.uff")).unwrap();
+    let sets = uff_sets(&text);
+    let kinds: Vec<u32> = sets.iter().map(|s| s.0).collect();
+    assert_eq!(kinds, [164, 15, 58, 58, 58, 58, 58, 58, 58, 58]);
+    // Nodes: the regions' centres, px times 0.02 mm.
+    let nodes = &sets[1].1;
+    let xyz = |l: &str| -> Vec<f64> {
+        l[40..]
+            .split_whitespace()
+            .map(|v| v.parse().unwrap())
+            .collect()
+    };
+    assert_eq!(xyz(nodes[0]), [64.0 * 0.02, 64.0 * 0.02, 0.0]);
+    assert_eq!(xyz(nodes[1]), [192.0 * 0.02, 64.0 * 0.02, 0.0]);
+    for (k, (f, truth)) in [(80.0, ta), (150.0, tb)].iter().enumerate() {
+        let (_, wx, wy) = waveform(&dir.path().join(format!("w.roi{}.csv", k + 1)));
+        for (axis, w) in [(1, &wx), (2, &wy)] {
+            let time = &sets[2 + 4 * k + 2 * (axis - 1)].1;
+            let spec = &sets[3 + 4 * k + 2 * (axis - 1)].1;
+            // Record 6: time response (1) or spectrum (12), node, direction.
+            for (set, kind) in [(time, "1"), (spec, "12")] {
+                assert_eq!(set[5][0..5].trim(), kind);
+                assert_eq!(set[5][41..51].trim(), (k + 1).to_string());
+                assert_eq!(set[5][51..55].trim(), axis.to_string());
+                // Record 9: the ordinate (8: displacement, length exponent 1).
+                let label = if kind == "1" {
+                    "Displacement"
+                } else {
+                    "Displacement ampl."
+                };
+                assert_eq!(
+                    set[8][0..15].split_whitespace().collect::<Vec<_>>(),
+                    ["8", "1"]
+                );
+                assert_eq!((set[8][26..46].trim(), set[8][47..].trim()), (label, "mm"));
+            }
+            let values = |set: &Vec<&str>| -> Vec<f64> {
+                set[11..]
+                    .iter()
+                    .flat_map(|l| {
+                        (0..l.len() / 20)
+                            .map(move |i| l[20 * i..20 * (i + 1)].trim().parse::<f64>().unwrap())
+                    })
+                    .collect()
+            };
+            let t = values(time);
+            assert_eq!(t.len(), w.len());
+            assert_eq!(time[6][10..20].trim(), w.len().to_string());
+            // The waveform CSV is in µm here, the UFF in mm.
+            let peak = w.iter().fold(0f32, |m, v| m.max(v.abs())) as f64 / 1000.0;
+            for (a, b) in t.iter().zip(w.iter()) {
+                assert!(
+                    (a - f64::from(*b) / 1000.0).abs() < 1e-5 * peak,
+                    "{a} against {b} µm"
+                );
+            }
+            assert_eq!(values(spec).len(), w.len() / 2 + 1);
+        }
+        // The tone's amplitude along the axes, from the spectra.
+        let amp = |axis: usize| {
+            let s = &sets[3 + 4 * k + 2 * (axis - 1)].1;
+            let df: f64 = s[6][43..56].trim().parse().unwrap();
+            let bin = (f / df).round() as usize;
+            let v: Vec<f64> = s[11..]
+                .iter()
+                .flat_map(|l| {
+                    (0..l.len() / 20)
+                        .map(move |i| l[20 * i..20 * (i + 1)].trim().parse::<f64>().unwrap())
+                })
+                .collect();
+            v[bin]
+        };
+        let got = amp(1).hypot(amp(2));
+        let want = truth * 0.02;
+        eprintln!("region {}: {got:.6} mm at {f} Hz (true {want:.6})", k + 1);
+        assert!((got / want - 1.0).abs() < 0.02, "{got} against {want}");
+    }
+    // An output that is the input is refused before any work.
+    let o = run_in(
+        dir.path(),
+        &["spectrum", "ab.y4m", "-o", "x.json", "--uff", "ab.y4m"],
+    );
+    assert_eq!(code(&o), 2, "{}", stderr(&o));
 }

@@ -22,6 +22,7 @@ pub use ffmpeg::input_arg as ffmpeg_input;
 pub mod image;
 mod mraw;
 pub mod plot;
+pub mod uff;
 pub mod wav;
 mod y4m;
 

@@ -402,3 +402,233 @@ pub fn write_waveforms(
     }
     Ok(files)
 }
+
+/// What a UFF export holds (the `uff` field of `spectrum`'s JSON).
+#[derive(Clone, Debug, Serialize)]
+pub struct UffExport {
+    pub path: PathBuf,
+    /// One node per region (data set 15), numbered from 1 as the regions.
+    pub nodes: usize,
+    /// Data sets 58: per region and axis (x, then y), the time response
+    /// and its amplitude spectrum.
+    pub records: usize,
+    /// The quantity of every record, its unit in the time responses and
+    /// in the spectra (`mm`, `mm/s`, `px/s²`...).
+    pub quantity: Quantity,
+    pub unit: String,
+    /// Length unit of the node coordinates (`mm`, or `px`).
+    pub coordinates: String,
+}
+
+/// An ASCII-only unit label for UFF (`px/s^2`, `mm/s`).
+fn uff_unit(length: &str, quantity: Quantity) -> String {
+    match quantity {
+        Quantity::Displacement => length.to_string(),
+        Quantity::Velocity => format!("{length}/s"),
+        Quantity::Acceleration => format!("{length}/s^2"),
+    }
+}
+
+/// Writes every region's motion as one Universal File (`path`): data set
+/// 164 (millimetres, with a scale), 15 (a node per region at its centre,
+/// image axes: +x right, +y down, z 0; mm with a scale, else px), and per
+/// region four data sets 58: the x and y time responses of `quantity`
+/// (mean removed; velocity and acceleration by
+/// [`crate::math::amplitude::time_derivative`]) and their amplitude
+/// spectra (as `--waveform`'s, per axis). Response node k is region k,
+/// direction 1 (+x) or 2 (+y). `filters` apply first, as to the waveforms.
+pub fn write_uff(
+    regions: &[RegionMotion],
+    frame: (u32, u32),
+    path: &Path,
+    video: &Path,
+    scale: Option<&Scale>,
+    quantity: Quantity,
+    filters: &[BandFilter],
+) -> Result<UffExport> {
+    use crate::io::uff::{self, Axis, Function, FunctionType, Node, Units};
+    let (length, per_px) = match scale {
+        Some(s) => ("mm", s.mm_per_px),
+        None => ("px", 1.0),
+    };
+    let unit = uff_unit(length, quantity);
+    let ordinate = |spectrum: bool| Axis {
+        data_type: match quantity {
+            Quantity::Displacement => 8,
+            Quantity::Velocity => 11,
+            Quantity::Acceleration => 12,
+        },
+        length_exp: 1,
+        label: format!(
+            "{}{}",
+            match quantity {
+                Quantity::Displacement => "Displacement",
+                Quantity::Velocity => "Velocity",
+                Quantity::Acceleration => "Acceleration",
+            },
+            if spectrum { " ampl." } else { "" }
+        ),
+        units: unit.clone(),
+    };
+    let source = video.file_name().map_or_else(
+        || video.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
+    let mut nodes = Vec::with_capacity(regions.len());
+    let mut functions = Vec::with_capacity(4 * regions.len());
+    for (k, r) in regions.iter().enumerate() {
+        let label = k as u32 + 1;
+        let [rx, ry, rw, rh] = r.roi.unwrap_or([0, 0, frame.0, frame.1]);
+        let centre = [
+            (f64::from(rx) + f64::from(rw) / 2.0) * per_px,
+            (f64::from(ry) + f64::from(rh) / 2.0) * per_px,
+            0.0,
+        ];
+        nodes.push(Node { label, xyz: centre });
+        let n = r.t_s.len();
+        let (t0, dt) = (r.t_s.first().copied().unwrap_or(0.0), 1.0 / r.rate_hz);
+        // Data set 58 is written evenly spaced: refuse a record whose
+        // samples are not (dropped frames), rather than move them.
+        if n < 2 || !dt.is_finite() {
+            return Err(Error::usage(
+                "--uff",
+                format!("region {label} has {n} samples: too few for a UFF record"),
+            ));
+        }
+        if let Some((i, t)) = r
+            .t_s
+            .iter()
+            .enumerate()
+            .find(|&(i, &t)| (t - t0 - i as f64 * dt).abs() > 0.01 * dt)
+        {
+            return Err(Error::usage(
+                "--uff",
+                format!(
+                    "UFF 58 records are evenly spaced, but sample {i} of region {label} is at {t:.6} s, \
+                     not {:.6} s (dropped frames?); --waveform keeps each sample's own time",
+                    t0 + i as f64 * dt
+                ),
+            ));
+        }
+        let roi = format!("{rx},{ry},{rw},{rh}");
+        for (dir, name, v) in [(1, "x", &r.x), (2, "y", &r.y)] {
+            let v = filter(v, r.rate_hz, filters)?;
+            let mean = v.iter().map(|&a| f64::from(a)).sum::<f64>() / n as f64;
+            let d: Vec<f64> = v.iter().map(|&a| (f64::from(a) - mean) * per_px).collect();
+            let q = crate::math::amplitude::time_derivative(&d, r.rate_hz, quantity.order() as u32);
+            // One record of this region and axis: its kind, abscissa
+            // (start, step, what: 17 time in s, 18 frequency in Hz) and data.
+            let record = |kind: FunctionType, start: f64, step: f64, data: Vec<f64>| {
+                let (what, code, axis, unit) = match kind {
+                    FunctionType::TimeResponse => ("time response", 17, "Time", "s"),
+                    FunctionType::Spectrum => ("amplitude spectrum", 18, "Frequency", "Hz"),
+                };
+                Function {
+                    ids: [
+                        format!(
+                            "vibroscope {} {what}, region {label} ({roi}) along +{name}",
+                            quantity.name()
+                        ),
+                        format!("source {source}"),
+                        String::from("NONE"),
+                        format!("image axes: +x right, +y down; {length}"),
+                        String::from("NONE"),
+                    ],
+                    kind,
+                    function_id: 0,
+                    response_name: format!("roi{label}"),
+                    response_node: label,
+                    response_dir: dir,
+                    abscissa_min: start,
+                    abscissa_step: step,
+                    abscissa: Axis {
+                        data_type: code,
+                        length_exp: 0,
+                        label: axis.into(),
+                        units: unit.into(),
+                    },
+                    ordinate: ordinate(kind == FunctionType::Spectrum),
+                    data,
+                }
+            };
+            functions.push(record(FunctionType::TimeResponse, t0, dt, q));
+            let (amp, df) = crate::math::amplitude::amplitude_spectrum(&[&v], r.rate_hz);
+            let spec: Vec<f64> = amp
+                .iter()
+                .enumerate()
+                .map(|(i, &a)| a * quantity.gain(i as f64 * df) * per_px)
+                .collect();
+            functions.push(record(FunctionType::Spectrum, 0.0, df, spec));
+        }
+    }
+    // Function ids count the records from 1, in file order.
+    for (i, f) in functions.iter_mut().enumerate() {
+        f.function_id = i as u32 + 1;
+    }
+    let units = scale.map(|_| Units::millimetre());
+    let text = uff::to_string(units.as_ref(), &nodes, &functions);
+    crate::io::atomic::write_atomic(path, text.as_bytes())?;
+    Ok(UffExport {
+        path: path.to_path_buf(),
+        nodes: nodes.len(),
+        records: functions.len(),
+        quantity,
+        unit,
+        coordinates: length.into(),
+    })
+}
+
+/// Measures the displacement of each of `rois` (none: the whole frame) in
+/// `video` (the `motion` pipeline's source, at `fps` when given): one pass,
+/// the same `displacement` stage as `spectrum --waveform`, in pixels
+/// (+x right, +y down), each sample with its capture time.
+pub fn displacement(
+    video: &Path,
+    fps: Option<f64>,
+    rois: Vec<[u32; 4]>,
+    run: pipeline::RunSettings,
+) -> Result<Vec<RegionMotion>> {
+    crate::error::check_outputs(&[video], &[])?;
+    check_regions(video, fps, &rois, "regions")?;
+    let mut decl = pipeline::prepare(&pipeline::PipelineOptions {
+        pipeline: "motion".into(),
+        set: Vec::new(),
+        replay: Some(video.to_path_buf()),
+        fps,
+    })?;
+    let src = pipeline::source_id(&decl).map(str::to_owned);
+    decl.stages.retain(|s| Some(&s.id) == src.as_ref());
+    let tap = DisplacementTap::new(rois);
+    tap.add(&mut decl)?;
+    pipeline::run(&decl, run)?;
+    tap.read()
+}
+
+/// Refuses, before any work, a region of `rois` that does not fit in the
+/// frame of `video` (named by `flag` and its 1-based number); returns the
+/// frame's size.
+pub fn check_regions(
+    video: &Path,
+    fps: Option<f64>,
+    rois: &[[u32; 4]],
+    flag: &str,
+) -> Result<(u32, u32)> {
+    let p = crate::probe::probe(video, fps)?;
+    for (k, &[x, y, w, h]) in rois.iter().enumerate() {
+        let fits =
+            |a: u32, b: u32, size: u32| b > 0 && u64::from(a) + u64::from(b) <= u64::from(size);
+        if !(fits(x, w, p.width) && fits(y, h, p.height)) {
+            return Err(Error::usage(
+                flag,
+                format!(
+                    "region {} ({x},{y},{w},{h}) does not fit in the {}x{} frame of {}",
+                    k + 1,
+                    p.width,
+                    p.height,
+                    video.display()
+                ),
+            ));
+        }
+    }
+    Ok((p.width, p.height))
+}

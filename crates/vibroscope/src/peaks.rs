@@ -139,6 +139,9 @@ pub struct SpectrumReport {
     /// The regions' waveform exports (`spectrum --waveform`).
     #[serde(skip_deserializing, skip_serializing_if = "Vec::is_empty")]
     pub waveforms: Vec<crate::motion::WaveformFiles>,
+    /// The Universal File export (`--uff`).
+    #[serde(skip_deserializing, skip_serializing_if = "Option::is_none")]
+    pub uff: Option<crate::motion::UffExport>,
     /// Files written.
     #[serde(skip)]
     pub written: Vec<PathBuf>,

@@ -71,8 +71,13 @@ pub struct SpectrumOptions {
     /// The regions of the waveforms (default: `region`'s rectangle, or
     /// the whole frame); measured in the same pass as the spectrum.
     pub regions: Vec<Roi>,
-    /// Filters applied to the waveforms (zero-phase), in order.
+    /// Filters applied to the waveforms and the UFF export (zero-phase),
+    /// in order.
     pub filters: Vec<BandFilter>,
+    /// Export the regions' motion (time responses of `quantity` and their
+    /// amplitude spectra, a node per region) as a Universal File (UFF 58
+    /// and 15) at this path (see [`crate::motion::write_uff`]).
+    pub uff: Option<PathBuf>,
     /// Cut the region into `tiles` x `tiles` local regions whose power
     /// spectra are added (Eq. 3.17's local signals; the `phase` stage's
     /// `tiles`). 1: the power of the region's mean motion. With more, the
@@ -166,6 +171,7 @@ impl SpectrumOptions {
             scale: None,
             quantity: Quantity::Displacement,
             waveform: None,
+            uff: None,
             regions: Vec::new(),
             filters: Vec::new(),
             tiles: 1,
@@ -397,6 +403,7 @@ pub fn check_outputs(o: &SpectrumOptions) -> Result<()> {
             outputs.extend(crate::motion::waveform_paths(base, k, n));
         }
     }
+    outputs.extend(o.uff.iter().cloned());
     let outputs: Vec<&Path> = outputs.iter().map(PathBuf::as_path).collect();
     crate::error::check_outputs(&inputs, &outputs)
 }
@@ -417,6 +424,10 @@ fn outputs(o: &SpectrumOptions) -> impl Iterator<Item = &PathBuf> {
 pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
     let scale = resolve_scale(&o.video, o.fps, o.scale.as_ref())?;
     check_outputs(o)?;
+    if o.scene.is_none() && !o.regions.is_empty() {
+        let rois: Vec<[u32; 4]> = o.regions.iter().map(|r| [r.x, r.y, r.w, r.h]).collect();
+        crate::motion::check_regions(&o.video, o.fps, &rois, "--region")?;
+    }
     // Region 0 is the spectrum's own (its peaks' amplitudes); the
     // waveforms' regions follow, all in one `displacement` stage.
     let whole = |r: &Roi| [r.x, r.y, r.w, r.h];
@@ -453,15 +464,35 @@ pub fn spectrum(o: &SpectrumOptions) -> Result<(SpectrumReport, RunReport)> {
         }
         report.motion = Some(summary);
     }
+    // Region 0 was the spectrum's own: the exports have their --region.
+    if (o.waveform.is_some() || o.uff.is_some()) && !o.regions.is_empty() {
+        regions.remove(0);
+    }
     if let Some(base) = &o.waveform {
-        if !o.regions.is_empty() {
-            regions.remove(0);
-        }
         report.waveforms =
             crate::motion::write_waveforms(&regions, base, scale.as_ref(), o.quantity, &o.filters)?;
     }
+    if let Some(path) = &o.uff {
+        // The whole frame's node is at its centre.
+        let frame = if regions.iter().all(|r| r.roi.is_some()) {
+            (0, 0)
+        } else {
+            let p = crate::probe::probe(&o.video, o.fps)?;
+            (p.width, p.height)
+        };
+        report.uff = Some(crate::motion::write_uff(
+            &regions,
+            frame,
+            path,
+            &o.video,
+            scale.as_ref(),
+            o.quantity,
+            &o.filters,
+        )?);
+    }
     crate::json::write(&o.json, &report)?;
     report.written = outputs(o).cloned().collect();
+    report.written.extend(o.uff.iter().cloned());
     for w in &report.waveforms {
         report
             .written
