@@ -87,6 +87,18 @@ def region_args(regions):
     return [a for r in regions for a in ("--region", ",".join(map(str, r)))]
 
 
+def test_simulate_is_the_commands(scenes, tmp_path):
+    (tmp_path / "b.toml").write_text(BEAM.format(seed=4))
+    cli("simulate", tmp_path / "b.toml", "-o", tmp_path / "cli.y4m")
+    r = vibroscope.simulate(tmp_path / "b.toml", tmp_path / "py.y4m", progress=False)
+    assert r["frames"] == 1200
+    assert (tmp_path / "cli.y4m").read_bytes() == (tmp_path / "py.y4m").read_bytes()
+    with pytest.raises(ValueError, match="b.toml"):
+        (tmp_path / "b.toml").write_text("widht = 3\n")
+        vibroscope.simulate(tmp_path / "b.toml", tmp_path / "bad.y4m")
+    assert not (tmp_path / "bad.y4m").exists()
+
+
 def test_probe_is_the_commands(scenes, tmp_path):
     cli("probe", scenes["beam"], "--json", tmp_path / "probe.json")
     assert vibroscope.probe(scenes["beam"]) == json.loads((tmp_path / "probe.json").read_text())
@@ -97,7 +109,7 @@ def test_spectrum_and_uff_are_the_commands_bit_for_bit(scenes, tmp_path):
     a, b = tmp_path / "cli", tmp_path / "py"
     a.mkdir()
     b.mkdir()
-    flags = ["--scale", "0.5", "--quantity", "velocity", *region_args(REGIONS)]
+    flags = ["--scale", "0.5", "--quantity", "velocity", "--include-spectrum", *region_args(REGIONS)]
     cli("spectrum", scenes["beam"], "-o", "s.json", "--uff", "s.uff", *flags, cwd=a)
     # The same relative paths, from the same kind of directory.
     cwd = os.getcwd()
@@ -116,7 +128,12 @@ def test_spectrum_and_uff_are_the_commands_bit_for_bit(scenes, tmp_path):
         os.chdir(cwd)
     assert (a / "s.json").read_bytes() == (b / "s.json").read_bytes()
     assert (a / "s.uff").read_bytes() == (b / "s.uff").read_bytes()
+    freqs_hz, power = report.pop("frequencies_hz"), report.pop("power_db")
     assert report == json.loads((a / "s.json").read_text())
+    assert len(freqs_hz) == len(power) == len(report["spectrum"]["power_db"])
+    # The spectrum's strongest bin is one of the peaks.
+    top = freqs_hz[np.argmax(power)]
+    assert any(abs(p["frequency_hz"] - top) <= report["resolution_hz"] for p in report["peaks"]), top
     freqs = sorted(p["frequency_hz"] for p in report["peaks"])
     # The tone-driven mode, within the spectrum's resolution.
     assert any(abs(f - 58.3) < 2 * report["resolution_hz"] for f in freqs), freqs
@@ -292,3 +309,90 @@ def test_the_gil_is_released_and_progress_reported(scenes, tmp_path):
     assert spins > 10_000, spins
     assert seen and all(t == 4000 for _, t in seen), seen[:3]
     assert all(a <= b for (a, _), (b, _) in zip(seen, seen[1:]))
+
+
+def test_modes_is_the_commands(scenes, tmp_path):
+    cli("modes", scenes["beam"], "--at", "58.3", "-o", tmp_path / "cli.png", "--npy", tmp_path / "cli.npy")
+    (r,) = vibroscope.modes(scenes["beam"], 58.3, tmp_path / "py.png", npy=tmp_path / "py.npy", progress=False)
+    assert (tmp_path / "cli.npy").read_bytes() == (tmp_path / "py.npy").read_bytes()
+    assert (tmp_path / "cli.png").read_bytes() == (tmp_path / "py.png").read_bytes()
+    image = np.load(tmp_path / "cli.npy")
+    assert r["image"].dtype == np.complex64 and r["image"].shape == (48, 96)
+    np.testing.assert_array_equal(r["image"], image)
+    assert r["freq_hz"] == 58.3 and r["peak"]["amplitude"] > 0
+    # Two frequencies in one pass, no files kept.
+    two = vibroscope.modes(scenes["beam"], [7.3, 58.3], progress=False)
+    assert [m["freq_hz"] for m in two] == [7.3, 58.3] and two[0]["npy"] is None
+    np.testing.assert_array_equal(two[1]["image"], image)
+
+
+def test_magnify_is_the_commands(scenes, tmp_path):
+    cli("magnify", scenes["beam"], "--band", "50,65", "--factor", "10", "-o", tmp_path / "cli.y4m")
+    r = vibroscope.magnify(scenes["beam"], tmp_path / "py.y4m", 50, 65, 10, progress=False)
+    assert (tmp_path / "cli.y4m").read_bytes() == (tmp_path / "py.y4m").read_bytes()
+    assert r["frames"] == 1200 and (r["width"], r["height"]) == (96, 48)
+    # The frames as an iterator: the luma of each frame of that file.
+    data = (tmp_path / "cli.y4m").read_bytes()
+    stream = data[: data.index(b"\n")].split()
+    chroma = {b"Cmono": 0, b"C444": 2}.get(next((t for t in stream if t.startswith(b"C")), b"C420"), 0.5)
+    pos, n = data.index(b"\n") + 1, 0
+    for f in vibroscope.magnify_frames(scenes["beam"], 50, 65, 10, progress=False):
+        assert data[pos : pos + 5] == b"FRAME"
+        pos = data.index(b"\n", pos) + 1
+        want = np.frombuffer(data[pos : pos + 96 * 48], dtype=np.uint8).reshape(48, 96)
+        np.testing.assert_array_equal(f, want)
+        pos += int(96 * 48 * (1 + chroma))
+        n += 1
+    assert n == 1200 and pos == len(data)
+
+
+def test_calibrate_is_the_commands(scenes, tmp_path):
+    cli("calibrate", scenes["long"], "--reference-tone", "440", "--json", tmp_path / "cli.json")
+    r = vibroscope.calibrate(scenes["long"], reference_tone_hz=440, json=tmp_path / "py.json", progress=False)
+    assert json.loads((tmp_path / "cli.json").read_text()) == r
+    assert (tmp_path / "cli.json").read_bytes() == (tmp_path / "py.json").read_bytes()
+    with pytest.raises(ValueError, match="one of the two"):
+        vibroscope.calibrate(scenes["long"])
+    with pytest.raises(ValueError, match="nonsense"):
+        vibroscope.calibrate(scenes["long"], reference_tone_hz=440, effects=["nonsense"])
+
+
+def test_a_pipelines_items_are_the_commands(scenes, tmp_path):
+    # The shipped `motion` pipeline replayed: its WAV (32-bit float) holds
+    # the samples the iterator hands over, bit for bit.
+    cli("run", "motion", "--replay", scenes["long"], "--set", f"out.path={json.dumps(str(tmp_path / 'm.wav'))}")
+    with vibroscope.items("motion", "motion", replay=scenes["long"]) as run:
+        blocks = list(run)
+        assert run.stats is not None
+    assert blocks and all(b.kind == "audio" for b in blocks)
+    got = np.concatenate([b.data for b in blocks])
+    with open(tmp_path / "m.wav", "rb") as f:
+        raw = f.read()
+    data = raw[raw.index(b"data") + 8 :]
+    want = np.frombuffer(data, dtype="<f4")
+    assert len(got) == 4000
+    np.testing.assert_array_equal(got, want[: len(got)])
+    assert blocks[0].info["rate_hz"] == 2000.0 and blocks[0].t == 0.0
+    # Frames, from the source.
+    with vibroscope.items("motion", "src", replay=scenes["beam"]) as run:
+        first = next(run)
+    assert first.kind == "frame" and first.data.shape == (48, 96)
+    # A bad stage is named.
+    with pytest.raises(ValueError, match="nosuch"):
+        vibroscope.items("motion", "nosuch", replay=scenes["beam"])
+
+
+def test_a_pipeline_stopped_early_leaves_no_thread(scenes):
+    before = threads()
+    run = vibroscope.items("motion", "src", replay=scenes["long"], queue=4)
+    for k, item in enumerate(run):
+        if k == 10:
+            break
+    assert threads() > before
+    run.close()
+    assert settle(before) == before
+    # Dropped without close: the same.
+    run = vibroscope.items("motion", "src", replay=scenes["long"], queue=4)
+    next(run)
+    del run
+    assert settle(before) == before

@@ -31,8 +31,15 @@ __all__ = [
     "ArgumentError",
     "Audio",
     "Displacement",
+    "calibrate",
     "displacement",
+    "Item",
+    "items",
+    "Items",
     "listen",
+    "magnify",
+    "magnify_frames",
+    "modes",
     "probe",
     "simulate",
     "spectrum",
@@ -220,6 +227,7 @@ def spectrum(
     uff: Optional[PathLike] = None,
     waveform: Optional[PathLike] = None,
     json: Optional[PathLike] = None,
+    include_spectrum: bool = True,
     progress: Progress = None,
 ) -> Dict[str, Any]:
     """The motion spectrum's resonances: ``vibroscope spectrum`` in-process.
@@ -227,7 +235,9 @@ def spectrum(
     Returns the report ``spectrum -o OUT.json`` writes (``peaks``: each
     with ``frequency_hz``, ``frequency_std_hz``, ``damping_ratio``,
     ``damping_ratio_std``, ``amplitude`` ...), and writes it to ``json``
-    when given. ``uff``: also write the regions' motion as a Universal
+    when given. With ``include_spectrum`` (``--include-spectrum``) the
+    report also holds the spectrum, and two numpy arrays are added to
+    the dict (not to the file): ``frequencies_hz`` and ``power_db``. ``uff``: also write the regions' motion as a Universal
     File (``--uff``: UFF 58 time responses and amplitude spectra of
     ``quantity``, a UFF 15 node per region); ``waveform``: the CSV
     exports (``--waveform``); ``regions``: theirs (``--region``).
@@ -243,6 +253,7 @@ def spectrum(
         regions=_regions("regions", regions),
         uff=None if uff is None else _path("uff", uff),
         waveform=None if waveform is None else _path("waveform", waveform),
+        include_spectrum=bool(include_spectrum),
     )
     if not isinstance(quantity, str):
         raise ArgumentError(f"quantity: expected a string, got {quantity!r}")
@@ -254,7 +265,12 @@ def spectrum(
             "spectrum",
             lambda cb: _native.spectrum(path, out, quantity=quantity, progress=cb, **args),
         )
-    return _json.loads(text)
+    report = _json.loads(text)
+    sp = report.get("spectrum")
+    if sp:
+        report["power_db"] = np.asarray(sp["power_db"], dtype=float)
+        report["frequencies_hz"] = sp["f0_hz"] + sp["resolution_hz"] * np.arange(len(sp["power_db"]))
+    return report
 
 
 def listen(
@@ -316,3 +332,284 @@ def simulate(
     src, out = _path("scene", scene), _path("output", output)
     text = _with_progress(progress, "simulate", lambda cb: _native.simulate(src, out, sets, cb))
     return _json.loads(text)
+
+
+def modes(
+    video: PathLike,
+    at_hz: Union[float, Sequence[float]],
+    png: Optional[PathLike] = None,
+    *,
+    npy: Optional[PathLike] = None,
+    fps: Optional[float] = None,
+    roi: Optional[Region] = None,
+    motion: str = "sum",
+    scale: Optional[float] = None,
+    sigma: Optional[float] = None,
+    progress: Progress = None,
+) -> List[Dict[str, Any]]:
+    """Modal images (thesis 3.5): ``vibroscope modes`` in-process.
+
+    One report per frequency of ``at_hz`` (all imaged in one pass), each
+    with ``image``: the complex modal image (numpy complex64, rows x
+    columns; px, or mm/µm with ``scale``: the report's ``unit``), beside
+    the command's fields (``peak``, ``shape`` checks ...). ``png`` and
+    ``npy`` also keep the files (with several frequencies, named after
+    each, as the command does).
+    """
+    freqs = [at_hz] if isinstance(at_hz, (int, float, np.integer, np.floating)) else list(at_hz)
+    freqs = [_number(f"at_hz[{i}]", f) for i, f in enumerate(freqs)]
+    if not isinstance(motion, str):
+        raise ArgumentError(f"motion: expected x, y or sum, got {motion!r}")
+    args = dict(
+        fps=_number("fps", fps),
+        roi=None if roi is None else _region("roi", roi),
+        motion=motion,
+        scale=_number("scale", scale),
+        sigma=_number("sigma", sigma),
+    )
+    path = _path("video", video)
+    with _tempfile.TemporaryDirectory(prefix="vibroscope-") as tmp:
+        out_png = _path("png", png) if png is not None else _os.path.join(tmp, "mode.png")
+        out_npy = _path("npy", npy) if npy is not None else _os.path.join(tmp, "mode.npy")
+        text = _with_progress(
+            progress,
+            "modes",
+            lambda cb: _native.modes(path, freqs, out_png, out_npy, progress=cb, **args),
+        )
+        reports = _json.loads(text)
+        for r in reports:
+            r["image"] = np.load(r["npy"])
+            if png is None:
+                r["png"] = None
+            if npy is None:
+                r["npy"] = None
+    return reports
+
+
+def magnify(
+    video: PathLike,
+    output: PathLike,
+    lo_hz: float,
+    hi_hz: float,
+    factor: float,
+    *,
+    fps: Optional[float] = None,
+    roi: Optional[Region] = None,
+    pyramid: str = "csp",
+    side_by_side: bool = False,
+    progress: Progress = None,
+) -> Dict[str, Any]:
+    """Motion magnification: ``vibroscope magnify`` in-process.
+
+    Magnifies the motion between ``lo_hz`` and ``hi_hz`` by ``factor``
+    (phase-based, ``pyramid`` ``"csp"`` or ``"riesz"``) into ``output``
+    (``.y4m``, or ``.mp4`` and what else ffmpeg writes). Returns the
+    report (frames, size, rate, notes).
+    """
+    args = dict(
+        lo_hz=_number("lo_hz", lo_hz),
+        hi_hz=_number("hi_hz", hi_hz),
+        factor=_number("factor", factor),
+        fps=_number("fps", fps),
+        roi=None if roi is None else _region("roi", roi),
+        side_by_side=bool(side_by_side),
+    )
+    if not isinstance(pyramid, str):
+        raise ArgumentError(f"pyramid: expected csp or riesz, got {pyramid!r}")
+    path, out = _path("video", video), _path("output", output)
+    text = _with_progress(
+        progress,
+        "magnify",
+        lambda cb: _native.magnify(path, out, pyramid=pyramid, progress=cb, **args),
+    )
+    return _json.loads(text)
+
+
+def _y4m_frames(path: str):
+    """The luma plane of each frame of a Y4M file, as uint8 or uint16 arrays."""
+    with open(path, "rb") as f:
+        header = f.readline().split()
+        if not header or header[0] != b"YUV4MPEG2":
+            raise ValueError(f"{path}: not a Y4M file")
+        fields = {h[:1].decode(): h[1:].decode() for h in header[1:]}
+        w, h = int(fields["W"]), int(fields["H"])
+        c = fields.get("C", "420")
+        depth = 2 if c == "mono16" or c.endswith(("p10", "p12", "p14", "p16")) else 1
+        if c.startswith("mono"):
+            chroma = 0
+        elif c.startswith("444"):
+            chroma = 2 * w * h
+        elif c.startswith("422"):
+            chroma = 2 * ((w + 1) // 2) * h
+        else:
+            chroma = 2 * ((w + 1) // 2) * ((h + 1) // 2)
+        while True:
+            line = f.readline()
+            if not line:
+                return
+            if not line.startswith(b"FRAME"):
+                raise ValueError(f"{path}: expected a FRAME header, got {line[:20]!r}")
+            raw = f.read((w * h + chroma) * depth)
+            if len(raw) < (w * h + chroma) * depth:
+                raise ValueError(f"{path}: the last frame is cut short")
+            dtype = "<u2" if depth == 2 else "u1"
+            yield np.frombuffer(raw[: w * h * depth], dtype=dtype).reshape(h, w)
+
+
+def magnify_frames(
+    video: PathLike,
+    lo_hz: float,
+    hi_hz: float,
+    factor: float,
+    **kwargs: Any,
+):
+    """The magnified frames, one numpy array (luma, rows x columns) at a
+    time: ``magnify`` into a temporary Y4M file, read back as it is
+    iterated and removed when the iteration ends. Takes ``magnify``'s
+    keyword arguments.
+    """
+    with _tempfile.TemporaryDirectory(prefix="vibroscope-") as tmp:
+        out = _os.path.join(tmp, "magnified.y4m")
+        magnify(video, out, lo_hz, hi_hz, factor, **kwargs)
+        yield from _y4m_frames(out)
+
+
+def calibrate(
+    video: PathLike,
+    reference: Optional[PathLike] = None,
+    *,
+    reference_tone_hz: Optional[float] = None,
+    json: Optional[PathLike] = None,
+    output: Optional[PathLike] = None,
+    fps: Optional[float] = None,
+    roi: Optional[Region] = None,
+    effects: Optional[Sequence[str]] = None,
+    progress: Progress = None,
+) -> Dict[str, Any]:
+    """The calibration loop: ``vibroscope calibrate`` in-process.
+
+    Fits the recording's recovered sound to the ``reference`` that was
+    played (a WAV), or to a pure tone of ``reference_tone_hz`` (a tuning
+    fork), over the catalog of effects (``effects``: some of them by
+    name) and the residual explainer; returns the REPORT.json it writes
+    (to ``json`` when given; ``output``: also the corrected WAV).
+    """
+    if (reference is None) == (reference_tone_hz is None):
+        raise ArgumentError("give reference (a WAV) or reference_tone_hz, one of the two")
+    if effects is not None and (isinstance(effects, str) or not all(isinstance(e, str) for e in effects)):
+        raise ArgumentError(f"effects: expected a list of effect names, got {effects!r}")
+    args = dict(
+        reference=None if reference is None else _path("reference", reference),
+        reference_tone_hz=_number("reference_tone_hz", reference_tone_hz),
+        output=None if output is None else _path("output", output),
+        fps=_number("fps", fps),
+        roi=None if roi is None else _region("roi", roi),
+        effects=None if effects is None else list(effects),
+    )
+    path = _path("video", video)
+    with _tempfile.TemporaryDirectory(prefix="vibroscope-") as tmp:
+        out = _path("json", json) if json is not None else _os.path.join(tmp, "REPORT.json")
+        text = _with_progress(
+            progress, "calibrate", lambda cb: _native.calibrate(path, out, progress=cb, **args)
+        )
+    return _json.loads(text)
+
+
+@dataclass
+class Item:
+    """One item of a pipeline's stage, as the stage emitted it."""
+
+    kind: str
+    """``frame``, ``samples``, ``audio`` or ``spectrum``."""
+    t: float
+    """Capture time (s): of the frame, of the first sample, of the spectrum's window centre."""
+    data: np.ndarray = field(repr=False)
+    """frame: uint8 (rows, columns); samples: float32 (n, channels);
+    audio: float32 (n,); spectrum: float32 power per bin."""
+    info: Dict[str, Any] = field(default_factory=dict)
+    """The rest: rate_hz, seq, f0_hz, resolution_hz, window, segments, times."""
+
+
+def _item(d: Dict[str, Any]) -> Item:
+    kind = d.pop("kind")
+    if kind == "frame":
+        data = np.frombuffer(d.pop("pixels"), dtype=np.uint8).reshape(d["height"], d["width"])
+        return Item(kind, d.pop("t"), data, d)
+    if kind == "samples":
+        data = np.frombuffer(d.pop("data"), dtype="<f4").reshape(-1, d["channels"])
+        if "times" in d:
+            d["times"] = _f64(d["times"])
+        return Item(kind, d.pop("t0"), data, d)
+    if kind == "audio":
+        return Item(kind, d.pop("t0"), np.frombuffer(d.pop("data"), dtype="<f4"), d)
+    return Item(kind, d.pop("t"), np.frombuffer(d.pop("power"), dtype="<f4"), d)
+
+
+class Items:
+    """The items of one stage of a running pipeline, in order.
+
+    Iterate it (``for item in vibroscope.items(...)``); ``close()``, the
+    end of a ``with`` block or dropping it stops the run (its sinks
+    finalise what they had) and waits for its threads. Ctrl-C while it
+    waits stops the run and raises ``KeyboardInterrupt``.
+    """
+
+    def __init__(self, native: Any) -> None:
+        self._native = native
+
+    def __iter__(self) -> "Items":
+        return self
+
+    def __next__(self) -> Item:
+        return _item(next(self._native))
+
+    def close(self) -> None:
+        self._native.close()
+
+    def __enter__(self) -> "Items":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    @property
+    def stats(self) -> Optional[str]:
+        """The run's per-stage table (``--stats``), once it has ended."""
+        return self._native.stats
+
+
+def items(
+    pipeline: str,
+    stage: str,
+    *,
+    replay: Optional[PathLike] = None,
+    set: Optional[Sequence[str]] = None,
+    fps: Optional[float] = None,
+    queue: int = 64,
+) -> Items:
+    """Run a pipeline and iterate over one stage's items, live or replayed.
+
+    ``pipeline``: a shipped pipeline's name (``vibroscope pipelines``) or a
+    TOML file; ``stage``: the id of the stage whose output you want;
+    ``replay``: a recording in place of the pipeline's source; ``set``:
+    ``STAGE.KEY=VALUE`` overrides, as ``vibroscope run --set``. Every item
+    comes in order: a replay waits for you (never drops, bit-identical to
+    ``vibroscope run``); a live source drops by its edges' policy when
+    more than ``queue`` items wait unread.
+    """
+    sets = list(set or [])
+    if not all(isinstance(v, str) for v in sets):
+        raise ArgumentError(f"set: expected STAGE.KEY=VALUE strings, got {set!r}")
+    for name, v in (("pipeline", pipeline), ("stage", stage)):
+        if not isinstance(v, str):
+            raise ArgumentError(f"{name}: expected a string, got {v!r}")
+    return Items(
+        _native.items(
+            pipeline,
+            stage,
+            None if replay is None else _path("replay", replay),
+            sets,
+            _number("fps", fps),
+            _number("queue", queue, integer=True),
+        )
+    )

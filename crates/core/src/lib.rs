@@ -31,7 +31,7 @@ pub use item::{
 };
 pub use latency::{LatencyHist, LatencySummary};
 pub use observe::{
-    FrameHistory, HistoryLimits, Latest, Observer, Snapshot, StageLive, TapFrame, TapSlot,
+    FrameHistory, HistoryLimits, Latest, Next, Observer, Snapshot, StageLive, TapFrame, TapSlot,
 };
 pub use runner::{
     error_chain, run, thousands, RunError, RunOptions, RunReport, SourceProgress, StageReport,

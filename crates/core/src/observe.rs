@@ -15,7 +15,7 @@ use crate::item::{AudioBlock, Item, SampleBlock, Spectrum};
 use crate::stage::Control;
 use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, TryLockError};
+use std::sync::{Arc, Condvar, Mutex, TryLockError};
 use std::time::Instant;
 
 /// The live state of one run, readable from any thread.
@@ -155,6 +155,31 @@ pub struct TapSlot {
     /// item came sooner than the tap's interval after the last one kept.
     skipped: AtomicU64,
     history: Mutex<History>,
+    /// Every item, in order, for a tap with `queue` (a reader of all of
+    /// them); `ready` wakes the reader, `room` the tap.
+    queue: Mutex<Queue>,
+    ready: Condvar,
+    room: Condvar,
+}
+
+/// The items a tap with `queue` handed over and the reader has not taken.
+#[derive(Default)]
+struct Queue {
+    items: VecDeque<Latest>,
+    /// The tap has finished: no item will follow those queued.
+    closed: bool,
+    /// The reader has gone: items are discarded, the tap never waits.
+    abandoned: bool,
+}
+
+/// What [`TapSlot::next`] found.
+#[derive(Debug)]
+pub enum Next {
+    Item(Latest),
+    /// Nothing yet within the time given.
+    Wait,
+    /// The tap has finished and every item was taken.
+    End,
 }
 
 /// The last frames of a stream, oldest first, contiguous (after a gap the
@@ -282,6 +307,78 @@ impl TapSlot {
 }
 
 impl TapSlot {
+    /// Hands `item` (a frame copied as 8-bit grey) to the reader, after
+    /// those before it, waiting while `cap` items wait unread: a stream
+    /// read this way is never thinned (a live source upstream drops by
+    /// its edges' policy, a replay waits). Returns false, the item
+    /// discarded, once the reader has gone ([`TapSlot::abandon`]).
+    pub fn push(&self, item: &Item, cap: usize) -> bool {
+        let next = match item {
+            Item::Spectrum(s) => Latest::Spectrum(s.clone()),
+            Item::Samples(s) => Latest::Samples(s.clone()),
+            Item::Audio(a) => Latest::Audio(a.clone()),
+            Item::Frame(f) => {
+                let mut tf = TapFrame::default();
+                copy_frame(f, &mut tf);
+                Latest::Frame(tf)
+            }
+            Item::Pyramid(_) | Item::Peaks(_) => {
+                self.count_skip();
+                return false;
+            }
+        };
+        let mut q = self.queue.lock().unwrap_or_else(|e| e.into_inner());
+        while !q.abandoned && q.items.len() >= cap.max(1) {
+            q = self
+                .room
+                .wait_timeout(q, std::time::Duration::from_millis(50))
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        }
+        if q.abandoned {
+            return false;
+        }
+        q.items.push_back(next);
+        self.ready.notify_all();
+        true
+    }
+
+    /// The tap has finished: the reader gets what is queued, then the end.
+    pub fn close(&self) {
+        self.queue.lock().unwrap_or_else(|e| e.into_inner()).closed = true;
+        self.ready.notify_all();
+    }
+
+    /// The reader goes: what is queued is dropped, and the tap discards
+    /// what comes instead of waiting for room.
+    pub fn abandon(&self) {
+        let mut q = self.queue.lock().unwrap_or_else(|e| e.into_inner());
+        q.abandoned = true;
+        q.items.clear();
+        self.room.notify_all();
+    }
+
+    /// The next item handed over by [`TapSlot::push`], waiting at most
+    /// `timeout` for one.
+    pub fn next(&self, timeout: std::time::Duration) -> Next {
+        let mut q = self.queue.lock().unwrap_or_else(|e| e.into_inner());
+        if q.items.is_empty() && !q.closed {
+            q = self
+                .ready
+                .wait_timeout(q, timeout)
+                .unwrap_or_else(|e| e.into_inner())
+                .0;
+        }
+        match q.items.pop_front() {
+            Some(item) => {
+                self.room.notify_all();
+                Next::Item(item)
+            }
+            None if q.closed => Next::End,
+            None => Next::Wait,
+        }
+    }
+
     /// A copy of the frames kept by a tap with `history_s` (empty for
     /// others). The tap does not wait while this copies: what arrives
     /// meanwhile is handed over at its next frame.

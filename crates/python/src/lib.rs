@@ -20,10 +20,11 @@
 
 use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyBytes;
+use pyo3::types::{PyBytes, PyDict};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
+use vibroscope::live::{Latest, Next, Observer, TapSlot};
 use vibroscope::pipeline::{Cancel, Roi, RunSettings};
 use vibroscope::{Error, ErrorKind};
 
@@ -122,6 +123,15 @@ fn rois(regions: Vec<[u32; 4]>) -> Vec<Roi> {
         .collect()
 }
 
+/// `--scale MM_PER_PX`.
+fn scale_arg(scale: Option<f64>) -> PyResult<Option<vibroscope::units::ScaleArg>> {
+    scale
+        .map(|s| {
+            vibroscope::units::ScaleArg::mm_per_px(&s.to_string()).map_err(|e| py_err(e.into()))
+        })
+        .transpose()
+}
+
 /// What `vibroscope probe --json` writes, as JSON text.
 #[pyfunction]
 #[pyo3(signature = (video, fps=None))]
@@ -172,7 +182,7 @@ fn displacement<'py>(
 #[pyfunction]
 #[pyo3(signature = (video, json_path, fps=None, roi=None, peaks=5, min_hz=None, max_hz=None,
     false_alarm=None, scale=None, quantity="displacement", regions=Vec::new(), uff=None,
-    waveform=None, progress=None))]
+    waveform=None, include_spectrum=false, progress=None))]
 #[allow(clippy::too_many_arguments)]
 fn spectrum(
     py: Python<'_>,
@@ -189,6 +199,7 @@ fn spectrum(
     regions: Vec<[u32; 4]>,
     uff: Option<PathBuf>,
     waveform: Option<PathBuf>,
+    include_spectrum: bool,
     progress: Option<Bound<'_, PyAny>>,
 ) -> PyResult<String> {
     use vibroscope::spectrum::SpectrumOptions;
@@ -201,18 +212,14 @@ fn spectrum(
     if let Some(p) = false_alarm {
         o.false_alarm = p;
     }
-    o.scale = match scale {
-        Some(s) => Some(
-            vibroscope::units::ScaleArg::mm_per_px(&s.to_string()).map_err(|e| py_err(e.into()))?,
-        ),
-        None => None,
-    };
+    o.scale = scale_arg(scale)?;
     o.quantity = quantity
         .parse()
         .map_err(|e: vibroscope::UsageError| py_err(e.into()))?;
     o.regions = rois(regions);
     o.uff = uff;
     o.waveform = waveform;
+    o.include_spectrum = include_spectrum;
     o.run = RunSettings {
         progress: progress.is_some(),
     };
@@ -269,6 +276,158 @@ fn listen<'py>(
     Ok((json(&report)?, rate, bytes(py, samples)))
 }
 
+/// `vibroscope modes`: the modal image at each of `at_hz` (PNG, and the
+/// complex image as `.npy` when `npy` is given; several frequencies name
+/// their files after the frequency, as the command does). Returns the
+/// reports' JSON (a list).
+#[pyfunction]
+#[pyo3(signature = (video, at_hz, png, npy=None, fps=None, roi=None, motion="sum", scale=None,
+    sigma=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn modes(
+    py: Python<'_>,
+    video: PathBuf,
+    at_hz: Vec<f64>,
+    png: PathBuf,
+    npy: Option<PathBuf>,
+    fps: Option<f64>,
+    roi: Option<[u32; 4]>,
+    motion: &str,
+    scale: Option<f64>,
+    sigma: Option<f64>,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<String> {
+    use vibroscope::modes::{ModesOptions, Motion};
+    let Some((&first, rest)) = at_hz.split_first() else {
+        return Err(PyValueError::new_err("at_hz: give at least one frequency"));
+    };
+    let motion = match motion {
+        "x" => Motion::X,
+        "y" => Motion::Y,
+        "sum" => Motion::Sum,
+        m => {
+            return Err(PyValueError::new_err(format!(
+                "motion: expected x, y or sum, got `{m}`"
+            )))
+        }
+    };
+    let mut o = ModesOptions {
+        video,
+        at_hz: first,
+        also_at_hz: rest.to_vec(),
+        output: png,
+        npy,
+        fps,
+        motion,
+        sigma,
+        scale: scale_arg(scale)?,
+        run: RunSettings {
+            progress: progress.is_some(),
+        },
+        ..ModesOptions::default()
+    };
+    o.region.roi = roi.map(|[x, y, w, h]| Roi { x, y, w, h });
+    let (r, _) = run(py, progress.as_ref(), move || {
+        vibroscope::modes::modes_all(&o)
+    })?;
+    json(&r)
+}
+
+/// `vibroscope magnify`: writes the magnified video to `output` and
+/// returns its report's JSON.
+#[pyfunction]
+#[pyo3(signature = (video, output, lo_hz, hi_hz, factor, fps=None, roi=None, pyramid="csp",
+    side_by_side=false, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn magnify(
+    py: Python<'_>,
+    video: PathBuf,
+    output: PathBuf,
+    lo_hz: f64,
+    hi_hz: f64,
+    factor: f64,
+    fps: Option<f64>,
+    roi: Option<[u32; 4]>,
+    pyramid: &str,
+    side_by_side: bool,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<String> {
+    use vibroscope::magnify::MagnifyOptions;
+    use vibroscope::pipeline::Pyramid;
+    let pyramid = match pyramid {
+        "csp" => Pyramid::Csp,
+        "riesz" => Pyramid::Riesz,
+        p => {
+            return Err(PyValueError::new_err(format!(
+                "pyramid: expected csp or riesz, got `{p}`"
+            )))
+        }
+    };
+    let o = MagnifyOptions {
+        video,
+        output,
+        lo_hz,
+        hi_hz,
+        factor,
+        fps,
+        roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
+        pyramid,
+        side_by_side,
+        run: RunSettings {
+            progress: progress.is_some(),
+        },
+        ..MagnifyOptions::default()
+    };
+    let r = run(py, progress.as_ref(), move || {
+        vibroscope::magnify::magnify(&o)
+    })?;
+    json(&r)
+}
+
+/// `vibroscope calibrate`: writes REPORT.json to `json_path` (and the
+/// corrected WAV to `output`) and returns the JSON's text.
+#[pyfunction]
+#[pyo3(signature = (video, json_path, reference=None, reference_tone_hz=None, output=None,
+    fps=None, roi=None, effects=None, progress=None))]
+#[allow(clippy::too_many_arguments)]
+fn calibrate(
+    py: Python<'_>,
+    video: PathBuf,
+    json_path: PathBuf,
+    reference: Option<PathBuf>,
+    reference_tone_hz: Option<f64>,
+    output: Option<PathBuf>,
+    fps: Option<f64>,
+    roi: Option<[u32; 4]>,
+    effects: Option<Vec<String>>,
+    progress: Option<Bound<'_, PyAny>>,
+) -> PyResult<String> {
+    use vibroscope::calibrate::CalibrateOptions;
+    let effects = match effects {
+        Some(list) => Some(vibroscope::calibrate::parse_effects(&list.join(",")).map_err(py_err)?),
+        None => None,
+    };
+    let mut o = CalibrateOptions {
+        video,
+        reference: reference.unwrap_or_default(),
+        reference_tone_hz,
+        json: json_path.clone(),
+        output,
+        fps,
+        effects,
+        run: RunSettings {
+            progress: progress.is_some(),
+        },
+        ..CalibrateOptions::default()
+    };
+    o.region.roi = roi.map(|[x, y, w, h]| Roi { x, y, w, h });
+    run(py, progress.as_ref(), move || {
+        vibroscope::calibrate::calibrate(&o).map(drop)
+    })?;
+    std::fs::read_to_string(&json_path)
+        .map_err(|e| PyOSError::new_err(format!("{}: {e}", json_path.display())))
+}
+
 /// `vibroscope simulate`: renders the scene file to `output` (Y4M) and
 /// returns what it wrote, as JSON.
 #[pyfunction]
@@ -294,6 +453,204 @@ fn simulate(
     json(&r)
 }
 
+/// f32 samples as little-endian bytes.
+fn f32_bytes<'py>(py: Python<'py>, v: &[f32]) -> Bound<'py, PyBytes> {
+    let raw: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    PyBytes::new(py, &raw)
+}
+
+/// One item as a dict (arrays as bytes; the Python layer makes numpy
+/// arrays of them).
+fn item_dict<'py>(py: Python<'py>, item: Latest) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    match item {
+        Latest::Frame(f) => {
+            d.set_item("kind", "frame")?;
+            d.set_item("t", f.t_ns as f64 * 1e-9)?;
+            d.set_item("seq", f.seq)?;
+            d.set_item("width", f.width)?;
+            d.set_item("height", f.height)?;
+            d.set_item("pixels", PyBytes::new(py, &f.gray))?;
+        }
+        Latest::Samples(b) => {
+            d.set_item("kind", "samples")?;
+            d.set_item("t0", b.t0_ns as f64 * 1e-9)?;
+            d.set_item("rate_hz", b.rate_hz)?;
+            d.set_item("channels", b.channels)?;
+            d.set_item("data", f32_bytes(py, &b.data))?;
+            if let Some(t) = &b.times_ns {
+                let times: Vec<f64> = t.iter().map(|&v| v as f64 * 1e-9).collect();
+                d.set_item("times", bytes(py, times))?;
+            }
+        }
+        Latest::Audio(a) => {
+            d.set_item("kind", "audio")?;
+            d.set_item("t0", a.t0_ns as f64 * 1e-9)?;
+            d.set_item("rate_hz", a.rate_hz)?;
+            d.set_item("data", f32_bytes(py, &a.samples))?;
+        }
+        Latest::Spectrum(s) => {
+            d.set_item("kind", "spectrum")?;
+            d.set_item("t", s.t_ns as f64 * 1e-9)?;
+            d.set_item("f0_hz", s.f0_hz)?;
+            d.set_item("resolution_hz", s.resolution_hz)?;
+            d.set_item("rate_hz", s.rate_hz)?;
+            d.set_item("window", s.window)?;
+            d.set_item("segments", s.segments)?;
+            d.set_item("power", f32_bytes(py, &s.power))?;
+        }
+    }
+    Ok(d)
+}
+
+/// The items of one stage of a running pipeline, in order (see
+/// [`items`]). Closing it (or dropping it) stops the run and waits for
+/// its threads.
+#[pyclass(module = "vibroscope._vibroscope")]
+struct Items {
+    observer: Arc<Observer>,
+    slot: Arc<TapSlot>,
+    /// The run: its per-stage table, or its error.
+    thread: Option<std::thread::JoinHandle<vibroscope::Result<String>>>,
+    /// The run's table once it ended (`--stats`'s).
+    report: Option<String>,
+}
+
+impl Items {
+    /// Stops the run (when `stop`), waits for it, and gives its error.
+    fn end(&mut self, py: Python<'_>, stop: bool) -> PyResult<()> {
+        if stop {
+            self.slot.abandon();
+            self.observer.stop();
+        }
+        if let Some(t) = self.thread.take() {
+            match py.detach(|| t.join()) {
+                Ok(Ok(table)) => self.report = Some(table),
+                Ok(Err(e)) if !stop => return Err(py_err(e)),
+                Ok(Err(_)) => {}
+                Err(_) => {
+                    return Err(PyRuntimeError::new_err(
+                        "vibroscope: the pipeline's thread panicked (a bug: please report it)",
+                    ))
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Items {
+    fn drop(&mut self) {
+        self.slot.abandon();
+        self.observer.stop();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+#[pymethods]
+impl Items {
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __next__<'py>(&mut self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        loop {
+            if self.thread.is_none() {
+                return Ok(None);
+            }
+            let slot = Arc::clone(&self.slot);
+            match py.detach(move || slot.next(Duration::from_millis(100))) {
+                Next::Item(item) => return item_dict(py, item).map(Some),
+                Next::End => {
+                    self.end(py, false)?;
+                    return Ok(None);
+                }
+                Next::Wait => {
+                    if let Err(e) = py.check_signals() {
+                        self.end(py, true)?;
+                        return Err(e);
+                    }
+                    // A run that failed before its tap started never closes it.
+                    if self.thread.as_ref().is_some_and(|t| t.is_finished()) {
+                        let slot = Arc::clone(&self.slot);
+                        if let Next::Item(item) = slot.next(Duration::ZERO) {
+                            return item_dict(py, item).map(Some);
+                        }
+                        self.end(py, false)?;
+                        return Ok(None);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Stops the run (its sinks finalise what they had) and waits for it.
+    fn close(&mut self, py: Python<'_>) -> PyResult<()> {
+        self.end(py, true)
+    }
+
+    /// The run's per-stage table, once it has ended.
+    #[getter]
+    fn stats(&self) -> Option<String> {
+        self.report.clone()
+    }
+}
+
+/// Starts `pipeline` (a shipped name or a TOML file; `set`: `STAGE.KEY=VALUE`
+/// overrides; `replay`: its source replaced by a recording) with a `tap`
+/// on `stage` that hands every item of it over in order, at most `queue`
+/// unread (a replay then waits for the reader; a live source drops by
+/// its edges' policy). The run starts at once, on threads of its own.
+#[pyfunction]
+#[pyo3(signature = (pipeline, stage, replay=None, set=Vec::new(), fps=None, queue=64))]
+fn items(
+    pipeline: String,
+    stage: String,
+    replay: Option<PathBuf>,
+    set: Vec<String>,
+    fps: Option<f64>,
+    queue: u64,
+) -> PyResult<Items> {
+    use vibroscope::live::{Origin, TapParams};
+    use vibroscope::pipeline as pl;
+    let mut decl = pl::prepare(&pl::PipelineOptions {
+        pipeline,
+        set,
+        replay,
+        fps,
+    })
+    .map_err(py_err)?;
+    let origin = Origin::Builtin("the Python package's items()".into());
+    let mut st = pl::new_stage::<TapParams>("python_items", &[&stage], origin.clone());
+    st.capacity = Some((64, origin.clone()));
+    pl::put(
+        &mut st,
+        TapParams::name,
+        "python".to_string(),
+        origin.clone(),
+    )
+    .map_err(py_err)?;
+    pl::put(&mut st, TapParams::every_ms, 0.0, origin.clone()).map_err(py_err)?;
+    pl::put(&mut st, TapParams::queue, queue.max(1), origin).map_err(py_err)?;
+    decl.stages.push(st);
+    pl::validate(&decl).map_err(|e| py_err(e.into()))?;
+    let observer = Observer::new();
+    let slot = observer.slot("python");
+    let watcher = Arc::clone(&observer);
+    let thread = std::thread::Builder::new()
+        .name("vibroscope-items".into())
+        .spawn(move || pl::run_observed(&decl, &watcher).map(|r| r.table()))
+        .map_err(|e| PyRuntimeError::new_err(format!("cannot start the pipeline's thread: {e}")))?;
+    Ok(Items {
+        observer,
+        slot,
+        thread: Some(thread),
+        report: None,
+    })
+}
+
 /// The library's version.
 #[pyfunction]
 fn version() -> &'static str {
@@ -306,7 +663,12 @@ fn _vibroscope(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(displacement, m)?)?;
     m.add_function(wrap_pyfunction!(spectrum, m)?)?;
     m.add_function(wrap_pyfunction!(listen, m)?)?;
+    m.add_function(wrap_pyfunction!(modes, m)?)?;
+    m.add_function(wrap_pyfunction!(magnify, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(items, m)?)?;
+    m.add_class::<Items>()?;
     m.add_function(wrap_pyfunction!(version, m)?)?;
     Ok(())
 }

@@ -5,6 +5,8 @@
 pub use vibroscope_engine::config::{Origin, PipelineDecl};
 pub use vibroscope_engine::stages::params::TapParams;
 pub use vibroscope_engine::stages::transform::roi::Mask;
-pub use vibroscope_engine::{thousands, Latest, Observer, PortType, Spectrum, TapFrame, TapSlot};
+pub use vibroscope_engine::{
+    thousands, Latest, Next, Observer, PortType, Spectrum, TapFrame, TapSlot,
+};
 #[cfg(feature = "net")]
 pub use vibroscope_net::session as net;

@@ -15,6 +15,12 @@
 //! clicked. While the watcher copies them out, frames wait in a buffer of
 //! an eighth of that memory; if more come, the history starts over.
 //!
+//! With `queue`, it hands every item to the watcher in order instead
+//! (frames copied as 8-bit), is woken per item, and waits while `queue`
+//! items wait unread: a replay is never thinned, and a live source drops
+//! by its edges' policy; after the last item the watcher is told the end
+//! (the Python package's `vibroscope.items` reads a tap this way).
+//!
 //! ```toml
 //! [[stage]]
 //! id = "live"
@@ -46,6 +52,10 @@ params! {
             .ints(1, 65_536)
             .unit("MiB")
             .doc("at most this much memory for the history (older frames go first)"),
+        queue: u64 = ParamSpec::of(ParamType::Int, Def::Int(0))
+            .ints(0, 65_536)
+            .unit("items")
+            .doc("hand every item to the watcher in order instead of the latest (frames as 8-bit), waiting while this many wait unread (0: the latest only); the Python package's pipeline iterator reads them"),
     }
 }
 
@@ -85,6 +95,7 @@ impl Plan for TapPlan {
         });
         Ok(Node::Stage(Box::new(Tap {
             slot,
+            queue: self.0.queue as usize,
             every_ns: (self.0.every_ms * 1e6) as i64,
             last_ns: None,
             kept: 0,
@@ -97,6 +108,8 @@ impl Plan for TapPlan {
 
 struct Tap {
     slot: Option<Arc<TapSlot>>,
+    /// Every item in order, at most this many unread (0: the latest only).
+    queue: usize,
     every_ns: i64,
     last_ns: Option<i64>,
     kept: u64,
@@ -112,6 +125,12 @@ impl Stage for Tap {
         let Some(slot) = &self.slot else {
             return Ok(());
         };
+        if self.queue > 0 {
+            if slot.push(&item, self.queue) {
+                self.kept += 1;
+            }
+            return Ok(());
+        }
         if let Some(lim) = self.history {
             if let Item::Frame(f) = &item {
                 slot.record(f, lim, &mut self.pending);
@@ -137,11 +156,24 @@ impl Stage for Tap {
     /// cost the source measurable time; looking every 5 ms costs nothing
     /// upstream (the ring holds what arrives meanwhile).
     fn poll_period(&self) -> Option<std::time::Duration> {
-        Some(POLL)
+        // A reader of every item is woken per item.
+        (self.queue == 0).then_some(POLL)
+    }
+
+    /// The reader of a queue gets the end after the last item.
+    fn finish(&mut self, _: &mut Emitter) -> Result<(), StageError> {
+        if let Some(s) = &self.slot {
+            s.close();
+        }
+        Ok(())
     }
 
     fn summary(&self) -> Option<String> {
         Some(match &self.slot {
+            Some(_) if self.queue > 0 => format!(
+                "handed {} of {} items to the watcher in order",
+                self.kept, self.seen
+            ),
             Some(s) if self.history.is_some() => format!(
                 "recorded {} frames of {} items into the watcher's history (started over {} times)",
                 self.kept,
