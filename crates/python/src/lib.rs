@@ -98,6 +98,11 @@ fn run<T: Send>(
         if let Some(e) = stopped {
             return Err(e);
         }
+        // The last count, so that a bar ends where the run did.
+        if let Some(cb) = progress {
+            let p = vibroscope::pipeline::progress();
+            cb.call1((p.frames, p.total))?;
+        }
         match result {
             Ok(r) => r.map_err(py_err),
             Err(_) => Err(PyRuntimeError::new_err(
