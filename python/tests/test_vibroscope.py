@@ -249,6 +249,11 @@ def test_bad_input_raises_the_librarys_message(scenes, tmp_path):
         vibroscope.spectrum(scenes["beam"], quantity="jerk")
     with pytest.raises(ValueError, match="video: expected a path"):
         vibroscope.listen(42)
+    # Bad keys are refused and named: a pipeline's, and a keyword's.
+    with pytest.raises(ValueError, match="field `nosuch`"):
+        vibroscope.items("motion", "motion", replay=scenes["beam"], set=["motion.nosuch=1"])
+    with pytest.raises(TypeError, match="nosuch"):
+        vibroscope.spectrum(scenes["beam"], nosuch=1)
 
 
 def threads():
