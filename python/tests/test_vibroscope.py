@@ -249,6 +249,8 @@ def test_bad_input_raises_the_librarys_message(scenes, tmp_path):
         vibroscope.spectrum(scenes["beam"], quantity="jerk")
     with pytest.raises(ValueError, match="video: expected a path"):
         vibroscope.listen(42)
+    with pytest.raises(OSError, match="missing.y4m"):
+        vibroscope.items("motion", "motion", replay=tmp_path / "missing.y4m")
     # Bad keys are refused and named: a pipeline's, and a keyword's.
     with pytest.raises(ValueError, match="field `nosuch`"):
         vibroscope.items("motion", "motion", replay=scenes["beam"], set=["motion.nosuch=1"])

@@ -98,17 +98,20 @@ fn run<T: Send>(
         if let Some(e) = stopped {
             return Err(e);
         }
+        let value = match result {
+            Ok(r) => r.map_err(py_err)?,
+            Err(_) => {
+                return Err(PyRuntimeError::new_err(
+                    "vibroscope: the run panicked (a bug: please report it with the input)",
+                ))
+            }
+        };
         // The last count, so that a bar ends where the run did.
         if let Some(cb) = progress {
             let p = vibroscope::pipeline::progress();
             cb.call1((p.frames, p.total))?;
         }
-        match result {
-            Ok(r) => r.map_err(py_err),
-            Err(_) => Err(PyRuntimeError::new_err(
-                "vibroscope: the run panicked (a bug: please report it with the input)",
-            )),
-        }
+        Ok(value)
     })
 }
 
@@ -620,6 +623,11 @@ fn items(
 ) -> PyResult<Items> {
     use vibroscope::live::{Origin, TapParams};
     use vibroscope::pipeline as pl;
+    // A recording that cannot be read is told now, as an OSError, not
+    // when the iteration starts.
+    if let Some(r) = &replay {
+        vibroscope::probe::probe(r, fps).map_err(py_err)?;
+    }
     let mut decl = pl::prepare(&pl::PipelineOptions {
         pipeline,
         set,
