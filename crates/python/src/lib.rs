@@ -124,11 +124,28 @@ fn json<T: serde::Serialize + ?Sized>(v: &T) -> PyResult<String> {
     serde_json::to_string(v).map_err(|e| PyRuntimeError::new_err(e.to_string()))
 }
 
+fn to_roi(r: Option<[u32; 4]>) -> Option<Roi> {
+    r.map(|[x, y, w, h]| Roi { x, y, w, h })
+}
+
 fn rois(regions: Vec<[u32; 4]>) -> Vec<Roi> {
     regions
         .into_iter()
         .map(|[x, y, w, h]| Roi { x, y, w, h })
         .collect()
+}
+
+/// A run that counts frames for the progress callback when there is one.
+fn settings(progress: Option<&Bound<'_, PyAny>>) -> RunSettings {
+    RunSettings {
+        progress: progress.is_some(),
+    }
+}
+
+/// The report a recipe wrote to `path`, as text.
+fn read_report(path: &std::path::Path) -> PyResult<String> {
+    std::fs::read_to_string(path)
+        .map_err(|e| PyOSError::new_err(format!("{}: {e}", path.display())))
 }
 
 /// `--scale MM_PER_PX`.
@@ -165,11 +182,9 @@ fn displacement<'py>(
     fps: Option<f64>,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(f64, Vec<Series<'py>>)> {
-    let settings = RunSettings {
-        progress: progress.is_some(),
-    };
+    let run_settings = settings(progress.as_ref());
     let motion = run(py, progress.as_ref(), move || {
-        vibroscope::motion::displacement(&video, fps, regions, settings)
+        vibroscope::motion::displacement(&video, fps, regions, run_settings)
     })?;
     let rate = motion.first().map_or(f64::NAN, |m| m.rate_hz);
     let out = motion
@@ -213,7 +228,7 @@ fn spectrum(
     use vibroscope::spectrum::SpectrumOptions;
     let mut o = SpectrumOptions::new(&video, &json_path);
     o.fps = fps;
-    o.region.roi = roi.map(|[x, y, w, h]| Roi { x, y, w, h });
+    o.region.roi = to_roi(roi);
     o.peaks = peaks;
     o.min_hz = min_hz;
     o.max_hz = max_hz;
@@ -228,9 +243,7 @@ fn spectrum(
     o.uff = uff;
     o.waveform = waveform;
     o.include_spectrum = include_spectrum;
-    o.run = RunSettings {
-        progress: progress.is_some(),
-    };
+    o.run = settings(progress.as_ref());
     if o.waveform.is_none() && o.uff.is_none() && !o.regions.is_empty() {
         return Err(PyValueError::new_err(
             "regions apply to the waveform and uff exports: give waveform= or uff=",
@@ -239,8 +252,7 @@ fn spectrum(
     run(py, progress.as_ref(), move || {
         vibroscope::spectrum::spectrum(&o).map(|_| ())
     })?;
-    std::fs::read_to_string(&json_path)
-        .map_err(|e| PyOSError::new_err(format!("{}: {e}", json_path.display())))
+    read_report(&json_path)
 }
 
 /// `vibroscope listen`: writes `output` (a WAV) and returns the report's
@@ -270,12 +282,10 @@ fn listen<'py>(
         } else {
             OutputRate::Standard
         },
-        run: RunSettings {
-            progress: progress.is_some(),
-        },
+        run: settings(progress.as_ref()),
         ..ListenOptions::default()
     };
-    o.region.roi = roi.map(|[x, y, w, h]| Roi { x, y, w, h });
+    o.region.roi = to_roi(roi);
     let report = run(py, progress.as_ref(), move || {
         vibroscope::listen::listen(&o)
     })?;
@@ -329,12 +339,10 @@ fn modes(
         motion,
         sigma,
         scale: scale_arg(scale)?,
-        run: RunSettings {
-            progress: progress.is_some(),
-        },
+        run: settings(progress.as_ref()),
         ..ModesOptions::default()
     };
-    o.region.roi = roi.map(|[x, y, w, h]| Roi { x, y, w, h });
+    o.region.roi = to_roi(roi);
     let (r, _) = run(py, progress.as_ref(), move || {
         vibroscope::modes::modes_all(&o)
     })?;
@@ -378,12 +386,10 @@ fn magnify(
         hi_hz,
         factor,
         fps,
-        roi: roi.map(|[x, y, w, h]| Roi { x, y, w, h }),
+        roi: to_roi(roi),
         pyramid,
         side_by_side,
-        run: RunSettings {
-            progress: progress.is_some(),
-        },
+        run: settings(progress.as_ref()),
         ..MagnifyOptions::default()
     };
     let r = run(py, progress.as_ref(), move || {
@@ -423,17 +429,14 @@ fn calibrate(
         output,
         fps,
         effects,
-        run: RunSettings {
-            progress: progress.is_some(),
-        },
+        run: settings(progress.as_ref()),
         ..CalibrateOptions::default()
     };
-    o.region.roi = roi.map(|[x, y, w, h]| Roi { x, y, w, h });
+    o.region.roi = to_roi(roi);
     run(py, progress.as_ref(), move || {
         vibroscope::calibrate::calibrate(&o).map(drop)
     })?;
-    std::fs::read_to_string(&json_path)
-        .map_err(|e| PyOSError::new_err(format!("{}: {e}", json_path.display())))
+    read_report(&json_path)
 }
 
 /// `vibroscope simulate`: renders the scene file to `output` (Y4M) and
@@ -451,9 +454,7 @@ fn simulate(
         scene,
         output,
         set,
-        run: RunSettings {
-            progress: progress.is_some(),
-        },
+        run: settings(progress.as_ref()),
     };
     let r = run(py, progress.as_ref(), move || {
         vibroscope::simulate::simulate(&o)

@@ -588,7 +588,6 @@ pub fn displacement(
     rois: Vec<[u32; 4]>,
     run: pipeline::RunSettings,
 ) -> Result<Vec<RegionMotion>> {
-    crate::error::check_outputs(&[video], &[])?;
     check_regions(video, fps, &rois, "regions")?;
     let mut decl = pipeline::prepare(&pipeline::PipelineOptions {
         pipeline: "motion".into(),
