@@ -47,7 +47,16 @@ fn main() {
         let listen = best_of(3, || {
             timed(
                 &dir,
-                &["listen", "scene.y4m", "--pyramid", pyr, "-o", "l.wav"],
+                &[
+                    "listen",
+                    "scene.y4m",
+                    "--method",
+                    "phase",
+                    "--pyramid",
+                    pyr,
+                    "-o",
+                    "l.wav",
+                ],
             )
         });
         let magnify = best_of(3, || {

@@ -29,6 +29,7 @@ pub mod exposure;
 pub mod fastmath;
 pub mod idv;
 pub mod iir;
+pub mod join;
 pub mod magnify;
 pub mod metrics;
 pub mod modal;

@@ -8,6 +8,8 @@
 //! low-pass residual to collapse with, so the magnifier uses this one and
 //! the exact Riesz pair on its levels (by FFT, [`super::riesz_fft`]).
 
+use crate::join::{both, simd_fn, Par, Serial, Simd};
+
 const TAPS: [f32; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16.0];
 
 /// Mirror index (`x[-1] = x[1]`) into `0..n`.
@@ -60,6 +62,17 @@ impl Laplacian {
 
     /// Decomposes `frame` (row-major, the size given to `new`).
     pub fn analyze(&mut self, frame: &[f32]) {
+        let par = Par {
+            j: &Serial,
+            simd: Simd::detect(),
+        };
+        self.analyze_with(frame, par);
+    }
+
+    /// [`Self::analyze`], each pass's rows in two halves through `j` (the
+    /// same bits however `j` runs them).
+    #[inline(always)]
+    pub(crate) fn analyze_with(&mut self, frame: &[f32], j: Par<'_>) {
         let levels = self.levels();
         self.bands[0].copy_from_slice(frame);
         for l in 0..levels {
@@ -68,17 +81,25 @@ impl Laplacian {
             let (cur, rest) = self.bands.split_at_mut(l + 1);
             let g = &mut cur[l];
             let next = &mut rest[0];
-            reduce(g, w, h, next, nw, nh, &mut self.tmp);
-            expand(next, nw, nh, &mut self.up[..w * h], w, h, &mut self.tmp);
-            for (v, u) in g.iter_mut().zip(&self.up[..w * h]) {
-                *v -= u;
-            }
+            reduce(g, w, h, next, nw, nh, &mut self.tmp, j);
+            // L = G - expand(reduce(G)), in the expansion's last pass.
+            expand(next, nw, nh, g, w, h, &mut self.tmp, Put::Sub, j);
         }
     }
 
     /// Rebuilds the frame into `out` from the (possibly modified) levels.
     /// Leaves the levels as they were.
     pub fn collapse(&mut self, out: &mut [f32]) {
+        let par = Par {
+            j: &Serial,
+            simd: Simd::detect(),
+        };
+        self.collapse_with(out, par);
+    }
+
+    /// [`Self::collapse`], each pass's rows in two halves through `j`.
+    #[inline(always)]
+    pub(crate) fn collapse_with(&mut self, out: &mut [f32], j: Par<'_>) {
         let levels = self.levels();
         let (lw, lh) = self.dims[levels];
         // Work upwards in `out` (large enough for every level).
@@ -88,69 +109,263 @@ impl Laplacian {
             let (nw, nh) = self.dims[l + 1];
             self.up[..nw * nh].copy_from_slice(&out[..nw * nh]);
             let (src, dst) = (&self.up[..nw * nh], &mut out[..w * h]);
-            expand(src, nw, nh, dst, w, h, &mut self.tmp);
-            for (o, b) in out[..w * h].iter_mut().zip(&self.bands[l]) {
-                *o += b;
-            }
+            // G_l = expand(G_(l+1)) + L_l, the sum in the last pass.
+            let band = Put::Add(&self.bands[l]);
+            expand(src, nw, nh, dst, w, h, &mut self.tmp, band, j);
         }
     }
+}
+
+/// Below this many pixels a pass is not split (the halves would cost more
+/// to hand over than they save).
+pub(crate) const SPLIT_MIN: usize = 8192;
+
+/// Where `rows` rows are split in two (none below [`SPLIT_MIN`] pixels).
+#[inline(always)]
+pub(crate) fn mid_row(rows: usize, width: usize) -> usize {
+    if rows * width >= SPLIT_MIN {
+        rows / 2
+    } else {
+        rows
+    }
+}
+
+/// Horizontal 5-tap binomial of `row` (`w` long) at its even columns, into
+/// `out` (`ceil(w/2)` long): the interior without index mirroring, the
+/// two ends with it. Sums in tap order (the same rounding everywhere).
+#[inline(always)]
+fn reduce_row(row: &[f32], w: usize, out: &mut [f32]) {
+    let [t0, t1, t2, t3, t4] = TAPS;
+    let edge = |i: usize| -> f32 {
+        let x = 2 * i as isize;
+        TAPS.iter()
+            .enumerate()
+            .map(|(k, t)| t * row[reflect(x + k as isize - 2, w)])
+            .sum()
+    };
+    // Output i reads 2i-2..=2i+2: inside the row for 1 <= i <= (w-3)/2.
+    let hi = if w >= 3 { (w - 3) / 2 + 1 } else { 0 };
+    let lo = 1.min(hi);
+    for (i, o) in out.iter_mut().enumerate().take(lo) {
+        *o = edge(i);
+    }
+    for (i, o) in out.iter_mut().enumerate().take(hi).skip(lo) {
+        let x = 2 * i;
+        let r = &row[x - 2..x + 3];
+        *o = t0 * r[0] + t1 * r[1] + t2 * r[2] + t3 * r[3] + t4 * r[4];
+    }
+    for (i, o) in out.iter_mut().enumerate().skip(hi.max(lo)) {
+        *o = edge(i);
+    }
+}
+
+simd_fn! {
+/// Whole rows of `src` (`w` wide) through [`reduce_row`] into `out`.
+fn reduce_rows(src: &[f32], out: &mut [f32], w: usize, nw: usize) {
+    for (r, o) in src.chunks_exact(w).zip(out.chunks_exact_mut(nw)) {
+        reduce_row(r, w, o);
+    }
+}
+}
+
+simd_fn! {
+/// Rows `y0..` (as many as `dst` holds) of the vertical 5-tap binomial at
+/// even rows of `tmp` (`h` rows of `nw`).
+fn reduce_cols(tmp: &[f32], nw: usize, h: usize, dst: &mut [f32], y0: usize) {
+    let [t0, t1, t2, t3, t4] = TAPS;
+    for (j, out) in dst.chunks_exact_mut(nw).enumerate() {
+        let y = 2 * (y0 + j) as isize;
+        let row = |k: isize| {
+            let r = reflect(y + k - 2, h);
+            &tmp[r * nw..(r + 1) * nw]
+        };
+        let (a, b, c, d, e) = (row(0), row(1), row(2), row(3), row(4));
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = t0 * a[i] + t1 * b[i] + t2 * c[i] + t3 * d[i] + t4 * e[i];
+        }
+    }
+}
 }
 
 /// `dst = (B * src)` at even rows and columns.
-fn reduce(src: &[f32], w: usize, h: usize, dst: &mut [f32], nw: usize, nh: usize, tmp: &mut [f32]) {
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn reduce(
+    src: &[f32],
+    w: usize,
+    h: usize,
+    dst: &mut [f32],
+    nw: usize,
+    nh: usize,
+    tmp: &mut [f32],
+    j: Par<'_>,
+) {
     // Horizontal blur at even columns: tmp is h x nw.
-    for y in 0..h {
-        let row = &src[y * w..(y + 1) * w];
-        for (i, o) in tmp[y * nw..(y + 1) * nw].iter_mut().enumerate() {
-            let x = 2 * i as isize;
-            *o = TAPS
-                .iter()
-                .enumerate()
-                .map(|(k, t)| t * row[reflect(x + k as isize - 2, w)])
-                .sum();
+    let hm = mid_row(h, w);
+    let (t0, t1) = tmp[..h * nw].split_at_mut(hm * nw);
+    let v = j.simd;
+    both(
+        j,
+        || reduce_rows(v, &src[..hm * w], t0, w, nw),
+        || reduce_rows(v, &src[hm * w..h * w], t1, w, nw),
+    );
+    // Vertical blur at even rows, the five rows in one pass.
+    let tmp = &tmp[..h * nw];
+    let nm = mid_row(nh, nw);
+    let (d0, d1) = dst[..nh * nw].split_at_mut(nm * nw);
+    both(
+        j,
+        || reduce_cols(v, tmp, nw, h, d0, 0),
+        || reduce_cols(v, tmp, nw, h, d1, nm),
+    );
+}
+
+/// Horizontal half of [`expand`] for one row: `out` (`w` long) = 4·B *
+/// (`row` (`nw` long) upsampled by zero insertion), rows' half of the 4.
+/// Output column x takes the source columns i with 2i = x + k - 2 (k the
+/// tap), weight 2·t_k: an even x = 2j takes j-1, j, j+1 (2·t0, 2·t2,
+/// 2·t4), an odd one j and j+1 (2·t1, 2·t3).
+#[inline(always)]
+fn expand_row(row: &[f32], nw: usize, out: &mut [f32], w: usize) {
+    let edge = |x: usize| -> f32 {
+        let mut acc = 0.0;
+        for (k, t) in TAPS.iter().enumerate() {
+            let p = reflect(x as isize + k as isize - 2, w);
+            if p.is_multiple_of(2) {
+                acc += 2.0 * t * row[(p / 2).min(nw - 1)];
+            }
+        }
+        acc
+    };
+    let (a, b, c) = (2.0 * TAPS[0], 2.0 * TAPS[2], 2.0 * TAPS[4]);
+    let (d, e) = (2.0 * TAPS[1], 2.0 * TAPS[3]);
+    // Columns x with x-2..=x+2 inside the row: 2 <= x <= w-3; by pairs
+    // (2j, 2j+1) for 1 <= j with 2j+1 <= w-3.
+    let pairs_end = if w >= 4 { (w - 4) / 2 + 1 } else { 1 };
+    let j0 = 1.min(pairs_end);
+    for (x, o) in out.iter_mut().enumerate().take(2 * j0) {
+        *o = edge(x);
+    }
+    for j in j0..pairs_end {
+        let (l, m, r) = (row[j - 1], row[j], row[j + 1]);
+        out[2 * j] = a * l + b * m + c * r;
+        out[2 * j + 1] = d * m + e * r;
+    }
+    for (x, o) in out.iter_mut().enumerate().skip(2 * pairs_end.max(j0)) {
+        *o = edge(x);
+    }
+}
+
+/// What [`expand`] does with each value `v` it makes for `dst[i]`.
+#[derive(Clone, Copy)]
+enum Put<'a> {
+    /// `dst[i] -= v` (a Laplacian level from its Gaussian).
+    Sub,
+    /// `dst[i] = v + band[i]` (a Gaussian level from its Laplacian).
+    Add(&'a [f32]),
+}
+
+simd_fn! {
+/// Whole rows of `src` (`nw` wide) through [`expand_row`] into `out`.
+fn expand_rows(src: &[f32], out: &mut [f32], nw: usize, w: usize) {
+    for (r, o) in src.chunks_exact(nw).zip(out.chunks_exact_mut(w)) {
+        expand_row(r, nw, o, w);
+    }
+}
+}
+
+simd_fn! {
+/// Rows `y0..` (as many as `dst` holds, `w` wide) of the vertical half of
+/// [`expand`] from `tmp` (`nh` rows of `w`): row y takes the rows r with
+/// 2r = y + k - 2, weight 2·t_k, in tap order.
+fn expand_cols(tmp: &[f32], w: usize, h: usize, nh: usize, dst: &mut [f32], y0: usize, put: Put<'_>) {
+    for (dy, out) in dst.chunks_exact_mut(w).enumerate() {
+        let y = y0 + dy;
+        // (Up to 5 when h is 1: every tap mirrors onto row 0.)
+        let mut taps: [(f32, usize); 5] = [(0.0, 0); 5];
+        let mut n = 0;
+        for (k, t) in TAPS.iter().enumerate() {
+            let p = reflect(y as isize + k as isize - 2, h);
+            if p.is_multiple_of(2) {
+                taps[n] = (2.0 * t, (p / 2).min(nh - 1));
+                n += 1;
+            }
+        }
+        let row = |r: usize| &tmp[r * w..(r + 1) * w];
+        let band = match put {
+            Put::Sub => None,
+            Put::Add(b) => Some(&b[y * w..(y + 1) * w]),
+        };
+        match n {
+            3 => {
+                let ((a, ra), (b, rb), (c, rc)) = (taps[0], taps[1], taps[2]);
+                let (ra, rb, rc) = (row(ra), row(rb), row(rc));
+                store_row(out, band, |i| a * ra[i] + b * rb[i] + c * rc[i]);
+            }
+            2 => {
+                let ((a, ra), (b, rb)) = (taps[0], taps[1]);
+                let (ra, rb) = (row(ra), row(rb));
+                store_row(out, band, |i| a * ra[i] + b * rb[i]);
+            }
+            _ => store_row(out, band, |i| {
+                let mut acc = 0.0;
+                for &(a, r) in &taps[..n] {
+                    acc += a * tmp[r * w + i];
+                }
+                acc
+            }),
         }
     }
-    // Vertical blur at even rows.
-    for (j, out) in dst.chunks_exact_mut(nw).take(nh).enumerate() {
-        let y = 2 * j as isize;
-        out.fill(0.0);
-        for (k, t) in TAPS.iter().enumerate() {
-            let r = reflect(y + k as isize - 2, h);
-            for (o, v) in out.iter_mut().zip(&tmp[r * nw..(r + 1) * nw]) {
-                *o += t * v;
+}
+}
+
+/// `out[i] -= v(i)`, or `out[i] = v(i) + band[i]` with a band.
+#[inline(always)]
+fn store_row(out: &mut [f32], band: Option<&[f32]>, v: impl Fn(usize) -> f32) {
+    match band {
+        None => {
+            for (i, o) in out.iter_mut().enumerate() {
+                *o -= v(i);
+            }
+        }
+        Some(b) => {
+            for ((i, o), bv) in out.iter_mut().enumerate().zip(b) {
+                *o = v(i) + bv;
             }
         }
     }
 }
 
-/// `dst` (`w x h`) = 4·B * (src upsampled by zero insertion).
-fn expand(src: &[f32], nw: usize, nh: usize, dst: &mut [f32], w: usize, h: usize, tmp: &mut [f32]) {
-    // Horizontal: tmp is nh x w. Output column x takes the source columns
-    // i with 2i = x + k - 2 (k the tap), weight 2·t_k.
-    for j in 0..nh {
-        let row = &src[j * nw..(j + 1) * nw];
-        for (x, o) in tmp[j * w..(j + 1) * w].iter_mut().enumerate() {
-            let mut acc = 0.0;
-            for (k, t) in TAPS.iter().enumerate() {
-                let p = reflect(x as isize + k as isize - 2, w);
-                if p.is_multiple_of(2) {
-                    acc += 2.0 * t * row[(p / 2).min(nw - 1)];
-                }
-            }
-            *o = acc;
-        }
-    }
-    // Vertical.
-    for (y, out) in dst.chunks_exact_mut(w).take(h).enumerate() {
-        out.fill(0.0);
-        for (k, t) in TAPS.iter().enumerate() {
-            let p = reflect(y as isize + k as isize - 2, h);
-            if p.is_multiple_of(2) {
-                let r = (p / 2).min(nh - 1);
-                for (o, v) in out.iter_mut().zip(&tmp[r * w..(r + 1) * w]) {
-                    *o += 2.0 * t * v;
-                }
-            }
-        }
-    }
+/// `dst` (`w x h`) combined by `put` with 4·B * (src upsampled by zero
+/// insertion).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn expand(
+    src: &[f32],
+    nw: usize,
+    nh: usize,
+    dst: &mut [f32],
+    w: usize,
+    h: usize,
+    tmp: &mut [f32],
+    put: Put,
+    j: Par<'_>,
+) {
+    // Horizontal: tmp is nh x w.
+    let nm = mid_row(nh, w);
+    let (t0, t1) = tmp[..nh * w].split_at_mut(nm * w);
+    let v = j.simd;
+    both(
+        j,
+        || expand_rows(v, &src[..nm * nw], t0, nw, w),
+        || expand_rows(v, &src[nm * nw..nh * nw], t1, nw, w),
+    );
+    let tmp = &tmp[..nh * w];
+    let hm = mid_row(h, w);
+    let (d0, d1) = dst[..h * w].split_at_mut(hm * w);
+    both(
+        j,
+        || expand_cols(v, tmp, w, h, nh, d0, 0, put),
+        || expand_cols(v, tmp, w, h, nh, d1, hm, put),
+    );
 }

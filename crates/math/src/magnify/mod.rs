@@ -30,10 +30,12 @@ pub mod laplacian;
 mod riesz_fft;
 pub mod temporal;
 
+use crate::join::{both, simd_fn, Join, Par, Serial, Simd};
 use crate::pyramid::{Complex32, ComplexSteerablePyramid, PyramidCoeffs, PyramidError};
 use laplacian::Laplacian;
+use laplacian::{mid_row, SPLIT_MIN};
 use riesz_fft::RieszFft;
-use temporal::{BandpassDesign, PixelFilter};
+use temporal::{BandpassDesign, FilterPart, PixelFilter, CHUNK};
 
 /// Default σ of the amplitude-weighted phase smoothing, band pixels.
 pub const DEFAULT_SIGMA: f32 = 1.0;
@@ -179,10 +181,13 @@ struct WeightedBlur {
     num: Vec<f32>,
     den: Vec<f32>,
     tmp: Vec<f32>,
+    /// Three buffers' intermediate rows (the Riesz magnifier's three
+    /// channels blurred at once); empty for the steerable pyramid.
+    tmp3: Vec<f32>,
 }
 
 impl WeightedBlur {
-    fn new(sigma: f32, max_len: usize) -> Self {
+    fn new(sigma: f32, max_len: usize, three: bool) -> Self {
         let kernel = if sigma > 0.0 {
             let r = (3.0 * sigma).ceil() as isize;
             let k: Vec<f32> = (-r..=r)
@@ -198,23 +203,39 @@ impl WeightedBlur {
             num: vec![0.0; max_len],
             den: vec![0.0; max_len],
             tmp: vec![0.0; max_len],
+            tmp3: vec![0.0; if three { 3 * max_len } else { 0 }],
         }
     }
 
     /// `phase[c] <- G*(amp·phase[c]) / G*amp` for each channel `c` (the
     /// channels share the weights).
-    fn apply(&mut self, amp: &[f32], phases: &mut [&mut [f32]], w: usize, h: usize) {
+    #[inline(always)]
+    fn apply(&mut self, amp: &[f32], phases: &mut [&mut [f32]], w: usize, h: usize, simd: Simd) {
         if self.kernel.len() == 1 {
             return;
         }
         let n = w * h;
         self.den[..n].copy_from_slice(&amp[..n]);
-        blur(&self.kernel, &mut self.den[..n], &mut self.tmp[..n], w, h);
+        blur(
+            &self.kernel,
+            &mut self.den[..n],
+            &mut self.tmp[..n],
+            w,
+            h,
+            simd,
+        );
         for p in phases.iter_mut() {
             for ((o, a), v) in self.num[..n].iter_mut().zip(&amp[..n]).zip(p.iter()) {
                 *o = a * v;
             }
-            blur(&self.kernel, &mut self.num[..n], &mut self.tmp[..n], w, h);
+            blur(
+                &self.kernel,
+                &mut self.num[..n],
+                &mut self.tmp[..n],
+                w,
+                h,
+                simd,
+            );
             for ((v, nu), de) in p.iter_mut().zip(&self.num[..n]).zip(&self.den[..n]) {
                 *v = if *de > 1e-12 { nu / de } else { 0.0 };
             }
@@ -222,14 +243,73 @@ impl WeightedBlur {
     }
 }
 
+/// [`blur`] of three buffers at once, each pass's rows in two halves
+/// through `j` (`tmp` holds three buffers' worth).
+#[inline(always)]
+fn blur3_with(
+    kernel: &[f32],
+    bufs: [&mut [f32]; 3],
+    tmp: &mut [f32],
+    w: usize,
+    h: usize,
+    j: Par<'_>,
+) {
+    let (n, hm, v) = (w * h, mid_row(h, w), j.simd);
+    let [b0, b1, b2] = bufs;
+    let (t0, rest) = tmp[..3 * n].split_at_mut(n);
+    let (t1, t2) = rest.split_at_mut(n);
+    {
+        let (x0, y0) = t0.split_at_mut(hm * w);
+        let (x1, y1) = t1.split_at_mut(hm * w);
+        let (x2, y2) = t2.split_at_mut(hm * w);
+        let src = [&b0[..n], &b1[..n], &b2[..n]];
+        both(
+            j,
+            || {
+                for (s, t) in src.iter().zip([&mut *x0, &mut *x1, &mut *x2]) {
+                    blur_rows(v, kernel, &s[..hm * w], t, w);
+                }
+            },
+            || {
+                for (s, t) in src.iter().zip([&mut *y0, &mut *y1, &mut *y2]) {
+                    blur_rows(v, kernel, &s[hm * w..], t, w);
+                }
+            },
+        );
+    }
+    let tmps = [&*t0, &*t1, &*t2];
+    let (x0, y0) = b0[..n].split_at_mut(hm * w);
+    let (x1, y1) = b1[..n].split_at_mut(hm * w);
+    let (x2, y2) = b2[..n].split_at_mut(hm * w);
+    both(
+        j,
+        || {
+            for (t, b) in tmps.iter().zip([&mut *x0, &mut *x1, &mut *x2]) {
+                blur_cols(v, kernel, t, b, w, h, 0);
+            }
+        },
+        || {
+            for (t, b) in tmps.iter().zip([&mut *y0, &mut *y1, &mut *y2]) {
+                blur_cols(v, kernel, t, b, w, h, hm);
+            }
+        },
+    );
+}
+
 /// Separable blur of `buf` (`w x h`) in place, edges clamped. Each pass
 /// runs tap by tap over whole rows (the interior without index clamping),
 /// which vectorises.
-fn blur(kernel: &[f32], buf: &mut [f32], tmp: &mut [f32], w: usize, h: usize) {
+#[inline(always)]
+fn blur(kernel: &[f32], buf: &mut [f32], tmp: &mut [f32], w: usize, h: usize, simd: Simd) {
+    blur_rows(simd, kernel, &buf[..w * h], &mut tmp[..w * h], w);
+    blur_cols(simd, kernel, &tmp[..w * h], &mut buf[..w * h], w, h, 0);
+}
+
+simd_fn! {
+/// The horizontal pass of [`blur`] over whole rows of `src` into `out`.
+fn blur_rows(kernel: &[f32], src: &[f32], out: &mut [f32], w: usize) {
     let r = kernel.len() / 2;
-    for y in 0..h {
-        let row = &buf[y * w..(y + 1) * w];
-        let out = &mut tmp[y * w..(y + 1) * w];
+    for (row, out) in src.chunks_exact(w).zip(out.chunks_exact_mut(w)) {
         // Columns whose taps all fall inside the row.
         let (lo, hi) = (r.min(w), w.saturating_sub(r).max(r.min(w)));
         if hi > lo {
@@ -250,7 +330,16 @@ fn blur(kernel: &[f32], buf: &mut [f32], tmp: &mut [f32], w: usize, h: usize) {
             out[x] = acc;
         }
     }
-    for (y, out) in buf.chunks_exact_mut(w).take(h).enumerate() {
+}
+}
+
+simd_fn! {
+/// The vertical pass of [`blur`]: rows `y0..` of the output (as many as
+/// `out` holds) from all `h` rows of `tmp`.
+fn blur_cols(kernel: &[f32], tmp: &[f32], out: &mut [f32], w: usize, h: usize, y0: usize) {
+    let r = kernel.len() / 2;
+    for (dy, out) in out.chunks_exact_mut(w).enumerate() {
+        let y = y0 + dy;
         out.fill(0.0);
         for (k, c) in kernel.iter().enumerate() {
             let yi = (y as isize + k as isize - r as isize).clamp(0, h as isize - 1) as usize;
@@ -259,6 +348,7 @@ fn blur(kernel: &[f32], buf: &mut [f32], tmp: &mut [f32], w: usize, h: usize) {
             }
         }
     }
+}
 }
 
 /// The rotation `clamp(factor·φ, ±limit) - φ` that replaces the filtered
@@ -310,6 +400,8 @@ pub struct Magnifier {
     blur: WeightedBlur,
     state: State,
     frames: u64,
+    simd: Simd,
+    profile: Option<Profile>,
 }
 
 impl std::fmt::Debug for Magnifier {
@@ -362,7 +454,7 @@ impl Magnifier {
         crate::pyramid::check_params(width, height, params.scales, params.orientations)?;
         let design = temporal::design(params.order, params.lo_hz, params.hi_hz, params.fps);
         let n = width * height;
-        let blur = WeightedBlur::new(params.sigma, n);
+        let blur = WeightedBlur::new(params.sigma, n, params.pyramid == PyramidKind::Riesz);
         let state = match params.pyramid {
             PyramidKind::Csp => {
                 let mut pyr = ComplexSteerablePyramid::new(
@@ -430,11 +522,29 @@ impl Magnifier {
             blur,
             state,
             frames: 0,
+            simd: Simd::detect(),
+            profile: None,
         })
     }
 
     pub fn params(&self) -> &MagnifyParams {
         &self.params
+    }
+
+    /// Switches the per-step profile on (from zero) or off.
+    pub fn set_profiling(&mut self, on: bool) {
+        self.profile = on.then(Profile::default);
+    }
+
+    /// The per-step profile since it was switched on ([`STEPS`]).
+    pub fn profile(&self) -> Option<&Profile> {
+        self.profile.as_ref()
+    }
+
+    /// The vector width the per-pixel loops run at: `sse2`, `avx2` or
+    /// `avx512`.
+    pub fn simd(&self) -> &'static str {
+        self.simd.name()
     }
 
     /// The temporal band-pass in use (its response, for reports).
@@ -444,16 +554,81 @@ impl Magnifier {
 
     /// Magnifies one frame (row-major `width x height`, any intensity
     /// scale) into `out` (same size). Frames must come in time order.
+    ///
+    /// The per-pixel loops are compiled three times, for SSE2, AVX2 and
+    /// AVX-512 (chosen once, in [`Self::new_part`], from what the CPU
+    /// reports): the same IEEE operations in the same order (no FMA
+    /// contraction), so every path gives the same bits.
     pub fn process(&mut self, frame: &[f32], out: &mut [f32]) -> Result<(), PyramidError> {
+        self.process_with(frame, out, &Serial)
+    }
+
+    /// [`Self::process`], the Riesz magnifier's passes over a level each
+    /// in two halves through `j` (both cores, when `j` runs them at once):
+    /// the same bits however `j` runs them. The steerable pyramid's
+    /// magnifier runs on the caller's thread (it splits by orientations:
+    /// [`Self::new_part`]).
+    pub fn process_with(
+        &mut self,
+        frame: &[f32],
+        out: &mut [f32],
+        j: &dyn Join,
+    ) -> Result<(), PyramidError> {
         let n = self.width * self.height;
         crate::pyramid::check_len(n, frame.len())?;
         crate::pyramid::check_len(n, out.len())?;
+        #[cfg(target_arch = "x86_64")]
+        match self.simd {
+            // SAFETY: `simd` names only what the running CPU reported
+            // (`Simd::detect`), which is all these paths need.
+            Simd::Avx512 => return unsafe { self.process_avx512(frame, out, j) },
+            Simd::Avx2 => return unsafe { self.process_avx2(frame, out, j) },
+            Simd::Sse2 => {}
+        }
+        self.process_body(frame, out, j)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+    unsafe fn process_avx512(
+        &mut self,
+        frame: &[f32],
+        out: &mut [f32],
+        j: &dyn Join,
+    ) -> Result<(), PyramidError> {
+        self.process_body(frame, out, j)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn process_avx2(
+        &mut self,
+        frame: &[f32],
+        out: &mut [f32],
+        j: &dyn Join,
+    ) -> Result<(), PyramidError> {
+        self.process_body(frame, out, j)
+    }
+
+    #[inline(always)]
+    fn process_body(
+        &mut self,
+        frame: &[f32],
+        out: &mut [f32],
+        j: &dyn Join,
+    ) -> Result<(), PyramidError> {
+        let j = Par { j, simd: self.simd };
         let first = self.frames == 0;
         self.frames += 1;
         let p = self.params;
+        if let Some(pr) = self.profile.as_mut() {
+            pr.frames += 1;
+        }
+        let mut laps = Laps::new(self.profile.as_mut());
         match &mut self.state {
             State::Csp(s) => {
                 s.pyr.analyze(frame, &mut s.coeffs)?;
+                laps.lap(0);
                 for bi in 0..s.coeffs.num_bands() {
                     if !s.pyr.band_active(bi) {
                         continue;
@@ -482,67 +657,305 @@ impl Magnifier {
                         *ph = *a;
                         *am = (c.re * c.re + c.im * c.im).sqrt();
                     }
+                    laps.lap(2);
                     s.filters[bi].step(phase);
-                    self.blur.apply(amp, &mut [phase], w, h);
+                    laps.lap(3);
+                    self.blur.apply(amp, &mut [phase], w, h, j.simd);
+                    laps.lap(4);
                     for (c, &ph) in data.iter_mut().zip(phase.iter()) {
                         let psi = shift(ph, p.factor, p.max_phase);
                         let (sn, cs) = crate::fastmath::sin_cos(psi);
                         *c *= Complex32::new(cs, sn);
                     }
+                    laps.lap(5);
                 }
-                s.pyr.synthesize(&s.coeffs, out)
+                let r = s.pyr.synthesize(&s.coeffs, out);
+                laps.lap(6);
+                r
             }
             State::Riesz(s) => {
-                s.lap.analyze(frame);
+                s.lap.analyze_with(frame, j);
+                laps.lap(0);
                 for l in 0..p.scales {
                     let (w, h) = s.lap.dims[l];
                     let len = w * h;
-                    let band = &mut s.lap.bands[l];
+                    let band = &mut s.lap.bands[l][..len];
                     let (r1, r2) = (&mut s.r1[..len], &mut s.r2[..len]);
-                    s.ffts[l].pair(band, r1, r2);
+                    s.ffts[l].pair(band, r1, r2, j);
+                    laps.lap(1);
                     let [pi, p1, p2] = &mut s.prev[l];
                     let [ac, as_] = &mut s.acc[l];
-                    let (amp, pc, ps) = (&mut s.amp[..len], &mut s.pc[..len], &mut s.ps[..len]);
-                    for i in 0..len {
-                        let (iv, x1, x2) = (band[i], r1[i], r2[i]);
-                        if !first {
-                            // Quaternionic phase difference q·conj(q_prev)
-                            // (Wadhwa et al. 2014): angle and in-plane axis.
-                            let (qi, q1, q2) = (pi[i], p1[i], p2[i]);
-                            let re = iv * qi + x1 * q1 + x2 * q2;
-                            let vx = -iv * q1 + qi * x1;
-                            let vy = -iv * q2 + qi * x2;
-                            let vn = (vx * vx + vy * vy).sqrt();
-                            if vn > 0.0 {
-                                let d = crate::fastmath::atan2(vn, re) / vn;
-                                ac[i] += d * vx;
-                                as_[i] += d * vy;
-                            }
-                        }
-                        (pi[i], p1[i], p2[i]) = (iv, x1, x2);
-                        amp[i] = (iv * iv + x1 * x1 + x2 * x2).sqrt();
-                        pc[i] = ac[i];
-                        ps[i] = as_[i];
-                    }
+                    // `den` ends as G*A, `nc` and `ns` as G*(A·φ) of the
+                    // two phase components (the filtered φ itself when
+                    // there is no smoothing).
+                    let (den, nc, ns) = (&mut s.amp[..len], &mut s.pc[..len], &mut s.ps[..len]);
+                    let smooth = self.blur.kernel.len() > 1;
                     let [fc, fs] = &mut s.filters[l];
-                    fc.step(pc);
-                    fs.step(ps);
-                    self.blur.apply(amp, &mut [&mut *pc, &mut *ps], w, h);
-                    for i in 0..len {
-                        let (c, sn) = (pc[i], ps[i]);
-                        let mag = (c * c + sn * sn).sqrt();
-                        if mag <= 0.0 {
-                            continue;
-                        }
-                        // Real part of q·exp(n·ψ), n the unit axis (c, s)/|φ|.
-                        let psi = shift(mag, p.factor, p.max_phase);
-                        let (sp, cp) = crate::fastmath::sin_cos(psi);
-                        band[i] = cp * band[i] - sp * (c * r1[i] + sn * r2[i]) / mag;
+                    // The level's pixels in two runs of whole blocks.
+                    let mid = if len >= SPLIT_MIN {
+                        len / 2 / CHUNK * CHUNK
+                    } else {
+                        len
+                    };
+                    let ((mut fc0, mut fc1), (mut fs0, mut fs1)) = (fc.parts(mid), fs.parts(mid));
+                    let v = j.simd;
+                    let (b0, b1) = band.split_at(mid);
+                    let (q10, q11) = r1.split_at(mid);
+                    let (q20, q21) = r2.split_at(mid);
+                    let (pi0, pi1) = pi[..len].split_at_mut(mid);
+                    let (p10, p11) = p1[..len].split_at_mut(mid);
+                    let (p20, p21) = p2[..len].split_at_mut(mid);
+                    let (ac0, ac1) = ac[..len].split_at_mut(mid);
+                    let (as0, as1) = as_[..len].split_at_mut(mid);
+                    let (d0, d1) = den.split_at_mut(mid);
+                    let (nc0, nc1) = nc.split_at_mut(mid);
+                    let (ns0, ns1) = ns.split_at_mut(mid);
+                    both(
+                        j,
+                        || {
+                            riesz_phase_run(
+                                v,
+                                first,
+                                smooth,
+                                0,
+                                [b0, q10, q20],
+                                [&mut *pi0, &mut *p10, &mut *p20, &mut *ac0, &mut *as0],
+                                [&mut *d0, &mut *nc0, &mut *ns0],
+                                [&mut fc0, &mut fs0],
+                            )
+                        },
+                        || {
+                            riesz_phase_run(
+                                v,
+                                first,
+                                smooth,
+                                mid,
+                                [b1, q11, q21],
+                                [&mut *pi1, &mut *p11, &mut *p21, &mut *ac1, &mut *as1],
+                                [&mut *d1, &mut *nc1, &mut *ns1],
+                                [&mut fc1, &mut fs1],
+                            )
+                        },
+                    );
+                    laps.lap(2);
+                    laps.lap(3);
+                    if smooth {
+                        let bufs = [&mut *den, &mut *nc, &mut *ns];
+                        blur3_with(&self.blur.kernel, bufs, &mut self.blur.tmp3, w, h, j);
                     }
+                    laps.lap(4);
+                    let (b0, b1) = band.split_at_mut(mid);
+                    let (q10, q11) = r1.split_at(mid);
+                    let (q20, q21) = r2.split_at(mid);
+                    let (d0, d1) = den.split_at(mid);
+                    let (nc0, nc1) = nc.split_at(mid);
+                    let (ns0, ns1) = ns.split_at(mid);
+                    let (fa, mp) = (p.factor, p.max_phase);
+                    both(
+                        j,
+                        || riesz_shift(v, b0, [q10, q20], [d0, nc0, ns0], smooth, fa, mp),
+                        || riesz_shift(v, b1, [q11, q21], [d1, nc1, ns1], smooth, fa, mp),
+                    );
+                    laps.lap(5);
                 }
-                s.lap.collapse(out);
+                s.lap.collapse_with(out, j);
+                laps.lap(6);
                 Ok(())
             }
+        }
+    }
+}
+
+/// The Riesz magnifier's phase step over a run of pixels: the quaternionic
+/// phase difference `q·conj(q_prev)` (Wadhwa et al. 2014), its angle times
+/// its in-plane axis added to the sums `acc` (none where the axis
+/// vanishes: a select, so that the loop vectorises), `prev` set to `q`,
+/// `amp` to `|q|`, `out` to the sums. Its own function so that its slices
+/// are known not to overlap (the loop vectorises without runtime checks).
+#[inline(always)]
+fn riesz_phase_step(
+    first: bool,
+    [band, r1, r2]: [&[f32]; 3],
+    [pi, p1, p2]: [&mut [f32]; 3],
+    [ac, as_]: [&mut [f32]; 2],
+    amp: &mut [f32],
+    [xc, xs]: [&mut [f32]; 2],
+) {
+    let m = band.len();
+    let (r1, r2, pi, p1, p2) = (&r1[..m], &r2[..m], &mut pi[..m], &mut p1[..m], &mut p2[..m]);
+    let (ac, as_, amp, xc, xs) = (
+        &mut ac[..m],
+        &mut as_[..m],
+        &mut amp[..m],
+        &mut xc[..m],
+        &mut xs[..m],
+    );
+    for k in 0..m {
+        let (iv, x1, x2) = (band[k], r1[k], r2[k]);
+        if !first {
+            let (qi, q1, q2) = (pi[k], p1[k], p2[k]);
+            let re = iv * qi + x1 * q1 + x2 * q2;
+            let vx = -iv * q1 + qi * x1;
+            let vy = -iv * q2 + qi * x2;
+            let vn = (vx * vx + vy * vy).sqrt();
+            let d = crate::fastmath::atan2(vn, re) / vn;
+            let moved = vn > 0.0;
+            ac[k] = if moved { ac[k] + d * vx } else { ac[k] };
+            as_[k] = if moved { as_[k] + d * vy } else { as_[k] };
+        }
+        (pi[k], p1[k], p2[k]) = (iv, x1, x2);
+        amp[k] = (iv * iv + x1 * x1 + x2 * x2).sqrt();
+        xc[k] = ac[k];
+        xs[k] = as_[k];
+    }
+}
+
+simd_fn! {
+/// One run of a Riesz level's pixels (from pixel `offset`, a multiple of
+/// [`CHUNK`]) in blocks: the phase step, the temporal band-pass of the
+/// block (its sections in turn, both components), and the smoothing's
+/// numerators `A·φ` (`φ` itself without smoothing) into `nc`, `ns`.
+fn riesz_phase_run(
+    first: bool,
+    smooth: bool,
+    offset: usize,
+    input: [&[f32]; 3],
+    state: [&mut [f32]; 5],
+    outs: [&mut [f32]; 3],
+    filters: [&mut FilterPart<'_>; 2],
+) {
+    let [band, r1, r2] = input;
+    let [pi, p1, p2, ac, as_] = state;
+    let [den, nc, ns] = outs;
+    let [fc, fs] = filters;
+    let len = band.len();
+    for start in (0..len).step_by(CHUNK) {
+        let m = CHUNK.min(len - start);
+        let (mut xc, mut xs) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
+        let r = start..start + m;
+        let (xc, xs) = (&mut xc[..m], &mut xs[..m]);
+        riesz_phase_step(
+            first,
+            [&band[r.clone()], &r1[r.clone()], &r2[r.clone()]],
+            [&mut pi[r.clone()], &mut p1[r.clone()], &mut p2[r.clone()]],
+            [&mut ac[r.clone()], &mut as_[r.clone()]],
+            &mut den[r.clone()],
+            [&mut *xc, &mut *xs],
+        );
+        fc.step_at(xc, offset + start);
+        fs.step_at(xs, offset + start);
+        let (dn, ncc, nsc) = (&den[r.clone()], &mut nc[r.clone()], &mut ns[r]);
+        if smooth {
+            times(dn, xc, ncc);
+            times(dn, xs, nsc);
+        } else {
+            ncc.copy_from_slice(xc);
+            nsc.copy_from_slice(xs);
+        }
+    }
+}
+}
+
+/// `out[k] = a[k] · b[k]`.
+#[inline(always)]
+fn times(a: &[f32], b: &[f32], out: &mut [f32]) {
+    for ((o, x), y) in out.iter_mut().zip(a).zip(b) {
+        *o = x * y;
+    }
+}
+
+simd_fn! {
+/// The Riesz magnifier's phase shift of one level: the smoothed phase
+/// `(c, s) = G*(A·φ) / G*A` (or `nc`, `ns` themselves without smoothing),
+/// magnified and limited, rotates the band: `band <- Re(q·exp(n·ψ))`, `n`
+/// the unit axis `(c, s)/|φ|` (the band as it is where there is no phase).
+fn riesz_shift(
+    band: &mut [f32],
+    pair: [&[f32]; 2],
+    smoothed: [&[f32]; 3],
+    smooth: bool,
+    factor: f32,
+    max_phase: f32,
+) {
+    let [r1, r2] = pair;
+    let [den, nc, ns] = smoothed;
+    let m = band.len();
+    let (r1, r2, den, nc, ns) = (&r1[..m], &r2[..m], &den[..m], &nc[..m], &ns[..m]);
+    for i in 0..m {
+        let (c, sn) = if smooth {
+            let de = den[i];
+            let q = |nu: f32| if de > 1e-12 { nu / de } else { 0.0 };
+            (q(nc[i]), q(ns[i]))
+        } else {
+            (nc[i], ns[i])
+        };
+        let mag = (c * c + sn * sn).sqrt();
+        let psi = shift(mag, factor, max_phase);
+        let (sp, cp) = crate::fastmath::sin_cos(psi);
+        let rotated = cp * band[i] - sp * (c * r1[i] + sn * r2[i]) / mag;
+        band[i] = if mag > 0.0 { rotated } else { band[i] };
+    }
+}
+}
+
+simd_fn! {
+fn dither_round_body(values: &mut [f32], key: u64, first: usize, max: f32) {
+    for (i, v) in values.iter_mut().enumerate() {
+        let h = crate::rng::mix64(key ^ (first + i) as u64);
+        let d = (h >> 40) as f32 * (1.0 / 16_777_216.0) - 0.5;
+        *v = (*v + d).round().clamp(0.0, max);
+    }
+}
+}
+
+/// A magnified frame's values made pixel levels: each `values[i]` (pixel
+/// `first + i` of the frame) plus a uniform dither in `[-½, ½)` drawn from
+/// `mix64(key ^ pixel)`, rounded and limited to `0..=max`. The dither
+/// keeps a change smaller than half a level from rounding back to the
+/// input's own integers. Vectorised (AVX2, AVX-512 where present).
+pub fn dither_round(values: &mut [f32], key: u64, first: usize, max: f32) {
+    dither_round_body(Simd::detect(), values, key, first, max);
+}
+
+/// The steps of [`Magnifier::process`], in the order they run, for a
+/// profile ([`Magnifier::set_profiling`]): each kernel's share of a frame,
+/// which `docs/performance.md` sets against its bound.
+pub const STEPS: [&str; 7] = [
+    "pyramid build",
+    "Riesz pair (FFT)",
+    "phase difference, sum, amplitude",
+    "temporal band-pass",
+    "amplitude-weighted blur",
+    "phase shift",
+    "pyramid collapse",
+];
+
+/// Time spent in each of [`STEPS`] since profiling was switched on, and
+/// the frames it covers.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Profile {
+    pub seconds: [f64; STEPS.len()],
+    pub frames: u64,
+}
+
+/// The clock of a profiled run: `lap(k)` adds the time since the last lap
+/// to step `k`. A no-op (no clock read) when profiling is off.
+struct Laps<'a> {
+    profile: Option<&'a mut Profile>,
+    last: Option<std::time::Instant>,
+}
+
+impl<'a> Laps<'a> {
+    fn new(profile: Option<&'a mut Profile>) -> Self {
+        let last = profile.as_ref().map(|_| std::time::Instant::now());
+        Self { profile, last }
+    }
+    #[inline(always)]
+    fn lap(&mut self, step: usize) {
+        if let (Some(p), Some(last)) = (self.profile.as_deref_mut(), self.last.as_mut()) {
+            let now = std::time::Instant::now();
+            p.seconds[step] += (now - *last).as_secs_f64();
+            *last = now;
         }
     }
 }

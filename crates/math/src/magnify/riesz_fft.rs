@@ -13,6 +13,8 @@
 //! factor of 0 left the motion only 7 dB down with the 3-tap pair; the
 //! exact pair's figures are in the README.
 
+use super::laplacian::mid_row;
+use crate::join::{both, Par};
 use crate::pyramid::Complex32;
 use rustfft::{Fft, FftPlanner};
 use std::sync::Arc;
@@ -31,7 +33,8 @@ pub(crate) struct RieszFft {
     tr: Vec<Complex32>,
     /// `(ωy - i·ωx)/|ω| / (w·h)` in the column-major layout.
     mult: Vec<Complex32>,
-    scratch: Vec<Complex32>,
+    /// One scratch buffer for each half of a split pass.
+    scratch: [Vec<Complex32>; 2],
 }
 
 /// Angular frequency of bin `k` of `n` in `(-π, π]`; 0 at the Nyquist bin
@@ -84,47 +87,102 @@ impl RieszFft {
             buf: vec![zero; w * h],
             tr: vec![zero; w * h],
             mult,
-            scratch: vec![zero; scratch_len],
+            scratch: [vec![zero; scratch_len], vec![zero; scratch_len]],
         }
     }
 
     /// The pair `(r1, r2)` of `band` (row-major `w x h`, all three).
-    /// Allocates nothing.
-    pub(crate) fn pair(&mut self, band: &[f32], r1: &mut [f32], r2: &mut [f32]) {
-        let (w, h) = (self.w, self.h);
-        for (b, &v) in self.buf.iter_mut().zip(band) {
-            *b = Complex32::new(v, 0.0);
+    /// Allocates nothing. Each pass (rows, the transposes, columns) in two
+    /// halves through `j`: the same bits however `j` runs them.
+    #[inline(always)]
+    pub(crate) fn pair(&mut self, band: &[f32], r1: &mut [f32], r2: &mut [f32], j: Par<'_>) {
+        let RieszFft {
+            w,
+            h,
+            row_fwd,
+            row_inv,
+            col_fwd,
+            col_inv,
+            buf,
+            tr,
+            mult,
+            scratch,
+        } = self;
+        let (w, h) = (*w, *h);
+        let [s0, s1] = scratch;
+        // Rows in halves (hm rows, then the rest), columns likewise.
+        let hm = mid_row(h, w);
+        let wm = if hm < h { w / 2 } else { w };
+        {
+            let (b0, b1) = buf.split_at_mut(hm * w);
+            let fwd = |band: &[f32], b: &mut [Complex32], s: &mut [Complex32]| {
+                for (b, &v) in b.iter_mut().zip(band) {
+                    *b = Complex32::new(v, 0.0);
+                }
+                if !b.is_empty() {
+                    row_fwd.process_with_scratch(b, s);
+                }
+            };
+            both(
+                j,
+                || fwd(&band[..hm * w], b0, s0),
+                || fwd(&band[hm * w..], b1, s1),
+            );
         }
-        // Rows, then columns (transposed so each column is contiguous).
-        self.row_fwd
-            .process_with_scratch(&mut self.buf, &mut self.scratch);
-        transpose(&self.buf, &mut self.tr, w, h);
-        self.col_fwd
-            .process_with_scratch(&mut self.tr, &mut self.scratch);
-        for (t, m) in self.tr.iter_mut().zip(&self.mult) {
-            *t *= m;
+        // Transposed so each column is contiguous: columns in halves.
+        {
+            let src = &*buf;
+            let (t0, t1) = tr.split_at_mut(wm * h);
+            let (m0, m1) = mult.split_at(wm * h);
+            let cols = |t: &mut [Complex32], m: &[Complex32], x0: usize, s: &mut [Complex32]| {
+                transpose(src, t, w, h, x0);
+                if t.is_empty() {
+                    return;
+                }
+                col_fwd.process_with_scratch(t, s);
+                for (t, m) in t.iter_mut().zip(m) {
+                    *t *= m;
+                }
+                col_inv.process_with_scratch(t, s);
+            };
+            both(j, || cols(t0, m0, 0, s0), || cols(t1, m1, wm, s1));
         }
-        self.col_inv
-            .process_with_scratch(&mut self.tr, &mut self.scratch);
-        transpose(&self.tr, &mut self.buf, h, w);
-        self.row_inv
-            .process_with_scratch(&mut self.buf, &mut self.scratch);
-        for ((z, a), b) in self.buf.iter().zip(r1.iter_mut()).zip(r2.iter_mut()) {
-            *a = z.re;
-            *b = z.im;
+        {
+            let src = &*tr;
+            let (b0, b1) = buf.split_at_mut(hm * w);
+            let (a0, a1) = r1.split_at_mut(hm * w);
+            let (c0, c1) = r2.split_at_mut(hm * w);
+            let inv = |b: &mut [Complex32],
+                       y0: usize,
+                       r1: &mut [f32],
+                       r2: &mut [f32],
+                       s: &mut [Complex32]| {
+                transpose(src, b, h, w, y0);
+                if !b.is_empty() {
+                    row_inv.process_with_scratch(b, s);
+                }
+                for ((z, a), c) in b.iter().zip(r1.iter_mut()).zip(r2.iter_mut()) {
+                    *a = z.re;
+                    *c = z.im;
+                }
+            };
+            both(j, || inv(b0, 0, a0, c0, s0), || inv(b1, hm, a1, c1, s1));
         }
     }
 }
 
-/// `dst[x * h + y] = src[y * w + x]` for a row-major `w x h` `src`, in
-/// tiles.
-fn transpose(src: &[Complex32], dst: &mut [Complex32], w: usize, h: usize) {
+/// Columns `x0..x0 + dst.len() / h` of the transpose of a row-major
+/// `w x h` `src`: `dst[(x - x0) * h + y] = src[y * w + x]`, in tiles.
+#[inline(always)]
+fn transpose(src: &[Complex32], dst: &mut [Complex32], w: usize, h: usize, x0: usize) {
     const T: usize = 16;
+    let nx = dst.len() / h.max(1);
     for y0 in (0..h).step_by(T) {
-        for x0 in (0..w).step_by(T) {
-            for y in y0..(y0 + T).min(h) {
-                for x in x0..(x0 + T).min(w) {
-                    dst[x * h + y] = src[y * w + x];
+        for xa in (x0..x0 + nx).step_by(T) {
+            for x in xa..(xa + T).min(x0 + nx) {
+                let col = &mut dst[(x - x0) * h..(x - x0 + 1) * h];
+                for (y, d) in col.iter_mut().enumerate().take((y0 + T).min(h)).skip(y0) {
+                    *d = src[y * w + x];
                 }
             }
         }
@@ -162,7 +220,11 @@ mod tests {
                     .map(|i| ((kx * (i % w) as f64 + ky * (i / w) as f64).cos()) as f32)
                     .collect();
                 let (mut r1, mut r2) = (vec![0.0; w * h], vec![0.0; w * h]);
-                r.pair(&band, &mut r1, &mut r2);
+                let par = Par {
+                    j: &crate::join::Serial,
+                    simd: crate::join::Simd::detect(),
+                };
+                r.pair(&band, &mut r1, &mut r2, par);
                 for i in 0..w * h {
                     let s = (kx * (i % w) as f64 + ky * (i / w) as f64).sin();
                     let (e1, e2) = (kx / k * s, ky / k * s);

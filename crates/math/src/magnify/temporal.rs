@@ -118,33 +118,93 @@ impl BandpassDesign {
     }
 }
 
-/// Per-pixel state of a [`BandpassDesign`] over `n` pixels.
+/// Pixels per block of a [`PixelFilter`]'s state.
+pub const CHUNK: usize = 64;
+
+/// Per-pixel state of a [`BandpassDesign`] over `n` pixels, in blocks of
+/// [`CHUNK`] pixels: per block, per section, register 0 of the block's
+/// pixels then register 1 (contiguous runs: the step vectorises, and a
+/// block's whole state is together).
 #[derive(Clone, Debug)]
 pub struct PixelFilter {
     sections: Vec<Section>,
-    /// `state[s]` holds `2·n` values: register 0 then 1 of each pixel.
-    state: Vec<Vec<f32>>,
+    state: Vec<f32>,
+}
+
+/// The state of a run of whole blocks ([`PixelFilter::parts`]).
+pub struct FilterPart<'a> {
+    sections: &'a [Section],
+    state: &'a mut [f32],
+    first_block: usize,
+}
+
+/// One time step of the pixels of one block (`x.len() <= CHUNK`), its
+/// state `st`.
+#[inline(always)]
+fn step_block(sections: &[Section], st: &mut [f32], x: &mut [f32]) {
+    for (s, regs) in sections.iter().zip(st.chunks_exact_mut(2 * CHUNK)) {
+        let (b0, b1, b2, a1, a2) = (s.b[0], s.b[1], s.b[2], s.a[0], s.a[1]);
+        let (r0, r1) = regs.split_at_mut(CHUNK);
+        for ((v, p), q) in x.iter_mut().zip(r0.iter_mut()).zip(r1.iter_mut()) {
+            let xin = *v;
+            let y = b0 * xin + *p;
+            *p = b1 * xin - a1 * y + *q;
+            *q = b2 * xin - a2 * y;
+            *v = y;
+        }
+    }
 }
 
 impl PixelFilter {
     pub fn new(design: &BandpassDesign, n: usize) -> Self {
+        let blocks = n.div_ceil(CHUNK);
         Self {
+            state: vec![0.0; blocks * 2 * CHUNK * design.sections.len()],
             sections: design.sections.clone(),
-            state: design.sections.iter().map(|_| vec![0.0; 2 * n]).collect(),
         }
     }
 
+    fn block_len(&self) -> usize {
+        2 * CHUNK * self.sections.len()
+    }
+
     /// Filters one time step of every pixel in place: `x[i]` in, `y[i]` out.
+    #[inline(always)]
     pub fn step(&mut self, x: &mut [f32]) {
-        for (s, st) in self.sections.iter().zip(self.state.iter_mut()) {
-            let (b0, b1, b2, a1, a2) = (s.b[0], s.b[1], s.b[2], s.a[0], s.a[1]);
-            for (v, r) in x.iter_mut().zip(st.chunks_exact_mut(2)) {
-                let xin = *v;
-                let y = b0 * xin + r[0];
-                r[0] = b1 * xin - a1 * y + r[1];
-                r[1] = b2 * xin - a2 * y;
-                *v = y;
-            }
+        let b = self.block_len();
+        for (xs, st) in x.chunks_mut(CHUNK).zip(self.state.chunks_exact_mut(b)) {
+            step_block(&self.sections, st, xs);
         }
+    }
+
+    /// The state split at pixel `mid` (a multiple of [`CHUNK`], or all
+    /// the pixels): pixels `..mid` and `mid..`, to step at once.
+    pub fn parts(&mut self, mid: usize) -> (FilterPart<'_>, FilterPart<'_>) {
+        let b = self.block_len();
+        let split = (mid.div_ceil(CHUNK) * b).min(self.state.len());
+        let (s0, s1) = self.state.split_at_mut(split);
+        (
+            FilterPart {
+                sections: &self.sections,
+                state: s0,
+                first_block: 0,
+            },
+            FilterPart {
+                sections: &self.sections,
+                state: s1,
+                first_block: mid.div_ceil(CHUNK),
+            },
+        )
+    }
+}
+
+impl FilterPart<'_> {
+    /// One time step of the pixels `offset..offset + x.len()` (`offset` a
+    /// multiple of [`CHUNK`] in this part, `x` at most one block).
+    #[inline(always)]
+    pub fn step_at(&mut self, x: &mut [f32], offset: usize) {
+        let b = 2 * CHUNK * self.sections.len();
+        let k = offset / CHUNK - self.first_block;
+        step_block(self.sections, &mut self.state[k * b..(k + 1) * b], x);
     }
 }

@@ -262,7 +262,7 @@ fn in_band_tone_is_scaled_by_the_factor() {
 /// shorter than, equal to and longer than the kernel.
 #[test]
 fn blur_matches_the_clamped_convolution() {
-    let kernel = WeightedBlur::new(1.5, 1).kernel;
+    let kernel = WeightedBlur::new(1.5, 1, false).kernel;
     let r = (kernel.len() / 2) as isize;
     for (w, h) in [(1, 1), (3, 2), (9, 4), (10, 7), (33, 5)] {
         let src: Vec<f32> = (0..w * h)
@@ -283,7 +283,14 @@ fn blur_matches_the_clamped_convolution() {
             }
         }
         let (mut buf, mut tmp) = (src.clone(), vec![0.0f32; w * h]);
-        blur(&kernel, &mut buf, &mut tmp, w, h);
+        blur(
+            &kernel,
+            &mut buf,
+            &mut tmp,
+            w,
+            h,
+            crate::join::Simd::detect(),
+        );
         for (i, (a, b)) in buf.iter().zip(&want).enumerate() {
             assert!((a - b).abs() < 1e-4, "{w}x{h} at {i}: {a} vs {b}");
         }
@@ -322,4 +329,46 @@ fn parts_sum_to_the_whole() {
     let mut r = p;
     r.pyramid = PyramidKind::Riesz;
     assert!(Magnifier::new_part(w, h, r, 0..1, true).is_err());
+}
+
+/// A [`Join`] that runs its halves on two threads at once (as the
+/// engine's rayon pool does), second half first on this one.
+struct TwoThreads;
+
+impl Join for TwoThreads {
+    fn join(&self, a: &mut (dyn FnMut() + Send), b: &mut (dyn FnMut() + Send)) {
+        std::thread::scope(|s| {
+            s.spawn(a);
+            b();
+        });
+    }
+}
+
+/// The Riesz magnifier's passes split in halves (at once on two threads)
+/// and its loops at every vector width give the bits of one thread with
+/// SSE2: each half writes its own pixels, and the vector paths use the
+/// same IEEE operations in the same order.
+#[test]
+fn riesz_halves_and_vector_widths_give_the_same_bits() {
+    // 144x112: level 0 and 1 are split (over SPLIT_MIN), the rest not;
+    // neither side a multiple of the filter's block.
+    let (w, h) = (144, 112);
+    let base = texture(w, h, 7);
+    let mut p = MagnifyParams::new(100.0, 8.0, 12.0, 20.0);
+    p.pyramid = PyramidKind::Riesz;
+    let mut serial = Magnifier::new(w, h, p).unwrap();
+    serial.simd = Simd::Sse2;
+    let mut split = Magnifier::new(w, h, p).unwrap();
+    let (mut a, mut b) = (vec![0.0; w * h], vec![0.0; w * h]);
+    for t in 0..24 {
+        let d = 0.3 * (std::f32::consts::TAU * 10.0 * t as f32 / 100.0).sin();
+        let frame = shifted(&base, w, h, d);
+        serial.process(&frame, &mut a).unwrap();
+        split.process_with(&frame, &mut b, &TwoThreads).unwrap();
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "frame {t}: {} (two threads) differs from sse2 (one thread)",
+            split.simd()
+        );
+    }
 }

@@ -9,6 +9,8 @@
 use super::reduce::ROI;
 use super::roi::{Roi, RoiParam};
 use crate::*;
+use vibroscope_math::join::Join;
+use vibroscope_math::magnify::dither_round;
 use vibroscope_math::magnify::{
     Magnifier, MagnifyError, MagnifyParams as Method, PyramidKind, DEFAULT_MAX_PHASE,
     DEFAULT_ORDER, DEFAULT_ORIENTATIONS, DEFAULT_SIGMA,
@@ -56,7 +58,7 @@ params! {
             .doc("with roi: write the whole frame, the region magnified and the rest as it came (default: only the region)"),
         threads: usize = ParamSpec::of(ParamType::Int, Def::Int(0))
             .ints(0, 16)
-            .doc("threads of the steerable pyramid (0 = one per core): its orientations are magnified in two halves, on two threads when there are two, bit-identical for any count; the Riesz pyramid uses one"),
+            .doc("threads of the steerable pyramid (0 = one per core): its orientations are magnified in two halves, on two threads when there are two, bit-identical for any count; the Riesz pyramid splits each pass in two halves, on two threads when there are two"),
     }
 }
 
@@ -246,8 +248,11 @@ impl Magnify {
             roi.x,
             roi.y
         );
+        // The steerable pyramid's halves on a thread each; the Riesz
+        // magnifier's passes split in two (`Magnifier::process_with`).
+        let threads = super::pyramid::resolve_threads(self.p.threads);
         let threads =
-            super::reduce::thread_pool(super::pyramid::resolve_threads(self.p.threads).min(n))?;
+            super::reduce::thread_pool(if csp { threads.min(n) } else { threads.min(2) })?;
         Ok(Run {
             size: (f.width(), f.height()),
             roi,
@@ -297,7 +302,15 @@ impl Stage for Magnify {
             }
         }
         match r.parts.as_mut_slice() {
-            [one] => one.result = one.magnifier.process(&r.input, &mut r.output),
+            [one] => {
+                one.result = match &r.threads {
+                    Some(pool) => {
+                        let j = PoolJoin(pool);
+                        pool.install(|| one.magnifier.process_with(&r.input, &mut r.output, &j))
+                    }
+                    None => one.magnifier.process(&r.input, &mut r.output),
+                }
+            }
             parts => {
                 let input = &r.input;
                 let job = |p: &mut Part| p.result = p.magnifier.process(input, &mut p.out);
@@ -332,8 +345,22 @@ impl Stage for Magnify {
         // the input's own integers, and small motions (or factors near 1)
         // would vanish in a dead zone. Deterministic per frame and pixel.
         let key = mix64(f.meta().seq ^ 0x006d_6167_6e69_6679);
-        let dither = |i: usize| (mix64(key ^ i as u64) >> 40) as f32 * (1.0 / 16_777_216.0) - 0.5;
-        let magnified = |i: usize| (r.output[i] + dither(i)).round().clamp(0.0, max);
+        {
+            let half = if r.threads.is_some() {
+                r.output.len() / 2
+            } else {
+                r.output.len()
+            };
+            let (a, b) = r.output.split_at_mut(half);
+            let quantize = |v: &mut [f32], first: usize| dither_round(v, key, first, max);
+            match &r.threads {
+                Some(pool) => {
+                    pool.join(|| quantize(a, 0), || quantize(b, half));
+                }
+                None => quantize(a, 0),
+            }
+        }
+        let magnified = |i: usize| r.output[i];
         match (o.pixels_mut(), src) {
             (PixelsMut::U8(p), PixelsRef::U8(s)) => {
                 let cast = |v: f32| v as u8;
@@ -355,6 +382,16 @@ impl Stage for Magnify {
         }
         let _ = out.emit(Item::Frame(o.freeze()));
         Ok(())
+    }
+}
+
+/// Two halves of a pass at once on a rayon pool (the magnifier's
+/// [`Join`]).
+struct PoolJoin<'a>(&'a rayon::ThreadPool);
+
+impl Join for PoolJoin<'_> {
+    fn join(&self, a: &mut (dyn FnMut() + Send), b: &mut (dyn FnMut() + Send)) {
+        self.0.join(a, b);
     }
 }
 

@@ -1,0 +1,319 @@
+//! The roofline of the magnifier's kernels (issue 52): this machine's
+//! measured peaks (an FMA loop and a STREAM-like triad, on every core at
+//! once and on one), then each step of `Magnifier::process` (Riesz and
+//! CSP, 256x256 unless VIBROSCOPE_ROOFLINE_SIZE=WxH) timed in-process on
+//! one core, with its floating-point operations and bytes per input pixel
+//! (counted in `docs/performance.md`), the bound those give on one core,
+//! and how far each step stands from it. `docs/performance.md` keeps the
+//! figures of the last run and how each count was made.
+//!
+//!     cargo bench --bench roofline
+
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::time::Instant;
+use vibroscope_math::magnify::{Magnifier, MagnifyParams, PyramidKind, STEPS};
+
+/// Operations and bytes per input pixel of each step in `STEPS`, for each
+/// pyramid (4 scales; the CSP with 8 orientations), and the memory level
+/// whose bandwidth bounds it (2: L2, 3: L3): derived in
+/// docs/performance.md ("How the counts are made"). A step without counts
+/// is fused into the one before it (level 1) or absent (level 0).
+const RIESZ_COUNTS: [(f64, f64, u8); 7] = [
+    (18.3, 37.2, 3),   // pyramid build
+    (212.0, 197.0, 2), // Riesz pair (FFT): its buffers stay in L2
+    (118.0, 170.0, 3), // phase difference, sum, amplitude + temporal band-pass (fused)
+    (0.0, 0.0, 1),     // (fused into the step before)
+    (111.6, 63.7, 3),  // amplitude-weighted blur (three channels)
+    (53.0, 37.2, 3),   // phase shift
+    (9.3, 20.0, 3),    // pyramid collapse
+];
+const CSP_COUNTS: [(f64, f64, u8); 7] = [
+    (800.0, 680.0, 2), // pyramid build (FFT, masks, band inverse FFTs)
+    (0.0, 0.0, 0),     // (no Riesz pair)
+    (382.0, 424.0, 3), // phase difference, sum, amplitude
+    (191.0, 424.0, 3), // temporal band-pass
+    (615.0, 678.0, 2), // amplitude-weighted blur (a band at a time: in L2)
+    (339.0, 212.0, 3), // phase shift
+    (800.0, 680.0, 2), // pyramid collapse (band FFTs, masks, inverse FFT)
+];
+
+fn main() {
+    if std::env::args().any(|a| a == "--list") {
+        return;
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (w, h) = std::env::var("VIBROSCOPE_ROOFLINE_SIZE")
+        .ok()
+        .and_then(|s| {
+            let (a, b) = s.split_once('x')?;
+            Some((a.parse().ok()?, b.parse().ok()?))
+        })
+        .unwrap_or((256usize, 256usize));
+    println!("roofline: {cores} cores, {w}x{h} frames");
+
+    let (fma1, fma_all, lanes) = fma_peak(cores);
+    println!(
+        "  FMA peak ({lanes}-lane f32 fused multiply-add, 2 flops each): {fma1:.1} GFLOP/s on one core, {fma_all:.1} on {cores}"
+    );
+    let mut bw = Vec::new(); // [L2, L3], one core
+    for (name, floats) in [
+        ("L2 (3 x 256 KiB)", 1usize << 16),
+        ("L3 (3 x 16 MiB)", 1 << 22),
+    ] {
+        let (one, all) = triad(floats, cores);
+        println!(
+            "  triad a = b + s*c in {name}: {one:.1} GB/s on one core, {all:.1} on {cores} (12 bytes per element)"
+        );
+        bw.push(one);
+    }
+    // A magnifier's state (about 20 arrays of a level's size) outgrows L2
+    // at 256x256 and lives in L3; the FFTs' buffers of one level fit L2.
+
+    let frames = texture_frames(w, h, 64);
+    for (kind, counts, label) in [
+        (PyramidKind::Riesz, RIESZ_COUNTS, "riesz"),
+        (PyramidKind::Csp, CSP_COUNTS, "csp (8 orientations)"),
+    ] {
+        let mut p = MagnifyParams::new(500.0, 35.0, 45.0, 10.0);
+        p.pyramid = kind;
+        let mut m = Magnifier::new(w, h, p).expect("magnifier");
+        let mut out = vec![0.0f32; w * h];
+        // Warm-up (the filters' start), then the profiled frames.
+        for f in frames.iter().take(16) {
+            m.process(f, &mut out).expect("process");
+        }
+        m.set_profiling(true);
+        let n = if kind == PyramidKind::Riesz { 400 } else { 100 };
+        let t = Instant::now();
+        for i in 0..n {
+            m.process(&frames[i % frames.len()], &mut out)
+                .expect("process");
+        }
+        let wall = t.elapsed().as_secs_f64();
+        let prof = m.profile().expect("profile").clone();
+        let px = (w * h) as f64;
+        println!(
+            "\n  magnify {label}, one core, {} vectors: {:.1} Mpix/s ({:.3} ms a frame)",
+            m.simd(),
+            n as f64 * px / wall / 1e6,
+            wall / n as f64 * 1e3
+        );
+        println!(
+            "    {:<58} {:>8} {:>10} {:>8} {:>8} {:>4} {:>10} {:>7}",
+            "step", "ms/frame", "Mpix/s", "flop/px", "B/px", "mem", "bound", "of bound"
+        );
+        let mut bound_total = 0.0;
+        for (k, name) in STEPS.iter().enumerate() {
+            let (flops, bytes, level) = counts[k];
+            if flops == 0.0 && bytes == 0.0 {
+                continue;
+            }
+            // A step fused with the next one (no count of its own) takes
+            // its time too.
+            let fused = counts.get(k + 1).is_some_and(|c| c.2 == 1);
+            let secs = prof.seconds[k] + if fused { prof.seconds[k + 1] } else { 0.0 };
+            let name = if fused {
+                format!("{name} + {}", STEPS[k + 1])
+            } else {
+                name.to_string()
+            };
+            let roof_bw = bw[usize::from(level == 3)];
+            let s = secs / prof.frames as f64;
+            let rate = px / s / 1e6;
+            // Mpix/s the step could reach at the one-core peaks.
+            let bound = (fma1 * 1e3 / flops).min(roof_bw * 1e3 / bytes);
+            bound_total += px / (bound * 1e6);
+            println!(
+                "    {name:<58} {:>8.3} {:>10.1} {:>8.1} {:>8.1} {:>4} {:>10.1} {:>7.1}",
+                s * 1e3,
+                rate,
+                flops,
+                bytes,
+                format!("L{level}"),
+                bound,
+                rate / bound
+            );
+        }
+        println!(
+            "    whole frame: bound {:.1} Mpix/s on one core, measured {:.1} ({:.1}x the bound's time)",
+            px / bound_total / 1e6,
+            n as f64 * px / wall / 1e6,
+            wall / n as f64 / bound_total
+        );
+    }
+}
+
+/// A textured frame moving by a sub-pixel sine (x and y), `n` frames.
+fn texture_frames(w: usize, h: usize, n: usize) -> Vec<Vec<f32>> {
+    let mut rng = 0x2545_f491_4f6c_dd1du64;
+    let mut next = || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        (rng >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let waves: Vec<(f64, f64, f64)> = (0..24)
+        .map(|_| {
+            let f = 0.02 + 0.3 * next();
+            let a = std::f64::consts::TAU * next();
+            (f * a.cos(), f * a.sin(), std::f64::consts::TAU * next())
+        })
+        .collect();
+    (0..n)
+        .map(|t| {
+            let d = 0.3 * (std::f64::consts::TAU * 40.0 * t as f64 / 500.0).sin();
+            let mut f = vec![0.0f32; w * h];
+            for (i, v) in f.iter_mut().enumerate() {
+                let (x, y) = ((i % w) as f64 - d, (i / w) as f64 - 0.5 * d);
+                let s: f64 = waves
+                    .iter()
+                    .map(|&(kx, ky, ph)| (std::f64::consts::TAU * (kx * x + ky * y) + ph).cos())
+                    .sum();
+                *v = (128.0 + 20.0 * s) as f32;
+            }
+            f
+        })
+        .collect()
+}
+
+/// GFLOP/s of a register-only FMA loop on one core and on `cores` at once,
+/// with the lane count used.
+fn fma_peak(cores: usize) -> (f64, f64, usize) {
+    let iters = 40_000_000u64;
+    let lanes = fma_lanes();
+    let run = || {
+        let t = Instant::now();
+        let v = fma_loop(iters);
+        std::hint::black_box(v);
+        // 12 accumulators, `lanes` each, 2 flops per FMA.
+        (iters * 12 * lanes as u64 * 2) as f64 / t.elapsed().as_secs_f64() / 1e9
+    };
+    let one = (0..3).map(|_| run()).fold(0.0, f64::max);
+    let all = (0..3)
+        .map(|_| {
+            std::thread::scope(|s| {
+                let hs: Vec<_> = (0..cores).map(|_| s.spawn(run)).collect();
+                hs.into_iter().map(|h| h.join().unwrap()).sum::<f64>()
+            })
+        })
+        .fold(0.0, f64::max);
+    (one, all, lanes)
+}
+
+fn fma_lanes() -> usize {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx512f") {
+            return 16;
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            return 8;
+        }
+    }
+    1
+}
+
+fn fma_loop(iters: u64) -> f32 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU reported AVX-512F.
+            return unsafe { fma_avx512(iters) };
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU reported AVX2 and FMA.
+            return unsafe { fma_avx2(iters) };
+        }
+    }
+    let mut acc = [1.0f32; 12];
+    for _ in 0..iters {
+        for a in acc.iter_mut() {
+            *a = a.mul_add(0.999_999, 1e-7);
+        }
+    }
+    acc.iter().sum()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn fma_avx512(iters: u64) -> f32 {
+    use std::arch::x86_64::*;
+    let (a, b) = (_mm512_set1_ps(0.999_999), _mm512_set1_ps(1e-7));
+    let mut acc = [_mm512_set1_ps(1.0); 12];
+    for _ in 0..iters {
+        for v in acc.iter_mut() {
+            *v = _mm512_fmadd_ps(*v, a, b);
+        }
+    }
+    acc.iter().map(|v| _mm512_reduce_add_ps(*v)).sum()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn fma_avx2(iters: u64) -> f32 {
+    use std::arch::x86_64::*;
+    let (a, b) = (_mm256_set1_ps(0.999_999), _mm256_set1_ps(1e-7));
+    let mut acc = [_mm256_set1_ps(1.0); 12];
+    for _ in 0..iters {
+        for v in acc.iter_mut() {
+            *v = _mm256_fmadd_ps(*v, a, b);
+        }
+    }
+    let mut lanes = [0.0f32; 8];
+    let mut sum = 0.0;
+    for v in acc {
+        _mm256_storeu_ps(lanes.as_mut_ptr(), v);
+        sum += lanes.iter().sum::<f32>();
+    }
+    sum
+}
+
+/// GB/s of `a[i] = b[i] + s·c[i]` over arrays of `n` floats (12 bytes an
+/// element), best of several sweeps: one core, and `cores` each on their
+/// own arrays at once.
+fn triad(n: usize, cores: usize) -> (f64, f64) {
+    let sweeps = (1usize << 27) / n;
+    let run = || {
+        let (mut a, b, c) = (vec![0.0f32; n], vec![1.0f32; n], vec![2.0f32; n]);
+        let mut best = f64::INFINITY;
+        for _ in 0..5 {
+            let t = Instant::now();
+            for _ in 0..sweeps.max(1) {
+                triad_sweep(&mut a, &b, &c);
+                std::hint::black_box(&mut a);
+            }
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        (12 * n * sweeps.max(1)) as f64 / best / 1e9
+    };
+    let one = run();
+    let all = std::thread::scope(|s| {
+        let hs: Vec<_> = (0..cores).map(|_| s.spawn(run)).collect();
+        hs.into_iter().map(|h| h.join().unwrap()).sum::<f64>()
+    });
+    (one, all)
+}
+
+fn triad_sweep(a: &mut [f32], b: &[f32], c: &[f32]) {
+    #[cfg(target_arch = "x86_64")]
+    if std::is_x86_feature_detected!("avx512f") {
+        // SAFETY: the CPU reported AVX-512F.
+        unsafe { triad_avx512(a, b, c) };
+        return;
+    }
+    triad_body(a, b, c);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn triad_avx512(a: &mut [f32], b: &[f32], c: &[f32]) {
+    triad_body(a, b, c);
+}
+
+#[inline(always)]
+fn triad_body(a: &mut [f32], b: &[f32], c: &[f32]) {
+    for ((x, y), z) in a.iter_mut().zip(b).zip(c) {
+        *x = y + 3.0 * z;
+    }
+}
