@@ -32,8 +32,8 @@ pub mod temporal;
 
 use crate::join::{both, simd_fn, Join, Par, Serial, Simd};
 use crate::pyramid::{Complex32, ComplexSteerablePyramid, PyramidCoeffs, PyramidError};
+use laplacian::mid_row;
 use laplacian::Laplacian;
-use laplacian::{mid_row, SPLIT_MIN};
 use riesz_fft::RieszFft;
 use temporal::{BandpassDesign, FilterPart, PixelFilter, CHUNK};
 
@@ -243,56 +243,55 @@ impl WeightedBlur {
     }
 }
 
-/// [`blur`] of three buffers at once, each pass's rows in two halves
-/// through `j` (`tmp` holds three buffers' worth).
+/// What [`blur3_with`] hands on: the first row of a group of rows and the
+/// three buffers' blurred rows of the group.
+type AfterRows<'a> = &'a mut (dyn FnMut(usize, [&[f32]; 3]) + Send);
+
+/// The vertical pass of [`blur`] for three buffers at once (their
+/// horizontal passes already in `tmp`, three buffers' worth), rows `..hm`
+/// and `hm..` through `j`, by groups of rows: `after[half]` gets each
+/// group as soon as it is blurred (while it is in cache).
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn blur3_with(
+fn blur3_cols_with(
     kernel: &[f32],
     bufs: [&mut [f32]; 3],
-    tmp: &mut [f32],
+    tmp: &[f32],
     w: usize,
     h: usize,
+    hm: usize,
     j: Par<'_>,
+    after: [AfterRows<'_>; 2],
 ) {
-    let (n, hm, v) = (w * h, mid_row(h, w), j.simd);
+    let (n, v) = (w * h, j.simd);
     let [b0, b1, b2] = bufs;
-    let (t0, rest) = tmp[..3 * n].split_at_mut(n);
-    let (t1, t2) = rest.split_at_mut(n);
-    {
-        let (x0, y0) = t0.split_at_mut(hm * w);
-        let (x1, y1) = t1.split_at_mut(hm * w);
-        let (x2, y2) = t2.split_at_mut(hm * w);
-        let src = [&b0[..n], &b1[..n], &b2[..n]];
-        both(
-            j,
-            || {
-                for (s, t) in src.iter().zip([&mut *x0, &mut *x1, &mut *x2]) {
-                    blur_rows(v, kernel, &s[..hm * w], t, w);
-                }
-            },
-            || {
-                for (s, t) in src.iter().zip([&mut *y0, &mut *y1, &mut *y2]) {
-                    blur_rows(v, kernel, &s[hm * w..], t, w);
-                }
-            },
-        );
-    }
-    let tmps = [&*t0, &*t1, &*t2];
+    let (t0, rest) = tmp[..3 * n].split_at(n);
+    let (t1, t2) = rest.split_at(n);
+    let tmps = [t0, t1, t2];
     let (x0, y0) = b0[..n].split_at_mut(hm * w);
     let (x1, y1) = b1[..n].split_at_mut(hm * w);
     let (x2, y2) = b2[..n].split_at_mut(hm * w);
+    let [after0, after1] = after;
+    // Rows `first..` of the output, `outs` holding them, by groups.
+    let half = |first: usize, outs: [&mut [f32]; 3], after: AfterRows<'_>| {
+        const GROUP: usize = 8;
+        let [o0, o1, o2] = outs;
+        let groups = o0
+            .chunks_mut(GROUP * w)
+            .zip(o1.chunks_mut(GROUP * w))
+            .zip(o2.chunks_mut(GROUP * w));
+        for (g, ((a, b), c)) in groups.enumerate() {
+            let y = first + g * GROUP;
+            for (t, o) in tmps.iter().zip([&mut *a, &mut *b, &mut *c]) {
+                blur_cols(v, kernel, t, o, w, h, y);
+            }
+            after(y, [&*a, &*b, &*c]);
+        }
+    };
     both(
         j,
-        || {
-            for (t, b) in tmps.iter().zip([&mut *x0, &mut *x1, &mut *x2]) {
-                blur_cols(v, kernel, t, b, w, h, 0);
-            }
-        },
-        || {
-            for (t, b) in tmps.iter().zip([&mut *y0, &mut *y1, &mut *y2]) {
-                blur_cols(v, kernel, t, b, w, h, hm);
-            }
-        },
+        || half(0, [&mut *x0, &mut *x1, &mut *x2], &mut *after0),
+        || half(hm, [&mut *y0, &mut *y1, &mut *y2], &mut *after1),
     );
 }
 
@@ -497,9 +496,12 @@ impl Magnifier {
                 State::Riesz(Box::new(RieszState {
                     prev: lens.iter().map(|&l| [z(l), z(l), z(l)]).collect(),
                     acc: lens.iter().map(|&l| [z(l), z(l)]).collect(),
-                    filters: lens
+                    filters: lap.dims[..params.scales]
                         .iter()
-                        .map(|&l| [PixelFilter::new(&design, l), PixelFilter::new(&design, l)])
+                        .map(|&(w, h)| {
+                            let f = || PixelFilter::with_rows(&design, w, h);
+                            [f(), f()]
+                        })
                         .collect(),
                     ffts: lap.dims[..params.scales]
                         .iter()
@@ -691,13 +693,11 @@ impl Magnifier {
                     let (den, nc, ns) = (&mut s.amp[..len], &mut s.pc[..len], &mut s.ps[..len]);
                     let smooth = self.blur.kernel.len() > 1;
                     let [fc, fs] = &mut s.filters[l];
-                    // The level's pixels in two runs of whole blocks.
-                    let mid = if len >= SPLIT_MIN {
-                        len / 2 / CHUNK * CHUNK
-                    } else {
-                        len
-                    };
-                    let ((mut fc0, mut fc1), (mut fs0, mut fs1)) = (fc.parts(mid), fs.parts(mid));
+                    // The level's rows in two halves; with smoothing, each
+                    // row's horizontal blur follows its phase step at once.
+                    let hm = mid_row(h, w);
+                    let mid = hm * w;
+                    let ((mut fc0, mut fc1), (mut fs0, mut fs1)) = (fc.parts(hm), fs.parts(hm));
                     let v = j.simd;
                     let (b0, b1) = band.split_at(mid);
                     let (q10, q11) = r1.split_at(mid);
@@ -710,52 +710,85 @@ impl Magnifier {
                     let (d0, d1) = den.split_at_mut(mid);
                     let (nc0, nc1) = nc.split_at_mut(mid);
                     let (ns0, ns1) = ns.split_at_mut(mid);
+                    let kernel = &self.blur.kernel[..];
+                    let tmp3 = &mut self.blur.tmp3[..if smooth { 3 * len } else { 0 }];
+                    let (t0, rest) = tmp3.split_at_mut(if smooth { len } else { 0 });
+                    let (t1, t2) = rest.split_at_mut(if smooth { len } else { 0 });
+                    let cut = if smooth { mid } else { 0 };
+                    let (x0, y0) = t0.split_at_mut(cut);
+                    let (x1, y1) = t1.split_at_mut(cut);
+                    let (x2, y2) = t2.split_at_mut(cut);
                     both(
                         j,
                         || {
                             riesz_phase_run(
                                 v,
+                                v,
                                 first,
-                                smooth,
+                                w,
                                 0,
                                 [b0, q10, q20],
                                 [&mut *pi0, &mut *p10, &mut *p20, &mut *ac0, &mut *as0],
                                 [&mut *d0, &mut *nc0, &mut *ns0],
                                 [&mut fc0, &mut fs0],
+                                kernel,
+                                [&mut *x0, &mut *x1, &mut *x2],
                             )
                         },
                         || {
                             riesz_phase_run(
                                 v,
+                                v,
                                 first,
-                                smooth,
-                                mid,
+                                w,
+                                hm,
                                 [b1, q11, q21],
                                 [&mut *pi1, &mut *p11, &mut *p21, &mut *ac1, &mut *as1],
                                 [&mut *d1, &mut *nc1, &mut *ns1],
                                 [&mut fc1, &mut fs1],
+                                kernel,
+                                [&mut *y0, &mut *y1, &mut *y2],
                             )
                         },
                     );
                     laps.lap(2);
                     laps.lap(3);
-                    if smooth {
-                        let bufs = [&mut *den, &mut *nc, &mut *ns];
-                        blur3_with(&self.blur.kernel, bufs, &mut self.blur.tmp3, w, h, j);
-                    }
-                    laps.lap(4);
-                    let (b0, b1) = band.split_at_mut(mid);
-                    let (q10, q11) = r1.split_at(mid);
-                    let (q20, q21) = r2.split_at(mid);
-                    let (d0, d1) = den.split_at(mid);
-                    let (nc0, nc1) = nc.split_at(mid);
-                    let (ns0, ns1) = ns.split_at(mid);
                     let (fa, mp) = (p.factor, p.max_phase);
-                    both(
-                        j,
-                        || riesz_shift(v, b0, [q10, q20], [d0, nc0, ns0], smooth, fa, mp),
-                        || riesz_shift(v, b1, [q11, q21], [d1, nc1, ns1], smooth, fa, mp),
-                    );
+                    if smooth {
+                        // The blur's vertical pass hands each group of rows
+                        // on to the phase shift at once.
+                        let (b0, b1) = band.split_at_mut(hm * w);
+                        let (r1, r2) = (&*r1, &*r2);
+                        let mut shift0 = |y: usize, [d, c, sn]: [&[f32]; 3]| {
+                            let rows = y * w..y * w + d.len();
+                            let q = [&r1[rows.clone()], &r2[rows.clone()]];
+                            riesz_shift(v, &mut b0[rows], q, [d, c, sn], true, fa, mp);
+                        };
+                        let mut shift1 = |y: usize, [d, c, sn]: [&[f32]; 3]| {
+                            let rows = y * w..y * w + d.len();
+                            let q = [&r1[rows.clone()], &r2[rows.clone()]];
+                            let local = rows.start - hm * w..rows.end - hm * w;
+                            riesz_shift(v, &mut b1[local], q, [d, c, sn], true, fa, mp);
+                        };
+                        let bufs = [&mut *den, &mut *nc, &mut *ns];
+                        let after: [AfterRows; 2] = [&mut shift0, &mut shift1];
+                        let kernel = &self.blur.kernel;
+                        blur3_cols_with(kernel, bufs, &self.blur.tmp3, w, h, hm, j, after);
+                        laps.lap(4);
+                    } else {
+                        laps.lap(4);
+                        let (b0, b1) = band.split_at_mut(mid);
+                        let (q10, q11) = r1.split_at(mid);
+                        let (q20, q21) = r2.split_at(mid);
+                        let (d0, d1) = den.split_at(mid);
+                        let (nc0, nc1) = nc.split_at(mid);
+                        let (ns0, ns1) = ns.split_at(mid);
+                        both(
+                            j,
+                            || riesz_shift(v, b0, [q10, q20], [d0, nc0, ns0], false, fa, mp),
+                            || riesz_shift(v, b1, [q11, q21], [d1, nc1, ns1], false, fa, mp),
+                        );
+                    }
                     laps.lap(5);
                 }
                 s.lap.collapse_with(out, j);
@@ -811,46 +844,61 @@ fn riesz_phase_step(
 }
 
 simd_fn! {
-/// One run of a Riesz level's pixels (from pixel `offset`, a multiple of
-/// [`CHUNK`]) in blocks: the phase step, the temporal band-pass of the
-/// block (its sections in turn, both components), and the smoothing's
-/// numerators `A·φ` (`φ` itself without smoothing) into `nc`, `ns`.
+/// Rows `y0..` of a Riesz level (`w` wide; the slices hold those rows), in
+/// blocks of [`CHUNK`] pixels: the phase step, the temporal band-pass of
+/// the block (its sections in turn, both components), and the smoothing's
+/// numerators `A·φ` into `nc`, `ns` (`φ` itself without smoothing). With
+/// smoothing, each finished row of `den`, `nc`, `ns` is blurred along x
+/// into `rows_out` at once (its vertical pass comes when all rows are).
 fn riesz_phase_run(
+    vec: Simd,
     first: bool,
-    smooth: bool,
-    offset: usize,
+    w: usize,
+    y0: usize,
     input: [&[f32]; 3],
     state: [&mut [f32]; 5],
     outs: [&mut [f32]; 3],
     filters: [&mut FilterPart<'_>; 2],
+    kernel: &[f32],
+    rows_out: [&mut [f32]; 3],
 ) {
     let [band, r1, r2] = input;
     let [pi, p1, p2, ac, as_] = state;
     let [den, nc, ns] = outs;
     let [fc, fs] = filters;
-    let len = band.len();
-    for start in (0..len).step_by(CHUNK) {
-        let m = CHUNK.min(len - start);
-        let (mut xc, mut xs) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
-        let r = start..start + m;
-        let (xc, xs) = (&mut xc[..m], &mut xs[..m]);
-        riesz_phase_step(
-            first,
-            [&band[r.clone()], &r1[r.clone()], &r2[r.clone()]],
-            [&mut pi[r.clone()], &mut p1[r.clone()], &mut p2[r.clone()]],
-            [&mut ac[r.clone()], &mut as_[r.clone()]],
-            &mut den[r.clone()],
-            [&mut *xc, &mut *xs],
-        );
-        fc.step_at(xc, offset + start);
-        fs.step_at(xs, offset + start);
-        let (dn, ncc, nsc) = (&den[r.clone()], &mut nc[r.clone()], &mut ns[r]);
+    let mut rows_out = rows_out;
+    let smooth = kernel.len() > 1;
+    let rows = band.len() / w.max(1);
+    for ry in 0..rows {
+        for x0 in (0..w).step_by(CHUNK) {
+            let m = CHUNK.min(w - x0);
+            let (mut xc, mut xs) = ([0.0f32; CHUNK], [0.0f32; CHUNK]);
+            let r = ry * w + x0..ry * w + x0 + m;
+            let (xc, xs) = (&mut xc[..m], &mut xs[..m]);
+            riesz_phase_step(
+                first,
+                [&band[r.clone()], &r1[r.clone()], &r2[r.clone()]],
+                [&mut pi[r.clone()], &mut p1[r.clone()], &mut p2[r.clone()]],
+                [&mut ac[r.clone()], &mut as_[r.clone()]],
+                &mut den[r.clone()],
+                [&mut *xc, &mut *xs],
+            );
+            fc.step_at(xc, y0 + ry, x0);
+            fs.step_at(xs, y0 + ry, x0);
+            let (dn, ncc, nsc) = (&den[r.clone()], &mut nc[r.clone()], &mut ns[r]);
+            if smooth {
+                times(dn, xc, ncc);
+                times(dn, xs, nsc);
+            } else {
+                ncc.copy_from_slice(xc);
+                nsc.copy_from_slice(xs);
+            }
+        }
         if smooth {
-            times(dn, xc, ncc);
-            times(dn, xs, nsc);
-        } else {
-            ncc.copy_from_slice(xc);
-            nsc.copy_from_slice(xs);
+            let row = ry * w..(ry + 1) * w;
+            for (src, dst) in [&*den, &*nc, &*ns].into_iter().zip(rows_out.iter_mut()) {
+                blur_rows(vec, kernel, &src[row.clone()], &mut dst[row.clone()], w);
+            }
         }
     }
 }
@@ -919,7 +967,10 @@ pub fn dither_round(values: &mut [f32], key: u64, first: usize, max: f32) {
 
 /// The steps of [`Magnifier::process`], in the order they run, for a
 /// profile ([`Magnifier::set_profiling`]): each kernel's share of a frame,
-/// which `docs/performance.md` sets against its bound.
+/// which `docs/performance.md` sets against its bound. The Riesz
+/// magnifier fuses some: the band-pass (and the blur's horizontal pass)
+/// into the phase step, the shift into the blur's vertical pass; a fused
+/// step's time counts in the step it is fused into.
 pub const STEPS: [&str; 7] = [
     "pyramid build",
     "Riesz pair (FFT)",

@@ -121,21 +121,25 @@ impl BandpassDesign {
 /// Pixels per block of a [`PixelFilter`]'s state.
 pub const CHUNK: usize = 64;
 
-/// Per-pixel state of a [`BandpassDesign`] over `n` pixels, in blocks of
-/// [`CHUNK`] pixels: per block, per section, register 0 of the block's
-/// pixels then register 1 (contiguous runs: the step vectorises, and a
-/// block's whole state is together).
+/// Per-pixel state of a [`BandpassDesign`] over `n` pixels (or `h` rows
+/// of `w`), in blocks of up to [`CHUNK`] pixels of one row: per block, per
+/// section, register 0 of the block's pixels then register 1 (contiguous
+/// runs: the step vectorises, and a block's whole state is together).
 #[derive(Clone, Debug)]
 pub struct PixelFilter {
     sections: Vec<Section>,
     state: Vec<f32>,
+    /// Row width and blocks per row.
+    w: usize,
+    per_row: usize,
 }
 
-/// The state of a run of whole blocks ([`PixelFilter::parts`]).
+/// The state of a run of whole rows ([`PixelFilter::parts`]).
 pub struct FilterPart<'a> {
     sections: &'a [Section],
     state: &'a mut [f32],
-    first_block: usize,
+    first_row: usize,
+    per_row: usize,
 }
 
 /// One time step of the pixels of one block (`x.len() <= CHUNK`), its
@@ -156,11 +160,20 @@ fn step_block(sections: &[Section], st: &mut [f32], x: &mut [f32]) {
 }
 
 impl PixelFilter {
+    /// The state of `n` pixels (one row).
     pub fn new(design: &BandpassDesign, n: usize) -> Self {
-        let blocks = n.div_ceil(CHUNK);
+        Self::with_rows(design, n, 1)
+    }
+
+    /// The state of `h` rows of `w` pixels (blocks never straddle rows,
+    /// so the rows can be split anywhere: [`Self::parts`]).
+    pub fn with_rows(design: &BandpassDesign, w: usize, h: usize) -> Self {
+        let per_row = w.div_ceil(CHUNK);
         Self {
-            state: vec![0.0; blocks * 2 * CHUNK * design.sections.len()],
+            state: vec![0.0; h * per_row * 2 * CHUNK * design.sections.len()],
             sections: design.sections.clone(),
+            w,
+            per_row,
         }
     }
 
@@ -172,39 +185,36 @@ impl PixelFilter {
     #[inline(always)]
     pub fn step(&mut self, x: &mut [f32]) {
         let b = self.block_len();
-        for (xs, st) in x.chunks_mut(CHUNK).zip(self.state.chunks_exact_mut(b)) {
+        let w = self.w.max(1);
+        let blocks = x.chunks_mut(w).flat_map(|row| row.chunks_mut(CHUNK));
+        for (xs, st) in blocks.zip(self.state.chunks_exact_mut(b)) {
             step_block(&self.sections, st, xs);
         }
     }
 
-    /// The state split at pixel `mid` (a multiple of [`CHUNK`], or all
-    /// the pixels): pixels `..mid` and `mid..`, to step at once.
+    /// The state split at row `mid`: rows `..mid` and `mid..`, to step at
+    /// once.
     pub fn parts(&mut self, mid: usize) -> (FilterPart<'_>, FilterPart<'_>) {
-        let b = self.block_len();
-        let split = (mid.div_ceil(CHUNK) * b).min(self.state.len());
+        let row = self.per_row * self.block_len();
+        let split = (mid * row).min(self.state.len());
         let (s0, s1) = self.state.split_at_mut(split);
-        (
-            FilterPart {
-                sections: &self.sections,
-                state: s0,
-                first_block: 0,
-            },
-            FilterPart {
-                sections: &self.sections,
-                state: s1,
-                first_block: mid.div_ceil(CHUNK),
-            },
-        )
+        let part = |state, first_row| FilterPart {
+            sections: &self.sections,
+            state,
+            first_row,
+            per_row: self.per_row,
+        };
+        (part(s0, 0), part(s1, mid))
     }
 }
 
 impl FilterPart<'_> {
-    /// One time step of the pixels `offset..offset + x.len()` (`offset` a
-    /// multiple of [`CHUNK`] in this part, `x` at most one block).
+    /// One time step of the pixels `x0..x0 + x.len()` of row `y` (`x0` a
+    /// multiple of [`CHUNK`], `x` at most one block).
     #[inline(always)]
-    pub fn step_at(&mut self, x: &mut [f32], offset: usize) {
+    pub fn step_at(&mut self, x: &mut [f32], y: usize, x0: usize) {
         let b = 2 * CHUNK * self.sections.len();
-        let k = offset / CHUNK - self.first_block;
+        let k = (y - self.first_row) * self.per_row + x0 / CHUNK;
         step_block(self.sections, &mut self.state[k * b..(k + 1) * b], x);
     }
 }

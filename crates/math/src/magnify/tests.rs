@@ -354,21 +354,26 @@ fn riesz_halves_and_vector_widths_give_the_same_bits() {
     // neither side a multiple of the filter's block.
     let (w, h) = (144, 112);
     let base = texture(w, h, 7);
-    let mut p = MagnifyParams::new(100.0, 8.0, 12.0, 20.0);
-    p.pyramid = PyramidKind::Riesz;
-    let mut serial = Magnifier::new(w, h, p).unwrap();
-    serial.simd = Simd::Sse2;
-    let mut split = Magnifier::new(w, h, p).unwrap();
-    let (mut a, mut b) = (vec![0.0; w * h], vec![0.0; w * h]);
-    for t in 0..24 {
-        let d = 0.3 * (std::f32::consts::TAU * 10.0 * t as f32 / 100.0).sin();
-        let frame = shifted(&base, w, h, d);
-        serial.process(&frame, &mut a).unwrap();
-        split.process_with(&frame, &mut b, &TwoThreads).unwrap();
-        assert!(
-            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
-            "frame {t}: {} (two threads) differs from sse2 (one thread)",
-            split.simd()
-        );
+    // With the amplitude-weighted smoothing (fused into the phase pass and
+    // the shift) and without.
+    for sigma in [DEFAULT_SIGMA, 0.0] {
+        let mut p = MagnifyParams::new(100.0, 8.0, 12.0, 20.0);
+        p.pyramid = PyramidKind::Riesz;
+        p.sigma = sigma;
+        let mut serial = Magnifier::new(w, h, p).unwrap();
+        serial.simd = Simd::Sse2;
+        let mut split = Magnifier::new(w, h, p).unwrap();
+        let (mut a, mut b) = (vec![0.0; w * h], vec![0.0; w * h]);
+        for t in 0..24 {
+            let d = 0.3 * (std::f32::consts::TAU * 10.0 * t as f32 / 100.0).sin();
+            let frame = shifted(&base, w, h, d);
+            serial.process(&frame, &mut a).unwrap();
+            split.process_with(&frame, &mut b, &TwoThreads).unwrap();
+            assert!(
+                a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "σ {sigma}, frame {t}: {} (two threads) differs from sse2 (one thread)",
+                split.simd()
+            );
+        }
     }
 }
