@@ -180,6 +180,7 @@ struct WeightedBlur {
     kernel: Vec<f32>,
     num: Vec<f32>,
     den: Vec<f32>,
+    /// `num`, `den`, `tmp`: for `apply` (the steerable pyramid); empty for Riesz.
     tmp: Vec<f32>,
     /// Three buffers' intermediate rows (the Riesz magnifier's three
     /// channels blurred at once); empty for the steerable pyramid.
@@ -198,12 +199,19 @@ impl WeightedBlur {
         } else {
             vec![1.0]
         };
+        // The Riesz magnifier blurs its three channels in its own buffers
+        // and uses only `tmp3`; `apply` (the steerable pyramid's) the rest.
+        let (one, three) = if three {
+            (0, 3 * max_len)
+        } else {
+            (max_len, 0)
+        };
         Self {
             kernel,
-            num: vec![0.0; max_len],
-            den: vec![0.0; max_len],
-            tmp: vec![0.0; max_len],
-            tmp3: vec![0.0; if three { 3 * max_len } else { 0 }],
+            num: vec![0.0; one],
+            den: vec![0.0; one],
+            tmp: vec![0.0; one],
+            tmp3: vec![0.0; three],
         }
     }
 
