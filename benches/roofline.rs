@@ -11,7 +11,8 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
+use vibroscope_engine::spin::SpinJoin;
 use vibroscope_math::magnify::{Magnifier, MagnifyParams, PyramidKind, STEPS};
 
 /// Operations and bytes per input pixel of each step in `STEPS`, for each
@@ -143,20 +144,14 @@ fn main() {
         );
         if kind == PyramidKind::Riesz && cores > 1 {
             // The same magnifier with its passes split over two threads
-            // (as the `magnify` stage runs it), against one in this run.
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(2)
-                .build()
-                .expect("pool");
-            let j = PoolJoin(&pool);
+            // (as the `magnify` stage runs it, through its spinning helper), against one in this run.
+            let j = SpinJoin::new("roofline-half", Duration::from_micros(500)).expect("helper");
             m.set_profiling(false);
             let t = Instant::now();
-            pool.install(|| {
-                for i in 0..n {
-                    m.process_with(&frames[i % frames.len()], &mut out, &j)
-                        .expect("process");
-                }
-            });
+            for i in 0..n {
+                m.process_with(&frames[i % frames.len()], &mut out, &j)
+                    .expect("process");
+            }
             let two = t.elapsed().as_secs_f64();
             println!(
                 "    two threads (passes split in halves): {:.1} Mpix/s, {:.2}x one core",
@@ -164,15 +159,6 @@ fn main() {
                 wall / two
             );
         }
-    }
-}
-
-/// Two halves at once on a rayon pool (the `magnify` stage's join).
-struct PoolJoin<'a>(&'a rayon::ThreadPool);
-
-impl vibroscope_math::join::Join for PoolJoin<'_> {
-    fn join(&self, a: &mut (dyn FnMut() + Send), b: &mut (dyn FnMut() + Send)) {
-        self.0.join(a, b);
     }
 }
 

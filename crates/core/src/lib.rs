@@ -16,6 +16,7 @@ pub mod notify;
 pub mod observe;
 pub mod runner;
 pub mod spec;
+pub mod spin;
 pub mod stage;
 pub mod wire;
 

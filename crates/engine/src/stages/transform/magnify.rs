@@ -8,7 +8,9 @@
 
 use super::reduce::ROI;
 use super::roi::{Roi, RoiParam};
+use crate::spin::SpinJoin;
 use crate::*;
+use std::time::Duration;
 use vibroscope_math::join::Join;
 use vibroscope_math::magnify::dither_round;
 use vibroscope_math::magnify::{
@@ -119,7 +121,10 @@ struct Run {
     roi: Roi,
     /// The parts (one, or one per thread); the frame is their sum.
     parts: Vec<Part>,
+    /// The steerable pyramid's halves (its parts), one per thread.
     threads: Option<rayon::ThreadPool>,
+    /// The Riesz magnifier's passes, and the output's rounding, in halves.
+    halves: Option<SpinJoin>,
     pool: FramePool,
     input: Vec<f32>,
     output: Vec<f32>,
@@ -250,14 +255,28 @@ impl Magnify {
         );
         // The steerable pyramid's halves on a thread each; the Riesz
         // magnifier's passes split in two (`Magnifier::process_with`).
+        // Halves of tens of microseconds need a helper that is awake when
+        // they come (`SpinJoin`); rayon's sleeping workers come too late.
         let threads = super::pyramid::resolve_threads(self.p.threads);
-        let threads =
-            super::reduce::thread_pool(if csp { threads.min(n) } else { threads.min(2) })?;
+        let halves = if threads >= 2 {
+            Some(
+                SpinJoin::new("magnify-half", Duration::from_micros(500))
+                    .map_err(|e| StageError::thread("the magnifier's helper", e))?,
+            )
+        } else {
+            None
+        };
+        let threads = if csp {
+            super::reduce::thread_pool(threads.min(n))?
+        } else {
+            None
+        };
         Ok(Run {
             size: (f.width(), f.height()),
             roi,
             parts,
             threads,
+            halves,
             pool: FramePool::new(format, self.pool_frames.max(2)),
             input: vec![0.0; roi.w * roi.h],
             output: vec![0.0; roi.w * roi.h],
@@ -303,11 +322,8 @@ impl Stage for Magnify {
         }
         match r.parts.as_mut_slice() {
             [one] => {
-                one.result = match &r.threads {
-                    Some(pool) => {
-                        let j = PoolJoin(pool);
-                        pool.install(|| one.magnifier.process_with(&r.input, &mut r.output, &j))
-                    }
+                one.result = match &r.halves {
+                    Some(j) => one.magnifier.process_with(&r.input, &mut r.output, j),
                     None => one.magnifier.process(&r.input, &mut r.output),
                 }
             }
@@ -346,17 +362,15 @@ impl Stage for Magnify {
         // would vanish in a dead zone. Deterministic per frame and pixel.
         let key = mix64(f.meta().seq ^ 0x006d_6167_6e69_6679);
         {
-            let half = if r.threads.is_some() {
+            let half = if r.halves.is_some() {
                 r.output.len() / 2
             } else {
                 r.output.len()
             };
             let (a, b) = r.output.split_at_mut(half);
             let quantize = |v: &mut [f32], first: usize| dither_round(v, key, first, max);
-            match &r.threads {
-                Some(pool) => {
-                    pool.join(|| quantize(a, 0), || quantize(b, half));
-                }
+            match &r.halves {
+                Some(j) => j.join(&mut || quantize(a, 0), &mut || quantize(b, half)),
                 None => quantize(a, 0),
             }
         }
@@ -382,16 +396,6 @@ impl Stage for Magnify {
         }
         let _ = out.emit(Item::Frame(o.freeze()));
         Ok(())
-    }
-}
-
-/// Two halves of a pass at once on a rayon pool (the magnifier's
-/// [`Join`]).
-struct PoolJoin<'a>(&'a rayon::ThreadPool);
-
-impl Join for PoolJoin<'_> {
-    fn join(&self, a: &mut (dyn FnMut() + Send), b: &mut (dyn FnMut() + Send)) {
-        self.0.join(a, b);
     }
 }
 
