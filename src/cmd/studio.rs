@@ -27,7 +27,12 @@ use vibroscope_studio::{Studio, StudioOptions};
 /// the peaks, a level meter and every stage's counters (drops, queue
 /// depth), updated over a WebSocket as they come. The page never slows the
 /// pipeline: the studio keeps only the latest of each and drops what the
-/// page has not taken.
+/// page has not taken. A pipeline with a `magnify` stage (live-magnify)
+/// gets a magnified view: every frame the stage makes, at the rate the
+/// page takes them, with fields that change its band and factor while it
+/// runs (the magnifier starts over at the next frame), the frames shown
+/// per second and the frames dropped on the way. --replay plays a
+/// recording as the pipeline's camera, at the recording's own pace.
 ///
 /// By default the server listens on 127.0.0.1 only, on a free port, and
 /// the printed URL carries a random token (128 bits from the operating
@@ -52,6 +57,7 @@ use vibroscope_studio::{Studio, StudioOptions};
     vibroscope studio beam.y4m\n  \
     vibroscope studio ../shared/data/guitar.mp4 --fps 600 --port 8080\n  \
     vibroscope studio --pipeline live-spectrum --set src.duration_s=60\n  \
+    vibroscope studio --pipeline live-magnify --replay rec.y4m --set mag.pyramid=riesz --set out.path=magnified.y4m\n  \
     vibroscope studio --root recordings --port 8080     # on a remote HOST; then, locally:\n  \
     ssh -N -L 8080:127.0.0.1:8080 HOST                    # and open the printed URL\n  \
     vibroscope studio --monitor tcp/127.0.0.1:7447     # a monitor's sources and alarms")]
@@ -91,9 +97,16 @@ pub struct Args {
     #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     fps: Option<f64>,
     /// Run this live pipeline and show it (a shipped name, see `vibroscope
-    /// pipelines`, or a file); it needs a sliding `spectrum` stage.
+    /// pipelines`, or a file): its frames and counters, the sliding
+    /// spectrum when it has a `spectrum` stage, the magnified view when it
+    /// has a `magnify` stage.
     #[arg(long, value_name = "PIPELINE")]
     pipeline: Option<String>,
+    /// Play this recording as --pipeline's source (replacing its camera),
+    /// at the recording's own pace: a live source, so a stage that falls
+    /// behind drops frames and counts them.
+    #[arg(long, value_name = "FILE", requires = "pipeline")]
+    replay: Option<PathBuf>,
     /// Change a parameter of --pipeline: STAGE.KEY=VALUE (VALUE is TOML);
     /// repeatable.
     #[arg(long = "set", value_name = "STAGE.KEY=VALUE")]
@@ -130,6 +143,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         max_body: None,
         pipeline: a.pipeline,
         set: a.set,
+        replay: a.replay,
         monitor: a.monitor.map(|m| (m, a.monitor_key)),
     };
     let o_pipeline = o.pipeline.clone();

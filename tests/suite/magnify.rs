@@ -527,3 +527,74 @@ fn the_live_graph_writes_a_side_by_side_stream_to_standard_output() {
         }
     }
 }
+
+/// A band and factor changed while the run goes on (the studio's magnified
+/// view, through the run's observer): the stage starts its magnifier over
+/// at its next frame with them, so a change asked for before the first
+/// frame gives the frames of a run started with those settings, bit for
+/// bit; a band the frame rate refuses is refused with the stage's reason,
+/// and the frames stay those of the settings it had.
+#[test]
+fn a_band_changed_while_running_starts_the_magnifier_over_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    render(dir.path());
+    let scene = dir.path().join("scene.y4m");
+    type Request = Vec<(String, f64)>;
+    let run = |name: &str, (lo, hi, factor): (f64, f64, f64), request: Option<Request>| {
+        let out = dir.path().join(name);
+        let decl = pipeline::prepare(&PipelineOptions {
+            pipeline: "magnify".into(),
+            set: vec![
+                format!("mag.lo_hz={lo:?}"),
+                format!("mag.hi_hz={hi:?}"),
+                format!("mag.factor={factor:?}"),
+                "mag.pyramid=\"riesz\"".into(),
+                format!("out.path={:?}", out.display().to_string()),
+            ],
+            replay: Some(scene.clone()),
+            fps: None,
+        })
+        .unwrap();
+        let observer = vibroscope::live::Observer::new();
+        if let Some(r) = request {
+            assert_eq!(observer.tuning("mag").request(r), 1);
+        }
+        pipeline::run_observed(&decl, &observer).unwrap();
+        (
+            std::fs::read(&out).unwrap(),
+            observer.tuning("mag").outcome(),
+        )
+    };
+    let ask = |lo: f64, hi: f64, factor: f64| -> Option<Request> {
+        Some(vec![
+            ("lo_hz".into(), lo),
+            ("hi_hz".into(), hi),
+            ("factor".into(), factor),
+        ])
+    };
+    let (start, none) = run("start.y4m", (BAND.0, BAND.1, 10.0), None);
+    assert_eq!(none, None, "no change was asked for");
+    let (direct, _) = run("direct.y4m", (140.0, 160.0, 5.0), None);
+    let (changed, answer) = run(
+        "changed.y4m",
+        (BAND.0, BAND.1, 10.0),
+        ask(140.0, 160.0, 5.0),
+    );
+    let answer = answer.expect("the stage answered");
+    assert_eq!((answer.version, answer.result), (1, Ok(0)));
+    assert!(
+        changed == direct,
+        "a change at frame 0 is not a run started with it"
+    );
+    assert!(changed != start, "the change changed nothing");
+    // Above half the frame rate (250 Hz): refused, the frames unchanged.
+    let (refused, answer) = run(
+        "refused.y4m",
+        (BAND.0, BAND.1, 10.0),
+        ask(140.0, 300.0, 5.0),
+    );
+    let answer = answer.expect("the stage answered");
+    let why = answer.result.expect_err("a band above Nyquist was taken");
+    assert!(why.contains("300") && why.contains("Nyquist"), "{why}");
+    assert!(refused == start, "a refused change changed the frames");
+}

@@ -33,6 +33,7 @@ pub use item::{
 pub use latency::{LatencyHist, LatencySummary};
 pub use observe::{
     FrameHistory, HistoryLimits, Latest, Next, Observer, Snapshot, StageLive, TapFrame, TapSlot,
+    Tuned, Tuning,
 };
 pub use runner::{
     error_chain, run, thousands, RunError, RunOptions, RunReport, SourceProgress, StageReport,

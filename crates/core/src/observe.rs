@@ -22,6 +22,7 @@ use std::time::Instant;
 #[derive(Default)]
 pub struct Observer {
     slots: Mutex<HashMap<String, Arc<TapSlot>>>,
+    tunings: Mutex<HashMap<String, Arc<Tuning>>>,
     stages: Mutex<Vec<Watched>>,
     /// The run's control, and whether [`Observer::stop`] was called.
     control: Mutex<(Option<Arc<Control>>, bool)>,
@@ -74,6 +75,14 @@ impl Observer {
         Arc::clone(m.entry(name.to_owned()).or_default())
     }
 
+    /// The settings a watcher changes on the stage `id` while the run goes
+    /// on (made on first use; a stage that reads them takes the slot of
+    /// its own id when it is built).
+    pub fn tuning(&self, id: &str) -> Arc<Tuning> {
+        let mut m = self.tunings.lock().unwrap_or_else(|e| e.into_inner());
+        Arc::clone(m.entry(id.to_owned()).or_default())
+    }
+
     /// Every stage of the run, in the graph's order (empty before it starts).
     pub fn stages(&self) -> Vec<StageLive> {
         let w = self.stages.lock().unwrap_or_else(|e| e.into_inner());
@@ -115,6 +124,63 @@ impl Observer {
         if g.1 {
             control.stop();
         }
+    }
+}
+
+/// Parameters of one stage that a watcher changes while the run goes on
+/// (the studio's magnified view sets a `magnify` stage's band and factor).
+/// The watcher [`Tuning::request`]s values; the stage looks at the
+/// version once per item (an atomic load), applies a new request at its
+/// next item and [`Tuning::answer`]s with the item's number, or why it
+/// kept its settings.
+#[derive(Default)]
+pub struct Tuning {
+    version: AtomicU64,
+    values: Mutex<Vec<(String, f64)>>,
+    outcome: Mutex<Option<Tuned>>,
+}
+
+/// How a stage took a [`Tuning::request`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tuned {
+    /// The request's version.
+    pub version: u64,
+    /// The number (`seq`) of the first item processed with the new
+    /// values, or why the stage kept the ones it had.
+    pub result: Result<u64, String>,
+}
+
+impl Tuning {
+    /// Asks the stage to take `values` (parameter name, value) at its next
+    /// item; returns the request's version (see [`Tuning::outcome`]).
+    pub fn request(&self, values: Vec<(String, f64)>) -> u64 {
+        let mut v = self.values.lock().unwrap_or_else(|e| e.into_inner());
+        *v = values;
+        self.version.fetch_add(1, Ordering::AcqRel) + 1
+    }
+
+    /// The latest request's version (0: none yet).
+    pub fn version(&self) -> u64 {
+        self.version.load(Ordering::Acquire)
+    }
+
+    /// The latest request: its version and values.
+    pub fn values(&self) -> (u64, Vec<(String, f64)>) {
+        let v = self.values.lock().unwrap_or_else(|e| e.into_inner());
+        (self.version(), v.clone())
+    }
+
+    /// The stage's answer to request `version`.
+    pub fn answer(&self, version: u64, result: Result<u64, String>) {
+        *self.outcome.lock().unwrap_or_else(|e| e.into_inner()) = Some(Tuned { version, result });
+    }
+
+    /// The last answer, if any.
+    pub fn outcome(&self) -> Option<Tuned> {
+        self.outcome
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 }
 

@@ -284,6 +284,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
     let mut kinds = Vec::with_capacity(n);
     for (i, node) in graph.nodes.into_iter().enumerate() {
         let ctx = BuildCtx {
+            id: node.id.clone(),
             pool_frames: frame_slots,
             held_downstream: held_downstream[i],
             input_types: node.inputs.iter().map(|inp| inp.port_type).collect(),

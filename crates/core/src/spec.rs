@@ -996,6 +996,8 @@ impl KindSpec {
 
 /// Everything a validated stage needs to become a running [`Node`].
 pub struct BuildCtx {
+    /// The stage's id in the pipeline.
+    pub id: String,
     /// Frame buffers a source should put in its pool.
     pub pool_frames: usize,
     /// Items this stage's output can have in flight downstream at once:

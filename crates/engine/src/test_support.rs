@@ -18,6 +18,7 @@ pub(crate) fn run_audio_stage(
     t0_ns: i64,
 ) -> Vec<AudioBlock> {
     let ctx = BuildCtx {
+        id: "stage".into(),
         held_downstream: 0,
         pool_frames: 0,
         input_types: vec![PortType::Audio],

@@ -550,6 +550,9 @@ const LIVE = {
   updates: 0, spectra: 0, specSeq: 0, firstMs: null, lastMs: null,
   closed: 0, last: null, frameSeq: 0, frameBusy: false, framesShown: 0, hiDb: null,
   ny: null, mode: null, modeSeq: 0,
+  // The magnified view: frames drawn, the last one's number, the arrival
+  // times of the last ones (for the rate shown), the frame it holds.
+  magShown: 0, magFrame: null, magTimes: [], magLast: null, magGaps: 0,
 };
 S.live = LIVE;
 
@@ -601,8 +604,10 @@ function connectLive() {
   try { ws = new WebSocket(proto + "//" + location.host + url("/api/live/ws")); }
   catch (e) { showError("live: " + e.message); return; }
   LIVE.ws = ws;
+  ws.binaryType = "arraybuffer";
   ws.onopen = () => { if (LIVE.closed) clearError(); };
   ws.onmessage = (ev) => {
+    if (ev.data instanceof ArrayBuffer) { drawMagnified(ev.data); return; }
     let u;
     try { u = JSON.parse(ev.data); } catch (_) { showError("live: an update that is not JSON"); return; }
     onLive(u);
@@ -634,11 +639,63 @@ function onLive(u) {
   if (u.level) drawLevel(u.level);
   if (u.frame && u.frame.seq !== LIVE.frameSeq && !LIVE.frameBusy) loadLiveFrame(u.frame);
   fillLiveStats(u);
+  fillMagnifyInfo(u);
   const age = sp && sp.age_ms != null ? `, newest sample ${sp.age_ms.toFixed(0)} ms old` : "";
   $("livetitle").textContent = `Live: ${u.pipeline} — ${u.state}` +
     (u.now_s != null ? ` at ${u.now_s.toFixed(1)} s` : "") + (sp ? ` — spectrum ${sp.seq}${age}` : "");
   if (u.state === "failed") showError(u.message || "the live pipeline failed");
   else if (u.state === "finished") status(u.message || "the live pipeline ended");
+}
+
+// A magnified frame from the WebSocket: "VMAG", width, height (u32),
+// frame number (u64), capture time (i64 ns), then 8-bit grey pixels.
+function drawMagnified(buf) {
+  const d = new DataView(buf);
+  if (buf.byteLength < 28 || d.getUint32(0, false) !== 0x564d4147) return showError("live: a binary message that is not a magnified frame");
+  const w = d.getUint32(4, true), h = d.getUint32(8, true);
+  const frame = Number(d.getBigUint64(12, true)), t = Number(d.getBigInt64(20, true)) * 1e-9;
+  const px = new Uint8Array(buf, 28);
+  if (px.length !== w * h) return showError(`live: a magnified frame of ${px.length} bytes for ${w}x${h}`);
+  const c = $("livemag");
+  if (c.width !== w || c.height !== h) { c.width = w; c.height = h; c.style.width = Math.min(w, 1280) + "px"; }
+  const g = c.getContext("2d"), img = g.createImageData(w, h), o = img.data;
+  for (let i = 0, j = 0; i < px.length; i++, j += 4) { o[j] = o[j + 1] = o[j + 2] = px[i]; o[j + 3] = 255; }
+  g.putImageData(img, 0, 0);
+  if (LIVE.magFrame !== null && frame > LIVE.magFrame + 1) LIVE.magGaps += frame - LIVE.magFrame - 1;
+  LIVE.magShown++; LIVE.magFrame = frame; LIVE.magLast = { frame, t_s: t, width: w, height: h };
+  const now = performance.now();
+  LIVE.magTimes.push(now);
+  while (LIVE.magTimes.length > 2 && now - LIVE.magTimes[0] > 2000) LIVE.magTimes.shift();
+  $("livemagbox").hidden = false;
+}
+
+// The magnified view's line: rate on the page, frames not shown, drops.
+function fillMagnifyInfo(u) {
+  const m = u.magnify; if (!m) return;
+  const ts = LIVE.magTimes, n = ts.length;
+  const fps = n > 1 ? (n - 1) / ((ts[n - 1] - ts[0]) / 1e3) : 0;
+  const st = u.stages.find((s) => s.id === m.stage);
+  const dropped = st ? st.dropped : 0;
+  $("livemaginfo").textContent = `magnified ${m.lo_hz}–${m.hi_hz} Hz ×${m.factor}` +
+    (m.since_frame != null ? ` since frame ${m.since_frame}` : "") +
+    ` — ${LIVE.magShown} frames shown, ${fps.toFixed(1)} a second` +
+    (LIVE.magFrame != null ? ` (frame ${LIVE.magFrame})` : "") +
+    `; not shown (the page was slower) ${LIVE.magGaps}; dropped before the magnifier (it was slower) ${dropped}` +
+    (m.refused ? `; last change refused: ${m.refused}` : "") + (m.pending ? "; change waiting for a frame" : "");
+  const set = (id, v) => { const e = $(id); if (document.activeElement !== e && !LIVE.magEdited) e.value = v; };
+  set("maglo", m.lo_hz); set("maghi", m.hi_hz); set("magfactor", m.factor);
+  LIVE.magInfo = { fps, dropped, gaps: LIVE.magGaps, shown: LIVE.magShown };
+}
+
+async function applyMagnify() {
+  const lo = parseFloat($("maglo").value), hi = parseFloat($("maghi").value), factor = parseFloat($("magfactor").value);
+  if (![lo, hi, factor].every(Number.isFinite)) return showError("the band and factor must be numbers");
+  try {
+    const r = await (await api("/api/live/magnify", null, { lo_hz: lo, hi_hz: hi, factor })).json();
+    LIVE.magEdited = false; clearError();
+    LIVE.magApplied = r;
+    status(r.pending ? "the change waits for the next frame" : `magnifying ${lo}–${hi} Hz ×${factor} from frame ${r.since_frame}`);
+  } catch (e) { showError(e.message); }
 }
 
 function loadLiveFrame(f) {
@@ -751,6 +808,15 @@ function fillLiveStats(u) {
 }
 
 function setupLiveExport() {
+  $("magapply").onclick = applyMagnify;
+  for (const id of ["maglo", "maghi", "magfactor"]) {
+    $(id).addEventListener("input", () => { LIVE.magEdited = true; });
+    $(id).addEventListener("keydown", (ev) => { if (ev.key === "Enter") applyMagnify(); });
+  }
+  $("export-live-mag").onclick = () => {
+    if (LIVE.magFrame === null) return showError("no magnified frame yet");
+    download(`live-magnified-${LIVE.magFrame}.png`, $("livemag").toDataURL("image/png"));
+  };
   $("export-live-mode").onclick = () => { if (LIVE.mode) download(`live-mode-${LIVE.mode.freq_hz.toFixed(2)}Hz.png`, LIVE.mode.png); };
   $("livespec").addEventListener("click", (ev) => {
     if (!LIVE.ny) return;

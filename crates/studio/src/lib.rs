@@ -58,6 +58,9 @@ pub struct StudioOptions {
     pub pipeline: Option<String>,
     /// `STAGE.KEY=VALUE` changes to that pipeline.
     pub set: Vec<String>,
+    /// Replaces that pipeline's source with this recording, played at its
+    /// own pace (a live source).
+    pub replay: Option<PathBuf>,
     /// A `vibroscope monitor` to show: its zenoh endpoints (comma-separated)
     /// and the key it publishes its events on.
     pub monitor: Option<(String, String)>,
@@ -198,9 +201,16 @@ impl Studio {
                 "--set changes a --pipeline: give one".into(),
             ));
         }
+        if o.pipeline.is_none() && o.replay.is_some() {
+            return Err(StartError::Usage(
+                "--replay replaces the source of a --pipeline: give one".into(),
+            ));
+        }
         let live_decl = match &o.pipeline {
             None => None,
-            Some(p) => Some(live::prepare(p, &o.set).map_err(StartError::Usage)?),
+            Some(p) => {
+                Some(live::prepare(p, &o.set, o.replay.as_deref()).map_err(StartError::Usage)?)
+            }
         };
         let monitor = match &o.monitor {
             None => None,

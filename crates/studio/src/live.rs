@@ -3,7 +3,10 @@
 //!
 //! - `frame`: the source's frames, at most 10 a second, copied to 8 bits;
 //! - `samples`: what feeds the spectrum (the level meter);
-//! - `spectrum`: every sliding spectrum.
+//! - `spectrum`: every sliding spectrum;
+//! - `magnified`: every frame of the first `magnify` stage (the magnified
+//!   view), whose band and factor the page may change while it runs
+//!   (the stage starts its magnifier over at the next frame).
 //!
 //! The taps never hold the stream up (see `vibroscope::engine::observe`),
 //! so the frame path is the same with or without the studio: the server
@@ -15,8 +18,8 @@ use serde_json::{json, Value};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
-use vibroscope::live::TapParams;
 use vibroscope::live::{Latest, Observer, Origin, PipelineDecl, PortType, TapFrame, TapSlot};
+use vibroscope::live::{MagnifyParams, TapParams, Tuning};
 use vibroscope::peaks::{find_peaks, PeakOptions};
 use vibroscope::pipeline::{self as pl, PipelineOptions};
 
@@ -33,6 +36,7 @@ const TAP_FRAME: &str = "studio_frame";
 const TAP_SAMPLES: &str = "studio_samples";
 const TAP_SPECTRUM: &str = "studio_spectrum";
 const TAP_HISTORY: &str = "studio_history";
+const TAP_MAGNIFIED: &str = "studio_magnified";
 
 /// Seconds of frames kept for a modal image of the live view, and the
 /// memory they may take (older frames go first).
@@ -61,6 +65,134 @@ pub struct Live {
     peaks: Mutex<(u64, Value)>,
     /// [`Live::stop`] was called (the studio stopped it, not a signal).
     stopping: Arc<std::sync::atomic::AtomicBool>,
+    /// The magnified view, when the pipeline has a `magnify` stage.
+    pub magnify: Option<MagnifyView>,
+}
+
+/// The first `magnify` stage of the live pipeline: its frames (every one,
+/// the latest kept) and the band and factor the page sets.
+pub struct MagnifyView {
+    /// The stage's id.
+    pub stage: String,
+    frames: Arc<TapSlot>,
+    tuning: Arc<Tuning>,
+    /// The band and factor in force, and the frame they took effect at
+    /// (none: since the start); and the last request refused, with why.
+    state: Mutex<MagnifyState>,
+}
+
+#[derive(Clone, Debug)]
+struct MagnifyState {
+    lo_hz: f64,
+    hi_hz: f64,
+    factor: f64,
+    since_frame: Option<u64>,
+    /// The request waiting for the stage: its version and values.
+    pending: Option<(u64, [f64; 3])>,
+    refused: Option<String>,
+}
+
+/// What became of a change of band and factor.
+#[derive(Debug)]
+pub enum Retune {
+    /// Taken from this frame on.
+    Applied(u64),
+    /// The stage kept its settings, for this reason.
+    Refused(String),
+    /// No frame came within the time waited (the request stays; the
+    /// stage takes it at its next frame).
+    Pending,
+}
+
+impl MagnifyView {
+    /// Asks the stage for a new band and factor and waits up to `wait`
+    /// for its answer. Values the stage's declaration refuses are refused
+    /// here first, with its message.
+    pub fn retune(&self, lo_hz: f64, hi_hz: f64, factor: f64, wait: Duration) -> Retune {
+        let values = [("lo_hz", lo_hz), ("hi_hz", hi_hz), ("factor", factor)];
+        for (k, v) in values {
+            if let Err(m) = vibroscope::live::check_magnify_param(k, v) {
+                return Retune::Refused(format!("{k} = {v}: {m}"));
+            }
+        }
+        if lo_hz > hi_hz {
+            return Retune::Refused(format!(
+                "the band {lo_hz} - {hi_hz} Hz is inverted (lo_hz < hi_hz)"
+            ));
+        }
+        let version = {
+            let mut st = self.state.lock().unwrap_or_else(|p| p.into_inner());
+            let v = self
+                .tuning
+                .request(values.iter().map(|(k, v)| (k.to_string(), *v)).collect());
+            st.pending = Some((v, [lo_hz, hi_hz, factor]));
+            v
+        };
+        let t0 = Instant::now();
+        loop {
+            self.settle();
+            if let Some(t) = self.tuning.outcome().filter(|t| t.version == version) {
+                return match t.result {
+                    Ok(seq) => Retune::Applied(seq),
+                    Err(m) => Retune::Refused(m),
+                };
+            }
+            if t0.elapsed() >= wait {
+                return Retune::Pending;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    /// Takes the stage's answer to the pending request into the state.
+    fn settle(&self) {
+        let mut st = self.state.lock().unwrap_or_else(|p| p.into_inner());
+        let Some((version, [lo, hi, factor])) = st.pending else {
+            return;
+        };
+        let Some(t) = self.tuning.outcome().filter(|t| t.version == version) else {
+            return;
+        };
+        st.pending = None;
+        match t.result {
+            Ok(seq) => {
+                (st.lo_hz, st.hi_hz, st.factor) = (lo, hi, factor);
+                st.since_frame = Some(seq);
+                st.refused = None;
+            }
+            Err(m) => st.refused = Some(m),
+        }
+    }
+
+    /// The latest magnified frame and its slot number.
+    pub fn latest(&self) -> Option<(u64, TapFrame)> {
+        let s = self.frames.snapshot()?;
+        match s.latest {
+            Latest::Frame(f) => Some((s.seq, f)),
+            _ => None,
+        }
+    }
+
+    /// Frames kept by the slot so far (changes with each new one).
+    pub fn seq(&self) -> u64 {
+        self.frames.seq()
+    }
+
+    fn update(&self) -> Value {
+        self.settle();
+        let st = self.state.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        json!({
+            "stage": self.stage,
+            "lo_hz": st.lo_hz,
+            "hi_hz": st.hi_hz,
+            "factor": st.factor,
+            "since_frame": st.since_frame,
+            "pending": st.pending.is_some(),
+            "refused": st.refused,
+            "frames": self.frames.seq(),
+            "skipped": self.frames.skipped(),
+        })
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -76,13 +208,26 @@ enum RunState {
 /// on the source's frames, on what feeds the first spectrum stage (or, with
 /// none, on the last stage giving samples or audio: the level meter), and
 /// on that spectrum stage's output when there is one.
-pub fn prepare(pipeline: &str, set: &[String]) -> Result<PipelineDecl, String> {
+///
+/// With `replay`, the pipeline's source becomes that recording played at
+/// its own pace (a live source: the edges drop as they would live).
+pub fn prepare(
+    pipeline: &str,
+    set: &[String],
+    replay: Option<&std::path::Path>,
+) -> Result<PipelineDecl, String> {
     let mut decl = pl::prepare(&PipelineOptions {
         pipeline: pipeline.to_owned(),
         set: set.to_vec(),
         ..PipelineOptions::default()
     })
     .map_err(|e| e.to_string())?;
+    if let Some(path) = replay {
+        if !path.is_file() {
+            return Err(format!("--replay {}: no such file", path.display()));
+        }
+        pl::apply_live_replay(&mut decl, path).map_err(|e| e.to_string())?;
+    }
     // The user's pipeline first: errors name its own stages and fields.
     let g = pl::validate(&decl).map_err(|e| e.to_string())?;
     let id = |i: usize| g.nodes[i].id.clone();
@@ -106,7 +251,18 @@ pub fn prepare(pipeline: &str, set: &[String]) -> Result<PipelineDecl, String> {
     };
     let spectrum_id = spectrum.map(id);
     drop(g);
-    for id in [TAP_FRAME, TAP_SAMPLES, TAP_SPECTRUM, TAP_HISTORY] {
+    let magnify_id = decl
+        .stages
+        .iter()
+        .find(|s| s.is::<MagnifyParams>())
+        .map(|s| s.id.clone());
+    for id in [
+        TAP_FRAME,
+        TAP_SAMPLES,
+        TAP_SPECTRUM,
+        TAP_HISTORY,
+        TAP_MAGNIFIED,
+    ] {
         if decl.stages.iter().any(|s| s.id == id) {
             return Err(format!(
                 "{}: a stage is called `{id}`, the name the studio gives its own",
@@ -138,6 +294,10 @@ pub fn prepare(pipeline: &str, set: &[String]) -> Result<PipelineDecl, String> {
         });
         taps.push(history);
     }
+    if let Some(m) = &magnify_id {
+        // Every magnified frame (the latest kept: a slow page gets fewer).
+        taps.push(tap(TAP_MAGNIFIED, m, "magnified", 0.0));
+    }
     for st in taps {
         decl.stages.push(st.map_err(|e| e.to_string())?);
     }
@@ -151,6 +311,25 @@ impl Live {
     pub fn start(name: &str, decl: PipelineDecl) -> Result<Arc<Live>, String> {
         let observer = Observer::new();
         let has_spectrum = decl.stages.iter().any(|s| s.id == TAP_SPECTRUM);
+        let magnify = decl
+            .stages
+            .iter()
+            .find(|s| s.id == TAP_MAGNIFIED)
+            .and_then(|t| t.inputs.first())
+            .and_then(|i| decl.stages.iter().find(|s| s.id == i.from))
+            .map(|m| MagnifyView {
+                stage: m.id.clone(),
+                frames: observer.slot("magnified"),
+                tuning: observer.tuning(&m.id),
+                state: Mutex::new(MagnifyState {
+                    lo_hz: m.get(MagnifyParams::lo_hz).unwrap_or(f64::NAN),
+                    hi_hz: m.get(MagnifyParams::hi_hz).unwrap_or(f64::NAN),
+                    factor: m.get(MagnifyParams::factor).unwrap_or(f64::NAN),
+                    since_frame: None,
+                    pending: None,
+                    refused: None,
+                }),
+            });
         let state = Arc::new(Mutex::new(RunState::Running));
         let stopping = Arc::new(std::sync::atomic::AtomicBool::new(false));
         let by_studio = Arc::clone(&stopping);
@@ -167,6 +346,7 @@ impl Live {
             sent: AtomicU64::new(0),
             peaks: Mutex::new((0, Value::Array(Vec::new()))),
             stopping,
+            magnify,
         });
         let t = std::thread::Builder::new()
             .name("studio-live".into())
@@ -367,6 +547,7 @@ impl Live {
             "level": level,
             "frame": frame,
             "stages": self.observer.stages(),
+            "magnify": self.magnify.as_ref().map(|m| m.update()),
             "skipped": {
                 "spectrum": self.spectrum.skipped(),
                 "frame": self.frame.skipped(),
@@ -459,7 +640,7 @@ mod tests {
                 .map(|s| (s.id.clone(), s.inputs[0].from.clone()))
                 .collect()
         };
-        let d = prepare("live-spectrum", &[]).expect("the shipped live pipeline");
+        let d = prepare("live-spectrum", &[], None).expect("the shipped live pipeline");
         let want = |v: &[(&str, &str)]| -> Vec<(String, String)> {
             v.iter()
                 .map(|(a, b)| (a.to_string(), b.to_string()))
@@ -483,15 +664,49 @@ mod tests {
         let hs = h.params().iter().find(|p| p.key == "history_s");
         assert_eq!(hs.and_then(|p| p.value.as_float()), Some(HISTORY_S));
         // No spectrum: the level comes from the last stage giving audio.
-        let d = prepare("live-microphone", &[]).expect("the shipped live microphone");
+        let d = prepare("live-microphone", &[], None).expect("the shipped live microphone");
         let t = taps(&d);
         assert_eq!(t.len(), 2, "{t:?}");
         assert_eq!(t[0], (TAP_FRAME.to_string(), "cam".to_string()));
         assert_eq!(t[1], (TAP_SAMPLES.to_string(), "highpass".to_string()));
         // The user's errors come first, naming the user's stage.
-        let e = prepare("live-spectrum", &["spectrum.hop=0".to_owned()]).unwrap_err();
+        let e = prepare("live-spectrum", &["spectrum.hop=0".to_owned()], None).unwrap_err();
         assert!(e.contains("hop"), "{e}");
-        let e = prepare("no-such-pipeline", &[]).unwrap_err();
+        let e = prepare("no-such-pipeline", &[], None).unwrap_err();
         assert!(e.contains("no such file"), "{e}");
+        // A magnify stage: every frame it makes is tapped.
+        let d = prepare("live-magnify", &[], None).expect("the shipped live magnifier");
+        let t = taps(&d);
+        assert!(
+            t.contains(&(TAP_MAGNIFIED.to_string(), "mag".to_string())),
+            "{t:?}"
+        );
+        let m = d
+            .stages
+            .iter()
+            .find(|s| s.id == TAP_MAGNIFIED)
+            .expect("tap");
+        let every = m.params().iter().find(|p| p.key == "every_ms");
+        assert_eq!(every.and_then(|p| p.value.as_float()), Some(0.0));
+        // A replay plays a file as the camera, at its own pace.
+        let e = prepare(
+            "live-magnify",
+            &[],
+            Some(std::path::Path::new("/no/such.y4m")),
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("/no/such.y4m") && e.contains("no such file"),
+            "{e}"
+        );
+        let clip = std::env::temp_dir().join(format!("studio-replay-{}.y4m", std::process::id()));
+        std::fs::write(&clip, b"YUV4MPEG2 W8 H8 F60:1 Cmono\n").expect("a scratch file");
+        let d = prepare("live-magnify", &[], Some(&clip));
+        let _ = std::fs::remove_file(&clip);
+        let d = d.expect("live-magnify on a replay");
+        let cam = d.stages.iter().find(|s| s.id == "cam").expect("the source");
+        assert_eq!(cam.kind, "file");
+        let realtime = cam.params().iter().find(|p| p.key == "realtime");
+        assert_eq!(realtime.and_then(|p| p.value.as_bool()), Some(true));
     }
 }

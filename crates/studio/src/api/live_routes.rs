@@ -14,7 +14,7 @@ use std::time::Instant;
 use super::modal::{check_frequency, modal_image};
 use super::video::encode_png;
 use super::{blocking, body, ApiError, ApiResult, App};
-use crate::live::Live;
+use crate::live::{Live, Retune};
 
 /// The monitor's sources and latest events (`--monitor`).
 pub(super) async fn monitor_update(State(app): State<Arc<App>>) -> ApiResult<axum::Json<Value>> {
@@ -62,6 +62,92 @@ pub(super) async fn live_frame(State(app): State<Arc<App>>) -> ApiResult<Respons
         png,
     )
         .into_response())
+}
+
+/// The magnified view of a live pipeline with a `magnify` stage.
+fn magnify_of(live: &Live) -> ApiResult<&crate::live::MagnifyView> {
+    live.magnify.as_ref().ok_or_else(|| {
+        ApiError::new(
+            StatusCode::NOT_FOUND,
+            format!(
+                "the live pipeline {} has no magnify stage (try --pipeline live-magnify)",
+                live.name
+            ),
+        )
+    })
+}
+
+/// The latest magnified frame as an 8-bit grey PNG (its frame number in
+/// `X-Frame`).
+pub(super) async fn live_magnified(State(app): State<Arc<App>>) -> ApiResult<Response> {
+    let live = live_of(&app)?;
+    let (frame, png) = blocking(move || {
+        let m = magnify_of(&live)?;
+        match m.latest() {
+            None => Err(ApiError::new(
+                StatusCode::NOT_FOUND,
+                "no magnified frame yet: the magnify stage has not delivered one",
+            )),
+            Some((_, f)) => Ok((
+                f.seq,
+                encode_png(&f.gray, f.width, f.height, image::ExtendedColorType::L8)?,
+            )),
+        }
+    })
+    .await?;
+    let mut r = (
+        [
+            (header::CONTENT_TYPE, HeaderValue::from_static("image/png")),
+            (header::CACHE_CONTROL, HeaderValue::from_static("no-store")),
+        ],
+        png,
+    )
+        .into_response();
+    r.headers_mut().insert("x-frame", HeaderValue::from(frame));
+    Ok(r)
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MagnifyRequest {
+    lo_hz: f64,
+    hi_hz: f64,
+    factor: f64,
+}
+
+/// Changes the magnified view's band and factor: the `magnify` stage
+/// starts its magnifier over at its next frame with them. Answers the
+/// frame they took effect at, 422 with the stage's reason when refused,
+/// 202 when no frame came within 3 s (the stage takes them at its next).
+pub(super) async fn live_magnify(State(app): State<Arc<App>>, b: Bytes) -> ApiResult<Response> {
+    let live = live_of(&app)?;
+    let r: MagnifyRequest = body(&b)?;
+    let res = blocking(move || {
+        let m = magnify_of(&live)?;
+        Ok(m.retune(
+            r.lo_hz,
+            r.hi_hz,
+            r.factor,
+            std::time::Duration::from_secs(3),
+        ))
+    })
+    .await?;
+    let v = json!({ "lo_hz": r.lo_hz, "hi_hz": r.hi_hz, "factor": r.factor });
+    match res {
+        Retune::Applied(frame) => {
+            let mut v = v;
+            v["since_frame"] = json!(frame);
+            Ok(axum::Json(v).into_response())
+        }
+        Retune::Refused(m) => Err(ApiError::unprocessable(format!(
+            "the magnify stage kept its band and factor: {m}"
+        ))),
+        Retune::Pending => {
+            let mut v = v;
+            v["pending"] = json!(true);
+            Ok((StatusCode::ACCEPTED, axum::Json(v)).into_response())
+        }
+    }
 }
 
 #[derive(Deserialize)]
@@ -123,20 +209,57 @@ pub(super) async fn live_ws(
         .on_upgrade(move |socket| live_socket(socket, live, closing)))
 }
 
-/// Sends an update whenever a tap has something new, checking every 20 ms:
-/// while a send waits on a slow page, newer items replace older ones in
-/// the taps, so the page gets the latest, never a backlog.
+/// Bytes before the pixels of a magnified frame sent on the WebSocket:
+/// `VMAG`, width and height (u32), the frame's number (u64) and capture
+/// time (i64 ns), little-endian.
+pub const MAGNIFIED_HEADER: usize = 28;
+
+/// A magnified frame as one binary WebSocket message (see
+/// [`MAGNIFIED_HEADER`]), 8-bit grey pixels row by row after the header.
+fn magnified_message(f: &vibroscope::live::TapFrame) -> Vec<u8> {
+    let mut b = Vec::with_capacity(MAGNIFIED_HEADER + f.gray.len());
+    b.extend_from_slice(b"VMAG");
+    b.extend_from_slice(&f.width.to_le_bytes());
+    b.extend_from_slice(&f.height.to_le_bytes());
+    b.extend_from_slice(&f.seq.to_le_bytes());
+    b.extend_from_slice(&f.t_ns.to_le_bytes());
+    b.extend_from_slice(&f.gray);
+    b
+}
+
+/// Sends an update whenever a tap has something new, checking every 20 ms
+/// (every 5 ms with a magnified view, each new magnified frame as a binary
+/// message): while a send waits on a slow page, newer items replace older
+/// ones in the taps, so the page gets the latest, never a backlog.
 async fn live_socket(
     mut socket: WebSocket,
     live: Arc<Live>,
     mut closing: tokio::sync::watch::Receiver<bool>,
 ) {
-    let mut tick = tokio::time::interval(std::time::Duration::from_millis(20));
+    let every = if live.magnify.is_some() { 5 } else { 20 };
+    let mut tick = tokio::time::interval(std::time::Duration::from_millis(every));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     let mut last = None;
+    let mut last_magnified = 0;
     loop {
         tokio::select! {
             _ = tick.tick() => {
+                if let Some(m) = &live.magnify {
+                    if m.seq() != last_magnified {
+                        let l = live.clone();
+                        let Ok(frame) = tokio::task::spawn_blocking(move || {
+                            l.magnify.as_ref().and_then(|m| m.latest())
+                        }).await else {
+                            break;
+                        };
+                        if let Some((seq, f)) = frame {
+                            last_magnified = seq;
+                            if socket.send(Message::Binary(magnified_message(&f).into())).await.is_err() {
+                                break;
+                            }
+                        }
+                    }
+                }
                 let v = live.version();
                 if last == Some(v) {
                     continue;

@@ -14,7 +14,9 @@
 //! | `GET /api/live` | the live pipeline's latest update (spectrum in dB, peaks, level, frame number, stage counters) |
 //! | `GET /api/live/frame` | its latest frame as an 8-bit grey PNG |
 //! | `POST /api/live/mode {freq_hz}` | the modal image at that frequency from the live pipeline's last 4 s of frames (as `/api/mode` answers, with the frames, span and rate used) |
-//! | `GET /api/live/ws` | a WebSocket carrying each new update as it comes (at most 50 a second; stale ones are replaced, never queued) |
+//! | `GET /api/live/ws` | a WebSocket carrying each new update as it comes (at most 50 a second; stale ones are replaced, never queued), and with a `magnify` stage each new magnified frame as a binary message (`VMAG`, width, height, frame number, capture time, then 8-bit grey pixels) |
+//! | `GET /api/live/magnified` | the latest frame of the live pipeline's `magnify` stage as an 8-bit grey PNG (frame number in `X-Frame`) |
+//! | `POST /api/live/magnify {lo_hz, hi_hz, factor}` | changes that stage's band and factor while it runs: the frame they took effect at, or 422 with why the stage kept its own |
 //!
 //! A `mask` is a PNG the frame's size painted on the page (a `data:` URL),
 //! read by the same loader as `--mask`.
@@ -37,7 +39,9 @@ mod video;
 
 pub use self::base64::{base64, base64_decode};
 use access::{gate, TOKEN_COOKIE};
-use live_routes::{live_frame, live_mode, live_update, live_ws, monitor_update};
+use live_routes::{
+    live_frame, live_magnified, live_magnify, live_mode, live_update, live_ws, monitor_update,
+};
 use modal::mode;
 use region::{damping, idv_basis, motion};
 pub(crate) use selection::Selection;
@@ -256,6 +260,8 @@ pub fn router(app: Arc<App>, max_body: usize) -> Router {
         .route("/api/live/frame", get(live_frame))
         .route("/api/live/ws", get(live_ws))
         .route("/api/live/mode", post(live_mode))
+        .route("/api/live/magnified", get(live_magnified))
+        .route("/api/live/magnify", post(live_magnify))
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "no such page") })
         .layer(DefaultBodyLimit::max(max_body))
         .layer(middleware::from_fn(json_errors))
@@ -316,7 +322,11 @@ async fn session(State(app): State<Arc<App>>) -> axum::Json<Value> {
         "root": root,
         "analyses": { "running": running, "waiting": waiting },
         "token_required": app.token.is_some(),
-        "live": app.live.as_ref().map(|l| json!({ "pipeline": l.name, "has_spectrum": l.has_spectrum })),
+        "live": app.live.as_ref().map(|l| json!({
+            "pipeline": l.name,
+            "has_spectrum": l.has_spectrum,
+            "magnify": l.magnify.as_ref().map(|m| m.stage.clone()),
+        })),
         "monitor": app.monitor.is_some(),
     }))
 }

@@ -110,6 +110,14 @@ pub fn source_id(decl: &PipelineDecl) -> Option<&str> {
 /// Replay: the source becomes a `file` source of the same id, feeding the
 /// same stages; every edge blocks (a replay never drops).
 pub fn apply_replay(decl: &mut PipelineDecl, path: &Path) -> Result<()> {
+    replay_source(decl, path, false)?;
+    block_every_edge(decl);
+    Ok(())
+}
+
+/// The one source of `decl` becomes a `file` source of the same id
+/// reading `path` (`realtime`: at the recording's own pace).
+fn replay_source(decl: &mut PipelineDecl, path: &Path, realtime: bool) -> Result<()> {
     let i = one_source(decl, "--replay")?;
     let origin = Origin::Builtin(format!("--replay {}", path.display()));
     let file = decl.file.clone();
@@ -117,9 +125,19 @@ pub fn apply_replay(decl: &mut PipelineDecl, path: &Path) -> Result<()> {
     st.kind = FileParams::KINDS[0].into();
     st.kind_origin = origin.clone();
     st.clear_params();
-    st.set(&file, FileParams::path, path.to_path_buf(), origin)?;
-    block_every_edge(decl);
+    st.set(&file, FileParams::path, path.to_path_buf(), origin.clone())?;
+    if realtime {
+        st.set(&file, FileParams::realtime, true, origin)?;
+    }
     Ok(())
+}
+
+/// Live replay (the studio's `--replay`): the source becomes a `file`
+/// source of the same id that plays `path` at the recording's own pace,
+/// like the camera that made it; the edges keep their policies, so a
+/// stage that falls behind drops as it would live (and counts it).
+pub fn apply_live_replay(decl: &mut PipelineDecl, path: &Path) -> Result<()> {
+    replay_source(decl, path, true)
 }
 
 /// Every edge blocks: a recording (or a scene rendered as fast as it can

@@ -10,6 +10,7 @@ use super::reduce::ROI;
 use super::roi::{Roi, RoiParam};
 use crate::spin::SpinJoin;
 use crate::*;
+use std::sync::Arc;
 use std::time::Duration;
 use vibroscope_math::join::Join;
 use vibroscope_math::magnify::dither_round;
@@ -100,6 +101,8 @@ impl Plan for MagnifyPlan {
             p: self.0,
             pool_frames: ctx.pool_frames,
             run: None,
+            tuning: ctx.observer.as_ref().map(|o| o.tuning(&ctx.id)),
+            tuned: 0,
         })))
     }
 }
@@ -135,7 +138,14 @@ struct Magnify {
     p: P,
     pool_frames: usize,
     run: Option<Run>,
+    /// A watcher (the studio's magnified view) may change `lo_hz`, `hi_hz`
+    /// and `factor` while the run goes on; the last request taken.
+    tuning: Option<Arc<Tuning>>,
+    tuned: u64,
 }
+
+/// The parameters a watcher may change while the run goes on.
+pub const TUNABLE: [&str; 3] = ["lo_hz", "hi_hz", "factor"];
 
 impl Magnify {
     /// The magnifier of `range` of the orientations (all, for Riesz).
@@ -157,6 +167,59 @@ impl Magnify {
             ),
             MagnifyError::Pyramid(e) => StageError::dsp(format!("magnify: {e}")),
         })
+    }
+
+    /// Takes the watcher's latest request: the magnifier starts over at
+    /// frame `f` with the new band and factor (as a run that began there
+    /// would), or, if they are refused (the band against the frame rate,
+    /// a value out of range), keeps the one it had and says why.
+    fn retune(&mut self, t: &Tuning, f: &Frame) {
+        let t0 = std::time::Instant::now();
+        let (version, values) = t.values();
+        self.tuned = version;
+        let old = self.p.clone();
+        let mut refused = None;
+        for (k, v) in values {
+            match k.as_str() {
+                "lo_hz" => self.p.lo_hz = v,
+                "hi_hz" => self.p.hi_hz = v,
+                "factor" => self.p.factor = v,
+                _ => refused = Some(format!("`{k}` cannot be changed while the run goes on")),
+            }
+            if let Some(spec) = P::PARAMS.iter().find(|s| s.name == k) {
+                if let Err(m) = spec.check(&toml::Value::Float(v)) {
+                    refused = Some(format!("{k} = {v}: {m}"));
+                }
+            }
+        }
+        if refused.is_none() && self.p.lo_hz > self.p.hi_hz {
+            refused = Some(format!(
+                "the band {} - {} Hz is inverted (lo_hz < hi_hz)",
+                self.p.lo_hz, self.p.hi_hz
+            ));
+        }
+        let result = match refused {
+            Some(m) => Err(m),
+            None => match self.start(f) {
+                Ok(run) => {
+                    self.run = Some(run);
+                    Ok(f.meta().seq)
+                }
+                Err(e) => Err(e.to_string()),
+            },
+        };
+        if result.is_err() {
+            self.p = old;
+        }
+        tracing::info!(
+            lo_hz = self.p.lo_hz,
+            hi_hz = self.p.hi_hz,
+            factor = self.p.factor,
+            "magnify: retuned at frame {} in {:.1} ms: {result:?}",
+            f.meta().seq,
+            t0.elapsed().as_secs_f64() * 1e3
+        );
+        t.answer(version, result);
     }
 
     fn start(&self, f: &Frame) -> Result<Run, StageError> {
@@ -290,6 +353,12 @@ impl Stage for Magnify {
         let Item::Frame(f) = item else {
             return Err(StageError::expected("frames"));
         };
+        if let Some(t) = &self.tuning {
+            if t.version() != self.tuned {
+                let t = Arc::clone(t);
+                self.retune(&t, &f);
+            }
+        }
         if self.run.is_none() {
             self.run = Some(self.start(&f)?);
         }

@@ -307,6 +307,7 @@ mod tests {
     /// A stage with the default settings, as a graph builds it.
     fn stage() -> Box<dyn Stage> {
         let ctx = BuildCtx {
+            id: "pitch".into(),
             held_downstream: 0,
             pool_frames: 0,
             input_types: vec![PortType::Audio],
