@@ -464,13 +464,14 @@ impl Magnifier {
         let blur = WeightedBlur::new(params.sigma, n, params.pyramid == PyramidKind::Riesz);
         let state = match params.pyramid {
             PyramidKind::Csp => {
-                let mut pyr = ComplexSteerablePyramid::new(
+                // Only this part's bands: their masks and coefficients.
+                let mut pyr = ComplexSteerablePyramid::new_part(
                     width,
                     height,
                     params.scales,
                     params.orientations,
+                    orientations.clone(),
                 )?;
-                pyr.set_orientations(orientations.clone());
                 pyr.set_residuals(residuals);
                 let coeffs = pyr.alloc_coeffs();
                 // Per-band state only for this part's bands.

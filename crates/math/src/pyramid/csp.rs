@@ -353,6 +353,9 @@ pub struct ComplexSteerablePyramid {
     /// Product masks per band (scale-major), on the band's grid, layout
     /// `[kx'][ky']` (x-major).
     band_masks: Vec<Vec<f32>>,
+    /// The orientations whose bands have masks (all but in a part, see
+    /// [`ComplexSteerablePyramid::new_part`]).
+    masked: std::ops::Range<usize>,
     /// Low-pass product mask on grid `S`, `[kx'][ky']`.
     low_mask: Vec<f32>,
     /// High-pass residual mask on the half spectrum, `[ux][uy]`.
@@ -393,7 +396,23 @@ impl ComplexSteerablePyramid {
         scales: usize,
         orientations: usize,
     ) -> Result<Self, PyramidError> {
+        Self::new_part(width, height, scales, orientations, 0..orientations)
+    }
+
+    /// [`Self::new`] for the bands of orientations `part` only (clamped to
+    /// `0..orientations`): the others get no frequency mask and, from
+    /// [`Self::alloc_coeffs`], no storage, and [`Self::set_orientations`]
+    /// cannot reach them. The parts of a frame magnified on several
+    /// threads each hold their own bands' memory, not the whole pyramid's.
+    pub fn new_part(
+        width: usize,
+        height: usize,
+        scales: usize,
+        orientations: usize,
+        part: std::ops::Range<usize>,
+    ) -> Result<Self, PyramidError> {
         check_params(width, height, scales, orientations)?;
+        let part = part.start.min(orientations)..part.end.min(orientations);
         let (w, h) = (width, height);
         let key = LayoutKey {
             width,
@@ -462,6 +481,21 @@ impl ComplexSteerablePyramid {
         for (s, grid) in grids.iter().enumerate().take(scales) {
             for b in 0..orientations {
                 let theta = PI * b as f64 / orientations as f64;
+                infos.push(BandInfo {
+                    scale: s,
+                    orientation: b,
+                    angle: theta as f32,
+                    width: grid.w,
+                    height: grid.h,
+                    step_x: w as f32 / grid.w as f32,
+                    step_y: h as f32 / grid.h as f32,
+                    centre_frequency: 0.25 / (1u64 << s) as f32,
+                });
+                if !part.contains(&b) {
+                    // Not this part's band: no mask.
+                    band_masks.push(Vec::new());
+                    continue;
+                }
                 let mut m = vec![0.0f32; grid.w * grid.h];
                 for kxp in 0..grid.w {
                     for kyp in 0..grid.h {
@@ -474,16 +508,6 @@ impl ComplexSteerablePyramid {
                     }
                 }
                 band_masks.push(m);
-                infos.push(BandInfo {
-                    scale: s,
-                    orientation: b,
-                    angle: theta as f32,
-                    width: grid.w,
-                    height: grid.h,
-                    step_x: w as f32 / grid.w as f32,
-                    step_y: h as f32 / grid.h as f32,
-                    centre_frequency: 0.25 / (1u64 << s) as f32,
-                });
             }
         }
         let low_grid = &grids[scales];
@@ -523,7 +547,8 @@ impl ComplexSteerablePyramid {
             c2r,
             col_fwd,
             col_inv,
-            orient: 0..orientations,
+            orient: part.clone(),
+            masked: part,
             spec: vec![Complex32::default(); spec_len],
             work: vec![Complex32::default(); full.max(spec_len)],
             work2: vec![Complex32::default(); full.max(spec_len)],
@@ -547,7 +572,11 @@ impl ComplexSteerablePyramid {
             .iter()
             .map(|info| CspBand {
                 info: info.clone(),
-                data: vec![Complex32::default(); info.len()],
+                data: if self.masked.contains(&info.orientation) {
+                    vec![Complex32::default(); info.len()]
+                } else {
+                    Vec::new()
+                },
             })
             .collect();
         let low = &self.grids[self.key.scales];
@@ -564,7 +593,9 @@ impl ComplexSteerablePyramid {
     fn check_coeffs(&self, c: &PyramidCoeffs) -> Result<(), PyramidError> {
         let ok = c.key == self.key
             && c.bands.len() == self.infos.len()
-            && c.bands.iter().all(|b| b.data.len() == b.info.len())
+            && c.bands.iter().enumerate().all(|(bi, b)| {
+                b.data.len() == b.info.len() || (!self.band_active(bi) && b.data.is_empty())
+            })
             && c.highpass.len() == self.key.width * self.key.height
             && c.lowpass.len() == c.low_width * c.low_height
             && c.low_width == self.grids[self.key.scales].w
@@ -625,14 +656,15 @@ impl ComplexSteerablePyramid {
     }
 
     /// Restricts [`Self::analyze`] and [`Self::synthesize`] to the bands
-    /// of orientations `range` (clamped to the pyramid's); the others'
+    /// of orientations `range` (clamped to the pyramid's, or to its part's
+    /// for one made by [`Self::new_part`]); the others'
     /// coefficients are neither written nor read. With the residuals off
     /// as well, `synthesize` returns only those bands' part of the frame:
     /// the parts of disjoint ranges (one with the residuals) sum to the
     /// whole synthesis, so they can run on different threads.
     pub fn set_orientations(&mut self, range: std::ops::Range<usize>) {
-        let k = self.key.orientations;
-        self.orient = range.start.min(k)..range.end.min(k);
+        let m = &self.masked;
+        self.orient = range.start.clamp(m.start, m.end)..range.end.clamp(m.start, m.end);
     }
 
     /// Whether band `bi` (scale-major) is among the orientations computed.
@@ -835,6 +867,7 @@ impl ComplexSteerablePyramid {
             .band_masks
             .iter()
             .enumerate()
+            .filter(|(_, m)| !m.is_empty())
             .map(|(bi, m)| (&self.grids[bi / k], m))
             .chain(std::iter::once((
                 &self.grids[self.key.scales],

@@ -543,3 +543,31 @@ proptest! {
         prop_assert!(e < 1e-4, "{}x{} S={} K={}: {}", w, h, s, k, e);
     }
 }
+
+/// A part (orientations 2..4 of 4) holds and computes only its own bands:
+/// their coefficients are the whole pyramid's, bit for bit; the others get
+/// no storage, and the part cannot be widened to them.
+#[test]
+fn a_part_holds_only_its_bands_and_computes_them_as_the_whole_does() {
+    let (w, h, scales, k) = (40, 36, 3, 4);
+    let img = texture(w, h, 5, Texture::Natural, 0.0, 0.0);
+    let mut whole = ComplexSteerablePyramid::new(w, h, scales, k).unwrap();
+    let mut cw = whole.alloc_coeffs();
+    whole.analyze(&img, &mut cw).unwrap();
+    let mut part = ComplexSteerablePyramid::new_part(w, h, scales, k, 2..4).unwrap();
+    part.set_residuals(false);
+    part.set_orientations(0..k);
+    let mut cp = part.alloc_coeffs();
+    part.analyze(&img, &mut cp).unwrap();
+    for (bi, (a, b)) in cw.bands.iter().zip(&cp.bands).enumerate() {
+        if (2..4).contains(&(bi % k)) {
+            assert!(part.band_active(bi), "band {bi}");
+            assert!(a.data == b.data, "band {bi} differs from the whole's");
+        } else {
+            assert!(!part.band_active(bi), "band {bi} was widened to");
+            assert!(b.data.is_empty(), "band {bi} has storage");
+        }
+    }
+    // A whole pyramid's coefficients do not fit a part's, nor the reverse.
+    assert!(whole.analyze(&img, &mut cp).is_err());
+}

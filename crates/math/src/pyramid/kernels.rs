@@ -1,7 +1,7 @@
 //! Per-pixel hot loops of the phase stage (Eq. 3.2-3.4), written over
-//! 8-lane arrays so the compiler turns them into SIMD, and built twice: a
-//! generic version and an AVX2 version chosen at run time (the RustFFT
-//! pattern). Both compute the same operations in the same order per lane
+//! 8-lane arrays so the compiler turns them into SIMD, and built three
+//! times: a generic version, an AVX2 and an AVX-512 version, chosen at run
+//! time (the RustFFT pattern). All compute the same operations in the same order per lane
 //! (no fused multiply-add is formed without permission), so they agree to
 //! the last bit on a given input; the sums are exact functions of the data,
 //! whatever the thread count.
@@ -151,43 +151,27 @@ fn riesz_row_generic(
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn csp_row_avx2(cur: &[Complex32], reference: &[Complex32], w: &[f32]) -> f32 {
-    csp_row_generic(cur, reference, w)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn riesz_row_avx2(
-    cur: [&[f32]; 3],
-    prev: [&[f32]; 3],
-    w: &[&[f32]],
-    dirs: &[(f32, f32)],
-    acc: &mut [f32],
-) {
-    riesz_row_generic(cur, prev, w, dirs, acc)
-}
-
-fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2")
+crate::join::simd_fn! {
+    fn csp_row_simd(cur: &[Complex32], reference: &[Complex32], w: &[f32]) -> f32 {
+        csp_row_generic(cur, reference, w)
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
+}
+
+crate::join::simd_fn! {
+    fn riesz_row_simd(
+        cur: [&[f32]; 3],
+        prev: [&[f32]; 3],
+        w: &[&[f32]],
+        dirs: &[(f32, f32)],
+        acc: &mut [f32],
+    ) {
+        riesz_row_generic(cur, prev, w, dirs, acc)
     }
 }
 
 /// Σ w · arg(c · conj(c0)) over a row span (lengths: the shortest slice).
 pub fn csp_row(cur: &[Complex32], reference: &[Complex32], w: &[f32]) -> f32 {
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2() {
-        // SAFETY: the CPU reported AVX2, the only feature the function enables.
-        return unsafe { csp_row_avx2(cur, reference, w) };
-    }
-    csp_row_generic(cur, reference, w)
+    csp_row_simd(crate::join::Simd::detect(), cur, reference, w)
 }
 
 /// Adds each orientation's weighted Riesz phase change over a row span to
@@ -199,12 +183,7 @@ pub fn riesz_row(
     dirs: &[(f32, f32)],
     acc: &mut [f32],
 ) {
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2() {
-        // SAFETY: the CPU reported AVX2, the only feature the function enables.
-        return unsafe { riesz_row_avx2(cur, prev, w, dirs, acc) };
-    }
-    riesz_row_generic(cur, prev, w, dirs, acc)
+    riesz_row_simd(crate::join::Simd::detect(), cur, prev, w, dirs, acc)
 }
 
 /// Phase change from `q0 = (I, R1, R2)` to `q1`, projected on the

@@ -39,10 +39,13 @@
 //!
 //! Separable blurs and the per-pixel amplitude/phase step (two square
 //! roots, one division and a polynomial `atan`) vectorise; on x86-64 the
-//! kernels also exist compiled for AVX2, chosen at run time, with
-//! bit-identical results. 256x256, 4 levels, 2 orientations, one core of
-//! an AMD EPYC (Zen 4), release: about 270 Mpix/s with AVX2, 175 Mpix/s on
-//! the SSE2 baseline.
+//! kernels also exist compiled for AVX2 and AVX-512, chosen at run time,
+//! with bit-identical results. 256x256, 4 levels, 2 orientations, one core
+//! of the project's Xeon (`cargo test --release -p vibroscope-math
+//! speed_report -- --nocapture`, idle): 231 Mpix/s on the SSE2 baseline,
+//! 297 with AVX2, 334 with AVX-512. A reader of phase changes only (the
+//! `phase` stage) skips the amplitude and phases
+//! ([`RieszPyramid::set_triples_only`]).
 
 use super::kernels::quat_phase_delta;
 use super::{
@@ -108,6 +111,12 @@ pub struct RieszCoeffs {
     levels: Vec<RieszLevel>,
     infos: Vec<BandInfo>,
     dirs: Vec<(f32, f32)>,
+    /// The levels' amplitude and phases are computed (false after an
+    /// analysis of the triples only, [`RieszPyramid::set_triples_only`]:
+    /// then [`PhaseBands`] derives them from the triple when asked, with
+    /// the same operations, and [`RieszLevel::amplitude`] and
+    /// [`RieszLevel::phase`] hold stale values until [`RieszCoeffs::derive`]).
+    derived: bool,
 }
 
 impl RieszCoeffs {
@@ -123,6 +132,26 @@ impl RieszCoeffs {
     pub fn level(&self, l: usize) -> Option<&RieszLevel> {
         self.levels.get(l)
     }
+    /// Whether the levels' amplitude and phases are computed (see
+    /// [`RieszPyramid::set_triples_only`]).
+    pub fn is_derived(&self) -> bool {
+        self.derived
+    }
+
+    /// Computes the levels' amplitude and phases from their triples (after
+    /// an analysis of the triples only), as a full analysis would.
+    pub fn derive(&mut self) {
+        if self.derived {
+            return;
+        }
+        let w = self.levels.iter().map(|l| l.width).max().unwrap_or(0);
+        let mut q = vec![0.0f32; w];
+        for level in &mut self.levels {
+            derive_level(level, &self.dirs, &mut q);
+        }
+        self.derived = true;
+    }
+
     /// Band index of (scale, orientation).
     pub fn band_index(&self, scale: usize, orientation: usize) -> Option<usize> {
         (scale < self.key.scales && orientation < self.key.orientations)
@@ -151,14 +180,43 @@ impl PhaseBands for RieszCoeffs {
     fn amplitude_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
         let (level, _) = self.split(i)?;
         check_len(level.amplitude.len(), out.len())?;
-        out.copy_from_slice(&level.amplitude);
+        if self.derived {
+            out.copy_from_slice(&level.amplitude);
+        } else {
+            // As `amp_phase_row` computes it.
+            let it = out
+                .iter_mut()
+                .zip(level.band.iter().zip(&level.r1).zip(&level.r2));
+            for (a, ((&iv, &x1), &x2)) in it {
+                let rr = x1 * x1 + x2 * x2;
+                *a = (iv * iv + rr).sqrt();
+            }
+        }
         Ok(())
     }
     fn phase_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
         let (level, k) = self.split(i)?;
         let p = level.phases.get(k).ok_or(PyramidError::LayoutMismatch)?;
         check_len(p.len(), out.len())?;
-        out.copy_from_slice(p);
+        if self.derived {
+            out.copy_from_slice(p);
+            return Ok(());
+        }
+        let (ck, sk) = self
+            .dirs
+            .get(k)
+            .copied()
+            .ok_or(PyramidError::LayoutMismatch)?;
+        let w = level.width;
+        let (mut amp, mut q) = (vec![0.0f32; w], vec![0.0f32; w]);
+        for (y, o) in out.chunks_exact_mut(w).enumerate() {
+            let row = y * w..(y + 1) * w;
+            let (r1, r2) = (&level.r1[row.clone()], &level.r2[row.clone()]);
+            amp_phase_row(&level.band[row], r1, r2, &mut amp, &mut q);
+            for (((p, &q), &x1), &x2) in o.iter_mut().zip(&q).zip(r1).zip(r2) {
+                *p = q * (x1 * ck + x2 * sk);
+            }
+        }
         Ok(())
     }
     fn phase_delta_into(
@@ -291,7 +349,9 @@ pub struct RieszPyramid {
     dirs: Vec<(f32, f32)>,
     infos: Vec<BandInfo>,
     /// Whether the CPU has AVX2 (selects the 8-lane build of the kernels).
-    avx2: bool,
+    simd: crate::join::Simd,
+    /// Analyse the triples only ([`RieszPyramid::set_triples_only`]).
+    triples_only: bool,
 }
 
 impl std::fmt::Debug for RieszPyramid {
@@ -368,7 +428,8 @@ impl RieszPyramid {
             qrow: vec![0.0; width],
             dirs,
             infos,
-            avx2: detect_avx2(),
+            simd: crate::join::Simd::detect(),
+            triples_only: false,
         })
     }
 
@@ -377,6 +438,17 @@ impl RieszPyramid {
     /// Shapes of all (level, orientation) bands, scale-major.
     pub fn band_infos(&self) -> &[BandInfo] {
         &self.infos
+    }
+
+    /// With `on`, [`Self::analyze`] computes each level's band and Riesz
+    /// pair only, not its amplitude and phases (two square roots, a
+    /// division and an arctangent a pixel, and one image per orientation):
+    /// a reader of phase changes (`phase_delta_into`, the weighted sums)
+    /// needs only the triples, and the amplitude and phases are derived
+    /// from them when asked for through [`PhaseBands`], with the same
+    /// operations (the same bits).
+    pub fn set_triples_only(&mut self, on: bool) {
+        self.triples_only = on;
     }
 
     /// Allocates coefficient storage for this pyramid (once; reuse it).
@@ -400,6 +472,7 @@ impl RieszPyramid {
             levels,
             infos: self.infos.clone(),
             dirs: self.dirs.clone(),
+            derived: true,
         }
     }
 
@@ -430,11 +503,18 @@ impl RieszPyramid {
         check_len(self.key.width * self.key.height, frame.len())?;
         self.check_coeffs(out)?;
         #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: `avx2` is true only if the running CPU reported AVX2
-            // support (checked in `new`), which is all `levels_avx2` needs.
-            unsafe { self.levels_avx2(frame, out) };
-            return Ok(());
+        match self.simd {
+            // SAFETY: `simd` comes from `Simd::detect` (in `new`), which saw
+            // the running CPU report the features each path enables.
+            crate::join::Simd::Avx512 => {
+                unsafe { self.levels_avx512(frame, out) };
+                return Ok(());
+            }
+            crate::join::Simd::Avx2 => {
+                unsafe { self.levels_avx2(frame, out) };
+                return Ok(());
+            }
+            crate::join::Simd::Sse2 => {}
         }
         self.levels_generic(frame, out);
         Ok(())
@@ -450,6 +530,14 @@ impl RieszPyramid {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     unsafe fn levels_avx2(&mut self, frame: &[f32], out: &mut RieszCoeffs) {
+        self.levels(frame, out);
+    }
+
+    /// The same code compiled for AVX-512 (the same operations: the same
+    /// bits).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+    unsafe fn levels_avx512(&mut self, frame: &[f32], out: &mut RieszCoeffs) {
         self.levels(frame, out);
     }
 
@@ -475,25 +563,29 @@ impl RieszPyramid {
                 &mut self.vrow[..w],
                 &mut self.trow[..w],
             );
-            riesz_level(level, &self.dirs, &mut self.qrow[..w]);
+            riesz_pair(level);
+            if !self.triples_only {
+                derive_level(level, &self.dirs, &mut self.qrow[..w]);
+            }
         }
+        out.derived = !self.triples_only;
     }
 }
 
-fn detect_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
-}
-
-/// Mirror index (`x[-1] = x[1]`) into `0..n`, for any `n >= 1`.
+/// Mirror index (`x[-1] = x[1]`) into `0..n`, for any `n >= 1`. One
+/// reflection (the taps' case: `-n < i < 2n - 1`) costs no division.
 #[inline(always)]
 fn reflect(i: isize, n: usize) -> usize {
+    let m = n as isize;
+    if (0..m).contains(&i) {
+        return i as usize;
+    }
+    if i < 0 && -i < m {
+        return (-i) as usize;
+    }
+    if i >= m && i < 2 * m - 1 {
+        return (2 * (m - 1) - i) as usize;
+    }
     if n == 1 {
         return 0;
     }
@@ -656,9 +748,9 @@ fn amp_phase_row(mid: &[f32], r1: &[f32], r2: &[f32], amp: &mut [f32], q: &mut [
     }
 }
 
-/// Riesz pair, amplitude and projected phases of one level.
+/// The Riesz pair of one level.
 #[inline(always)]
-fn riesz_level(level: &mut RieszLevel, dirs: &[(f32, f32)], qrow: &mut [f32]) {
+fn riesz_pair(level: &mut RieszLevel) {
     let (w, h) = (level.width, level.height);
     for y in 0..h {
         let up = y.saturating_sub(1);
@@ -682,10 +774,19 @@ fn riesz_level(level: &mut RieszLevel, dirs: &[(f32, f32)], qrow: &mut [f32]) {
             &level.band[up * w..(up + 1) * w],
             &level.band[dn * w..(dn + 1) * w],
         );
-        for ((o, a), b) in level.r2[row.clone()].iter_mut().zip(ur).zip(dr) {
+        for ((o, a), b) in level.r2[row].iter_mut().zip(ur).zip(dr) {
             *o = 0.5 * (a - b);
         }
-        // Amplitude and phase / |R|.
+    }
+}
+
+/// Amplitude and projected phases of one level, from its triple.
+#[inline(always)]
+fn derive_level(level: &mut RieszLevel, dirs: &[(f32, f32)], qrow: &mut [f32]) {
+    let (w, h) = (level.width, level.height);
+    for y in 0..h {
+        let row = y * w..(y + 1) * w;
+        let mid = &level.band[row.clone()];
         let r1 = &level.r1[row.clone()];
         let r2 = &level.r2[row.clone()];
         let amp = &mut level.amplitude[row.clone()];

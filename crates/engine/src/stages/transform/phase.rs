@@ -717,7 +717,13 @@ impl Phase {
                         (w, h),
                     )?),
                     PyramidKind::Riesz => Box::new(Engine::new(
-                        || Ok(OnFrames(RieszPyramid::new(w, h, s, k)?)),
+                        || {
+                            // The sums read the triples only; the A² of a
+                            // reference is derived from its triple.
+                            let mut p = RieszPyramid::new(w, h, s, k)?;
+                            p.set_triples_only(true);
+                            Ok(OnFrames(p))
+                        },
                         n,
                         (s, k),
                         region,
