@@ -144,9 +144,6 @@ struct Magnify {
     tuned: u64,
 }
 
-/// The parameters a watcher may change while the run goes on.
-pub const TUNABLE: [&str; 3] = ["lo_hz", "hi_hz", "factor"];
-
 impl Magnify {
     /// The magnifier of `range` of the orientations (all, for Riesz).
     fn magnifier(
@@ -172,7 +169,9 @@ impl Magnify {
     /// Takes the watcher's latest request: the magnifier starts over at
     /// frame `f` with the new band and factor (as a run that began there
     /// would), or, if they are refused (the band against the frame rate,
-    /// a value out of range), keeps the one it had and says why.
+    /// a value out of range), keeps the one it had and says why. The old
+    /// magnifier is let go before the new one is built, so a change never
+    /// holds both in memory.
     fn retune(&mut self, t: &Tuning, f: &Frame) {
         let t0 = std::time::Instant::now();
         let (version, values) = t.values();
@@ -184,7 +183,9 @@ impl Magnify {
                 "lo_hz" => self.p.lo_hz = v,
                 "hi_hz" => self.p.hi_hz = v,
                 "factor" => self.p.factor = v,
-                _ => refused = Some(format!("`{k}` cannot be changed while the run goes on")),
+                _ => refused = Some(format!(
+                    "`{k}` cannot be changed while the run goes on (lo_hz, hi_hz and factor can)"
+                )),
             }
             if let Some(spec) = P::PARAMS.iter().find(|s| s.name == k) {
                 if let Err(m) = spec.check(&toml::Value::Float(v)) {
@@ -198,15 +199,25 @@ impl Magnify {
                 self.p.lo_hz, self.p.hi_hz
             ));
         }
+        if refused.is_none() {
+            // The band against the frame rate, before anything is let go.
+            if let Err(e) = self.method(f.format().fps).check() {
+                refused = Some(e.to_string());
+            }
+        }
         let result = match refused {
             Some(m) => Err(m),
-            None => match self.start(f) {
-                Ok(run) => {
-                    self.run = Some(run);
-                    Ok(f.meta().seq)
+            None => {
+                self.run = None;
+                match self.start(f) {
+                    Ok(run) => {
+                        self.run = Some(run);
+                        Ok(f.meta().seq)
+                    }
+                    // (The old settings start over at this frame.)
+                    Err(e) => Err(e.to_string()),
                 }
-                Err(e) => Err(e.to_string()),
-            },
+            }
         };
         if result.is_err() {
             self.p = old;
@@ -220,6 +231,25 @@ impl Magnify {
             t0.elapsed().as_secs_f64() * 1e3
         );
         t.answer(version, result);
+    }
+
+    /// The magnifier's parameters at `fps`.
+    fn method(&self, fps: f64) -> Method {
+        Method {
+            fps,
+            lo_hz: self.p.lo_hz,
+            hi_hz: self.p.hi_hz,
+            factor: self.p.factor as f32,
+            order: self.p.order,
+            sigma: self.p.sigma_px as f32,
+            max_phase: self.p.max_phase_rad as f32,
+            pyramid: match self.p.pyramid {
+                Pyramid::Csp => PyramidKind::Csp,
+                Pyramid::Riesz => PyramidKind::Riesz,
+            },
+            scales: self.p.scales,
+            orientations: self.p.orientations,
+        }
     }
 
     fn start(&self, f: &Frame) -> Result<Run, StageError> {
@@ -258,21 +288,7 @@ impl Magnify {
             field: "memory",
             message,
         })?;
-        let params = Method {
-            fps: fmt.fps,
-            lo_hz: self.p.lo_hz,
-            hi_hz: self.p.hi_hz,
-            factor: self.p.factor as f32,
-            order: self.p.order,
-            sigma: self.p.sigma_px as f32,
-            max_phase: self.p.max_phase_rad as f32,
-            pyramid: match self.p.pyramid {
-                Pyramid::Csp => PyramidKind::Csp,
-                Pyramid::Riesz => PyramidKind::Riesz,
-            },
-            scales: self.p.scales,
-            orientations: self.p.orientations,
-        };
+        let params = self.method(fmt.fps);
         // The steerable pyramid's orientations in two halves, whatever the
         // threads (so the frames are bit-identical for any count), the
         // first half with the residuals; each half on its own thread when
