@@ -1,4 +1,4 @@
-//! The roofline of the magnifier's kernels (issue 52): this machine's
+//! The roofline of the magnifier's and the phase method's kernels (issue 52): this machine's
 //! measured peaks (an FMA loop and a STREAM-like triad, on every core at
 //! once and on one), then each step of `Magnifier::process` (Riesz and
 //! CSP, 256x256 unless VIBROSCOPE_ROOFLINE_SIZE=WxH) timed in-process on
@@ -160,6 +160,122 @@ fn main() {
             );
         }
     }
+    listen_kernels(&frames, w, h, fma1, &bw);
+}
+
+/// The phase method's kernels (`listen --method phase`, the `phase`
+/// stage): each pyramid's analysis of a frame, then the A²-weighted phase
+/// change sums of every band against a reference (Eq. 3.2-3.4), 4 scales
+/// and 2 orientations, one core. Counts per input pixel as in
+/// docs/performance.md ("The phase method's kernels").
+fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]) {
+    use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands};
+    use vibroscope_math::riesz::RieszPyramid;
+    let (scales, k) = (4, 2);
+    let px = (w * h) as f64;
+    // (name, flops, bytes, memory level) per input pixel.
+    let riesz_counts = [(43.8, 38.5, 2u8), (82.0, 42.5, 3u8)];
+    let csp_counts = [(250.0, 190.0, 2u8), (88.0, 53.0, 3u8)];
+    println!("\n  listen --method phase kernels, one core, {scales} scales, {k} orientations:");
+    println!(
+        "    {:<58} {:>8} {:>10} {:>8} {:>8} {:>4} {:>10} {:>7}",
+        "kernel", "ms/frame", "Mpix/s", "flop/px", "B/px", "mem", "bound", "of bound"
+    );
+    let row = |name: &str, secs: f64, (flops, bytes, level): (f64, f64, u8)| {
+        let rate = px / secs / 1e6;
+        let roof_bw = bw[usize::from(level == 3)];
+        let bound = (fma1 * 1e3 / flops).min(roof_bw * 1e3 / bytes);
+        println!(
+            "    {name:<58} {:>8.3} {:>10.1} {:>8.1} {:>8.1} {:>4} {:>10.1} {:>7.2}",
+            secs * 1e3,
+            rate,
+            flops,
+            bytes,
+            format!("L{level}"),
+            bound,
+            rate / bound
+        );
+    };
+    // Best of 5 batches of 64 frames, per frame.
+    fn best(mut f: impl FnMut(usize)) -> f64 {
+        (0..5)
+            .map(|_| {
+                let t = Instant::now();
+                for i in 0..64 {
+                    f(i);
+                }
+                t.elapsed().as_secs_f64() / 64.0
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+    fn sums<C: PhaseBands>(c: &C, r: &C, weights: &[Vec<f32>], scales: usize, k: usize) -> f64 {
+        let mut out = [0.0f64; 8];
+        let mut total = 0.0;
+        for s in 0..scales {
+            let info = c.band_info(s * k).expect("band");
+            let wts: Vec<&[f32]> = weights[s * k..(s + 1) * k].iter().map(|v| &v[..]).collect();
+            c.scale_phase_delta_sums(r, s, &wts, 0..info.height, 0..info.width, &mut out[..k])
+                .expect("sums");
+            total += out[..k].iter().sum::<f64>();
+        }
+        total
+    }
+    // A pyramid's analysis time and its sums' time, per frame: `analyze`
+    // fills coefficients; the first frame's are the reference, its A²
+    // the weights.
+    fn time<C: PhaseBands>(
+        frames: &[Vec<f32>],
+        (mut c, mut r): (C, C),
+        mut analyze: impl FnMut(&[f32], &mut C),
+        (scales, k): (usize, usize),
+        sink: &mut f64,
+    ) -> (f64, f64) {
+        analyze(&frames[0], &mut r);
+        let wts: Vec<Vec<f32>> = (0..r.num_bands())
+            .map(|i| {
+                let mut v = vec![0.0f32; r.band_info(i).expect("band").len()];
+                r.amplitude_into(i, &mut v).expect("amplitude");
+                v.iter_mut().for_each(|a| *a = *a * *a);
+                v
+            })
+            .collect();
+        let t_an = best(|i| analyze(&frames[i % frames.len()], &mut c));
+        let t_sum = best(|_| *sink += sums(&c, &r, &wts, scales, k));
+        (t_an, t_sum)
+    }
+
+    let mut sink = 0.0;
+    let mut rp = RieszPyramid::new(w, h, scales, k).expect("riesz");
+    rp.set_triples_only(true);
+    let coeffs = (rp.alloc_coeffs(), rp.alloc_coeffs());
+    let analyze = |f: &[f32], c: &mut _| rp.analyze(f, c).expect("analyze");
+    let (t_an, t_sum) = time(frames, coeffs, analyze, (scales, k), &mut sink);
+    row(
+        "Riesz pyramid: band and Riesz pair (the triples)",
+        t_an,
+        riesz_counts[0],
+    );
+    row(
+        "Riesz phase sums (quaternion, atan2, 2 orientations)",
+        t_sum,
+        riesz_counts[1],
+    );
+    let mut cp = ComplexSteerablePyramid::new(w, h, scales, k).expect("csp");
+    cp.set_residuals(false);
+    let coeffs = (cp.alloc_coeffs(), cp.alloc_coeffs());
+    let analyze = |f: &[f32], c: &mut _| cp.analyze(f, c).expect("analyze");
+    let (t_an, t_sum) = time(frames, coeffs, analyze, (scales, k), &mut sink);
+    row(
+        "steerable pyramid: FFT, masks, 8 inverse band FFTs",
+        t_an,
+        csp_counts[0],
+    );
+    row(
+        "steerable phase sums (complex product, atan2)",
+        t_sum,
+        csp_counts[1],
+    );
+    println!("    (checksum {sink:.3e})");
 }
 
 /// A textured frame moving by a sub-pixel sine (x and y), `n` frames.

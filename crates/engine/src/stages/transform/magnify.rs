@@ -183,9 +183,11 @@ impl Magnify {
                 "lo_hz" => self.p.lo_hz = v,
                 "hi_hz" => self.p.hi_hz = v,
                 "factor" => self.p.factor = v,
-                _ => refused = Some(format!(
+                _ => {
+                    refused = Some(format!(
                     "`{k}` cannot be changed while the run goes on (lo_hz, hi_hz and factor can)"
-                )),
+                ))
+                }
             }
             if let Some(spec) = P::PARAMS.iter().find(|s| s.name == k) {
                 if let Err(m) = spec.check(&toml::Value::Float(v)) {
