@@ -220,16 +220,19 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]
         }
         total
     }
-    // A pyramid's analysis time and its sums' time, per frame: `analyze`
-    // fills coefficients; the first frame's are the reference, its A²
-    // the weights.
+    // A pyramid's analysis and its sums, each timed per frame and printed
+    // with its counts: `analyze` fills coefficients; the first frame's are
+    // the reference, its A² the weights.
+    type Counts = (f64, f64, u8);
+    type Kernel<'a> = (&'a str, Counts);
     fn time<C: PhaseBands>(
         frames: &[Vec<f32>],
         (mut c, mut r): (C, C),
         mut analyze: impl FnMut(&[f32], &mut C),
         (scales, k): (usize, usize),
-        sink: &mut f64,
-    ) -> (f64, f64) {
+        [an, sum]: [Kernel<'_>; 2],
+        row: &dyn Fn(&str, f64, Counts),
+    ) -> f64 {
         analyze(&frames[0], &mut r);
         let wts: Vec<Vec<f32>> = (0..r.num_bands())
             .map(|i| {
@@ -239,42 +242,59 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]
                 v
             })
             .collect();
-        let t_an = best(|i| analyze(&frames[i % frames.len()], &mut c));
-        let t_sum = best(|_| *sink += sums(&c, &r, &wts, scales, k));
-        (t_an, t_sum)
+        row(
+            an.0,
+            best(|i| analyze(&frames[i % frames.len()], &mut c)),
+            an.1,
+        );
+        let mut sink = 0.0;
+        row(
+            sum.0,
+            best(|_| sink += sums(&c, &r, &wts, scales, k)),
+            sum.1,
+        );
+        sink
     }
 
-    let mut sink = 0.0;
     let mut rp = RieszPyramid::new(w, h, scales, k).expect("riesz");
     rp.set_triples_only(true);
-    let coeffs = (rp.alloc_coeffs(), rp.alloc_coeffs());
-    let analyze = |f: &[f32], c: &mut _| rp.analyze(f, c).expect("analyze");
-    let (t_an, t_sum) = time(frames, coeffs, analyze, (scales, k), &mut sink);
-    row(
-        "Riesz pyramid: band and Riesz pair (the triples)",
-        t_an,
-        riesz_counts[0],
-    );
-    row(
-        "Riesz phase sums (quaternion, atan2, 2 orientations)",
-        t_sum,
-        riesz_counts[1],
+    let sink = time(
+        frames,
+        (rp.alloc_coeffs(), rp.alloc_coeffs()),
+        |f, c| rp.analyze(f, c).expect("analyze"),
+        (scales, k),
+        [
+            (
+                "Riesz pyramid: band and Riesz pair (the triples)",
+                riesz_counts[0],
+            ),
+            (
+                "Riesz phase sums (quaternion, atan2, 2 orientations)",
+                riesz_counts[1],
+            ),
+        ],
+        &row,
     );
     let mut cp = ComplexSteerablePyramid::new(w, h, scales, k).expect("csp");
     cp.set_residuals(false);
-    let coeffs = (cp.alloc_coeffs(), cp.alloc_coeffs());
-    let analyze = |f: &[f32], c: &mut _| cp.analyze(f, c).expect("analyze");
-    let (t_an, t_sum) = time(frames, coeffs, analyze, (scales, k), &mut sink);
-    row(
-        "steerable pyramid: FFT, masks, 8 inverse band FFTs",
-        t_an,
-        csp_counts[0],
-    );
-    row(
-        "steerable phase sums (complex product, atan2)",
-        t_sum,
-        csp_counts[1],
-    );
+    let sink = sink
+        + time(
+            frames,
+            (cp.alloc_coeffs(), cp.alloc_coeffs()),
+            |f, c| cp.analyze(f, c).expect("analyze"),
+            (scales, k),
+            [
+                (
+                    "steerable pyramid: FFT, masks, 8 inverse band FFTs",
+                    csp_counts[0],
+                ),
+                (
+                    "steerable phase sums (complex product, atan2)",
+                    csp_counts[1],
+                ),
+            ],
+            &row,
+        );
     println!("    (checksum {sink:.3e})");
 }
 

@@ -115,10 +115,8 @@ impl MagnifyView {
                 return Retune::Refused(format!("{k} = {v}: {m}"));
             }
         }
-        if lo_hz > hi_hz {
-            return Retune::Refused(format!(
-                "the band {lo_hz} - {hi_hz} Hz is inverted (lo_hz < hi_hz)"
-            ));
+        if let Err(m) = vibroscope::live::check_magnify_band(lo_hz, hi_hz) {
+            return Retune::Refused(m);
         }
         let version = {
             let mut st = self.state.lock().unwrap_or_else(|p| p.into_inner());
@@ -166,11 +164,7 @@ impl MagnifyView {
 
     /// The latest magnified frame and its slot number.
     pub fn latest(&self) -> Option<(u64, TapFrame)> {
-        let s = self.frames.snapshot()?;
-        match s.latest {
-            Latest::Frame(f) => Some((s.seq, f)),
-            _ => None,
-        }
+        latest_frame(&self.frames)
     }
 
     /// Frames kept by the slot so far (changes with each new one).
@@ -463,10 +457,7 @@ impl Live {
 
     /// The latest frame (8-bit grey), if one came.
     pub fn latest_frame(&self) -> Option<TapFrame> {
-        match self.frame.snapshot()?.latest {
-            Latest::Frame(f) => Some(f),
-            _ => None,
-        }
+        latest_frame(&self.frame).map(|(_, f)| f)
     }
 
     /// One update: the latest spectrum (dB) and its peaks, the level, the
@@ -590,6 +581,15 @@ impl Live {
 impl Drop for Live {
     fn drop(&mut self) {
         self.stop();
+    }
+}
+
+/// The latest frame a tap's slot holds, with the slot's number for it.
+fn latest_frame(slot: &TapSlot) -> Option<(u64, TapFrame)> {
+    let s = slot.snapshot()?;
+    match s.latest {
+        Latest::Frame(f) => Some((s.seq, f)),
+        _ => None,
     }
 }
 

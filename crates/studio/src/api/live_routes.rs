@@ -247,14 +247,16 @@ async fn live_socket(
                 if let Some(m) = &live.magnify {
                     if m.seq() != last_magnified {
                         let l = live.clone();
+                        // Copied out and framed off the async threads.
                         let Ok(frame) = tokio::task::spawn_blocking(move || {
-                            l.magnify.as_ref().and_then(|m| m.latest())
+                            let (seq, f) = l.magnify.as_ref()?.latest()?;
+                            Some((seq, magnified_message(&f)))
                         }).await else {
                             break;
                         };
-                        if let Some((seq, f)) = frame {
+                        if let Some((seq, message)) = frame {
                             last_magnified = seq;
-                            if socket.send(Message::Binary(magnified_message(&f).into())).await.is_err() {
+                            if socket.send(Message::Binary(message.into())).await.is_err() {
                                 break;
                             }
                         }

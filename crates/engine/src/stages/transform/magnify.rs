@@ -77,21 +77,34 @@ pub const KIND: KindSpec = KindSpec {
     plan: |p| {
         let v: P = p.resolve_typed()?;
         // (An empty band, lo_hz = hi_hz, is refused with the frame rate.)
-        if v.lo_hz > v.hi_hz {
-            return Err(p.error(
-                "hi_hz",
-                format!(
-                    "the band {} - {} Hz is inverted (lo_hz < hi_hz)",
-                    v.lo_hz, v.hi_hz
-                ),
-            ));
-        }
+        check_band(v.lo_hz, v.hi_hz).map_err(|m| p.error("hi_hz", m))?;
         if let Some(r) = &v.roi {
             r.check().map_err(|m| p.error("roi", m))?;
         }
         Ok(Box::new(MagnifyPlan(v)))
     },
 };
+
+/// Refuses an inverted band (`lo_hz` above `hi_hz`); the frame rate's
+/// limits are the magnifier's to check.
+pub fn check_band(lo_hz: f64, hi_hz: f64) -> Result<(), String> {
+    if lo_hz > hi_hz {
+        return Err(format!(
+            "the band {lo_hz} - {hi_hz} Hz is inverted (lo_hz < hi_hz)"
+        ));
+    }
+    Ok(())
+}
+
+/// Checks `v` for the parameter `name` against the kind's declaration
+/// (its range); the message says what is wrong.
+pub fn check_param(name: &str, v: f64) -> Result<(), String> {
+    let spec = P::PARAMS
+        .iter()
+        .find(|s| s.name == name)
+        .ok_or_else(|| format!("`magnify` has no parameter `{name}`"))?;
+    spec.check(&toml::Value::Float(v))
+}
 
 struct MagnifyPlan(P);
 
@@ -124,9 +137,8 @@ struct Run {
     roi: Roi,
     /// The parts (one, or one per thread); the frame is their sum.
     parts: Vec<Part>,
-    /// The steerable pyramid's halves (its parts), one per thread.
-    threads: Option<rayon::ThreadPool>,
-    /// The Riesz magnifier's passes, and the output's rounding, in halves.
+    /// Two threads, when there are two: the steerable pyramid's parts,
+    /// the Riesz magnifier's passes, and the output's rounding, in halves.
     halves: Option<SpinJoin>,
     pool: FramePool,
     input: Vec<f32>,
@@ -185,21 +197,17 @@ impl Magnify {
                 "factor" => self.p.factor = v,
                 _ => {
                     refused = Some(format!(
-                    "`{k}` cannot be changed while the run goes on (lo_hz, hi_hz and factor can)"
-                ))
+                        "`{k}` cannot be changed while the run goes on (lo_hz, hi_hz and factor can)"
+                    ));
+                    continue;
                 }
             }
-            if let Some(spec) = P::PARAMS.iter().find(|s| s.name == k) {
-                if let Err(m) = spec.check(&toml::Value::Float(v)) {
-                    refused = Some(format!("{k} = {v}: {m}"));
-                }
+            if let Err(m) = check_param(&k, v) {
+                refused = Some(format!("{k} = {v}: {m}"));
             }
         }
-        if refused.is_none() && self.p.lo_hz > self.p.hi_hz {
-            refused = Some(format!(
-                "the band {} - {} Hz is inverted (lo_hz < hi_hz)",
-                self.p.lo_hz, self.p.hi_hz
-            ));
+        if refused.is_none() {
+            refused = check_band(self.p.lo_hz, self.p.hi_hz).err();
         }
         if refused.is_none() {
             // The band against the frame rate, before anything is let go.
@@ -334,12 +342,11 @@ impl Magnify {
             roi.x,
             roi.y
         );
-        // The steerable pyramid's halves on a thread each; the Riesz
+        // The steerable pyramid's parts on a thread each; the Riesz
         // magnifier's passes split in two (`Magnifier::process_with`).
         // Halves of tens of microseconds need a helper that is awake when
         // they come (`SpinJoin`); rayon's sleeping workers come too late.
-        let threads = super::pyramid::resolve_threads(self.p.threads);
-        let halves = if threads >= 2 {
+        let halves = if super::pyramid::resolve_threads(self.p.threads) >= 2 {
             Some(
                 SpinJoin::new("magnify-half", Duration::from_micros(500))
                     .map_err(|e| StageError::thread("the magnifier's helper", e))?,
@@ -347,16 +354,10 @@ impl Magnify {
         } else {
             None
         };
-        let threads = if csp {
-            super::reduce::thread_pool(threads.min(n))?
-        } else {
-            None
-        };
         Ok(Run {
             size: (f.width(), f.height()),
             roi,
             parts,
-            threads,
             halves,
             pool: FramePool::new(format, self.pool_frames.max(2)),
             input: vec![0.0; roi.w * roi.h],
@@ -417,12 +418,9 @@ impl Stage for Magnify {
             parts => {
                 let input = &r.input;
                 let job = |p: &mut Part| p.result = p.magnifier.process(input, &mut p.out);
-                match &r.threads {
-                    Some(pool) => {
-                        use rayon::prelude::*;
-                        pool.install(|| parts.par_iter_mut().for_each(job));
-                    }
-                    None => parts.iter_mut().for_each(job),
+                match (&mut *parts, &r.halves) {
+                    ([a, b], Some(j)) => j.join(&mut || job(a), &mut || job(b)),
+                    (parts, _) => parts.iter_mut().for_each(job),
                 }
                 r.output.copy_from_slice(&parts[0].out);
                 for p in &parts[1..] {
