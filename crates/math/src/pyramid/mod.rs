@@ -175,6 +175,12 @@ pub trait PhaseBands {
     fn band_info(&self, i: usize) -> Option<&BandInfo>;
     /// Local amplitude (contrast) of band `i`, row-major.
     fn amplitude_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError>;
+    /// Whether every orientation of a scale has the same amplitude (the
+    /// Riesz pyramid's, one per level): a reader of several orientations
+    /// can then read one amplitude image for all.
+    fn amplitude_shared(&self) -> bool {
+        false
+    }
     /// Local phase of band `i`, radians in `[-π, π]`, row-major.
     fn phase_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError>;
     /// Local phase change of band `i` from `reference` to `self`, wrapped
@@ -225,6 +231,9 @@ impl<T: PhaseBands> PhaseBands for std::sync::Arc<T> {
     }
     fn amplitude_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
         (**self).amplitude_into(i, out)
+    }
+    fn amplitude_shared(&self) -> bool {
+        (**self).amplitude_shared()
     }
     fn phase_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
         (**self).phase_into(i, out)

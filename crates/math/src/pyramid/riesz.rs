@@ -194,6 +194,9 @@ impl PhaseBands for RieszCoeffs {
         }
         Ok(())
     }
+    fn amplitude_shared(&self) -> bool {
+        true
+    }
     fn phase_into(&self, i: usize, out: &mut [f32]) -> Result<(), PyramidError> {
         let (level, k) = self.split(i)?;
         let p = level.phases.get(k).ok_or(PyramidError::LayoutMismatch)?;
@@ -500,6 +503,20 @@ impl RieszPyramid {
 
     /// Decomposes `frame` (row-major `width x height`) into `out`.
     pub fn analyze(&mut self, frame: &[f32], out: &mut RieszCoeffs) -> Result<(), PyramidError> {
+        self.analyze_levels(frame, out, &mut |_, _| {})
+    }
+
+    /// [`Self::analyze`], calling `each(out, l)` as soon as level `l` is
+    /// complete (its triple, and its amplitude and phases unless
+    /// [`Self::set_triples_only`]), before the next level is computed: a
+    /// reader of one level at a time (the phase sums) finds it still in
+    /// cache. Levels above `l` are not yet computed when `each` is called.
+    pub fn analyze_levels(
+        &mut self,
+        frame: &[f32],
+        out: &mut RieszCoeffs,
+        each: &mut dyn FnMut(&RieszCoeffs, usize),
+    ) -> Result<(), PyramidError> {
         check_len(self.key.width * self.key.height, frame.len())?;
         self.check_coeffs(out)?;
         #[cfg(target_arch = "x86_64")]
@@ -507,21 +524,26 @@ impl RieszPyramid {
             // SAFETY: `simd` comes from `Simd::detect` (in `new`), which saw
             // the running CPU report the features each path enables.
             crate::join::Simd::Avx512 => {
-                unsafe { self.levels_avx512(frame, out) };
+                unsafe { self.levels_avx512(frame, out, each) };
                 return Ok(());
             }
             crate::join::Simd::Avx2 => {
-                unsafe { self.levels_avx2(frame, out) };
+                unsafe { self.levels_avx2(frame, out, each) };
                 return Ok(());
             }
             crate::join::Simd::Sse2 => {}
         }
-        self.levels_generic(frame, out);
+        self.levels_generic(frame, out, each);
         Ok(())
     }
 
-    fn levels_generic(&mut self, frame: &[f32], out: &mut RieszCoeffs) {
-        self.levels(frame, out);
+    fn levels_generic(
+        &mut self,
+        frame: &[f32],
+        out: &mut RieszCoeffs,
+        each: &mut dyn FnMut(&RieszCoeffs, usize),
+    ) {
+        self.levels(frame, out, each);
     }
 
     /// The same code compiled for AVX2 (8 lanes instead of SSE's 4). Only
@@ -529,22 +551,38 @@ impl RieszPyramid {
     /// results are bit-identical to the generic path.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn levels_avx2(&mut self, frame: &[f32], out: &mut RieszCoeffs) {
-        self.levels(frame, out);
+    unsafe fn levels_avx2(
+        &mut self,
+        frame: &[f32],
+        out: &mut RieszCoeffs,
+        each: &mut dyn FnMut(&RieszCoeffs, usize),
+    ) {
+        self.levels(frame, out, each);
     }
 
     /// The same code compiled for AVX-512 (the same operations: the same
     /// bits).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-    unsafe fn levels_avx512(&mut self, frame: &[f32], out: &mut RieszCoeffs) {
-        self.levels(frame, out);
+    unsafe fn levels_avx512(
+        &mut self,
+        frame: &[f32],
+        out: &mut RieszCoeffs,
+        each: &mut dyn FnMut(&RieszCoeffs, usize),
+    ) {
+        self.levels(frame, out, each);
     }
 
     #[inline(always)]
-    fn levels(&mut self, frame: &[f32], out: &mut RieszCoeffs) {
-        let scales = self.key.scales;
-        for (l, level) in out.levels.iter_mut().enumerate().take(scales) {
+    fn levels(
+        &mut self,
+        frame: &[f32],
+        out: &mut RieszCoeffs,
+        each: &mut dyn FnMut(&RieszCoeffs, usize),
+    ) {
+        let scales = self.key.scales.min(out.levels.len());
+        out.derived = !self.triples_only;
+        for l in 0..scales {
             let (w, h) = self.dims[l];
             let n = w * h;
             // Level input: the frame, or the decimated blur of the previous level.
@@ -552,23 +590,20 @@ impl RieszPyramid {
             let (before, after) = self.inputs.split_at_mut(split);
             let src: &[f32] = if l == 0 { frame } else { &before[l - 1] };
             let next = after.first_mut().filter(|_| l + 1 < scales);
-            let s = &mut self.s_buf[..n];
-            blur5(src, w, h, s, &mut self.vrow[..w]);
-            band_and_next(
-                s,
-                w,
-                h,
-                &mut level.band,
+            let level = &mut out.levels[l];
+            sweep_level(
+                src,
+                (w, h),
+                &mut self.s_buf[..n],
+                level,
                 next.map(Vec::as_mut_slice),
-                &mut self.vrow[..w],
-                &mut self.trow[..w],
+                (&mut self.vrow[..w], &mut self.trow[..w]),
             );
-            riesz_pair(level);
             if !self.triples_only {
                 derive_level(level, &self.dirs, &mut self.qrow[..w]);
             }
+            each(out, l);
         }
-        out.derived = !self.triples_only;
     }
 }
 
@@ -655,34 +690,38 @@ fn hblur_row(src: &[f32], dst: &mut [f32]) {
     }
 }
 
-/// `dst = B * src` (separable binomial, mirrored borders).
+/// One level in one sweep of rows (each row's inputs still in L1, not
+/// a pass over the whole level per step): `S = B * src` (kept: `T` reads
+/// five of its rows), `T = B * S`, `band = S - T`, `next = T` at even rows
+/// and columns, and the Riesz pair (`r2` one row behind the band, which
+/// it reads above and below). The same operations as one whole-level pass
+/// per step: the same bits.
 #[inline(always)]
-fn blur5(src: &[f32], w: usize, h: usize, dst: &mut [f32], vrow: &mut [f32]) {
-    for (y, out) in dst.chunks_exact_mut(w).enumerate().take(h) {
-        vblur_row(src, w, h, y, vrow);
-        hblur_row(vrow, out);
-    }
-}
-
-/// `T = B * s`; `band = s - T`; `next = T` at even rows and columns.
-#[inline(always)]
-fn band_and_next(
-    s: &[f32],
-    w: usize,
-    h: usize,
-    band: &mut [f32],
+fn sweep_level(
+    src: &[f32],
+    (w, h): (usize, usize),
+    s: &mut [f32],
+    level: &mut RieszLevel,
     mut next: Option<&mut [f32]>,
-    vrow: &mut [f32],
-    trow: &mut [f32],
+    (vrow, trow): (&mut [f32], &mut [f32]),
 ) {
     let nw = w.div_ceil(2);
+    let RieszLevel { band, r1, r2, .. } = level;
+    // Rows of `S` computed so far: `T`'s row y reads rows up to y + 2
+    // (mirrored rows below the last are rows above it).
+    let mut done = 0;
     for y in 0..h {
+        while done < (y + 3).min(h) {
+            vblur_row(src, w, h, done, vrow);
+            hblur_row(vrow, &mut s[done * w..(done + 1) * w]);
+            done += 1;
+        }
         vblur_row(s, w, h, y, vrow);
         hblur_row(vrow, trow);
-        let srow = &s[y * w..(y + 1) * w];
-        for ((o, a), b) in band[y * w..(y + 1) * w]
+        let row = y * w..(y + 1) * w;
+        for ((o, a), b) in band[row.clone()]
             .iter_mut()
-            .zip(srow)
+            .zip(&s[row.clone()])
             .zip(trow.iter())
         {
             *o = a - b;
@@ -695,6 +734,43 @@ fn band_and_next(
                 }
             }
         }
+        r1_row(&band[row.clone()], &mut r1[row]);
+        if y >= 1 {
+            r2_row(band, w, h, y - 1, r2);
+        }
+    }
+    if h >= 1 {
+        r2_row(band, w, h, h - 1, r2);
+    }
+}
+
+/// Along x: `(I[x-1] - I[x+1]) / 2`, edge-clamped.
+#[inline(always)]
+fn r1_row(mid: &[f32], r1: &mut [f32]) {
+    let w = mid.len().min(r1.len());
+    if w == 0 {
+        return;
+    }
+    if w >= 3 {
+        let n = w - 2;
+        let (a, c) = (&mid[0..n], &mid[2..n + 2]);
+        let o = &mut r1[1..n + 1];
+        for i in 0..n {
+            o[i] = 0.5 * (a[i] - c[i]);
+        }
+    }
+    r1[0] = 0.5 * (mid[0] - mid[1.min(w - 1)]);
+    r1[w - 1] = 0.5 * (mid[w.saturating_sub(2)] - mid[w - 1]);
+}
+
+/// Row `y` of `R2 = (I[y-1] - I[y+1]) / 2`, edge-clamped.
+#[inline(always)]
+fn r2_row(band: &[f32], w: usize, h: usize, y: usize, r2: &mut [f32]) {
+    let up = y.saturating_sub(1);
+    let dn = (y + 1).min(h - 1);
+    let (ur, dr) = (&band[up * w..(up + 1) * w], &band[dn * w..(dn + 1) * w]);
+    for ((o, a), b) in r2[y * w..(y + 1) * w].iter_mut().zip(ur).zip(dr) {
+        *o = 0.5 * (a - b);
     }
 }
 
@@ -745,38 +821,6 @@ fn amp_phase_row(mid: &[f32], r1: &[f32], r2: &[f32], amp: &mut [f32], q: &mut [
         let inv = if den > 0.0 { 1.0 / den } else { 0.0 };
         let phi = finish_atan(atan_unit(mn * r * inv), r, iv);
         *q = phi * mx * inv;
-    }
-}
-
-/// The Riesz pair of one level.
-#[inline(always)]
-fn riesz_pair(level: &mut RieszLevel) {
-    let (w, h) = (level.width, level.height);
-    for y in 0..h {
-        let up = y.saturating_sub(1);
-        let dn = (y + 1).min(h - 1);
-        let row = y * w..(y + 1) * w;
-        let mid = &level.band[row.clone()];
-        let r1 = &mut level.r1[row.clone()];
-        // Along x: (I[x-1] - I[x+1]) / 2, edge-clamped.
-        if w >= 3 {
-            let n = w - 2;
-            let (a, c) = (&mid[0..n], &mid[2..n + 2]);
-            let o = &mut r1[1..n + 1];
-            for i in 0..n {
-                o[i] = 0.5 * (a[i] - c[i]);
-            }
-        }
-        r1[0] = 0.5 * (mid[0] - mid[1.min(w - 1)]);
-        r1[w - 1] = 0.5 * (mid[w.saturating_sub(2)] - mid[w - 1]);
-        // Along y.
-        let (ur, dr) = (
-            &level.band[up * w..(up + 1) * w],
-            &level.band[dn * w..(dn + 1) * w],
-        );
-        for ((o, a), b) in level.r2[row].iter_mut().zip(ur).zip(dr) {
-            *o = 0.5 * (a - b);
-        }
     }
 }
 

@@ -45,7 +45,7 @@
 
 use super::audio_out::Batcher;
 use super::pyramid::{
-    pyramid_err as err, resolve_threads, spread, Analyzer, Carried, OnFrames, PyramidKind,
+    pyramid_err as err, resolve_threads, Analyzer, Carried, Crew, OnFrames, PyramidKind,
     FRAME_THREADS, ORIENTATIONS, PYRAMID, SCALES,
 };
 use super::roi::{plan_region, resolve_region, Mask, Roi, RoiParam};
@@ -134,7 +134,7 @@ impl Plan for PhasePlan {
         let PhasePlan { p: v, mask } = *self;
         let threads = resolve_threads(v.threads);
         Ok(Node::Stage(Box::new(Phase {
-            pool: super::reduce::thread_pool(threads)?,
+            crew: Crew::new(threads, "phase-worker")?,
             threads,
             kind: v.pyramid,
             scales: v.scales,
@@ -256,7 +256,7 @@ trait FrameSignals: Send {
     fn run(
         &mut self,
         frames: &[Item],
-        pool: Option<&rayon::ThreadPool>,
+        crew: &Crew,
         emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError>;
 }
@@ -457,7 +457,7 @@ impl<A: Analyzer> Engine<A> {
     fn batch(
         &mut self,
         batch: &[Item],
-        pool: Option<&rayon::ThreadPool>,
+        crew: &Crew,
         emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError> {
         let Some(reference) = self.reference.as_ref() else {
@@ -467,7 +467,7 @@ impl<A: Analyzer> Engine<A> {
         let (bands, scales, k) = (&self.bands[..], self.scales, self.orientations);
         let tiles = self.tiles;
         let workers = &mut self.workers[..batch.len()];
-        spread(pool, workers, batch, |w: &mut Worker<A>, f: &Item| {
+        crew.spread(workers, batch, |w: &mut Worker<A>, f: &Item| {
             w.result = compute(w, f, (reference, next), bands, (scales, k, tiles));
         });
         for (w, f) in workers.iter_mut().zip(batch) {
@@ -496,7 +496,7 @@ impl<A: Analyzer> Engine<A> {
         f: &Item,
         emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError> {
-        self.batch(std::slice::from_ref(f), None, emit)?;
+        self.batch(std::slice::from_ref(f), &Crew::Alone, emit)?;
         let t_ns = f.t_ns();
         match self.make_reference(0, t_ns)? {
             Some(next) => {
@@ -534,34 +534,49 @@ fn compute<A: Analyzer>(
     (scales, k, tiles): (usize, usize, usize),
 ) -> Result<(), StageError> {
     let nb = scales * k;
-    w.an.analyze(f, &mut w.input, &mut w.c)?;
-    let refs = [
-        Some((reference, &mut w.sums)),
-        next.map(|n| (n, &mut w.next_sums)),
-    ];
-    for (r, sums) in refs.into_iter().flatten() {
-        for s in 0..scales {
+    let Worker {
+        an,
+        c,
+        input,
+        sums,
+        next_sums,
+        ..
+    } = w;
+    let mut refs = [Some((reference, sums)), next.map(|n| (n, next_sums))];
+    // Each scale's sums are taken as soon as the analysis has made it
+    // (still in cache, for a pyramid built scale by scale).
+    let mut result = Ok(());
+    an.analyze_scales(f, input, c, scales, &mut |c, s| {
+        if result.is_err() {
+            return;
+        }
+        // A pyramid whose orientations share one amplitude (Riesz) reads
+        // one weight image for all of them (the others are copies).
+        let shared = c.amplitude_shared();
+        for (r, sums) in refs.iter_mut().flatten() {
             let mut weights: [&[f32]; MAX_ORIENT] = [&[]; MAX_ORIENT];
-            for (d, wt) in weights.iter_mut().zip(&r.weights[s * k..(s + 1) * k]) {
-                *d = wt;
+            for (o, d) in weights.iter_mut().enumerate().take(k) {
+                *d = &r.weights[s * k + if shared { 0 } else { o }];
             }
             let b = &bands[s * k];
             for t in 0..tiles * tiles {
                 let (ty, tx) = (t / tiles, t % tiles);
                 let o = t * nb + s * k;
-                w.c.scale_phase_delta_sums(
+                if let Err(e) = c.scale_phase_delta_sums(
                     &r.c,
                     s,
                     &weights[..k],
                     b.ys[ty]..b.ys[ty + 1],
                     b.xs[tx]..b.xs[tx + 1],
                     &mut sums[o..o + k],
-                )
-                .map_err(err)?;
+                ) {
+                    result = Err(err(e));
+                    return;
+                }
             }
         }
-    }
-    Ok(())
+    })?;
+    result
 }
 
 impl<A: Analyzer> FrameSignals for Engine<A> {
@@ -575,7 +590,7 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
     fn run(
         &mut self,
         frames: &[Item],
-        pool: Option<&rayon::ThreadPool>,
+        crew: &Crew,
         emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError> {
         let mut rest = frames;
@@ -603,7 +618,7 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
                     }
                 }
             }
-            self.batch(&rest[..n], pool, emit)?;
+            self.batch(&rest[..n], crew, emit)?;
             if self.handover.as_ref().is_some_and(|h| h.left == 0) {
                 self.take_over();
             }
@@ -614,7 +629,7 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
 }
 
 struct Phase {
-    pool: Option<rayon::ThreadPool>,
+    crew: Crew,
     threads: usize,
     kind: PyramidKind,
     scales: usize,
@@ -743,7 +758,7 @@ impl Phase {
         let (Some(engine), Some(batch)) = (self.engine.as_mut(), self.batch.as_mut()) else {
             return Ok(());
         };
-        let r = engine.run(&self.pending, self.pool.as_ref(), &mut |f, vals| {
+        let r = engine.run(&self.pending, &self.crew, &mut |f, vals| {
             batch.push(f.t_ns(), item_fps(f), vals, out)
         });
         self.pending.clear();

@@ -26,8 +26,10 @@
 //! orientations = 2
 //! ```
 
+use crate::spin::SpinJoin;
 use crate::*;
 use std::sync::Arc;
+use vibroscope_math::join::Join;
 use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidCoeffs, PyramidError};
 use vibroscope_math::riesz::{RieszCoeffs, RieszPyramid};
 
@@ -98,6 +100,22 @@ pub(super) trait Analyzer: Send {
         input: &mut [f32],
         c: &mut Self::C,
     ) -> Result<(), StageError>;
+    /// [`Analyzer::analyze`], calling `each(c, s)` for each of the
+    /// `scales` scales once it is complete: by default after the whole
+    /// analysis; a pyramid built scale by scale calls it as each is made,
+    /// while the scale is still in cache.
+    fn analyze_scales(
+        &mut self,
+        item: &Item,
+        input: &mut [f32],
+        c: &mut Self::C,
+        scales: usize,
+        each: &mut dyn FnMut(&Self::C, usize),
+    ) -> Result<(), StageError> {
+        self.analyze(item, input, c)?;
+        (0..scales).for_each(|s| each(c, s));
+        Ok(())
+    }
 }
 
 /// A pyramid that analyses frames.
@@ -105,6 +123,20 @@ pub(super) trait FramePyramid: Send {
     type C: PhaseBands + Send + Sync;
     fn alloc_coeffs(&self) -> Self::C;
     fn analyze_frame(&mut self, x: &[f32], c: &mut Self::C) -> Result<(), PyramidError>;
+    /// [`FramePyramid::analyze_frame`] with `each(c, s)` called for each of
+    /// the `scales` scales once it is complete (see
+    /// [`Analyzer::analyze_scales`]).
+    fn analyze_frame_scales(
+        &mut self,
+        x: &[f32],
+        c: &mut Self::C,
+        scales: usize,
+        each: &mut dyn FnMut(&Self::C, usize),
+    ) -> Result<(), PyramidError> {
+        self.analyze_frame(x, c)?;
+        (0..scales).for_each(|s| each(c, s));
+        Ok(())
+    }
     /// The coefficients as an edge payload.
     fn wrap(c: Arc<Self::C>) -> PyramidData;
 }
@@ -130,6 +162,17 @@ impl FramePyramid for RieszPyramid {
     fn analyze_frame(&mut self, x: &[f32], c: &mut RieszCoeffs) -> Result<(), PyramidError> {
         self.analyze(x, c)
     }
+    /// Level by level: each level's phase sums read it while it is still
+    /// in cache (a 256x256 level's triple is 768 KiB).
+    fn analyze_frame_scales(
+        &mut self,
+        x: &[f32],
+        c: &mut RieszCoeffs,
+        _scales: usize,
+        each: &mut dyn FnMut(&RieszCoeffs, usize),
+    ) -> Result<(), PyramidError> {
+        self.analyze_levels(x, c, each)
+    }
     fn wrap(c: Arc<RieszCoeffs>) -> PyramidData {
         PyramidData::Riesz(c)
     }
@@ -149,6 +192,22 @@ impl<P: FramePyramid> Analyzer for OnFrames<P> {
         };
         to_f32(f, input);
         self.0.analyze_frame(input, c).map_err(pyramid_err)
+    }
+    fn analyze_scales(
+        &mut self,
+        item: &Item,
+        input: &mut [f32],
+        c: &mut P::C,
+        scales: usize,
+        each: &mut dyn FnMut(&P::C, usize),
+    ) -> Result<(), StageError> {
+        let Item::Frame(f) = item else {
+            return Err(StageError::expected("frames"));
+        };
+        to_f32(f, input);
+        self.0
+            .analyze_frame_scales(input, c, scales, each)
+            .map_err(pyramid_err)
     }
 }
 
@@ -244,7 +303,7 @@ struct PyramidPlan {
 impl Plan for PyramidPlan {
     fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
         Ok(Node::Stage(Box::new(PyramidStage {
-            pool: super::reduce::thread_pool(self.threads)?,
+            crew: Crew::new(self.threads, "pyramid-worker")?,
             spec: self.spec,
             threads: self.threads,
             held_downstream: ctx.held_downstream,
@@ -258,23 +317,58 @@ impl Plan for PyramidPlan {
     }
 }
 
-/// Runs `job` on each (worker, item) pair of a batch: on the pool when
-/// there are several, in order on this thread otherwise.
-pub(super) fn spread<W: Send, T: Sync>(
-    pool: Option<&rayon::ThreadPool>,
-    workers: &mut [W],
-    batch: &[T],
-    job: impl Fn(&mut W, &T) + Send + Sync,
-) {
-    use rayon::prelude::*;
-    match pool {
-        Some(pool) if batch.len() > 1 => pool.install(|| {
-            workers
-                .par_iter_mut()
-                .zip(batch.par_iter())
-                .for_each(|(w, t)| job(w, t))
-        }),
-        _ => workers.iter_mut().zip(batch).for_each(|(w, t)| job(w, t)),
+/// The threads a batch of frames (one per worker) is spread over.
+///
+/// Two workers, the common case on a two-core machine, run as the
+/// caller and one helper that spins between batches ([`SpinJoin`]): a
+/// 256x256 frame's analysis takes a few hundred microseconds, and rayon's
+/// sleeping workers took tens of them to wake for each batch (about 15% of
+/// `listen --method phase`'s time went to waking and sleeping). More than
+/// two go to a rayon pool.
+pub(super) enum Crew {
+    Alone,
+    Pair(SpinJoin),
+    Pool(rayon::ThreadPool),
+}
+
+impl Crew {
+    /// A crew of `threads` threads (the caller's included); `name` names
+    /// the helper threads.
+    pub(super) fn new(threads: usize, name: &str) -> Result<Self, StageError> {
+        Ok(match threads {
+            0 | 1 => Crew::Alone,
+            2 => Crew::Pair(
+                SpinJoin::new(name, std::time::Duration::from_micros(500))
+                    .map_err(|e| StageError::thread(format!("the {name} helper"), e))?,
+            ),
+            _ => match super::reduce::thread_pool(threads)? {
+                Some(pool) => Crew::Pool(pool),
+                None => Crew::Alone,
+            },
+        })
+    }
+
+    /// Runs `job` on each (worker, item) pair of a batch: across the crew
+    /// when there are several, in order on this thread otherwise.
+    pub(super) fn spread<W: Send, T: Sync>(
+        &self,
+        workers: &mut [W],
+        batch: &[T],
+        job: impl Fn(&mut W, &T) + Send + Sync,
+    ) {
+        use rayon::prelude::*;
+        match (self, workers, batch) {
+            (Crew::Pair(two), [w0, w1, ..], [t0, t1]) => {
+                two.join(&mut || job(w0, t0), &mut || job(w1, t1));
+            }
+            (Crew::Pool(pool), workers, batch) if batch.len() > 1 => pool.install(|| {
+                workers
+                    .par_iter_mut()
+                    .zip(batch.par_iter())
+                    .for_each(|(w, t)| job(w, t))
+            }),
+            (_, workers, batch) => workers.iter_mut().zip(batch).for_each(|(w, t)| job(w, t)),
+        }
     }
 }
 
@@ -307,12 +401,7 @@ struct Worker<A: FramePyramid> {
 /// The pyramid per frame, frames spread over workers.
 trait Analyse: Send {
     fn size(&self) -> (usize, usize);
-    fn run(
-        &mut self,
-        frames: &[Frame],
-        pool: Option<&rayon::ThreadPool>,
-        out: &mut Emitter,
-    ) -> Result<(), StageError>;
+    fn run(&mut self, frames: &[Frame], crew: &Crew, out: &mut Emitter) -> Result<(), StageError>;
 }
 
 struct Workers<A: FramePyramid> {
@@ -349,12 +438,7 @@ impl<A: FramePyramid> Analyse for Workers<A> {
         self.size
     }
 
-    fn run(
-        &mut self,
-        frames: &[Frame],
-        pool: Option<&rayon::ThreadPool>,
-        out: &mut Emitter,
-    ) -> Result<(), StageError> {
+    fn run(&mut self, frames: &[Frame], crew: &Crew, out: &mut Emitter) -> Result<(), StageError> {
         for batch in frames.chunks(self.workers.len()) {
             let workers = &mut self.workers[..batch.len()];
             for w in workers.iter_mut() {
@@ -370,7 +454,7 @@ impl<A: FramePyramid> Analyse for Workers<A> {
                     None => Err(StageError::Internal("pyramid buffer still shared")),
                 };
             };
-            spread(pool, workers, batch, job);
+            crew.spread(workers, batch, job);
             for (w, f) in workers.iter_mut().zip(batch) {
                 std::mem::replace(&mut w.result, Ok(()))?;
                 let Some(c) = w.out.take() else {
@@ -392,7 +476,7 @@ impl<A: FramePyramid> Analyse for Workers<A> {
 }
 
 struct PyramidStage {
-    pool: Option<rayon::ThreadPool>,
+    crew: Crew,
     spec: PyramidSpec,
     threads: usize,
     /// Coefficient sets the consumers can hold at once (rings + working).
@@ -456,7 +540,7 @@ impl PyramidStage {
         let Some(workers) = self.workers.as_mut() else {
             return Ok(());
         };
-        let r = workers.run(&self.pending, self.pool.as_ref(), out);
+        let r = workers.run(&self.pending, &self.crew, out);
         self.pending.clear();
         r
     }
