@@ -13,6 +13,7 @@
 use std::f64::consts::PI;
 
 #[path = "util/timing.rs"]
+#[allow(dead_code)] // `render_tones_scene` serves the magnifier benches
 mod timing;
 use timing::{best_of, timed};
 

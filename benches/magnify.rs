@@ -24,22 +24,7 @@ fn main() {
     let dir = std::env::temp_dir().join(format!("vibroscope-magnify-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     eprintln!("rendering {FRAMES} frames of 500 fps 256x256 video ...");
-    timed(
-        &dir,
-        &[
-            "run",
-            "render",
-            "--quiet",
-            "--set",
-            "cam.fps=500",
-            "--set",
-            &format!("cam.frames={FRAMES}"),
-            "--set",
-            "cam.signal={type=\"tones\",freqs_hz=[40.0,150.0]}",
-            "--set",
-            "out.path=scene.y4m",
-        ],
-    );
+    timing::render_tones_scene(&dir, (256, 256), FRAMES);
     let mpix = |s: f64| FRAMES as f64 * PIX / s / 1e6;
     let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
     println!("magnify vs listen, 256x256, {FRAMES} frames, {cores} cores, best of 3:");
@@ -59,23 +44,7 @@ fn main() {
                 ],
             )
         });
-        let magnify = best_of(3, || {
-            timed(
-                &dir,
-                &[
-                    "magnify",
-                    "scene.y4m",
-                    "--band",
-                    "35,45",
-                    "--factor",
-                    "10",
-                    "--pyramid",
-                    pyr,
-                    "-o",
-                    "m.y4m",
-                ],
-            )
-        });
+        let magnify = best_of(3, || timed(&dir, &timing::magnify_args(pyr, "m.y4m")));
         println!(
             "  {pyr:<5}  magnify {:7.1} Mpix/s ({:.2} s)   listen {:7.1} Mpix/s ({:.2} s)   magnify/listen {:.2}",
             mpix(magnify),

@@ -4,7 +4,9 @@
 //! CSP, 256x256 unless VIBROSCOPE_ROOFLINE_SIZE=WxH) timed in-process on
 //! one core, with its floating-point operations and bytes per input pixel
 //! (counted in `docs/performance.md`), the bound those give on one core,
-//! and how far each step stands from it. `docs/performance.md` keeps the
+//! and how far each step stands from it; the phase method's kernels; then the
+//! commands end to end beside a numpy reference (scripts/numpy_reference.py)
+//! and the bound on every core. `docs/performance.md` keeps the
 //! figures of the last run and how each count was made.
 //!
 //!     cargo bench --bench roofline
@@ -14,6 +16,9 @@
 use std::time::{Duration, Instant};
 use vibroscope_engine::spin::SpinJoin;
 use vibroscope_math::magnify::{Magnifier, MagnifyParams, PyramidKind, STEPS};
+
+#[path = "util/timing.rs"]
+mod timing;
 
 /// Operations and bytes per input pixel of each step in `STEPS`, for each
 /// pyramid (4 scales; the CSP with 8 orientations), and the memory level
@@ -72,6 +77,8 @@ fn main() {
     // at 256x256 and lives in L3; the FFTs' buffers of one level fit L2.
 
     let frames = texture_frames(w, h, 64);
+    // One-core whole-frame bounds (Mpix/s) for the end-to-end section.
+    let mut magnify_bounds = Vec::new();
     for (kind, counts, label) in [
         (PyramidKind::Riesz, RIESZ_COUNTS, "riesz"),
         (PyramidKind::Csp, CSP_COUNTS, "csp (8 orientations)"),
@@ -136,6 +143,7 @@ fn main() {
                 rate / bound
             );
         }
+        magnify_bounds.push(px / bound_total / 1e6);
         println!(
             "    whole frame: bound {:.1} Mpix/s on one core, measured {:.1} ({:.1}x the bound's time)",
             px / bound_total / 1e6,
@@ -160,7 +168,17 @@ fn main() {
             );
         }
     }
-    listen_kernels(&frames, w, h, fma1, &bw);
+    let listen_bounds = listen_kernels(&frames, w, h, fma1, &bw);
+    end_to_end(
+        (w, h),
+        cores,
+        [
+            magnify_bounds[0],
+            magnify_bounds[1],
+            listen_bounds[0],
+            listen_bounds[1],
+        ],
+    );
 }
 
 /// The phase method's kernels (`listen --method phase`, the `phase`
@@ -168,7 +186,10 @@ fn main() {
 /// change sums of every band against a reference (Eq. 3.2-3.4), 4 scales
 /// and 2 orientations, one core. Counts per input pixel as in
 /// docs/performance.md ("The phase method's kernels").
-fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]) {
+///
+/// Returns each pyramid's one-core bound for a frame (analysis and sums in
+/// turn), Mpix/s: Riesz, then steerable.
+fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]) -> [f64; 2] {
     use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands};
     use vibroscope_math::riesz::RieszPyramid;
     let (scales, k) = (4, 2);
@@ -181,10 +202,12 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]
         "    {:<58} {:>8} {:>10} {:>8} {:>8} {:>4} {:>10} {:>7}",
         "kernel", "ms/frame", "Mpix/s", "flop/px", "B/px", "mem", "bound", "of bound"
     );
+    let bounds = std::cell::RefCell::new(Vec::new());
     let row = |name: &str, secs: f64, (flops, bytes, level): (f64, f64, u8)| {
         let rate = px / secs / 1e6;
         let roof_bw = bw[usize::from(level == 3)];
         let bound = (fma1 * 1e3 / flops).min(roof_bw * 1e3 / bytes);
+        bounds.borrow_mut().push(bound);
         println!(
             "    {name:<58} {:>8.3} {:>10.1} {:>8.1} {:>8.1} {:>4} {:>10.1} {:>7.2}",
             secs * 1e3,
@@ -296,6 +319,197 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]
             &row,
         );
     println!("    (checksum {sink:.3e})");
+    // A frame's time at the bound is the analysis's plus the sums'.
+    let b = bounds.into_inner();
+    let pair = |i: usize| 1.0 / (1.0 / b[i] + 1.0 / b[i + 1]);
+    [pair(0), pair(2)]
+}
+
+/// End to end: the commands issue 52's bars are set on, each timed on a
+/// rendered scene (500 fps, 400 frames, tones at 40 and 150 Hz; process
+/// start, decoding and writing included; best of 3), beside the numpy
+/// reference (`scripts/numpy_reference.py`, the same method in numpy,
+/// timed on the first 100 frames of the same file, 50 for the steerable
+/// magnifier) with how well its output agrees with ours, and beside the
+/// bound of the command's kernels on every core (`bounds`: one core's
+/// whole-frame bounds of the sections above, times the cores).
+fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 4]) {
+    let dir = std::env::temp_dir().join(format!("vibroscope-roofline-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    timing::render_tones_scene(&dir, (w, h), 400);
+    let python = numpy_python();
+    let px = (w * h) as f64;
+    println!(
+        "\n  end to end, {w}x{h}, 400 frames at 500 fps, {cores} cores, best of 3 (process start, decoding and writing included):"
+    );
+    if let Err(why) = &python {
+        println!("    numpy reference: not run ({why})");
+    }
+    println!(
+        "    {:<44} {:>9} {:>9} {:>7} {:>9} {:>9} {:>9}",
+        "command", "Mpix/s", "numpy", "agrees", "bound", "of bound", "x numpy"
+    );
+    let mag = |p: &'static str, out: &'static str| timing::magnify_args(p, out).to_vec();
+    let lis = |p: &'static str, out: &'static str| -> Vec<&'static str> {
+        vec![
+            "listen",
+            "scene.y4m",
+            "--method",
+            "phase",
+            "--pyramid",
+            p,
+            "--rate",
+            "native",
+            "-o",
+            out,
+        ]
+    };
+    let cases: [Case; 5] = [
+        (
+            "magnify --pyramid riesz",
+            mag("riesz", "m_riesz.y4m"),
+            "m_riesz.y4m",
+            Some(("magnify", "riesz", 100)),
+            Some(bounds[0]),
+        ),
+        (
+            "magnify --pyramid csp",
+            mag("csp", "m_csp.y4m"),
+            "m_csp.y4m",
+            Some(("magnify", "csp", 50)),
+            Some(bounds[1]),
+        ),
+        (
+            "listen --method phase --pyramid riesz",
+            lis("riesz", "l_riesz.wav"),
+            "l_riesz.wav",
+            Some(("listen", "riesz", 100)),
+            Some(bounds[2]),
+        ),
+        (
+            "listen --method phase --pyramid csp",
+            lis("csp", "l_csp.wav"),
+            "l_csp.wav",
+            Some(("listen", "csp", 100)),
+            Some(bounds[3]),
+        ),
+        (
+            "listen (tiles, gradient; the default)",
+            vec![
+                "listen",
+                "scene.y4m",
+                "--rate",
+                "native",
+                "-o",
+                "l_tiles.wav",
+            ],
+            "l_tiles.wav",
+            None,
+            None,
+        ),
+    ];
+    for (label, args, out, numpy, bound) in cases {
+        let secs = timing::best_of(3, || timing::timed(&dir, &args));
+        let ours = 400.0 * px / secs / 1e6;
+        let reference = match (&python, numpy) {
+            (Ok(py), Some((task, pyramid, frames))) => {
+                numpy_reference(py, &dir, (task, pyramid, frames), out)
+            }
+            _ => None,
+        };
+        let cell =
+            |v: Option<f64>, prec: usize| v.map_or("-".to_string(), |v| format!("{v:.prec$}"));
+        let all = bound.map(|b| b * cores as f64);
+        println!(
+            "    {label:<44} {ours:>9.1} {:>9} {:>7} {:>9} {:>9} {:>9}",
+            cell(reference.map(|r| r.0), 2),
+            cell(reference.map(|r| r.1), 4),
+            cell(all, 1),
+            cell(all.map(|b| ours / b), 2),
+            cell(reference.map(|r| ours / r.0), 0),
+        );
+    }
+    println!(
+        "    (numpy: Mpix/s of scripts/numpy_reference.py, Python's start and imports left out; agrees: the correlation of its output with ours, the motion each magnifier adds or the two sound tracks; bound: the kernels' one-core bound above times {cores}; the tile method's kernels are not counted)"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// An end-to-end case: label, our command, its output, numpy's task,
+/// pyramid and frames, the bound on one core.
+type Case<'a> = (
+    &'a str,
+    Vec<&'a str>,
+    &'a str,
+    Option<(&'a str, &'a str, usize)>,
+    Option<f64>,
+);
+
+/// A Python 3 that imports numpy and scipy (`VIBROSCOPE_PYTHON`, else
+/// `python3`, else Debian's `/usr/bin/python3`), or why there is none.
+fn numpy_python() -> Result<String, String> {
+    let mut tried = Vec::new();
+    let candidates = std::env::var("VIBROSCOPE_PYTHON")
+        .into_iter()
+        .chain(["python3".to_string(), "/usr/bin/python3".to_string()]);
+    for py in candidates {
+        let ok = std::process::Command::new(&py)
+            .args(["-c", "import numpy, scipy.signal, scipy.ndimage"])
+            .output()
+            .is_ok_and(|o| o.status.success());
+        if ok {
+            return Ok(py);
+        }
+        tried.push(py);
+    }
+    Err(format!(
+        "no Python with numpy and scipy among {}: Debian's python3-scipy, or set VIBROSCOPE_PYTHON",
+        tried.join(", ")
+    ))
+}
+
+/// Runs the numpy reference on `scene.y4m` in `dir` and compares it with
+/// our output `ours`: (its Mpix/s, the correlation), or None (with the
+/// reason printed) when it fails.
+fn numpy_reference(
+    python: &str,
+    dir: &std::path::Path,
+    (task, pyramid, frames): (&str, &str, usize),
+    ours: &str,
+) -> Option<(f64, f64)> {
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/numpy_reference.py");
+    let out = if task == "listen" { "np.wav" } else { "np.y4m" };
+    let frames = frames.to_string();
+    let o = std::process::Command::new(python)
+        .current_dir(dir)
+        .args([
+            script,
+            task,
+            "scene.y4m",
+            out,
+            "--pyramid",
+            pyramid,
+            "--band",
+            "35,45",
+            "--factor",
+            "10",
+            "--frames",
+            &frames,
+            "--compare",
+            ours,
+        ])
+        .output()
+        .ok()?;
+    if !o.status.success() {
+        println!(
+            "    numpy reference {task} {pyramid} failed: {}",
+            String::from_utf8_lossy(&o.stderr).trim()
+        );
+        return None;
+    }
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).ok()?;
+    let n = v["frames"].as_f64()? * v["pixels"].as_f64()?;
+    Some((n / v["seconds"].as_f64()? / 1e6, v["correlation"].as_f64()?))
 }
 
 /// A textured frame moving by a sub-pixel sine (x and y), `n` frames.

@@ -31,3 +31,46 @@ pub fn run_exe(exe: &str, dir: &Path, args: &[&str]) -> (f64, String) {
 pub fn best_of(n: usize, mut f: impl FnMut() -> f64) -> f64 {
     (0..n).map(|_| f()).fold(f64::INFINITY, f64::min)
 }
+
+/// Renders `scene.y4m` in `dir`: the magnifier benches' scene, `w x h`,
+/// `frames` frames at 500 fps of a texture moved by tones at 40 and 150 Hz
+/// (`vibroscope run render`).
+pub fn render_tones_scene(dir: &Path, (w, h): (usize, usize), frames: usize) {
+    timed(
+        dir,
+        &[
+            "run",
+            "render",
+            "--quiet",
+            "--set",
+            "cam.fps=500",
+            "--set",
+            &format!("cam.frames={frames}"),
+            "--set",
+            &format!("cam.width={w}"),
+            "--set",
+            &format!("cam.height={h}"),
+            "--set",
+            "cam.signal={type=\"tones\",freqs_hz=[40.0,150.0]}",
+            "--set",
+            "out.path=scene.y4m",
+        ],
+    );
+}
+
+/// `vibroscope magnify` on [`render_tones_scene`]'s scene as the magnifier
+/// benches run it: the 35-45 Hz band (the 40 Hz tone) times 10.
+pub fn magnify_args<'a>(pyramid: &'a str, out: &'a str) -> [&'a str; 10] {
+    [
+        "magnify",
+        "scene.y4m",
+        "--band",
+        "35,45",
+        "--factor",
+        "10",
+        "--pyramid",
+        pyramid,
+        "-o",
+        out,
+    ]
+}
