@@ -349,66 +349,54 @@ fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 4]) {
         "    {:<44} {:>9} {:>9} {:>7} {:>9} {:>9} {:>9}",
         "command", "Mpix/s", "numpy", "agrees", "bound", "of bound", "x numpy"
     );
-    let mag = |p: &'static str, out: &'static str| timing::magnify_args(p, out).to_vec();
-    let lis = |p: &'static str, out: &'static str| -> Vec<&'static str> {
-        vec![
+    // The phase methods: (command, pyramid, the reference's frames, the
+    // one-core bound); then the default `listen`, with neither.
+    let phase = [
+        ("magnify", "riesz", 100, bounds[0]),
+        ("magnify", "csp", 50, bounds[1]),
+        ("listen", "riesz", 100, bounds[2]),
+        ("listen", "csp", 100, bounds[3]),
+    ];
+    let mut cases: Vec<Case> = phase
+        .iter()
+        .map(|&(task, pyramid, frames, bound)| {
+            let (label, args) = if task == "magnify" {
+                let out = format!("m_{pyramid}.y4m");
+                let args = timing::magnify_args(pyramid, &out).map(String::from);
+                (format!("magnify --pyramid {pyramid}"), args.to_vec())
+            } else {
+                let out = format!("l_{pyramid}.wav");
+                let args = ["listen", "scene.y4m", "--method", "phase", "--pyramid"]
+                    .into_iter()
+                    .chain([pyramid, "--rate", "native", "-o", &out])
+                    .map(String::from);
+                (
+                    format!("listen --method phase --pyramid {pyramid}"),
+                    args.collect(),
+                )
+            };
+            (label, args, Some((task, pyramid, frames)), Some(bound))
+        })
+        .collect();
+    cases.push((
+        "listen (tiles, gradient; the default)".to_string(),
+        [
             "listen",
             "scene.y4m",
-            "--method",
-            "phase",
-            "--pyramid",
-            p,
             "--rate",
             "native",
             "-o",
-            out,
-        ]
-    };
-    let cases: [Case; 5] = [
-        (
-            "magnify --pyramid riesz",
-            mag("riesz", "m_riesz.y4m"),
-            "m_riesz.y4m",
-            Some(("magnify", "riesz", 100)),
-            Some(bounds[0]),
-        ),
-        (
-            "magnify --pyramid csp",
-            mag("csp", "m_csp.y4m"),
-            "m_csp.y4m",
-            Some(("magnify", "csp", 50)),
-            Some(bounds[1]),
-        ),
-        (
-            "listen --method phase --pyramid riesz",
-            lis("riesz", "l_riesz.wav"),
-            "l_riesz.wav",
-            Some(("listen", "riesz", 100)),
-            Some(bounds[2]),
-        ),
-        (
-            "listen --method phase --pyramid csp",
-            lis("csp", "l_csp.wav"),
-            "l_csp.wav",
-            Some(("listen", "csp", 100)),
-            Some(bounds[3]),
-        ),
-        (
-            "listen (tiles, gradient; the default)",
-            vec![
-                "listen",
-                "scene.y4m",
-                "--rate",
-                "native",
-                "-o",
-                "l_tiles.wav",
-            ],
             "l_tiles.wav",
-            None,
-            None,
-        ),
-    ];
-    for (label, args, out, numpy, bound) in cases {
+        ]
+        .map(String::from)
+        .to_vec(),
+        None,
+        None,
+    ));
+    for (label, args, numpy, bound) in cases {
+        // Our output, to compare the reference's with: the last argument.
+        let out = args.last().map_or("", String::as_str);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let secs = timing::best_of(3, || timing::timed(&dir, &args));
         let ours = 400.0 * px / secs / 1e6;
         let reference = match (&python, numpy) {
@@ -435,13 +423,12 @@ fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 4]) {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// An end-to-end case: label, our command, its output, numpy's task,
-/// pyramid and frames, the bound on one core.
-type Case<'a> = (
-    &'a str,
-    Vec<&'a str>,
-    &'a str,
-    Option<(&'a str, &'a str, usize)>,
+/// An end-to-end case: label, our command (its output last), the numpy
+/// reference's task, pyramid and frames, the bound on one core.
+type Case = (
+    String,
+    Vec<String>,
+    Option<(&'static str, &'static str, usize)>,
     Option<f64>,
 );
 

@@ -31,6 +31,7 @@ import time
 
 import numpy as np
 from scipy import ndimage, signal
+from scipy.io import wavfile
 
 
 def read_y4m(path, limit=None):
@@ -324,16 +325,11 @@ def main():
     if a.task == "listen":
         x = (listen_riesz if a.pyramid == "riesz" else listen_csp)(frames)
         x = x / max(np.abs(x).max(), 1e-12)
-        signal_wav = x.astype(np.float32)
-        from scipy.io import wavfile
-
-        wavfile.write(a.out, int(round(fps)), signal_wav)
+        wavfile.write(a.out, int(round(fps)), x.astype(np.float32))
         result["seconds"] = time.perf_counter() - t0
         if a.compare:
-            from scipy.io import wavfile as wf
-
-            _, ours = wf.read(a.compare)
-            ours = np.asarray(ours, np.float64)[: len(x)]
+            _, ours = wavfile.read(a.compare)
+            ours = np.asarray(ours, np.float64)
             hp = signal.butter(2, 20, btype="highpass", fs=fps, output="sos")
             m = min(len(ours), len(x))
             result["correlation"] = correlation(

@@ -52,6 +52,19 @@ fn atan_n<const N: usize>(t: &[f32; N], flags: &[u8; N]) -> [f32; N] {
     r
 }
 
+/// The arctangent's argument reduction: for `atan2(y, x)` with `ay = |y|`,
+/// `(num, den, flags)` with `num <= den`, `den` never 0 (0 / 1 gives
+/// `atan2(0, 0) = 0`), and the flags [`atan_n`] takes.
+#[inline(always)]
+fn octant(ay: f32, x: f32) -> (f32, f32, u8) {
+    let ax = x.abs();
+    let swap = ay > ax;
+    let num = if swap { ax } else { ay };
+    let den = if swap { ay } else { ax };
+    let den = if den == 0.0 { 1.0 } else { den };
+    (num, den, u8::from(swap) | (u8::from(x < 0.0) << 1))
+}
+
 /// `N` pixels from `s` of [`csp_row_generic`], added into the L lanes of
 /// `acc` L at a time, in pixel order.
 #[inline(always)]
@@ -69,13 +82,9 @@ fn csp_px<const N: usize>(
     for l in 0..N {
         let re = c[l].re.mul_add(r[l].re, c[l].im * r[l].im);
         let im = c[l].im.mul_add(r[l].re, -(c[l].re * r[l].im));
-        let (ax, ay) = (re.abs(), im.abs());
-        let swap = ay > ax;
-        let num = if swap { ax } else { ay };
-        let den = if swap { ay } else { ax };
-        // den = 0 only when num = 0 too: 0 / 1 gives atan2(0, 0) = 0.
-        t[l] = num / if den == 0.0 { 1.0 } else { den };
-        flags[l] = u8::from(swap) | (u8::from(re < 0.0) << 1);
+        let (num, den, fl) = octant(im.abs(), re);
+        t[l] = num / den;
+        flags[l] = fl;
         sign[l] = im < 0.0;
     }
     let a = atan_n(&t, &flags);
@@ -98,7 +107,10 @@ fn csp_row_generic(cur: &[Complex32], reference: &[Complex32], w: &[f32]) -> f32
     let (cur, reference, w) = (&cur[..n], &reference[..n], &w[..n]);
     let mut acc = [0.0f32; L];
     // 4L pixels at a time where there are that many (as in
-    // `riesz_span`: the same additions in the same order).
+    // `riesz_span`: the same additions in the same order). Written out,
+    // not through a closure: a closure is not compiled with the calling
+    // function's target features, so its mul_add became a library call
+    // (12x slower).
     let chunks = n / L;
     let mut ch = 0;
     while ch < chunks {
@@ -160,15 +172,11 @@ fn riesz_px<const N: usize, const K: usize>(
         // atan2(vn, re) as atan(num / den) with num <= den, and 1 / ij:
         // one division gives both (division and square root are the
         // kernel's slowest operations).
-        let ax = re.abs();
-        let swap = vn > ax;
-        let num = if swap { ax } else { vn };
-        let den = if swap { vn } else { ax };
-        let den = if den == 0.0 { 1.0 } else { den };
+        let (num, den, fl) = octant(vn, re);
         let r = 1.0 / (den * ij).max(f32::MIN_POSITIVE);
         t[l] = num * (ij * r);
         scale[l] = den * r;
-        flags[l] = u8::from(swap) | (u8::from(re < 0.0) << 1);
+        flags[l] = fl;
     }
     let dphi = atan_n(&t, &flags);
     for l in 0..N {
@@ -190,7 +198,7 @@ fn riesz_px<const N: usize, const K: usize>(
 
 /// The whole-chunk part of [`riesz_row_generic`] for `K` orientations
 /// (a constant, so that the sums' lanes stay in registers): each
-/// orientation's L lanes, and the pixels it covered.
+/// orientation's L lanes.
 #[inline(always)]
 fn riesz_span<const K: usize>(
     cur: [&[f32]; 3],
@@ -199,12 +207,12 @@ fn riesz_span<const K: usize>(
     dirs: &[(f32, f32); K],
     n: usize,
 ) -> [[f32; L]; K] {
-    let mut lanes = [[0.0f32; L]; K];
     // Pixels are computed 4L at a time (several vectors per value, whose
     // chains of dependent operations overlap: the kernel is bound by
     // their latency) and added into the L lanes of the sums L at a time,
     // in pixel order: the same additions in the same order whatever the
     // vector width, so every path gives the same bits.
+    let mut lanes = [[0.0f32; L]; K];
     let chunks = n / L;
     let mut ch = 0;
     while ch < chunks {
@@ -359,11 +367,9 @@ mod tests {
         let mut t = [0.0f32; L];
         let mut flags = [0u8; L];
         for l in 0..L {
-            let (ax, ay) = (x[l].abs(), y[l].abs());
-            let swap = ay > ax;
-            let (num, den) = if swap { (ax, ay) } else { (ay, ax) };
-            t[l] = num / if den == 0.0 { 1.0 } else { den };
-            flags[l] = u8::from(swap) | (u8::from(x[l] < 0.0) << 1);
+            let (num, den, fl) = octant(y[l].abs(), x[l]);
+            t[l] = num / den;
+            flags[l] = fl;
         }
         let a = atan_n(&t, &flags);
         let mut r = [0.0f32; L];
