@@ -121,7 +121,7 @@ const SEEN: [Case; 7] = [
 
 /// Run only by this test: written down before any was run, figures as
 /// they came.
-const HELD_OUT: [Case; 10] = [
+const HELD_OUT: [Case; 15] = [
     case(
         "clock",
         Scene::Object,
@@ -187,6 +187,39 @@ background_motion = [{ rect = [100, 0, 28, 128], signal = { type = "noise", rate
         r#"camera_motion = { signal = { type = "noise", rate_hz = 2200.0, duration_s = 3.0, seed = 33 }, amplitude_px = 0.04, direction_deg = 90.0 }"#,
         r#"camera_motion = { signal = { type = "noise", rate_hz = 2200.0, duration_s = 3.0, seed = 34 }, amplitude_px = 0.04, direction_deg = 90.0 }"#,
     ),
+    // Added in issue 50's third part, written down before any of them was
+    // run: four of the ten above cost the speech under 1 dB (nothing in the
+    // region sees them), so these each reach the region: the camera along
+    // a third direction, a mover across the region's columns, a catalog
+    // effect and a shake at once, two narrowband lines, and the sensor's
+    // row noise (which the explainer was known not to explain).
+    case(
+        "camera_diagonal",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 1800.0, duration_s = 3.0, seed = 41 }, amplitude_px = 0.04, direction_deg = 30.0 }"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 1800.0, duration_s = 3.0, seed = 42 }, amplitude_px = 0.04, direction_deg = 30.0 }"#,
+    ),
+    case(
+        "mover_columns",
+        Scene::Site,
+        r#"background_motion = [{ rect = [84, 0, 44, 128], signal = { type = "noise", rate_hz = 900.0, duration_s = 3.0, seed = 43 }, amplitude_px = 0.4, direction_deg = 90.0 }]"#,
+        r#"background_motion = [{ rect = [84, 0, 44, 128], signal = { type = "noise", rate_hz = 900.0, duration_s = 3.0, seed = 44 }, amplitude_px = 0.4, direction_deg = 90.0 }]"#,
+    ),
+    case(
+        "resonance_and_camera",
+        Scene::Site,
+        r#"resonances = [{ freq_hz = 420.0, q = 5.0, gain_db = 10.0 }]
+camera_motion = { signal = { type = "noise", rate_hz = 2200.0, duration_s = 3.0, seed = 45 }, amplitude_px = 0.03 }"#,
+        r#"resonances = [{ freq_hz = 420.0, q = 5.0, gain_db = 10.0 }]
+camera_motion = { signal = { type = "noise", rate_hz = 2200.0, duration_s = 3.0, seed = 46 }, amplitude_px = 0.03 }"#,
+    ),
+    case(
+        "interference_pair",
+        Scene::Object,
+        "interference = [{ freq_hz = 95.0, amplitude_px = 0.02 }, { freq_hz = 610.0, amplitude_px = 0.015 }]",
+        "interference = [{ freq_hz = 95.0, amplitude_px = 0.02 }, { freq_hz = 610.0, amplitude_px = 0.015 }]",
+    ),
+    case("row_noise", Scene::Site, "row_noise_dn = 3.0", "row_noise_dn = 3.0"),
 ];
 
 /// The catalog's other families, outside the protocol's set (they were
@@ -534,4 +567,24 @@ fn held_out_camera_vertical() {
         Some("first run -1.19 dB: the stored FIR holds the chirp texture's coupling of a shake across the measured axis, which another texture changes; fitted again on the speech recording it loses nothing (but a refit would also remove the sound where the observable hears it too, a second object in the same field, so it was not kept)"),
         Some("first run -1.19 dB; fitted again on the speech recording, the camera term kept on the chirp explains 0.5% of it: the shake's 4.02 dB reach the recovery some other way"),
     );
+}
+#[test]
+fn held_out_camera_diagonal() {
+    held_out("camera_diagonal", None, None);
+}
+#[test]
+fn held_out_mover_columns() {
+    held_out("mover_columns", None, None);
+}
+#[test]
+fn held_out_resonance_and_camera() {
+    held_out("resonance_and_camera", None, None);
+}
+#[test]
+fn held_out_interference_pair() {
+    held_out("interference_pair", None, None);
+}
+#[test]
+fn held_out_row_noise() {
+    held_out("row_noise", None, None);
 }
