@@ -1,5 +1,8 @@
 //! A stored calibration report (`listen --calibration REPORT.json`): the
-//! reusable corrections, then applied to a short signal.
+//! reusable corrections, the recovery's pixel frame and the explainer's
+//! terms, each parsed as `listen` parses them, then applied to a short
+//! signal (the terms to an observable of their own, as `listen` measures
+//! it again).
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -9,8 +12,28 @@ fuzz_target!(|data: &[u8]| {
     let Ok(v) = serde_json::from_slice::<serde_json::Value>(data) else {
         return;
     };
+    let y: Vec<f64> = (0..1024).map(|i| (i as f64 * 0.05).sin()).collect();
+    // As `listen` brings the report to a recording whose recovery reads
+    // 0.37 a pixel.
+    let ratio = match cal::frame_from_report(&v) {
+        Ok(Some(f)) => 0.37 / f.recovery_per_px,
+        _ => 1.0,
+    };
     if let Ok(c) = cal::reusable_from_report(&v) {
-        let y: Vec<f64> = (0..1024).map(|i| (i as f64 * 0.05).sin()).collect();
         let _ = cal::apply_all(&c, &y, 48_000.0);
+        let rescaled: Vec<cal::Correction> = c.iter().map(|c| c.rescaled(ratio)).collect();
+        let _ = cal::apply_all(&rescaled, &y, 48_000.0);
+    }
+    if let Ok(terms) = cal::explained_from_report(&v) {
+        let x: Vec<f64> = (0..1024).map(|i| (i as f64 * 0.3).cos()).collect();
+        let measured: Vec<cal::Measured> = terms
+            .iter()
+            .map(|t| cal::Measured {
+                values: x.clone(),
+                taps: (!t.refit).then(|| t.taps.iter().map(|a| a * ratio).collect()),
+            })
+            .collect();
+        let hp = cal::Options::for_rate(2200.0).highpass;
+        let _ = cal::remove_explained(&y, &measured, 2200.0, hp);
     }
 });

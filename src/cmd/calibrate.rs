@@ -199,8 +199,17 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             vibroscope::calibrate::Observable::MotionY => "motion y",
             vibroscope::calibrate::Observable::Intensity => "intensity",
         };
+        // How `listen --calibration` carries it to the next recording.
+        let carried = if e.refit {
+            "fitted again on each recording".to_string()
+        } else {
+            format!(
+                "follows the reference ({:.0}% of it): its FIR is kept as fitted here",
+                100.0 * e.follows_reference
+            )
+        };
         eprintln!(
-            "{:<19} {:<5} {:>11} dB  {what} of [{x}, {y}, {w}, {h}], {:.0}% of the residual: {}",
+            "{:<19} {:<5} {:>11} dB  {what} of [{x}, {y}, {w}, {h}], {:.0}% of the residual: {}; {carried}",
             format!("explained:{}", e.cause),
             "yes",
             format!("{:+.2}", e.snr_gain_db),

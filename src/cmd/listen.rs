@@ -136,6 +136,18 @@ pub struct Args {
     /// noisy speech without denoising can lower its segmental SNR.
     #[arg(long, value_name = "REPORT.json")]
     calibration: Option<PathBuf>,
+    /// With --calibration holding a readout across the rows (capture_time):
+    /// unfold what the strips of rows sampled between the frame rate's
+    /// Nyquist frequency and the frame rate (the rows are captured at
+    /// different instants, so a frequency and its alias reach them with
+    /// different delays and can be told apart), and write the sound at
+    /// twice the frame rate. The alias is estimated per frequency by least
+    /// squares over the strips and shrunk (Wiener) where it is below their
+    /// noise. Off by default: against a reference sampled at the frame
+    /// times, which holds the aliases, it scores lower (see
+    /// docs/calibration.md).
+    #[arg(long, requires = "calibration")]
+    unfold: bool,
     #[command(flatten)]
     rolling: RollingArgs,
 }
@@ -242,6 +254,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         },
         speaker: a.speaker,
         calibration: a.calibration,
+        unfold: a.unfold,
         rolling_shutter: a.rolling.options()?,
         filters,
         rate: output_rate(a.rate.as_deref())?,

@@ -231,21 +231,10 @@ pub fn strip_rows(video: &Path, region: &Region) -> Result<StripLayout> {
 /// `video` with the listen pipeline's phase method, causally high-passed
 /// as [`recover`], in one run: one decoder feeds a branch per strip and,
 /// with `whole`, the region's own (so the video is decoded once). Returns
-/// the region's recovery (with `whole`) and one signal per strip.
-pub fn recover_strips(
-    video: &Path,
-    fps: Option<f64>,
-    region: &Region,
-    (cols, rows): ((u32, u32), &[(u32, u32)]),
-    whole: bool,
-    run: RunSettings,
-) -> Result<StripRun> {
-    recover_observed(video, fps, region, (cols, rows), (whole, &[]), run)
-}
-
-/// [`recover_strips`], also measuring the motion (x, y) and mean intensity
-/// of each tile of `tiles` in the same run (one `displacement` stage on
-/// the decoder; [`StripRun::observed`], three channels a tile).
+/// the region's recovery (with `whole`) and one signal per strip, and the
+/// motion (x, y) and mean intensity of each tile of `tiles`, measured in
+/// the same run (one `displacement` stage on the decoder;
+/// [`StripRun::observed`], three channels a tile).
 pub fn recover_observed(
     video: &Path,
     fps: Option<f64>,
@@ -465,7 +454,7 @@ fn read_bands(path: &Path) -> Result<Vec<Vec<f64>>> {
     Ok(bands)
 }
 
-/// What [`recover_strips`] recovered.
+/// What [`recover_observed`] recovered.
 pub struct StripRun {
     /// The region's recovery, when asked for.
     pub whole: Option<Vec<f64>>,

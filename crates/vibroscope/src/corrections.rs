@@ -45,16 +45,16 @@ pub struct Observe {
 }
 
 impl Observe {
-    /// Adds the measuring branch to `decl` (on the listen pipeline's
-    /// source). A term's tile outside `video`'s frame, or more tiles than
-    /// one stage measures, is an error naming `calibration` (the report
-    /// was fitted on another camera or frame size, or is damaged).
-    pub fn add(
-        decl: &mut crate::engine::config::PipelineDecl,
+    /// The tiles a new recording's observables are measured on: the
+    /// region first, then each term's tiles (each once). A term's tile
+    /// outside `video`'s frame, or more tiles than one stage measures, is
+    /// an error naming `calibration` (the report was fitted on another
+    /// camera or frame size, or is damaged).
+    pub fn tiles(
         (video, region): (&Path, &crate::pipeline::Region),
         calibration: &Path,
         terms: &[cal::StoredTerm],
-    ) -> Result<Observe> {
+    ) -> Result<Vec<[u32; 4]>> {
         let layout = crate::calibrate::strip_rows(video, region)?;
         let (w, h) = (u64::from(layout.width), u64::from(layout.height));
         let mut rects = vec![layout.region()];
@@ -84,6 +84,18 @@ impl Observe {
                 ),
             ));
         }
+        Ok(rects)
+    }
+
+    /// Adds the measuring branch to `decl` (on the listen pipeline's
+    /// source), on [`Observe::tiles`].
+    pub fn add(
+        decl: &mut crate::engine::config::PipelineDecl,
+        (video, region): (&Path, &crate::pipeline::Region),
+        calibration: &Path,
+        terms: &[cal::StoredTerm],
+    ) -> Result<Observe> {
+        let rects = Self::tiles((video, region), calibration, terms)?;
         let temp = crate::io::atomic::TempPath::new("observed.csv");
         crate::calibrate::add_observe(decl, &rects, temp.path())?;
         Ok(Observe { rects, temp })
@@ -92,8 +104,10 @@ impl Observe {
     /// After the run: the recovery in the WAV at `path` brought to the
     /// calibration's frame. Its scale against the region's motion along
     /// the stored direction, over the stored scale, gives the ratio; the
-    /// explained terms' parts (their taps times the ratio, on the tiles
-    /// measured here) are subtracted, then `corrections` rescaled by the
+    /// explained terms' parts (on the tiles measured here: through their
+    /// taps times the ratio, or fitted to this recording where the
+    /// calibration says so, [`cal::Explanation::refit`]) are subtracted,
+    /// then `corrections` rescaled by the
     /// ratio apply as in [`apply_to_wav`] (with `denoise`); the WAV is
     /// rewritten once. Returns a note saying what was done.
     pub fn apply(
@@ -103,19 +117,39 @@ impl Observe {
         frame: cal::PixelFrame,
         terms: &[cal::StoredTerm],
     ) -> Result<String> {
-        let (rate, y) = crate::io::wav::read_mono(path)?;
-        let fs = f64::from(rate);
         let observed = crate::calibrate::read_observed(self.temp.path())?;
-        if observed.len() != 3 * self.rects.len() {
-            return Err(Error::Analysis(format!(
-                "{} channels of observables for {} tiles",
-                observed.len(),
-                self.rects.len()
-            )));
-        }
-        let n = y.len().min(observed[0].len());
-        let hp = cal::Options::for_rate(fs).highpass;
-        let here = cal::pixel_frame(
+        apply_observed(
+            path,
+            (&self.rects, &observed),
+            (corrections, denoise),
+            frame,
+            terms,
+        )
+    }
+}
+
+/// [`Observe::apply`] with the observables already read: `observed` holds
+/// three channels (motion x, y, intensity) for each tile of `rects`
+/// ([`Observe::tiles`]), one value per frame.
+pub fn apply_observed(
+    path: &Path,
+    (rects, observed): (&[[u32; 4]], &[Vec<f64>]),
+    (corrections, denoise): (&[Correction], Denoise),
+    frame: cal::PixelFrame,
+    terms: &[cal::StoredTerm],
+) -> Result<String> {
+    let (rate, y) = crate::io::wav::read_mono(path)?;
+    let fs = f64::from(rate);
+    if observed.len() != 3 * rects.len() || rects.is_empty() {
+        return Err(Error::Analysis(format!(
+            "{} channels of observables for {} tiles",
+            observed.len(),
+            rects.len()
+        )));
+    }
+    let n = y.len().min(observed[0].len());
+    let hp = cal::Options::for_rate(fs).highpass;
+    let here = cal::pixel_frame(
             &y[..n],
             (&observed[0][..n], &observed[1][..n]),
             fs,
@@ -129,54 +163,62 @@ impl Observe {
                 frame.direction_deg
             ))
         })?;
-        let ratio = here.recovery_per_px / frame.recovery_per_px;
-        let channel = |o: cal::Observable| match o {
-            cal::Observable::MotionX => 0,
-            cal::Observable::MotionY => 1,
-            cal::Observable::Intensity => 2,
-        };
-        let measured: Vec<(Vec<f64>, Vec<f64>)> = terms
-            .iter()
-            .map(|t| {
-                let mut mean = vec![0.0; n];
-                for r in &t.tiles {
-                    let k = self
-                        .rects
-                        .iter()
-                        .skip(1)
-                        .position(|x| x == r)
-                        .map_or(0, |k| k + 1);
-                    for (m, v) in mean
-                        .iter_mut()
-                        .zip(&observed[3 * k + channel(t.observable)])
-                    {
-                        *m += v / t.tiles.len() as f64;
-                    }
+    let ratio = here.recovery_per_px / frame.recovery_per_px;
+    let channel = |o: cal::Observable| match o {
+        cal::Observable::MotionX => 0,
+        cal::Observable::MotionY => 1,
+        cal::Observable::Intensity => 2,
+    };
+    let measured: Vec<cal::Measured> = terms
+        .iter()
+        .map(|t| {
+            let mut mean = vec![0.0; n];
+            for r in &t.tiles {
+                let k = rects
+                    .iter()
+                    .skip(1)
+                    .position(|x| x == r)
+                    .map_or(0, |k| k + 1);
+                for (m, v) in mean
+                    .iter_mut()
+                    .zip(&observed[3 * k + channel(t.observable)])
+                {
+                    *m += v / t.tiles.len() as f64;
                 }
-                (mean, t.taps.iter().map(|a| a * ratio).collect())
-            })
-            .collect();
-        let mut z = cal::remove_explained(&y[..n], &measured, fs, hp);
-        z.extend_from_slice(&y[n..]);
-        let rescaled: Vec<Correction> = corrections.iter().map(|c| c.rescaled(ratio)).collect();
-        write_corrected(path, (rate, &z), &rescaled, denoise)?;
-        let mut note = format!(
+            }
+            cal::Measured {
+                values: mean,
+                taps: (!t.refit).then(|| t.taps.iter().map(|a| a * ratio).collect()),
+            }
+        })
+        .collect();
+    let (mut z, removed) = cal::remove_explained(&y[..n], &measured, fs, hp);
+    z.extend_from_slice(&y[n..]);
+    let rescaled: Vec<Correction> = corrections.iter().map(|c| c.rescaled(ratio)).collect();
+    write_corrected(path, (rate, &z), &rescaled, denoise)?;
+    let mut note = format!(
             "the recovery reads {:.4e} per px of motion along {:.1}° here, {:.4e} on the calibration's recording (ratio {ratio:+.4})",
             here.recovery_per_px, frame.direction_deg, frame.recovery_per_px
         );
-        if !terms.is_empty() {
-            note.push_str(&format!(
-                "; {} explained term(s) measured again here and subtracted",
-                terms.len()
+    let refit = terms.iter().filter(|t| t.refit).count();
+    if refit > 0 {
+        note.push_str(&format!(
+                "; {refit} explained term(s) measured again here, fitted to this recording and subtracted ({:.1}% of its energy: their observables do not follow the calibration's reference)",
+                100.0 * removed
             ));
-        }
-        if corrections.iter().any(Correction::needs_frame) {
-            note.push_str(&format!(
-                "; amplitude-dependent corrections rescaled by {ratio:+.4}"
-            ));
-        }
-        Ok(note)
     }
+    if terms.len() > refit {
+        note.push_str(&format!(
+                "; {} explained term(s) measured again here and subtracted through the stored FIR (their observables follow the calibration's reference: fitted here, they would remove the sound)",
+                terms.len() - refit
+            ));
+    }
+    if corrections.iter().any(Correction::needs_frame) {
+        note.push_str(&format!(
+            "; amplitude-dependent corrections rescaled by {ratio:+.4}"
+        ));
+    }
+    Ok(note)
 }
 
 /// Applies `corrections` to the WAV at `path` in place (at its own rate).

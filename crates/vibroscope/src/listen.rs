@@ -17,7 +17,7 @@ use crate::engine::pipelines::stage::{rolling_shutter, tile_microphone, visual_m
 use crate::engine::spec::KindParams;
 use crate::engine::RunReport;
 use crate::error::{Error, Result};
-use crate::math::calibrate::Correction;
+use crate::math::calibrate::{self as cal, Correction};
 use crate::math::exposure::Mode as ExposureMode;
 use crate::microphone::listen_pipeline;
 pub use crate::microphone::Method;
@@ -89,6 +89,10 @@ pub struct ListenOptions {
     pub speaker: Option<String>,
     /// A stored calibration (REPORT.json of `calibrate`) to apply.
     pub calibration: Option<PathBuf>,
+    /// With a calibration's capture time across the rows: unfold what the
+    /// strips sampled above the frame rate's Nyquist frequency, at twice
+    /// the frame rate ([`cal::unfold`]).
+    pub unfold: bool,
     /// One sample per row instead of per frame.
     pub rolling_shutter: Option<RollingShutter>,
     /// Band-pass and band-stop filters, applied in order.
@@ -179,7 +183,7 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
                 Correction::CaptureTime { .. } | Correction::RegionGain { .. }
             )
         }) {
-            return listen_strips(o, c, method);
+            return listen_strips(o, c, method, (frame, &terms));
         }
     }
     let mut notes = Vec::new();
@@ -271,17 +275,33 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         add_speaker(&mut decl, dev)?;
     }
     let run = pipeline::run(&decl, o.run);
-    // Ctrl-C: the WAV holds what was processed; finish it as well.
+    // Ctrl-C: the WAV holds what was processed; finish it as well, with the
+    // observables measured on the same frames.
     if matches!(run, Ok(_) | Err(Error::Interrupted { .. })) && o.output.exists() {
         if let Some(c) = &corrections {
             match (frame, &observe) {
-                (Some(f), Some(obs)) if run.is_ok() => {
-                    notes.push(obs.apply(&o.output, (c, o.denoise), f, &terms)?);
-                }
+                (Some(f), Some(obs)) => match obs.apply(&o.output, (c, o.denoise), f, &terms) {
+                    Ok(note) => notes.push(note),
+                    // Interrupted too early to measure this recording's
+                    // frame: what needs it is left out, and said.
+                    Err(e) if run.is_err() => {
+                        let plain: Vec<Correction> =
+                            c.iter().filter(|c| !c.needs_frame()).cloned().collect();
+                        corrections::apply_to_wav(&o.output, &plain, o.denoise)?;
+                        notes.push(format!("{e}: the calibration's amplitude-dependent corrections and explained terms were left out"));
+                    }
+                    Err(e) => return Err(e),
+                },
                 _ => corrections::apply_to_wav(&o.output, c, o.denoise)?,
             }
         }
         finish_wav(o, corrections.is_some())?;
+    }
+    // An interrupted run returns no report: its notes are said here.
+    if run.is_err() {
+        for n in &notes {
+            tracing::warn!("{n}");
+        }
     }
     let run = run?;
     Ok(report(o, corrections.as_deref(), method, notes, run))
@@ -324,6 +344,7 @@ fn listen_strips(
     o: &ListenOptions,
     corrections: &[Correction],
     method: Option<Method>,
+    (frame, terms): (Option<cal::PixelFrame>, &[cal::StoredTerm]),
 ) -> Result<ListenReport> {
     let (rows, delays_s, weights, name) = match corrections.iter().find(|c| {
         matches!(
@@ -358,16 +379,80 @@ fn listen_strips(
     let cols = layout.cols;
     fits(o, rows, name, layout.height)?;
     let fs = crate::calibrate::frame_rate(&o.video, o.fps)?;
+    // As on the frame path: the region's motion and the explained terms'
+    // tiles are measured in the same run, to bring the calibration to this
+    // recording's frame.
+    let mut notes = Vec::new();
+    let needs = corrections.iter().any(Correction::needs_frame) || !terms.is_empty();
+    let tiles = match (frame, &o.calibration) {
+        (Some(_), Some(path)) if needs => {
+            corrections::Observe::tiles((&o.video, &o.region), path, terms)?
+        }
+        _ => {
+            if needs {
+                notes.push("the calibration holds no pixel frame (written before it was measured): its corrections apply in the calibration recording's units and sign, and its explained terms are left out".into());
+            }
+            Vec::new()
+        }
+    };
     let crate::calibrate::StripRun {
         signals,
+        observed,
         report: run,
         ..
-    } = crate::calibrate::recover_strips(&o.video, o.fps, &o.region, (cols, rows), false, o.run)?;
-    let y = crate::math::calibrate::combine(&signals, weights, &delays_s, fs);
-    crate::io::wav::write_mono_f32(&o.output, fs.round() as u32, &y)?;
-    corrections::apply_to_wav(&o.output, corrections, Denoise::None)?;
+    } = crate::calibrate::recover_observed(
+        &o.video,
+        o.fps,
+        &o.region,
+        (cols, rows),
+        (false, &tiles),
+        o.run,
+    )?;
+    // With --unfold: a readout's capture times spread over the frame period
+    // sample the motion at more instants than one a frame, and what lies
+    // above the frame rate's Nyquist frequency is unfolded, at twice the
+    // frame rate (not when the frame or explained terms are needed: their
+    // observables are measured once a frame).
+    let unfolded = match (name, tiles.is_empty(), o.unfold) {
+        ("capture_time", true, true) => cal::unfold(
+            &signals,
+            (weights, &delays_s),
+            (fs, cal::Options::for_rate(fs).highpass),
+        ),
+        _ => None,
+    };
+    match &unfolded {
+        Some(u) => {
+            let rate = (2.0 * fs).round() as u32;
+            crate::io::wav::write_mono_f32(&o.output, rate, u)?;
+            notes.push(format!(
+                "the strips' capture times spread over the frame period: what they sampled between the frame rate's Nyquist frequency and the frame rate is unfolded, and the recovery is at {rate} Hz (twice the frame rate)"
+            ));
+        }
+        None => {
+            let y = cal::combine(&signals, weights, &delays_s, fs);
+            crate::io::wav::write_mono_f32(&o.output, fs.round() as u32, &y)?;
+            if o.unfold && name != "capture_time" {
+                notes.push(format!("--unfold: the calibration's strips ({name}) were captured at one instant: nothing to unfold"));
+            } else if o.unfold && !tiles.is_empty() {
+                notes.push("--unfold: the strips' capture times are applied at the frame rate: what the rows sampled above its Nyquist frequency is not unfolded when the calibration also needs this recording's frame or tiles (measured once a frame)".into());
+            } else if o.unfold {
+                notes.push("--unfold: the strips' capture times do not spread over enough of the frame period to tell a frequency from its alias: applied at the frame rate".into());
+            }
+        }
+    }
+    match frame {
+        Some(f) if !tiles.is_empty() => notes.push(corrections::apply_observed(
+            &o.output,
+            (&tiles, &observed),
+            (corrections, Denoise::None),
+            f,
+            terms,
+        )?),
+        _ => corrections::apply_to_wav(&o.output, corrections, Denoise::None)?,
+    }
     finish_wav(o, true)?;
-    Ok(report(o, Some(corrections), method, Vec::new(), run))
+    Ok(report(o, Some(corrections), method, notes, run))
 }
 
 /// The time per row of a readout a calibration found (`capture_time`'s

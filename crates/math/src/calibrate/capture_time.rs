@@ -25,7 +25,7 @@ use super::correlation::recurrence;
 use super::gain_drift::chi2_level;
 use super::model::{Fit, Model};
 use super::report::{Unexplained, UnexplainedKind};
-use super::signal::{gain_sse, jackknife, redo_highpass, sample_at, stft_len};
+use super::signal::{gain_sse, jackknife, redo_highpass, sample_at, stft_len, undo_highpass};
 use super::{Candidate, Correction, Uncertainty};
 
 /// Recoveries of horizontal strips of the region: the image's row axis.
@@ -460,6 +460,232 @@ pub fn combine(signals: &[Vec<f64>], weights: &[f64], delays_s: &[f64], fs: f64)
     out
 }
 
+/// Strips whose capture times spread over so little of a frame period
+/// that a frequency's and its alias's columns correlate above this
+/// ([`unfold`]) cannot tell them apart: not unfolded.
+pub const UNFOLD_MAX_CORRELATION: f64 = 0.95;
+/// The alias's power is estimated over this much of the spectrum either
+/// side of each frequency (Hz), [`unfold`].
+const UNFOLD_SMOOTH_HZ: f64 = 20.0;
+
+/// The strips' samples as one signal at twice the frame rate, what lies
+/// between the frame rate's Nyquist frequency and the frame rate itself
+/// unfolded (issue 50, item 3: a readout across the rows samples the
+/// motion at more instants than one a frame). Strip `k` holds
+/// `g_k x(n / fs - d_k)` plus its noise (`delays_s[k] = d_k`, as
+/// [`combine`] takes them); below `fs` each frequency `f` of a strip's
+/// spectrum holds `x` at `f` and at `f - fs` (the alias), each turned by
+/// its own delay, `e^{-i 2π f d_k}` and `e^{-i 2π (f - fs) d_k}`. With
+/// capture times spread over a frame period the two are told apart, per
+/// frequency, by weighted least squares over the strips (weights
+/// `g_k² / σ_k²`), and written at their own frequencies at `2 fs`. The
+/// alias is shrunk by a Wiener factor from its power, estimated from the
+/// strips themselves: where the motion holds nothing above the Nyquist
+/// frequency the result is the delays' sum ([`combine`]), where it holds
+/// more than the strips' noise it is unfolded.
+///
+/// Each strip's gain and noise are measured on this recording against
+/// [`combine`]'s sum (with `weights`, and the strip's delay): a strip's
+/// gain depends on its texture and its sign on its pipeline. `None` when
+/// the delays do not spread enough ([`UNFOLD_MAX_CORRELATION`]), or fewer
+/// than two strips hold the signal. The result is as long as twice the
+/// shortest strip, in the strips' units (the sum's scale), and high-passed
+/// as a recovery at twice the frame rate is by default: the strips' own
+/// high-pass (`highpass`, at the frame rate) undone, that one applied.
+pub fn unfold(
+    signals: &[Vec<f64>],
+    (weights, delays_s): (&[f64], &[f64]),
+    (fs, highpass): (f64, Option<(usize, f64)>),
+) -> Option<Vec<f64>> {
+    let n = signals.iter().map(Vec::len).min().unwrap_or(0);
+    if n < 16 || fs.is_nan() || fs <= 0.0 || delays_s.len() != signals.len() {
+        return None;
+    }
+    // The strips' gains and noises against the sum at the frame rate
+    // first (where the delays suppress the aliases), then once more
+    // against the unfolded signal, read at each strip's instants.
+    let mut template = (combine(signals, weights, delays_s, fs), fs);
+    for _ in 0..2 {
+        let strips = gains(signals, (weights, delays_s), (&template.0, template.1), fs);
+        let y = solve_unfolded(&strips, fs, n)?;
+        template = (y, 2.0 * fs);
+    }
+    // The strips' high-pass (`highpass`, at the frame rate) becomes the
+    // one a recovery at twice the rate carries (its default), as the
+    // model that scores it assumes.
+    let to = super::Options::for_rate(2.0 * fs).highpass;
+    if to == highpass {
+        return Some(template.0);
+    }
+    let flat = undo_highpass(&template.0, 2.0 * fs, highpass);
+    Some(redo_highpass(&flat, 2.0 * fs, to))
+}
+
+/// Each usable strip (a finite nonzero weight and delay) divided by its
+/// gain against `template` (at `rate`, read at the strip's instants
+/// `i / fs - d`), with its weight `g² / σ²` and delay.
+fn gains(
+    signals: &[Vec<f64>],
+    (weights, delays_s): (&[f64], &[f64]),
+    (template, rate): (&[f64], f64),
+    fs: f64,
+) -> Vec<(Vec<f64>, f64, f64)> {
+    let n = signals.iter().map(Vec::len).min().unwrap_or(0);
+    let mut strips = Vec::new();
+    for ((s, &w), &d) in signals.iter().zip(weights).zip(delays_s) {
+        if w == 0.0 || !w.is_finite() || !d.is_finite() {
+            continue;
+        }
+        let zk = sample_at(template, rate, (0..n).map(|i| i as f64 / fs - d));
+        let zz: f64 = zk.iter().map(|v| v * v).sum();
+        let g = s[..n].iter().zip(&zk).map(|(a, b)| a * b).sum::<f64>() / zz;
+        if !g.is_finite() || g == 0.0 {
+            continue;
+        }
+        let noise = s[..n]
+            .iter()
+            .zip(&zk)
+            .map(|(a, b)| (a - g * b).powi(2))
+            .sum::<f64>()
+            / n as f64;
+        let c = if noise > 0.0 { g * g / noise } else { 0.0 };
+        if c > 0.0 && c.is_finite() {
+            strips.push((s[..n].iter().map(|v| v / g).collect(), c, d));
+        }
+    }
+    strips
+}
+
+/// [`unfold`]'s least squares, per frequency, over `strips` ([`gains`]),
+/// each `n` samples at `fs`: the signal at `2 fs`, or `None` (fewer than
+/// two strips, or delays that do not tell a frequency from its alias).
+fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize) -> Option<Vec<f64>> {
+    use rustfft::num_complex::Complex;
+    if strips.len() < 2 {
+        return None;
+    }
+    // The two columns' correlation is the same at every frequency.
+    let total: f64 = strips.iter().map(|s| s.1).sum();
+    let turn = |d: f64| Complex::from_polar(1.0, 2.0 * std::f64::consts::PI * fs * d);
+    let cross: Complex<f64> = strips.iter().map(|(_, c, d)| turn(*d) * *c).sum();
+    if cross.norm() / total > UNFOLD_MAX_CORRELATION {
+        return None;
+    }
+    let mut planner = realfft::RealFftPlanner::<f64>::new();
+    let fwd = planner.plan_fft_forward(n);
+    let spectra: Vec<Vec<Complex<f64>>> = strips
+        .iter()
+        .map(|(u, _, _)| {
+            let mut input = u.clone();
+            let mut out = fwd.make_output_vec();
+            // Lengths match the plan: it cannot fail.
+            let _ = fwd.process(&mut input, &mut out);
+            out
+        })
+        .collect();
+    // Normal equations [[T, X], [X*, T]] (a tiny ridge keeps them
+    // solvable), the same at every frequency; right-hand sides per bin.
+    let ridge = 1e-6 * total;
+    let (t, x) = (total + ridge, cross);
+    let det = t * t - x.norm_sqr();
+    let half = n / 2;
+    let rhs: Vec<(Complex<f64>, Complex<f64>)> = (0..=half)
+        .map(|j| {
+            let f = j as f64 * fs / n as f64;
+            let (mut ra, mut rb) = (Complex::new(0.0, 0.0), Complex::new(0.0, 0.0));
+            for ((_, c, d), spec) in strips.iter().zip(&spectra) {
+                let a = Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f * d);
+                let b = a * turn(*d);
+                ra += a.conj() * spec[j] * *c;
+                rb += b.conj() * spec[j] * *c;
+            }
+            (ra, rb)
+        })
+        .collect();
+    // The alias's power per bin, from its least-squares estimate smoothed
+    // over ±UNFOLD_SMOOTH_HZ less that estimate's noise (a strip's noise
+    // of variance 1/c a sample is n/c in a bin): where the motion holds
+    // little above the Nyquist frequency, its estimate would be mostly
+    // noise, and the alias is shrunk towards zero (Wiener), down to the
+    // delays' sum where it holds none.
+    let ls: Vec<(Complex<f64>, Complex<f64>)> = rhs
+        .iter()
+        .map(|(ra, rb)| ((ra * t - rb * x) / det, (rb * t - ra * x.conj()) / det))
+        .collect();
+    let q_ls: Vec<f64> = ls.iter().map(|(_, q)| q.norm_sqr()).collect();
+    // The strips' noises were measured against a sum that holds them, so
+    // they read low, and a recovery's noise is not white: its level per
+    // frequency is taken from what the least squares leave over there,
+    // `K - 2` complex degrees of freedom a bin, smoothed as the power.
+    let left: Vec<f64> = ls
+        .iter()
+        .enumerate()
+        .map(|(j, (p, q))| {
+            let f = j as f64 * fs / n as f64;
+            let mut e = 0.0;
+            for ((_, c, d), spec) in strips.iter().zip(&spectra) {
+                let a = Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f * d);
+                e += c * (spec[j] - a * p - a * turn(*d) * q).norm_sqr();
+            }
+            e
+        })
+        .collect();
+    let dof = strips.len().saturating_sub(2) as f64;
+    let w = ((UNFOLD_SMOOTH_HZ * n as f64 / fs).round() as usize).max(2);
+    let (q_mean, left_mean) = (smoothed(&q_ls, w), smoothed(&left, w));
+    let m = 2 * n;
+    let mut out = vec![Complex::new(0.0, 0.0); m / 2 + 1];
+    for (j, (ra, rb)) in rhs.iter().enumerate() {
+        // The noise's scale here (1 where the strips' noises are right).
+        let kappa = if dof > 0.0 {
+            (left_mean[j] / (dof * n as f64)).max(1.0)
+        } else {
+            1.0
+        };
+        let power = (q_mean[j] - kappa * n as f64 * t / det).max(0.0);
+        let (p, q) = if power > 0.0 {
+            // [p, q] = [[t, x], [x*, t + n / power]]^-1 [ra, rb].
+            let l = kappa * n as f64 / power;
+            let d = t * (t + l) - x.norm_sqr();
+            ((ra * (t + l) - rb * x) / d, (rb * t - ra * x.conj()) / d)
+        } else {
+            (ra / t, Complex::new(0.0, 0.0))
+        };
+        // At 2 fs over 2n samples the spectrum is twice as large.
+        out[j] += p * 2.0;
+        let k = n - j;
+        if k <= m / 2 {
+            out[k] += q.conj() * 2.0;
+        }
+    }
+    // The bins that are their own mirror (0, n) must be real for a real
+    // signal; where both halves land on one bin (n/2, n even), it is their mean.
+    if n.is_multiple_of(2) {
+        out[half] *= 0.5;
+    }
+    out[0].im = 0.0;
+    out[m / 2].im = 0.0;
+    let inv = planner.plan_fft_inverse(m);
+    let mut y = inv.make_output_vec();
+    let _ = inv.process(&mut out, &mut y);
+    let scale = 1.0 / m as f64;
+    Some(y.iter().map(|v| v * scale).collect())
+}
+
+/// The mean of `v` over `±w` samples about each (fewer at the ends).
+fn smoothed(v: &[f64], w: usize) -> Vec<f64> {
+    let mut prefix = vec![0.0; v.len() + 1];
+    for (i, x) in v.iter().enumerate() {
+        prefix[i + 1] = prefix[i] + x;
+    }
+    (0..v.len())
+        .map(|j| {
+            let (lo, hi) = (j.saturating_sub(w), (j + w + 1).min(v.len()));
+            (prefix[hi] - prefix[lo]) / (hi - lo) as f64
+        })
+        .collect()
+}
+
 /// Maximal-ratio weights, normalised to the largest magnitude.
 pub(super) fn weights(fits: &[StripFit]) -> Vec<f64> {
     let w: Vec<f64> = fits.iter().map(StripFit::weight).collect();
@@ -774,4 +1000,68 @@ pub(super) fn decide_gain(
         out.rejected.push((candidate.correction, over_region));
     }
     out
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    /// Strips of a motion with a tone above the frame rate's Nyquist
+    /// frequency, read out across a frame period: unfolded, the motion at
+    /// twice the frame rate comes back, its tone at its own frequency;
+    /// the delays alone, at the frame rate, cannot. Strips captured at
+    /// one instant are not unfolded.
+    #[test]
+    fn a_readout_unfolds_what_lies_above_nyquist() {
+        let (fs, n) = (2200.0, 4400);
+        let x = |t: f64| (2.0 * PI * 300.0 * t).sin() + 0.5 * (2.0 * PI * 1500.0 * t + 0.3).sin();
+        let count = 8;
+        let delays: Vec<f64> = (0..count)
+            .map(|k| 0.9 * k as f64 / (count as f64 * fs))
+            .collect();
+        let mut seed = 7u64;
+        let mut noise = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2e-3
+        };
+        let signals: Vec<Vec<f64>> = delays
+            .iter()
+            .enumerate()
+            .map(|(k, d)| {
+                // Gains of either sign and size, as strips' pipelines give.
+                let g = (1.0 + 0.2 * k as f64) * if k % 3 == 1 { -1.0 } else { 1.0 };
+                (0..n).map(|i| g * x(i as f64 / fs - d) + noise()).collect()
+            })
+            .collect();
+        let weights = vec![1.0; count];
+        // Declared with the high-pass a recovery at 2 fs carries: none is
+        // undone or applied, and the tones come back as they were.
+        let hp = super::super::Options::for_rate(2.0 * fs).highpass;
+        let y = unfold(&signals, (&weights, &delays), (fs, hp)).unwrap();
+        assert_eq!(y.len(), 2 * n);
+        // Up to the sum's scale (the strips' gains relative to the sum).
+        let truth: Vec<f64> = (0..2 * n).map(|i| x(i as f64 / (2.0 * fs))).collect();
+        let snr = snr_db(&y, &truth);
+        assert!(snr > 30.0, "unfolded SNR {snr:.1} dB");
+        // At the frame rate the tone folds to 700 Hz; the delays cannot
+        // align it.
+        let z = combine(&signals, &weights, &delays, fs);
+        let folded: Vec<f64> = (0..n).map(|i| x(i as f64 / fs)).collect();
+        let snr_frame = snr_db(&z, &folded);
+        assert!(snr_frame < 20.0, "frame-rate SNR {snr_frame:.1} dB");
+        // One capture instant: nothing to unfold.
+        assert!(unfold(&signals, (&weights, &vec![0.0; count]), (fs, hp)).is_none());
+    }
+
+    /// SNR (dB) of `y` against `truth` after the best gain.
+    fn snr_db(y: &[f64], truth: &[f64]) -> f64 {
+        let g = y.iter().zip(truth).map(|(a, b)| a * b).sum::<f64>()
+            / truth.iter().map(|b| b * b).sum::<f64>();
+        let err: f64 = y.iter().zip(truth).map(|(a, b)| (a - g * b).powi(2)).sum();
+        10.0 * (truth.iter().map(|b| (g * b).powi(2)).sum::<f64>() / err).log10()
+    }
 }

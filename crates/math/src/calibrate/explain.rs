@@ -31,6 +31,18 @@ use super::{apply_all, Correction};
 pub const LAGS: usize = 2;
 /// Most covariates kept.
 pub const MAX_KEPT: usize = 6;
+/// Lags (frames either side) of the FIR through which the reference is
+/// asked to explain a kept observable ([`follows_reference`]): longer than
+/// the covariates' own, since a second object that hears the sound may
+/// ring (a tine, a panel).
+const REF_LAGS: usize = 16;
+/// A kept observable "follows the reference" when the reference explains
+/// at least this share of its held-out energy; such a term's FIR is never
+/// fitted again on another recording (the fit would remove the sound
+/// itself). For an observable independent of the sound the share is
+/// chance, about `-(2 REF_LAGS + 1) / n` of the fit part's samples (under
+/// 2% on a 2 s clip at 2200 fps).
+pub const FOLLOWS_SHARE: f64 = 0.05;
 /// A tile "moves with" a covariate when their high-passed signals
 /// correlate beyond chance: `|r|` at least `WITH_IT_Z / sqrt(n)` over `n`
 /// samples (and at least [`WITH_IT_MIN`]; a tile alone is noisy, so a
@@ -94,6 +106,20 @@ pub struct Explanation {
     /// units), lags -LAGS..=LAGS frames: what is subtracted at frame n is
     /// `Σ taps[k] x[n - (k - LAGS)]`.
     pub taps: Vec<f64>,
+    /// Share of the observable's held-out energy (high-passed, as the
+    /// recovery) that the reference explains through an FIR of lags
+    /// -16..=16 frames fitted on the fit part: the observable hears the
+    /// sound too (a second object in the same acoustic field) when it is
+    /// at least [`FOLLOWS_SHARE`].
+    pub follows_reference: f64,
+    /// Whether `listen --calibration` fits this term's FIR again on the
+    /// new recording (least squares of the recovery on the observable's
+    /// lagged values, measured there), instead of the stored taps brought
+    /// to its scale: only when the observable does not follow the
+    /// reference, since then the fit cannot remove the sound, and it
+    /// holds the new recording's own coupling (a texture couples a shake
+    /// across the measured axis into the recovery its own way).
+    pub refit: bool,
 }
 
 /// An explanation as a stored report holds it: what to measure again on a
@@ -103,6 +129,10 @@ pub struct StoredTerm {
     pub observable: Observable,
     pub tiles: Vec<[u32; 4]>,
     pub taps: Vec<f64>,
+    /// Fitted again on the new recording (absent in a report written
+    /// before the calibration said: the stored taps).
+    #[serde(default)]
+    pub refit: bool,
 }
 
 /// What [`explain`] found.
@@ -114,10 +144,15 @@ pub(super) struct Explained {
 
 /// `x[n - lag]` for lags `-LAGS..=LAGS` (zero outside).
 fn lagged(x: &[f64]) -> Vec<Vec<f64>> {
+    lagged_by(x, LAGS)
+}
+
+/// `x[n - lag]` for lags `-lags..=lags` (zero outside).
+fn lagged_by(x: &[f64], lags: usize) -> Vec<Vec<f64>> {
     let n = x.len();
-    (0..=2 * LAGS)
+    (0..=2 * lags)
         .map(|k| {
-            let lag = k as i64 - LAGS as i64;
+            let lag = k as i64 - lags as i64;
             (0..n as i64)
                 .map(|i| {
                     let j = i - lag;
@@ -377,6 +412,7 @@ pub(super) fn explain(
             let without = m.errors(&w, &m.fit_linear(&w)).snr_db;
             let cov = &covs[c.index];
             let (cause, label, (with_it, of), seen_at) = label(cov, &covs[..singles], fs, hp);
+            let follows = follows_reference(&through, &fit.t, &dot, &held_energy);
             Explanation {
                 observable: cov.observable,
                 rect: cov.rect,
@@ -390,6 +426,8 @@ pub(super) fn explain(
                 residual_share: share,
                 snr_gain_db: cur.snr_db - without,
                 taps: taps_all[k].clone(),
+                follows_reference: follows,
+                refit: follows < FOLLOWS_SHARE,
             }
         })
         .collect();
@@ -397,6 +435,55 @@ pub(super) fn explain(
         kept: explanations,
         cleaned,
     })
+}
+
+/// The share of `x`'s held-out energy that `t` (the reference, as the
+/// model aligns it to the recovery) explains through an FIR of lags
+/// -[`REF_LAGS`]..=[`REF_LAGS`] fitted on the fit part (`dot`, the
+/// fit part's inner product; `held`, the held-out energy): near zero, or
+/// below, for an observable independent of the sound.
+fn follows_reference(
+    x: &[f64],
+    t: &[f64],
+    dot: &dyn Fn(&[f64], &[f64]) -> f64,
+    held: &dyn Fn(&[f64]) -> f64,
+) -> f64 {
+    let e = held(x);
+    if x.len() != t.len() || e <= 0.0 {
+        return 0.0;
+    }
+    // Normal equations with a ridge: the lagged columns of a tone are
+    // nearly dependent, and a basis made orthonormal from them on the fit
+    // part alone blows up on the held-out part.
+    let cols = lagged_by(t, REF_LAGS);
+    let k = cols.len();
+    let mut a = nalgebra::DMatrix::<f64>::zeros(k, k);
+    let mut b = nalgebra::DVector::<f64>::zeros(k);
+    for i in 0..k {
+        b[i] = dot(&cols[i], x);
+        for j in 0..=i {
+            let v = dot(&cols[i], &cols[j]);
+            a[(i, j)] = v;
+            a[(j, i)] = v;
+        }
+    }
+    let ridge = (0..k).map(|i| a[(i, i)]).fold(0.0, f64::max) * 1e-3;
+    if ridge <= 0.0 {
+        return 0.0;
+    }
+    for i in 0..k {
+        a[(i, i)] += ridge;
+    }
+    let Some(beta) = a.cholesky().map(|c| c.solve(&b)) else {
+        return 0.0;
+    };
+    let mut after = x.to_vec();
+    for (col, w) in cols.iter().zip(beta.iter()) {
+        for (r, v) in after.iter_mut().zip(col) {
+            *r -= w * v;
+        }
+    }
+    (1.0 - held(&after) / e).clamp(-1.0, 1.0)
 }
 
 /// Means of tiles' observables that share a cause, as candidates: for
@@ -457,31 +544,65 @@ fn pool(covs: &[Covariate], n: usize) -> Vec<(Covariate, Vec<[u32; 4]>)> {
     out
 }
 
+/// One explained term on a new recording: its observable measured there
+/// (one value per frame) and the stored FIR brought to that recording's
+/// scale, or `None` where the calibration said to fit it again
+/// ([`Explanation::refit`]).
+pub struct Measured {
+    pub values: Vec<f64>,
+    pub taps: Option<Vec<f64>>,
+}
+
 /// `y` (a recovery at `fs`, high-passed by `hp`) with each term's part
-/// removed: a term is an observable measured on the same recording (one
-/// value per frame, as long as `y`) and its FIR taps (lags -LAGS..=LAGS,
-/// in `y`'s units per the observable's), the observable high-passed like
-/// the recovery first. How `listen --calibration` applies what the
+/// removed, each observable high-passed like the recovery first: the
+/// stored FIRs (lags -LAGS..=LAGS, in `y`'s units per the observable's)
+/// are subtracted, then the terms to fit again are fitted jointly on what
+/// is left, by least squares on their lagged values over the whole
+/// recording, and subtracted. How `listen --calibration` applies what the
 /// explainer kept to a new recording, its observables measured again.
+/// Returns the corrected recovery and the share of `y`'s energy the
+/// refitted terms removed. A term whose observable is not as long as `y`
+/// is left out.
 pub fn remove_explained(
     y: &[f64],
-    terms: &[(Vec<f64>, Vec<f64>)],
+    terms: &[Measured],
     fs: f64,
     hp: Option<(usize, f64)>,
-) -> Vec<f64> {
+) -> (Vec<f64>, f64) {
     let mut out = y.to_vec();
-    for (values, taps) in terms {
-        if values.len() != y.len() || taps.len() != 2 * LAGS + 1 {
+    let mut cols = Vec::new();
+    for t in terms {
+        if t.values.len() != y.len() {
             continue;
         }
-        let x = centred_highpass(values, fs, hp);
-        for (k, col) in lagged(&x).iter().enumerate() {
-            for (o, v) in out.iter_mut().zip(col) {
-                *o -= taps[k] * v;
+        let lags = lagged(&centred_highpass(&t.values, fs, hp));
+        match &t.taps {
+            Some(taps) if taps.len() == lags.len() => {
+                for (col, a) in lags.iter().zip(taps) {
+                    for (o, v) in out.iter_mut().zip(col) {
+                        *o -= a * v;
+                    }
+                }
             }
+            Some(_) => {}
+            None => cols.extend(lags),
         }
     }
-    out
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
+    let before = dot(&out, &out);
+    for q in orthonormal(&cols, &dot) {
+        let g = dot(&q, &out);
+        for (o, v) in out.iter_mut().zip(&q) {
+            *o -= g * v;
+        }
+    }
+    let e = dot(y, y);
+    let share = if e > 0.0 {
+        (before - dot(&out, &out)) / e
+    } else {
+        0.0
+    };
+    (out, share)
 }
 
 /// Orthonormal columns (fit-part inner product) spanning `cols`; columns

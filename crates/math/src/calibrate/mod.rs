@@ -80,9 +80,11 @@ mod soft_clip;
 mod time_base;
 mod transfer;
 
-pub use capture_time::{combine, Strips};
+pub use capture_time::{combine, unfold, Strips, UNFOLD_MAX_CORRELATION};
 pub use correction::{Correction, FrameEvent, Line};
-pub use explain::{remove_explained, Covariate, Explanation, Observable, StoredTerm, LAGS};
+pub use explain::{
+    remove_explained, Covariate, Explanation, Measured, Observable, StoredTerm, FOLLOWS_SHARE, LAGS,
+};
 pub use frame::{pixel_frame, PixelFrame};
 pub use identify::Confound;
 pub use relation::{check_silent, LINE_DB, MARGIN_DB, SILENT_PEAK};
