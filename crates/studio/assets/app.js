@@ -552,7 +552,7 @@ const LIVE = {
   ny: null, mode: null, modeSeq: 0,
   // The magnified view: frames drawn, the last one's number, the arrival
   // times of the last ones (for the rate shown), the frame it holds.
-  magShown: 0, magFrame: null, magTimes: [], magLast: null, magGaps: 0,
+  magShown: 0, magImg: null, magDropped0: null, magFrame: null, magTimes: [], magLast: null, magGaps: 0,
 };
 S.live = LIVE;
 
@@ -658,9 +658,15 @@ function drawMagnified(buf) {
   if (px.length !== w * h) return showError(`live: a magnified frame of ${px.length} bytes for ${w}x${h}`);
   const c = $("livemag");
   if (c.width !== w || c.height !== h) { c.width = w; c.height = h; c.style.width = Math.min(w, 1280) + "px"; }
-  const g = c.getContext("2d"), img = g.createImageData(w, h), o = img.data;
-  for (let i = 0, j = 0; i < px.length; i++, j += 4) { o[j] = o[j + 1] = o[j + 2] = px[i]; o[j + 3] = 255; }
+  // One ImageData kept while the size holds (no 1.2 MB allocation a frame
+  // at 640x480 side by side), filled a pixel a store: grey v is RGBA
+  // (v, v, v, 255), little-endian 0xff000000 | v * 0x010101.
+  const g = c.getContext("2d");
+  if (!LIVE.magImg || LIVE.magImg.width !== w || LIVE.magImg.height !== h) LIVE.magImg = g.createImageData(w, h);
+  const img = LIVE.magImg, o = new Uint32Array(img.data.buffer);
+  for (let i = 0; i < px.length; i++) o[i] = 0xff000000 | (px[i] * 0x010101);
   g.putImageData(img, 0, 0);
+  if (LIVE.magFrame === null) LIVE.magDropped0 = magDropped(LIVE.last);
   if (LIVE.magFrame !== null && frame > LIVE.magFrame + 1) LIVE.magGaps += frame - LIVE.magFrame - 1;
   LIVE.magShown++; LIVE.magFrame = frame; LIVE.magLast = { frame, t_s: t, width: w, height: h };
   const now = performance.now();
@@ -670,21 +676,30 @@ function drawMagnified(buf) {
 }
 
 // The magnified view's line: rate on the page, frames not shown, drops.
+// The magnify stage's drops (its input ring's) in an update, 0 before any.
+function magDropped(u) {
+  const st = u && u.magnify && u.stages ? u.stages.find((s) => s.id === u.magnify.stage) : null;
+  return st ? st.dropped : 0;
+}
+
 function fillMagnifyInfo(u) {
   const m = u.magnify; if (!m) return;
   const ts = LIVE.magTimes, n = ts.length;
   const fps = n > 1 ? (n - 1) / ((ts[n - 1] - ts[0]) / 1e3) : 0;
-  const st = u.stages.find((s) => s.id === m.stage);
-  const dropped = st ? st.dropped : 0;
+  const dropped = magDropped(u);
+  // The frame numbers the page skipped, less those the magnifier never
+  // got (dropped before it since the page's first frame): what the
+  // server did not send because the page was slower.
+  const missed = LIVE.magDropped0 === null ? 0 : Math.max(0, LIVE.magGaps - (dropped - LIVE.magDropped0));
   $("livemaginfo").textContent = `magnified ${m.lo_hz}–${m.hi_hz} Hz ×${m.factor}` +
     (m.since_frame != null ? ` since frame ${m.since_frame}` : "") +
     ` — ${LIVE.magShown} frames shown, ${fps.toFixed(1)} a second` +
     (LIVE.magFrame != null ? ` (frame ${LIVE.magFrame})` : "") +
-    `; not shown (the page was slower) ${LIVE.magGaps}; dropped before the magnifier (it was slower) ${dropped}` +
+    `; not shown (the page was slower) ${missed}; dropped before the magnifier (it was slower) ${dropped}` +
     (m.refused ? `; last change refused: ${m.refused}` : "") + (m.pending ? "; change waiting for a frame" : "");
   const set = (id, v) => { const e = $(id); if (document.activeElement !== e && !LIVE.magEdited) e.value = v; };
   set("maglo", m.lo_hz); set("maghi", m.hi_hz); set("magfactor", m.factor);
-  LIVE.magInfo = { fps, dropped, gaps: LIVE.magGaps, shown: LIVE.magShown };
+  LIVE.magInfo = { fps, dropped, gaps: LIVE.magGaps, missed, shown: LIVE.magShown };
 }
 
 async function applyMagnify() {

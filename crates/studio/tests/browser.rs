@@ -17,7 +17,12 @@
 //! held, moves the rendered texture there the way dragged (little near
 //! the clamp) with an arrow drawn; let go, it swings through rest and dies
 //! away; the page renderer's frame rate for a 512x512 basis of 8 modes is
-//! measured and printed. Screenshots go to `docs/img/studio-*.png`.
+//! measured and printed. The live magnified view (issue 52): a 640x480
+//! replay at 60 fps through `live-magnify` shows magnified frames on the
+//! page with its drops reported (the rate is printed; `cargo bench -p
+//! vibroscope-studio --bench live_view` measures it against its bar), and a
+//! band set on the page gives the `magnify` command's frames.
+//! Screenshots go to `docs/img/studio-*.png`.
 //!
 //! Needs Debian's `chromium` and `chromium-driver`; skips with a printed
 //! reason when they are missing.
@@ -27,21 +32,22 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
-use fantoccini::{Client, ClientBuilder, Locator};
+use fantoccini::{Client, Locator};
 use serde_json::{json, Value};
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 use vibroscope::modes::ModesOptions;
 use vibroscope_math::modal::read_npy_complex64;
 use vibroscope_sim::modal::cantilever_shape;
 use vibroscope_studio::{Studio, StudioOptions};
 
+mod chromium;
 mod common;
 
-const CHROMIUM: &str = "/usr/bin/chromium";
-const CHROMEDRIVER: &str = "/usr/bin/chromedriver";
+use chromium::{
+    browser_missing, in_browser, js, live, magnified_clip, magnified_rate, magnified_studio,
+    open_live, render, MAG_FRAMES,
+};
 
 const FPS: f64 = 300.0;
 const W: u32 = 160;
@@ -68,77 +74,6 @@ fn scene() -> String {
         MODES[2].1,
         MODES[2].2
     )
-}
-
-/// chromedriver on a free port, killed when dropped.
-struct Driver {
-    child: Child,
-    port: u16,
-}
-
-impl Drop for Driver {
-    /// Ends chromedriver and the browsers it started (its process group),
-    /// also when a test failed before closing its session.
-    fn drop(&mut self) {
-        let _ = Command::new("kill")
-            .args(["-KILL", "--", &format!("-{}", self.child.id())])
-            .status();
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn start_driver() -> Driver {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
-    let child = Command::new(CHROMEDRIVER)
-        .process_group(0)
-        .arg(format!("--port={port}"))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start chromedriver");
-    let d = Driver { child, port };
-    let t0 = Instant::now();
-    while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(20),
-            "chromedriver did not listen"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    d
-}
-
-async fn connect(port: u16, profile: &Path) -> Client {
-    let caps = json!({
-        "goog:chromeOptions": {
-            "binary": CHROMIUM,
-            "args": [
-                "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                "--no-first-run", "--disable-quic", "--disable-component-update", "--disable-sync",
-                "--disable-dev-shm-usage", "--window-size=1400,1000",
-                "--autoplay-policy=no-user-gesture-required",
-                format!("--user-data-dir={}", profile.display()),
-            ]
-        }
-    });
-    let Value::Object(caps) = caps else {
-        unreachable!()
-    };
-    let connector = hyper_util::client::legacy::connect::HttpConnector::new();
-    ClientBuilder::new(connector)
-        .capabilities(caps)
-        .connect(&format!("http://127.0.0.1:{port}"))
-        .await
-        .expect("a WebDriver session")
-}
-
-async fn js(c: &Client, script: &str) -> Value {
-    c.execute(script, vec![]).await.unwrap()
 }
 
 /// Waits until `window.studio[counter]` passes `after`; panics with the
@@ -290,31 +225,12 @@ fn img_dir() -> PathBuf {
 
 /// The simulated beam of [`scene`] rendered in `dir` (`beam.y4m`).
 fn beam_video(dir: &Path) -> PathBuf {
-    let scene_path = dir.join("beam.toml");
-    std::fs::write(&scene_path, scene()).unwrap();
-    let video = dir.join("beam.y4m");
-    vibroscope::simulate::simulate(&vibroscope::simulate::SimulateOptions {
-        scene: scene_path,
-        output: video.clone(),
-        ..Default::default()
-    })
-    .unwrap();
-    video
+    render(dir, "beam", &scene())
 }
 
 /// One browser test at a time: the live test measures a real-time
 /// pipeline, which the other test's computations would slow on two cores.
 static ONE_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-fn browser_missing() -> bool {
-    for p in [CHROMIUM, CHROMEDRIVER] {
-        if !Path::new(p).exists() {
-            println!("skipped: {p} is missing (apt-get install chromium chromium-driver)");
-            return true;
-        }
-    }
-    false
-}
 
 #[test]
 fn recording_view_modal_images_and_a_region_in_headless_chromium() {
@@ -333,21 +249,6 @@ fn recording_view_modal_images_and_a_region_in_headless_chromium() {
     in_browser(|c| async move {
         drive(&c, s, v, d).await;
         c
-    });
-}
-
-/// Runs `f` on a fresh headless Chromium session (chromedriver on a free
-/// port, a fresh profile); `f` gives the session back to be closed.
-fn in_browser<F: std::future::Future<Output = Client>>(f: impl FnOnce(Client) -> F) {
-    let driver = start_driver();
-    let profile = tempfile::tempdir().unwrap();
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .unwrap();
-    rt.block_on(async {
-        let c = f(connect(driver.port, profile.path()).await).await;
-        let _ = c.close().await;
     });
 }
 
@@ -1021,33 +922,9 @@ fn live_view_ten_spectra_a_second_without_drops_in_headless_chromium() {
     );
 }
 
-async fn live(c: &Client, expr: &str) -> Value {
-    js(
-        c,
-        &format!("return window.studio && window.studio.live ? {expr} : null"),
-    )
-    .await
-}
-
 async fn drive_live(c: &Client, studio: &Studio) {
-    c.set_window_size(1400, 1000).await.unwrap();
-    c.goto(&studio.url).await.unwrap();
     // The first spectrum needs 512 frames (about 1 s).
-    let t0 = Instant::now();
-    while live(c, "window.studio.live.spectra")
-        .await
-        .as_u64()
-        .unwrap_or(0)
-        < 3
-    {
-        let e = js(c, "return window.studio ? window.studio.lastError : null").await;
-        assert!(e.is_null(), "the page shows an error: {e}");
-        assert!(
-            t0.elapsed() < Duration::from_secs(30),
-            "no live spectrum reached the page"
-        );
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    open_live(c, studio, "spectra", 3, "live spectrum").await;
     // 10 s of updates, counted by the page: distinct spectra received,
     // on the page's own clock.
     let a = live(c, "[window.studio.live.spectra, performance.now(), window.studio.live.specSeq, window.studio.live.last]").await;
@@ -1809,11 +1686,6 @@ ws.onerror = () => {{ window.result.ws = "failed"; }};
     );
 }
 
-/// The magnified view's clip: 640x480 at 60 fps, a textured object moving
-/// at 4 and 12 Hz.
-const MAG_FPS: f64 = 60.0;
-const MAG_FRAMES: usize = 1080;
-
 /// A Y4M clip (`Cmono`): its header line and each frame's record (the
 /// `FRAME` line and the pixels), as bytes.
 fn y4m_records(bytes: &[u8]) -> (Vec<u8>, Vec<Vec<u8>>, usize, usize) {
@@ -1841,47 +1713,14 @@ fn y4m_records(bytes: &[u8]) -> (Vec<u8>, Vec<Vec<u8>>, usize, usize) {
 }
 
 #[test]
-fn live_magnified_view_thirty_frames_a_second_equal_to_the_magnify_command_in_headless_chromium() {
+fn live_magnified_view_shows_its_drops_and_equals_the_magnify_command_in_headless_chromium() {
     if browser_missing() {
         return;
     }
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|p| p.into_inner());
     let dir = tempfile::tempdir().unwrap();
-    let scene_path = dir.path().join("mag.toml");
-    std::fs::write(
-        &scene_path,
-        format!(
-            "width = 640\nheight = 480\nfps = {MAG_FPS}\nframes = {MAG_FRAMES}\n\
-             signal = {{ type = \"tones\", freqs_hz = [4.0, 12.0] }}\n"
-        ),
-    )
-    .unwrap();
-    let clip = dir.path().join("clip.y4m");
-    vibroscope::simulate::simulate(&vibroscope::simulate::SimulateOptions {
-        scene: scene_path,
-        output: clip.clone(),
-        ..Default::default()
-    })
-    .unwrap();
-    let studio = Studio::start(&StudioOptions {
-        root: Some(dir.path().to_path_buf()),
-        pipeline: Some("live-magnify".into()),
-        replay: Some(clip.clone()),
-        set: vec![
-            "mag.pyramid=\"riesz\"".into(),
-            "mag.lo_hz=3.0".into(),
-            "mag.hi_hz=5.0".into(),
-            "mag.factor=20.0".into(),
-            format!("out.path=\"{}\"", dir.path().join("out.y4m").display()),
-            // Headless Chromium's renderer runs at nice -8 and can hold
-            // both cores for tens of milliseconds: the ring before the
-            // magnifier holds a quarter second (the shipped 4 frames are
-            // 67 ms). The drops that remain are counted and shown.
-            "mag.input={ from = \"cam\", capacity = 16 }".into(),
-        ],
-        ..StudioOptions::default()
-    })
-    .unwrap();
+    let clip = magnified_clip(dir.path());
+    let studio = magnified_studio(dir.path(), &clip);
     let shown = std::sync::Mutex::new(Vec::new());
     let (s, sh) = (&studio, &shown);
     in_browser(|c| async move {
@@ -1906,13 +1745,15 @@ struct Shown {
 /// The band and factor the page sets.
 const MAG_CHANGE: (f64, f64, f64) = (10.0, 14.0, 8.0);
 
-/// The first change whose frames K..=M the magnifier all made (none
-/// dropped before it: its frames in the pipeline's output are consecutive)
-/// is compared: the page's frame M is the pipeline's own frame M, bit for
-/// bit, and that is the `magnify` command's output on the clip cut at K
-/// with the same band and factor (within the dither's one level: the
-/// dither is keyed on the frame number, which starts at 0 in the cut
-/// clip), and not the command's with the band the pipeline started with.
+/// The first change is compared: the page's frame M is the pipeline's own
+/// frame M, bit for bit, and that is the `magnify` command's output on the
+/// frames K..=M the magnifier got (those in the pipeline's output: a frame
+/// dropped before the magnifier is not in it, and the magnifier's
+/// band-pass steps once a frame it gets) with the same band and factor,
+/// within the dither's one level (the dither is keyed on the frame number,
+/// which starts at 0 in the cut clip), and not the command's with the band
+/// the pipeline started with. On a machine where the magnifier keeps up
+/// with the replay, no frame is missing from the cut.
 fn same_as_the_command(dir: &Path, clip: &Path, shown: &[Shown]) {
     let (header, records, w, h) = y4m_records(&std::fs::read(clip).unwrap());
     let (_, out, ow, oh) = y4m_records(&std::fs::read(dir.join("out.y4m")).unwrap());
@@ -1942,29 +1783,26 @@ fn same_as_the_command(dir: &Path, clip: &Path, shown: &[Shown]) {
             s.k, s.m
         );
     }
-    let Some(Shown { k, m, page }) = shown
-        .iter()
-        .find(|s| (s.k..=s.m).all(|i| by_seq.contains_key(&i)))
-    else {
-        let ks: Vec<(u64, u64, Vec<u64>)> = shown
-            .iter()
-            .map(|s| {
-                let missing = (s.k..=s.m).filter(|i| !by_seq.contains_key(i)).collect();
-                (s.k, s.m, missing)
-            })
-            .collect();
-        panic!("the magnifier dropped frames after every change made on the page (K, M, dropped): {ks:?}");
-    };
+    let Shown { k, m, page } = &shown[0];
     let (k, m) = (*k, *m);
+    assert!(
+        by_seq.contains_key(&k),
+        "frame {k}, where the change took effect, is not in the pipeline's output"
+    );
+    assert!(
+        by_seq.contains_key(&m),
+        "the page's frame {m} is not in the pipeline's output"
+    );
     assert_eq!(page.len(), ow * oh, "the magnified frame's size");
     assert!(
         page == by_seq[&m],
         "the page's frame {m} is not the pipeline's frame {m}"
     );
+    let got: Vec<u64> = (k..=m).filter(|i| by_seq.contains_key(i)).collect();
     let cut = dir.join("cut.y4m");
     let mut bytes = header.clone();
-    for r in &records[k as usize..=m as usize] {
-        bytes.extend_from_slice(r);
+    for &i in &got {
+        bytes.extend_from_slice(&records[i as usize]);
     }
     std::fs::write(&cut, bytes).unwrap();
     let command = |(lo, hi, factor): (f64, f64, f64), name: &str| -> Vec<u8> {
@@ -1998,9 +1836,12 @@ fn same_as_the_command(dir: &Path, clip: &Path, shown: &[Shown]) {
     let (max_same, n_same) = diff(page, &command(MAG_CHANGE, "same.y4m"));
     let (max_other, n_other) = diff(page, &command((3.0, 5.0, 20.0), "other.y4m"));
     println!(
-        "frame {m} (band changed on the page at frame {k}): the page's frame is the pipeline's, bit for bit; \
-         against the command with the same band and factor: largest difference {max_same} \
+        "frame {m} (band changed on the page at frame {k}; the magnifier got {} of its {} frames): \
+         the page's frame is the pipeline's, bit for bit; \
+         against the command with the same band and factor on those frames: largest difference {max_same} \
          ({n_same} of {} pixels differ); with the band it started with: {max_other} ({n_other} differ)",
+        got.len(),
+        m - k + 1,
         page.len()
     );
     assert!(max_same <= 1, "the page's frame is not the command's");
@@ -2023,77 +1864,37 @@ async fn magnified_on_page(c: &Client) -> (u64, Vec<u8>) {
     (v[0].as_u64().unwrap(), px)
 }
 
-/// The frame count of the `magnify` stage's drops in the page's last update.
-async fn mag_dropped(c: &Client) -> u64 {
-    live(
-        c,
-        "window.studio.live.last.stages.find((s) => s.id === 'mag').dropped",
-    )
-    .await
-    .as_u64()
-    .unwrap()
-}
-
 async fn drive_magnified(c: &Client, studio: &Studio) -> Vec<Shown> {
-    c.set_window_size(1400, 1000).await.unwrap();
-    c.goto(&studio.url).await.unwrap();
-    let t0 = Instant::now();
-    while live(c, "window.studio.live.magShown")
-        .await
-        .as_u64()
-        .unwrap_or(0)
-        < 30
-    {
-        let e = js(c, "return window.studio ? window.studio.lastError : null").await;
-        assert!(e.is_null(), "the page shows an error: {e}");
-        assert!(
-            t0.elapsed() < Duration::from_secs(30),
-            "no magnified frames reached the page"
-        );
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
-    // 10 s of magnified frames drawn on the page, on its own clock.
-    let q = "[window.studio.live.magShown, performance.now(), window.studio.live.magFrame, window.studio.live.magGaps]";
-    let a = live(c, q).await;
-    let dropped0 = mag_dropped(c).await;
-    tokio::time::sleep(Duration::from_secs(10)).await;
-    let b = live(c, q).await;
-    let dropped1 = mag_dropped(c).await;
-    let f = |v: &Value, i: usize| v[i].as_f64().unwrap();
-    let (shown, secs) = (f(&b, 0) - f(&a, 0), (f(&b, 1) - f(&a, 1)) / 1e3);
-    let made = f(&b, 2) - f(&a, 2);
-    let rate = shown / secs;
-    let info = js(
-        c,
-        "return document.getElementById('livemaginfo').textContent",
-    )
-    .await;
-    println!(
-        "magnified view: {shown} frames drawn in {secs:.2} s = {rate:.1}/s of {made} frames the replay gave \
-         ({:.1}/s); not shown {}; dropped before the magnifier {dropped0} -> {dropped1}\n  page: {info}",
-        made / secs,
-        f(&b, 3) - f(&a, 3)
-    );
-    assert!(secs >= 9.5, "measured over {secs:.2} s");
+    // 10 s of magnified frames drawn on the page, on its own clock. The
+    // rate is printed, not asserted (the brief: speed targets live in
+    // benchmarks): `cargo bench -p vibroscope-studio --bench live_view`
+    // measures it against issue 52's 30 frames a second. Here the view
+    // must be live (a frame at least every second: the replay gives 60)
+    // and say what it dropped.
+    let r = magnified_rate(c, studio).await;
+    println!("{r}");
+    assert!(r.secs >= 9.5, "measured over {:.2} s", r.secs);
     assert!(
-        rate >= 30.0,
-        "{rate:.1} magnified frames a second on the page"
+        r.shown >= r.secs,
+        "the magnified view is not live: {:.1} frames a second on the page",
+        r.rate()
     );
-    // The page reports the drops it knows of.
-    let info = info.as_str().unwrap().to_owned();
     assert!(
-        info.contains("frames shown") && info.contains("dropped before the magnifier"),
-        "{info}"
+        r.info.contains("frames shown") && r.info.contains("dropped before the magnifier"),
+        "{}",
+        r.info
     );
     std::fs::create_dir_all(img_dir()).unwrap();
     let shot = c.screenshot().await.unwrap();
     std::fs::write(img_dir().join("studio-magnified.png"), shot).unwrap();
 
     // A band and factor set on the page: the stage starts over at frame K
-    // with them; five times, 30 frames apart (see `same_as_the_command`).
+    // with them; twice, 30 frames apart (the second: a change made on a
+    // magnifier that was started over already). The first is compared
+    // (`same_as_the_command`).
     let (lo, hi, factor) = MAG_CHANGE;
     let mut shown = Vec::new();
-    for _ in 0..5 {
+    for _ in 0..2 {
         js(
             c,
             &format!(
@@ -2131,12 +1932,17 @@ async fn drive_magnified(c: &Client, studio: &Studio) -> Vec<Shown> {
         );
         let k = applied["since_frame"].as_u64().unwrap();
         // 30 frames on: the band-pass has settled into the new band.
+        let t0 = Instant::now();
         while live(c, "window.studio.live.magFrame")
             .await
             .as_u64()
             .unwrap()
             < k + 30
         {
+            assert!(
+                t0.elapsed() < Duration::from_secs(10),
+                "no magnified frame 30 frames after the change at frame {k} within 10 s (the clip has {MAG_FRAMES})"
+            );
             tokio::time::sleep(Duration::from_millis(50)).await;
         }
         let (m, page) = magnified_on_page(c).await;
