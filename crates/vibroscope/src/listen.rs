@@ -187,6 +187,9 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         }
     }
     let mut notes = Vec::new();
+    if o.unfold && o.rolling_shutter.is_none() {
+        notes.push("--unfold: the calibration recombines no strips of rows (no capture_time): nothing to unfold, the recovery is at the frame rate".into());
+    }
     let mut decl = match &o.rolling_shutter {
         Some(rs) => {
             if o.region.mask.is_some() {

@@ -589,47 +589,41 @@ fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize) -> Option<
     let (t, x) = (total + ridge, cross);
     let det = t * t - x.norm_sqr();
     let half = n / 2;
-    let rhs: Vec<(Complex<f64>, Complex<f64>)> = (0..=half)
-        .map(|j| {
-            let f = j as f64 * fs / n as f64;
-            let (mut ra, mut rb) = (Complex::new(0.0, 0.0), Complex::new(0.0, 0.0));
-            for ((_, c, d), spec) in strips.iter().zip(&spectra) {
-                let a = Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f * d);
-                let b = a * turn(*d);
-                ra += a.conj() * spec[j] * *c;
-                rb += b.conj() * spec[j] * *c;
-            }
-            (ra, rb)
-        })
-        .collect();
-    // The alias's power per bin, from its least-squares estimate smoothed
-    // over ±UNFOLD_SMOOTH_HZ less that estimate's noise (a strip's noise
-    // of variance 1/c a sample is n/c in a bin): where the motion holds
-    // little above the Nyquist frequency, its estimate would be mostly
-    // noise, and the alias is shrunk towards zero (Wiener), down to the
-    // delays' sum where it holds none.
-    let ls: Vec<(Complex<f64>, Complex<f64>)> = rhs
-        .iter()
-        .map(|(ra, rb)| ((ra * t - rb * x) / det, (rb * t - ra * x.conj()) / det))
-        .collect();
-    let q_ls: Vec<f64> = ls.iter().map(|(_, q)| q.norm_sqr()).collect();
-    // The strips' noises were measured against a sum that holds them, so
-    // they read low, and a recovery's noise is not white: its level per
-    // frequency is taken from what the least squares leave over there,
-    // `K - 2` complex degrees of freedom a bin, smoothed as the power.
-    let left: Vec<f64> = ls
-        .iter()
-        .enumerate()
-        .map(|(j, (p, q))| {
-            let f = j as f64 * fs / n as f64;
-            let mut e = 0.0;
-            for ((_, c, d), spec) in strips.iter().zip(&spectra) {
-                let a = Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f * d);
-                e += c * (spec[j] - a * p - a * turn(*d) * q).norm_sqr();
-            }
-            e
-        })
-        .collect();
+    // Per bin, in one pass over the strips' phase factors (`a` at `f`,
+    // `b` at its alias `f - fs`): the right-hand sides; the alias's
+    // least-squares estimate, whose power (smoothed over
+    // ±UNFOLD_SMOOTH_HZ, less that estimate's noise: a strip's noise of
+    // variance 1/c a sample is n/c in a bin) decides how far it is shrunk
+    // (Wiener: where the motion holds little above the Nyquist frequency,
+    // its estimate would be mostly noise, down to the delays' sum where
+    // it holds none); and what the least squares leave over there. The
+    // strips' noises were measured against a sum that holds them, so they
+    // read low, and a recovery's noise is not white: its level per
+    // frequency is taken from those leftovers, `K - 2` complex degrees of
+    // freedom a bin, smoothed as the power.
+    let turns: Vec<Complex<f64>> = strips.iter().map(|(_, _, d)| turn(*d)).collect();
+    let mut factors = vec![(Complex::new(0.0, 0.0), Complex::new(0.0, 0.0)); strips.len()];
+    let mut rhs = Vec::with_capacity(half + 1);
+    let (mut q_ls, mut left) = (Vec::with_capacity(half + 1), Vec::with_capacity(half + 1));
+    for j in 0..=half {
+        let f = j as f64 * fs / n as f64;
+        let (mut ra, mut rb) = (Complex::new(0.0, 0.0), Complex::new(0.0, 0.0));
+        for (k, ((_, c, d), spec)) in strips.iter().zip(&spectra).enumerate() {
+            let a = Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f * d);
+            let b = a * turns[k];
+            factors[k] = (a, b);
+            ra += a.conj() * spec[j] * *c;
+            rb += b.conj() * spec[j] * *c;
+        }
+        let (p, q) = ((ra * t - rb * x) / det, (rb * t - ra * x.conj()) / det);
+        let mut e = 0.0;
+        for (((_, c, _), spec), (a, b)) in strips.iter().zip(&spectra).zip(&factors) {
+            e += c * (spec[j] - a * p - b * q).norm_sqr();
+        }
+        rhs.push((ra, rb));
+        q_ls.push(q.norm_sqr());
+        left.push(e);
+    }
     let dof = strips.len().saturating_sub(2) as f64;
     let w = ((UNFOLD_SMOOTH_HZ * n as f64 / fs).round() as usize).max(2);
     let (q_mean, left_mean) = (smoothed(&q_ls, w), smoothed(&left, w));

@@ -456,25 +456,8 @@ fn follows_reference(
     // nearly dependent, and a basis made orthonormal from them on the fit
     // part alone blows up on the held-out part.
     let cols = lagged_by(t, REF_LAGS);
-    let k = cols.len();
-    let mut a = nalgebra::DMatrix::<f64>::zeros(k, k);
-    let mut b = nalgebra::DVector::<f64>::zeros(k);
-    for i in 0..k {
-        b[i] = dot(&cols[i], x);
-        for j in 0..=i {
-            let v = dot(&cols[i], &cols[j]);
-            a[(i, j)] = v;
-            a[(j, i)] = v;
-        }
-    }
-    let ridge = (0..k).map(|i| a[(i, i)]).fold(0.0, f64::max) * 1e-3;
-    if ridge <= 0.0 {
-        return 0.0;
-    }
-    for i in 0..k {
-        a[(i, i)] += ridge;
-    }
-    let Some(beta) = a.cholesky().map(|c| c.solve(&b)) else {
+    let refs: Vec<&[f64]> = cols.iter().map(Vec::as_slice).collect();
+    let Some(beta) = ridge_solve(&refs, x, dot, 1e-3) else {
         return 0.0;
     };
     let mut after = x.to_vec();
@@ -642,33 +625,46 @@ fn joint_taps(
         .iter()
         .flat_map(|c| lagged(&apply_all(lin, &c.x, fs)))
         .collect();
-    let cols: Vec<&Vec<f64>> = built.iter().collect();
-    let k = cols.len();
-    let mut a = nalgebra::DMatrix::<f64>::zeros(k, k);
-    let mut b = nalgebra::DVector::<f64>::zeros(k);
-    for i in 0..k {
-        b[i] = dot(cols[i], resid);
-        for j in 0..=i {
-            let v = dot(cols[i], cols[j]);
-            a[(i, j)] = v;
-            a[(j, i)] = v;
-        }
-    }
+    let cols: Vec<&[f64]> = built.iter().map(Vec::as_slice).collect();
     // A small ridge keeps a nearly dependent set solvable.
-    let ridge = (0..k).map(|i| a[(i, i)]).fold(0.0, f64::max) * 1e-9;
-    for i in 0..k {
-        a[(i, i)] += ridge;
-    }
-    let sol = a
-        .cholesky()
-        .map(|c| c.solve(&b))
-        .unwrap_or_else(|| nalgebra::DVector::zeros(k));
+    let sol = ridge_solve(&cols, resid, dot, 1e-9)
+        .unwrap_or_else(|| nalgebra::DVector::zeros(cols.len()));
     let per = 2 * LAGS + 1;
     cands
         .iter()
         .enumerate()
         .map(|(c, _)| (0..per).map(|l| sol[c * per + l]).collect())
         .collect()
+}
+
+/// The least-squares weights of `cols` for `y` by normal equations in
+/// `dot`, with `ridge` times the largest diagonal added to the diagonal;
+/// `None` when every column is zero or the system is not solvable.
+fn ridge_solve(
+    cols: &[&[f64]],
+    y: &[f64],
+    dot: &dyn Fn(&[f64], &[f64]) -> f64,
+    ridge: f64,
+) -> Option<nalgebra::DVector<f64>> {
+    let k = cols.len();
+    let mut a = nalgebra::DMatrix::<f64>::zeros(k, k);
+    let mut b = nalgebra::DVector::<f64>::zeros(k);
+    for i in 0..k {
+        b[i] = dot(cols[i], y);
+        for j in 0..=i {
+            let v = dot(cols[i], cols[j]);
+            a[(i, j)] = v;
+            a[(j, i)] = v;
+        }
+    }
+    let ridge = (0..k).map(|i| a[(i, i)]).fold(0.0, f64::max) * ridge;
+    if ridge <= 0.0 {
+        return None;
+    }
+    for i in 0..k {
+        a[(i, i)] += ridge;
+    }
+    a.cholesky().map(|c| c.solve(&b))
 }
 
 /// `y` minus each candidate's FIR on its (high-passed) covariate.
