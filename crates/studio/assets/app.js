@@ -675,13 +675,13 @@ function drawMagnified(buf) {
   $("livemagbox").hidden = false;
 }
 
-// The magnified view's line: rate on the page, frames not shown, drops.
 // The magnify stage's drops (its input ring's) in an update, 0 before any.
 function magDropped(u) {
   const st = u && u.magnify && u.stages ? u.stages.find((s) => s.id === u.magnify.stage) : null;
   return st ? st.dropped : 0;
 }
 
+// The magnified view's line: rate on the page, frames not shown, drops.
 function fillMagnifyInfo(u) {
   const m = u.magnify; if (!m) return;
   const ts = LIVE.magTimes, n = ts.length;

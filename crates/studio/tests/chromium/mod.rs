@@ -125,8 +125,8 @@ pub async fn live(c: &Client, expr: &str) -> Value {
 }
 
 /// The magnified view's clip: 640x480 at 60 fps, a textured object moving
-/// at 4 and 12 Hz; 25 s, so that the five band changes after the 10 s
-/// measured (and Chromium's start before it) find frames left on a
+/// at 4 and 12 Hz; 25 s, so that the browser test's band changes after the
+/// 10 s measured (and Chromium's start before it) find frames left on a
 /// machine where the page takes 30 frames a second or fewer.
 pub const MAG_FPS: f64 = 60.0;
 pub const MAG_FRAMES: usize = 1500;
