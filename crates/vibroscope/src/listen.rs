@@ -188,7 +188,7 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     }
     let mut notes = Vec::new();
     if o.unfold && o.rolling_shutter.is_none() {
-        notes.push("--unfold: the calibration recombines no strips of rows (no capture_time): nothing to unfold, the recovery is at the frame rate".into());
+        notes.push("--unfold: no strips of rows to unfold (no calibration, or one that recombines none: no capture_time): the recovery is at the frame rate".into());
     }
     let mut decl = match &o.rolling_shutter {
         Some(rs) => {
