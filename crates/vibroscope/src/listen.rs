@@ -259,11 +259,10 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     // recording), are brought to this recording's frame: its region's
     // motion in pixels and the terms' tiles are measured in the same run.
     let needs = corrections
-        .as_ref()
-        .is_some_and(|c| c.iter().any(Correction::needs_frame))
-        || !terms.is_empty();
+        .as_deref()
+        .is_some_and(|c| needs_observables(c, &terms));
     if needs && frame.is_none() {
-        notes.push("the calibration holds no pixel frame (written before it was measured): its corrections apply in the calibration recording's units and sign, and its explained terms are left out".into());
+        notes.push(NO_FRAME.into());
     }
     let observe = match (frame, needs, &o.calibration) {
         (Some(_), true, Some(path)) => Some(corrections::Observe::add(
@@ -386,14 +385,14 @@ fn listen_strips(
     // tiles are measured in the same run, to bring the calibration to this
     // recording's frame.
     let mut notes = Vec::new();
-    let needs = corrections.iter().any(Correction::needs_frame) || !terms.is_empty();
+    let needs = needs_observables(corrections, terms);
     let tiles = match (frame, &o.calibration) {
         (Some(_), Some(path)) if needs => {
             corrections::Observe::tiles((&o.video, &o.region), path, terms)?
         }
         _ => {
             if needs {
-                notes.push("the calibration holds no pixel frame (written before it was measured): its corrections apply in the calibration recording's units and sign, and its explained terms are left out".into());
+                notes.push(NO_FRAME.into());
             }
             Vec::new()
         }
@@ -456,6 +455,17 @@ fn listen_strips(
     }
     finish_wav(o, true)?;
     Ok(report(o, Some(corrections), method, notes, run))
+}
+
+/// Said when a calibration needs this recording's frame or tiles and
+/// holds no pixel frame to bring them to.
+const NO_FRAME: &str = "the calibration holds no pixel frame (written before it was measured): its corrections apply in the calibration recording's units and sign, and its explained terms are left out";
+
+/// Whether applying `corrections` and `terms` needs this recording's
+/// observables: the region's motion in pixels (a correction that depends
+/// on the recovery's scale and sign) or the explained terms' tiles.
+fn needs_observables(corrections: &[Correction], terms: &[cal::StoredTerm]) -> bool {
+    corrections.iter().any(Correction::needs_frame) || !terms.is_empty()
 }
 
 /// The time per row of a readout a calibration found (`capture_time`'s
