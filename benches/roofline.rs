@@ -27,8 +27,8 @@ mod timing;
 /// is fused into the one before it (level 1) or absent (level 0).
 const RIESZ_COUNTS: [(f64, f64, u8); 7] = [
     (18.3, 37.2, 3),   // pyramid build
-    (212.0, 197.0, 2), // Riesz pair (FFT): its buffers stay in L2
-    (173.8, 186.0, 3), // phase difference, sum, amplitude + temporal band-pass + the blur's rows (fused)
+    (77.0, 15.9, 2),   // Riesz pair (7x7 filter): the level's rows from L2
+    (171.3, 164.7, 3), // phase difference, sum, amplitude + temporal band-pass + the blur's rows (fused)
     (0.0, 0.0, 1),     // (fused into the step before)
     (108.8, 53.1, 3),  // the blur's columns (three channels) + phase shift (fused)
     (0.0, 0.0, 1),     // (fused into the step before)

@@ -6,7 +6,7 @@
 //! Wadhwa et al. (2014) build their Riesz pyramid on such a band-pass
 //! pyramid; the analysis-only [`crate::riesz::RieszPyramid`] has no
 //! low-pass residual to collapse with, so the magnifier uses this one and
-//! the exact Riesz pair on its levels (by FFT, [`super::riesz_fft`]).
+//! a Riesz pair on its levels (a 7x7 filter, `super::riesz_fir`).
 
 use crate::join::{both, simd_fn, Par, Serial, Simd};
 
@@ -14,7 +14,7 @@ const TAPS: [f32; 5] = [1.0 / 16.0, 4.0 / 16.0, 6.0 / 16.0, 4.0 / 16.0, 1.0 / 16
 
 /// Mirror index (`x[-1] = x[1]`) into `0..n`.
 #[inline(always)]
-fn reflect(i: isize, n: usize) -> usize {
+pub(crate) fn reflect(i: isize, n: usize) -> usize {
     if n == 1 {
         return 0;
     }

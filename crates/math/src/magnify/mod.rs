@@ -5,7 +5,9 @@
 //!
 //! 1. the local phase change since the previous frame (wrapped, complex
 //!    for the CSP, quaternionic for Riesz), summed over time into a phase
-//!    signal per pixel (no wrapping however far it drifts);
+//!    signal per pixel (no wrapping however far it drifts; the Riesz
+//!    magnifier keeps no sum: its band-pass takes the changes,
+//!    [`temporal::BandpassDesign::on_increments`]);
 //! 2. a causal Butterworth band-pass of that signal per pixel
 //!    ([`temporal`]), which keeps the motion in `[lo, hi]` Hz;
 //! 3. amplitude-weighted Gaussian smoothing of the filtered phase
@@ -27,14 +29,16 @@
 //! allocates nothing.
 
 pub mod laplacian;
+#[cfg(test)]
 mod riesz_fft;
+mod riesz_fir;
 pub mod temporal;
 
 use crate::join::{both, simd_fn, Join, Par, Serial, Simd};
 use crate::pyramid::{Complex32, ComplexSteerablePyramid, PyramidCoeffs, PyramidError};
 use laplacian::mid_row;
 use laplacian::Laplacian;
-use riesz_fft::RieszFft;
+use riesz_fir::RieszFir;
 use temporal::{BandpassDesign, FilterPart, PixelFilter, CHUNK};
 
 /// Default σ of the amplitude-weighted phase smoothing, band pixels.
@@ -55,7 +59,7 @@ pub enum PyramidKind {
     /// orientations, FFT-based).
     Csp,
     /// Riesz pyramid on a Laplacian pyramid: speed (one quadrature triple
-    /// per level, its pair by one FFT each way, [`riesz_fft`]).
+    /// per level, its pair by a 7x7 filter, [`riesz_fir`]).
     Riesz,
 }
 
@@ -312,6 +316,38 @@ fn blur(kernel: &[f32], buf: &mut [f32], tmp: &mut [f32], w: usize, h: usize, si
     blur_cols(simd, kernel, &tmp[..w * h], &mut buf[..w * h], w, h, 0);
 }
 
+/// Pixels a blur pass sums in registers at once (whole blocks; the rest
+/// of a row one by one, in the same order of taps).
+const BLUR_BLOCK: usize = 32;
+
+/// `out[i] = Σ_k kernel[k] · src(k)[i]`, the taps in order from 0: in
+/// blocks of [`BLUR_BLOCK`] held in registers while every tap is added
+/// (one store a pixel instead of one a tap), then the rest.
+#[inline(always)]
+fn taps_sum<'a>(kernel: &[f32], out: &mut [f32], src: impl Fn(usize) -> &'a [f32]) {
+    let n = out.len();
+    let whole = n - n % BLUR_BLOCK;
+    for x0 in (0..whole).step_by(BLUR_BLOCK) {
+        let mut acc = [0.0f32; BLUR_BLOCK];
+        for (k, c) in kernel.iter().enumerate() {
+            let v = &src(k)[x0..x0 + BLUR_BLOCK];
+            for (a, v) in acc.iter_mut().zip(v) {
+                *a += c * v;
+            }
+        }
+        out[x0..x0 + BLUR_BLOCK].copy_from_slice(&acc);
+    }
+    if whole < n {
+        let rest = &mut out[whole..];
+        rest.fill(0.0);
+        for (k, c) in kernel.iter().enumerate() {
+            for (o, v) in rest.iter_mut().zip(&src(k)[whole..n]) {
+                *o += c * v;
+            }
+        }
+    }
+}
+
 simd_fn! {
 /// The horizontal pass of [`blur`] over whole rows of `src` into `out`.
 fn blur_rows(kernel: &[f32], src: &[f32], out: &mut [f32], w: usize) {
@@ -320,12 +356,7 @@ fn blur_rows(kernel: &[f32], src: &[f32], out: &mut [f32], w: usize) {
         // Columns whose taps all fall inside the row.
         let (lo, hi) = (r.min(w), w.saturating_sub(r).max(r.min(w)));
         if hi > lo {
-            out[lo..hi].fill(0.0);
-            for (k, c) in kernel.iter().enumerate() {
-                for (o, v) in out[lo..hi].iter_mut().zip(&row[lo + k - r..hi + k - r]) {
-                    *o += c * v;
-                }
-            }
+            taps_sum(kernel, &mut out[lo..hi], |k| &row[lo + k - r..hi + k - r]);
         }
         // The edges, clamped.
         for x in (0..lo).chain(hi.max(lo)..w) {
@@ -347,13 +378,10 @@ fn blur_cols(kernel: &[f32], tmp: &[f32], out: &mut [f32], w: usize, h: usize, y
     let r = kernel.len() / 2;
     for (dy, out) in out.chunks_exact_mut(w).enumerate() {
         let y = y0 + dy;
-        out.fill(0.0);
-        for (k, c) in kernel.iter().enumerate() {
+        taps_sum(kernel, out, |k| {
             let yi = (y as isize + k as isize - r as isize).clamp(0, h as isize - 1) as usize;
-            for (o, v) in out.iter_mut().zip(&tmp[yi * w..(yi + 1) * w]) {
-                *o += c * v;
-            }
-        }
+            &tmp[yi * w..(yi + 1) * w]
+        });
     }
 }
 }
@@ -379,12 +407,12 @@ struct CspState {
 /// Per-level state of the Riesz magnifier.
 struct RieszState {
     lap: Laplacian,
-    /// The exact Riesz pair per level ([`riesz_fft`]).
-    ffts: Vec<RieszFft>,
+    /// The Riesz pair's filter per level ([`riesz_fir`]).
+    pairs: Vec<RieszFir>,
     /// Previous (I, R1, R2) per level.
     prev: Vec<[Vec<f32>; 3]>,
-    /// Summed phase·cos θ and phase·sin θ per level.
-    acc: Vec<[Vec<f32>; 2]>,
+    /// The band-pass of the summed phase·cos θ and phase·sin θ, per level,
+    /// fed their changes ([`BandpassDesign::on_increments`]): no sums kept.
     filters: Vec<[PixelFilter; 2]>,
     r1: Vec<f32>,
     r2: Vec<f32>,
@@ -496,6 +524,7 @@ impl Magnifier {
                 }))
             }
             PyramidKind::Riesz => {
+                let steps = design.on_increments();
                 let lap = Laplacian::new(width, height, params.scales);
                 let lens: Vec<usize> = lap.dims[..params.scales]
                     .iter()
@@ -504,17 +533,16 @@ impl Magnifier {
                 let z = |l: usize| vec![0.0f32; l];
                 State::Riesz(Box::new(RieszState {
                     prev: lens.iter().map(|&l| [z(l), z(l), z(l)]).collect(),
-                    acc: lens.iter().map(|&l| [z(l), z(l)]).collect(),
                     filters: lap.dims[..params.scales]
                         .iter()
                         .map(|&(w, h)| {
-                            let f = || PixelFilter::with_rows(&design, w, h);
+                            let f = || PixelFilter::with_rows(&steps, w, h);
                             [f(), f()]
                         })
                         .collect(),
-                    ffts: lap.dims[..params.scales]
+                    pairs: lap.dims[..params.scales]
                         .iter()
-                        .map(|&(w, h)| RieszFft::new(w, h))
+                        .map(|&(w, h)| RieszFir::new(w, h))
                         .collect(),
                     r1: z(n),
                     r2: z(n),
@@ -692,10 +720,9 @@ impl Magnifier {
                     let len = w * h;
                     let band = &mut s.lap.bands[l][..len];
                     let (r1, r2) = (&mut s.r1[..len], &mut s.r2[..len]);
-                    s.ffts[l].pair(band, r1, r2, j);
+                    s.pairs[l].pair(band, r1, r2, j);
                     laps.lap(1);
                     let [pi, p1, p2] = &mut s.prev[l];
-                    let [ac, as_] = &mut s.acc[l];
                     // `den` ends as G*A, `nc` and `ns` as G*(A·φ) of the
                     // two phase components (the filtered φ itself when
                     // there is no smoothing).
@@ -714,8 +741,6 @@ impl Magnifier {
                     let (pi0, pi1) = pi[..len].split_at_mut(mid);
                     let (p10, p11) = p1[..len].split_at_mut(mid);
                     let (p20, p21) = p2[..len].split_at_mut(mid);
-                    let (ac0, ac1) = ac[..len].split_at_mut(mid);
-                    let (as0, as1) = as_[..len].split_at_mut(mid);
                     let (d0, d1) = den.split_at_mut(mid);
                     let (nc0, nc1) = nc.split_at_mut(mid);
                     let (ns0, ns1) = ns.split_at_mut(mid);
@@ -737,7 +762,7 @@ impl Magnifier {
                                 w,
                                 0,
                                 [b0, q10, q20],
-                                [&mut *pi0, &mut *p10, &mut *p20, &mut *ac0, &mut *as0],
+                                [&mut *pi0, &mut *p10, &mut *p20],
                                 [&mut *d0, &mut *nc0, &mut *ns0],
                                 [&mut fc0, &mut fs0],
                                 kernel,
@@ -752,7 +777,7 @@ impl Magnifier {
                                 w,
                                 hm,
                                 [b1, q11, q21],
-                                [&mut *pi1, &mut *p11, &mut *p21, &mut *ac1, &mut *as1],
+                                [&mut *pi1, &mut *p11, &mut *p21],
                                 [&mut *d1, &mut *nc1, &mut *ns1],
                                 [&mut fc1, &mut fs1],
                                 kernel,
@@ -810,45 +835,35 @@ impl Magnifier {
 
 /// The Riesz magnifier's phase step over a run of pixels: the quaternionic
 /// phase difference `q·conj(q_prev)` (Wadhwa et al. 2014), its angle times
-/// its in-plane axis added to the sums `acc` (none where the axis
-/// vanishes: a select, so that the loop vectorises), `prev` set to `q`,
-/// `amp` to `|q|`, `out` to the sums. Its own function so that its slices
-/// are known not to overlap (the loop vectorises without runtime checks).
+/// its in-plane axis into `out` (the change of the summed phase; 0 where
+/// the axis vanishes and on the first frame: a select, so that the loop
+/// vectorises), `prev` set to `q`, `amp` to `|q|`. Its own function so
+/// that its slices are known not to overlap (the loop vectorises without
+/// runtime checks).
 #[inline(always)]
 fn riesz_phase_step(
     first: bool,
     [band, r1, r2]: [&[f32]; 3],
     [pi, p1, p2]: [&mut [f32]; 3],
-    [ac, as_]: [&mut [f32]; 2],
     amp: &mut [f32],
     [xc, xs]: [&mut [f32]; 2],
 ) {
     let m = band.len();
     let (r1, r2, pi, p1, p2) = (&r1[..m], &r2[..m], &mut pi[..m], &mut p1[..m], &mut p2[..m]);
-    let (ac, as_, amp, xc, xs) = (
-        &mut ac[..m],
-        &mut as_[..m],
-        &mut amp[..m],
-        &mut xc[..m],
-        &mut xs[..m],
-    );
+    let (amp, xc, xs) = (&mut amp[..m], &mut xc[..m], &mut xs[..m]);
     for k in 0..m {
         let (iv, x1, x2) = (band[k], r1[k], r2[k]);
-        if !first {
-            let (qi, q1, q2) = (pi[k], p1[k], p2[k]);
-            let re = iv * qi + x1 * q1 + x2 * q2;
-            let vx = -iv * q1 + qi * x1;
-            let vy = -iv * q2 + qi * x2;
-            let vn = (vx * vx + vy * vy).sqrt();
-            let d = crate::fastmath::atan2(vn, re) / vn;
-            let moved = vn > 0.0;
-            ac[k] = if moved { ac[k] + d * vx } else { ac[k] };
-            as_[k] = if moved { as_[k] + d * vy } else { as_[k] };
-        }
+        let (qi, q1, q2) = (pi[k], p1[k], p2[k]);
+        let re = iv * qi + x1 * q1 + x2 * q2;
+        let vx = -iv * q1 + qi * x1;
+        let vy = -iv * q2 + qi * x2;
+        let vn = (vx * vx + vy * vy).sqrt();
+        let d = crate::fastmath::atan2(vn, re) / vn;
+        let moved = vn > 0.0 && !first;
+        xc[k] = if moved { d * vx } else { 0.0 };
+        xs[k] = if moved { d * vy } else { 0.0 };
         (pi[k], p1[k], p2[k]) = (iv, x1, x2);
         amp[k] = (iv * iv + x1 * x1 + x2 * x2).sqrt();
-        xc[k] = ac[k];
-        xs[k] = as_[k];
     }
 }
 
@@ -865,14 +880,14 @@ fn riesz_phase_run(
     w: usize,
     y0: usize,
     input: [&[f32]; 3],
-    state: [&mut [f32]; 5],
+    state: [&mut [f32]; 3],
     outs: [&mut [f32]; 3],
     filters: [&mut FilterPart<'_>; 2],
     kernel: &[f32],
     rows_out: [&mut [f32]; 3],
 ) {
     let [band, r1, r2] = input;
-    let [pi, p1, p2, ac, as_] = state;
+    let [pi, p1, p2] = state;
     let [den, nc, ns] = outs;
     let [fc, fs] = filters;
     let mut rows_out = rows_out;
@@ -888,7 +903,6 @@ fn riesz_phase_run(
                 first,
                 [&band[r.clone()], &r1[r.clone()], &r2[r.clone()]],
                 [&mut pi[r.clone()], &mut p1[r.clone()], &mut p2[r.clone()]],
-                [&mut ac[r.clone()], &mut as_[r.clone()]],
                 &mut den[r.clone()],
                 [&mut *xc, &mut *xs],
             );
@@ -982,7 +996,7 @@ pub fn dither_round(values: &mut [f32], key: u64, first: usize, max: f32) {
 /// step's time counts in the step it is fused into.
 pub const STEPS: [&str; 7] = [
     "pyramid build",
-    "Riesz pair (FFT)",
+    "Riesz pair (7x7 filter)",
     "phase difference, sum, amplitude",
     "temporal band-pass",
     "amplitude-weighted blur",

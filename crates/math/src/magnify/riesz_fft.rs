@@ -3,6 +3,9 @@
 //! Riesz transform (Felsberg and Sommer's monogenic signal), with periodic
 //! borders.
 //!
+//! The magnifier's own pair is now the 7x7 filter of `super::riesz_fir`;
+//! this exact one is kept as the reference its tests measure it against.
+//!
 //! Why not the 3-tap pair `(I[x-1] - I[x+1])/2` of Wadhwa et al. (2014)?
 //! Its response is `sin ωx` where the Riesz transform's is `ωx/|ω|`: near
 //! 1 only around a quarter of the sampling rate. The paper designs its own

@@ -104,6 +104,20 @@ pub fn design(order: usize, lo_hz: f64, hi_hz: f64, rate_hz: f64) -> BandpassDes
 }
 
 impl BandpassDesign {
+    /// The same filter for a signal's changes `x[t] - x[t-1]` instead of
+    /// the signal: the first section's numerator divided by `1 - z⁻¹`
+    /// (every section has a zero at `z = 1`: `b0 + b1 + b2 = 0`), so that
+    /// `b0 + b1 z⁻¹ + b2 z⁻²` becomes `b0 + (b0 + b1) z⁻¹`. Fed the changes
+    /// from rest, it gives what this one gives fed their running sum, with
+    /// no sum kept (which grows without bound as phase drifts).
+    pub fn on_increments(&self) -> Self {
+        let mut d = self.clone();
+        if let Some(s) = d.sections.first_mut() {
+            s.b = [s.b[0], s.b[0] + s.b[1], 0.0];
+        }
+        d
+    }
+
     /// Complex response at `f_hz` for a stream at `rate_hz` (f64 from the
     /// stored f32 coefficients).
     pub fn response_at(&self, f_hz: f64, rate_hz: f64) -> Complex<f64> {

@@ -95,6 +95,35 @@ fn pixel_filter_matches_its_response() {
     assert!((rms(2) / rms(1) - 2.0).abs() < 1e-4);
 }
 
+/// Fed a signal's changes, [`BandpassDesign::on_increments`] gives what
+/// the band-pass gives fed the signal: a drifting noise whose running sum
+/// grows (orders 1 to 3, to f32 rounding of the larger sums).
+#[test]
+fn the_filter_of_the_changes_is_the_filter_of_the_sums() {
+    for order in 1..=3 {
+        let d = temporal::design(order, 30.0, 60.0, 500.0);
+        let (mut sums, mut changes) = (
+            PixelFilter::new(&d, 1),
+            PixelFilter::new(&d.on_increments(), 1),
+        );
+        let mut r = Rng::new(order as u64);
+        let (mut total, mut worst, mut peak) = (0.0f64, 0.0f64, 0.0f64);
+        for _ in 0..5000 {
+            let step = r.next_f64() - 0.45;
+            total += step;
+            let (mut a, mut b) = ([total as f32], [step as f32]);
+            sums.step(&mut a);
+            changes.step(&mut b);
+            worst = worst.max(f64::from(a[0] - b[0]).abs());
+            peak = peak.max(f64::from(a[0]).abs());
+        }
+        assert!(
+            worst < 1e-3 * peak,
+            "order {order}: {worst} against a peak of {peak}"
+        );
+    }
+}
+
 #[test]
 fn laplacian_collapses_to_the_frame() {
     for &(w, h) in &[(64, 48), (37, 21), (5, 3), (1, 7)] {
@@ -333,7 +362,7 @@ fn parts_sum_to_the_whole() {
 
 /// A [`Join`] that runs its halves on two threads at once (as the
 /// engine's rayon pool does), second half first on this one.
-struct TwoThreads;
+pub(super) struct TwoThreads;
 
 impl Join for TwoThreads {
     fn join(&self, a: &mut (dyn FnMut() + Send), b: &mut (dyn FnMut() + Send)) {
