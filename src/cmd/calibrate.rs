@@ -198,6 +198,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             vibroscope::calibrate::Observable::MotionX => "motion x",
             vibroscope::calibrate::Observable::MotionY => "motion y",
             vibroscope::calibrate::Observable::Intensity => "intensity",
+            vibroscope::calibrate::Observable::RowIntensity => "each row's intensity",
+            vibroscope::calibrate::Observable::ColumnIntensity => "each column's intensity",
         };
         // How `listen --calibration` carries it to the next recording.
         let carried = if e.refit {

@@ -632,6 +632,53 @@ pub fn observation_tiles(w: u32, h: u32, region: [u32; 4]) -> Vec<([u32; 4], boo
     out
 }
 
+/// Most lines (rows, and columns) observed across the region on either
+/// axis; a region taller (wider) is observed in bands of rows (columns).
+pub const OBSERVED_LINES: u32 = 64;
+/// The fewest pixels a line's part holds, beside the pixels the
+/// `displacement` stage leaves out at the frame's edge.
+const MIN_LINE_PX: u32 = 8;
+
+/// The sensor's lines the residual explainer observes in a `w`×`h` frame
+/// around the region `[x, y, w, h]`: each row crossing the region (a band
+/// of rows when the region has more than [`OBSERVED_LINES`]), in its parts
+/// left and right of the region, and each column crossing it, above and
+/// below; a part narrower than [`MIN_LINE_PX`] (after the frame's edge) is
+/// left out, so a region as wide as the frame has no rows observed.
+pub fn observation_lines(w: u32, h: u32, region: [u32; 4]) -> Vec<([u32; 4], cal::Observable)> {
+    let edge = crate::stages::transform::displacement::MARGIN as u32;
+    let [rx, ry, rw, rh] = region;
+    let mut out = Vec::new();
+    // Along rows (`along` the frame's width) or columns.
+    for (obs, (lo, len, full), (a, b, other)) in [
+        (cal::Observable::RowIntensity, (ry, rh, h), (rx, rw, w)),
+        (cal::Observable::ColumnIntensity, (rx, rw, w), (ry, rh, h)),
+    ] {
+        let band = len.div_ceil(OBSERVED_LINES).max(1);
+        let (start, end) = (lo.max(edge), (lo + len).min(full.saturating_sub(edge)));
+        let before = a >= edge + MIN_LINE_PX;
+        let after = other >= a + b + edge + MIN_LINE_PX;
+        let mut k = start;
+        while k + band <= end {
+            let parts = [
+                before.then_some((0, a)),
+                after.then_some((a + b, other - a - b)),
+            ];
+            for (p0, plen) in parts.into_iter().flatten() {
+                out.push((
+                    match obs {
+                        cal::Observable::RowIntensity => [p0, k, plen, band],
+                        _ => [k, p0, band, plen],
+                    },
+                    obs,
+                ));
+            }
+            k += band;
+        }
+    }
+    out
+}
+
 /// The region's recovery `(frame rate, samples)` and, when the effects to
 /// try include the capture time or the region gain (the default) and the
 /// region has rows enough for three strips, the strips' recoveries and
@@ -653,10 +700,14 @@ fn recover_all(
         if layout.rows.len() >= 3 {
             let fs = frame_rate(video, fps)?;
             let rect = layout.region();
-            let mut tiles = match opts.is_none_or(|o| o.explain) {
-                true => observation_tiles(layout.width, layout.height, rect),
-                false => Vec::new(),
+            let (mut tiles, lines) = match opts.is_none_or(|o| o.explain) {
+                true => (
+                    observation_tiles(layout.width, layout.height, rect),
+                    observation_lines(layout.width, layout.height, rect),
+                ),
+                false => (Vec::new(), Vec::new()),
             };
+            tiles.extend(lines.iter().map(|l| (l.0, false)));
             // The region itself, last: its motion in pixels is the
             // recovery's physical frame.
             tiles.push((rect, true));
@@ -682,7 +733,8 @@ fn recover_all(
                 signals,
                 bands,
             };
-            return Ok((fs, y, Some(strips), observations(&tiles, observed)));
+            let lines: Vec<cal::Observable> = lines.iter().map(|l| l.1).collect();
+            return Ok((fs, y, Some(strips), observations(&tiles, &lines, observed)));
         }
     }
     let (fs, y) = recover(video, fps, region, run)?;
@@ -690,8 +742,15 @@ fn recover_all(
 }
 
 /// The observed channels (three a tile: x, y, intensity) as the
-/// explainer's candidates, the last tile's (the region's) motion apart.
-fn observations(tiles: &[([u32; 4], bool)], mut observed: Vec<Vec<f64>>) -> Observed {
+/// explainer's candidates, the last tile's (the region's) motion apart:
+/// `tiles` ends with one rectangle for each of `lines` (their intensity
+/// only, as that line's observable), then the region's.
+fn observations(
+    tiles: &[([u32; 4], bool)],
+    lines: &[cal::Observable],
+    mut observed: Vec<Vec<f64>>,
+) -> Observed {
+    let n_tiles = tiles.len().saturating_sub(lines.len() + 1);
     use cal::Observable::{Intensity, MotionX, MotionY};
     let mut out = Observed::default();
     if observed.len() == 3 * tiles.len() && !tiles.is_empty() {
@@ -704,14 +763,38 @@ fn observations(tiles: &[([u32; 4], bool)], mut observed: Vec<Vec<f64>>) -> Obse
         let Some(&(rect, inside)) = tiles.get(k / 3) else {
             break;
         };
+        let observable = match (k / 3).checked_sub(n_tiles) {
+            None => [MotionX, MotionY, Intensity][k % 3],
+            Some(l) if k % 3 == 2 => match lines.get(l) {
+                Some(&o) => o,
+                None => break,
+            },
+            Some(_) => continue,
+        };
         out.covariates.push(cal::Covariate {
-            observable: [MotionX, MotionY, Intensity][k % 3],
+            observable,
             rect,
             inside,
             values,
         });
     }
     out
+}
+
+/// How the recovery's `phase` stage renews its reference at `fs`,
+/// `(interval, overlap)` in frames ([`Options::renewal`]): its defaults,
+/// which the recovery pipelines keep; `None` when it never renews.
+pub fn recovery_renewal(fs: f64) -> Option<(usize, usize)> {
+    let s: f64 = PhaseParams::reference_interval_s.default_value()?;
+    let o: usize = PhaseParams::reference_overlap.default_value()?;
+    (s > 0.0 && fs.is_finite()).then(|| (((s * fs).round() as usize).max(1), o))
+}
+
+/// The farthest lag (frames) by which the recovery's `align` stage shifts
+/// a band ([`Options::line_reach`]): its default, which the recovery
+/// pipelines keep.
+pub fn recovery_reach() -> usize {
+    AlignParams::max_lag.default_value().unwrap_or(0)
 }
 
 /// The math on a recovery `y` (at `fs`) against `r` (at `fr`).
@@ -724,7 +807,11 @@ fn calibrate_recovery(
     opts: Option<Options>,
     on_step: Option<&StepHook>,
 ) -> Result<Calibrated> {
-    let opts = opts.unwrap_or_else(|| Options::for_rate(fs));
+    let opts = Options {
+        renewal: recovery_renewal(fs),
+        line_reach: recovery_reach(),
+        ..opts.unwrap_or_else(|| Options::for_rate(fs))
+    };
     let mut hook = |s: Step| {
         if let Some(h) = on_step {
             (h.0)(s)

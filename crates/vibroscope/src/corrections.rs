@@ -75,12 +75,14 @@ impl Observe {
                 }
             }
         }
-        if rects.len() > 64 {
+        let most = crate::stages::transform::displacement::MAX_REGIONS;
+        if rects.len() > most {
             return Err(Error::input(
                 calibration,
                 format!(
-                    "explained: its terms measure {} tiles; at most 63",
-                    rects.len() - 1
+                    "explained: its terms measure {} tiles; at most {}",
+                    rects.len() - 1,
+                    most - 1
                 ),
             ));
         }
@@ -167,27 +169,51 @@ pub fn apply_observed(
     let channel = |o: cal::Observable| match o {
         cal::Observable::MotionX => 0,
         cal::Observable::MotionY => 1,
-        cal::Observable::Intensity => 2,
+        cal::Observable::Intensity
+        | cal::Observable::RowIntensity
+        | cal::Observable::ColumnIntensity => 2,
     };
+    // A line's weights belong to each reference frame of the recording
+    // they were fitted on: carried only where fitted again here.
+    let (terms, stranded): (Vec<&cal::StoredTerm>, Vec<&cal::StoredTerm>) = terms
+        .iter()
+        .partition(|t| t.refit || !t.observable.is_line());
     let measured: Vec<cal::Measured> = terms
         .iter()
         .map(|t| {
-            let mut mean = vec![0.0; n];
-            for r in &t.tiles {
+            // A tile's channel of the run, by its rectangle.
+            let of = |i: usize| -> &[f64] {
                 let k = rects
                     .iter()
                     .skip(1)
-                    .position(|x| x == r)
+                    .position(|x| *x == t.tiles[i])
                     .map_or(0, |k| k + 1);
-                for (m, v) in mean
-                    .iter_mut()
-                    .zip(&observed[3 * k + channel(t.observable)])
-                {
-                    *m += v / t.tiles.len() as f64;
+                &observed[3 * k + channel(t.observable)][..n]
+            };
+            let channels = if t.observable.is_line() {
+                cal::line_channels(t.observable, &t.tiles, n, of)
+            } else {
+                // The tiles' plain mean, as the explainer pooled them.
+                let mut mean = vec![0.0; n];
+                for i in 0..t.tiles.len() {
+                    for (m, v) in mean.iter_mut().zip(of(i)) {
+                        *m += v / t.tiles.len() as f64;
+                    }
                 }
-            }
+                vec![mean]
+            };
             cal::Measured {
-                values: mean,
+                channels,
+                shifts: t.shifts.clone(),
+                reach: crate::calibrate::recovery_reach(),
+                // This recording's references, as its recovery renewed them.
+                spans: cal::reference_spans(
+                    n,
+                    match t.observable.is_line() {
+                        true => crate::calibrate::recovery_renewal(fs),
+                        false => None,
+                    },
+                ),
                 taps: (!t.refit).then(|| t.taps.iter().map(|a| a * ratio).collect()),
             }
         })
@@ -212,6 +238,12 @@ pub fn apply_observed(
                 "; {} explained term(s) measured again here and subtracted through the stored FIR (their observables follow the calibration's reference: fitted here, they would remove the sound)",
                 terms.len() - refit
             ));
+    }
+    if !stranded.is_empty() {
+        note.push_str(&format!(
+            "; {} explained term(s) of the sensor's lines left out: their observables follow the calibration's reference, and their weights belong to the reference frames of the calibration's recording",
+            stranded.len()
+        ));
     }
     if corrections.iter().any(Correction::needs_frame) {
         note.push_str(&format!(

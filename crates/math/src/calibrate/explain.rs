@@ -16,6 +16,19 @@
 //! purpose: it holds the object's own motion, and a regression on it would
 //! only be a better estimator of the object, not an effect.
 //!
+//! Lines of the sensor: the mean intensity of every row that crosses the
+//! region, measured beside it (left and right of it), and of every column,
+//! measured above and below it. One row's offset (the sensor's row noise,
+//! a flicker read out row by row) reaches the recovery weighed by that
+//! row's texture, so no tile's mean explains it: the rows enter together,
+//! as one candidate, fitted jointly, one weight per row and reference
+//! frame of the recovery ([`reference_spans`]) at each of up to
+//! [`MAX_LINE_SHIFTS`] lags within the recovery's reach
+//! ([`super::Options::line_reach`]). The lags are chosen on the recording
+//! (each alone, by the held-out residual it removes): the recovery's
+//! `align` shifts each band by its own lag, and the bands that see a
+//! row's offset carry no sound to align them by, so theirs is chance.
+//!
 //! Each kept covariate is reported with what it most likely is, read from
 //! how the other tiles move with it: the camera or its mount when most of
 //! the tiles outside the region move with it, another vibrating thing in
@@ -29,6 +42,14 @@ use super::{apply_all, Correction};
 
 /// Lags of each covariate's FIR, frames either side.
 pub const LAGS: usize = 2;
+/// Most lags at which the lines' joint candidate has a weight per line
+/// and reference.
+pub const MAX_LINE_SHIFTS: usize = 3;
+/// The farthest lag (frames) a stored line term may name.
+pub const MAX_LINE_REACH: usize = 64;
+/// A lag joins the lines' first only when alone it removes at least this
+/// share of what the first removes.
+const LINE_SHIFT_SHARE: f64 = 0.25;
 /// Most covariates kept.
 pub const MAX_KEPT: usize = 6;
 /// Lags (frames either side) of the FIR through which the reference is
@@ -61,6 +82,106 @@ pub enum Observable {
     MotionY,
     /// Mean intensity, DN.
     Intensity,
+    /// Mean intensity of a row's part (or a band of rows') beside the
+    /// region, DN; the rows enter together ([`line_groups`]).
+    RowIntensity,
+    /// Mean intensity of a column's part (or a band of columns') above or
+    /// below the region, DN.
+    ColumnIntensity,
+}
+
+impl Observable {
+    /// A line of the sensor (rows or columns), measured in parts.
+    pub fn is_line(self) -> bool {
+        matches!(self, Observable::RowIntensity | Observable::ColumnIntensity)
+    }
+}
+
+/// The lags of a tile's FIR, -[`LAGS`]..=[`LAGS`] frames.
+pub fn tile_shifts() -> Vec<i64> {
+    (-(LAGS as i64)..=LAGS as i64).collect()
+}
+
+/// The parts of `tiles` (rectangles `[x, y, w, h]` measuring `obs`) that
+/// make one channel each, in order: for rows, the parts on the same rows
+/// (left and right of the region), top to bottom; for columns, the parts
+/// on the same columns, left to right; for a tile's observable, all of
+/// them (their mean is one channel). A channel is the parts' mean weighed
+/// by their areas ([`line_channels`]).
+pub fn line_groups(obs: Observable, tiles: &[[u32; 4]]) -> Vec<Vec<usize>> {
+    let key = |r: &[u32; 4]| match obs {
+        Observable::RowIntensity => Some((r[1], r[3])),
+        Observable::ColumnIntensity => Some((r[0], r[2])),
+        _ => None,
+    };
+    let mut keys: Vec<Option<(u32, u32)>> = tiles.iter().map(key).collect();
+    keys.sort_unstable();
+    keys.dedup();
+    keys.into_iter()
+        .map(|k| (0..tiles.len()).filter(|&i| key(&tiles[i]) == k).collect())
+        .collect()
+}
+
+/// The frames each reference of a recovery `n` frames long covers, in
+/// order, when it renews its reference as `renewal` says
+/// ([`super::Options::renewal`]); a last span shorter than half an
+/// interval joins the one before it.
+pub fn reference_spans(n: usize, renewal: Option<(usize, usize)>) -> Vec<std::ops::Range<usize>> {
+    let mut cuts = vec![0];
+    if let Some((interval, overlap)) = renewal.filter(|r| r.0 > 0) {
+        let mut b = interval + overlap;
+        while b < n {
+            cuts.push(b);
+            b += interval;
+        }
+        if cuts.len() > 1 && n - cuts[cuts.len() - 1] < interval / 2 {
+            cuts.pop();
+        }
+    }
+    cuts.push(n);
+    cuts.windows(2).map(|w| w[0]..w[1]).collect()
+}
+
+/// Each of `channels` once per span of `spans` (zero outside it),
+/// channel after channel: one weight per line and reference.
+pub fn per_reference(channels: &[Vec<f64>], spans: &[std::ops::Range<usize>]) -> Vec<Vec<f64>> {
+    channels
+        .iter()
+        .flat_map(|c| {
+            spans.iter().map(move |s| {
+                let mut v = vec![0.0; c.len()];
+                let s = s.start.min(c.len())..s.end.min(c.len());
+                v[s.clone()].copy_from_slice(&c[s]);
+                v
+            })
+        })
+        .collect()
+}
+
+/// The channels of `tiles` measuring `obs` ([`line_groups`]), each the
+/// area-weighted mean of its parts' values (`values(i)`: tile `i`'s, one
+/// a frame, `n` long; a shorter one counts as zero past its end).
+pub fn line_channels<'a>(
+    obs: Observable,
+    tiles: &[[u32; 4]],
+    n: usize,
+    values: impl Fn(usize) -> &'a [f64],
+) -> Vec<Vec<f64>> {
+    line_groups(obs, tiles)
+        .into_iter()
+        .map(|g| {
+            let area = |i: usize| f64::from(tiles[i][2]) * f64::from(tiles[i][3]);
+            let total: f64 = g.iter().map(|&i| area(i)).sum();
+            let mut out = vec![0.0; n];
+            for &i in &g {
+                let w = area(i) / total.max(f64::MIN_POSITIVE);
+                for (o, v) in out.iter_mut().zip(values(i)) {
+                    *o += w * v;
+                }
+            }
+            out
+        })
+        .collect()
 }
 
 /// One candidate explanatory signal, measured on the recording.
@@ -103,9 +224,20 @@ pub struct Explanation {
     /// Held-out SNR lost without it, the others kept (dB).
     pub snr_gain_db: f64,
     /// The FIR from the observable (px or DN) to the recovery (recovery
-    /// units), lags -LAGS..=LAGS frames: what is subtracted at frame n is
-    /// `Σ taps[k] x[n - (k - LAGS)]`.
+    /// units), at the lags of [`Explanation::shifts`]: what is subtracted
+    /// at frame n is `Σ taps[k] x[n - shifts[k]]`. For lines, one such
+    /// FIR per line ([`line_groups`]'s order) and reference
+    /// ([`reference_spans`]), one after another.
     pub taps: Vec<f64>,
+    /// The FIR's lags, frames: -[`LAGS`]..=[`LAGS`] for a tile's
+    /// observable; for lines, those chosen on this recording (at most
+    /// [`MAX_LINE_SHIFTS`]; a new recording chooses as many again).
+    pub shifts: Vec<i64>,
+    /// For lines: how the recovery renewed its reference
+    /// (`[interval, overlap]` frames, [`super::Options::renewal`]); each
+    /// line has one FIR per reference, fitted again on a new recording.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub renewal: Option<[usize; 2]>,
     /// Share of the observable's held-out energy (high-passed, as the
     /// recovery) that the reference explains through an FIR of lags
     /// -16..=16 frames fitted on the fit part: the observable hears the
@@ -129,6 +261,13 @@ pub struct StoredTerm {
     pub observable: Observable,
     pub tiles: Vec<[u32; 4]>,
     pub taps: Vec<f64>,
+    /// The FIR's lags (absent in a report written before lines were
+    /// observed: [`tile_shifts`]).
+    #[serde(default = "tile_shifts")]
+    pub shifts: Vec<i64>,
+    /// See [`Explanation::renewal`].
+    #[serde(default)]
+    pub renewal: Option<[usize; 2]>,
     /// Fitted again on the new recording (absent in a report written
     /// before the calibration said: the stored taps).
     #[serde(default)]
@@ -142,17 +281,18 @@ pub(super) struct Explained {
     pub(super) cleaned: Vec<f64>,
 }
 
-/// `x[n - lag]` for lags `-LAGS..=LAGS` (zero outside).
-fn lagged(x: &[f64]) -> Vec<Vec<f64>> {
-    lagged_by(x, LAGS)
-}
-
 /// `x[n - lag]` for lags `-lags..=lags` (zero outside).
 fn lagged_by(x: &[f64], lags: usize) -> Vec<Vec<f64>> {
+    let all: Vec<i64> = (-(lags as i64)..=lags as i64).collect();
+    shifted(x, &all)
+}
+
+/// `x[n - lag]` for each lag of `shifts` (zero outside).
+fn shifted(x: &[f64], shifts: &[i64]) -> Vec<Vec<f64>> {
     let n = x.len();
-    (0..=2 * lags)
-        .map(|k| {
-            let lag = k as i64 - lags as i64;
+    shifts
+        .iter()
+        .map(|&lag| {
             (0..n as i64)
                 .map(|i| {
                     let j = i - lag;
@@ -198,11 +338,31 @@ fn corr(a: &[f64], b: &[f64]) -> f64 {
 /// One candidate as the regression sees it.
 struct Cand {
     index: usize,
-    /// The high-passed covariate, as delivered.
-    x: Vec<f64>,
-    /// Its lagged columns through the linear corrections, with the kept
+    /// The high-passed covariate, as delivered (one per line for the
+    /// lines' joint candidate).
+    xs: Vec<Vec<f64>>,
+    /// The lags of each one's FIR.
+    shifts: Vec<i64>,
+    /// Their lagged columns through the linear corrections, with the kept
     /// ones' span projected out on the fit part.
     cols: Vec<Vec<f64>>,
+}
+
+impl Cand {
+    /// `Σ taps · x` over its covariates' lagged columns, each `x` passed
+    /// through `lin` first.
+    fn part(&self, taps: &[f64], (lin, fs): (&[Correction], f64), len: usize) -> Vec<f64> {
+        let mut part = vec![0.0; len];
+        for (x, t) in self.xs.iter().zip(taps.chunks(self.shifts.len())) {
+            let through = apply_all(lin, x, fs);
+            for (a, col) in t.iter().zip(shifted(&through, &self.shifts)) {
+                for (p, v) in part.iter_mut().zip(col) {
+                    *p += a * v;
+                }
+            }
+        }
+        part
+    }
 }
 
 /// Explains what `chain` leaves of the residual of `y` (the recovery as
@@ -217,21 +377,35 @@ pub(super) fn explain(
 ) -> Option<Explained> {
     let t0 = std::time::Instant::now();
     let n = y.len();
+    let lines: Vec<&Covariate> = covs.iter().filter(|c| c.observable.is_line()).collect();
+    let covs: Vec<Covariate> = covs
+        .iter()
+        .filter(|c| !c.observable.is_line())
+        .cloned()
+        .collect();
     // Each tile is noisy alone: means over tiles that share a cause (all
     // those outside the region, a row of tiles, a column) join the
     // candidates.
-    let pooled = pool(covs, n);
+    let pooled = pool(&covs, n);
     let singles = covs.len();
-    // The tiles each candidate is the mean of.
+    let joints = joint_lines(&lines, n);
+    // The tiles each candidate is the mean of (for lines, the parts of
+    // every line).
     let members: Vec<Vec<[u32; 4]>> = covs
         .iter()
         .map(|c| vec![c.rect])
         .chain(pooled.iter().map(|p| p.1.clone()))
+        .chain(joints.iter().map(|j| j.1.clone()))
         .collect();
+    // The lines of each joint candidate, by the candidate's index.
+    let mut channels_of: Vec<Option<Vec<Vec<f64>>>> = vec![None; singles + pooled.len()];
     let covs: Vec<Covariate> = covs
-        .iter()
-        .cloned()
+        .into_iter()
         .chain(pooled.into_iter().map(|p| p.0))
+        .chain(joints.into_iter().map(|(c, _, ch)| {
+            channels_of.push(Some(ch));
+            c
+        }))
         .collect();
     let covs = &covs[..];
     let usable: Vec<usize> = (0..covs.len())
@@ -248,6 +422,7 @@ pub(super) fn explain(
     let fs = m.fs;
     let hp = m.opts.highpass;
     let lin: Vec<Correction> = chain.iter().filter(|c| linear(c)).cloned().collect();
+    let spans = reference_spans(n, m.opts.renewal);
     let z = apply_all(chain, y, fs);
     let fit = m.fit_linear(&z);
     let start = m.errors(&z, &fit);
@@ -268,15 +443,50 @@ pub(super) fn explain(
     let mut cands: Vec<Cand> = usable
         .iter()
         .filter_map(|&i| {
-            let x = centred_highpass(&covs[i].values, fs, hp);
-            let through = apply_all(&lin, &x, fs);
-            if through.len() != len || through.iter().all(|&a| a == 0.0) {
+            let (xs, shifts) = match &channels_of[i] {
+                Some(ch) => {
+                    let hp: Vec<Vec<f64>> =
+                        ch.iter().map(|v| centred_highpass(v, fs, hp)).collect();
+                    let xs = per_reference(&hp, &spans);
+                    let through: Vec<Vec<f64>> =
+                        xs.iter().map(|x| apply_all(&lin, x, fs)).collect();
+                    // Each lag alone, by the held-out residual it removes.
+                    let removes = |cols: &[Vec<f64>]| {
+                        let mut after = resid0.clone();
+                        for b in orthonormal(cols, &dot) {
+                            let beta = dot(&b, &resid0);
+                            for (a, v) in after.iter_mut().zip(&b) {
+                                *a -= beta * v;
+                            }
+                        }
+                        e0_held - held_energy(&after)
+                    };
+                    let reach = m.opts.line_reach.min(MAX_LINE_REACH);
+                    let shifts = pick_shifts(&through, (MAX_LINE_SHIFTS, reach), removes);
+                    (xs, shifts)
+                }
+                None => (
+                    vec![centred_highpass(&covs[i].values, fs, hp)],
+                    tile_shifts(),
+                ),
+            };
+            if shifts.is_empty() {
+                return None;
+            }
+            let cols: Vec<Vec<f64>> = xs
+                .iter()
+                .flat_map(|x: &Vec<f64>| shifted(&apply_all(&lin, x, fs), &shifts))
+                .collect();
+            if cols.iter().any(|c| c.len() != len)
+                || cols.iter().all(|c| c.iter().all(|&a| a == 0.0))
+            {
                 return None;
             }
             Some(Cand {
                 index: i,
-                x,
-                cols: lagged(&through),
+                xs,
+                shifts,
+                cols,
             })
         })
         .collect();
@@ -383,13 +593,7 @@ pub(super) fn explain(
         .enumerate()
         .map(|(k, c)| {
             // Its own part of the joint fit, on the held-out residual.
-            let mut part = vec![0.0; len];
-            let through = apply_all(&lin, &c.x, fs);
-            for (t, col) in taps_all[k].iter().zip(lagged(&through)) {
-                for (p, v) in part.iter_mut().zip(col) {
-                    *p += t * v;
-                }
-            }
+            let part = c.part(&taps_all[k], (&lin, fs), len);
             let after: Vec<f64> = resid0.iter().zip(&part).map(|(a, b)| a - b).collect();
             let share = if e0_held > 0.0 {
                 ((e0_held - held_energy(&after)) / e0_held).clamp(-1.0, 1.0)
@@ -411,8 +615,17 @@ pub(super) fn explain(
             let w = apply_all(chain, &subtract(y, &others, &others_taps), fs);
             let without = m.errors(&w, &m.fit_linear(&w)).snr_db;
             let cov = &covs[c.index];
-            let (cause, label, (with_it, of), seen_at) = label(cov, &covs[..singles], fs, hp);
-            let follows = follows_reference(&through, &fit.t, &dot, &held_energy);
+            let ((cause, label, (with_it, of), seen_at), follows) = match &channels_of[c.index] {
+                // The lines' fitted sum: one line alone is mostly noise.
+                Some(ch) => (
+                    label_lines(cov, ch, (fs, hp), (&c.shifts, spans.len())),
+                    follows_reference(&part, &fit.t, &dot, &held_energy),
+                ),
+                None => (
+                    label(cov, &covs[..singles], fs, hp),
+                    follows_reference(&apply_all(&lin, &c.xs[0], fs), &fit.t, &dot, &held_energy),
+                ),
+            };
             Explanation {
                 observable: cov.observable,
                 rect: cov.rect,
@@ -426,6 +639,11 @@ pub(super) fn explain(
                 residual_share: share,
                 snr_gain_db: cur.snr_db - without,
                 taps: taps_all[k].clone(),
+                shifts: c.shifts.clone(),
+                renewal: channels_of[c.index]
+                    .as_ref()
+                    .and(m.opts.renewal)
+                    .map(|(a, b)| [a, b]),
                 follows_reference: follows,
                 refit: follows < FOLLOWS_SHARE,
             }
@@ -527,12 +745,67 @@ fn pool(covs: &[Covariate], n: usize) -> Vec<(Covariate, Vec<[u32; 4]>)> {
     out
 }
 
+/// The lines' joint candidates, rows then columns (each with two lines
+/// or more): a covariate standing for them (their mean; the rectangle
+/// holding their parts), the parts, and one channel per line
+/// ([`line_channels`]).
+#[allow(clippy::type_complexity)]
+fn joint_lines(lines: &[&Covariate], n: usize) -> Vec<(Covariate, Vec<[u32; 4]>, Vec<Vec<f64>>)> {
+    [Observable::RowIntensity, Observable::ColumnIntensity]
+        .into_iter()
+        .filter_map(|obs| {
+            let parts: Vec<&Covariate> = lines
+                .iter()
+                .copied()
+                .filter(|c| {
+                    c.observable == obs
+                        && c.values.len() == n
+                        && c.values.iter().all(|v| v.is_finite())
+                })
+                .collect();
+            let rects: Vec<[u32; 4]> = parts.iter().map(|c| c.rect).collect();
+            let channels = line_channels(obs, &rects, n, |i| &parts[i].values);
+            if channels.len() < 2 {
+                return None;
+            }
+            let mut mean = vec![0.0; n];
+            for ch in &channels {
+                for (m, v) in mean.iter_mut().zip(ch) {
+                    *m += v / channels.len() as f64;
+                }
+            }
+            Some((
+                Covariate {
+                    observable: obs,
+                    rect: bounds(&parts),
+                    inside: false,
+                    values: mean,
+                },
+                rects,
+                channels,
+            ))
+        })
+        .collect()
+}
+
 /// One explained term on a new recording: its observable measured there
-/// (one value per frame) and the stored FIR brought to that recording's
-/// scale, or `None` where the calibration said to fit it again
+/// (one channel, or one a line for lines: [`line_channels`]; one value
+/// per frame) and the stored FIRs brought to that recording's scale, or
+/// `None` where the calibration said to fit it again
 /// ([`Explanation::refit`]).
 pub struct Measured {
-    pub values: Vec<f64>,
+    pub channels: Vec<Vec<f64>>,
+    /// The farthest lag to choose from, frames (this recording's
+    /// recovery's `align` reach).
+    pub reach: usize,
+    /// The lags of each channel's FIR; when fitted again ([`Measured::taps`]
+    /// `None`) on lines, as many lags are chosen here ([`pick_shifts`],
+    /// by the energy each removes from this recording's recovery).
+    pub shifts: Vec<i64>,
+    /// The spans of frames over which each channel has its own FIR (one
+    /// per reference for lines, [`reference_spans`]; the whole recording
+    /// otherwise), high-passed first.
+    pub spans: Vec<std::ops::Range<usize>>,
     pub taps: Option<Vec<f64>>,
 }
 
@@ -555,10 +828,26 @@ pub fn remove_explained(
     let mut out = y.to_vec();
     let mut cols = Vec::new();
     for t in terms {
-        if t.values.len() != y.len() {
+        if t.channels.is_empty() || t.channels.iter().any(|c| c.len() != y.len()) {
             continue;
         }
-        let lags = lagged(&centred_highpass(&t.values, fs, hp));
+        let passed: Vec<Vec<f64>> = t
+            .channels
+            .iter()
+            .map(|c| centred_highpass(c, fs, hp))
+            .collect();
+        let xs = per_reference(&passed, &t.spans);
+        let shifts = match (&t.taps, t.channels.len() > 1) {
+            (None, true) => pick_shifts(&xs, (t.shifts.len(), t.reach), |cols: &[Vec<f64>]| {
+                let plain = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
+                orthonormal(cols, &plain)
+                    .iter()
+                    .map(|q| plain(q, y).powi(2))
+                    .sum()
+            }),
+            _ => t.shifts.clone(),
+        };
+        let lags: Vec<Vec<f64>> = xs.iter().flat_map(|c| shifted(c, &shifts)).collect();
         match &t.taps {
             Some(taps) if taps.len() == lags.len() => {
                 for (col, a) in lags.iter().zip(taps) {
@@ -623,17 +912,25 @@ fn joint_taps(
 ) -> Vec<Vec<f64>> {
     let built: Vec<Vec<f64>> = cands
         .iter()
-        .flat_map(|c| lagged(&apply_all(lin, &c.x, fs)))
+        .flat_map(|c| {
+            c.xs.iter()
+                .flat_map(|x| shifted(&apply_all(lin, x, fs), &c.shifts))
+                .collect::<Vec<_>>()
+        })
         .collect();
     let cols: Vec<&[f64]> = built.iter().map(Vec::as_slice).collect();
     // A small ridge keeps a nearly dependent set solvable.
     let sol = ridge_solve(&cols, resid, dot, 1e-9)
         .unwrap_or_else(|| nalgebra::DVector::zeros(cols.len()));
-    let per = 2 * LAGS + 1;
+    let mut off = 0;
     cands
         .iter()
-        .enumerate()
-        .map(|(c, _)| (0..per).map(|l| sol[c * per + l]).collect())
+        .map(|c| {
+            let k = c.xs.len() * c.shifts.len();
+            let taps = (off..off + k).map(|j| sol[j]).collect();
+            off += k;
+            taps
+        })
         .collect()
 }
 
@@ -671,13 +968,99 @@ fn ridge_solve(
 fn subtract(y: &[f64], cands: &[&Cand], taps: &[Vec<f64>]) -> Vec<f64> {
     let mut out = y.to_vec();
     for (c, t) in cands.iter().zip(taps) {
-        for (k, col) in lagged(&c.x).iter().enumerate() {
-            for (o, v) in out.iter_mut().zip(col) {
-                *o -= t[k] * v;
+        for (x, tx) in c.xs.iter().zip(t.chunks(c.shifts.len())) {
+            for (a, col) in tx.iter().zip(shifted(x, &c.shifts)) {
+                for (o, v) in out.iter_mut().zip(col) {
+                    *o -= a * v;
+                }
             }
         }
     }
     out
+}
+
+/// Up to `most` lags of -`reach`..=`reach` for the signals `xs`: each
+/// lag alone is scored by `removes` (what its columns, one per signal,
+/// remove); the best is kept, then the next best while each removes at
+/// least [`LINE_SHIFT_SHARE`] of what the best does. Empty when none
+/// removes anything.
+pub fn pick_shifts(
+    xs: &[Vec<f64>],
+    (most, reach): (usize, usize),
+    removes: impl Fn(&[Vec<f64>]) -> f64,
+) -> Vec<i64> {
+    let reach = reach.min(MAX_LINE_REACH) as i64;
+    let mut scored: Vec<(f64, i64)> = (-reach..=reach)
+        .map(|s| {
+            let cols: Vec<Vec<f64>> = xs.iter().flat_map(|x| shifted(x, &[s])).collect();
+            (removes(&cols), s)
+        })
+        .filter(|(r, _)| r.is_finite() && *r > 0.0)
+        .collect();
+    scored.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let top = scored.first().map_or(0.0, |t| t.0);
+    let mut out: Vec<i64> = scored
+        .iter()
+        .take(most)
+        .filter(|(r, _)| *r >= LINE_SHIFT_SHARE * top)
+        .map(|t| t.1)
+        .collect();
+    out.sort_unstable();
+    out
+}
+
+/// What a kept joint candidate of lines (`cov`, standing for them;
+/// `channels`, one a line) most likely is: the sensor's rows (columns)
+/// when the lines change each on its own, the light when they change
+/// together (read, like [`label`], from the correlations of their
+/// high-passed signals: how many pairs of neighbouring lines correlate
+/// beyond chance).
+fn label_lines(
+    cov: &Covariate,
+    channels: &[Vec<f64>],
+    (fs, hp): (f64, Option<(usize, f64)>),
+    (shifts, references): (&[i64], usize),
+) -> (&'static str, String, (usize, usize), [u32; 4]) {
+    let prep: Vec<Vec<f64>> = channels
+        .iter()
+        .map(|v| centred_highpass(v, fs, hp))
+        .collect();
+    let n = prep.first().map_or(1, Vec::len).max(1);
+    let threshold = (WITH_IT_Z / (n as f64).sqrt()).max(WITH_IT_MIN);
+    let pairs = prep.len().saturating_sub(1);
+    let together = prep
+        .windows(2)
+        .filter(|w| corr(&w[0], &w[1]).abs() >= threshold)
+        .count();
+    let (what, whose) = match cov.observable {
+        Observable::RowIntensity => ("rows", "row"),
+        _ => ("columns", "column"),
+    };
+    let [x, y, w, h] = cov.rect;
+    if 2 * together > pairs {
+        (
+            "light",
+            format!(
+                "the light, changing along the sensor's {what}: {together} of the {pairs} pairs of neighbouring {what}' intensities (measured beside the region, within [{x}, {y}, {w}, {h}]) change together"
+            ),
+            (together, pairs),
+            cov.rect,
+        )
+    } else {
+        let cause = match cov.observable {
+            Observable::RowIntensity => "sensor_rows",
+            _ => "sensor_columns",
+        };
+        (
+            cause,
+            format!(
+                "the sensor's {what}: each {whose}'s intensity, measured beside the region (within [{x}, {y}, {w}, {h}]), changes on its own ({together} of the {pairs} pairs of neighbouring {what} change together), and the recovery weighs each {whose}'s offset by its own texture; the {} {what} are fitted jointly, a weight for each {whose}, each of the recovery's {references} reference frame(s) and each lag of {shifts:?} frames (the recovery's bands are aligned at lags of their own)",
+                channels.len()
+            ),
+            (channels.len() - together.min(channels.len()), channels.len()),
+            cov.rect,
+        )
+    }
 }
 
 /// What a kept covariate most likely is: its cause, in words, and how
@@ -756,7 +1139,8 @@ fn label(
                 )
             }
         }
-        Observable::Intensity => {
+        // Lines are labelled by `label_lines`.
+        Observable::Intensity | Observable::RowIntensity | Observable::ColumnIntensity => {
             let same_rows = with.iter().all(|c| c.rect[1] == y && c.rect[3] == h);
             let other_rows = peers.iter().any(|c| c.rect[1] != y);
             if same_rows && other_rows && k > 1 {
@@ -809,18 +1193,41 @@ mod tests {
     use crate::rng::{Xoshiro256, Ziggurat};
     use std::f64::consts::PI;
 
-    /// A recovery of a chirp with `leak` times a broadband motion `c` in
-    /// it, and covariates: `c` seen on one tile outside the region (with
-    /// its own noise), an unrelated motion on another, an intensity.
-    fn case(leak: f64, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<Covariate>, Options) {
-        let (fs, fr) = (2200.0, 8800.0);
-        let opts = Options::for_rate(fs);
-        let r: Vec<f64> = (0..(fr * 2.2) as usize)
+    /// A test case: the recovery, the reference, the covariates, options.
+    type Case = (Vec<f64>, Vec<f64>, Vec<Covariate>, Options);
+
+    /// Three seeds of a case with no effect (`make(0.0, seed)`): nothing
+    /// is kept.
+    fn nothing_kept_without_it(make: fn(f64, u64) -> Case) {
+        for seed in [1, 2, 3] {
+            let (y, r, covs, opts) = make(0.0, seed);
+            let c = calibrate_with(&y, (None, &covs), 2200.0, (&r, 8800.0), &opts, &mut |_| {})
+                .unwrap();
+            assert!(
+                c.report.explained.is_empty(),
+                "seed {seed}: {:#?}",
+                c.report.explained
+            );
+        }
+    }
+
+    /// A 2.2 s chirp from 100 Hz to 1 kHz sampled at `fr`.
+    fn chirp(fr: f64) -> Vec<f64> {
+        (0..(fr * 2.2) as usize)
             .map(|i| {
                 let t = i as f64 / fr;
                 (2.0 * PI * (100.0 * t + 900.0 * t * t / 4.4)).sin()
             })
-            .collect();
+            .collect()
+    }
+
+    /// A recovery of a chirp with `leak` times a broadband motion `c` in
+    /// it, and covariates: `c` seen on one tile outside the region (with
+    /// its own noise), an unrelated motion on another, an intensity.
+    fn case(leak: f64, seed: u64) -> Case {
+        let (fs, fr) = (2200.0, 8800.0);
+        let opts = Options::for_rate(fs);
+        let r = chirp(fr);
         let n = 4400;
         let mut rng = Xoshiro256::new(seed);
         let z = Ziggurat::new();
@@ -870,15 +1277,85 @@ mod tests {
         // The middle tap carries the leak (in recovery units, ~0.5 through
         // the high-pass).
         assert!((e[0].taps[LAGS] - 0.5).abs() < 0.1, "{:?}", e[0].taps);
-        for seed in [1, 2, 3] {
-            let (y, r, covs, opts) = case(0.0, seed);
-            let c = calibrate_with(&y, (None, &covs), 2200.0, (&r, 8800.0), &opts, &mut |_| {})
-                .unwrap();
-            assert!(
-                c.report.explained.is_empty(),
-                "seed {seed}: {:#?}",
-                c.report.explained
-            );
+        nothing_kept_without_it(case);
+    }
+
+    /// A recovery of the chirp with each of 24 rows' offsets in it,
+    /// weighed per row and per reference (the weights change at the
+    /// renewal, as a reference frame's own noise sets them), and the rows
+    /// observed beside the region, left and right, each part with its own
+    /// noise; a second set of weights reaches the recovery two frames late
+    /// (a band `align` shifted). `gain`: the offsets' size in the recovery
+    /// (0: none).
+    fn rows_case(gain: f64, seed: u64) -> Case {
+        let (fs, fr) = (2200.0, 8800.0);
+        let opts = Options {
+            renewal: Some((2200, 32)),
+            line_reach: 4,
+            ..Options::for_rate(fs)
+        };
+        let r = chirp(fr);
+        let n = 4400;
+        let mut rng = Xoshiro256::new(seed);
+        let z = Ziggurat::new();
+        let mut draw =
+            |s: f64, k: usize| -> Vec<f64> { (0..k).map(|_| z.sample(&mut rng) * s).collect() };
+        let rows = 24;
+        let offsets: Vec<Vec<f64>> = (0..rows).map(|_| draw(3.0, n)).collect();
+        let weights = [draw(1.0, rows), draw(1.0, rows)];
+        let late = [draw(0.7, rows), draw(0.7, rows)];
+        let t = sample_at(&r, fr, (0..n).map(|i| i as f64 / fs));
+        let w = draw(0.3, n);
+        let spans = reference_spans(n, opts.renewal);
+        let y: Vec<f64> = (0..n)
+            .map(|i| {
+                let k = spans.iter().position(|s| s.contains(&i)).unwrap();
+                let e: f64 = (0..rows)
+                    .map(|j| {
+                        let two_ago = if i >= 2 { offsets[j][i - 2] } else { 0.0 };
+                        weights[k][j] * offsets[j][i] + late[k][j] * two_ago
+                    })
+                    .sum();
+                t[i] + gain * e + w[i]
+            })
+            .collect();
+        let y = redo_highpass(&y, fs, opts.highpass);
+        let mut covs = Vec::new();
+        for (j, o) in offsets.iter().enumerate() {
+            for (x, width) in [(0, 20), (80, 30)] {
+                let noise = draw(0.3, n);
+                covs.push(Covariate {
+                    observable: Observable::RowIntensity,
+                    rect: [x, 30 + j as u32, width, 1],
+                    inside: false,
+                    values: o.iter().zip(noise).map(|(a, b)| 100.0 + a + b).collect(),
+                });
+            }
         }
+        (y, r, covs, opts)
+    }
+
+    /// The rows' offsets are found together, as the sensor's rows, with one
+    /// tap a row and reference; without them nothing is kept.
+    #[test]
+    fn rows_that_change_each_on_its_own_are_found_together_and_nothing_without_them() {
+        let spans = reference_spans(4400, Some((2200, 32)));
+        assert_eq!(spans, vec![0..2232, 2232..4400]);
+        assert_eq!(reference_spans(2500, Some((2200, 32))), vec![0..2500]);
+        assert_eq!(reference_spans(100, None), vec![0..100]);
+        let (y, r, covs, opts) = rows_case(0.05, 5);
+        let c =
+            calibrate_with(&y, (None, &covs), 2200.0, (&r, 8800.0), &opts, &mut |_| {}).unwrap();
+        let e = &c.report.explained;
+        assert_eq!(e.len(), 1, "{e:#?}");
+        assert_eq!(e[0].observable, Observable::RowIntensity);
+        assert_eq!(e[0].cause, "sensor_rows", "{}", e[0].label);
+        assert_eq!(e[0].tiles.len(), 48);
+        assert_eq!(e[0].shifts, vec![0, 2]);
+        assert_eq!(e[0].taps.len(), 96, "24 rows x 2 references x 2 lags");
+        assert!(e[0].refit, "{e:#?}");
+        let gain = c.report.after.snr_db - c.report.before.snr_db;
+        assert!(gain > 6.0, "gain {gain} dB");
+        nothing_kept_without_it(rows_case);
     }
 }

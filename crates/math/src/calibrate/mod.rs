@@ -83,7 +83,8 @@ mod transfer;
 pub use capture_time::{combine, unfold, Strips, UNFOLD_MAX_CORRELATION};
 pub use correction::{Correction, FrameEvent, Line};
 pub use explain::{
-    remove_explained, Covariate, Explanation, Measured, Observable, StoredTerm, FOLLOWS_SHARE, LAGS,
+    line_channels, line_groups, reference_spans, remove_explained, Covariate, Explanation,
+    Measured, Observable, StoredTerm, FOLLOWS_SHARE, LAGS, MAX_LINE_REACH, MAX_LINE_SHIFTS,
 };
 pub use frame::{pixel_frame, PixelFrame};
 pub use identify::Confound;
@@ -91,6 +92,7 @@ pub use relation::{check_silent, LINE_DB, MARGIN_DB, SILENT_PEAK};
 pub use report::{
     explained_from_report, frame_from_report, reusable_from_report, EventReport, LineReport,
     LineUncertainty, Parameters, ReportError, Uncertainty, Unexplained, UnexplainedKind,
+    MAX_STORED_TILES,
 };
 pub use signal::{alias, equalize, sample_at, stft_len};
 pub use signal::{peak, smooth3};
@@ -113,6 +115,18 @@ pub struct Options {
     /// After the catalog, explain what is left with the recording's own
     /// observables when they are given ([`calibrate_with`]).
     pub explain: bool,
+    /// How the recovery renews its reference frame, `(interval, overlap)`
+    /// in frames: every `interval` frames from the first, the next
+    /// reference takes over `overlap` frames later (the `phase` stage's
+    /// `reference_interval_s` and `reference_overlap`); `None`: one
+    /// reference throughout. The sensor's lines reach the recovery through
+    /// each reference frame's own noise, so their weights are fitted per
+    /// reference ([`reference_spans`]).
+    pub renewal: Option<(usize, usize)>,
+    /// The farthest lag (frames) by which the recovery may shift one of
+    /// its bands against the others (its `align` stage's `max_lag`): the
+    /// sensor's lines are looked for at lags up to it.
+    pub line_reach: usize,
 }
 
 impl Options {
@@ -125,6 +139,8 @@ impl Options {
             highpass: Some((4, crate::iir::default_highpass_cutoff_hz(fs))),
             effects: CATALOG.to_vec(),
             explain: true,
+            renewal: None,
+            line_reach: 0,
         }
     }
 }

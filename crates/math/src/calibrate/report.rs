@@ -619,6 +619,10 @@ struct StoredExplained {
     explained: Vec<super::explain::StoredTerm>,
 }
 
+/// Most rectangles a stored explained term may measure (the lines of a
+/// region up to 128 rows or columns, in two parts each, fit).
+pub const MAX_STORED_TILES: usize = 512;
+
 /// What the residual explainer kept, as stored in a report (`explained`
 /// of `REPORT.json`: each term's observable, tiles and taps); empty when
 /// there is none. Errors name the field.
@@ -631,18 +635,41 @@ where
     let stored = StoredExplained::deserialize(report)
         .map_err(|e| ReportError::Parse(format!("explained: {e}")))?;
     for (k, t) in stored.explained.iter().enumerate() {
-        if t.taps.len() != 2 * super::LAGS + 1 || t.taps.iter().any(|v| !v.is_finite()) {
-            return Err(ReportError::Parse(format!(
-                "explained[{k}].taps: {} finite numbers expected",
-                2 * super::LAGS + 1
-            )));
-        }
         if t.tiles.is_empty()
-            || t.tiles.len() > 64
+            || t.tiles.len() > MAX_STORED_TILES
             || t.tiles.iter().any(|r| r[2] == 0 || r[3] == 0)
         {
             return Err(ReportError::Parse(format!(
-                "explained[{k}].tiles: 1 to 64 rectangles [x, y, w, h] of at least 1x1 expected"
+                "explained[{k}].tiles: 1 to {MAX_STORED_TILES} rectangles [x, y, w, h] of at least 1x1 expected"
+            )));
+        }
+        let reach = match t.observable.is_line() {
+            true => super::MAX_LINE_REACH,
+            false => super::LAGS,
+        };
+        if t.shifts.is_empty()
+            || t.shifts.len() > 2 * reach + 1
+            || t.shifts.iter().any(|s| s.unsigned_abs() as usize > reach)
+        {
+            return Err(ReportError::Parse(format!(
+                "explained[{k}].shifts: 1 to {} lags of -{reach}..={reach} frames expected, got {:?}",
+                2 * reach + 1,
+                t.shifts
+            )));
+        }
+        // Lines have one FIR a line and reference of the calibration's
+        // recording.
+        let channels = super::explain::line_groups(t.observable, &t.tiles).len();
+        let taps = channels * t.shifts.len();
+        let fits = match t.observable.is_line() {
+            true => t.taps.len() % taps == 0 && !t.taps.is_empty(),
+            false => t.taps.len() == taps,
+        };
+        if !fits || t.taps.iter().any(|v| !v.is_finite()) {
+            return Err(ReportError::Parse(format!(
+                "explained[{k}].taps: {}{taps} finite numbers expected ({channels} channel(s) of {} taps)",
+                if t.observable.is_line() { "a multiple of " } else { "" },
+                t.shifts.len()
             )));
         }
     }

@@ -361,6 +361,9 @@ impl Scene {
             .surround
             .as_ref()
             .map_or((0.0, 0.0), |su| su.camera_shift(t_s));
+        if let Some(su) = m.surround.as_mut() {
+            su.begin_frame(w, index);
+        }
         let global = match timing {
             Timing::Global(d) => m.prepare_global(d, s),
             Timing::Modal(t) => {

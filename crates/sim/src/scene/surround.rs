@@ -81,6 +81,8 @@ pub struct SurroundSpec {
     pub light: Option<LightSpec>,
     /// Standard deviation (DN) of an offset each row takes per frame.
     pub row_noise_dn: f64,
+    /// Standard deviation (DN) of an offset each column takes per frame.
+    pub column_noise_dn: f64,
 }
 
 impl SurroundSpec {
@@ -95,6 +97,7 @@ impl SurroundSpec {
             && self.movers.is_empty()
             && self.light.is_none()
             && self.row_noise_dn == 0.0
+            && self.column_noise_dn == 0.0
     }
 }
 
@@ -171,6 +174,11 @@ pub(super) struct Surroundings {
     light: Option<Light>,
     row_noise_dn: f64,
     row_key: u64,
+    column_noise_dn: f64,
+    column_key: u64,
+    /// The columns' offsets of the frame [`Surroundings::begin_frame`]
+    /// was last called for (empty without column noise).
+    column_offsets: Vec<f32>,
     interp: Interp,
     zig: Ziggurat,
     /// One row of the background shifted, and a column buffer.
@@ -248,12 +256,21 @@ impl Surroundings {
                 msg: format!("must be a finite std >= 0 DN, got {}", spec.row_noise_dn),
             });
         }
+        if !(spec.column_noise_dn.is_finite() && spec.column_noise_dn >= 0.0) {
+            return Err(SimError::Invalid {
+                field: "column_noise_dn".into(),
+                msg: format!("must be a finite std >= 0 DN, got {}", spec.column_noise_dn),
+            });
+        }
         Ok(Surroundings {
             camera,
             movers,
             light,
             row_noise_dn: spec.row_noise_dn,
             row_key: hash2(seed, 5),
+            column_noise_dn: spec.column_noise_dn,
+            column_key: hash2(seed, 6),
+            column_offsets: Vec::with_capacity(if spec.column_noise_dn > 0.0 { w } else { 0 }),
             interp: Interp::new(BACKGROUND_SIGMA_PX),
             zig: Ziggurat::new(),
             tmp: vec![0.0; w],
@@ -306,8 +323,23 @@ impl Surroundings {
         }
     }
 
-    /// The light and the row offset on a finished row `line` (row `y` of
-    /// a `w`×`h` frame, shown at `t_s`; `frame` keys the row noise).
+    /// Draws the columns' offsets of frame `frame` (`w` columns; none
+    /// without column noise or a frame index), which
+    /// [`Surroundings::light_and_rows`] adds to every row of it.
+    pub(super) fn begin_frame(&mut self, w: usize, frame: Option<u64>) {
+        self.column_offsets.clear();
+        if let (true, Some(f)) = (self.column_noise_dn > 0.0, frame) {
+            let mut rng = Xoshiro256::new(hash2(self.column_key, f));
+            for _ in 0..w {
+                let off = (self.zig.sample(&mut rng) * self.column_noise_dn) as f32;
+                self.column_offsets.push(off);
+            }
+        }
+    }
+
+    /// The light and the row and column offsets on a finished row `line`
+    /// (row `y` of a `w`×`h` frame, shown at `t_s`; `frame` keys the row
+    /// noise, [`Surroundings::begin_frame`] drew the columns').
     pub(super) fn light_and_rows(
         &self,
         (w, h): (usize, usize),
@@ -334,6 +366,11 @@ impl Surroundings {
                 for v in line.iter_mut() {
                     *v += off;
                 }
+            }
+        }
+        if frame.is_some() && self.column_offsets.len() == line.len() {
+            for (v, o) in line.iter_mut().zip(&self.column_offsets) {
+                *v += o;
             }
         }
     }
@@ -612,5 +649,38 @@ mod tests {
         }
         let rms = (offsets.iter().map(|o| o * o).sum::<f64>() / h as f64).sqrt();
         assert!((25.0..100.0).contains(&rms), "row offsets' rms {rms}");
+        // Columns: one offset down each column, another draw next frame.
+        let cols = SurroundSpec {
+            column_noise_dn: 50.0,
+            ..Default::default()
+        };
+        let column_offsets = |frame: u64| -> Vec<i32> {
+            let mut p = vec![0u16; w * h];
+            scene(&cols).render(frame, 0.0, crate::Dest::U16(&mut p));
+            let mut q = vec![0u16; w * h];
+            scene(&SurroundSpec::default()).render(frame, 0.0, crate::Dest::U16(&mut q));
+            (0..w)
+                .map(|x| {
+                    let d: Vec<i32> = (0..h)
+                        .map(|y| p[y * w + x] as i32 - q[y * w + x] as i32)
+                        .collect();
+                    assert!(
+                        d.iter().all(|&v| (v - d[0]).abs() <= 1),
+                        "column {x}: {d:?}"
+                    );
+                    d[0]
+                })
+                .collect()
+        };
+        let (a, b) = (column_offsets(3), column_offsets(4));
+        let rms = (a.iter().map(|&o| f64::from(o * o)).sum::<f64>() / w as f64).sqrt();
+        assert!((25.0..100.0).contains(&rms), "column offsets' rms {rms}");
+        assert_ne!(a, b, "the columns' offsets change from frame to frame");
+        assert!(cols.check((w as u32, h as u32)).is_ok());
+        let bad = SurroundSpec {
+            column_noise_dn: -1.0,
+            ..Default::default()
+        };
+        assert!(bad.check((w as u32, h as u32)).is_err());
     }
 }

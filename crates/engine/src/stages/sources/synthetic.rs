@@ -125,6 +125,10 @@ params! {
             .at_least(0.0)
             .unit("DN")
             .doc("the sensor's rows: each row takes an offset per frame, this standard deviation"),
+        column_noise_dn: f64 = ParamSpec::of(ParamType::Float, Def::Float(0.0))
+            .at_least(0.0)
+            .unit("DN")
+            .doc("the sensor's columns: each column takes an offset per frame, this standard deviation"),
     }
 }
 
@@ -186,6 +190,7 @@ impl Default for SyntheticParams {
             background_motion: Vec::new(),
             light: None,
             row_noise_dn: 0.0,
+            column_noise_dn: 0.0,
         }
     }
 }
@@ -261,6 +266,7 @@ impl SyntheticParams {
             movers: self.background_motion.clone(),
             light: self.light.clone(),
             row_noise_dn: self.row_noise_dn,
+            column_noise_dn: self.column_noise_dn,
         }
     }
 

@@ -47,7 +47,9 @@ use crate::*;
 use std::path::PathBuf;
 
 /// Most regions in one stage.
-pub const MAX_REGIONS: usize = 64;
+/// (A calibration's survey measures its tiles and the sensor's lines
+/// around a region: up to 293.)
+pub const MAX_REGIONS: usize = 512;
 /// Half-width of the derivative filter (pixels left out at the frame's edge).
 pub const MARGIN: usize = 3;
 
