@@ -28,9 +28,19 @@ fuzz_target!(|data: &[u8]| {
         let x: Vec<f64> = (0..1024).map(|i| (i as f64 * 0.3).cos()).collect();
         let measured: Vec<cal::Measured> = terms
             .iter()
-            .map(|t| cal::Measured {
-                values: x.clone(),
-                taps: (!t.refit).then(|| t.taps.iter().map(|a| a * ratio).collect()),
+            .filter(|t| t.refit || !t.observable.is_line())
+            .map(|t| {
+                let lines = t.observable.is_line();
+                cal::Measured {
+                    channels: match lines {
+                        true => cal::line_channels(t.observable, &t.tiles, x.len(), |_| &x),
+                        false => vec![x.clone()],
+                    },
+                    shifts: t.shifts.clone(),
+                    reach: 8,
+                    spans: cal::reference_spans(x.len(), lines.then_some((400, 32))),
+                    taps: (!t.refit).then(|| t.taps.iter().map(|a| a * ratio).collect()),
+                }
             })
             .collect();
         let hp = cal::Options::for_rate(2200.0).highpass;
