@@ -235,7 +235,9 @@ pub struct Explanation {
     pub shifts: Vec<i64>,
     /// For lines: how the recovery renewed its reference
     /// (`[interval, overlap]` frames, [`super::Options::renewal`]); each
-    /// line has one FIR per reference, fitted again on a new recording.
+    /// line has one FIR per reference, fitted again on a new recording
+    /// over that recording's own references (a record: `listen` does not
+    /// read it back).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub renewal: Option<[usize; 2]>,
     /// Share of the observable's held-out energy (high-passed, as the
@@ -265,9 +267,6 @@ pub struct StoredTerm {
     /// observed: [`tile_shifts`]).
     #[serde(default = "tile_shifts")]
     pub shifts: Vec<i64>,
-    /// See [`Explanation::renewal`].
-    #[serde(default)]
-    pub renewal: Option<[usize; 2]>,
     /// Fitted again on the new recording (absent in a report written
     /// before the calibration said: the stored taps).
     #[serde(default)]
@@ -440,43 +439,44 @@ pub(super) fn explain(
     // The residual of the best model so far.
     let resid0: Vec<f64> = z.iter().zip(&fit.t).map(|(a, t)| a - fit.g * t).collect();
     let e0_held = held_energy(&resid0);
+    // The held-out energy of `r` that `cols` remove, fitted on the fit
+    // part.
+    let removed = |cols: &[Vec<f64>], r: &[f64]| {
+        let mut after = r.to_vec();
+        for b in orthonormal(cols, &dot) {
+            let beta = dot(&b, r);
+            for (a, v) in after.iter_mut().zip(&b) {
+                *a -= beta * v;
+            }
+        }
+        held_energy(r) - held_energy(&after)
+    };
     let mut cands: Vec<Cand> = usable
         .iter()
         .filter_map(|&i| {
-            let (xs, shifts) = match &channels_of[i] {
+            let xs: Vec<Vec<f64>> = match &channels_of[i] {
                 Some(ch) => {
                     let hp: Vec<Vec<f64>> =
                         ch.iter().map(|v| centred_highpass(v, fs, hp)).collect();
-                    let xs = per_reference(&hp, &spans);
-                    let through: Vec<Vec<f64>> =
-                        xs.iter().map(|x| apply_all(&lin, x, fs)).collect();
-                    // Each lag alone, by the held-out residual it removes.
-                    let removes = |cols: &[Vec<f64>]| {
-                        let mut after = resid0.clone();
-                        for b in orthonormal(cols, &dot) {
-                            let beta = dot(&b, &resid0);
-                            for (a, v) in after.iter_mut().zip(&b) {
-                                *a -= beta * v;
-                            }
-                        }
-                        e0_held - held_energy(&after)
-                    };
-                    let reach = m.opts.line_reach.min(MAX_LINE_REACH);
-                    let shifts = pick_shifts(&through, (MAX_LINE_SHIFTS, reach), removes);
-                    (xs, shifts)
+                    per_reference(&hp, &spans)
                 }
-                None => (
-                    vec![centred_highpass(&covs[i].values, fs, hp)],
-                    tile_shifts(),
-                ),
+                None => vec![centred_highpass(&covs[i].values, fs, hp)],
+            };
+            let through: Vec<Vec<f64>> = xs.iter().map(|x| apply_all(&lin, x, fs)).collect();
+            let shifts = match channels_of[i] {
+                // Each lag alone, by the held-out residual it removes.
+                Some(_) => {
+                    let reach = m.opts.line_reach.min(MAX_LINE_REACH);
+                    pick_shifts(&through, (MAX_LINE_SHIFTS, reach), |cols| {
+                        removed(cols, &resid0)
+                    })
+                }
+                None => tile_shifts(),
             };
             if shifts.is_empty() {
                 return None;
             }
-            let cols: Vec<Vec<f64>> = xs
-                .iter()
-                .flat_map(|x: &Vec<f64>| shifted(&apply_all(&lin, x, fs), &shifts))
-                .collect();
+            let cols: Vec<Vec<f64>> = through.iter().flat_map(|x| shifted(x, &shifts)).collect();
             if cols.iter().any(|c| c.len() != len)
                 || cols.iter().all(|c| c.iter().all(|&a| a == 0.0))
             {
@@ -507,20 +507,7 @@ pub(super) fn explain(
         // motion on a tile whose gradients do not sum to zero): the more
         // direct observable is kept, an intensity before a motion, then the
         // one that pools more of the image.
-        let gains: Vec<f64> = cands
-            .iter()
-            .map(|c| {
-                let q = orthonormal(&c.cols, &dot);
-                let mut after = resid.clone();
-                for b in &q {
-                    let beta = dot(b, &resid);
-                    for (a, v) in after.iter_mut().zip(b) {
-                        *a -= beta * v;
-                    }
-                }
-                held_energy(&resid) - held_energy(&after)
-            })
-            .collect();
+        let gains: Vec<f64> = cands.iter().map(|c| removed(&c.cols, &resid)).collect();
         let top = gains.iter().copied().fold(0.0, f64::max);
         tracing::debug!(
             ms = t0.elapsed().as_secs_f64() * 1e3,
@@ -825,6 +812,7 @@ pub fn remove_explained(
     fs: f64,
     hp: Option<(usize, f64)>,
 ) -> (Vec<f64>, f64) {
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
     let mut out = y.to_vec();
     let mut cols = Vec::new();
     for t in terms {
@@ -839,10 +827,9 @@ pub fn remove_explained(
         let xs = per_reference(&passed, &t.spans);
         let shifts = match (&t.taps, t.channels.len() > 1) {
             (None, true) => pick_shifts(&xs, (t.shifts.len(), t.reach), |cols: &[Vec<f64>]| {
-                let plain = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
-                orthonormal(cols, &plain)
+                orthonormal(cols, &dot)
                     .iter()
-                    .map(|q| plain(q, y).powi(2))
+                    .map(|q| dot(q, y).powi(2))
                     .sum()
             }),
             _ => t.shifts.clone(),
@@ -860,7 +847,6 @@ pub fn remove_explained(
             None => cols.extend(lags),
         }
     }
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
     let before = dot(&out, &out);
     for q in orthonormal(&cols, &dot) {
         let g = dot(&q, &out);
