@@ -258,6 +258,27 @@ pub fn recover_observed(
         &[],
         pipeline::by("calibrate (the strips' shared pyramid)"),
     );
+    // One thread a stage: the branches (a phase stage per strip and per
+    // set of bands, each with its own sink), the shared pyramid and the
+    // observing stage keep the cores busy between them. With the phase
+    // stage's default (on two cores, a helper per stage spinning between
+    // frames) the helpers took 43% of a calibration's CPU: the calibrate
+    // bench's clip (64x64) took 3.2 s (4.7 s of CPU) against 1.5-1.8 s,
+    // and a 256x256 one 7.1-7.8 s against 4.5-4.7 s. The shared pyramid
+    // takes the setting too (two threads there: 4.6-5.1 s at 256x256).
+    let phase = pipeline::stage_mut(&mut decl, PHASE.id)?;
+    if !phase
+        .params()
+        .iter()
+        .any(|p| p.key == PhaseParams::threads.name)
+    {
+        pipeline::put(
+            phase,
+            PhaseParams::threads,
+            1usize,
+            pipeline::by("calibrate (one thread a branch: the branches share the cores)"),
+        )?;
+    }
     shared_pyramid(decl.stage(PHASE)?, &mut pyr)?;
     pipeline::insert_before(&mut decl, PHASE.id, pyr)?;
     let branch = [PHASE.id, ALIGN.id, HIGHPASS.id, OUT.id];
