@@ -4,7 +4,7 @@ use super::VideoArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use vibroscope::listen::{
-    self, BandFilter, Denoise, Fill, ListenOptions, Method, OutputRate, RollingShutter,
+    self, BandFilter, Denoise, Fill, ListenOptions, Method, OutputRate, RollingShutter, Unfold,
 };
 use vibroscope::pipeline::RunSettings;
 use vibroscope::UsageError;
@@ -129,7 +129,9 @@ pub struct Args {
     /// terms' tiles are measured in the same run); not the per-recording
     /// ones (dropped frames, soft clipping, gain drift). A readout found across the rows
     /// (capture_time) recombines the strips of rows it was found on, each
-    /// at its delay; with --rolling-shutter, the line delay is the
+    /// at its delay, and unfolds what they sampled above the frame rate's
+    /// Nyquist frequency where they show it holds something (see
+    /// --unfold); with --rolling-shutter, the line delay is the
     /// calibration's unless --line-delay-us is given. With --denoise, the denoiser runs
     /// again after the correction, as in the thesis' Table 4.2: an
     /// equaliser lifts the noise in the bands it boosts, so equalising
@@ -143,11 +145,21 @@ pub struct Args {
     /// different delays and can be told apart), and write the sound at
     /// twice the frame rate. The alias is estimated per frequency by least
     /// squares over the strips and shrunk (Wiener) where it is below their
-    /// noise. Off by default: against a reference sampled at the frame
-    /// times, which holds the aliases, it scores lower (see
-    /// docs/calibration.md).
-    #[arg(long, requires = "calibration")]
+    /// noise. Without this flag, listen unfolds only where the strips show
+    /// that something lies above the Nyquist frequency: each strip, left
+    /// out in turn, is predicted better from the others with the alias
+    /// than without (the note gives the figure). With it, listen unfolds
+    /// whatever they show, and says why where it cannot (capture times too
+    /// close together, or a calibration that also needs this recording's
+    /// frame or tiles).
+    #[arg(long, requires = "calibration", conflicts_with = "no_unfold")]
     unfold: bool,
+    /// With --calibration holding a readout across the rows: keep the
+    /// sound at the frame rate, the strips' delays applied there (it then
+    /// holds the aliases of what lies above the frame rate's Nyquist
+    /// frequency, as a global shutter's recovery does).
+    #[arg(long, requires = "calibration")]
+    no_unfold: bool,
     #[command(flatten)]
     rolling: RollingArgs,
 }
@@ -254,7 +266,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         },
         speaker: a.speaker,
         calibration: a.calibration,
-        unfold: a.unfold,
+        unfold: match (a.unfold, a.no_unfold) {
+            (true, _) => Unfold::Asked,
+            (_, true) => Unfold::Never,
+            _ => Unfold::Auto,
+        },
         rolling_shutter: a.rolling.options()?,
         filters,
         rate: output_rate(a.rate.as_deref())?,

@@ -796,17 +796,28 @@ pub(crate) fn speech_wav(dir: &Path) -> Option<PathBuf> {
 /// at 1.1-2 kHz).
 fn band_limited_speech(dir: &Path) -> Option<PathBuf> {
     let raw = speech_wav(dir)?;
-    let (mid, wav) = (dir.join("speech-2k.wav"), dir.join("speech-bl.wav"));
-    for (from, to, rate) in [(&raw, &mid, "2000"), (&mid, &wav, "32000")] {
+    Some(band_limited(dir, &raw, 2000))
+}
+
+/// `wav` with nothing above `rate`'s Nyquist frequency: resampled by sox
+/// to `rate` and back to 32 kHz (`dir/NAME-bl-RATE.wav`). Sampled at
+/// `rate`, it is what an ideal microphone behind an anti-aliasing filter
+/// would record.
+pub(crate) fn band_limited(dir: &Path, wav: &Path, rate: u32) -> PathBuf {
+    let stem = wav.file_stem().unwrap().to_string_lossy();
+    let mid = dir.join(format!("{stem}-{rate}.wav"));
+    let out = dir.join(format!("{stem}-bl-{rate}.wav"));
+    let rate = rate.to_string();
+    for (from, to, r) in [(wav, &mid, rate.as_str()), (&mid, &out, "32000")] {
         let o = std::process::Command::new("sox")
             .arg(from)
-            .args(["-r", rate, "-b", "32", "-e", "floating-point"])
+            .args(["-r", r, "-b", "32", "-e", "floating-point"])
             .arg(to)
             .output()
             .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
-    Some(wav)
+    out
 }
 
 /// `listen --calibration` of `dir/speech.y4m` with each of two reports
@@ -1414,17 +1425,25 @@ fn capture_time_case(name: &str, extra: &str) -> Option<(Value, Value, [f64; 2])
 /// tools.
 fn strips_case(name: &str, extra: &str, family: &[EffectKind]) -> Option<(Value, Value, [f64; 2])> {
     let d = tempfile::tempdir().unwrap();
-    let speech = band_limited_speech(d.path())?;
-    let chirp = d.path().join("chirp.wav");
+    // CALIBRATE_KEEP=1 keeps the files (printed).
+    let dir = &if std::env::var_os("CALIBRATE_KEEP").is_some() {
+        let kept = d.keep();
+        eprintln!("{name}: files kept in {}", kept.display());
+        kept
+    } else {
+        d.path().to_path_buf()
+    };
+    let speech = band_limited_speech(dir)?;
+    let chirp = dir.as_path().join("chirp.wav");
     write_chirp(&chirp);
-    let video = quadratic_object(d.path(), &format!("{name}-chirp"), &chirp, extra);
+    let video = quadratic_object(dir.as_path(), &format!("{name}-chirp"), &chirp, extra);
     let (_, before) = calibrate_with(&video, &chirp, catalog_without(family));
     let (_, after) = calibrate_with(&video, &chirp, CATALOG.to_vec());
     for (file, r) in [("before.json", &before), ("after.json", &after)] {
-        std::fs::write(d.path().join(file), serde_json::to_string(r).unwrap()).unwrap();
+        std::fs::write(dir.as_path().join(file), serde_json::to_string(r).unwrap()).unwrap();
     }
-    quadratic_object(d.path(), "speech", &speech, extra);
-    let snr = speech_with(d.path(), &speech, ["before.json", "after.json"]);
+    quadratic_object(dir.as_path(), "speech", &speech, extra);
+    let snr = speech_with(dir.as_path(), &speech, ["before.json", "after.json"]);
     let kept = |r: &Value| -> Vec<String> {
         r["effects"]
             .as_array()

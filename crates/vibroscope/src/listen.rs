@@ -70,6 +70,24 @@ pub enum OutputRate {
 /// Output rates `--rate` takes, Hz (the `resample` stage's range).
 pub const RATE_RANGE: std::ops::RangeInclusive<u32> = 1000..=384_000;
 
+/// Whether `listen --calibration` unfolds a readout across the rows
+/// (issue 50, item 3: a timing effect across the rows makes `listen` use
+/// the instants the rows were captured at, not one a frame).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Unfold {
+    /// Where the strips show that something lies above the frame rate's
+    /// Nyquist frequency: each is predicted better from the others with
+    /// it than without ([`cal::Unfolded::holds_alias`]; the default). The
+    /// note says which was chosen and by how much.
+    #[default]
+    Auto,
+    /// Asked for (`--unfold`): unfolded whatever the strips show; where it
+    /// cannot be done, the note says why.
+    Asked,
+    /// At the frame rate, the strips' delays applied there (`--no-unfold`).
+    Never,
+}
+
 /// What `listen` is asked.
 #[derive(Clone, Debug, Default)]
 pub struct ListenOptions {
@@ -89,10 +107,10 @@ pub struct ListenOptions {
     pub speaker: Option<String>,
     /// A stored calibration (REPORT.json of `calibrate`) to apply.
     pub calibration: Option<PathBuf>,
-    /// With a calibration's capture time across the rows: unfold what the
-    /// strips sampled above the frame rate's Nyquist frequency, at twice
-    /// the frame rate ([`cal::unfold`]).
-    pub unfold: bool,
+    /// With a calibration's capture time across the rows: whether to
+    /// unfold what the strips sampled above the frame rate's Nyquist
+    /// frequency, at twice the frame rate ([`cal::unfold`]).
+    pub unfold: Unfold,
     /// One sample per row instead of per frame.
     pub rolling_shutter: Option<RollingShutter>,
     /// Band-pass and band-stop filters, applied in order.
@@ -187,7 +205,7 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         }
     }
     let mut notes = Vec::new();
-    if o.unfold && o.rolling_shutter.is_none() {
+    if o.unfold == Unfold::Asked && o.rolling_shutter.is_none() {
         notes.push("--unfold: no strips of rows to unfold (no calibration, or one that recombines none: no capture_time): the recovery is at the frame rate".into());
     }
     let mut decl = match &o.rolling_shutter {
@@ -410,12 +428,16 @@ fn listen_strips(
         (false, &tiles),
         o.run,
     )?;
-    // With --unfold: a readout's capture times spread over the frame period
-    // sample the motion at more instants than one a frame, and what lies
-    // above the frame rate's Nyquist frequency is unfolded, at twice the
-    // frame rate (not when the frame or explained terms are needed: their
-    // observables are measured once a frame).
-    let unfolded = match (name, tiles.is_empty(), o.unfold) {
+    // Unless --no-unfold: a readout's capture times spread over the frame
+    // period sample the motion at more instants than one a frame, and what
+    // lies above the frame rate's Nyquist frequency is unfolded, at twice
+    // the frame rate, where the strips show that anything lies there: they
+    // are better predicted, each from the others, with it than without
+    // (`Unfolded::holds_alias`); with --unfold, whatever they show. Not
+    // when the frame or explained terms are needed (their observables are
+    // measured once a frame).
+    let asked = o.unfold == Unfold::Asked;
+    let tried = match (name, tiles.is_empty(), o.unfold != Unfold::Never) {
         ("capture_time", true, true) => cal::unfold(
             &signals,
             (weights, &delays_s),
@@ -423,23 +445,32 @@ fn listen_strips(
         ),
         _ => None,
     };
-    match &unfolded {
-        Some(u) => {
+    let ratio = tried.as_ref().map(|u| u.press_ratio);
+    let unfolded = tried.filter(|u| asked || u.holds_alias());
+    match (&unfolded, ratio) {
+        (Some(u), Some(r)) => {
             let rate = (2.0 * fs).round() as u32;
-            crate::io::wav::write_mono_f32(&o.output, rate, u)?;
+            crate::io::wav::write_mono_f32(&o.output, rate, &u.signal)?;
+            let why = if u.holds_alias() {
+                format!("each strip is predicted from the others {:.1} dB better with what lies between the frame rate's Nyquist frequency and the frame rate than without it", -10.0 * r.log10())
+            } else {
+                format!("asked by --unfold, although each strip is predicted from the others {:.1} dB worse with what lies above the frame rate's Nyquist frequency than without it", 10.0 * r.log10())
+            };
             notes.push(format!(
-                "the strips' capture times spread over the frame period: what they sampled between the frame rate's Nyquist frequency and the frame rate is unfolded, and the recovery is at {rate} Hz (twice the frame rate)"
+                "the strips' capture times spread over the frame period and {why}: it is unfolded, and the recovery is at {rate} Hz (twice the frame rate; --no-unfold keeps the frame rate)"
             ));
         }
-        None => {
+        _ => {
             let y = cal::combine(&signals, weights, &delays_s, fs);
             crate::io::wav::write_mono_f32(&o.output, fs.round() as u32, &y)?;
-            if o.unfold && name != "capture_time" {
+            if let Some(r) = ratio {
+                notes.push(format!("the strips hold nothing above the frame rate's Nyquist frequency that their delays do not predict (each is predicted from the others {:.1} dB worse with it than without): the recovery is at the frame rate, the delays applied there (--unfold unfolds it anyway)", 10.0 * r.log10()));
+            } else if asked && name != "capture_time" {
                 notes.push(format!("--unfold: the calibration's strips ({name}) were captured at one instant: nothing to unfold"));
-            } else if o.unfold && !tiles.is_empty() {
+            } else if asked && !tiles.is_empty() {
                 notes.push("--unfold: the strips' capture times are applied at the frame rate: what the rows sampled above its Nyquist frequency is not unfolded when the calibration also needs this recording's frame or tiles (measured once a frame)".into());
-            } else if o.unfold {
-                notes.push("--unfold: the strips' capture times do not spread over enough of the frame period to tell a frequency from its alias: applied at the frame rate".into());
+            } else if asked {
+                notes.push("--unfold: the strips' capture times do not spread over enough of the frame period to tell a frequency from its alias (or too few strips hold the signal): applied at the frame rate".into());
             }
         }
     }

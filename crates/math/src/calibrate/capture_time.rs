@@ -488,7 +488,10 @@ const UNFOLD_SMOOTH_HZ: f64 = 20.0;
 /// [`combine`]'s sum (with `weights`, and the strip's delay): a strip's
 /// gain depends on its texture and its sign on its pipeline. `None` when
 /// the delays do not spread enough ([`UNFOLD_MAX_CORRELATION`]), or fewer
-/// than two strips hold the signal. The result is as long as twice the
+/// than three strips hold the signal (one left out must be predicted by
+/// the two unknowns of the others). Whether anything lies above the
+/// Nyquist frequency at all is [`Unfolded::holds_alias`]: the caller
+/// decides. The result is as long as twice the
 /// shortest strip, in the strips' units (the sum's scale), and high-passed
 /// as a recovery at twice the frame rate is by default: the strips' own
 /// high-pass (`highpass`, at the frame rate) undone, that one applied.
@@ -496,7 +499,7 @@ pub fn unfold(
     signals: &[Vec<f64>],
     (weights, delays_s): (&[f64], &[f64]),
     (fs, highpass): (f64, Option<(usize, f64)>),
-) -> Option<Vec<f64>> {
+) -> Option<Unfolded> {
     let n = signals.iter().map(Vec::len).min().unwrap_or(0);
     if n < 16 || fs.is_nan() || fs <= 0.0 || delays_s.len() != signals.len() {
         return None;
@@ -505,20 +508,57 @@ pub fn unfold(
     // first (where the delays suppress the aliases), then once more
     // against the unfolded signal, read at each strip's instants.
     let mut template = (combine(signals, weights, delays_s, fs), fs);
+    let mut first = None;
     for _ in 0..2 {
         let strips = gains(signals, (weights, delays_s), (&template.0, template.1), fs);
-        let y = solve_unfolded(&strips, fs, n)?;
-        template = (y, 2.0 * fs);
+        let u = solve_unfolded(&strips, fs, n)?;
+        // Decided on the strips' gains against the frame rate's sum,
+        // before anything was unfolded.
+        first.get_or_insert(u.press_ratio);
+        template = (u.signal, 2.0 * fs);
     }
+    let press_ratio = first.unwrap_or(f64::NAN);
     // The strips' high-pass (`highpass`, at the frame rate) becomes the
     // one a recovery at twice the rate carries (its default), as the
     // model that scores it assumes.
     let to = super::Options::for_rate(2.0 * fs).highpass;
-    if to == highpass {
-        return Some(template.0);
+    let signal = if to == highpass {
+        template.0
+    } else {
+        let flat = undo_highpass(&template.0, 2.0 * fs, highpass);
+        redo_highpass(&flat, 2.0 * fs, to)
+    };
+    Some(Unfolded {
+        signal,
+        press_ratio,
+    })
+}
+
+/// What [`unfold`] gives: the signal at twice the frame rate, and how much
+/// better (below 1) or worse (above) the strips are predicted with what
+/// lies above the frame rate's Nyquist frequency than without it.
+#[derive(Clone, Debug)]
+pub struct Unfolded {
+    /// The motion at twice the frame rate.
+    pub signal: Vec<f64>,
+    /// Each strip left out in turn and predicted from the others, per
+    /// frequency below the frame rate (its squared error weighted by the
+    /// strip's `g² / σ²`, summed over strips and frequencies: PRESS): with
+    /// the alias over without it. Below 1 the strips hold something above
+    /// the Nyquist frequency that the frame rate's model (the delays'
+    /// sum) does not predict; above 1 the alias's column only fits noise.
+    /// Measured with the strips' gains against the frame rate's sum,
+    /// before anything is unfolded.
+    pub press_ratio: f64,
+}
+
+impl Unfolded {
+    /// Whether the strips hold anything above the Nyquist frequency:
+    /// they are better predicted with it ([`Unfolded::press_ratio`]
+    /// below 1).
+    pub fn holds_alias(&self) -> bool {
+        self.press_ratio < 1.0
     }
-    let flat = undo_highpass(&template.0, 2.0 * fs, highpass);
-    Some(redo_highpass(&flat, 2.0 * fs, to))
 }
 
 /// Each usable strip (a finite nonzero weight and delay) divided by its
@@ -557,11 +597,12 @@ fn gains(
 }
 
 /// [`unfold`]'s least squares, per frequency, over `strips` ([`gains`]),
-/// each `n` samples at `fs`: the signal at `2 fs`, or `None` (fewer than
-/// two strips, or delays that do not tell a frequency from its alias).
-fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize) -> Option<Vec<f64>> {
+/// each `n` samples at `fs`: the signal at `2 fs` and the models' PRESS
+/// ratio, or `None` (fewer than three strips, delays that do not tell a
+/// frequency from its alias, or a strip the others cannot predict).
+fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize) -> Option<Unfolded> {
     use rustfft::num_complex::Complex;
-    if strips.len() < 2 {
+    if strips.len() < 3 {
         return None;
     }
     // The two columns' correlation is the same at every frequency.
@@ -605,6 +646,7 @@ fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize) -> Option<
     let mut factors = vec![(Complex::new(0.0, 0.0), Complex::new(0.0, 0.0)); strips.len()];
     let mut rhs = Vec::with_capacity(half + 1);
     let (mut q_ls, mut left) = (Vec::with_capacity(half + 1), Vec::with_capacity(half + 1));
+    let press_ratio = press_ratio(strips, fs, n, (t, x, det))?;
     for j in 0..=half {
         let f = j as f64 * fs / n as f64;
         let (mut ra, mut rb) = (Complex::new(0.0, 0.0), Complex::new(0.0, 0.0));
@@ -663,7 +705,96 @@ fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize) -> Option<
     let mut y = inv.make_output_vec();
     let _ = inv.process(&mut out, &mut y);
     let scale = 1.0 / m as f64;
-    Some(y.iter().map(|v| v * scale).collect())
+    Some(Unfolded {
+        signal: y.iter().map(|v| v * scale).collect(),
+        press_ratio,
+    })
+}
+
+/// Whether the strips hold anything above the Nyquist frequency, decided
+/// by how well each model predicts a strip it was not fitted to (each
+/// left out in turn, per frequency, squared errors weighted by `c` and
+/// summed: PRESS): the delays' sum alone (`a` at `f`), or with the alias
+/// (`b` at `f - fs`). The alias's column fits noise too, so where nothing
+/// lies above the Nyquist frequency it predicts a left-out strip worse.
+/// A strip's leverage is the same at every frequency: `c / T` for the sum
+/// alone, `c (2T - 2 Re(X conj(turn))) / det` with the alias
+/// (`(t, x, det)`: [`solve_unfolded`]'s normal equations). The strips are
+/// tapered (Hann, each at its own instants) first: a delay is a turn of
+/// phase per frequency only for a periodic signal, and the ends of a
+/// recording are not, which the alias's column would fit. The ratio with the alias over without, or
+/// `None` where a strip's leverage reaches 1 (the others cannot predict
+/// it).
+fn press_ratio(
+    strips: &[(Vec<f64>, f64, f64)],
+    fs: f64,
+    n: usize,
+    (t, x, det): (f64, rustfft::num_complex::Complex<f64>, f64),
+) -> Option<f64> {
+    use rustfft::num_complex::Complex;
+    let turns: Vec<Complex<f64>> = strips
+        .iter()
+        .map(|(_, _, d)| Complex::from_polar(1.0, 2.0 * std::f64::consts::PI * fs * d))
+        .collect();
+    let leverage: Vec<(f64, f64)> = strips
+        .iter()
+        .zip(&turns)
+        .map(|((_, c, _), turn)| (c / t, c * (2.0 * t - 2.0 * (x * turn.conj()).re) / det))
+        .collect();
+    if leverage.iter().any(|l| !(l.0 < 1.0 && l.1 < 1.0)) {
+        return None;
+    }
+    // Strip `k` holds `x(i / fs - d_k)`: tapered by `w(i / fs - d_k)`, it
+    // holds `(w x)(i / fs - d_k)`, one signal read `d_k` later, exactly.
+    let taper = |i: usize, d: f64| {
+        let u = (i as f64 + 0.5 - d * fs) / n as f64;
+        if (0.0..=1.0).contains(&u) {
+            (std::f64::consts::PI * u).sin().powi(2)
+        } else {
+            0.0
+        }
+    };
+    let mut planner = realfft::RealFftPlanner::<f64>::new();
+    let fwd = planner.plan_fft_forward(n);
+    let spectra: Vec<Vec<Complex<f64>>> = strips
+        .iter()
+        .map(|(u, _, d)| {
+            let mut input: Vec<f64> = u
+                .iter()
+                .enumerate()
+                .map(|(i, a)| a * taper(i, *d))
+                .collect();
+            let mut out = fwd.make_output_vec();
+            // Lengths match the plan: it cannot fail.
+            let _ = fwd.process(&mut input, &mut out);
+            out
+        })
+        .collect();
+    let mut factors = vec![(Complex::new(0.0, 0.0), Complex::new(0.0, 0.0)); strips.len()];
+    let mut press = (0.0, 0.0);
+    for j in 0..=n / 2 {
+        let f = j as f64 * fs / n as f64;
+        let (mut ra, mut rb) = (Complex::new(0.0, 0.0), Complex::new(0.0, 0.0));
+        for (k, ((_, c, d), spec)) in strips.iter().zip(&spectra).enumerate() {
+            let a = Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f * d);
+            let b = a * turns[k];
+            factors[k] = (a, b);
+            ra += a.conj() * spec[j] * *c;
+            rb += b.conj() * spec[j] * *c;
+        }
+        let (p1, p, q) = (
+            ra / t,
+            (ra * t - rb * x) / det,
+            (rb * t - ra * x.conj()) / det,
+        );
+        for (((k, (_, c, _)), spec), (a, b)) in
+            strips.iter().enumerate().zip(&spectra).zip(&factors)
+        {
+            press.0 += c * (spec[j] - a * p1).norm_sqr() / (1.0 - leverage[k].0).powi(2);
+            press.1 += c * (spec[j] - a * p - b * q).norm_sqr() / (1.0 - leverage[k].1).powi(2);
+        }
+    }
+    Some(press.1 / press.0)
 }
 
 /// The mean of `v` over `±w` samples about each (fewer at the ends).
@@ -1035,7 +1166,11 @@ mod tests {
         // Declared with the high-pass a recovery at 2 fs carries: none is
         // undone or applied, and the tones come back as they were.
         let hp = super::super::Options::for_rate(2.0 * fs).highpass;
-        let y = unfold(&signals, (&weights, &delays), (fs, hp)).unwrap();
+        let u = unfold(&signals, (&weights, &delays), (fs, hp)).unwrap();
+        // The strips are better predicted with the alias than without.
+        eprintln!("PRESS ratio {:.3}", u.press_ratio);
+        assert!(u.holds_alias(), "{}", u.press_ratio);
+        let y = u.signal;
         assert_eq!(y.len(), 2 * n);
         // Up to the sum's scale (the strips' gains relative to the sum).
         let truth: Vec<f64> = (0..2 * n).map(|i| x(i as f64 / (2.0 * fs))).collect();
@@ -1049,6 +1184,52 @@ mod tests {
         assert!(snr_frame < 20.0, "frame-rate SNR {snr_frame:.1} dB");
         // One capture instant: nothing to unfold.
         assert!(unfold(&signals, (&weights, &vec![0.0; count]), (fs, hp)).is_none());
+    }
+
+    /// Strips that hold nothing above the frame rate's Nyquist frequency
+    /// are predicted worse with the alias's column than without it, over
+    /// seeds and noise levels: `listen` keeps the frame rate.
+    #[test]
+    fn strips_with_nothing_above_nyquist_are_not_unfolded() {
+        let (fs, n) = (2200.0, 4400);
+        // Two tones and a sweep (100 to 900 Hz), all below 1100 Hz.
+        let x = |t: f64| {
+            (2.0 * PI * 300.0 * t).sin()
+                + 0.5 * (2.0 * PI * 870.0 * t + 0.3).sin()
+                + 0.3 * (2.0 * PI * (100.0 + 200.0 * t) * t).sin()
+        };
+        let count = 8;
+        let delays: Vec<f64> = (0..count)
+            .map(|k| 0.9 * k as f64 / (count as f64 * fs))
+            .collect();
+        for (seed, level) in [(1u64, 1e-3), (2, 1e-2), (3, 1e-1)] {
+            let mut state = seed;
+            let mut noise = || {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * level
+            };
+            let signals: Vec<Vec<f64>> = delays
+                .iter()
+                .enumerate()
+                .map(|(k, d)| {
+                    let g = (1.0 + 0.2 * k as f64) * if k % 3 == 1 { -1.0 } else { 1.0 };
+                    (0..n).map(|i| g * x(i as f64 / fs - d) + noise()).collect()
+                })
+                .collect();
+            let hp = super::super::Options::for_rate(2.0 * fs).highpass;
+            let u = unfold(&signals, (&vec![1.0; count], &delays), (fs, hp)).unwrap();
+            eprintln!(
+                "seed {seed}, noise {level}: PRESS ratio {:.3}",
+                u.press_ratio
+            );
+            assert!(
+                !u.holds_alias(),
+                "seed {seed}, noise {level}: {}",
+                u.press_ratio
+            );
+        }
     }
 
     /// SNR (dB) of `y` against `truth` after the best gain.

@@ -80,7 +80,7 @@ mod soft_clip;
 mod time_base;
 mod transfer;
 
-pub use capture_time::{combine, unfold, Strips, UNFOLD_MAX_CORRELATION};
+pub use capture_time::{combine, unfold, Strips, Unfolded, UNFOLD_MAX_CORRELATION};
 pub use correction::{Correction, FrameEvent, Line};
 pub use explain::{
     line_channels, line_groups, reference_spans, remove_explained, Covariate, Explanation,

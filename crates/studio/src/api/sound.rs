@@ -62,7 +62,7 @@ fn region_sound(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Val
         denoise: Default::default(),
         speaker: None,
         calibration: None,
-        unfold: false,
+        unfold: Default::default(),
         rolling_shutter: None,
         filters: Vec::new(),
         rate: vibroscope::listen::OutputRate::Hz(LISTEN_RATE_HZ),
