@@ -1418,6 +1418,20 @@ fn capture_time_case(name: &str, extra: &str) -> Option<(Value, Value, [f64; 2])
     strips_case(name, extra, &STRIP_EFFECTS)
 }
 
+/// [`strips_case`], then `then(dir, speech)` while its files are there.
+fn strips_case_then(
+    name: &str,
+    extra: &str,
+    family: &[EffectKind],
+    then: impl FnOnce(&Path, &Path),
+) -> Option<(Value, Value, [f64; 2])> {
+    let d = tempfile::tempdir().unwrap();
+    let out = strips_case_in(d.path(), name, extra, family)?;
+    // What strips_case_in played (band_limited_speech's file).
+    then(d.path(), &d.path().join("speech-bl-2000.wav"));
+    Some(out)
+}
+
 /// A chirp-calibrated scene (`extra` added to the square-law object's
 /// keys) calibrated with the catalog without `family` and with the whole
 /// catalog, and speech it never saw recovered with each report: both
@@ -1433,17 +1447,27 @@ fn strips_case(name: &str, extra: &str, family: &[EffectKind]) -> Option<(Value,
     } else {
         d.path().to_path_buf()
     };
+    strips_case_in(dir, name, extra, family)
+}
+
+/// [`strips_case`] in `dir`.
+fn strips_case_in(
+    dir: &Path,
+    name: &str,
+    extra: &str,
+    family: &[EffectKind],
+) -> Option<(Value, Value, [f64; 2])> {
     let speech = band_limited_speech(dir)?;
-    let chirp = dir.as_path().join("chirp.wav");
+    let chirp = dir.join("chirp.wav");
     write_chirp(&chirp);
-    let video = quadratic_object(dir.as_path(), &format!("{name}-chirp"), &chirp, extra);
+    let video = quadratic_object(dir, &format!("{name}-chirp"), &chirp, extra);
     let (_, before) = calibrate_with(&video, &chirp, catalog_without(family));
     let (_, after) = calibrate_with(&video, &chirp, CATALOG.to_vec());
     for (file, r) in [("before.json", &before), ("after.json", &after)] {
-        std::fs::write(dir.as_path().join(file), serde_json::to_string(r).unwrap()).unwrap();
+        std::fs::write(dir.join(file), serde_json::to_string(r).unwrap()).unwrap();
     }
-    quadratic_object(dir.as_path(), "speech", &speech, extra);
-    let snr = speech_with(dir.as_path(), &speech, ["before.json", "after.json"]);
+    quadratic_object(dir, "speech", &speech, extra);
+    let snr = speech_with(dir, &speech, ["before.json", "after.json"]);
     let kept = |r: &Value| -> Vec<String> {
         r["effects"]
             .as_array()
@@ -1526,10 +1550,35 @@ fn two_parts_that_hear_the_sound_at_different_times_are_aligned() {
 /// camera's Nyquist frequency) gains at least 1 dB: a weak effect on
 /// speech, whose energy lies mostly where the smear costs little (+1.6 dB
 /// measured; with sox's gentler `lowpass 1000` speech, whose aliases the
-/// delays cannot align, -0.8 dB).
+/// delays cannot align, -0.8 dB). With nothing above the Nyquist frequency
+/// `listen` keeps the frame rate by itself, and `--unfold` and
+/// `--no-unfold` force either choice.
 #[test]
 fn rows_read_out_one_after_another_are_found_across_the_image() {
-    let Some((_, after, snr)) = capture_time_case("rolling", "line_delay_us = 6.8") else {
+    // The speech holds nothing above the frame rate's Nyquist frequency:
+    // `listen` keeps the frame rate by itself (and says by how much the
+    // strips are predicted worse with the alias); `--unfold` unfolds it
+    // anyway, at twice the frame rate, saying it was asked; `--no-unfold`
+    // keeps the frame rate without a word on it.
+    let check = |dir: &Path, speech: &Path| {
+        let rate = || {
+            vibroscope_io::wav::read_mono(&dir.join("speech-after.wav"))
+                .unwrap()
+                .0
+        };
+        let (_, said) = listen_speech(dir, speech, "after.json", &[]);
+        assert_eq!(rate(), 2200, "{said}");
+        assert!(said.contains("dB worse with it than without"), "{said}");
+        let (_, said) = listen_speech(dir, speech, "after.json", &["--unfold"]);
+        assert_eq!(rate(), 4400, "{said}");
+        assert!(said.contains("asked by --unfold"), "{said}");
+        let (_, said) = listen_speech(dir, speech, "after.json", &["--no-unfold"]);
+        assert_eq!(rate(), 2200, "{said}");
+        assert!(!said.contains("unfold"), "{said}");
+    };
+    let Some((_, after, snr)) =
+        strips_case_then("rolling", "line_delay_us = 6.8", &STRIP_EFFECTS, check)
+    else {
         return;
     };
     let e = capture_time_kept(&after, "linear");
