@@ -205,7 +205,12 @@ pub fn apply_observed(
             cal::Measured {
                 channels,
                 shifts: t.shifts.clone(),
-                reach: crate::calibrate::recovery_reach(),
+                // Lines and motions are looked for at the recovery's own
+                // lags (its bands'); an intensity about lag 0.
+                reach: match t.observable.is_line() || t.observable.is_motion() {
+                    true => crate::calibrate::recovery_reach(),
+                    false => 0,
+                },
                 // This recording's references, as its recovery renewed them.
                 spans: cal::reference_spans(
                     n,

@@ -95,11 +95,31 @@ impl Observable {
     pub fn is_line(self) -> bool {
         matches!(self, Observable::RowIntensity | Observable::ColumnIntensity)
     }
+
+    /// A tile's motion (along x or y).
+    pub fn is_motion(self) -> bool {
+        matches!(self, Observable::MotionX | Observable::MotionY)
+    }
 }
 
 /// The lags of a tile's FIR, -[`LAGS`]..=[`LAGS`] frames.
 pub fn tile_shifts() -> Vec<i64> {
     (-(LAGS as i64)..=LAGS as i64).collect()
+}
+
+/// A tile's FIR lags, -[`LAGS`]..=[`LAGS`] frames about the lag of
+/// -`reach`..=`reach` whose column alone removes most ([`pick_shifts`]
+/// with one lag; about 0 when none removes anything).
+pub fn tile_shifts_about(
+    xs: &[Vec<f64>],
+    reach: usize,
+    removes: impl Fn(&[Vec<f64>]) -> f64,
+) -> Vec<i64> {
+    let c = pick_shifts(xs, (1, reach), removes)
+        .first()
+        .copied()
+        .unwrap_or(0);
+    tile_shifts().into_iter().map(|s| s + c).collect()
 }
 
 /// The parts of `tiles` (rectangles `[x, y, w, h]` measuring `obs`) that
@@ -471,7 +491,18 @@ pub(super) fn explain(
                         removed(cols, &resid0)
                     })
                 }
-                None => tile_shifts(),
+                // A motion's FIR: its lags about the lag at which it
+                // alone removes most. A motion across the object's
+                // reaches the recovery through the bands oriented to see
+                // it, which carry none of the sound: `align` shifted them
+                // by a lag of chance. An intensity's about 0.
+                None => {
+                    let reach = match covs[i].observable.is_motion() {
+                        true => m.opts.line_reach.min(MAX_LINE_REACH),
+                        false => 0,
+                    };
+                    tile_shifts_about(&through, reach, |cols| removed(cols, &resid0))
+                }
             };
             if shifts.is_empty() {
                 return None;
@@ -786,8 +817,10 @@ pub struct Measured {
     /// recovery's `align` reach).
     pub reach: usize,
     /// The lags of each channel's FIR; when fitted again ([`Measured::taps`]
-    /// `None`) on lines, as many lags are chosen here ([`pick_shifts`],
-    /// by the energy each removes from this recording's recovery).
+    /// `None`), chosen again here by the energy each removes from this
+    /// recording's recovery: on lines as many lags ([`pick_shifts`]), on a
+    /// tile's observable -[`LAGS`]..=[`LAGS`] about the best one
+    /// ([`tile_shifts_about`]).
     pub shifts: Vec<i64>,
     /// The spans of frames over which each channel has its own FIR (one
     /// per reference for lines, [`reference_spans`]; the whole recording
@@ -798,7 +831,7 @@ pub struct Measured {
 
 /// `y` (a recovery at `fs`, high-passed by `hp`) with each term's part
 /// removed, each observable high-passed like the recovery first: the
-/// stored FIRs (lags -LAGS..=LAGS, in `y`'s units per the observable's)
+/// stored FIRs (at their stored lags, in `y`'s units per the observable's)
 /// are subtracted, then the terms to fit again are fitted jointly on what
 /// is left, by least squares on their lagged values over the whole
 /// recording, and subtracted. How `listen --calibration` applies what the
@@ -825,13 +858,15 @@ pub fn remove_explained(
             .map(|c| centred_highpass(c, fs, hp))
             .collect();
         let xs = per_reference(&passed, &t.spans);
+        let removes = |cols: &[Vec<f64>]| {
+            orthonormal(cols, &dot)
+                .iter()
+                .map(|q| dot(q, y).powi(2))
+                .sum()
+        };
         let shifts = match (&t.taps, t.channels.len() > 1) {
-            (None, true) => pick_shifts(&xs, (t.shifts.len(), t.reach), |cols: &[Vec<f64>]| {
-                orthonormal(cols, &dot)
-                    .iter()
-                    .map(|q| dot(q, y).powi(2))
-                    .sum()
-            }),
+            (None, true) => pick_shifts(&xs, (t.shifts.len(), t.reach), removes),
+            (None, false) => tile_shifts_about(&xs, t.reach, removes),
             _ => t.shifts.clone(),
         };
         let lags: Vec<Vec<f64>> = xs.iter().flat_map(|c| shifted(c, &shifts)).collect();
@@ -1211,8 +1246,17 @@ mod tests {
     /// it, and covariates: `c` seen on one tile outside the region (with
     /// its own noise), an unrelated motion on another, an intensity.
     fn case(leak: f64, seed: u64) -> Case {
+        case_late(leak, seed, 0)
+    }
+
+    /// [`case`] with the motion reaching the recovery `late` frames late
+    /// (through bands `align` shifted), the recovery's reach 8 frames.
+    fn case_late(leak: f64, seed: u64, late: usize) -> Case {
         let (fs, fr) = (2200.0, 8800.0);
-        let opts = Options::for_rate(fs);
+        let opts = Options {
+            line_reach: if late > 0 { 8 } else { 0 },
+            ..Options::for_rate(fs)
+        };
         let r = chirp(fr);
         let n = 4400;
         let mut rng = Xoshiro256::new(seed);
@@ -1221,7 +1265,9 @@ mod tests {
         let c = noise(1.0);
         let t = sample_at(&r, fr, (0..n).map(|i| i as f64 / fs));
         let w = noise(0.3);
-        let y: Vec<f64> = (0..n).map(|i| t[i] + leak * c[i] + w[i]).collect();
+        let y: Vec<f64> = (0..n)
+            .map(|i| t[i] + leak * i.checked_sub(late).map_or(0.0, |k| c[k]) + w[i])
+            .collect();
         let y = redo_highpass(&y, fs, opts.highpass);
         let seen: Vec<f64> = c.iter().zip(noise(0.2)).map(|(a, b)| a + b).collect();
         let covs = vec![
@@ -1264,6 +1310,49 @@ mod tests {
         // the high-pass).
         assert!((e[0].taps[LAGS] - 0.5).abs() < 0.1, "{:?}", e[0].taps);
         nothing_kept_without_it(case);
+    }
+
+    /// A motion that reaches the recovery 5 frames late (a band `align`
+    /// shifted) is fitted about that lag, and the term fitted again on a
+    /// new recording finds its lag there; without a leak nothing is kept.
+    #[test]
+    fn a_motion_the_recovery_shifted_is_found_at_its_lag() {
+        let late = |leak, seed| case_late(leak, seed, 5);
+        let (y, r, covs, opts) = late(0.5, 3);
+        let c =
+            calibrate_with(&y, (None, &covs), 2200.0, (&r, 8800.0), &opts, &mut |_| {}).unwrap();
+        let e = &c.report.explained;
+        assert_eq!(e.len(), 1, "{e:#?}");
+        assert_eq!(e[0].shifts, vec![3, 4, 5, 6, 7], "{e:#?}");
+        assert!((e[0].taps[LAGS] - 0.5).abs() < 0.1, "{:?}", e[0].taps);
+        let gain = c.report.after.snr_db - c.report.before.snr_db;
+        assert!(gain > 3.0, "gain {gain} dB");
+        // On a new recording the same motion arrives 7 frames late: fitted
+        // again about the lag found there it removes the leak (about 0.3
+        // of the recovery's energy), at lags -2..2 nothing.
+        let (y2, _, covs2, _) = case_late(0.5, 4, 7);
+        let t = Measured {
+            channels: vec![covs2[0].values.clone()],
+            reach: 8,
+            shifts: e[0].shifts.clone(),
+            spans: reference_spans(y2.len(), None),
+            taps: None,
+        };
+        let (_, share) = remove_explained(&y2, &[t], 2200.0, opts.highpass);
+        let (_, share_lag0) = remove_explained(
+            &y2,
+            &[Measured {
+                channels: vec![covs2[0].values.clone()],
+                reach: 0,
+                shifts: tile_shifts(),
+                spans: reference_spans(y2.len(), None),
+                taps: None,
+            }],
+            2200.0,
+            opts.highpass,
+        );
+        assert!(share > 0.2 && share_lag0 < 0.02, "{share} {share_lag0}");
+        nothing_kept_without_it(|leak, seed| case_late(leak, seed, 5));
     }
 
     /// A recovery of the chirp with each of 24 rows' offsets in it,

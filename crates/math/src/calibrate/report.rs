@@ -643,17 +643,17 @@ where
                 "explained[{k}].tiles: 1 to {MAX_STORED_TILES} rectangles [x, y, w, h] of at least 1x1 expected"
             )));
         }
-        let reach = match t.observable.is_line() {
-            true => super::MAX_LINE_REACH,
-            false => super::LAGS,
+        // A tile's FIR is -LAGS..=LAGS about a lag within the lines' reach.
+        let (reach, most) = match t.observable.is_line() {
+            true => (super::MAX_LINE_REACH, 2 * super::MAX_LINE_REACH + 1),
+            false => (super::MAX_LINE_REACH + super::LAGS, 2 * super::LAGS + 1),
         };
         if t.shifts.is_empty()
-            || t.shifts.len() > 2 * reach + 1
+            || t.shifts.len() > most
             || t.shifts.iter().any(|s| s.unsigned_abs() as usize > reach)
         {
             return Err(ReportError::Parse(format!(
-                "explained[{k}].shifts: 1 to {} lags of -{reach}..={reach} frames expected, got {:?}",
-                2 * reach + 1,
+                "explained[{k}].shifts: 1 to {most} lags of -{reach}..={reach} frames expected, got {:?}",
                 t.shifts
             )));
         }
