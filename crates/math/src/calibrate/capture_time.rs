@@ -27,6 +27,7 @@ use super::model::{Fit, Model};
 use super::report::{Unexplained, UnexplainedKind};
 use super::signal::{gain_sse, jackknife, redo_highpass, sample_at, stft_len, undo_highpass};
 use super::{Candidate, Correction, Uncertainty};
+use rustfft::num_complex::Complex;
 
 /// Recoveries of horizontal strips of the region: the image's row axis.
 #[derive(Clone, Debug, PartialEq)]
@@ -508,16 +509,17 @@ pub fn unfold(
     // first (where the delays suppress the aliases), then once more
     // against the unfolded signal, read at each strip's instants.
     let mut template = (combine(signals, weights, delays_s, fs), fs);
-    let mut first = None;
-    for _ in 0..2 {
+    let mut press = f64::NAN;
+    for pass in 0..2 {
         let strips = gains(signals, (weights, delays_s), (&template.0, template.1), fs);
-        let u = solve_unfolded(&strips, fs, n)?;
+        let nm = Normal::of(&strips, fs)?;
         // Decided on the strips' gains against the frame rate's sum,
         // before anything was unfolded.
-        first.get_or_insert(u.press_ratio);
-        template = (u.signal, 2.0 * fs);
+        if pass == 0 {
+            press = press_ratio(&strips, fs, n, &nm);
+        }
+        template = (solve_unfolded(&strips, fs, n, &nm), 2.0 * fs);
     }
-    let press_ratio = first.unwrap_or(f64::NAN);
     // The strips' high-pass (`highpass`, at the frame rate) becomes the
     // one a recovery at twice the rate carries (its default), as the
     // model that scores it assumes.
@@ -530,7 +532,7 @@ pub fn unfold(
     };
     Some(Unfolded {
         signal,
-        press_ratio,
+        press_ratio: press,
     })
 }
 
@@ -596,39 +598,116 @@ fn gains(
     strips
 }
 
-/// [`unfold`]'s least squares, per frequency, over `strips` ([`gains`]),
-/// each `n` samples at `fs`: the signal at `2 fs` and the models' PRESS
-/// ratio, or `None` (fewer than three strips, delays that do not tell a
-/// frequency from its alias, or a strip the others cannot predict).
-fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize) -> Option<Unfolded> {
-    use rustfft::num_complex::Complex;
-    if strips.len() < 3 {
-        return None;
+/// [`unfold`]'s normal equations over `strips` ([`gains`]), the same at
+/// every frequency: `[[t, x], [x*, t]]` (the strips' weights summed, a
+/// tiny ridge keeping them solvable, and their turns `e^{i 2π fs d}`
+/// summed with the weights), its determinant, each strip's turn and its
+/// leverages (with the delays' sum alone, `c / t`, and with the alias,
+/// `c (2t - 2 Re(x conj(turn))) / det`). `None` with fewer than three
+/// strips, delays that do not tell a frequency from its alias
+/// ([`UNFOLD_MAX_CORRELATION`]), or a strip the others cannot predict
+/// (a leverage of 1: it alone decides the fit).
+struct Normal {
+    t: f64,
+    x: Complex<f64>,
+    det: f64,
+    turns: Vec<Complex<f64>>,
+    leverage: Vec<(f64, f64)>,
+}
+
+impl Normal {
+    fn of(strips: &[(Vec<f64>, f64, f64)], fs: f64) -> Option<Normal> {
+        if strips.len() < 3 {
+            return None;
+        }
+        let total: f64 = strips.iter().map(|s| s.1).sum();
+        let turns: Vec<Complex<f64>> = strips
+            .iter()
+            .map(|(_, _, d)| Complex::from_polar(1.0, 2.0 * std::f64::consts::PI * fs * d))
+            .collect();
+        let cross: Complex<f64> = strips.iter().zip(&turns).map(|((_, c, _), u)| u * *c).sum();
+        if cross.norm() / total > UNFOLD_MAX_CORRELATION {
+            return None;
+        }
+        let (t, x) = (total + 1e-6 * total, cross);
+        let det = t * t - x.norm_sqr();
+        let leverage: Vec<(f64, f64)> = strips
+            .iter()
+            .zip(&turns)
+            .map(|((_, c, _), turn)| (c / t, c * (2.0 * t - 2.0 * (x * turn.conj()).re) / det))
+            .collect();
+        if leverage.iter().any(|l| !(l.0 < 1.0 && l.1 < 1.0)) {
+            return None;
+        }
+        Some(Normal {
+            t,
+            x,
+            det,
+            turns,
+            leverage,
+        })
     }
-    // The two columns' correlation is the same at every frequency.
-    let total: f64 = strips.iter().map(|s| s.1).sum();
-    let turn = |d: f64| Complex::from_polar(1.0, 2.0 * std::f64::consts::PI * fs * d);
-    let cross: Complex<f64> = strips.iter().map(|(_, c, d)| turn(*d) * *c).sum();
-    if cross.norm() / total > UNFOLD_MAX_CORRELATION {
-        return None;
+
+    /// The least-squares `(p, q)` (the motion at `f` and its alias) from
+    /// a bin's right-hand sides.
+    fn solve(&self, ra: Complex<f64>, rb: Complex<f64>) -> (Complex<f64>, Complex<f64>) {
+        let (t, x, det) = (self.t, self.x, self.det);
+        ((ra * t - rb * x) / det, (rb * t - ra * x.conj()) / det)
     }
+
+    /// Bin `j` (frequency `f`) of `spectra`: each strip's phase factors
+    /// (`a` at `f`, `b` at its alias `f - fs`) into `factors`, and the
+    /// right-hand sides.
+    fn rhs(
+        &self,
+        strips: &[(Vec<f64>, f64, f64)],
+        spectra: &[Vec<Complex<f64>>],
+        (j, f): (usize, f64),
+        factors: &mut [(Complex<f64>, Complex<f64>)],
+    ) -> (Complex<f64>, Complex<f64>) {
+        let (mut ra, mut rb) = (Complex::new(0.0, 0.0), Complex::new(0.0, 0.0));
+        for (k, ((_, c, d), spec)) in strips.iter().zip(spectra).enumerate() {
+            let a = Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f * d);
+            let b = a * self.turns[k];
+            factors[k] = (a, b);
+            ra += a.conj() * spec[j] * *c;
+            rb += b.conj() * spec[j] * *c;
+        }
+        (ra, rb)
+    }
+}
+
+/// Each strip's spectrum over `n` samples, its sample `i` weighed by
+/// `taper(i, d)` (`d` its delay) first.
+fn strip_spectra(
+    strips: &[(Vec<f64>, f64, f64)],
+    n: usize,
+    taper: impl Fn(usize, f64) -> f64,
+) -> Vec<Vec<Complex<f64>>> {
     let mut planner = realfft::RealFftPlanner::<f64>::new();
     let fwd = planner.plan_fft_forward(n);
-    let spectra: Vec<Vec<Complex<f64>>> = strips
+    strips
         .iter()
-        .map(|(u, _, _)| {
-            let mut input = u.clone();
+        .map(|(u, _, d)| {
+            let mut input: Vec<f64> = u[..n]
+                .iter()
+                .enumerate()
+                .map(|(i, a)| a * taper(i, *d))
+                .collect();
             let mut out = fwd.make_output_vec();
             // Lengths match the plan: it cannot fail.
             let _ = fwd.process(&mut input, &mut out);
             out
         })
-        .collect();
-    // Normal equations [[T, X], [X*, T]] (a tiny ridge keeps them
-    // solvable), the same at every frequency; right-hand sides per bin.
-    let ridge = 1e-6 * total;
-    let (t, x) = (total + ridge, cross);
-    let det = t * t - x.norm_sqr();
+        .collect()
+}
+
+/// [`unfold`]'s least squares, per frequency, over `strips` ([`gains`]),
+/// each `n` samples at `fs` (`nm`: their normal equations): the signal at
+/// `2 fs`.
+fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize, nm: &Normal) -> Vec<f64> {
+    let spectra = strip_spectra(strips, n, |_, _| 1.0);
+    let (t, x, det) = (nm.t, nm.x, nm.det);
     let half = n / 2;
     // Per bin, in one pass over the strips' phase factors (`a` at `f`,
     // `b` at its alias `f - fs`): the right-hand sides; the alias's
@@ -642,22 +721,17 @@ fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize) -> Option<
     // read low, and a recovery's noise is not white: its level per
     // frequency is taken from those leftovers, `K - 2` complex degrees of
     // freedom a bin, smoothed as the power.
-    let turns: Vec<Complex<f64>> = strips.iter().map(|(_, _, d)| turn(*d)).collect();
     let mut factors = vec![(Complex::new(0.0, 0.0), Complex::new(0.0, 0.0)); strips.len()];
     let mut rhs = Vec::with_capacity(half + 1);
     let (mut q_ls, mut left) = (Vec::with_capacity(half + 1), Vec::with_capacity(half + 1));
-    let press_ratio = press_ratio(strips, fs, n, (t, x, det))?;
     for j in 0..=half {
-        let f = j as f64 * fs / n as f64;
-        let (mut ra, mut rb) = (Complex::new(0.0, 0.0), Complex::new(0.0, 0.0));
-        for (k, ((_, c, d), spec)) in strips.iter().zip(&spectra).enumerate() {
-            let a = Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f * d);
-            let b = a * turns[k];
-            factors[k] = (a, b);
-            ra += a.conj() * spec[j] * *c;
-            rb += b.conj() * spec[j] * *c;
-        }
-        let (p, q) = ((ra * t - rb * x) / det, (rb * t - ra * x.conj()) / det);
+        let (ra, rb) = nm.rhs(
+            strips,
+            &spectra,
+            (j, j as f64 * fs / n as f64),
+            &mut factors,
+        );
+        let (p, q) = nm.solve(ra, rb);
         let mut e = 0.0;
         for (((_, c, _), spec), (a, b)) in strips.iter().zip(&spectra).zip(&factors) {
             e += c * (spec[j] - a * p - b * q).norm_sqr();
@@ -701,14 +775,11 @@ fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize) -> Option<
     }
     out[0].im = 0.0;
     out[m / 2].im = 0.0;
-    let inv = planner.plan_fft_inverse(m);
+    let inv = realfft::RealFftPlanner::<f64>::new().plan_fft_inverse(m);
     let mut y = inv.make_output_vec();
     let _ = inv.process(&mut out, &mut y);
     let scale = 1.0 / m as f64;
-    Some(Unfolded {
-        signal: y.iter().map(|v| v * scale).collect(),
-        press_ratio,
-    })
+    y.iter().map(|v| v * scale).collect()
 }
 
 /// Whether the strips hold anything above the Nyquist frequency, decided
@@ -717,84 +788,42 @@ fn solve_unfolded(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize) -> Option<
 /// summed: PRESS): the delays' sum alone (`a` at `f`), or with the alias
 /// (`b` at `f - fs`). The alias's column fits noise too, so where nothing
 /// lies above the Nyquist frequency it predicts a left-out strip worse.
-/// A strip's leverage is the same at every frequency: `c / T` for the sum
-/// alone, `c (2T - 2 Re(X conj(turn))) / det` with the alias
-/// (`(t, x, det)`: [`solve_unfolded`]'s normal equations). The strips are
-/// tapered (Hann, each at its own instants) first: a delay is a turn of
-/// phase per frequency only for a periodic signal, and the ends of a
-/// recording are not, which the alias's column would fit. The ratio with the alias over without, or
-/// `None` where a strip's leverage reaches 1 (the others cannot predict
-/// it).
-fn press_ratio(
-    strips: &[(Vec<f64>, f64, f64)],
-    fs: f64,
-    n: usize,
-    (t, x, det): (f64, rustfft::num_complex::Complex<f64>, f64),
-) -> Option<f64> {
-    use rustfft::num_complex::Complex;
-    let turns: Vec<Complex<f64>> = strips
-        .iter()
-        .map(|(_, _, d)| Complex::from_polar(1.0, 2.0 * std::f64::consts::PI * fs * d))
-        .collect();
-    let leverage: Vec<(f64, f64)> = strips
-        .iter()
-        .zip(&turns)
-        .map(|((_, c, _), turn)| (c / t, c * (2.0 * t - 2.0 * (x * turn.conj()).re) / det))
-        .collect();
-    if leverage.iter().any(|l| !(l.0 < 1.0 && l.1 < 1.0)) {
-        return None;
-    }
+/// Each residual is divided by one less the strip's leverage, the same
+/// at every frequency ([`Normal`]). The strips are tapered (Hann, each
+/// at its own instants) first: a delay is a turn of phase per frequency
+/// only for a periodic signal, and the ends of a recording are not,
+/// which the alias's column would fit. The ratio with the alias over
+/// without.
+fn press_ratio(strips: &[(Vec<f64>, f64, f64)], fs: f64, n: usize, nm: &Normal) -> f64 {
     // Strip `k` holds `x(i / fs - d_k)`: tapered by `w(i / fs - d_k)`, it
     // holds `(w x)(i / fs - d_k)`, one signal read `d_k` later, exactly.
-    let taper = |i: usize, d: f64| {
+    let spectra = strip_spectra(strips, n, |i, d| {
         let u = (i as f64 + 0.5 - d * fs) / n as f64;
         if (0.0..=1.0).contains(&u) {
             (std::f64::consts::PI * u).sin().powi(2)
         } else {
             0.0
         }
-    };
-    let mut planner = realfft::RealFftPlanner::<f64>::new();
-    let fwd = planner.plan_fft_forward(n);
-    let spectra: Vec<Vec<Complex<f64>>> = strips
-        .iter()
-        .map(|(u, _, d)| {
-            let mut input: Vec<f64> = u
-                .iter()
-                .enumerate()
-                .map(|(i, a)| a * taper(i, *d))
-                .collect();
-            let mut out = fwd.make_output_vec();
-            // Lengths match the plan: it cannot fail.
-            let _ = fwd.process(&mut input, &mut out);
-            out
-        })
-        .collect();
+    });
     let mut factors = vec![(Complex::new(0.0, 0.0), Complex::new(0.0, 0.0)); strips.len()];
     let mut press = (0.0, 0.0);
     for j in 0..=n / 2 {
-        let f = j as f64 * fs / n as f64;
-        let (mut ra, mut rb) = (Complex::new(0.0, 0.0), Complex::new(0.0, 0.0));
-        for (k, ((_, c, d), spec)) in strips.iter().zip(&spectra).enumerate() {
-            let a = Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f * d);
-            let b = a * turns[k];
-            factors[k] = (a, b);
-            ra += a.conj() * spec[j] * *c;
-            rb += b.conj() * spec[j] * *c;
-        }
-        let (p1, p, q) = (
-            ra / t,
-            (ra * t - rb * x) / det,
-            (rb * t - ra * x.conj()) / det,
+        let (ra, rb) = nm.rhs(
+            strips,
+            &spectra,
+            (j, j as f64 * fs / n as f64),
+            &mut factors,
         );
-        for (((k, (_, c, _)), spec), (a, b)) in
-            strips.iter().enumerate().zip(&spectra).zip(&factors)
+        let p1 = ra / nm.t;
+        let (p, q) = nm.solve(ra, rb);
+        for (((lev, (_, c, _)), spec), (a, b)) in
+            nm.leverage.iter().zip(strips).zip(&spectra).zip(&factors)
         {
-            press.0 += c * (spec[j] - a * p1).norm_sqr() / (1.0 - leverage[k].0).powi(2);
-            press.1 += c * (spec[j] - a * p - b * q).norm_sqr() / (1.0 - leverage[k].1).powi(2);
+            press.0 += c * (spec[j] - a * p1).norm_sqr() / (1.0 - lev.0).powi(2);
+            press.1 += c * (spec[j] - a * p - b * q).norm_sqr() / (1.0 - lev.1).powi(2);
         }
     }
-    Some(press.1 / press.0)
+    press.1 / press.0
 }
 
 /// The mean of `v` over `±w` samples about each (fewer at the ends).
