@@ -568,3 +568,27 @@ fn triples_only_derives_the_same_amplitude_and_phases() {
         }
     }
 }
+
+/// The padded row blur (one loop over the row between mirrored pixels)
+/// gives the bits of the separable blur with each tap's index reflected,
+/// at every width, the narrow ones that take the per-pixel path included.
+#[test]
+fn padded_row_blur_matches_the_reflected_taps_bitwise() {
+    let h = 7;
+    for w in 1..=70 {
+        let src = noise(w * h, w as u64);
+        for y in 0..h {
+            let mut padded = vec![f32::NAN; w + 4];
+            let mut fast = vec![f32::NAN; w];
+            blur_row(&src, (w, h), y, &mut padded, &mut fast);
+            let mut vrow = vec![0.0; w];
+            vblur_row(&src, w, h, y, &mut vrow);
+            let at = |i: isize| vrow[reflect(i, w)];
+            for (x, f) in fast.iter().enumerate() {
+                let x = x as isize;
+                let slow = B2 * (at(x - 2) + at(x + 2)) + B1 * (at(x - 1) + at(x + 1)) + B0 * at(x);
+                assert_eq!(f.to_bits(), slow.to_bits(), "w {w}, row {y}, x {x}");
+            }
+        }
+    }
+}
