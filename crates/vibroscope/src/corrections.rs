@@ -203,14 +203,10 @@ pub fn apply_observed(
                 vec![mean]
             };
             cal::Measured {
+                observable: t.observable,
                 channels,
                 shifts: t.shifts.clone(),
-                // Lines and motions are looked for at the recovery's own
-                // lags (its bands'); an intensity about lag 0.
-                reach: match t.observable.is_line() || t.observable.is_motion() {
-                    true => crate::calibrate::recovery_reach(),
-                    false => 0,
-                },
+                reach: crate::calibrate::recovery_reach(),
                 // This recording's references, as its recovery renewed them.
                 spans: cal::reference_spans(
                     n,

@@ -100,6 +100,18 @@ impl Observable {
     pub fn is_motion(self) -> bool {
         matches!(self, Observable::MotionX | Observable::MotionY)
     }
+
+    /// The farthest lag its FIR is looked for at, given the recovery's
+    /// `align` reach: lines and a tile's motion reach the recovery
+    /// through the bands that see them, which `align` shifted by a lag of
+    /// its own; an intensity about lag 0 (searched, one following the
+    /// reference was taken for light).
+    pub fn lag_reach(self, reach: usize) -> usize {
+        match self.is_line() || self.is_motion() {
+            true => reach,
+            false => 0,
+        }
+    }
 }
 
 /// The lags of a tile's FIR, -[`LAGS`]..=[`LAGS`] frames.
@@ -491,16 +503,14 @@ pub(super) fn explain(
                         removed(cols, &resid0)
                     })
                 }
-                // A motion's FIR: its lags about the lag at which it
-                // alone removes most. A motion across the object's
-                // reaches the recovery through the bands oriented to see
-                // it, which carry none of the sound: `align` shifted them
-                // by a lag of chance. An intensity's about 0.
+                // A tile's FIR: its lags about the lag at which it alone
+                // removes most. A motion across the object's reaches the
+                // recovery through the bands oriented to see it, which
+                // carry none of the sound: `align` shifted them by a lag
+                // of chance.
                 None => {
-                    let reach = match covs[i].observable.is_motion() {
-                        true => m.opts.line_reach.min(MAX_LINE_REACH),
-                        false => 0,
-                    };
+                    let reach =
+                        (covs[i].observable).lag_reach(m.opts.line_reach.min(MAX_LINE_REACH));
                     tile_shifts_about(&through, reach, |cols| removed(cols, &resid0))
                 }
             };
@@ -812,9 +822,11 @@ fn joint_lines(lines: &[&Covariate], n: usize) -> Vec<(Covariate, Vec<[u32; 4]>,
 /// `None` where the calibration said to fit it again
 /// ([`Explanation::refit`]).
 pub struct Measured {
+    /// What the channels measure: lines choose their lags as lines, a
+    /// tile's observable as a tile's, within its [`Observable::lag_reach`].
+    pub observable: Observable,
     pub channels: Vec<Vec<f64>>,
-    /// The farthest lag to choose from, frames (this recording's
-    /// recovery's `align` reach).
+    /// This recording's recovery's `align` reach, frames.
     pub reach: usize,
     /// The lags of each channel's FIR; when fitted again ([`Measured::taps`]
     /// `None`), chosen again here by the energy each removes from this
@@ -864,9 +876,10 @@ pub fn remove_explained(
                 .map(|q| dot(q, y).powi(2))
                 .sum()
         };
-        let shifts = match (&t.taps, t.channels.len() > 1) {
-            (None, true) => pick_shifts(&xs, (t.shifts.len(), t.reach), removes),
-            (None, false) => tile_shifts_about(&xs, t.reach, removes),
+        let reach = t.observable.lag_reach(t.reach);
+        let shifts = match (&t.taps, t.observable.is_line()) {
+            (None, true) => pick_shifts(&xs, (t.shifts.len(), reach), removes),
+            (None, false) => tile_shifts_about(&xs, reach, removes),
             _ => t.shifts.clone(),
         };
         let lags: Vec<Vec<f64>> = xs.iter().flat_map(|c| shifted(c, &shifts)).collect();
@@ -1332,6 +1345,7 @@ mod tests {
         // of the recovery's energy), at lags -2..2 nothing.
         let (y2, _, covs2, _) = case_late(0.5, 4, 7);
         let t = Measured {
+            observable: covs2[0].observable,
             channels: vec![covs2[0].values.clone()],
             reach: 8,
             shifts: e[0].shifts.clone(),
@@ -1342,6 +1356,7 @@ mod tests {
         let (_, share_lag0) = remove_explained(
             &y2,
             &[Measured {
+                observable: covs2[0].observable,
                 channels: vec![covs2[0].values.clone()],
                 reach: 0,
                 shifts: tile_shifts(),
