@@ -32,6 +32,7 @@ fuzz_target!(|data: &[u8]| {
             .map(|t| {
                 let lines = t.observable.is_line();
                 cal::Measured {
+                    observable: t.observable,
                     channels: match lines {
                         true => cal::line_channels(t.observable, &t.tiles, x.len(), |_| &x),
                         false => vec![x.clone()],
