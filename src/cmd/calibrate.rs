@@ -162,6 +162,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     for n in &r.notes {
         eprintln!("note: {n}");
     }
+    for e in &r.report.effects {
+        if let Some(s) = &e.cannot_correct {
+            eprintln!("{} cannot correct: {s}", e.name);
+        }
+    }
     // The summary: every effect fitted, kept or not, its held-out gain
     // and parameters (± one standard deviation in REPORT.json).
     eprintln!();

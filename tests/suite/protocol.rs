@@ -18,6 +18,9 @@
 //! effect is weak, which the test decides by measurement, not by name:
 //! weak when it costs the speech less than 4 dB (`ceiling - none`), so
 //! that 3 dB could only be gained by a correction within 1 dB of perfect.
+//! The held-out exposure may instead meet the acceptance's other branch
+//! (the report says what it cannot correct, and why), checked by
+//! measurement: see [`held_out_exposure`].
 //!
 //! Which cases were looked at while the explainer and the carrying of
 //! corrections were designed and tuned (`seen`), and which are run only
@@ -335,6 +338,13 @@ struct Outcome {
     ceiling: f64,
     kept: String,
     scored: &'static str,
+    /// The chirp's report, what `listen --calibration` said with it, and
+    /// the speech as played (rate, samples).
+    report: serde_json::Value,
+    notes: String,
+    speech: (u32, Vec<f32>),
+    /// The second recording's WAV with an empty report (rate, samples).
+    recording: (u32, Vec<f32>),
 }
 
 impl Outcome {
@@ -427,6 +437,10 @@ fn run(c: &Case) -> Option<Outcome> {
         ceiling,
         kept: kept.join(", "),
         scored: "the reference sampled at the WAV's instants",
+        report: report.clone(),
+        notes: notes.clone(),
+        speech: crate::common::read_wav(&speech),
+        recording: crate::common::read_wav(&wavs[0]),
     };
     if rates[1] != rates[0] {
         eprintln!(
@@ -527,6 +541,267 @@ fn held_out(name: &str, transfer_short: Option<&str>, short: Option<&str>) {
     );
 }
 
+/// The played signal (rate, samples) at the frames' instants `k / fps`
+/// (`frames` of them), each frame averaging it over `exposure_s` about its
+/// instant (the camera's boxcar; 0: the instant itself).
+fn at_frames(
+    (rate, played): (u32, &[f32]),
+    (fps, frames): (u32, usize),
+    exposure_s: f64,
+    offset: f64,
+) -> Vec<f64> {
+    let fr = f64::from(rate);
+    let p: Vec<f64> = played.iter().map(|&v| f64::from(v)).collect();
+    // The running integral of the played signal at its samples' instants
+    // (each sample held for its period).
+    let mut cum = vec![0.0];
+    for &v in &p {
+        cum.push(cum[cum.len() - 1] + v / fr);
+    }
+    let at = |v: &[f64], t: f64| {
+        let x = (t * fr).clamp(0.0, (v.len() - 1) as f64);
+        let i = (x.floor() as usize).min(v.len() - 2);
+        let f = x - i as f64;
+        v[i] * (1.0 - f) + v[i + 1] * f
+    };
+    (0..frames)
+        .map(|k| {
+            let t = (k as f64 + offset) / f64::from(fps);
+            if exposure_s > 0.0 {
+                (at(&cum, t + exposure_s / 2.0) - at(&cum, t - exposure_s / 2.0)) / exposure_s
+            } else {
+                at(&p, t)
+            }
+        })
+        .collect()
+}
+
+/// The held-out SNR (dB) against `reference` (the played signal) of the
+/// best that a linear filter applied at the frame rate makes of `x` (one
+/// sample a frame at `fps`): an FIR of 49 taps fitted by least squares to
+/// the reference at the frames' instants through the high-pass that
+/// `listen --calibration` gives its output and the scorer the reference
+/// (4th order, its default cutoff), scored as the recordings are
+/// ([`held_out_snr`]; the filtered WAV written to `dir/NAME.wav`). An
+/// oracle: it knows the reference, so no correction at the frame rate
+/// reaches further (none that is linear and fixed in time).
+fn best_filter(dir: &Path, name: &str, x: &[f64], fps: u32, reference: &Path) -> f64 {
+    let played = crate::common::read_wav(reference);
+    let frames = x.len();
+    let rate = f64::from(fps);
+    let hp = |v: &[f64]| {
+        let cutoff = vibroscope_math::iir::default_highpass_cutoff_hz(rate);
+        let mut sos = vibroscope_math::iir::Sos::butterworth_highpass(4, cutoff, rate).unwrap();
+        v.iter().map(|&a| sos.step(a)).collect::<Vec<f64>>()
+    };
+    const L: usize = 24;
+    const M: usize = 2 * L + 1;
+    let row = |k: usize| &x[k - L..=k + L];
+    // The frames' instants are known to within a frame (the recording's
+    // own delay; what the frame rate folds depends on it): the offset, in
+    // tenths of a frame, whose filter leaves the least error.
+    let mut best: Option<(f64, [f64; M])> = None;
+    for tenth in -10..10 {
+        let y = hp(&at_frames(
+            (played.0, &played.1),
+            (fps, frames),
+            0.0,
+            f64::from(tenth) / 10.0,
+        ));
+        // The normal equations, solved by Cholesky.
+        let mut a = vec![0.0f64; M * M];
+        let mut b = [0.0f64; M];
+        for (k, &yk) in y.iter().enumerate().take(frames - L).skip(L) {
+            let r = row(k);
+            for (i, (&ri, bi)) in r.iter().zip(b.iter_mut()).enumerate() {
+                *bi += ri * yk;
+                for (aij, &rj) in a[i * M..=i * M + i].iter_mut().zip(r) {
+                    *aij += ri * rj;
+                }
+            }
+        }
+        let ridge = 1e-12 * (0..M).map(|i| a[i * M + i]).sum::<f64>();
+        for i in 0..M {
+            a[i * M + i] += ridge;
+            for j in 0..i {
+                let mut s = a[i * M + j];
+                for q in 0..j {
+                    s -= a[i * M + q] * a[j * M + q];
+                }
+                a[i * M + j] = s / a[j * M + j];
+            }
+            let d = a[i * M + i] - (0..i).map(|q| a[i * M + q].powi(2)).sum::<f64>();
+            assert!(d > 0.0, "the normal equations are singular");
+            a[i * M + i] = d.sqrt();
+        }
+        let mut h = b;
+        for i in 0..M {
+            h[i] = (h[i] - (0..i).map(|q| a[i * M + q] * h[q]).sum::<f64>()) / a[i * M + i];
+        }
+        for i in (0..M).rev() {
+            h[i] = (h[i] - (i + 1..M).map(|q| a[q * M + i] * h[q]).sum::<f64>()) / a[i * M + i];
+        }
+        let sse: f64 = (L..frames - L)
+            .map(|k| (y[k] - row(k).iter().zip(&h).map(|(v, c)| v * c).sum::<f64>()).powi(2))
+            .sum();
+        if best.as_ref().is_none_or(|(b, _)| sse < *b) {
+            best = Some((sse, h));
+        }
+    }
+    let (_, h) = best.unwrap();
+    let out: Vec<f32> = (0..frames)
+        .map(|k| {
+            if k < L || k + L >= frames {
+                x[k] as f32
+            } else {
+                row(k).iter().zip(&h).map(|(v, c)| v * c).sum::<f64>() as f32
+            }
+        })
+        .collect();
+    let wav = dir.join(format!("{name}.wav"));
+    crate::common::write_wav_f32(&wav, fps, &out);
+    held_out_snr(&wav, reference)
+}
+
+/// [`best_filter`] of a noise-free recording of the played signal whose
+/// every frame averages the motion over `exposure_s` (a recovery equal to
+/// the motion): what the exposure alone leaves to a correction at the
+/// frame rate.
+fn frame_rate_limit(
+    dir: &Path,
+    reference: &Path,
+    (fps, frames): (u32, usize),
+    exposure_s: f64,
+) -> f64 {
+    let played = crate::common::read_wav(reference);
+    let rate = f64::from(fps);
+    let cutoff = vibroscope_math::iir::default_highpass_cutoff_hz(rate);
+    let mut sos = vibroscope_math::iir::Sos::butterworth_highpass(4, cutoff, rate).unwrap();
+    let x: Vec<f64> = at_frames((played.0, &played.1), (fps, frames), exposure_s, 0.0)
+        .into_iter()
+        .map(|v| sos.step(v))
+        .collect();
+    let name = format!(
+        "limit-{}-{:.0}us",
+        reference.file_stem().unwrap().to_string_lossy(),
+        exposure_s * 1e6
+    );
+    best_filter(dir, &name, &x, fps, reference)
+}
+
+/// What `listen --calibration` and the report say the exposure leaves.
+const FOLDED: &str = "no correction at the frame rate tells the two apart";
+
+/// The held-out exposure, by the acceptance's other branch where its gain
+/// falls short of the bar: "the report says in words that the residual is
+/// explained by a named observable it cannot correct, and why". Its gain
+/// missed the bar on its first run (+1.28 dB of the 7.84 dB it costs),
+/// and was then looked at (the case's former mark: the rest of the cost is
+/// the speech above the frame rate's Nyquist frequency). This branch was
+/// written afterwards, so it is checked by measurement, not taken on
+/// trust:
+/// - the bar is out of reach: the best fixed filter at the frame rate,
+///   fitted to this recording by an oracle that knows the speech
+///   ([`best_filter`]), gains less than the bar over the recording without
+///   a calibration;
+/// - the calibration reaches that oracle within 1 dB;
+/// - the exposure explains what is left: the same oracle on a noise-free
+///   recording through the same exposure ([`frame_rate_limit`], from the
+///   played speech alone), its error added as power to that of the
+///   recording without the effect (the ceiling), lands within 1 dB of the
+///   oracle on this recording;
+/// - the computation can see a correctable recording: the same limit
+///   through no exposure, and for the chirp (below 1 kHz) through the same
+///   exposure, lies over 20 dB higher;
+/// - the chirp's report (`cannot_correct` of its exposure) and `listen
+///   --calibration` on the speech say so in words.
+///
+/// A gain that meets the bar passes as any other case.
+#[test]
+fn held_out_exposure() {
+    let c = HELD_OUT.iter().find(|c| c.name == "exposure").unwrap();
+    let Some(o) = carries(c, None) else {
+        return;
+    };
+    let need = if o.cost() < 4.0 { 1.0 } else { 3.0 };
+    let figure = format!(
+        "speech {:.2} -> {:.2} dB ({:+.2}); the effect costs {:.2} dB (kept {})",
+        o.none,
+        o.with,
+        o.gain(),
+        o.cost(),
+        o.kept
+    );
+    if o.gain() >= need {
+        eprintln!("protocol exposure: the gain asked ({need} dB) is met: {figure}");
+        return;
+    }
+    let exposure_s = c
+        .speech
+        .strip_prefix("exposure_us = ")
+        .and_then(|v| v.parse::<f64>().ok())
+        .expect("the case's exposure")
+        * 1e-6;
+    let d = tempfile::tempdir().unwrap();
+    let speech = d.path().join("speech.wav");
+    let (rate, played) = &o.speech;
+    crate::common::write_wav_f32(&speech, *rate, played);
+    let chirp = d.path().join("chirp.wav");
+    write_chirp(&chirp);
+    let frames = (2200, 4400);
+    let limit = frame_rate_limit(d.path(), &speech, frames, exposure_s);
+    let point = frame_rate_limit(d.path(), &speech, frames, 0.0);
+    let chirp_limit = frame_rate_limit(d.path(), &chirp, frames, exposure_s);
+    let (fps, recorded) = &o.recording;
+    let x: Vec<f64> = recorded.iter().map(|&v| f64::from(v)).collect();
+    let oracle = best_filter(d.path(), "oracle", &x, *fps, &speech);
+    // The exposure's limit and the errors of the recording without the
+    // effect (the ceiling), added as powers: what the two leave together.
+    let both = -10.0 * (10f64.powf(-limit / 10.0) + 10f64.powf(-o.ceiling / 10.0)).log10();
+    eprintln!(
+        "protocol exposure: {figure}. The best fixed filter at the frame rate (an oracle that knows the speech) makes of this recording {oracle:.2} dB ({:+.2} over it without a calibration; the calibration stops {:.2} dB from it). The exposure alone leaves it {limit:.2} dB (a noise-free recording through it; {point:.2} dB through no exposure, {chirp_limit:.2} dB for the chirp through it); with the errors of the recording without the effect ({:.2} dB), {both:.2} dB",
+        oracle - o.none,
+        oracle - o.with,
+        o.ceiling
+    );
+    assert!(
+        point > limit + 20.0 && chirp_limit > limit + 20.0,
+        "the exposure's limit must lie far higher for a correctable recording: {point:.2} dB through no exposure, {chirp_limit:.2} dB for the chirp, {limit:.2} dB for the speech"
+    );
+    assert!(
+        oracle - o.none < need,
+        "a fixed filter at the frame rate could gain {:+.2} dB on this recording ({oracle:.2} dB): the bar ({need} dB) is within reach, so the case must meet it: {figure}",
+        oracle - o.none
+    );
+    assert!(
+        o.with >= oracle - 1.0,
+        "the calibration stops {:.2} dB short of the best fixed filter at the frame rate ({oracle:.2} dB): {figure}",
+        oracle - o.with
+    );
+    assert!(
+        (both - oracle).abs() < 1.0,
+        "the exposure's limit with the recording's other errors ({both:.2} dB) does not account for the best fixed filter's figure ({oracle:.2} dB): something else limits it"
+    );
+    let said = o.report["effects"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .find(|e| e["name"] == "exposure")
+        .and_then(|e| e["cannot_correct"].as_str())
+        .unwrap_or_default();
+    assert!(
+        said.contains(FOLDED),
+        "the chirp's report must say what its exposure cannot correct: {}",
+        o.report["effects"]
+    );
+    assert!(
+        o.notes.contains(FOLDED),
+        "listen --calibration must say what the exposure leaves: {}",
+        o.notes
+    );
+    eprintln!("protocol exposure: the gain asked ({need} dB) is out of reach of any correction at the frame rate, and the report says why: {said}");
+}
+
 #[test]
 fn seen_camera() {
     seen("camera", None);
@@ -569,14 +844,6 @@ fn seen_column_noise() {
 #[test]
 fn held_out_clock() {
     held_out("clock", None, None);
-}
-#[test]
-fn held_out_exposure() {
-    held_out(
-        "exposure",
-        None,
-        Some("first run +1.28 dB of the 7.84 dB the exposure costs. Looked at afterwards (nothing changed): calibrate on the speech recording against the speech itself gains the same +1.31 dB; the rest of the cost is the speech above the frame rate's Nyquist frequency, which the exposure filters at its own frequency before the camera folds it, so no correction at the frame rate undoes it (the chirp stays below 1 kHz and gains 12 dB)"),
-    );
 }
 #[test]
 fn held_out_resonance() {

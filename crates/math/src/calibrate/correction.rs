@@ -144,6 +144,34 @@ impl Correction {
         )
     }
 
+    /// What the correction cannot undo on a recording at `fs` frames a
+    /// second, in words (`None`: nothing known to stay). The exposure's
+    /// boxcar filters the object's motion before the frame rate samples
+    /// it: its inverse restores the band below the Nyquist frequency, but
+    /// what lay above it arrives folded onto the band at the gain the
+    /// boxcar gave it at its own frequency, beside the band's own content
+    /// at another; no filter at the frame rate tells the two apart.
+    pub fn cannot_correct(&self, fs: f64) -> Option<String> {
+        let Correction::Exposure { exposure_s: e } = *self else {
+            return None;
+        };
+        if !(e > 0.0 && fs > 0.0) {
+            return None;
+        }
+        let nyq = fs / 2.0;
+        let gain = |f: f64| crate::exposure::boxcar_gain(f, e);
+        Some(format!(
+            "the exposure ({:.0} µs, {:.2} of the frame period) is undone only below the frame rate's Nyquist frequency ({nyq:.0} Hz): what the object did above it was filtered by the exposure (x{:.2} at {:.0} Hz, x{:.2} at {:.0} Hz, nothing at {:.0} Hz) before the frame rate folded it onto the band, where it lies beside the band's own content at another gain; no correction at the frame rate tells the two apart, so that part of the error stays (none where the motion holds nothing above {nyq:.0} Hz)",
+            e * 1e6,
+            e * fs,
+            gain(1.5 * nyq),
+            1.5 * nyq,
+            gain(fs),
+            fs,
+            1.0 / e,
+        ))
+    }
+
     /// Applies the correction to `z`, sampled at `fs`.
     pub fn apply(&self, z: &[f64], fs: f64) -> Vec<f64> {
         match self {

@@ -242,6 +242,11 @@ pub struct EffectReport {
     /// was before the effect was added (a nonlinearity: the harmonics).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub evidence: Vec<Unexplained>,
+    /// What the correction cannot undo, in words
+    /// ([`Correction::cannot_correct`]): what stays of the effect on a
+    /// recording it is applied to.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cannot_correct: Option<String>,
 }
 
 /// What `calibrate` found: `REPORT.json` is this, serialised.
@@ -461,6 +466,7 @@ pub fn calibrate_with(
                 uncertainty: c.uncertainty.clone(),
                 snr_gain_db: gain,
                 evidence: d.evidence.into_iter().collect(),
+                cannot_correct: c.correction.cannot_correct(fs),
             });
             timed = z;
             kept_capture = Some(c.correction);
@@ -696,6 +702,7 @@ pub fn calibrate_with(
                 uncertainty: k.c.uncertainty.clone(),
                 snr_gain_db: gain,
                 evidence: k.evidence.clone(),
+                cannot_correct: c.cannot_correct(fs),
             }
         })
         .collect();

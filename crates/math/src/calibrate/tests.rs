@@ -185,6 +185,36 @@ fn frame_events_are_found_and_undone() {
     assert_eq!(ev[1]["kind"], "duplicated");
 }
 
+/// The exposure says what it cannot undo, with its own figures: the
+/// boxcar's gain above the Nyquist frequency and its first null; a filter
+/// that restores every frequency (a transfer function) and an exposure of
+/// nothing say nothing.
+#[test]
+fn an_exposure_says_what_the_frame_rate_folds_beyond_it() {
+    let said = Correction::Exposure { exposure_s: 4e-4 }
+        .cannot_correct(2200.0)
+        .unwrap();
+    for part in [
+        "400 µs",
+        "0.88 of the frame period",
+        "(1100 Hz)",
+        "x0.42 at 1650 Hz",
+        "x0.13 at 2200 Hz",
+        "nothing at 2500 Hz",
+        "no correction at the frame rate tells the two apart",
+    ] {
+        assert!(said.contains(part), "{part:?} not in {said:?}");
+    }
+    assert_eq!(
+        Correction::Exposure { exposure_s: 0.0 }.cannot_correct(2200.0),
+        None
+    );
+    assert_eq!(
+        Correction::TimeBase { ppm: 10.0 }.cannot_correct(2200.0),
+        None
+    );
+}
+
 #[test]
 fn report_round_trips_the_reusable_corrections() {
     let c = [
