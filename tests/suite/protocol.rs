@@ -576,65 +576,75 @@ fn at_frames(
         .collect()
 }
 
+/// `v`, one sample a frame at `fps`, through the high-pass `listen
+/// --calibration` gives its output and the scorer the reference (4th
+/// order, its default cutoff).
+fn highpass(v: &[f64], fps: u32) -> Vec<f64> {
+    let rate = f64::from(fps);
+    let cutoff = vibroscope_math::iir::default_highpass_cutoff_hz(rate);
+    let mut sos = vibroscope_math::iir::Sos::butterworth_highpass(4, cutoff, rate).unwrap();
+    v.iter().map(|&a| sos.step(a)).collect()
+}
+
 /// The held-out SNR (dB) against `reference` (the played signal) of the
 /// best that a linear filter applied at the frame rate makes of `x` (one
 /// sample a frame at `fps`): an FIR of 49 taps fitted by least squares to
-/// the reference at the frames' instants through the high-pass that
-/// `listen --calibration` gives its output and the scorer the reference
-/// (4th order, its default cutoff), scored as the recordings are
+/// the reference at the frames' instants through [`highpass`], scored as
+/// the recordings are
 /// ([`held_out_snr`]; the filtered WAV written to `dir/NAME.wav`). An
 /// oracle: it knows the reference, so no correction at the frame rate
 /// reaches further (none that is linear and fixed in time).
 fn best_filter(dir: &Path, name: &str, x: &[f64], fps: u32, reference: &Path) -> f64 {
     let played = crate::common::read_wav(reference);
     let frames = x.len();
-    let rate = f64::from(fps);
-    let hp = |v: &[f64]| {
-        let cutoff = vibroscope_math::iir::default_highpass_cutoff_hz(rate);
-        let mut sos = vibroscope_math::iir::Sos::butterworth_highpass(4, cutoff, rate).unwrap();
-        v.iter().map(|&a| sos.step(a)).collect::<Vec<f64>>()
-    };
     const L: usize = 24;
     const M: usize = 2 * L + 1;
     let row = |k: usize| &x[k - L..=k + L];
+    // The normal matrix of the filter's inputs, and its Cholesky factor
+    // (lower triangle), for every offset below.
+    let mut a = vec![0.0f64; M * M];
+    for k in L..frames - L {
+        let r = row(k);
+        for (i, &ri) in r.iter().enumerate() {
+            for (aij, &rj) in a[i * M..=i * M + i].iter_mut().zip(r) {
+                *aij += ri * rj;
+            }
+        }
+    }
+    let ridge = 1e-12 * (0..M).map(|i| a[i * M + i]).sum::<f64>();
+    for i in 0..M {
+        a[i * M + i] += ridge;
+        for j in 0..i {
+            let mut s = a[i * M + j];
+            for q in 0..j {
+                s -= a[i * M + q] * a[j * M + q];
+            }
+            a[i * M + j] = s / a[j * M + j];
+        }
+        let d = a[i * M + i] - (0..i).map(|q| a[i * M + q].powi(2)).sum::<f64>();
+        assert!(d > 0.0, "the normal equations are singular");
+        a[i * M + i] = d.sqrt();
+    }
     // The frames' instants are known to within a frame (the recording's
     // own delay; what the frame rate folds depends on it): the offset, in
     // tenths of a frame, whose filter leaves the least error.
     let mut best: Option<(f64, [f64; M])> = None;
     for tenth in -10..10 {
-        let y = hp(&at_frames(
-            (played.0, &played.1),
-            (fps, frames),
-            0.0,
-            f64::from(tenth) / 10.0,
-        ));
-        // The normal equations, solved by Cholesky.
-        let mut a = vec![0.0f64; M * M];
-        let mut b = [0.0f64; M];
+        let y = highpass(
+            &at_frames(
+                (played.0, &played.1),
+                (fps, frames),
+                0.0,
+                f64::from(tenth) / 10.0,
+            ),
+            fps,
+        );
+        let mut h = [0.0f64; M];
         for (k, &yk) in y.iter().enumerate().take(frames - L).skip(L) {
-            let r = row(k);
-            for (i, (&ri, bi)) in r.iter().zip(b.iter_mut()).enumerate() {
-                *bi += ri * yk;
-                for (aij, &rj) in a[i * M..=i * M + i].iter_mut().zip(r) {
-                    *aij += ri * rj;
-                }
+            for (hi, &ri) in h.iter_mut().zip(row(k)) {
+                *hi += ri * yk;
             }
         }
-        let ridge = 1e-12 * (0..M).map(|i| a[i * M + i]).sum::<f64>();
-        for i in 0..M {
-            a[i * M + i] += ridge;
-            for j in 0..i {
-                let mut s = a[i * M + j];
-                for q in 0..j {
-                    s -= a[i * M + q] * a[j * M + q];
-                }
-                a[i * M + j] = s / a[j * M + j];
-            }
-            let d = a[i * M + i] - (0..i).map(|q| a[i * M + q].powi(2)).sum::<f64>();
-            assert!(d > 0.0, "the normal equations are singular");
-            a[i * M + i] = d.sqrt();
-        }
-        let mut h = b;
         for i in 0..M {
             h[i] = (h[i] - (0..i).map(|q| a[i * M + q] * h[q]).sum::<f64>()) / a[i * M + i];
         }
@@ -674,13 +684,10 @@ fn frame_rate_limit(
     exposure_s: f64,
 ) -> f64 {
     let played = crate::common::read_wav(reference);
-    let rate = f64::from(fps);
-    let cutoff = vibroscope_math::iir::default_highpass_cutoff_hz(rate);
-    let mut sos = vibroscope_math::iir::Sos::butterworth_highpass(4, cutoff, rate).unwrap();
-    let x: Vec<f64> = at_frames((played.0, &played.1), (fps, frames), exposure_s, 0.0)
-        .into_iter()
-        .map(|v| sos.step(v))
-        .collect();
+    let x = highpass(
+        &at_frames((played.0, &played.1), (fps, frames), exposure_s, 0.0),
+        fps,
+    );
     let name = format!(
         "limit-{}-{:.0}us",
         reference.file_stem().unwrap().to_string_lossy(),

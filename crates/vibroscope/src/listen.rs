@@ -249,9 +249,9 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
                 .and_then(|r| r.info().fps)
         }),
     };
-    // What the calibration cannot undo at one sample a frame (the rows
-    // sample at their own rate: not said there).
-    if let (Some(c), None, Some(fs)) = (&corrections, &o.rolling_shutter, signal_rate) {
+    // What the calibration cannot undo at one sample a frame (a
+    // calibration with --rolling-shutter took the row path above).
+    if let (Some(c), Some(fs)) = (&corrections, signal_rate) {
         notes.extend(c.iter().filter_map(|c| c.cannot_correct(fs)));
     }
     for (i, f) in o.filters.iter().enumerate() {
