@@ -30,6 +30,11 @@
 //! and of the catalog's tests; the held-out half moves each effect
 //! somewhere new (another place, axis, frequency or family).
 //!
+//! Once run, [`HELD_OUT`]'s misses were looked at, so since session 53
+//! the unseen half is a second set, [`FRESH`] (`fresh_*` tests), written
+//! down and committed before it was run. [`HELD_OUT`]'s cases stay as
+//! they are, each with its mark where it misses a bar.
+//!
 //! The catalog's families outside that set ([`FAMILIES`]: dropped frames,
 //! the gain's drift, the region's gain) are held to the transfer bar only,
 //! so that every family and the explainer has a transfer test here.
@@ -256,6 +261,84 @@ camera_motion = { signal = { type = "noise", rate_hz = 2200.0, duration_s = 3.0,
         Scene::Object,
         "line_delay_us = 4.0",
         "line_delay_us = 4.0",
+    ),
+];
+
+/// The second held-out set (session 53), written down and committed before
+/// any of it was run. By then every case of [`HELD_OUT`] had been run, and
+/// those that missed a bar were looked at while the explainer and the
+/// carrying of corrections changed: that set is no longer unseen. These
+/// ten are, and are run only by this test, their figures reported as they
+/// come. Each is meant to reach what the recovery hears (the object, or
+/// the whole image): of the first set, six cost the speech under 1 dB,
+/// where no gain of 1 dB can be measured. The rule for such a case was
+/// also written down before these ran: an effect that costs the speech
+/// under 1 dB (`ceiling - none`) is held to the transfer bar alone and
+/// reported as not measurable (see [`fresh`]).
+const FRESH: [Case; 10] = [
+    case(
+        "camera_steep",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 1500.0, duration_s = 3.0, seed = 51 }, amplitude_px = 0.05, direction_deg = 120.0 }"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 1500.0, duration_s = 3.0, seed = 52 }, amplitude_px = 0.05, direction_deg = 120.0 }"#,
+    ),
+    case(
+        "camera_and_mover",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 53 }, amplitude_px = 0.04 }
+background_motion = [{ rect = [0, 0, 128, 28], signal = { type = "noise", rate_hz = 700.0, duration_s = 3.0, seed = 55 }, amplitude_px = 0.3 }]"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 54 }, amplitude_px = 0.04 }
+background_motion = [{ rect = [0, 0, 128, 28], signal = { type = "noise", rate_hz = 700.0, duration_s = 3.0, seed = 56 }, amplitude_px = 0.3 }]"#,
+    ),
+    case(
+        "camera_tone_low",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "tone", freq_hz = 170.0 }, amplitude_px = 0.05 }"#,
+        r#"camera_motion = { signal = { type = "tone", freq_hz = 170.0 }, amplitude_px = 0.05 }"#,
+    ),
+    case(
+        "mover_around_object",
+        Scene::Site,
+        r#"background_motion = [{ rect = [32, 32, 64, 64], signal = { type = "noise", rate_hz = 1000.0, duration_s = 3.0, seed = 57 }, amplitude_px = 0.3 }]"#,
+        r#"background_motion = [{ rect = [32, 32, 64, 64], signal = { type = "noise", rate_hz = 1000.0, duration_s = 3.0, seed = 58 }, amplitude_px = 0.3 }]"#,
+    ),
+    case(
+        "row_and_column_noise",
+        Scene::Site,
+        "row_noise_dn = 1.5\ncolumn_noise_dn = 1.5",
+        "row_noise_dn = 1.5\ncolumn_noise_dn = 1.5",
+    ),
+    case(
+        "interference_triple",
+        Scene::Object,
+        "interference = [{ freq_hz = 70.0, amplitude_px = 0.02 }, { freq_hz = 260.0, amplitude_px = 0.015 }, { freq_hz = 830.0, amplitude_px = 0.01 }]",
+        "interference = [{ freq_hz = 70.0, amplitude_px = 0.02 }, { freq_hz = 260.0, amplitude_px = 0.015 }, { freq_hz = 830.0, amplitude_px = 0.01 }]",
+    ),
+    case(
+        "resonance_dip",
+        Scene::Object,
+        "resonances = [{ freq_hz = 800.0, q = 2.5, gain_db = -10.0 }]",
+        "resonances = [{ freq_hz = 800.0, q = 2.5, gain_db = -10.0 }]",
+    ),
+    case(
+        "resonances_and_clock",
+        Scene::Object,
+        "clock_error_ppm = -800.0\nresonances = [{ freq_hz = 300.0, q = 5.0, gain_db = 8.0 }, { freq_hz = 900.0, q = 3.0, gain_db = -6.0 }]",
+        "clock_error_ppm = -800.0\nresonances = [{ freq_hz = 300.0, q = 5.0, gain_db = 8.0 }, { freq_hz = 900.0, q = 3.0, gain_db = -6.0 }]",
+    ),
+    // Odd: the same on the speech's recording, whose object moves the
+    // other way.
+    case(
+        "cubic",
+        Scene::Object,
+        "response_poly = [0.0, -0.3]",
+        "response_poly = [0.0, -0.3]",
+    ),
+    case(
+        "readout_mid",
+        Scene::Object,
+        "line_delay_us = 5.5",
+        "line_delay_us = 5.5",
     ),
 ];
 
@@ -522,6 +605,50 @@ fn held_out(name: &str, transfer_short: Option<&str>, short: Option<&str>) {
     let Some(o) = carries(c, transfer_short) else {
         return;
     };
+    let weak = o.cost() < 4.0;
+    let need = if weak { 1.0 } else { 3.0 };
+    bar(
+        c.name,
+        &format!("the gain asked of a held-out effect ({need} dB)"),
+        o.gain() >= need,
+        format!(
+            "speech {:.2} -> {:.2} dB ({:+.2}); the effect costs {:.2} dB{} (kept {})",
+            o.none,
+            o.with,
+            o.gain(),
+            o.cost(),
+            if weak { ", weak" } else { "" },
+            o.kept
+        ),
+        short,
+    );
+}
+
+/// A case of the second held-out set ([`FRESH`]): the transfer bar, then
+/// the gain asked of a held-out effect, unless the effect costs the speech
+/// under 1 dB: then no gain of the bar's size can be measured, and the
+/// case is reported as such (the rule written down with the set, before
+/// it ran). Each bar's `short`: see [`bar`].
+fn fresh(name: &str, transfer_short: Option<&str>, short: Option<&str>) {
+    let c = FRESH.iter().find(|c| c.name == name).unwrap();
+    let Some(o) = carries(c, transfer_short) else {
+        return;
+    };
+    if o.cost() < 1.0 {
+        eprintln!(
+            "protocol {name}: the effect costs the speech {:.2} dB, under 1 dB: no gain of the bar's size can be measured (speech {:.2} -> {:.2} dB, {:+.2}; kept {}); held to the transfer bar alone",
+            o.cost(),
+            o.none,
+            o.with,
+            o.gain(),
+            o.kept
+        );
+        assert!(
+            short.is_none(),
+            "{name}: a mark on a case with nothing to gain"
+        );
+        return;
+    }
     let weak = o.cost() < 4.0;
     let need = if weak { 1.0 } else { 3.0 };
     bar(
@@ -951,4 +1078,44 @@ fn held_out_readout_partial() {
         None,
         Some("first run +0.52 dB, more than the 0.39 dB the readout costs (weak: 1 dB asked); capture_time kept (the object's rows spread over 28% of a frame period, too little to tell a frequency from its alias, as `listen --unfold` says: the recovery stays at the frame rate)"),
     );
+}
+#[test]
+fn fresh_camera_steep() {
+    fresh("camera_steep", None, None);
+}
+#[test]
+fn fresh_camera_and_mover() {
+    fresh("camera_and_mover", None, None);
+}
+#[test]
+fn fresh_camera_tone_low() {
+    fresh("camera_tone_low", None, None);
+}
+#[test]
+fn fresh_mover_around_object() {
+    fresh("mover_around_object", None, None);
+}
+#[test]
+fn fresh_row_and_column_noise() {
+    fresh("row_and_column_noise", None, None);
+}
+#[test]
+fn fresh_interference_triple() {
+    fresh("interference_triple", None, None);
+}
+#[test]
+fn fresh_resonance_dip() {
+    fresh("resonance_dip", None, None);
+}
+#[test]
+fn fresh_resonances_and_clock() {
+    fresh("resonances_and_clock", None, None);
+}
+#[test]
+fn fresh_cubic() {
+    fresh("cubic", None, None);
+}
+#[test]
+fn fresh_readout_mid() {
+    fresh("readout_mid", None, None);
 }
