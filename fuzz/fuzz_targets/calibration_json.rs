@@ -1,6 +1,6 @@
 //! A stored calibration report (`listen --calibration REPORT.json`): the
 //! reusable corrections, the recovery's pixel frame and the explainer's
-//! terms, each parsed as `listen` parses them, then applied to a short
+//! terms (and the confounds it names), each parsed as `listen` parses them, then applied to a short
 //! signal (the terms to an observable of their own, as `listen` measures
 //! it again).
 #![no_main]
@@ -24,6 +24,9 @@ fuzz_target!(|data: &[u8]| {
         let rescaled: Vec<cal::Correction> = c.iter().map(|c| c.rescaled(ratio)).collect();
         let _ = cal::apply_all(&rescaled, &y, 48_000.0);
     }
+    // What `listen` says of a kept effect its calibration cannot tell
+    // from none.
+    let _ = cal::unsettled_from_report(&v);
     if let Ok(terms) = cal::explained_from_report(&v) {
         let x: Vec<f64> = (0..1024).map(|i| (i as f64 * 0.3).cos()).collect();
         let measured: Vec<cal::Measured> = terms

@@ -22,16 +22,31 @@ pub struct Stored {
     /// What the explainer kept (`explained`): each term's observable,
     /// tiles and FIR.
     pub explained: Vec<cal::StoredTerm>,
+    /// Kept effects that the report's own identifiability check cannot
+    /// tell from none ([`cal::Unsettled`]): applied, and said, one
+    /// sentence each, for the run's notes.
+    pub unsettled: Vec<String>,
 }
 
 /// Reads a stored report (errors name the file and the field).
 pub fn load(path: &Path) -> Result<Stored> {
     let v = read_report(path)?;
     let named = |m: cal::ReportError| Error::input(path, m.to_string());
+    let corrections = cal::reusable_from_report(&v).map_err(named)?;
+    // A kept effect its calibration cannot tell from none is applied (the
+    // other explanation is no safer: a single sweep confounds a true clock
+    // error with a resonance's phase as well as a false one), and said.
+    let unsettled = cal::unsettled_from_report(&v)
+        .map_err(named)?
+        .into_iter()
+        .filter(|u| corrections.iter().any(|c| c.kind().name() == u.effect))
+        .map(|u| u.why)
+        .collect();
     Ok(Stored {
-        corrections: cal::reusable_from_report(&v).map_err(named)?,
+        corrections,
         frame: cal::frame_from_report(&v).map_err(named)?,
         explained: cal::explained_from_report(&v).map_err(named)?,
+        unsettled,
     })
 }
 

@@ -612,6 +612,95 @@ struct StoredReport {
     effects: Option<Vec<StoredEffect>>,
 }
 
+/// The part of a report [`unsettled_from_report`] reads: each confound's
+/// parameter, its range and the reference that would separate it.
+#[derive(Deserialize)]
+struct StoredConfounds {
+    #[serde(default)]
+    confounded: Vec<StoredConfound>,
+}
+
+#[derive(Deserialize)]
+struct StoredConfound {
+    parameter: String,
+    range: [f64; 2],
+    #[serde(default)]
+    effects: Vec<String>,
+    #[serde(default)]
+    separate_with: String,
+}
+
+/// A kept, reusable effect that its calibration cannot tell from none:
+/// the report's identifiability check (`confounded`) gives its main
+/// parameter a range that holds the value it has when the effect is absent
+/// (no clock error, no exposure, no equalising, no square term). On the
+/// calibration's recording the two explanations coincide; on another
+/// recording they part, and nothing measured says which holds.
+/// `listen --calibration` says so when it applies one.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Unsettled {
+    /// The effect's name (`effects[].name`).
+    pub effect: String,
+    /// Why, in words: the range, what it trades against and what would
+    /// separate them.
+    pub why: String,
+}
+
+/// The kept reusable effects of a stored report that its own
+/// identifiability check leaves unsettled ([`Unsettled`]); empty when the
+/// report has no `confounded` list. Errors name the field.
+pub fn unsettled_from_report<'de, D: ?Sized>(report: &'de D) -> Result<Vec<Unsettled>, ReportError>
+where
+    &'de D: Deserializer<'de>,
+{
+    let stored = StoredConfounds::deserialize(report)
+        .map_err(|e| ReportError::Parse(format!("confounded: {e}")))?;
+    let mut out: Vec<Unsettled> = Vec::new();
+    for c in stored.confounded {
+        let Some((effect, key)) = c.parameter.split_once('.') else {
+            continue;
+        };
+        // The reusable effects whose absence is the value 0 of their main
+        // parameter.
+        let neutral_zero = matches!(
+            (effect, key),
+            ("time_base", "clock_error_ppm")
+                | ("exposure", "exposure_us")
+                | ("transfer_function", "k")
+                | ("static_nonlinearity", "inverse_square_term")
+        );
+        let [lo, hi] = c.range;
+        let holds_zero = lo <= 0.0 && hi >= 0.0;
+        if !(neutral_zero && holds_zero) || out.iter().any(|u| u.effect == effect) {
+            continue;
+        }
+        let others: Vec<&str> = c
+            .effects
+            .iter()
+            .map(String::as_str)
+            .filter(|e| *e != effect)
+            .collect();
+        let with = if others.is_empty() {
+            String::new()
+        } else {
+            format!(", trading it against {}", others.join(" and "))
+        };
+        let separate = if c.separate_with.is_empty() {
+            String::new()
+        } else {
+            format!(". To settle it, calibrate with {}", c.separate_with)
+        };
+        out.push(Unsettled {
+            effect: effect.to_string(),
+            why: format!(
+                "{effect} applied, but its calibration cannot tell it from none ({} only known to lie in [{lo:.4}, {hi:.4}], which holds 0{with}): on the calibration's recording both explanations fit, on another they part, and nothing measured says which holds; if this recording comes out worse with the calibration than without, that is the likely cause{separate}",
+                c.parameter
+            ),
+        });
+    }
+    Ok(out)
+}
+
 /// The part of a report [`explained_from_report`] reads.
 #[derive(serde::Deserialize)]
 struct StoredExplained {

@@ -244,6 +244,44 @@ fn report_round_trips_the_reusable_corrections() {
     );
 }
 
+/// Issue 50 (session 53): a kept reusable effect whose confound range
+/// holds its absence is named, with the range, what it trades against and
+/// what would separate them; one whose range lies away from 0, one whose
+/// absence is not 0 of its parameter (a soft clip's level) and one that
+/// is not reusable (a drift) are not; a report without `confounded` has
+/// none, and a damaged one is an error naming the field.
+#[test]
+fn a_confound_that_holds_no_effect_leaves_it_unsettled() {
+    let conf = |parameter: &str, range: [f64; 2]| {
+        json!({
+            "description": "", "parameter": parameter, "range": range,
+            "effects": [parameter.split('.').next().unwrap(), "transfer_function"],
+            "separate_with": "two sweeps", "snr_db": 15.0, "alternative_snr_db": 12.0,
+            "alternative": [], "values": [range[0], range[1]],
+        })
+    };
+    let report = json!({ "effects": [], "confounded": [
+        conf("time_base.clock_error_ppm", [-150.8, 0.0]),
+        conf("exposure.exposure_us", [120.0, 480.0]),
+        conf("soft_clip.level_in_reference_units", [-1.0, 1.0]),
+        conf("gain_drift.start_to_end_db", [-9.0, 0.0]),
+    ]});
+    let u = unsettled_from_report(&report).unwrap();
+    assert_eq!(u.len(), 1, "{u:?}");
+    assert_eq!(u[0].effect, "time_base");
+    for part in ["[-150.8000, 0.0000]", "transfer_function", "two sweeps"] {
+        assert!(u[0].why.contains(part), "{part}: {}", u[0].why);
+    }
+    assert!(unsettled_from_report(&json!({ "effects": [] }))
+        .unwrap()
+        .is_empty());
+    let bad = unsettled_from_report(&json!({ "confounded": [{ "parameter": 3 }] }));
+    assert!(
+        matches!(&bad, Err(ReportError::Parse(m)) if m.starts_with("confounded")),
+        "{bad:?}"
+    );
+}
+
 /// Issue 50: a stored interference comes back as its lines' frequencies,
 /// applied first, and is fitted again on the recording it is applied to:
 /// the same line at another phase and level, under a chirp, is removed
