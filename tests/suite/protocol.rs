@@ -437,6 +437,15 @@ impl Outcome {
     fn cost(&self) -> f64 {
         self.ceiling - self.none
     }
+    /// The gain asked of a held-out case: 1 dB where the effect is weak
+    /// (it costs the speech under 4 dB), else 3 dB.
+    fn need(&self) -> f64 {
+        if self.cost() < 4.0 {
+            1.0
+        } else {
+            3.0
+        }
+    }
 }
 
 /// Runs `c`: the chirp's calibration, then the speech with an empty
@@ -598,17 +607,12 @@ fn family(name: &str) {
     carries(c, None);
 }
 
-/// The transfer bar, then the gain asked of a held-out case (each bar's
-/// `short`: see [`bar`]).
-fn held_out(name: &str, transfer_short: Option<&str>, short: Option<&str>) {
-    let c = HELD_OUT.iter().find(|c| c.name == name).unwrap();
-    let Some(o) = carries(c, transfer_short) else {
-        return;
-    };
-    let weak = o.cost() < 4.0;
-    let need = if weak { 1.0 } else { 3.0 };
+/// The gain asked of a held-out case: 3 dB, or 1 dB where the effect is
+/// weak ([`Outcome::need`]); `short`: see [`bar`].
+fn gain_bar(name: &str, o: &Outcome, short: Option<&str>) {
+    let need = o.need();
     bar(
-        c.name,
+        name,
         &format!("the gain asked of a held-out effect ({need} dB)"),
         o.gain() >= need,
         format!(
@@ -617,11 +621,21 @@ fn held_out(name: &str, transfer_short: Option<&str>, short: Option<&str>) {
             o.with,
             o.gain(),
             o.cost(),
-            if weak { ", weak" } else { "" },
+            if need < 3.0 { ", weak" } else { "" },
             o.kept
         ),
         short,
     );
+}
+
+/// The transfer bar, then the gain asked of a held-out case (each bar's
+/// `short`: see [`bar`]).
+fn held_out(name: &str, transfer_short: Option<&str>, short: Option<&str>) {
+    let c = HELD_OUT.iter().find(|c| c.name == name).unwrap();
+    let Some(o) = carries(c, transfer_short) else {
+        return;
+    };
+    gain_bar(c.name, &o, short);
 }
 
 /// A case of the second held-out set ([`FRESH`]): the transfer bar, then
@@ -647,23 +661,7 @@ fn fresh(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Optio
         );
         return Some(o);
     }
-    let weak = o.cost() < 4.0;
-    let need = if weak { 1.0 } else { 3.0 };
-    bar(
-        c.name,
-        &format!("the gain asked of a held-out effect ({need} dB)"),
-        o.gain() >= need,
-        format!(
-            "speech {:.2} -> {:.2} dB ({:+.2}); the effect costs {:.2} dB{} (kept {})",
-            o.none,
-            o.with,
-            o.gain(),
-            o.cost(),
-            if weak { ", weak" } else { "" },
-            o.kept
-        ),
-        short,
-    );
+    gain_bar(c.name, &o, short);
     Some(o)
 }
 
@@ -856,7 +854,7 @@ fn held_out_exposure() {
     let Some(o) = carries(c, None) else {
         return;
     };
-    let need = if o.cost() < 4.0 { 1.0 } else { 3.0 };
+    let need = o.need();
     let figure = format!(
         "speech {:.2} -> {:.2} dB ({:+.2}); the effect costs {:.2} dB (kept {})",
         o.none,
