@@ -66,14 +66,31 @@ struct Case {
     scene: Scene,
     chirp: &'static str,
     speech: &'static str,
+    /// The speech's peak motion, px (0.2 unless said: [`speech_at`]).
+    speech_px: f64,
 }
 
 const fn case(name: &'static str, scene: Scene, chirp: &'static str, speech: &'static str) -> Case {
+    speech_at(name, scene, chirp, speech, 0.2)
+}
+
+/// A case whose speech peaks at `speech_px`: the simulator's static
+/// response (`response_poly`) is written against each signal's own peak,
+/// so a response meant to be the same in pixels on both recordings needs
+/// the speech at the chirp's amplitude.
+const fn speech_at(
+    name: &'static str,
+    scene: Scene,
+    chirp: &'static str,
+    speech: &'static str,
+    speech_px: f64,
+) -> Case {
     Case {
         name,
         scene,
         chirp,
         speech,
+        speech_px,
     }
 }
 
@@ -342,6 +359,61 @@ background_motion = [{ rect = [0, 0, 128, 28], signal = { type = "noise", rate_h
     ),
 ];
 
+/// The third held-out set (session 54), written down and committed before
+/// any of it was run. Session 54 changed how the recovery's scale in
+/// pixels is read (on the region's tiles that move with it, not on the
+/// whole region) after looking at [`FRESH`]'s `cubic`, so that set's
+/// static responses are seen. These six carry a static response to
+/// another recording where the region holds still background around the
+/// object (`Site`: the region [32, 32, 64, 64] around the object [48, 48,
+/// 32, 32]; `Object`: the whole frame around the central half), with
+/// other terms and signs, alone or beside another effect. Their figures
+/// are reported as they come, under [`fresh`]'s rules (an effect costing
+/// the speech under 1 dB is held to the transfer bar alone).
+const THIRD: [Case; 6] = [
+    speech_at(
+        "site_cubic",
+        Scene::Site,
+        "response_poly = [0.0, -0.3]",
+        "response_poly = [0.0, -0.3]",
+        0.05,
+    ),
+    speech_at(
+        "site_square",
+        Scene::Site,
+        "response_poly = [0.3]",
+        "response_poly = [0.3]",
+        0.05,
+    ),
+    case(
+        "mixed_poly",
+        Scene::Object,
+        "response_poly = [0.15, -0.2]",
+        "response_poly = [0.15, -0.2]",
+    ),
+    speech_at(
+        "cubic_and_camera",
+        Scene::Site,
+        r#"response_poly = [0.0, -0.3]
+camera_motion = { signal = { type = "noise", rate_hz = 1500.0, duration_s = 3.0, seed = 61 }, amplitude_px = 0.02 }"#,
+        r#"response_poly = [0.0, -0.3]
+camera_motion = { signal = { type = "noise", rate_hz = 1500.0, duration_s = 3.0, seed = 62 }, amplitude_px = 0.02 }"#,
+        0.05,
+    ),
+    case(
+        "quintic",
+        Scene::Object,
+        "response_poly = [0.0, 0.0, 0.0, -0.4]",
+        "response_poly = [0.0, 0.0, 0.0, -0.4]",
+    ),
+    case(
+        "cubic_weak",
+        Scene::Object,
+        "response_poly = [0.0, -0.1]",
+        "response_poly = [0.0, -0.1]",
+    ),
+];
+
 /// The catalog's other families, outside the protocol's set (they were
 /// designed on these scenes): only the transfer bar. Dropped frames and
 /// the gain's drift belong to one recording and are left out by `listen
@@ -469,7 +541,7 @@ fn run(c: &Case) -> Option<Outcome> {
         "chirp",
         &scene_text(c.scene, &chirp, None, &format!("{}\nseed = 1", c.chirp)),
     );
-    let speech_px = Some(0.2);
+    let speech_px = Some(c.speech_px);
     let second = "direction_deg = 180.0\nseed = 2";
     render(
         dir,
@@ -644,7 +716,23 @@ fn held_out(name: &str, transfer_short: Option<&str>, short: Option<&str>) {
 /// case is reported as such (the rule written down with the set, before
 /// it ran). Each bar's `short`: see [`bar`].
 fn fresh(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
-    let c = FRESH.iter().find(|c| c.name == name).unwrap();
+    unseen(&FRESH, name, transfer_short, short)
+}
+
+/// A case of the third held-out set, under [`fresh`]'s rules.
+fn third(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
+    unseen(&THIRD, name, transfer_short, short)
+}
+
+/// The case `name` of the unseen `set`: the transfer bar, then the gain
+/// bar where the effect costs the speech 1 dB or more.
+fn unseen(
+    set: &[Case],
+    name: &str,
+    transfer_short: Option<&str>,
+    short: Option<&str>,
+) -> Option<Outcome> {
+    let c = set.iter().find(|c| c.name == name).unwrap();
     let o = carries(c, transfer_short)?;
     if o.cost() < 1.0 {
         eprintln!(
@@ -1130,15 +1218,42 @@ fn fresh_resonance_dip() {
 fn fresh_resonances_and_clock() {
     let _ = fresh("resonances_and_clock", None, None);
 }
+/// First run (session 53): -2.57 dB of the 3.79 dB it costs, both bars
+/// missed (static_nonlinearity kept on the chirp, +6.68 dB there, applied
+/// to the speech rescaled by 1.1657). Looked at in session 54: the
+/// region's motion in pixels held the still background's texture, so the
+/// scale carried was 1.17 where the object's motion asked for 1.56; read
+/// on the region's tiles that move with the recovery, it is 1.55 and the
+/// speech gains +2.92 dB. Seen since, so no longer a held-out figure.
 #[test]
 fn fresh_cubic() {
-    let _ = fresh(
-        "cubic",
-        Some("first run (session 53): -2.57 dB (static_nonlinearity kept on the chirp, +6.68 dB there; applied to the speech rescaled by 1.1657 it makes it worse)"),
-        Some("first run (session 53): -2.57 dB of the 3.79 dB it costs (weak: 1 dB asked)"),
-    );
+    let _ = fresh("cubic", None, None);
 }
 #[test]
 fn fresh_readout_mid() {
     let _ = fresh("readout_mid", None, None);
+}
+#[test]
+fn third_site_cubic() {
+    let _ = third("site_cubic", None, None);
+}
+#[test]
+fn third_site_square() {
+    let _ = third("site_square", None, None);
+}
+#[test]
+fn third_mixed_poly() {
+    let _ = third("mixed_poly", None, None);
+}
+#[test]
+fn third_cubic_and_camera() {
+    let _ = third("cubic_and_camera", None, None);
+}
+#[test]
+fn third_quintic() {
+    let _ = third("quintic", None, None);
+}
+#[test]
+fn third_cubic_weak() {
+    let _ = third("cubic_weak", None, None);
 }

@@ -802,6 +802,21 @@ fn observations(
     out
 }
 
+/// The motion (x, y in pixels) of each observed tile overlapping the
+/// region, from the explainer's observables: where the recovery's frame
+/// reads the object's motion ([`cal::pixel_frame_on_tiles`]).
+fn region_tiles(covs: &[cal::Covariate]) -> Vec<(&[f64], &[f64])> {
+    let of = |rect: [u32; 4], o: cal::Observable| {
+        covs.iter()
+            .find(|c| c.inside && c.rect == rect && c.observable == o)
+            .map(|c| c.values.as_slice())
+    };
+    covs.iter()
+        .filter(|c| c.inside && c.observable == cal::Observable::MotionX)
+        .filter_map(|c| Some((c.values.as_slice(), of(c.rect, cal::Observable::MotionY)?)))
+        .collect()
+}
+
 /// How the recovery's `phase` stage renews its reference at `fs`,
 /// `(interval, overlap)` in frames ([`Options::renewal`]): its defaults,
 /// which the recovery pipelines keep; `None` when it never renews.
@@ -845,7 +860,8 @@ fn calibrate_recovery(
     pipeline::check_interrupt()?;
     let mut c = c.map_err(|e| Error::input(video, e.to_string()))?;
     let (px, py) = &observed.region_px;
-    c.report.pixel_frame = cal::pixel_frame(&y, (px, py), fs, opts.highpass, None);
+    let tiles = region_tiles(&observed.covariates);
+    c.report.pixel_frame = cal::pixel_frame_on_tiles(&y, (px, py), &tiles, fs, opts.highpass, None);
     Ok(Calibrated {
         frame_rate_hz: fs,
         reference_rate_hz: fr,

@@ -51,17 +51,36 @@ pub fn load(path: &Path) -> Result<Stored> {
 }
 
 /// A new recording's observables, measured in the run that recovers it:
-/// the region's motion (the recovery's frame) and the tiles a stored
-/// calibration's explained terms average.
+/// the region's motion and its tiles' (the recovery's frame) and the
+/// tiles a stored calibration's explained terms average.
 pub struct Observe {
-    /// The region first, then each term's tiles.
-    rects: Vec<[u32; 4]>,
+    tiles: Tiles,
     temp: crate::io::atomic::TempPath,
+}
+
+/// The tiles a new recording's observables are measured on
+/// ([`Observe::tiles`]).
+#[derive(Clone, Debug, Default)]
+pub struct Tiles {
+    /// The region first, then its own tiles, then each explained term's
+    /// tiles not already among them.
+    pub rects: Vec<[u32; 4]>,
+    /// How many of `rects` after the region are the region's own tiles
+    /// (those `calibrate` reads the recovery's frame on:
+    /// [`crate::calibrate::observation_tiles`] overlapping the region).
+    pub region_tiles: usize,
+}
+
+impl Tiles {
+    pub fn is_empty(&self) -> bool {
+        self.rects.is_empty()
+    }
 }
 
 impl Observe {
     /// The tiles a new recording's observables are measured on: the
-    /// region first, then each term's tiles (each once). A term's tile
+    /// region first, then the region's own tiles (as `calibrate` observes
+    /// them), then each term's tiles (each once). A term's tile
     /// outside `video`'s frame, or more tiles than one stage measures, is
     /// an error naming `calibration` (the report was fitted on another
     /// camera or frame size, or is damaged).
@@ -69,10 +88,16 @@ impl Observe {
         (video, region): (&Path, &crate::pipeline::Region),
         calibration: &Path,
         terms: &[cal::StoredTerm],
-    ) -> Result<Vec<[u32; 4]>> {
+    ) -> Result<Tiles> {
         let layout = crate::calibrate::strip_rows(video, region)?;
         let (w, h) = (u64::from(layout.width), u64::from(layout.height));
         let mut rects = vec![layout.region()];
+        rects.extend(
+            crate::calibrate::observation_tiles(layout.width, layout.height, layout.region())
+                .into_iter()
+                .filter_map(|(r, inside)| inside.then_some(r)),
+        );
+        let region_tiles = rects.len() - 1;
         for (k, t) in terms.iter().enumerate() {
             for r in &t.tiles {
                 let [x, y, rw, rh] = r.map(u64::from);
@@ -95,13 +120,16 @@ impl Observe {
             return Err(Error::input(
                 calibration,
                 format!(
-                    "explained: its terms measure {} tiles; at most {}",
+                    "explained: its terms and the region's own tiles measure {} tiles; at most {}",
                     rects.len() - 1,
                     most - 1
                 ),
             ));
         }
-        Ok(rects)
+        Ok(Tiles {
+            rects,
+            region_tiles,
+        })
     }
 
     /// Adds the measuring branch to `decl` (on the listen pipeline's
@@ -112,10 +140,10 @@ impl Observe {
         calibration: &Path,
         terms: &[cal::StoredTerm],
     ) -> Result<Observe> {
-        let rects = Self::tiles((video, region), calibration, terms)?;
+        let tiles = Self::tiles((video, region), calibration, terms)?;
         let temp = crate::io::atomic::TempPath::new("observed.csv");
-        crate::calibrate::add_observe(decl, &rects, temp.path())?;
-        Ok(Observe { rects, temp })
+        crate::calibrate::add_observe(decl, &tiles.rects, temp.path())?;
+        Ok(Observe { tiles, temp })
     }
 
     /// After the run: the recovery in the WAV at `path` brought to the
@@ -137,7 +165,7 @@ impl Observe {
         let observed = crate::calibrate::read_observed(self.temp.path())?;
         apply_observed(
             path,
-            (&self.rects, &observed),
+            (&self.tiles, &observed),
             (corrections, denoise),
             frame,
             terms,
@@ -146,29 +174,39 @@ impl Observe {
 }
 
 /// [`Observe::apply`] with the observables already read: `observed` holds
-/// three channels (motion x, y, intensity) for each tile of `rects`
+/// three channels (motion x, y, intensity) for each tile of `tiles`
 /// ([`Observe::tiles`]), one value per frame.
 pub fn apply_observed(
     path: &Path,
-    (rects, observed): (&[[u32; 4]], &[Vec<f64>]),
+    (tiles, observed): (&Tiles, &[Vec<f64>]),
     (corrections, denoise): (&[Correction], Denoise),
     frame: cal::PixelFrame,
     terms: &[cal::StoredTerm],
 ) -> Result<String> {
     let (rate, y) = crate::io::wav::read_mono(path)?;
     let fs = f64::from(rate);
-    if observed.len() != 3 * rects.len() || rects.is_empty() {
+    if observed.len() != 3 * tiles.rects.len() || tiles.rects.is_empty() {
         return Err(Error::Analysis(format!(
             "{} channels of observables for {} tiles",
             observed.len(),
-            rects.len()
+            tiles.rects.len()
         )));
     }
     let n = y.len().min(observed[0].len());
     let hp = cal::Options::for_rate(fs).highpass;
-    let here = cal::pixel_frame(
+    // The region's own tiles, read as `calibrate` read them; a frame
+    // stored before tiles were read (0) is met by the region's motion.
+    let own: Vec<(&[f64], &[f64])> = match frame.tiles {
+        0 => Vec::new(),
+        _ => (1..=tiles.region_tiles)
+            .filter(|k| observed.len() >= 3 * k + 2)
+            .map(|k| (&observed[3 * k][..n], &observed[3 * k + 1][..n]))
+            .collect(),
+    };
+    let here = cal::pixel_frame_on_tiles(
             &y[..n],
             (&observed[0][..n], &observed[1][..n]),
+            &own,
             fs,
             hp,
             Some(frame.direction_deg),
@@ -198,7 +236,8 @@ pub fn apply_observed(
         .map(|t| {
             // A tile's channel of the run, by its rectangle.
             let of = |i: usize| -> &[f64] {
-                let k = rects
+                let k = tiles
+                    .rects
                     .iter()
                     .skip(1)
                     .position(|x| *x == t.tiles[i])
@@ -238,9 +277,13 @@ pub fn apply_observed(
     z.extend_from_slice(&y[n..]);
     let rescaled: Vec<Correction> = corrections.iter().map(|c| c.rescaled(ratio)).collect();
     write_corrected(path, (rate, &z), &rescaled, denoise)?;
+    let on = |f: &cal::PixelFrame| match f.tiles {
+        0 => "the region's motion".to_string(),
+        k => format!("{k} of the region's tiles that move with the recovery"),
+    };
     let mut note = format!(
-            "the recovery reads {:.4e} per px of motion along {:.1}° here, {:.4e} on the calibration's recording (ratio {ratio:+.4})",
-            here.recovery_per_px, frame.direction_deg, frame.recovery_per_px
+            "the recovery reads {:.4e} per px of motion along {:.1}° here (on {}), {:.4e} on the calibration's recording (on {}; ratio {ratio:+.4})",
+            here.recovery_per_px, frame.direction_deg, on(&here), frame.recovery_per_px, on(&frame)
         );
     let refit = terms.iter().filter(|t| t.refit).count();
     if refit > 0 {

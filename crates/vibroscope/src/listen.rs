@@ -418,7 +418,7 @@ fn listen_strips(
             if needs {
                 notes.push(NO_FRAME.into());
             }
-            Vec::new()
+            corrections::Tiles::default()
         }
     };
     let crate::calibrate::StripRun {
@@ -431,7 +431,7 @@ fn listen_strips(
         o.fps,
         &o.region,
         (cols, rows),
-        (false, &tiles),
+        (false, &tiles.rects),
         o.run,
     )?;
     // Unless --no-unfold: a readout's capture times spread over the frame

@@ -86,7 +86,7 @@ pub use explain::{
     line_channels, line_groups, reference_spans, remove_explained, Covariate, Explanation,
     Measured, Observable, StoredTerm, FOLLOWS_SHARE, LAGS, MAX_LINE_REACH, MAX_LINE_SHIFTS,
 };
-pub use frame::{pixel_frame, PixelFrame};
+pub use frame::{pixel_frame, pixel_frame_on_tiles, PixelFrame};
 pub use identify::Confound;
 pub use relation::{check_silent, LINE_DB, MARGIN_DB, SILENT_PEAK};
 pub use report::{
