@@ -27,6 +27,8 @@ fuzz_target!(|data: &[u8]| {
     // What `listen` says of a kept effect its calibration cannot tell
     // from none.
     let _ = cal::unsettled_from_report(&v);
+    // Whether a static response's inverse is carried.
+    let _ = cal::harmonics_left_from_report(&v);
     if let Ok(terms) = cal::explained_from_report(&v) {
         let x: Vec<f64> = (0..1024).map(|i| (i as f64 * 0.3).cos()).collect();
         let measured: Vec<cal::Measured> = terms

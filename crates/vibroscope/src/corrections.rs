@@ -22,31 +22,53 @@ pub struct Stored {
     /// What the explainer kept (`explained`): each term's observable,
     /// tiles and FIR.
     pub explained: Vec<cal::StoredTerm>,
-    /// Kept effects that the report's own identifiability check cannot
-    /// tell from none ([`cal::Unsettled`]): applied, and said, one
-    /// sentence each, for the run's notes.
-    pub unsettled: Vec<String>,
+    /// What the run's notes say of the stored effects, one sentence each:
+    /// kept effects the report's own identifiability check cannot tell
+    /// from none ([`cal::Unsettled`]: applied, and said), and a static
+    /// response's inverse left out because the calibration's residual
+    /// still holds harmonics ([`cal::harmonics_left_from_report`]).
+    pub notes: Vec<String>,
 }
 
 /// Reads a stored report (errors name the file and the field).
 pub fn load(path: &Path) -> Result<Stored> {
     let v = read_report(path)?;
     let named = |m: cal::ReportError| Error::input(path, m.to_string());
-    let corrections = cal::reusable_from_report(&v).map_err(named)?;
+    let mut corrections = cal::reusable_from_report(&v).map_err(named)?;
+    // A static response's inverse is carried only when it explained the
+    // harmonics it was kept for: one that leaves them is a compromise over
+    // the calibration's amplitudes, which another recording does not share.
+    let left = cal::harmonics_left_from_report(&v).map_err(named)?;
+    let mut notes = Vec::new();
+    if !left.is_empty() {
+        let (dropped, kept): (Vec<Correction>, Vec<Correction>) =
+            corrections.into_iter().partition(Correction::needs_frame);
+        corrections = kept;
+        if !dropped.is_empty() {
+            let names: Vec<&str> = dropped.iter().map(|c| c.kind().name()).collect();
+            let orders: Vec<String> = left.iter().map(u32::to_string).collect();
+            notes.push(format!(
+                "{} left out: its calibration's residual still holds the reference's harmonics (order {}), so the inverse it fitted is a compromise over that recording's amplitudes, not the object's response, and on a recording whose amplitudes spread otherwise it would part from it; calibrate on a signal whose level varies, or lower the level",
+                names.join(" and "),
+                orders.join(", ")
+            ));
+        }
+    }
     // A kept effect its calibration cannot tell from none is applied (the
     // other explanation is no safer: a single sweep confounds a true clock
     // error with a resonance's phase as well as a false one), and said.
-    let unsettled = cal::unsettled_from_report(&v)
-        .map_err(named)?
-        .into_iter()
-        .filter(|u| corrections.iter().any(|c| c.kind().name() == u.effect))
-        .map(|u| u.why)
-        .collect();
+    notes.extend(
+        cal::unsettled_from_report(&v)
+            .map_err(named)?
+            .into_iter()
+            .filter(|u| corrections.iter().any(|c| c.kind().name() == u.effect))
+            .map(|u| u.why),
+    );
     Ok(Stored {
         corrections,
         frame: cal::frame_from_report(&v).map_err(named)?,
         explained: cal::explained_from_report(&v).map_err(named)?,
-        unsettled,
+        notes,
     })
 }
 

@@ -176,7 +176,7 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         None => None,
     };
     let (corrections, frame, terms, unsettled) = match stored {
-        Some(s) => (Some(s.corrections), s.frame, s.explained, s.unsettled),
+        Some(s) => (Some(s.corrections), s.frame, s.explained, s.notes),
         None => (None, None, Vec::new(), Vec::new()),
     };
     if let OutputRate::Hz(r) = o.rate {

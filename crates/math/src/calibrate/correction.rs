@@ -63,6 +63,9 @@ pub enum Correction {
         /// The saturation level `L` of `L tanh(x / L)` in the reference's
         /// units, fitted by the forward model (reported, not applied).
         level: f64,
+        /// The recovery's peak when it was fitted: the nonlinear terms are
+        /// held at ±`range` beyond it.
+        range: f64,
         highpass: Option<(usize, f64)>,
     },
     /// Undo a static nonlinear response: `u + a2 u² + a3 u³ + …`
@@ -183,14 +186,21 @@ impl Correction {
             }
             Correction::Frames { events } => apply_frames(z, events),
             Correction::SoftClip {
-                a3, a5, highpass, ..
+                a3,
+                a5,
+                range,
+                highpass,
+                ..
             } => {
                 let u = undo_highpass(z, fs, *highpass);
                 let p: Vec<f64> = u
                     .iter()
                     .map(|&v| {
-                        let v2 = v * v;
-                        v * (1.0 + v2 * (a3 + v2 * a5))
+                        // The terms held at ±range beyond it, as a
+                        // polynomial's (the same below it).
+                        let x = v.clamp(-range, *range);
+                        let x2 = x * x;
+                        v + x * x2 * (a3 + x2 * a5)
                     })
                     .collect();
                 redo_highpass(&p, fs, *highpass)

@@ -174,11 +174,13 @@ impl Correction {
                 a3,
                 a5,
                 level,
+                range,
                 highpass,
             } if ratio.is_finite() && ratio != 0.0 => Correction::SoftClip {
                 a3: a3 / (ratio * ratio),
                 a5: a5 / ratio.powi(4),
                 level: *level,
+                range: range * ratio.abs(),
                 highpass: *highpass,
             },
             other => other.clone(),

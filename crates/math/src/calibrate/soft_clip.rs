@@ -130,6 +130,7 @@ pub(super) fn fit_soft_clip(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate
             a3: a3 / peak.powi(2),
             a5: a5 / peak.powi(4),
             level,
+            range: peak,
             highpass: hp,
         },
         uncertainty: Uncertainty::SoftClip {

@@ -780,3 +780,76 @@ fn a_reference_the_recovery_does_not_follow_is_refused() {
         assert_eq!(tonal, name == "tone", "{name}: {e}");
     }
 }
+
+/// Issue 50 (session 54): a stored soft clip reads back with its range
+/// and high-pass and is carried (held at its range beyond it, brought to
+/// another scale by the frame); one written before it stored its
+/// high-pass stays per recording (no correction); a term that would
+/// multiply the recovery over 1000x at the range's edge is refused naming
+/// it.
+#[test]
+fn report_round_trips_a_soft_clip_and_refuses_bad_ones() {
+    let c = Correction::SoftClip {
+        a3: 400.0,
+        a5: -2000.0,
+        level: 0.8,
+        range: 0.02,
+        highpass: Some((4, 55.0)),
+    };
+    let e = json!({"name": "soft_clip", "parameters": c.parameters(2200.0, 1.0)});
+    let back = reusable_from_report(&json!({ "effects": [e.clone()] })).unwrap();
+    assert_eq!(back, vec![c.clone()]);
+    // Beyond its range the terms are held: at twice the range the inverse
+    // adds what it adds at the range, not 8x (and 32x) of it.
+    let undone = |v: f64| {
+        let Correction::SoftClip { a3, a5, range, .. } = &c else {
+            unreachable!()
+        };
+        let x = v.clamp(-range, *range);
+        v + x.powi(3) * (a3 + a5 * x * x)
+    };
+    assert!((undone(0.04) - 0.04 - (undone(0.02) - 0.02)).abs() < 1e-15);
+    // Rescaled to a recovery twice as large, it undoes the same motion.
+    let Correction::SoftClip { a3, a5, range, .. } = c.rescaled(2.0) else {
+        panic!()
+    };
+    let v: f64 = 0.013;
+    let twice = 2.0 * v + (2.0 * v).powi(3) * (a3 + a5 * (2.0 * v).powi(2));
+    assert!((twice - 2.0 * undone(v)).abs() < 1e-12, "{twice}");
+    assert_eq!(range, 0.04);
+    let mut old = e.clone();
+    let p = old["parameters"].as_object_mut().unwrap();
+    p.remove("highpass_hz");
+    p.remove("highpass_order");
+    assert!(reusable_from_report(&json!({ "effects": [old] }))
+        .unwrap()
+        .is_empty());
+    let mut bad = e;
+    bad["parameters"]["a3"] = json!(1e9);
+    let err = reusable_from_report(&json!({ "effects": [bad] })).unwrap_err();
+    assert!(err.to_string().contains("a3"), "{err}");
+}
+
+/// Issue 50 (session 54): the harmonics a report leaves unexplained are
+/// read by order (each once, in order); none when it leaves none or has
+/// no such list; a damaged list is an error naming it.
+#[test]
+fn the_harmonics_a_report_leaves_are_read() {
+    let report = json!({ "effects": [], "unexplained": [
+        {"kind": "harmonics", "order": 5, "level_db": -27.6, "description": ""},
+        {"kind": "gain_over_time", "description": ""},
+        {"kind": "harmonics", "order": 3, "level_db": -21.9, "description": ""},
+        {"kind": "harmonics", "order": 3, "level_db": -30.0, "description": ""},
+    ]});
+    assert_eq!(harmonics_left_from_report(&report).unwrap(), vec![3, 5]);
+    let none = json!({ "effects": [], "unexplained": [{"kind": "gain_over_time"}] });
+    assert!(harmonics_left_from_report(&none).unwrap().is_empty());
+    assert!(harmonics_left_from_report(&json!({ "effects": [] }))
+        .unwrap()
+        .is_empty());
+    let bad = harmonics_left_from_report(&json!({ "unexplained": [{ "kind": 3 }] }));
+    assert!(
+        matches!(&bad, Err(ReportError::Parse(m)) if m.starts_with("unexplained")),
+        "{bad:?}"
+    );
+}
