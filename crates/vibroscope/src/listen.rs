@@ -175,7 +175,7 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         }
         None => None,
     };
-    let (corrections, frame, terms, unsettled) = match stored {
+    let (corrections, frame, terms, stored_notes) = match stored {
         Some(s) => (Some(s.corrections), s.frame, s.explained, s.notes),
         None => (None, None, Vec::new(), Vec::new()),
     };
@@ -193,7 +193,7 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     }
     if let Some(c) = corrections.as_deref() {
         if let Some(rs) = &o.rolling_shutter {
-            return listen_rows(o, c, rs, terms.len(), unsettled);
+            return listen_rows(o, c, rs, terms.len(), stored_notes);
         }
         if c.iter().any(|c| {
             matches!(
@@ -201,10 +201,10 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
                 Correction::CaptureTime { .. } | Correction::RegionGain { .. }
             )
         }) {
-            return listen_strips(o, c, method, (frame, &terms), unsettled);
+            return listen_strips(o, c, method, (frame, &terms), stored_notes);
         }
     }
-    let mut notes = unsettled;
+    let mut notes = stored_notes;
     if o.unfold == Unfold::Asked && o.rolling_shutter.is_none() {
         notes.push("--unfold: no strips of rows to unfold (no calibration, or one that recombines none: no capture_time): the recovery is at the frame rate".into());
     }
@@ -370,7 +370,7 @@ fn listen_strips(
     corrections: &[Correction],
     method: Option<Method>,
     (frame, terms): (Option<cal::PixelFrame>, &[cal::StoredTerm]),
-    unsettled: Vec<String>,
+    stored_notes: Vec<String>,
 ) -> Result<ListenReport> {
     let (rows, delays_s, weights, name) = match corrections.iter().find(|c| {
         matches!(
@@ -408,7 +408,7 @@ fn listen_strips(
     // As on the frame path: the region's motion and the explained terms'
     // tiles are measured in the same run, to bring the calibration to this
     // recording's frame.
-    let mut notes = unsettled;
+    let mut notes = stored_notes;
     let needs = needs_observables(corrections, terms);
     let tiles = match (frame, &o.calibration) {
         (Some(_), Some(path)) if needs => {
@@ -533,7 +533,7 @@ fn listen_rows(
     corrections: &[Correction],
     rs: &RollingShutter,
     terms: usize,
-    unsettled: Vec<String>,
+    stored_notes: Vec<String>,
 ) -> Result<ListenReport> {
     let found = readout_us(corrections);
     let Some(d_us) = rs.line_delay_us.or(found) else {
@@ -567,7 +567,7 @@ fn listen_rows(
         Some(_) => d_us,
         None => d_us.min(longest),
     };
-    let mut notes = unsettled;
+    let mut notes = stored_notes;
     match (rs.line_delay_us, found) {
         (None, _) => notes.push(format!(
             "the line delay is the calibration's: rows read one after another, {d_us:.3} µs a row"

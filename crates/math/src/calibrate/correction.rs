@@ -185,26 +185,15 @@ impl Correction {
                 sample_at(z, 1.0, (0..m.min(z.len() * 2)).map(|k| k as f64 * s))
             }
             Correction::Frames { events } => apply_frames(z, events),
+            // The odd polynomial `u + a3 u³ + a5 u⁵`, held at ±range as a
+            // polynomial's terms are.
             Correction::SoftClip {
                 a3,
                 a5,
                 range,
                 highpass,
                 ..
-            } => {
-                let u = undo_highpass(z, fs, *highpass);
-                let p: Vec<f64> = u
-                    .iter()
-                    .map(|&v| {
-                        // The terms held at ±range beyond it, as a
-                        // polynomial's (the same below it).
-                        let x = v.clamp(-range, *range);
-                        let x2 = x * x;
-                        v + x * x2 * (a3 + x2 * a5)
-                    })
-                    .collect();
-                redo_highpass(&p, fs, *highpass)
-            }
+            } => apply_polynomial(z, fs, &[0.0, *a3, 0.0, *a5], *range, *highpass),
             Correction::Polynomial {
                 coefs,
                 range,
