@@ -1244,22 +1244,19 @@ fn fresh_row_and_column_noise() {
 fn fresh_interference_triple() {
     let _ = fresh("interference_triple", None, None);
 }
+/// First run (session 53): -6.18 dB (kept time_base and transfer_function
+/// on the chirp; there is no clock error in this scene), both bars missed.
+/// Session 55: the transfer table's edge bins (fed by the window's leakage
+/// alone) left out and its end values held beyond it, where they stepped
+/// to 0 dB: the false clock error is gone and the transfer bar is met
+/// (+0.82 dB); the gain is not, since a gain that falls over the sweep
+/// (`gain_drift`, not carried) takes the dip from the transfer function.
 #[test]
 fn fresh_resonance_dip() {
-    let Some(o) = fresh(
+    let _ = fresh(
         "resonance_dip",
-        Some("first run (session 53): -6.18 dB (kept time_base and transfer_function on the chirp; there is no clock error in this scene)"),
-        Some("first run (session 53): -6.18 dB of the 16.14 dB it costs"),
-    ) else {
-        return;
-    };
-    // The time base it carries is one a single sweep cannot tell from
-    // none: `listen` says so (added after the first run).
-    assert!(
-        o.notes
-            .contains("time_base applied, but its calibration cannot tell it from none"),
-        "listen --calibration must say the time base is unsettled: {}",
-        o.notes
+        None,
+        Some("first run (session 53): -6.18 dB of the 16.14 dB it costs; session 55, the table's ends held: +0.82 dB (gain_drift kept on the chirp takes the dip from the transfer function)"),
     );
 }
 #[test]

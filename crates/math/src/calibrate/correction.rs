@@ -44,7 +44,7 @@ pub enum Correction {
     /// new recording (`listen --calibration`); applied first.
     Lines { freqs_hz: Vec<f64> },
     /// Equalise by `coefficient^-k` (coefficients in dB at frequencies;
-    /// 0 dB outside the table), at most ±30 dB, and undo the phase of the
+    /// the end values held beyond the table), at most ±30 dB, and undo the phase of the
     /// response (degrees at the same frequencies).
     Transfer {
         freqs_hz: Vec<f64>,
@@ -245,8 +245,8 @@ impl Correction {
                 phase_deg,
                 k,
             } => {
-                let c = interp_table(freqs_hz, coef_db, f);
-                let ph = interp_table(freqs_hz, phase_deg, f).to_radians();
+                let c = interp_held(freqs_hz, coef_db, f);
+                let ph = interp_held(freqs_hz, phase_deg, f).to_radians();
                 let g = 10f64.powf((-k * c).clamp(-TRANSFER_MAX_DB, TRANSFER_MAX_DB) / 20.0);
                 Some(Complex::from_polar(g, -ph))
             }
@@ -284,6 +284,15 @@ fn subtract_line(x: &mut [f64], w: f64, (a, b): (f64, f64)) {
     for (n, v) in x.iter_mut().enumerate() {
         let p = w * n as f64;
         *v -= a * p.cos() + b * p.sin();
+    }
+}
+
+/// Linear interpolation in a table, holding its end values outside it.
+fn interp_held(xs: &[f64], ys: &[f64], x: f64) -> f64 {
+    match (xs.first(), xs.last()) {
+        (Some(&a), _) if x <= a => ys[0],
+        (_, Some(&b)) if x >= b => ys[ys.len() - 1],
+        _ => interp_table(xs, ys, x),
     }
 }
 

@@ -853,3 +853,24 @@ fn the_harmonics_a_report_leaves_are_read() {
         "{bad:?}"
     );
 }
+
+/// The equaliser holds its table's end values beyond the table (it used to
+/// step to 0 dB and 0°, a jump in gain and phase at the table's edge that
+/// other effects then tried to explain), and interpolates inside it.
+#[test]
+fn the_transfer_table_holds_its_end_values_beyond_it() {
+    let c = Correction::Transfer {
+        freqs_hz: vec![100.0, 200.0, 300.0],
+        coef_db: vec![6.0, 0.0, -6.0],
+        phase_deg: vec![10.0, 0.0, -30.0],
+        k: 1.0,
+    };
+    let at = |f: f64| c.response(f).unwrap();
+    let (lo, hi, mid) = (at(20.0), at(1000.0), at(250.0));
+    assert!((20.0 * lo.norm().log10() + 6.0).abs() < 1e-9, "{lo}");
+    assert!((lo.arg().to_degrees() + 10.0).abs() < 1e-9, "{lo}");
+    assert!((20.0 * hi.norm().log10() - 6.0).abs() < 1e-9, "{hi}");
+    assert!((hi.arg().to_degrees() - 30.0).abs() < 1e-9, "{hi}");
+    assert!((20.0 * mid.norm().log10() - 3.0).abs() < 1e-9, "{mid}");
+    assert!((mid.arg().to_degrees() - 15.0).abs() < 1e-9, "{mid}");
+}

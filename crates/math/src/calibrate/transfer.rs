@@ -5,6 +5,10 @@ use super::signal::{curvature_sigma, golden, jackknife, peak, smooth3, stft, stf
 use super::{Candidate, Correction, Uncertainty};
 use realfft::num_complex::Complex;
 
+/// The share of the reference's median power (per bin, over the fit
+/// frames) below which the table's edge bins are left out.
+const EDGE_POWER: f64 = 0.1;
+
 /// Per STFT bin: Σ|Z| P, Σ|T| P, Σ P (P the reference's short-time power)
 /// and the cross-spectrum Σ Z T* sign(g), over some frames.
 #[derive(Clone)]
@@ -40,7 +44,8 @@ impl Sums {
 /// the recovery's magnitude over time weighted by the reference's short-
 /// time power, over the same average of the reference's magnitude; in dB
 /// relative to the linear gain, smoothed over three bins; bins where the
-/// reference has little energy are left out (coefficient 1, 0 dB). Also
+/// reference has little energy are left out (interpolated between
+/// neighbours inside the table; beyond its ends the end values hold). Also
 /// the phase of the response: the angle of the cross-spectrum (recovery
 /// times the conjugate reference, sign of the gain removed) summed over the
 /// same frames, smoothed over three bins. The thesis' coefficients are
@@ -98,6 +103,18 @@ fn curve(m: &Model, sums: &Sums, g: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let valid: Vec<usize> = (1..nb)
         .filter(|&k| wsum[k] > 1e-3 * wmax && den[k] > 0.0 && k as f64 * m.fs / nfft as f64 >= lo)
         .collect();
+    // The table's ends: the bins at either edge that the reference feeds
+    // only through the window's leakage (under a tenth of its median
+    // power) are left out; the curve holds its end values beyond them.
+    let valid: Vec<usize> = {
+        let mut w: Vec<f64> = valid.iter().map(|&k| wsum[k]).collect();
+        w.sort_by(f64::total_cmp);
+        let med = w.get(w.len() / 2).copied().unwrap_or(0.0);
+        let ok = |k: usize| wsum[k] >= EDGE_POWER * med;
+        let a = valid.iter().position(|&k| ok(k)).unwrap_or(0);
+        let b = valid.iter().rposition(|&k| ok(k)).map_or(0, |b| b + 1);
+        valid[a..b.max(a)].to_vec()
+    };
     let raw: Vec<f64> = valid
         .iter()
         .map(|&k| 20.0 * (num[k] / den[k] / g).max(1e-12).log10())
