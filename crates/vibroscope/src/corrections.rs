@@ -64,12 +64,50 @@ pub fn load(path: &Path) -> Result<Stored> {
             .filter(|u| corrections.iter().any(|c| c.kind().name() == u.effect))
             .map(|u| u.why),
     );
+    notes.extend(corrections.iter().filter_map(boost_note));
     Ok(Stored {
         corrections,
         frame: cal::frame_from_report(&v).map_err(named)?,
         explained: cal::explained_from_report(&v).map_err(named)?,
         notes,
     })
+}
+
+/// The boost (dB) from which a transfer function's inverse is said.
+const BOOST_NOTE_DB: f64 = 6.0;
+
+/// Where a stored transfer function's inverse boosts by [`BOOST_NOTE_DB`]
+/// or more over its median gain (the object's response is weak there): a
+/// sentence saying what else it boosts. Measured in session 55 on the
+/// protocol's `resonance_dip` (a -10 dB dip at 800 Hz, a camera at 2200
+/// fps): the inverse calibrated on the chirp took speech whose content
+/// reaches past 1100 Hz from 10.07 to 6.20 dB (the dip's exact inverse
+/// lowered it too), and speech with nothing above 1 kHz from 13.81 to
+/// 19.86 dB.
+fn boost_note(c: &Correction) -> Option<String> {
+    let Correction::Transfer { freqs_hz, .. } = c else {
+        return None;
+    };
+    let gain = |f: f64| {
+        c.response(f)
+            .map_or(0.0, |g| 20.0 * g.norm().max(1e-300).log10())
+    };
+    let all: Vec<(f64, f64)> = freqs_hz.iter().map(|&f| (f, gain(f))).collect();
+    // Against the table's median gain: a gain common to all frequencies is
+    // the recovery's scale, not a boost.
+    let mut sorted: Vec<f64> = all.iter().map(|&(_, g)| g).collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = *sorted.get(sorted.len() / 2)?;
+    let over: Vec<(f64, f64)> = all
+        .into_iter()
+        .map(|(f, g)| (f, g - median))
+        .filter(|&(_, b)| b >= BOOST_NOTE_DB)
+        .collect();
+    let (lo, hi) = (over.first()?.0, over.last()?.0);
+    let most = over.iter().map(|&(_, b)| b).fold(f64::MIN, f64::max);
+    Some(format!(
+        "transfer_function boosts by up to {most:.1} dB (against its median) at {lo:.0}-{hi:.0} Hz, where the object's response is weak: whatever else this recording holds there is boosted with it (content above the camera's Nyquist frequency folded back into that band, noise, another vibration), which its calibration on a sweep below that frequency cannot see; if this recording comes out worse with the calibration than without, that is the likely cause"
+    ))
 }
 
 /// A new recording's observables, measured in the run that recovers it:

@@ -288,7 +288,7 @@ fn subtract_line(x: &mut [f64], w: f64, (a, b): (f64, f64)) {
 }
 
 /// Linear interpolation in a table, holding its end values outside it.
-fn interp_held(xs: &[f64], ys: &[f64], x: f64) -> f64 {
+pub(super) fn interp_held(xs: &[f64], ys: &[f64], x: f64) -> f64 {
     match (xs.first(), xs.last()) {
         (Some(&a), _) if x <= a => ys[0],
         (_, Some(&b)) if x >= b => ys[ys.len() - 1],

@@ -8,7 +8,10 @@
 //! reported as confounded, with the range the parameter spans over the
 //! two explanations and the reference signal that would separate them.
 //! (The alternative is built for every parametric effect of the catalog,
-//! kept or not: fitted first, the others refitted on top.)
+//! kept or not: fitted first, the others refitted on top.) An alternative
+//! better by [`super::Options::min_gain_db`] becomes the kept explanation;
+//! where either holds a transfer function, the two are judged with its
+//! phase made from its gain ([`Confound::passive_snr_db`]).
 
 use super::model::Model;
 use super::report::{Parameters, UnexplainedKind};
@@ -36,6 +39,12 @@ pub struct Confound {
     pub range: [f64; 2],
     /// A reference signal that would tell the two apart.
     pub separate_with: String,
+    /// Where either explanation holds a transfer function: the held-out
+    /// SNR (dB) of each (as kept, the alternative) with that function's
+    /// phase made from its gain (minimum phase). The pair is judged on
+    /// these instead of `snr_db` and `alternative_snr_db`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub passive_snr_db: Option<[f64; 2]>,
 }
 
 impl Confound {
@@ -54,12 +63,20 @@ impl Confound {
             self.range[1],
             self.separate_with
         );
+        if let Some([a, b]) = self.passive_snr_db {
+            self.description.push_str(&format!(
+                ". Judged with each transfer function's phase made from its gain (an object's response is minimum phase up to a delay; a drifting gain or a clock error can take a resonance's gain or phase on one sweep, leaving a phase no object has): {a:.2} dB as kept, {b:.2} dB for the alternative"
+            ));
+        }
     }
 
     /// The alternative became the kept explanation: the numbers trade
     /// places.
     pub(super) fn swap(&mut self, kept_params: Vec<Parameters>) {
         std::mem::swap(&mut self.snr_db, &mut self.alternative_snr_db);
+        if let Some(p) = self.passive_snr_db.as_mut() {
+            p.swap(0, 1);
+        }
         self.values.swap(0, 1);
         self.alternative = kept_params;
         self.describe();
@@ -306,6 +323,7 @@ pub(super) fn confounds(
             values: [pb, pb2],
             range,
             separate_with: separating_reference(e, partner).to_string(),
+            passive_snr_db: None,
         };
         c.describe();
         out.push((c, alt));

@@ -622,18 +622,42 @@ pub fn calibrate_with(
         cur = m.errors(&z, &fit);
     }
     let gates: Vec<UnexplainedKind> = residual_start.iter().map(Unexplained::kind).collect();
-    let found = identify::confounds(&m, y, &kept, cur.snr_db, fit.g, &gates);
+    let mut found = identify::confounds(&m, y, &kept, cur.snr_db, fit.g, &gates);
+    // Where either explanation holds a transfer function, the two are
+    // compared with its phase made from its gain (an object's response is
+    // minimum phase up to a delay): a gain drift or a clock error can take
+    // a resonance's gain or phase on a single sweep, leaving a transfer
+    // function whose phase no object has.
+    let passive_snr = |ks: &[Kept]| {
+        let cs: Vec<Correction> = chain(ks).iter().map(|c| transfer::passive(c, fs)).collect();
+        let z = apply_all(&cs, y, fs);
+        m.errors(&z, &m.fit_linear(&z)).snr_db
+    };
+    let has_transfer = |ks: &[Kept]| {
+        ks.iter()
+            .any(|k| k.c.correction.kind() == EffectKind::Transfer)
+    };
+    let annotate = |found: &mut [(Confound, Vec<Kept>)], kept: &[Kept]| {
+        let kept_passive = has_transfer(kept).then(|| passive_snr(kept));
+        for (c, alt) in found.iter_mut() {
+            if kept_passive.is_some() || has_transfer(alt) {
+                let k = kept_passive.unwrap_or(c.snr_db);
+                c.passive_snr_db = Some([k, passive_snr(alt)]);
+                c.describe();
+            }
+        }
+    };
+    annotate(&mut found, &kept);
+    // The two SNRs an alternative is judged on: held-out, or with the
+    // transfer functions' phases made from their gains.
+    let judged = |c: &Confound| c.passive_snr_db.unwrap_or([c.snr_db, c.alternative_snr_db]);
     // An alternative that explains the held-out part better by the least
     // gain becomes the kept explanation (the pair is still reported).
     let best = found
         .iter()
         .enumerate()
-        .filter(|(_, (c, _))| c.alternative_snr_db >= c.snr_db + opts.min_gain_db)
-        .max_by(|x, y| {
-            x.1 .0
-                .alternative_snr_db
-                .total_cmp(&y.1 .0.alternative_snr_db)
-        })
+        .filter(|(_, (c, _))| judged(c)[1] >= judged(c)[0] + opts.min_gain_db)
+        .max_by(|x, y| judged(&x.1 .0)[1].total_cmp(&judged(&y.1 .0)[1]))
         .map(|(i, _)| i);
     let mut confounded: Vec<Confound> = Vec::new();
     match best {
@@ -652,7 +676,8 @@ pub fn calibrate_with(
             fit = m.fit_linear(&z);
             cur = m.errors(&z, &fit);
             c.swap(old);
-            let again = identify::confounds(&m, y, &kept, cur.snr_db, fit.g, &gates);
+            let mut again = identify::confounds(&m, y, &kept, cur.snr_db, fit.g, &gates);
+            annotate(&mut again, &kept);
             let more: Vec<Confound> = again
                 .into_iter()
                 .map(|(n, _)| n)

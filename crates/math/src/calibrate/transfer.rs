@@ -159,6 +159,77 @@ fn peak_sd(m: &Model, (blocks, all): &(Vec<Sums>, Sums), g: f64) -> (f64, f64) {
     )
 }
 
+/// The phase (degrees, at `freqs_hz`) of the minimum-phase response whose
+/// gain is `gain_db` at those frequencies (the table's end values held
+/// beyond it, over 0 to `fs`/2): by the real cepstrum, folded onto
+/// positive quefrencies (the Hilbert transform of the log gain). A
+/// passive object's response is minimum phase up to a delay: its phase
+/// follows from its gain. A phase that moves where the gain does not (or
+/// the other way) is not an object's response.
+pub(super) fn minimum_phase_deg(freqs_hz: &[f64], gain_db: &[f64], fs: f64) -> Vec<f64> {
+    const N: usize = 4096;
+    if freqs_hz.is_empty() || freqs_hz.len() != gain_db.len() || fs.is_nan() || fs <= 0.0 {
+        return vec![0.0; freqs_hz.len()];
+    }
+    let df = fs / N as f64;
+    let mut planner = realfft::RealFftPlanner::<f64>::new();
+    let (inv, fwd) = (planner.plan_fft_inverse(N), planner.plan_fft_forward(N));
+    let mut spec: Vec<Complex<f64>> = (0..=N / 2)
+        .map(|k| {
+            let db = super::correction::interp_held(freqs_hz, gain_db, k as f64 * df);
+            Complex::new(db * std::f64::consts::LN_10 / 20.0, 0.0)
+        })
+        .collect();
+    let mut cep = vec![0.0; N];
+    if inv.process(&mut spec, &mut cep).is_err() {
+        return vec![0.0; freqs_hz.len()];
+    }
+    for (n, c) in cep.iter_mut().enumerate() {
+        let fold = match n {
+            0 => 1.0,
+            n if n == N / 2 => 1.0,
+            n if n < N / 2 => 2.0,
+            _ => 0.0,
+        };
+        *c *= fold / N as f64;
+    }
+    let mut out = vec![Complex::new(0.0, 0.0); N / 2 + 1];
+    if fwd.process(&mut cep, &mut out).is_err() {
+        return vec![0.0; freqs_hz.len()];
+    }
+    freqs_hz
+        .iter()
+        .map(|&f| {
+            let x = (f / df).clamp(0.0, (N / 2) as f64);
+            let (i, t) = (x.floor() as usize, x.fract());
+            let j = (i + 1).min(N / 2);
+            (out[i].im + t * (out[j].im - out[i].im)).to_degrees()
+        })
+        .collect()
+}
+
+/// `c` with a transfer function's phase replaced by the minimum phase of
+/// its gain ([`minimum_phase_deg`]); any other correction as it is.
+pub(super) fn passive(c: &Correction, fs: f64) -> Correction {
+    match c {
+        Correction::Transfer {
+            freqs_hz,
+            coef_db,
+            k,
+            ..
+        } => {
+            let gain: Vec<f64> = coef_db.iter().map(|c| k * c).collect();
+            Correction::Transfer {
+                freqs_hz: freqs_hz.clone(),
+                coef_db: coef_db.clone(),
+                phase_deg: minimum_phase_deg(freqs_hz, &gain, fs),
+                k: *k,
+            }
+        }
+        other => other.clone(),
+    }
+}
+
 pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
     let sums = block_sums(m, z, fit);
     let (freqs, coef, phase) = curve(m, &sums.1, fit.g);
@@ -198,7 +269,49 @@ pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate>
 
 #[cfg(test)]
 mod tests {
-    use super::peak;
+    use super::{minimum_phase_deg, peak};
+    use realfft::num_complex::Complex;
+
+    /// A one-pole low-pass and a two-pole resonance are minimum phase: the
+    /// phase made from their gain alone is their phase.
+    #[test]
+    fn the_minimum_phase_of_a_gain_is_the_phase_of_a_minimum_phase_filter() {
+        let fs = 2200.0;
+        let freqs: Vec<f64> = (1..1100).map(|k| k as f64).collect();
+        let z = |f: f64| Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f / fs);
+        let filters: [&dyn Fn(f64) -> Complex<f64>; 2] = [
+            &|f| Complex::new(0.4, 0.0) / (Complex::new(1.0, 0.0) - z(f) * 0.6),
+            &|f| {
+                let (r, w) = (0.95, 2.0 * std::f64::consts::PI * 400.0 / fs);
+                Complex::new(1.0, 0.0)
+                    / (Complex::new(1.0, 0.0) - z(f) * (2.0 * r * w.cos()) + z(f) * z(f) * (r * r))
+            },
+        ];
+        for (i, h) in filters.iter().enumerate() {
+            let gain: Vec<f64> = freqs.iter().map(|&f| 20.0 * h(f).norm().log10()).collect();
+            let got = minimum_phase_deg(&freqs, &gain, fs);
+            for (k, &f) in freqs.iter().enumerate().step_by(50) {
+                let want = h(f).arg().to_degrees();
+                assert!(
+                    (got[k] - want).abs() < 1.0,
+                    "filter {i} at {f} Hz: {} against {want}",
+                    got[k]
+                );
+            }
+        }
+        // A zero outside the unit circle has the gain of its mirror inside
+        // and another phase: the phase made from the gain is the mirror's.
+        let outside = |f: f64| Complex::new(1.0, 0.0) - z(f) * 2.0;
+        let gain: Vec<f64> = freqs
+            .iter()
+            .map(|&f| 20.0 * outside(f).norm().log10())
+            .collect();
+        let got = minimum_phase_deg(&freqs, &gain, fs);
+        let k = 549; // 550 Hz
+        let mirror = (Complex::new(2.0, 0.0) - z(freqs[k])).arg().to_degrees();
+        assert!((got[k] - mirror).abs() < 1.0, "{} against {mirror}", got[k]);
+        assert!((got[k] - outside(freqs[k]).arg().to_degrees()).abs() > 30.0);
+    }
 
     /// The peak of a sampled bump lies between bins, and its height is
     /// read against the curve's median, not its floor or its mean.
