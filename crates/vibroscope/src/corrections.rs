@@ -26,7 +26,8 @@ pub struct Stored {
     /// kept effects the report's own identifiability check cannot tell
     /// from none ([`cal::Unsettled`]: applied, and said), and a static
     /// response's inverse left out because the calibration's residual
-    /// still holds harmonics ([`cal::harmonics_left_from_report`]).
+    /// still holds harmonics ([`cal::harmonics_left_from_report`]), and
+    /// where a transfer function's inverse boosts ([`boost_note`]).
     pub notes: Vec<String>,
 }
 
