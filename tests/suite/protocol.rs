@@ -1217,16 +1217,21 @@ fn held_out_mover_in_region() {
     held_out(
         "mover_in_region",
         None,
-        Some("first run: the effect costs 0.21 dB; nothing kept, nothing to gain"),
+        Some("first run: the effect costs 0.21 dB; nothing kept, nothing to gain. Since session 56 (tiles inside the region that move on their own observed) explained:other_object is kept on the chirp (+0.62 dB there) and the speech moves -0.13 dB"),
     );
 }
+/// First run -1.19 dB (the stored FIR held the chirp texture's
+/// coupling); since the camera term is fitted again on each recording
+/// (its observable does not follow the reference), -0.00 dB: fitted on
+/// the speech recording, the term explained almost none of it. Looked at
+/// in the sixth part: align shifted the bands that see the shake by 5
+/// frames on the speech recording (0 on the chirp's), and a tile's motion
+/// is now fitted about its best lag: +2.94 dB. Met since session 56
+/// (tiles inside the region that move on their own observed: the ring
+/// around the object moves with the camera): +3.21 dB.
 #[test]
 fn held_out_camera_vertical() {
-    held_out(
-        "camera_vertical",
-        None,
-        Some("first run -1.19 dB (the stored FIR held the chirp texture's coupling); since the camera term is fitted again on each recording (its observable does not follow the reference), -0.00 dB: fitted on the speech recording, the term explained almost none of it. Looked at in the sixth part: align shifted the bands that see the shake by 5 frames on the speech recording (0 on the chirp's), and a tile's motion is now fitted about its best lag: +2.94 dB"),
-    );
+    held_out("camera_vertical", None, None);
 }
 #[test]
 fn held_out_camera_diagonal() {
@@ -1280,13 +1285,15 @@ fn fresh_camera_and_mover() {
 fn fresh_camera_tone_low() {
     let _ = fresh("camera_tone_low", None, None);
 }
+/// First run (session 53): +0.66 dB of the 6.08 dB it costs (kept
+/// explained:light twice: the background around the object moving was
+/// taken for the light). Met since session 56, where the explainer
+/// observes the tiles inside the region that move on their own (this
+/// case was looked at while that was designed): +5.79 dB, kept
+/// explained:other_object.
 #[test]
 fn fresh_mover_around_object() {
-    let _ = fresh(
-        "mover_around_object",
-        None,
-        Some("first run (session 53): +0.66 dB of the 6.08 dB it costs (kept explained:light twice: the background around the object moving was taken for the light)"),
-    );
+    let _ = fresh("mover_around_object", None, None);
 }
 #[test]
 fn fresh_row_and_column_noise() {
@@ -1368,7 +1375,7 @@ fn third_cubic_and_camera() {
     let _ = third(
         "cubic_and_camera",
         None,
-        Some("first run (session 54): +0.00 dB of the 2.61 dB it costs (weak: 1 dB asked); nothing kept on the chirp (4.24 dB: 0.05 px under 2 DN of noise and the camera's 0.02 px)"),
+        Some("first run (session 54): +0.00 dB of the 2.61 dB it costs (weak: 1 dB asked); nothing kept on the chirp (4.24 dB: 0.05 px under 2 DN of noise and the camera's 0.02 px). Since session 56 (tiles inside the region that move on their own observed) explained:camera is kept (4.24 -> 4.75 dB on the chirp) and the speech gains +0.81 dB"),
     );
 }
 /// First run (session 54): +0.00 dB, soft_clip kept on the chirp (+0.81

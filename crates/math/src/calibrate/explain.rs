@@ -1,8 +1,9 @@
 //! The residual explainer (issue 50): after the catalog's effects, what is
 //! left of the residual is regressed on signals measured on the recording
 //! itself, in the same run, that no family models: the motion of every
-//! tile of the frame outside the region (both axes) and the mean
-//! intensity of every tile, inside the region or not. Each candidate enters
+//! tile of the frame outside the region (both axes), the motion of the
+//! tiles inside it that move on their own, and the mean intensity of
+//! every tile, inside the region or not. Each candidate enters
 //! through a short FIR (lags -[`LAGS`]..=[`LAGS`] frames), so a gain, a
 //! small lag or a simple transfer function is allowed.
 //!
@@ -12,9 +13,12 @@
 //! how much of the held-out residual they remove, and the best is kept
 //! only when the corrected recovery, linear model refitted, gains at least
 //! [`super::Options::min_gain_db`] of held-out SNR (the penalty for size;
-//! at most [`MAX_KEPT`]). Motion measured inside the region is left out on
-//! purpose: it holds the object's own motion, and a regression on it would
-//! only be a better estimator of the object, not an effect.
+//! at most [`MAX_KEPT`]). Motion measured on the object is left out on
+//! purpose: a regression on it would only be a better estimator of the
+//! object, not an effect. A tile inside the region is observed only when
+//! its motion does not follow the sound on either axis and moves with
+//! another tile's that does not either ([`observed_motion`]): the
+//! background around the object moving inside the region is then seen.
 //!
 //! Lines of the sensor: the mean intensity of every row that crosses the
 //! region, measured beside it (left and right of it), and of every column,
@@ -414,42 +418,6 @@ pub(super) fn explain(
         .filter(|c| !c.observable.is_line())
         .cloned()
         .collect();
-    // Each tile is noisy alone: means over tiles that share a cause (all
-    // those outside the region, a row of tiles, a column) join the
-    // candidates.
-    let pooled = pool(&covs, n);
-    let singles = covs.len();
-    let joints = joint_lines(&lines, n);
-    // The tiles each candidate is the mean of (for lines, the parts of
-    // every line).
-    let members: Vec<Vec<[u32; 4]>> = covs
-        .iter()
-        .map(|c| vec![c.rect])
-        .chain(pooled.iter().map(|p| p.1.clone()))
-        .chain(joints.iter().map(|j| j.1.clone()))
-        .collect();
-    // The lines of each joint candidate, by the candidate's index.
-    let mut channels_of: Vec<Option<Vec<Vec<f64>>>> = vec![None; singles + pooled.len()];
-    let covs: Vec<Covariate> = covs
-        .into_iter()
-        .chain(pooled.into_iter().map(|p| p.0))
-        .chain(joints.into_iter().map(|(c, _, ch)| {
-            channels_of.push(Some(ch));
-            c
-        }))
-        .collect();
-    let covs = &covs[..];
-    let usable: Vec<usize> = (0..covs.len())
-        .filter(|&i| {
-            let c = &covs[i];
-            c.values.len() == n
-                && !(c.inside && c.observable != Observable::Intensity)
-                && c.values.iter().all(|v| v.is_finite())
-        })
-        .collect();
-    if usable.is_empty() {
-        return None;
-    }
     let fs = m.fs;
     let hp = m.opts.highpass;
     let lin: Vec<Correction> = chain.iter().filter(|c| linear(c)).cloned().collect();
@@ -468,6 +436,50 @@ pub(super) fn explain(
     };
     let held_energy =
         |a: &[f64]| -> f64 { a.iter().zip(&fitw).map(|(x, w)| x * x * (1.0 - w)).sum() };
+    // Which tiles' motion may explain: those outside the region, and
+    // those inside it that move on their own.
+    let observed = observed_motion(&covs, (&lin, fs, hp), &fit.t, &dot, &held_energy);
+    // Each tile is noisy alone: means over tiles that share a cause (all
+    // those observed, a row of tiles, a column, those inside the region
+    // that move on their own) join the candidates.
+    let pooled = pool(&covs, &observed, n);
+    let singles = covs.len();
+    let joints = joint_lines(&lines, n);
+    // The tiles each candidate is the mean of (for lines, the parts of
+    // every line).
+    let members: Vec<Vec<[u32; 4]>> = covs
+        .iter()
+        .map(|c| vec![c.rect])
+        .chain(pooled.iter().map(|p| p.1.clone()))
+        .chain(joints.iter().map(|j| j.1.clone()))
+        .collect();
+    // The lines of each joint candidate, by the candidate's index.
+    let pooled_len = pooled.len();
+    let mut channels_of: Vec<Option<Vec<Vec<f64>>>> = vec![None; singles + pooled_len];
+    let covs: Vec<Covariate> = covs
+        .into_iter()
+        .chain(pooled.into_iter().map(|p| p.0))
+        .chain(joints.into_iter().map(|(c, _, ch)| {
+            channels_of.push(Some(ch));
+            c
+        }))
+        .collect();
+    let covs = &covs[..];
+    // A single tile as observed; a mean of tiles is made of observed
+    // ones; the lines are beside the region.
+    let usable: Vec<usize> = (0..covs.len())
+        .filter(|&i| {
+            let c = &covs[i];
+            c.values.len() == n
+                && (i >= singles || observed[i])
+                && (i < singles + pooled_len
+                    || !(c.inside && c.observable != Observable::Intensity))
+                && c.values.iter().all(|v| v.is_finite())
+        })
+        .collect();
+    if usable.is_empty() {
+        return None;
+    }
     // The residual of the best model so far.
     let resid0: Vec<f64> = z.iter().zip(&fit.t).map(|(a, t)| a - fit.g * t).collect();
     let e0_held = held_energy(&resid0);
@@ -650,7 +662,7 @@ pub(super) fn explain(
                     follows_reference(&part, &fit.t, &dot, &held_energy),
                 ),
                 None => (
-                    label(cov, &covs[..singles], fs, hp),
+                    label(cov, (&covs[..singles], &observed), fs, hp),
                     follows_reference(&apply_all(&lin, &c.xs[0], fs), &fit.t, &dot, &held_energy),
                 ),
             };
@@ -715,11 +727,74 @@ fn follows_reference(
     (1.0 - held(&after) / e).clamp(-1.0, 1.0)
 }
 
+/// Which of `covs` may explain: every intensity, the motion of every
+/// tile outside the region, and the motion of a tile inside it that
+/// moves on its own, that is when (a) the reference `t` explains under
+/// [`FOLLOWS_SHARE`] of its motion on either axis ([`follows_reference`],
+/// after `lin`): a tile on the object moves with the sound, and a
+/// regression on it would only be a better estimator of the object; and
+/// (b) its motion moves with another tile's, beyond chance (as
+/// [`label`] counts a tile with a covariate), that tile not moving with
+/// the sound either: a tile's own noise moves with no other, so a tile
+/// on the object whose motion is mostly noise is not taken for a
+/// mover. A background moving around the object inside the region is
+/// what this lets the explainer see.
+fn observed_motion(
+    covs: &[Covariate],
+    (lin, fs, hp): (&[Correction], f64, Option<(usize, f64)>),
+    t: &[f64],
+    dot: &dyn Fn(&[f64], &[f64]) -> f64,
+    held: &dyn Fn(&[f64]) -> f64,
+) -> Vec<bool> {
+    let n = t.len();
+    let prep: Vec<Option<Vec<f64>>> = covs
+        .iter()
+        .map(|c| {
+            (c.observable.is_motion()
+                && c.values.len() == n
+                && c.values.iter().all(|v| v.is_finite()))
+            .then(|| centred_highpass(&c.values, fs, hp))
+        })
+        .collect();
+    // The rectangles inside the region whose motion follows the sound on
+    // either axis.
+    let mut follows: Vec<[u32; 4]> = Vec::new();
+    for (c, p) in covs.iter().zip(&prep) {
+        if let Some(p) = p.as_ref().filter(|_| c.inside) {
+            if follows_reference(&apply_all(lin, p, fs), t, dot, held) >= FOLLOWS_SHARE {
+                follows.push(c.rect);
+            }
+        }
+    }
+    let threshold = (WITH_IT_Z / (n.max(1) as f64).sqrt()).max(WITH_IT_MIN);
+    covs.iter()
+        .enumerate()
+        .map(|(i, c)| {
+            if !c.observable.is_motion() || !c.inside {
+                return true;
+            }
+            let Some(me) = prep[i].as_ref() else {
+                return false;
+            };
+            if follows.contains(&c.rect) {
+                return false;
+            }
+            covs.iter().zip(&prep).any(|(o, p)| {
+                o.observable == c.observable
+                    && o.rect != c.rect
+                    && !follows.contains(&o.rect)
+                    && p.as_ref().is_some_and(|p| corr(me, p).abs() >= threshold)
+            })
+        })
+        .collect()
+}
+
 /// Means of tiles' observables that share a cause, as candidates: for
-/// motion (each axis), the tiles outside the region, all of them, each
-/// row of tiles and each column; for intensity, every tile, each row and
-/// each column. A mean's rectangle holds its tiles.
-fn pool(covs: &[Covariate], n: usize) -> Vec<(Covariate, Vec<[u32; 4]>)> {
+/// motion (each axis), of the tiles `observed` ([`observed_motion`]): all
+/// of them, those inside the region, each row of tiles and each column;
+/// for intensity, every tile, each row and each column. A mean's
+/// rectangle holds its tiles.
+fn pool(covs: &[Covariate], observed: &[bool], n: usize) -> Vec<(Covariate, Vec<[u32; 4]>)> {
     let mut out = Vec::new();
     for obs in [
         Observable::MotionX,
@@ -728,13 +803,15 @@ fn pool(covs: &[Covariate], n: usize) -> Vec<(Covariate, Vec<[u32; 4]>)> {
     ] {
         let tiles: Vec<&Covariate> = covs
             .iter()
-            .filter(|c| {
-                c.observable == obs
-                    && c.values.len() == n
-                    && (obs == Observable::Intensity || !c.inside)
-            })
+            .zip(observed)
+            .filter(|(c, &o)| c.observable == obs && c.values.len() == n && o)
+            .map(|(c, _)| c)
             .collect();
         let mut groups: Vec<Vec<&Covariate>> = vec![tiles.clone()];
+        // The tiles inside the region that move on their own.
+        if obs.is_motion() {
+            groups.push(tiles.iter().copied().filter(|c| c.inside).collect());
+        }
         // Each row of tiles (same rows), then each column (same columns).
         let rows = |c: &Covariate| (c.rect[1], c.rect[3]);
         let cols = |c: &Covariate| (c.rect[0], c.rect[2]);
@@ -1101,7 +1178,7 @@ fn label_lines(
 /// many tiles (of how many) move or brighten with it.
 fn label(
     cov: &Covariate,
-    covs: &[Covariate],
+    (covs, observed): (&[Covariate], &[bool]),
     fs: f64,
     hp: Option<(usize, f64)>,
 ) -> (&'static str, String, (usize, usize), [u32; 4]) {
@@ -1109,11 +1186,9 @@ fn label(
     let me = prep(&cov.values);
     let peers: Vec<&Covariate> = covs
         .iter()
-        .filter(|c| {
-            c.observable == cov.observable
-                && c.values.len() == cov.values.len()
-                && (cov.observable == Observable::Intensity || !c.inside)
-        })
+        .zip(observed)
+        .filter(|(c, &o)| c.observable == cov.observable && c.values.len() == cov.values.len() && o)
+        .map(|(c, _)| c)
         .collect();
     let threshold = (WITH_IT_Z / (me.len().max(1) as f64).sqrt()).max(WITH_IT_MIN);
     let with: Vec<&Covariate> = peers
@@ -1121,7 +1196,15 @@ fn label(
         .copied()
         .filter(|c| corr(&me, &prep(&c.values)).abs() >= threshold)
         .collect();
-    let (k, of) = (with.len(), peers.len());
+    // Motion: the camera is judged on the tiles outside the region; the
+    // tiles inside it that move on their own only show where another
+    // thing moves.
+    let outside = |v: &[&Covariate]| match cov.observable.is_motion() {
+        true => v.iter().filter(|c| !c.inside).count(),
+        false => v.len(),
+    };
+    let (k, of) = (outside(&with), outside(&peers));
+    let (k_in, of_in) = (with.len() - k, peers.len() - of);
     let [x, y, w, h] = cov.rect;
     // Intensities that change with a motion: the light, read as motion.
     let lights: Vec<&Covariate> = covs
@@ -1165,8 +1248,12 @@ fn label(
                 (
                     "other_object",
                     format!(
-                        "another vibrating thing in view, moving along {axis} at [{}, {}, {}, {}] ({k} of the {of} tiles outside the region move with it)",
-                        b[0], b[1], b[2], b[3]
+                        "another vibrating thing in view, moving along {axis} at [{}, {}, {}, {}] ({k} of the {of} tiles outside the region move with it{})",
+                        b[0], b[1], b[2], b[3],
+                        match of_in {
+                            0 => String::new(),
+                            _ => format!(", and {k_in} of the {of_in} inside it that do not move with the sound"),
+                        }
                     ),
                     (k, of),
                     b,
@@ -1262,9 +1349,26 @@ mod tests {
         case_late(leak, seed, 0)
     }
 
-    /// [`case`] with the motion reaching the recovery `late` frames late
-    /// (through bands `align` shifted), the recovery's reach 8 frames.
-    fn case_late(leak: f64, seed: u64, late: usize) -> Case {
+    /// A recovery of a 2.2 s chirp `t` (2200 fps; the reference `r` at
+    /// 8800 Hz) with noise `w` and `leak` times a broadband motion `c`
+    /// reaching it `late` frames late; `rng` goes on for the covariates.
+    struct Leaking {
+        y: Vec<f64>,
+        r: Vec<f64>,
+        opts: Options,
+        c: Vec<f64>,
+        t: Vec<f64>,
+        w: Vec<f64>,
+        rng: Xoshiro256,
+    }
+
+    /// `n` samples of Gaussian noise of deviation `s`.
+    fn gauss(rng: &mut Xoshiro256, n: usize, s: f64) -> Vec<f64> {
+        let z = Ziggurat::new();
+        (0..n).map(|_| z.sample(rng) * s).collect()
+    }
+
+    fn leaking(leak: f64, seed: u64, late: usize) -> Leaking {
         let (fs, fr) = (2200.0, 8800.0);
         let opts = Options {
             line_reach: if late > 0 { 8 } else { 0 },
@@ -1273,15 +1377,37 @@ mod tests {
         let r = chirp(fr);
         let n = 4400;
         let mut rng = Xoshiro256::new(seed);
-        let z = Ziggurat::new();
-        let mut noise = |s: f64| -> Vec<f64> { (0..n).map(|_| z.sample(&mut rng) * s).collect() };
-        let c = noise(1.0);
+        let c = gauss(&mut rng, n, 1.0);
         let t = sample_at(&r, fr, (0..n).map(|i| i as f64 / fs));
-        let w = noise(0.3);
+        let w = gauss(&mut rng, n, 0.3);
         let y: Vec<f64> = (0..n)
             .map(|i| t[i] + leak * i.checked_sub(late).map_or(0.0, |k| c[k]) + w[i])
             .collect();
         let y = redo_highpass(&y, fs, opts.highpass);
+        Leaking {
+            y,
+            r,
+            opts,
+            c,
+            t,
+            w,
+            rng,
+        }
+    }
+
+    /// [`case`] with the motion reaching the recovery `late` frames late
+    /// (through bands `align` shifted), the recovery's reach 8 frames.
+    fn case_late(leak: f64, seed: u64, late: usize) -> Case {
+        let Leaking {
+            y,
+            r,
+            opts,
+            c,
+            mut rng,
+            ..
+        } = leaking(leak, seed, late);
+        let n = y.len();
+        let mut noise = |s: f64| gauss(&mut rng, n, s);
         let seen: Vec<f64> = c.iter().zip(noise(0.2)).map(|(a, b)| a + b).collect();
         let covs = vec![
             Covariate {
@@ -1304,6 +1430,71 @@ mod tests {
             },
         ];
         (y, r, covs, opts)
+    }
+
+    /// A recovery of a chirp with `leak` times a broadband motion `c` in
+    /// it, seen only on tiles inside the region (the background around
+    /// the object moving): two tiles that see `c` (each with its own
+    /// noise), a tile on the object whose motion is a fifth of the sound
+    /// plus the recovery's own noise (subtracting it would remove that
+    /// noise: a better estimator of the object, not an effect), and a
+    /// tile of noise alone.
+    fn case_inside(leak: f64, seed: u64) -> Case {
+        let Leaking {
+            y,
+            r,
+            opts,
+            c,
+            t,
+            w,
+            mut rng,
+        } = leaking(leak, seed, 0);
+        let n = y.len();
+        let tile = |rect, values| Covariate {
+            observable: Observable::MotionX,
+            rect,
+            inside: true,
+            values,
+        };
+        let sees = |k: usize| -> Vec<f64> {
+            let mut rng = Xoshiro256::new(seed * 100 + k as u64);
+            c.iter()
+                .zip(gauss(&mut rng, n, 0.3))
+                .map(|(a, b)| a + b)
+                .collect()
+        };
+        let on_object: Vec<f64> = t.iter().zip(&w).map(|(a, b)| 0.2 * a + b).collect();
+        let covs = vec![
+            tile([0, 0, 10, 10], sees(1)),
+            tile([10, 0, 10, 10], sees(2)),
+            tile([10, 10, 10, 10], on_object),
+            tile([0, 10, 10, 10], gauss(&mut rng, n, 1.0)),
+        ];
+        (y, r, covs, opts)
+    }
+
+    /// A motion seen only on tiles inside the region is found there, on
+    /// the tiles that move together and not with the sound; the tile on
+    /// the object is never taken, and without a leak nothing is kept
+    /// (where subtracting that tile would remove the recovery's noise).
+    #[test]
+    fn a_motion_inside_the_region_is_found_on_the_tiles_that_move_on_their_own() {
+        let (y, r, covs, opts) = case_inside(0.5, 3);
+        let c =
+            calibrate_with(&y, (None, &covs), 2200.0, (&r, 8800.0), &opts, &mut |_| {}).unwrap();
+        let e = &c.report.explained;
+        assert!(!e.is_empty(), "nothing kept");
+        for k in e {
+            assert!(
+                k.tiles
+                    .iter()
+                    .all(|t| [[0, 0, 10, 10], [10, 0, 10, 10]].contains(t)),
+                "{e:#?}"
+            );
+        }
+        let gain = c.report.after.snr_db - c.report.before.snr_db;
+        assert!(gain > 3.0, "gain {gain} dB");
+        nothing_kept_without_it(case_inside);
     }
 
     /// The leaking motion is found on the tile that sees it, and removing
