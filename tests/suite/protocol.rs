@@ -38,7 +38,9 @@
 //! Later sets, each written down and committed before it ran: [`THIRD`]
 //! and [`FOURTH`] (session 54, static responses), [`FIFTH`] (session 55,
 //! resonances, dips, a drift and a clock, after the transfer table's ends
-//! and the minimum-phase judgement of confounds).
+//! and the minimum-phase judgement of confounds), [`SIXTH`] (session 56,
+//! movers inside the region, after the explainer began to observe the
+//! tiles there that move on their own).
 //!
 //! The catalog's families outside that set ([`FAMILIES`]: dropped frames,
 //! the gain's drift, the region's gain) are held to the transfer bar only,
@@ -504,6 +506,44 @@ const FIFTH: [Case; 4] = [
     ),
 ];
 
+/// The sixth held-out set (session 56), written down and committed before
+/// any of it was run, after the explainer began to observe the tiles
+/// inside the region that move on their own (found on
+/// `mover_around_object`, which was looked at). Four effects inside the
+/// region but off the object, on the `Site` scene: the ring around the
+/// object moving across (along y), only a strip of it moving (left of the
+/// object), the ring moving while the camera shakes, and a small patch
+/// moving below the object. Figures reported as they come, under
+/// [`fresh`]'s rules.
+const SIXTH: [Case; 4] = [
+    case(
+        "ring_along_y",
+        Scene::Site,
+        r#"background_motion = [{ rect = [32, 32, 64, 64], signal = { type = "noise", rate_hz = 1000.0, duration_s = 3.0, seed = 61 }, amplitude_px = 0.3, direction_deg = 90.0 }]"#,
+        r#"background_motion = [{ rect = [32, 32, 64, 64], signal = { type = "noise", rate_hz = 1000.0, duration_s = 3.0, seed = 62 }, amplitude_px = 0.3, direction_deg = 90.0 }]"#,
+    ),
+    case(
+        "ring_left_strip",
+        Scene::Site,
+        r#"background_motion = [{ rect = [32, 32, 16, 64], signal = { type = "noise", rate_hz = 900.0, duration_s = 3.0, seed = 63 }, amplitude_px = 0.3 }]"#,
+        r#"background_motion = [{ rect = [32, 32, 16, 64], signal = { type = "noise", rate_hz = 900.0, duration_s = 3.0, seed = 64 }, amplitude_px = 0.3 }]"#,
+    ),
+    case(
+        "ring_and_camera",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 65 }, amplitude_px = 0.03 }
+background_motion = [{ rect = [32, 32, 64, 64], signal = { type = "noise", rate_hz = 800.0, duration_s = 3.0, seed = 67 }, amplitude_px = 0.2 }]"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 66 }, amplitude_px = 0.03 }
+background_motion = [{ rect = [32, 32, 64, 64], signal = { type = "noise", rate_hz = 800.0, duration_s = 3.0, seed = 68 }, amplitude_px = 0.2 }]"#,
+    ),
+    case(
+        "patch_below_object",
+        Scene::Site,
+        r#"background_motion = [{ rect = [40, 84, 48, 12], signal = { type = "noise", rate_hz = 1100.0, duration_s = 3.0, seed = 69 }, amplitude_px = 0.3 }]"#,
+        r#"background_motion = [{ rect = [40, 84, 48, 12], signal = { type = "noise", rate_hz = 1100.0, duration_s = 3.0, seed = 70 }, amplitude_px = 0.3 }]"#,
+    ),
+];
+
 /// The catalog's other families, outside the protocol's set (they were
 /// designed on these scenes): only the transfer bar. Dropped frames and
 /// the gain's drift belong to one recording and are left out by `listen
@@ -817,6 +857,11 @@ fn fourth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Opti
 /// A case of the fifth held-out set, under [`fresh`]'s rules.
 fn fifth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
     unseen(&FIFTH, name, transfer_short, short)
+}
+
+/// A case of the sixth held-out set, under [`fresh`]'s rules.
+fn sixth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
+    unseen(&SIXTH, name, transfer_short, short)
 }
 
 /// A case of the third held-out set, under [`fresh`]'s rules.
@@ -1439,4 +1484,20 @@ fn fifth_dip_and_clock() {
 #[test]
 fn fifth_two_dips() {
     let _ = fifth("two_dips", None, None);
+}
+#[test]
+fn sixth_ring_along_y() {
+    let _ = sixth("ring_along_y", None, None);
+}
+#[test]
+fn sixth_ring_left_strip() {
+    let _ = sixth("ring_left_strip", None, None);
+}
+#[test]
+fn sixth_ring_and_camera() {
+    let _ = sixth("ring_and_camera", None, None);
+}
+#[test]
+fn sixth_patch_below_object() {
+    let _ = sixth("patch_below_object", None, None);
 }
