@@ -514,7 +514,12 @@ const FIFTH: [Case; 4] = [
 /// object moving across (along y), only a strip of it moving (left of the
 /// object), the ring moving while the camera shakes, and a small patch
 /// moving below the object. Figures reported as they come, under
-/// [`fresh`]'s rules.
+/// [`fresh`]'s rules. First run (session 56): `ring_along_y` +4.87 dB of
+/// the 5.52 it costs (kept explained:other_object), `ring_and_camera`
+/// +4.01 of 5.25 (kept explained:camera), both met; `ring_left_strip`
+/// +0.98 of 1.17 (weak, 1 dB asked: short by 0.02, marked);
+/// `patch_below_object` costs 0.55 dB, under 1 dB, nothing kept (+0.00;
+/// the transfer bar alone).
 const SIXTH: [Case; 4] = [
     case(
         "ring_along_y",
@@ -1491,7 +1496,11 @@ fn sixth_ring_along_y() {
 }
 #[test]
 fn sixth_ring_left_strip() {
-    let _ = sixth("ring_left_strip", None, None);
+    let _ = sixth(
+        "ring_left_strip",
+        None,
+        Some("first run (session 56): +0.98 dB of the 1.17 dB it costs (weak: 1 dB asked; kept explained:other_object, 6.39 -> 7.08 dB on the chirp)"),
+    );
 }
 #[test]
 fn sixth_ring_and_camera() {
