@@ -1323,13 +1323,15 @@ fn held_out_readout_partial() {
 fn fresh_camera_steep() {
     let _ = fresh("camera_steep", None, None);
 }
+/// First run (session 53): +2.09 dB of the 4.85 dB it costs (kept
+/// explained:camera on the bottom row of tiles; the mover in rows 0-27
+/// not explained). Session 56: +2.23 once the tiles inside the region
+/// that move on their own were observed, then +3.04 (met; this case was
+/// looked at) once the tiles that move least are pooled for the camera
+/// (24 tiles, the mover's six left out).
 #[test]
 fn fresh_camera_and_mover() {
-    let _ = fresh(
-        "camera_and_mover",
-        None,
-        Some("first run (session 53): +2.09 dB of the 4.85 dB it costs (kept explained:camera; the mover in rows 0-27 not explained)"),
-    );
+    let _ = fresh("camera_and_mover", None, None);
 }
 #[test]
 fn fresh_camera_tone_low() {

@@ -54,6 +54,10 @@ pub const MAX_LINE_REACH: usize = 64;
 /// A lag joins the lines' first only when alone it removes at least this
 /// share of what the first removes.
 const LINE_SHIFT_SHARE: f64 = 0.25;
+/// The tiles that move least, pooled for a motion of the whole image,
+/// are those whose (high-passed) motion has at most this many times the
+/// median tile's power.
+const COMMON_POWER: f64 = 2.0;
 /// Most covariates kept.
 pub const MAX_KEPT: usize = 6;
 /// Lags (frames either side) of the FIR through which the reference is
@@ -442,7 +446,7 @@ pub(super) fn explain(
     // Each tile is noisy alone: means over tiles that share a cause (all
     // those observed, a row of tiles, a column, those inside the region
     // that move on their own) join the candidates.
-    let pooled = pool(&covs, &observed, n);
+    let pooled = pool(&covs, &observed, n, (fs, hp));
     let singles = covs.len();
     let joints = joint_lines(&lines, n);
     // The tiles each candidate is the mean of (for lines, the parts of
@@ -791,10 +795,17 @@ fn observed_motion(
 
 /// Means of tiles' observables that share a cause, as candidates: for
 /// motion (each axis), of the tiles `observed` ([`observed_motion`]): all
-/// of them, those inside the region, each row of tiles and each column;
+/// of them, those inside the region, those whose motion has at most
+/// [`COMMON_POWER`] times the median tile's power, each row of tiles and
+/// each column;
 /// for intensity, every tile, each row and each column. A mean's
 /// rectangle holds its tiles.
-fn pool(covs: &[Covariate], observed: &[bool], n: usize) -> Vec<(Covariate, Vec<[u32; 4]>)> {
+fn pool(
+    covs: &[Covariate],
+    observed: &[bool],
+    n: usize,
+    (fs, hp): (f64, Option<(usize, f64)>),
+) -> Vec<(Covariate, Vec<[u32; 4]>)> {
     let mut out = Vec::new();
     for obs in [
         Observable::MotionX,
@@ -808,9 +819,33 @@ fn pool(covs: &[Covariate], observed: &[bool], n: usize) -> Vec<(Covariate, Vec<
             .map(|(c, _)| c)
             .collect();
         let mut groups: Vec<Vec<&Covariate>> = vec![tiles.clone()];
-        // The tiles inside the region that move on their own.
         if obs.is_motion() {
+            // The tiles inside the region that move on their own.
             groups.push(tiles.iter().copied().filter(|c| c.inside).collect());
+            // The tiles that move least: a motion of the whole image is in
+            // every tile, and the tiles a mover also moves, whose motion
+            // has more power, would only add it to their mean.
+            let power: Vec<f64> = tiles
+                .iter()
+                .map(|c| {
+                    centred_highpass(&c.values, fs, hp)
+                        .iter()
+                        .map(|v| v * v)
+                        .sum()
+                })
+                .collect();
+            let mut sorted = power.clone();
+            sorted.sort_by(f64::total_cmp);
+            if let Some(&median) = sorted.get(sorted.len() / 2) {
+                groups.push(
+                    tiles
+                        .iter()
+                        .zip(&power)
+                        .filter(|&(_, &p)| p <= COMMON_POWER * median)
+                        .map(|(c, _)| *c)
+                        .collect(),
+                );
+            }
         }
         // Each row of tiles (same rows), then each column (same columns).
         let rows = |c: &Covariate| (c.rect[1], c.rect[3]);
@@ -1495,6 +1530,59 @@ mod tests {
         let gain = c.report.after.snr_db - c.report.before.snr_db;
         assert!(gain > 3.0, "gain {gain} dB");
         nothing_kept_without_it(case_inside);
+    }
+
+    /// A recovery of a chirp with `leak` times a motion of the whole image
+    /// `c` in it, seen on a 4x3 grid of tiles outside the region (each
+    /// with its own noise), three of which (one in each row and column
+    /// of tiles) another thing also moves, ten times more.
+    fn case_common(leak: f64, seed: u64) -> Case {
+        let Leaking {
+            y,
+            r,
+            opts,
+            c,
+            mut rng,
+            ..
+        } = leaking(leak, seed, 0);
+        let n = y.len();
+        let mover = gauss(&mut rng, n, 10.0);
+        let covs = (0..12u32)
+            .map(|k| {
+                let (i, j) = (k % 4, k / 4);
+                let moved = i == j;
+                let own = gauss(&mut rng, n, 1.0);
+                Covariate {
+                    observable: Observable::MotionX,
+                    rect: [10 * i, 10 * j, 10, 10],
+                    inside: false,
+                    values: (0..n)
+                        .map(|t| c[t] + own[t] + if moved { mover[t] } else { 0.0 })
+                        .collect(),
+                }
+            })
+            .collect();
+        (y, r, covs, opts)
+    }
+
+    /// A motion of the whole image is found on the mean of the tiles that
+    /// move least, without the three another thing also moves (no row or
+    /// column of tiles is clear of them); without a leak nothing is kept.
+    #[test]
+    fn a_motion_of_the_whole_image_is_found_on_the_tiles_that_move_least() {
+        let (y, r, covs, opts) = case_common(0.5, 3);
+        let c =
+            calibrate_with(&y, (None, &covs), 2200.0, (&r, 8800.0), &opts, &mut |_| {}).unwrap();
+        let e = &c.report.explained;
+        assert_eq!(e.len(), 1, "{e:#?}");
+        let moved = [[0, 0, 10, 10], [10, 10, 10, 10], [20, 20, 10, 10]];
+        assert!(
+            e[0].tiles.len() >= 6 && e[0].tiles.iter().all(|t| !moved.contains(t)),
+            "{e:#?}"
+        );
+        let gain = c.report.after.snr_db - c.report.before.snr_db;
+        assert!(gain > 3.0, "gain {gain} dB");
+        nothing_kept_without_it(case_common);
     }
 
     /// The leaking motion is found on the tile that sees it, and removing
