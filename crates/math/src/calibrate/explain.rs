@@ -246,6 +246,8 @@ pub struct Explanation {
     /// The tiles whose observable is averaged (one for a tile alone):
     /// what `listen --calibration` measures again on a new recording.
     pub tiles: Vec<[u32; 4]>,
+    /// One of its tiles overlaps the region (for a motion: a tile there
+    /// that moves on its own, not with the sound).
     pub inside_region: bool,
     /// What it most likely is, in words.
     pub label: String,
