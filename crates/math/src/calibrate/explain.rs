@@ -444,11 +444,19 @@ pub(super) fn explain(
         |a: &[f64]| -> f64 { a.iter().zip(&fitw).map(|(x, w)| x * x * (1.0 - w)).sum() };
     // Which tiles' motion may explain: those outside the region, and
     // those inside it that move on their own.
-    let observed = observed_motion(&covs, (&lin, fs, hp), &fit.t, &dot, &held_energy);
+    // Each tile's motion, high-passed (read by both below).
+    let moving: Vec<Option<Vec<f64>>> = covs
+        .iter()
+        .map(|c| {
+            (c.observable.is_motion() && c.values.len() == n)
+                .then(|| centred_highpass(&c.values, fs, hp))
+        })
+        .collect();
+    let observed = observed_motion(&covs, &moving, (&lin, fs), &fit.t, &dot, &held_energy);
     // Each tile is noisy alone: means over tiles that share a cause (all
     // those observed, a row of tiles, a column, those inside the region
     // that move on their own) join the candidates.
-    let pooled = pool(&covs, &observed, n, (fs, hp));
+    let pooled = pool(&covs, &observed, &moving, n);
     let singles = covs.len();
     let joints = joint_lines(&lines, n);
     // The tiles each candidate is the mean of (for lines, the parts of
@@ -747,26 +755,27 @@ fn follows_reference(
 /// what this lets the explainer see.
 fn observed_motion(
     covs: &[Covariate],
-    (lin, fs, hp): (&[Correction], f64, Option<(usize, f64)>),
+    moving: &[Option<Vec<f64>>],
+    (lin, fs): (&[Correction], f64),
     t: &[f64],
     dot: &dyn Fn(&[f64], &[f64]) -> f64,
     held: &dyn Fn(&[f64]) -> f64,
 ) -> Vec<bool> {
     let n = t.len();
-    let prep: Vec<Option<Vec<f64>>> = covs
+    // Each finite tile's high-passed motion (`moving`).
+    let prep: Vec<Option<&Vec<f64>>> = covs
         .iter()
-        .map(|c| {
-            (c.observable.is_motion()
-                && c.values.len() == n
-                && c.values.iter().all(|v| v.is_finite()))
-            .then(|| centred_highpass(&c.values, fs, hp))
+        .zip(moving)
+        .map(|(c, p)| {
+            p.as_ref()
+                .filter(|_| c.values.iter().all(|v| v.is_finite()))
         })
         .collect();
     // The rectangles inside the region whose motion follows the sound on
     // either axis.
     let mut follows: Vec<[u32; 4]> = Vec::new();
     for (c, p) in covs.iter().zip(&prep) {
-        if let Some(p) = p.as_ref().filter(|_| c.inside) {
+        if let Some(p) = p.filter(|_| c.inside) {
             if follows_reference(&apply_all(lin, p, fs), t, dot, held) >= FOLLOWS_SHARE {
                 follows.push(c.rect);
             }
@@ -779,7 +788,7 @@ fn observed_motion(
             if !c.observable.is_motion() || !c.inside {
                 return true;
             }
-            let Some(me) = prep[i].as_ref() else {
+            let Some(me) = prep[i] else {
                 return false;
             };
             if follows.contains(&c.rect) {
@@ -789,7 +798,7 @@ fn observed_motion(
                 o.observable == c.observable
                     && o.rect != c.rect
                     && !follows.contains(&o.rect)
-                    && p.as_ref().is_some_and(|p| corr(me, p).abs() >= threshold)
+                    && p.is_some_and(|p| corr(me, p).abs() >= threshold)
             })
         })
         .collect()
@@ -798,15 +807,15 @@ fn observed_motion(
 /// Means of tiles' observables that share a cause, as candidates: for
 /// motion (each axis), of the tiles `observed` ([`observed_motion`]): all
 /// of them, those inside the region, those whose motion has at most
-/// [`COMMON_POWER`] times the median tile's power, each row of tiles and
-/// each column;
+/// [`COMMON_POWER`] times the median tile's power (`moving`: each tile's
+/// high-passed motion), each row of tiles and each column;
 /// for intensity, every tile, each row and each column. A mean's
 /// rectangle holds its tiles.
 fn pool(
     covs: &[Covariate],
     observed: &[bool],
+    moving: &[Option<Vec<f64>>],
     n: usize,
-    (fs, hp): (f64, Option<(usize, f64)>),
 ) -> Vec<(Covariate, Vec<[u32; 4]>)> {
     let mut out = Vec::new();
     for obs in [
@@ -814,12 +823,10 @@ fn pool(
         Observable::MotionY,
         Observable::Intensity,
     ] {
-        let tiles: Vec<&Covariate> = covs
-            .iter()
-            .zip(observed)
-            .filter(|(c, &o)| c.observable == obs && c.values.len() == n && o)
-            .map(|(c, _)| c)
+        let at: Vec<usize> = (0..covs.len())
+            .filter(|&i| covs[i].observable == obs && covs[i].values.len() == n && observed[i])
             .collect();
+        let tiles: Vec<&Covariate> = at.iter().map(|&i| &covs[i]).collect();
         let mut groups: Vec<Vec<&Covariate>> = vec![tiles.clone()];
         if obs.is_motion() {
             // The tiles inside the region that move on their own.
@@ -827,14 +834,9 @@ fn pool(
             // The tiles that move least: a motion of the whole image is in
             // every tile, and the tiles a mover also moves, whose motion
             // has more power, would only add it to their mean.
-            let power: Vec<f64> = tiles
+            let power: Vec<f64> = at
                 .iter()
-                .map(|c| {
-                    centred_highpass(&c.values, fs, hp)
-                        .iter()
-                        .map(|v| v * v)
-                        .sum()
-                })
+                .map(|&i| moving[i].iter().flatten().map(|v| v * v).sum())
                 .collect();
             let mut sorted = power.clone();
             sorted.sort_by(f64::total_cmp);
