@@ -177,6 +177,7 @@ fn main() {
             magnify_bounds[1],
             listen_bounds[0],
             listen_bounds[1],
+            listen_bounds[2],
         ],
     );
 }
@@ -188,8 +189,8 @@ fn main() {
 /// docs/performance.md ("The phase method's kernels").
 ///
 /// Returns each pyramid's one-core bound for a frame (analysis and sums in
-/// turn), Mpix/s: Riesz, then steerable.
-fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]) -> [f64; 2] {
+/// turn), Mpix/s: Riesz, then steerable; then the tile method's sums'.
+fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]) -> [f64; 3] {
     use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands};
     use vibroscope_math::riesz::RieszPyramid;
     let (scales, k) = (4, 2);
@@ -220,7 +221,7 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]
         );
     };
     // Best of 5 batches of 64 frames, per frame.
-    fn best(mut f: impl FnMut(usize)) -> f64 {
+    fn best(f: &mut dyn FnMut(usize)) -> f64 {
         (0..5)
             .map(|_| {
                 let t = Instant::now();
@@ -267,13 +268,13 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]
             .collect();
         row(
             an.0,
-            best(|i| analyze(&frames[i % frames.len()], &mut c)),
+            best(&mut |i| analyze(&frames[i % frames.len()], &mut c)),
             an.1,
         );
         let mut sink = 0.0;
         row(
             sum.0,
-            best(|_| sink += sums(&c, &r, &wts, scales, k)),
+            best(&mut |_| sink += sums(&c, &r, &wts, scales, k)),
             sum.1,
         );
         sink
@@ -318,11 +319,90 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]
             ],
             &row,
         );
+    let sink = sink + tile_sums(frames, w, h, best, &row);
     println!("    (checksum {sink:.3e})");
     // A frame's time at the bound is the analysis's plus the sums'.
     let b = bounds.into_inner();
     let pair = |i: usize| 1.0 / (1.0 / b[i] + 1.0 / b[i + 1]);
-    [pair(0), pair(2)]
+    [pair(0), pair(2), b[4]]
+}
+
+/// Prints a kernel's row: its name, seconds a frame, and (flops, bytes,
+/// memory level) a pixel.
+type KernelRow<'a> = &'a dyn Fn(&str, f64, (f64, f64, u8));
+
+/// The tile method's kernel (`listen`'s default, the `tile_motion`
+/// stage's `measure`): per pixel of the region, `gx·(ref − frame)` and
+/// `gy·(ref − frame)` added into column sums (5 flops; the reference and
+/// its two gradients read, 12 bytes, and the 8-bit frame, 1: 13 bytes,
+/// in L2 at 256x256), then each 16x16 tile's columns (2 adds a column a
+/// tile, 0.13 a pixel). One core, on 8-bit frames.
+fn tile_sums(
+    frames: &[Vec<f32>],
+    w: usize,
+    h: usize,
+    best: fn(&mut dyn FnMut(usize)) -> f64,
+    row: KernelRow<'_>,
+) -> f64 {
+    let k = vibroscope_math::tile_sums::TileSums::new();
+    let to_u8 = |f: &[f32]| -> Vec<u8> {
+        f.iter()
+            .map(|v| v.round().clamp(0.0, 255.0) as u8)
+            .collect()
+    };
+    let eight: Vec<Vec<u8>> = frames.iter().map(|f| to_u8(f)).collect();
+    let img: Vec<f32> = eight[0].iter().map(|&v| v as f32).collect();
+    // Central differences (0 on the border).
+    let grad = |dx: usize| -> Vec<f32> {
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let inside = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
+                if inside {
+                    0.5 * (img[i + dx] - img[i - dx])
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    };
+    let (gx, gy) = (grad(1), grad(w));
+    let (mut sx, mut sy) = (vec![0.0f32; w], vec![0.0f32; w]);
+    let mut sums = vec![0.0f64; 2 * (w / 16) * (h / 16)];
+    let mut sink = 0.0;
+    let mut frame = |i: usize| {
+        let f = &eight[i % eight.len()];
+        for (ty, band) in (0..h).collect::<Vec<_>>().chunks(16).enumerate() {
+            sx.iter_mut().for_each(|v| *v = 0.0);
+            sy.iter_mut().for_each(|v| *v = 0.0);
+            for &y in band {
+                let r = y * w..(y + 1) * w;
+                k.add_row_u8(
+                    &img[r.clone()],
+                    &gx[r.clone()],
+                    &gy[r.clone()],
+                    &f[r],
+                    &mut sx,
+                    &mut sy,
+                );
+            }
+            for tx in 0..w / 16 {
+                let c = tx * 16..(tx + 1) * 16;
+                let t = ty * (w / 16) + tx;
+                if let Some(o) = sums.get_mut(2 * t..2 * t + 2) {
+                    o[0] = sx[c.clone()].iter().map(|&v| v as f64).sum();
+                    o[1] = sy[c].iter().map(|&v| v as f64).sum();
+                }
+            }
+        }
+        sink += sums.iter().sum::<f64>();
+    };
+    row(
+        "tile sums (gradient least squares, 16x16 tiles, 8-bit)",
+        best(&mut frame),
+        (5.1, 13.0, 2u8),
+    );
+    sink
 }
 
 /// End to end: the commands issue 52's bars are set on, each timed on a
@@ -333,7 +413,7 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]
 /// magnifier) with how well its output agrees with ours, and beside the
 /// bound of the command's kernels on every core (`bounds`: one core's
 /// whole-frame bounds of the sections above, times the cores).
-fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 4]) {
+fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 5]) {
     let dir = std::env::temp_dir().join(format!("vibroscope-roofline-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     timing::render_tones_scene(&dir, (w, h), 400);
@@ -391,7 +471,7 @@ fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 4]) {
         .map(String::from)
         .to_vec(),
         None,
-        None,
+        Some(bounds[4]),
     ));
     for (label, args, numpy, bound) in cases {
         // Our output, to compare the reference's with: the last argument.
@@ -418,7 +498,7 @@ fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 4]) {
         );
     }
     println!(
-        "    (numpy: Mpix/s of scripts/numpy_reference.py, Python's start and imports left out; agrees: the correlation of its output with ours, the motion each magnifier adds or the two sound tracks; bound: the kernels' one-core bound above times {cores}; the tile method's kernels are not counted)"
+        "    (numpy: Mpix/s of scripts/numpy_reference.py, Python's start and imports left out; agrees: the correlation of its output with ours, the motion each magnifier adds or the two sound tracks; bound: the kernels' one-core bound above times {cores}; for the tile method, its sums' alone)"
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -4,7 +4,8 @@
 //!   per-pixel phase kernels ([`pyramid`]; [`riesz`] and [`kernels`] are
 //!   also at the crate root, where other crates have used them);
 //!   rolling-shutter rows ([`row_phase`], [`rs_calibrate`]), exposure
-//!   ([`exposure`]), gap filling ([`ar_interp`]).
+//!   ([`exposure`]), gap filling ([`ar_interp`]), the tile method's sums
+//!   ([`tile_sums`]).
 //! - Signals: IIR filters ([`iir`]), denoising ([`denoise`]), quality
 //!   metrics ([`metrics`]), ground-truth comparison ([`truth`]), pitch
 //!   ([`pitch`], YIN).
@@ -44,6 +45,7 @@ pub mod rs_calibrate;
 pub mod sinefit;
 pub mod ssi;
 pub mod stft;
+pub mod tile_sums;
 pub mod truth;
 
 pub use error::MathError;

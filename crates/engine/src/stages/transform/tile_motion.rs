@@ -48,6 +48,7 @@ use super::phase::{REFERENCE_INTERVAL, REFERENCE_OVERLAP};
 use super::reduce::ROI;
 use super::roi::{plan_region, resolve_region, Mask, Roi, RoiParam, MASK};
 use crate::*;
+use vibroscope_math::tile_sums::TileSums;
 
 /// Smallest automatic tile side, px.
 const MIN_TILE_PX: usize = 6;
@@ -105,6 +106,11 @@ impl Plan for TilePlan {
             raw: Vec::new(),
             next_raw: Vec::new(),
             vals: Vec::new(),
+            cols: Cols {
+                sx: Vec::new(),
+                sy: Vec::new(),
+                kernel: TileSums::new(),
+            },
             acc: Vec::new(),
             batch: None,
             frames: 0,
@@ -178,6 +184,8 @@ struct TileMotion {
     raw: Vec<f64>,
     next_raw: Vec<f64>,
     vals: Vec<f32>,
+    /// Column sums for [`Reference::measure`] (empty until the first frame).
+    cols: Cols,
     /// Σ (output - next reference's value) per channel, during a handover.
     acc: Vec<f64>,
     batch: Option<Batcher>,
@@ -385,32 +393,61 @@ impl Reference {
     }
 
     /// The whitened tile motions of `f` against this reference, into `out`.
-    fn measure(&self, l: &Layout, f: &Frame, out: &mut [f64]) {
+    /// Each band of tile rows is summed column by column in `cols` (the
+    /// math crate's vectorised row kernel), then each tile's columns.
+    fn measure(&self, l: &Layout, f: &Frame, cols: &mut Cols, out: &mut [f64]) {
         let (w, p, r) = (l.width, f.pixels(), l.region);
         let nx = l.xs.len() - 1;
-        for (t, wt) in self.whiten.iter().enumerate() {
-            let (tx, ty) = (t % nx, t / nx);
-            let (mut sx, mut sy) = (0.0f64, 0.0f64);
-            for y in l.ys[ty]..l.ys[ty + 1] {
-                let row = (y - r.y) * r.w;
-                let frow = y * w;
-                let (mut ax, mut ay) = (0.0f32, 0.0f32);
-                for x in l.xs[tx]..l.xs[tx + 1] {
-                    let k = row + x - r.x;
-                    let d = self.img[k] - px(p, frow + x);
-                    ax += self.gx[k] * d;
-                    ay += self.gy[k] * d;
+        for (ty, band) in l.ys.windows(2).enumerate() {
+            cols.sx.iter_mut().for_each(|v| *v = 0.0);
+            cols.sy.iter_mut().for_each(|v| *v = 0.0);
+            for y in band[0]..band[1] {
+                let k = (y - r.y) * r.w..(y - r.y + 1) * r.w;
+                let (img, gx, gy) = (&self.img[k.clone()], &self.gx[k.clone()], &self.gy[k]);
+                let fr = y * w + r.x..y * w + r.x + r.w;
+                match p {
+                    PixelsRef::U8(d) => {
+                        cols.kernel
+                            .add_row_u8(img, gx, gy, &d[fr], &mut cols.sx, &mut cols.sy)
+                    }
+                    PixelsRef::U16(d) => {
+                        cols.kernel
+                            .add_row_u16(img, gx, gy, &d[fr], &mut cols.sx, &mut cols.sy)
+                    }
                 }
-                sx += ax as f64;
-                sy += ay as f64;
             }
-            let z1 = sx * wt.a;
-            out[2 * t] = z1;
-            out[2 * t + 1] = (sy - wt.b * z1) * wt.c;
+            for (tx, span) in l.xs.windows(2).enumerate() {
+                let t = ty * nx + tx;
+                let c = span[0] - r.x..span[1] - r.x;
+                let sx: f64 = cols.sx[c.clone()].iter().map(|&v| v as f64).sum();
+                let sy: f64 = cols.sy[c].iter().map(|&v| v as f64).sum();
+                let wt = self.whiten[t];
+                let z1 = sx * wt.a;
+                out[2 * t] = z1;
+                out[2 * t + 1] = (sy - wt.b * z1) * wt.c;
+            }
         }
         for e in &self.nuisance {
             let along = dot(e, out);
             out.iter_mut().zip(e).for_each(|(o, e)| *o -= along * e);
+        }
+    }
+}
+
+/// Per column of the region, the sums of one band of tile rows (see
+/// [`Reference::measure`]), and the row kernel.
+struct Cols {
+    sx: Vec<f32>,
+    sy: Vec<f32>,
+    kernel: TileSums,
+}
+
+impl Cols {
+    fn new(l: &Layout) -> Self {
+        Self {
+            sx: vec![0.0; l.region.w],
+            sy: vec![0.0; l.region.w],
+            kernel: TileSums::new(),
         }
     }
 }
@@ -438,6 +475,7 @@ impl TileMotion {
             ));
         }
         self.raw = vec![0.0; c];
+        self.cols = Cols::new(&l);
         self.next_raw = vec![0.0; c];
         self.vals = vec![0.0; c];
         self.acc = vec![0.0; c];
@@ -473,7 +511,7 @@ impl TileMotion {
         if (f.width(), f.height()) != (l.width, l.height) {
             return Err(StageError::format("the frame size changed mid-stream"));
         }
-        reference.measure(l, f, &mut self.raw);
+        reference.measure(l, f, &mut self.cols, &mut self.raw);
         // The motion's size: each textured tile's d = L⁻ᵀ z.
         if !reference.textured.is_empty() {
             let mut sum = 0.0;
@@ -494,7 +532,7 @@ impl TileMotion {
             *v = (r + o) as f32;
         }
         if let Some(h) = self.handover.as_mut() {
-            h.next.measure(l, f, &mut self.next_raw);
+            h.next.measure(l, f, &mut self.cols, &mut self.next_raw);
             for ((a, v), n) in self.acc.iter_mut().zip(&self.vals).zip(&self.next_raw) {
                 *a += *v as f64 - n;
             }
@@ -573,6 +611,106 @@ impl Stage for TileMotion {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use vibroscope_core::frame::{FrameFormat, FramePool, PixelsMut};
+    use vibroscope_io::Depth;
+
+    /// A frame of `depth` whose pixels are `f(x, y)`.
+    fn frame(w: usize, h: usize, depth: Depth, f: impl Fn(usize, usize) -> u32) -> Frame {
+        let format = FrameFormat {
+            width: w as u32,
+            height: h as u32,
+            depth,
+            bits: if depth == Depth::U8 { 8 } else { 16 },
+            fps: 100.0,
+            row_timing: None,
+        };
+        let pool = FramePool::new(format, 1);
+        let mut m = pool.try_acquire().expect("a free buffer");
+        match m.pixels_mut() {
+            PixelsMut::U8(p) => p
+                .iter_mut()
+                .enumerate()
+                .for_each(|(i, v)| *v = f(i % w, i / w) as u8),
+            PixelsMut::U16(p) => p
+                .iter_mut()
+                .enumerate()
+                .for_each(|(i, v)| *v = f(i % w, i / w) as u16),
+        }
+        m.freeze()
+    }
+
+    /// The sums made column by column (the vectorised row kernel) are each
+    /// tile's own: the same bits on 8-bit frames (every product and sum is
+    /// exact in f32 there), within f32 rounding on 16-bit ones, against
+    /// the pixel-by-pixel sum in f64, over uneven tiles and a mask.
+    #[test]
+    fn column_sums_are_each_tiles_own_sums() {
+        let (w, h) = (53, 37);
+        let region = Roi {
+            x: 1,
+            y: 1,
+            w: w - 2,
+            h: h - 2,
+        };
+        let inside: Vec<bool> = (0..region.w * region.h).map(|k| k % 11 != 3).collect();
+        let cuts = |start: usize, len: usize, n: usize| -> Vec<usize> {
+            (0..=n).map(|t| start + t * len / n).collect()
+        };
+        let l = Layout {
+            width: w,
+            height: h,
+            region,
+            inside,
+            xs: cuts(region.x, region.w, 4),
+            ys: cuts(region.y, region.h, 3),
+        };
+        let hash = |x: usize, y: usize, k: u32| -> u32 {
+            let v = (x as u32).wrapping_mul(73_856_093) ^ (y as u32).wrapping_mul(19_349_663) ^ k;
+            v.wrapping_mul(2_654_435_761) >> 8
+        };
+        for (depth, full) in [(Depth::U8, 255u32), (Depth::U16, 65_535)] {
+            let reference = frame(w, h, depth, |x, y| hash(x, y, 1) % (full + 1));
+            let moved = frame(w, h, depth, |x, y| hash(x, y, 2) % (full + 1));
+            let mut r = Reference::alloc(&l);
+            assert!(r.fill(&l, &reference));
+            let mut got = vec![0.0; 2 * l.tiles()];
+            r.measure(&l, &moved, &mut Cols::new(&l), &mut got);
+            // The same, pixel by pixel in f64.
+            let mut want = vec![0.0; 2 * l.tiles()];
+            let nx = l.xs.len() - 1;
+            for (t, wt) in r.whiten.iter().enumerate() {
+                let (tx, ty) = (t % nx, t / nx);
+                let (mut sx, mut sy) = (0.0f64, 0.0f64);
+                for y in l.ys[ty]..l.ys[ty + 1] {
+                    for x in l.xs[tx]..l.xs[tx + 1] {
+                        let k = (y - region.y) * region.w + x - region.x;
+                        let d = r.img[k] as f64 - px(moved.pixels(), y * w + x) as f64;
+                        sx += r.gx[k] as f64 * d;
+                        sy += r.gy[k] as f64 * d;
+                    }
+                }
+                let z1 = sx * wt.a;
+                want[2 * t] = z1;
+                want[2 * t + 1] = (sy - wt.b * z1) * wt.c;
+            }
+            for e in &r.nuisance {
+                let along = dot(e, &want);
+                want.iter_mut().zip(e).for_each(|(o, e)| *o -= along * e);
+            }
+            let scale = want.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            assert!(scale > 0.0);
+            for (t, (g, v)) in got.iter().zip(&want).enumerate() {
+                if depth == Depth::U8 {
+                    assert_eq!(g, v, "8-bit, channel {t}");
+                } else {
+                    assert!(
+                        (g - v).abs() <= 1e-6 * scale,
+                        "16-bit, channel {t}: {g} against {v}"
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn whitening_inverts_the_cholesky_factor() {
