@@ -430,7 +430,8 @@ fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 5]) {
         "command", "Mpix/s", "numpy", "agrees", "bound", "of bound", "x numpy"
     );
     // The phase methods: (command, pyramid, the reference's frames, the
-    // one-core bound); then the default `listen`, with neither.
+    // one-core bound); then the default `listen` (the tiles), its
+    // reference the same script's tile method.
     let phase = [
         ("magnify", "riesz", 100, bounds[0]),
         ("magnify", "csp", 50, bounds[1]),
@@ -470,7 +471,7 @@ fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 5]) {
         ]
         .map(String::from)
         .to_vec(),
-        None,
+        Some(("listen", "tiles", 100)),
         Some(bounds[4]),
     ));
     for (label, args, numpy, bound) in cases {

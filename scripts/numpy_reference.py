@@ -3,6 +3,9 @@ microphone's A²-weighted local phase sums (thesis Eq. 3.2-3.4) and
 phase-based motion magnification (Wadhwa et al. 2013 and 2014), with the
 complex steerable pyramid or the Riesz pyramid, written as a researcher
 would write them in numpy: whole arrays, no compiled code of its own.
+Also `listen`'s default, the tile method (`--pyramid tiles`): per 16x16
+tile, the gradient least-squares motion along x and y against the first
+frame, then the first principal component of all tiles' motions.
 
 It is a yardstick for speed (`cargo bench --bench roofline` times it on
 the same file as `vibroscope listen` and `vibroscope magnify`), so it
@@ -14,6 +17,7 @@ pixels). The steerable pyramid's bands are kept at full resolution (the
 common numpy port), the Riesz pyramid's levels are decimated.
 
     python3 scripts/numpy_reference.py listen VIDEO.y4m OUT.wav --pyramid riesz [--frames N] [--compare OURS.wav]
+    python3 scripts/numpy_reference.py listen VIDEO.y4m OUT.wav --pyramid tiles [--frames N] [--compare OURS.wav]
     python3 scripts/numpy_reference.py magnify VIDEO.y4m OUT.y4m --pyramid csp --band 35,45 --factor 10 [--frames N] [--compare OURS.y4m]
 
 Prints one JSON line: frames, pixels per frame, seconds (reading the file
@@ -183,6 +187,35 @@ def listen_csp(frames, scales=4, orientations=2):
     return align_sum(out)
 
 
+def listen_tiles(frames, tile=16):
+    """Gradient least squares per tile (both axes) against the first
+    frame, then the tiles' motions on their first principal component."""
+    ref = frames[0]
+    h, w = ref.shape
+    gy, gx = np.gradient(ref)
+    # The border has no central difference; tiles cover the interior.
+    gx, gy = gx[1:-1, 1:-1], gy[1:-1, 1:-1]
+    ny, nx = (h - 2) // tile, (w - 2) // tile
+    crop = (slice(0, ny * tile), slice(0, nx * tile))
+    gx, gy = gx[crop], gy[crop]
+
+    def tiles(a):
+        return a.reshape(a.shape[:-2] + (ny, tile, nx, tile)).sum(axis=(-3, -1))
+
+    sxx, sxy, syy = tiles(gx * gx), tiles(gx * gy), tiles(gy * gy)
+    det = sxx * syy - sxy**2
+    ok = det > 1e-9 * max(det.max(), 1e-30)
+    d = ref[1:-1, 1:-1][crop] - frames[:, 1:-1, 1:-1][(slice(None),) + crop]
+    px, py = tiles(gx * d), tiles(gy * d)
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    dx = (syy * px - sxy * py) * inv
+    dy = (sxx * py - sxy * px) * inv
+    x = np.concatenate([dx.reshape(len(frames), -1), dy.reshape(len(frames), -1)], axis=1)
+    x = x - x.mean(axis=0)
+    _, _, vt = np.linalg.svd(x, full_matrices=False)
+    return x @ vt[0]
+
+
 # ---- magnify --------------------------------------------------------------
 
 
@@ -311,7 +344,7 @@ def main():
     ap.add_argument("task", choices=["listen", "magnify"])
     ap.add_argument("video")
     ap.add_argument("out")
-    ap.add_argument("--pyramid", choices=["riesz", "csp"], default="riesz")
+    ap.add_argument("--pyramid", choices=["riesz", "csp", "tiles"], default="riesz")
     ap.add_argument("--frames", type=int, default=None)
     ap.add_argument("--band", default="35,45")
     ap.add_argument("--factor", type=float, default=10.0)
@@ -323,7 +356,7 @@ def main():
         sys.exit(f"{a.video}: fewer than 2 frames")
     result = {"frames": len(frames), "pixels": int(frames.shape[1] * frames.shape[2])}
     if a.task == "listen":
-        x = (listen_riesz if a.pyramid == "riesz" else listen_csp)(frames)
+        x = {"riesz": listen_riesz, "csp": listen_csp, "tiles": listen_tiles}[a.pyramid](frames)
         x = x / max(np.abs(x).max(), 1e-12)
         wavfile.write(a.out, int(round(fps)), x.astype(np.float32))
         result["seconds"] = time.perf_counter() - t0
@@ -336,6 +369,8 @@ def main():
                 signal.sosfiltfilt(hp, ours[:m]), signal.sosfiltfilt(hp, x[:m])
             )
     else:
+        if a.pyramid == "tiles":
+            sys.exit("the tile method only listens")
         lo, hi = (float(v) for v in a.band.split(","))
         fn = magnify_riesz if a.pyramid == "riesz" else magnify_csp
         out = fn(frames, fps, lo, hi, a.factor)
