@@ -641,7 +641,8 @@ mod tests {
 
     /// The sums made column by column (the vectorised row kernel) are each
     /// tile's own: the same bits on 8-bit frames (every product and sum is
-    /// exact in f32 there), within f32 rounding on 16-bit ones, against
+    /// exact in f32 there, for tiles up to 258 px a side), within f32
+    /// rounding on 16-bit ones, against
     /// the pixel-by-pixel sum in f64, over uneven tiles and a mask.
     #[test]
     fn column_sums_are_each_tiles_own_sums() {
