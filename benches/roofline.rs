@@ -372,10 +372,10 @@ fn tile_sums(
     let mut sink = 0.0;
     let mut frame = |i: usize| {
         let f = &eight[i % eight.len()];
-        for (ty, band) in (0..h).collect::<Vec<_>>().chunks(16).enumerate() {
+        for (ty, y0) in (0..h).step_by(16).enumerate() {
             sx.iter_mut().for_each(|v| *v = 0.0);
             sy.iter_mut().for_each(|v| *v = 0.0);
-            for &y in band {
+            for y in y0..(y0 + 16).min(h) {
                 let r = y * w..(y + 1) * w;
                 k.add_row_u8(
                     &img[r.clone()],

@@ -106,11 +106,7 @@ impl Plan for TilePlan {
             raw: Vec::new(),
             next_raw: Vec::new(),
             vals: Vec::new(),
-            cols: Cols {
-                sx: Vec::new(),
-                sy: Vec::new(),
-                kernel: TileSums::new(),
-            },
+            cols: Cols::default(),
             acc: Vec::new(),
             batch: None,
             frames: 0,
@@ -206,6 +202,11 @@ const LARGE_MOTION_PX: f64 = 1.1;
 /// Share of the frames over [`LARGE_MOTION_PX`] that makes the warning.
 const LARGE_MOTION_SHARE: f64 = 0.02;
 
+/// The edges of `n` tiles over `len` pixels from `start` (`n + 1` cuts).
+fn cuts(start: usize, len: usize, n: usize) -> Vec<usize> {
+    (0..=n).map(|t| start + t * len / n).collect()
+}
+
 fn layout(
     p: &P,
     mask: Option<(std::path::PathBuf, Mask)>,
@@ -236,9 +237,6 @@ fn layout(
         MIN_TILE_PX.max((area / MAX_AUTO_TILES as f64).sqrt().ceil() as usize)
     });
     let (nx, ny) = ((region.w / side).max(1), (region.h / side).max(1));
-    let cuts = |start: usize, len: usize, n: usize| -> Vec<usize> {
-        (0..=n).map(|t| start + t * len / n).collect()
-    };
     let inside = (0..region.h)
         .flat_map(|yy| (0..region.w).map(move |xx| (region.x + xx, region.y + yy)))
         .map(|(x, y)| mask.as_ref().is_none_or(|m| m.at(x, y)))
@@ -436,6 +434,7 @@ impl Reference {
 
 /// Per column of the region, the sums of one band of tile rows (see
 /// [`Reference::measure`]), and the row kernel.
+#[derive(Default)]
 struct Cols {
     sx: Vec<f32>,
     sy: Vec<f32>,
@@ -654,9 +653,6 @@ mod tests {
             h: h - 2,
         };
         let inside: Vec<bool> = (0..region.w * region.h).map(|k| k % 11 != 3).collect();
-        let cuts = |start: usize, len: usize, n: usize| -> Vec<usize> {
-            (0..=n).map(|t| start + t * len / n).collect()
-        };
         let l = Layout {
             width: w,
             height: h,
