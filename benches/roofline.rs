@@ -62,19 +62,32 @@ fn main() {
     println!(
         "  FMA peak ({lanes}-lane f32 fused multiply-add, 2 flops each): {fma1:.1} GFLOP/s on one core, {fma_all:.1} on {cores}"
     );
-    let mut bw = Vec::new(); // [L2, L3], one core
+    // The triads: in L2, in L3 (a quarter of it, so that other cores'
+    // share of it does not push the arrays out), and in memory (three
+    // arrays each as large as L3). The last cache's size is read from the
+    // system; 32 MiB where it is not reported.
+    let l3 = cache_bytes(3).unwrap_or(32 << 20);
+    let mut bw = Vec::new(); // [L2, L3, memory], one core
     for (name, floats) in [
-        ("L2 (3 x 256 KiB)", 1usize << 16),
-        ("L3 (3 x 16 MiB)", 1 << 22),
+        ("L2".to_string(), 1usize << 16),
+        ("L3".to_string(), l3 / 48),
+        ("memory".to_string(), (l3 / 4).max(1 << 22)),
     ] {
         let (one, all) = triad(floats, cores);
         println!(
-            "  triad a = b + s*c in {name}: {one:.1} GB/s on one core, {all:.1} on {cores} (12 bytes per element)"
+            "  triad a = b + s*c in {name} (3 x {} KiB): {one:.1} GB/s on one core, {all:.1} on {cores} (12 bytes per element)",
+            floats * 4 / 1024
         );
         bw.push(one);
     }
+    let roofs = Roofs {
+        fma1,
+        bw: [bw[0], bw[1], bw[2]],
+        l3,
+    };
     // A magnifier's state (about 20 arrays of a level's size) outgrows L2
-    // at 256x256 and lives in L3; the FFTs' buffers of one level fit L2.
+    // at 256x256; the FFTs' buffers of one level fit L2. Whether the rest
+    // is in L3 or in memory is read from the arrays' size (`Roofs::roof`).
 
     let frames = texture_frames(w, h, 64);
     // One-core whole-frame bounds (Mpix/s) for the end-to-end section.
@@ -85,12 +98,14 @@ fn main() {
     ] {
         let mut p = MagnifyParams::new(500.0, 35.0, 45.0, 10.0);
         p.pyramid = kind;
+        let before = heap_bytes();
         let mut m = Magnifier::new(w, h, p).expect("magnifier");
         let mut out = vec![0.0f32; w * h];
         // Warm-up (the filters' start), then the profiled frames.
         for f in frames.iter().take(16) {
             m.process(f, &mut out).expect("process");
         }
+        let arrays = heap_bytes().saturating_sub(before);
         m.set_profiling(true);
         let n = if kind == PyramidKind::Riesz { 400 } else { 100 };
         let t = Instant::now();
@@ -102,10 +117,11 @@ fn main() {
         let prof = m.profile().expect("profile").clone();
         let px = (w * h) as f64;
         println!(
-            "\n  magnify {label}, one core, {} vectors: {:.1} Mpix/s ({:.3} ms a frame)",
+            "\n  magnify {label}, one core, {} vectors: {:.1} Mpix/s ({:.3} ms a frame); its arrays {:.1} MiB",
             m.simd(),
             n as f64 * px / wall / 1e6,
-            wall / n as f64 * 1e3
+            wall / n as f64 * 1e3,
+            arrays as f64 / (1 << 20) as f64
         );
         println!(
             "    {:<58} {:>8} {:>10} {:>8} {:>8} {:>4} {:>10} {:>7}",
@@ -126,19 +142,18 @@ fn main() {
             } else {
                 name.to_string()
             };
-            let roof_bw = bw[usize::from(level == 3)];
             let s = secs / prof.frames as f64;
             let rate = px / s / 1e6;
             // Mpix/s the step could reach at the one-core peaks.
-            let bound = (fma1 * 1e3 / flops).min(roof_bw * 1e3 / bytes);
+            let (mem, bound) = roofs.bound(flops, bytes, level, arrays);
             bound_total += px / (bound * 1e6);
             println!(
-                "    {name:<58} {:>8.3} {:>10.1} {:>8.1} {:>8.1} {:>4} {:>10.1} {:>7.1}",
+                "    {name:<58} {:>8.3} {:>10.1} {:>8.1} {:>8.1} {:>4} {:>10.1} {:>7.2}",
                 s * 1e3,
                 rate,
                 flops,
                 bytes,
-                format!("L{level}"),
+                mem,
                 bound,
                 rate / bound
             );
@@ -168,7 +183,7 @@ fn main() {
             );
         }
     }
-    let listen_bounds = listen_kernels(&frames, w, h, fma1, &bw);
+    let listen_bounds = listen_kernels(&frames, w, h, &roofs);
     end_to_end(
         (w, h),
         cores,
@@ -190,7 +205,7 @@ fn main() {
 ///
 /// Returns each pyramid's one-core bound for a frame (analysis and sums in
 /// turn), Mpix/s: Riesz, then steerable; then the tile method's sums'.
-fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]) -> [f64; 3] {
+fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, roofs: &Roofs) -> [f64; 3] {
     use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands};
     use vibroscope_math::riesz::RieszPyramid;
     let (scales, k) = (4, 2);
@@ -204,10 +219,13 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]
         "kernel", "ms/frame", "Mpix/s", "flop/px", "B/px", "mem", "bound", "of bound"
     );
     let bounds = std::cell::RefCell::new(Vec::new());
+    // What the kernels keep beyond L2: a frame's coefficients and the
+    // reference's (the steerable pyramid's complex, 8 bytes a band pixel;
+    // the Riesz triples, 12), 4 scales over 1.33 of the frame.
+    let arrays = (px * 1.33 * 2.0 * (k as f64 * 8.0).max(12.0)) as usize;
     let row = |name: &str, secs: f64, (flops, bytes, level): (f64, f64, u8)| {
         let rate = px / secs / 1e6;
-        let roof_bw = bw[usize::from(level == 3)];
-        let bound = (fma1 * 1e3 / flops).min(roof_bw * 1e3 / bytes);
+        let (mem, bound) = roofs.bound(flops, bytes, level, arrays);
         bounds.borrow_mut().push(bound);
         println!(
             "    {name:<58} {:>8.3} {:>10.1} {:>8.1} {:>8.1} {:>4} {:>10.1} {:>7.2}",
@@ -215,7 +233,7 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, fma1: f64, bw: &[f64]
             rate,
             flops,
             bytes,
-            format!("L{level}"),
+            mem,
             bound,
             rate / bound
         );
@@ -703,6 +721,84 @@ unsafe fn fma_avx2(iters: u64) -> f32 {
         sum += lanes.iter().sum::<f32>();
     }
     sum
+}
+
+/// This machine's one-core peaks: FMA (GFLOP/s), the triads' bandwidths
+/// in L2, L3 and memory (GB/s), and the last cache's size (bytes).
+struct Roofs {
+    fma1: f64,
+    bw: [f64; 3],
+    l3: usize,
+}
+
+impl Roofs {
+    /// The memory a kernel's bytes come from and the Mpix/s its counts
+    /// allow on one core: `level` 2 is L2; 3 is beyond L2, which is L3
+    /// while the arrays the kernel works on (`arrays` bytes) take at most
+    /// half of it (the rest is other cores' share: the triads fall off past
+    /// that), and memory beyond.
+    fn bound(&self, flops: f64, bytes: f64, level: u8, arrays: usize) -> (&'static str, f64) {
+        let (name, bw) = match level {
+            2 => ("L2", self.bw[0]),
+            _ if arrays <= self.l3 / 2 => ("L3", self.bw[1]),
+            _ => ("mem", self.bw[2]),
+        };
+        (name, (self.fma1 * 1e3 / flops).min(bw * 1e3 / bytes))
+    }
+}
+
+/// Bytes of CPU 0's level-`level` data or unified cache, as the system
+/// reports it (`None` where it does not).
+fn cache_bytes(level: u32) -> Option<usize> {
+    (0..8).find_map(|i| {
+        let dir = format!("/sys/devices/system/cpu/cpu0/cache/index{i}");
+        let read = |f: &str| std::fs::read_to_string(format!("{dir}/{f}")).ok();
+        let lv: u32 = read("level")?.trim().parse().ok()?;
+        if lv != level || read("type")?.trim() == "Instruction" {
+            return None;
+        }
+        let size = read("size")?;
+        let size = size.trim();
+        let (digits, unit) = size.split_at(size.find(|c: char| !c.is_ascii_digit())?);
+        let n: usize = digits.parse().ok()?;
+        match unit {
+            "K" => Some(n << 10),
+            "M" => Some(n << 20),
+            _ => None,
+        }
+    })
+}
+
+/// Bytes the heap holds now (glibc's `mallinfo2`: what is allocated, in
+/// the arenas and mapped): the difference across a constructor is what
+/// the object allocated, whatever pages the allocator reused. 0 where
+/// there is no glibc.
+fn heap_bytes() -> usize {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        #[repr(C)]
+        struct Mallinfo2 {
+            arena: usize,
+            ordblks: usize,
+            smblks: usize,
+            hblks: usize,
+            hblkhd: usize,
+            usmblks: usize,
+            fsmblks: usize,
+            uordblks: usize,
+            fordblks: usize,
+            keepcost: usize,
+        }
+        extern "C" {
+            fn mallinfo2() -> Mallinfo2;
+        }
+        // SAFETY: glibc's `mallinfo2` (2.33 and later) takes nothing and
+        // returns this struct by value.
+        let m = unsafe { mallinfo2() };
+        m.uordblks + m.hblkhd
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    0
 }
 
 /// GB/s of `a[i] = b[i] + s·c[i]` over arrays of `n` floats (12 bytes an
