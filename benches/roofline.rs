@@ -10,6 +10,7 @@
 //! figures of the last run and how each count was made.
 //!
 //!     cargo bench --bench roofline
+//!     cargo bench --bench roofline -- --kernels   (in-process figures only)
 
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
@@ -184,6 +185,11 @@ fn main() {
         }
     }
     let listen_bounds = listen_kernels(&frames, w, h, &roofs);
+    if std::env::args().any(|a| a == "--kernels") {
+        // In-process figures only (`cargo bench --bench roofline --
+        // --kernels`): to compare two builds of a kernel quickly.
+        return;
+    }
     end_to_end(
         (w, h),
         cores,

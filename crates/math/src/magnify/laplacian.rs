@@ -149,10 +149,15 @@ fn reduce_row(row: &[f32], w: usize, out: &mut [f32]) {
     for (i, o) in out.iter_mut().enumerate().take(lo) {
         *o = edge(i);
     }
-    for (i, o) in out.iter_mut().enumerate().take(hi).skip(lo) {
-        let x = 2 * i;
-        let r = &row[x - 2..x + 3];
-        *o = t0 * r[0] + t1 * r[1] + t2 * r[2] + t3 * r[3] + t4 * r[4];
+    if hi > lo {
+        // Outputs lo..hi read row[2lo-2 .. 2hi+1]: by index from there, so
+        // that the loop is one body with no iterator call a pixel.
+        let src = &row[2 * lo - 2..2 * hi + 1];
+        let dst = &mut out[lo..hi];
+        for (i, o) in dst.iter_mut().enumerate() {
+            let r = &src[2 * i..2 * i + 5];
+            *o = t0 * r[0] + t1 * r[1] + t2 * r[2] + t3 * r[3] + t4 * r[4];
+        }
     }
     for (i, o) in out.iter_mut().enumerate().skip(hi.max(lo)) {
         *o = edge(i);
@@ -246,10 +251,16 @@ fn expand_row(row: &[f32], nw: usize, out: &mut [f32], w: usize) {
     for (x, o) in out.iter_mut().enumerate().take(2 * j0) {
         *o = edge(x);
     }
-    for j in j0..pairs_end {
-        let (l, m, r) = (row[j - 1], row[j], row[j + 1]);
-        out[2 * j] = a * l + b * m + c * r;
-        out[2 * j + 1] = d * m + e * r;
+    if pairs_end > j0 {
+        // Pairs j0..pairs_end read row[j0-1 ..= pairs_end]: by windows of
+        // three, so that the loop has no bounds check a pixel.
+        let src = &row[j0 - 1..pairs_end + 1];
+        let dst = &mut out[2 * j0..2 * pairs_end];
+        for (o, v) in dst.chunks_exact_mut(2).zip(src.windows(3)) {
+            let (l, m, r) = (v[0], v[1], v[2]);
+            o[0] = a * l + b * m + c * r;
+            o[1] = d * m + e * r;
+        }
     }
     for (x, o) in out.iter_mut().enumerate().skip(2 * pairs_end.max(j0)) {
         *o = edge(x);
@@ -296,16 +307,34 @@ fn expand_cols(tmp: &[f32], w: usize, h: usize, nh: usize, dst: &mut [f32], y0: 
             Put::Sub => None,
             Put::Add(b) => Some(&b[y * w..(y + 1) * w]),
         };
-        match n {
-            3 => {
+        // The two common cases by zipped rows (no bounds check a pixel).
+        match (n, band) {
+            (3, None) => {
                 let ((a, ra), (b, rb), (c, rc)) = (taps[0], taps[1], taps[2]);
-                let (ra, rb, rc) = (row(ra), row(rb), row(rc));
-                store_row(out, band, |i| a * ra[i] + b * rb[i] + c * rc[i]);
+                let rows = row(ra).iter().zip(row(rb)).zip(row(rc));
+                for (o, ((x, y), z)) in out.iter_mut().zip(rows) {
+                    *o -= a * x + b * y + c * z;
+                }
             }
-            2 => {
+            (3, Some(bd)) => {
+                let ((a, ra), (b, rb), (c, rc)) = (taps[0], taps[1], taps[2]);
+                let rows = row(ra).iter().zip(row(rb)).zip(row(rc)).zip(bd);
+                for (o, (((x, y), z), bv)) in out.iter_mut().zip(rows) {
+                    *o = a * x + b * y + c * z + bv;
+                }
+            }
+            (2, None) => {
                 let ((a, ra), (b, rb)) = (taps[0], taps[1]);
-                let (ra, rb) = (row(ra), row(rb));
-                store_row(out, band, |i| a * ra[i] + b * rb[i]);
+                for (o, (x, y)) in out.iter_mut().zip(row(ra).iter().zip(row(rb))) {
+                    *o -= a * x + b * y;
+                }
+            }
+            (2, Some(bd)) => {
+                let ((a, ra), (b, rb)) = (taps[0], taps[1]);
+                let rows = row(ra).iter().zip(row(rb)).zip(bd);
+                for (o, ((x, y), bv)) in out.iter_mut().zip(rows) {
+                    *o = a * x + b * y + bv;
+                }
             }
             _ => store_row(out, band, |i| {
                 let mut acc = 0.0;

@@ -471,3 +471,87 @@ fn csp_lanes_give_the_bits_of_the_pixel_loop() {
         }
     }
 }
+
+/// The pyramid's levels are the binomial reduce and expand as their
+/// definitions say, summed directly in 2-D here (mirrored borders; the
+/// expansion `4·B * (G_(l+1) upsampled by zero insertion)`): even and odd
+/// sizes, rows too short for the passes' interiors, and the split passes.
+/// The fast passes sum separably, so the match is to f32 rounding.
+#[test]
+fn levels_are_the_binomial_reduce_and_expand() {
+    use laplacian::reflect;
+    let t = [1.0f64, 4.0, 6.0, 4.0, 1.0].map(|v| v / 16.0);
+    let reduce = |g: &[f64], (w, h): (usize, usize)| -> Vec<f64> {
+        let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
+        let mut out = vec![0.0; nw * nh];
+        for y in 0..nh {
+            for x in 0..nw {
+                let mut acc = 0.0;
+                for (a, ta) in t.iter().enumerate() {
+                    for (b, tb) in t.iter().enumerate() {
+                        let r = reflect(2 * y as isize + a as isize - 2, h);
+                        let c = reflect(2 * x as isize + b as isize - 2, w);
+                        acc += ta * tb * g[r * w + c];
+                    }
+                }
+                out[y * nw + x] = acc;
+            }
+        }
+        out
+    };
+    let expand = |g: &[f64], (nw, nh): (usize, usize), (w, h): (usize, usize)| -> Vec<f64> {
+        let mut out = vec![0.0; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let mut acc = 0.0;
+                for (a, ta) in t.iter().enumerate() {
+                    let r = reflect(y as isize + a as isize - 2, h);
+                    for (b, tb) in t.iter().enumerate() {
+                        let c = reflect(x as isize + b as isize - 2, w);
+                        if r.is_multiple_of(2) && c.is_multiple_of(2) {
+                            let (r, c) = ((r / 2).min(nh - 1), (c / 2).min(nw - 1));
+                            acc += 4.0 * ta * tb * g[r * nw + c];
+                        }
+                    }
+                }
+                out[y * w + x] = acc;
+            }
+        }
+        out
+    };
+    for &(w, h) in &[
+        (256, 40),
+        (131, 67),
+        (37, 21),
+        (8, 9),
+        (5, 3),
+        (4, 6),
+        (1, 7),
+    ] {
+        let img = texture(w, h, 11);
+        let mut lap = Laplacian::new(w, h, 3);
+        lap.analyze(&img);
+        let mut g: Vec<f64> = img.iter().map(|&v| f64::from(v)).collect();
+        for l in 0..3 {
+            let (dims, next_dims) = (lap.dims[l], lap.dims[l + 1]);
+            let next = reduce(&g, dims);
+            let up = expand(&next, next_dims, dims);
+            let peak = g.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            for (i, (gv, uv)) in g.iter().zip(&up).enumerate() {
+                let got = f64::from(lap.bands[l][i]);
+                assert!(
+                    (got - (gv - uv)).abs() < 1e-5 * peak,
+                    "{w}x{h}, level {l}, pixel {i}: {got} against {}",
+                    gv - uv
+                );
+            }
+            g = next;
+        }
+        for (i, gv) in g.iter().enumerate() {
+            assert!(
+                (f64::from(lap.bands[3][i]) - gv).abs() < 1e-4,
+                "{w}x{h}, residual {i}"
+            );
+        }
+    }
+}
