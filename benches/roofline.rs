@@ -63,10 +63,11 @@ fn main() {
     println!(
         "  FMA peak ({lanes}-lane f32 fused multiply-add, 2 flops each): {fma1:.1} GFLOP/s on one core, {fma_all:.1} on {cores}"
     );
-    // The triads: in L2, in L3 (a quarter of it, so that other cores'
-    // share of it does not push the arrays out), and in memory (three
-    // arrays each as large as L3). The last cache's size is read from the
-    // system; 32 MiB where it is not reported.
+    // The triads: in L2, in L3 (three arrays making a quarter of it, so
+    // that other cores' share of it does not push them out), and in
+    // memory (three arrays each as large as L3, at least 16 MiB). The last
+    // cache's size is read from the system; 32 MiB where it is not
+    // reported.
     let l3 = cache_bytes(3).unwrap_or(32 << 20);
     let mut bw = Vec::new(); // [L2, L3, memory], one core
     for (name, floats) in [
@@ -88,7 +89,7 @@ fn main() {
     };
     // A magnifier's state (about 20 arrays of a level's size) outgrows L2
     // at 256x256; the FFTs' buffers of one level fit L2. Whether the rest
-    // is in L3 or in memory is read from the arrays' size (`Roofs::roof`).
+    // is in L3 or in memory is read from the arrays' size (`Roofs::bound`).
 
     let frames = texture_frames(w, h, 64);
     // One-core whole-frame bounds (Mpix/s) for the end-to-end section.
@@ -226,8 +227,9 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, roofs: &Roofs) -> [f6
     );
     let bounds = std::cell::RefCell::new(Vec::new());
     // What the kernels keep beyond L2: a frame's coefficients and the
-    // reference's (the steerable pyramid's complex, 8 bytes a band pixel;
-    // the Riesz triples, 12), 4 scales over 1.33 of the frame.
+    // reference's, 4 scales over 1.33 of the frame, at the larger of the
+    // two pyramids' bytes a band pixel (the steerable one's complex bands,
+    // 8 bytes an orientation; the Riesz triples, 12).
     let arrays = (px * 1.33 * 2.0 * (k as f64 * 8.0).max(12.0)) as usize;
     let row = |name: &str, secs: f64, (flops, bytes, level): (f64, f64, u8)| {
         let rate = px / secs / 1e6;
