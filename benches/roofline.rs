@@ -69,24 +69,21 @@ fn main() {
     // cache's size is read from the system; 32 MiB where it is not
     // reported.
     let l3 = cache_bytes(3).unwrap_or(32 << 20);
-    let mut bw = Vec::new(); // [L2, L3, memory], one core
-    for (name, floats) in [
-        ("L2".to_string(), 1usize << 16),
-        ("L3".to_string(), l3 / 48),
-        ("memory".to_string(), (l3 / 4).max(1 << 22)),
-    ] {
+    // [L2, L3, memory], one core.
+    let bw = [
+        ("L2", 1usize << 16),
+        ("L3", l3 / 48),
+        ("memory", (l3 / 4).max(1 << 22)),
+    ]
+    .map(|(name, floats)| {
         let (one, all) = triad(floats, cores);
         println!(
             "  triad a = b + s*c in {name} (3 x {} KiB): {one:.1} GB/s on one core, {all:.1} on {cores} (12 bytes per element)",
             floats * 4 / 1024
         );
-        bw.push(one);
-    }
-    let roofs = Roofs {
-        fma1,
-        bw: [bw[0], bw[1], bw[2]],
-        l3,
-    };
+        one
+    });
+    let roofs = Roofs { fma1, bw, l3 };
     // A magnifier's state (about 20 arrays of a level's size) outgrows L2
     // at 256x256; the FFTs' buffers of one level fit L2. Whether the rest
     // is in L3 or in memory is read from the arrays' size (`Roofs::bound`).
@@ -784,25 +781,9 @@ fn cache_bytes(level: u32) -> Option<usize> {
 fn heap_bytes() -> usize {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     {
-        #[repr(C)]
-        struct Mallinfo2 {
-            arena: usize,
-            ordblks: usize,
-            smblks: usize,
-            hblks: usize,
-            hblkhd: usize,
-            usmblks: usize,
-            fsmblks: usize,
-            uordblks: usize,
-            fordblks: usize,
-            keepcost: usize,
-        }
-        extern "C" {
-            fn mallinfo2() -> Mallinfo2;
-        }
         // SAFETY: glibc's `mallinfo2` (2.33 and later) takes nothing and
-        // returns this struct by value.
-        let m = unsafe { mallinfo2() };
+        // only reads the allocator's counters.
+        let m = unsafe { libc::mallinfo2() };
         m.uordblks + m.hblkhd
     }
     #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
