@@ -348,11 +348,129 @@ fn taps_sum<'a>(kernel: &[f32], out: &mut [f32], src: impl Fn(usize) -> &'a [f32
     }
 }
 
+/// Calls `$f::<N>` with the kernel as `&[f32; N]` for the odd lengths up
+/// to [`MAX_FIXED_TAPS`], or runs `$else` for any other length.
+macro_rules! with_fixed_taps {
+    ($kernel:expr, $f:ident($($a:expr),*), $else:expr) => {
+        match $kernel.len() {
+            3 => $f::<3>(fixed($kernel), $($a),*),
+            5 => $f::<5>(fixed($kernel), $($a),*),
+            7 => $f::<7>(fixed($kernel), $($a),*),
+            9 => $f::<9>(fixed($kernel), $($a),*),
+            11 => $f::<11>(fixed($kernel), $($a),*),
+            13 => $f::<13>(fixed($kernel), $($a),*),
+            15 => $f::<15>(fixed($kernel), $($a),*),
+            17 => $f::<17>(fixed($kernel), $($a),*),
+            _ => $else,
+        }
+    };
+}
+
+/// The longest kernel [`with_fixed_taps`] sums with its length fixed.
+const MAX_FIXED_TAPS: usize = 17;
+
+/// `kernel` as an array of its own length (the caller matched the length).
+#[inline(always)]
+fn fixed<const N: usize>(kernel: &[f32]) -> &[f32; N] {
+    match kernel.try_into() {
+        Ok(k) => k,
+        Err(_) => unreachable!("with_fixed_taps matched the kernel's length"),
+    }
+}
+
+/// One block of [`BLUR_BLOCK`] outputs of a row: `acc[i] = Σ_k c[k] ·
+/// win[i + k]`, the taps in order from 0 (so the same sums as
+/// [`taps_sum`]), all in registers: the tap count is fixed, so the taps
+/// unroll and the window's length is known.
+#[inline(always)]
+fn row_block<const N: usize>(c: &[f32; N], win: &[f32]) -> [f32; BLUR_BLOCK] {
+    let win = &win[..BLUR_BLOCK + N - 1];
+    let mut acc = [0.0; BLUR_BLOCK];
+    for (k, c) in c.iter().enumerate() {
+        for (a, v) in acc.iter_mut().zip(&win[k..k + BLUR_BLOCK]) {
+            *a += c * v;
+        }
+    }
+    acc
+}
+
+/// One row of [`blur_rows`] for a kernel of `N` taps: whole blocks of
+/// [`BLUR_BLOCK`] outputs, the last one overlapping the one before it
+/// (it sums the same values again), and the blocks at the row's ends read
+/// from a copy with the row's end pixels repeated, so every output is one
+/// block's sum and none is summed pixel by pixel. The same sums, in the
+/// same order, as the clamped convolution.
+#[inline(always)]
+fn blur_row_fixed<const N: usize>(c: &[f32; N], row: &[f32], out: &mut [f32]) {
+    const B: usize = BLUR_BLOCK;
+    let (w, r) = (row.len().min(out.len()), N / 2);
+    let mut pad = [0.0f32; BLUR_BLOCK + MAX_FIXED_TAPS - 1];
+    if w < B {
+        if w > 0 {
+            let sums = row_block(c, pad_window::<N>(row, 0, &mut pad));
+            out[..w].copy_from_slice(&sums[..w]);
+        }
+        return;
+    }
+    let mut at = 0;
+    loop {
+        let win = if at >= r && at + B + r <= w {
+            &row[at - r..at + B + r]
+        } else {
+            pad_window::<N>(row, at, &mut pad)
+        };
+        out[at..at + B].copy_from_slice(&row_block(c, win));
+        if at + B == w {
+            return;
+        }
+        // The last block ends at the row's end.
+        at = (at + B).min(w - B);
+    }
+}
+
+/// The window of a kernel of `N` taps for the block of [`BLUR_BLOCK`]
+/// outputs from `at` of a row: the row's pixels `at - N/2..`, its end
+/// pixels repeated beyond its ends, copied into `pad`.
+#[inline(always)]
+fn pad_window<'a, const N: usize>(row: &[f32], at: usize, pad: &'a mut [f32]) -> &'a [f32] {
+    let (w, r) = (row.len(), N / 2);
+    let pad = &mut pad[..BLUR_BLOCK + N - 1];
+    let first = at.saturating_sub(r).min(w);
+    let last = (at + BLUR_BLOCK + r).min(w).max(first);
+    // Pixels `first..last` of the row land at `left..` of the window.
+    let left = (first + r - at).min(pad.len());
+    let inside = (last - first).min(pad.len() - left);
+    pad[..left].fill(row[0]);
+    pad[left..left + inside].copy_from_slice(&row[first..first + inside]);
+    pad[left + inside..].fill(row[w - 1]);
+    pad
+}
+
 simd_fn! {
 /// The horizontal pass of [`blur`] over whole rows of `src` into `out`.
 fn blur_rows(kernel: &[f32], src: &[f32], out: &mut [f32], w: usize) {
+    let rows = src.chunks_exact(w).zip(out.chunks_exact_mut(w));
+    with_fixed_taps!(kernel, blur_rows_fixed(rows), blur_rows_any(kernel, rows))
+}
+}
+
+/// [`blur_rows`] for a kernel of `N` taps.
+#[inline(always)]
+fn blur_rows_fixed<'a, const N: usize>(
+    c: &[f32; N],
+    rows: impl Iterator<Item = (&'a [f32], &'a mut [f32])>,
+) {
+    for (row, out) in rows {
+        blur_row_fixed(c, row, out);
+    }
+}
+
+/// [`blur_rows`] for a kernel of any length.
+#[inline(always)]
+fn blur_rows_any<'a>(kernel: &[f32], rows: impl Iterator<Item = (&'a [f32], &'a mut [f32])>) {
     let r = kernel.len() / 2;
-    for (row, out) in src.chunks_exact(w).zip(out.chunks_exact_mut(w)) {
+    for (row, out) in rows {
+        let w = row.len();
         // Columns whose taps all fall inside the row.
         let (lo, hi) = (r.min(w), w.saturating_sub(r).max(r.min(w)));
         if hi > lo {
@@ -368,7 +486,6 @@ fn blur_rows(kernel: &[f32], src: &[f32], out: &mut [f32], w: usize) {
             out[x] = acc;
         }
     }
-}
 }
 
 simd_fn! {

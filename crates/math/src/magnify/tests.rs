@@ -326,6 +326,30 @@ fn blur_matches_the_clamped_convolution() {
     }
 }
 
+/// The blur's horizontal pass for a kernel of fixed length (blocks that
+/// overlap at a row's end, the ends read from a padded copy) gives the
+/// same bits as the general pass (the clamped sums, pixel by pixel at the
+/// edges), at every width from 1 to past three blocks and at four fixed
+/// lengths.
+#[test]
+fn fixed_length_blur_rows_equal_the_general_ones() {
+    for sigma in [0.5f32, 1.0, 1.5, 2.5] {
+        let kernel = WeightedBlur::new(sigma, 1, false).kernel;
+        assert!(kernel.len() <= MAX_FIXED_TAPS, "sigma {sigma}");
+        for w in (1..=100).chain([127, 255, 256]) {
+            let h = 9;
+            let src: Vec<f32> = (0..w * h)
+                .map(|i| ((i * 7919) % 101) as f32 / 10.0 - 3.0)
+                .collect();
+            let simd = crate::join::Simd::detect();
+            let (mut fixed, mut any) = (vec![0.0f32; w * h], vec![0.0f32; w * h]);
+            blur_rows(simd, &kernel, &src, &mut fixed, w);
+            blur_rows_any(&kernel, src.chunks_exact(w).zip(any.chunks_exact_mut(w)));
+            assert_eq!(fixed, any, "rows, {} taps, width {w}", kernel.len());
+        }
+    }
+}
+
 /// Two parts of the steerable-pyramid magnifier (half the orientations
 /// each, one with the residuals) sum to the whole magnifier's frames.
 #[test]
