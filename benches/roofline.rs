@@ -168,7 +168,7 @@ fn main() {
             // The same magnifier with its passes split over two threads
             // (as the `magnify` stage runs it, through its spinning helper), against one in this run.
             let j = SpinJoin::new("roofline-half", Duration::from_micros(500)).expect("helper");
-            m.set_profiling(false);
+            m.set_profiling(true);
             let t = Instant::now();
             for i in 0..n {
                 m.process_with(&frames[i % frames.len()], &mut out, &j)
@@ -180,6 +180,23 @@ fn main() {
                 n as f64 * px / two / 1e6,
                 wall / two
             );
+            // Each step's speed-up: where the split loses (joins, halves
+            // of unequal cost, levels too small to split).
+            let two_prof = m.profile().expect("profile").clone();
+            let steps: Vec<String> = STEPS
+                .iter()
+                .enumerate()
+                // (A step fused into the one before it has no time of its own.)
+                .filter(|&(k, _)| prof.seconds[k] > 0.01 * wall)
+                .map(|(k, name)| {
+                    let (one, two) = (
+                        prof.seconds[k] / prof.frames as f64,
+                        two_prof.seconds[k] / two_prof.frames as f64,
+                    );
+                    format!("{name} {:.3} ms ({:.2}x)", two * 1e3, one / two)
+                })
+                .collect();
+            println!("    two threads, each step: {}", steps.join("; "));
         }
     }
     let listen_bounds = listen_kernels(&frames, w, h, &roofs);

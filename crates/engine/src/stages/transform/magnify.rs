@@ -395,18 +395,10 @@ impl Stage for Magnify {
             )));
         }
         let src = f.pixels();
-        for (y, row) in r.input.chunks_exact_mut(roi.w).enumerate() {
-            let start = (roi.y + y) * fw + roi.x;
-            match src {
-                PixelsRef::U8(p) => row
-                    .iter_mut()
-                    .zip(&p[start..start + roi.w])
-                    .for_each(|(o, v)| *o = *v as f32),
-                PixelsRef::U16(p) => row
-                    .iter_mut()
-                    .zip(&p[start..start + roi.w])
-                    .for_each(|(o, v)| *o = *v as f32),
-            }
+        let halves = r.halves.as_ref().map(|j| j as &dyn Join);
+        match src {
+            PixelsRef::U8(p) => load_region(&mut r.input, p, fw, roi, halves),
+            PixelsRef::U16(p) => load_region(&mut r.input, p, fw, roi, halves),
         }
         match r.parts.as_mut_slice() {
             [one] => {
@@ -440,38 +432,29 @@ impl Stage for Magnify {
         *o.meta_mut() = *f.meta();
         let ow = o.format().width as usize;
         let (side, whole) = (self.p.side_by_side, self.p.whole_frame);
-        let max = r.max;
         // The magnified frame is dithered (uniform, ±½ DN) before rounding:
         // a change smaller than half a level would otherwise round back to
         // the input's own integers, and small motions (or factors near 1)
         // would vanish in a dead zone. Deterministic per frame and pixel.
         let key = mix64(f.meta().seq ^ 0x006d_6167_6e69_6679);
-        {
-            let half = if r.halves.is_some() {
-                r.output.len() / 2
-            } else {
-                r.output.len()
-            };
-            let (a, b) = r.output.split_at_mut(half);
-            let quantize = |v: &mut [f32], first: usize| dither_round(v, key, first, max);
-            match &r.halves {
-                Some(j) => j.join(&mut || quantize(a, 0), &mut || quantize(b, half)),
-                None => quantize(a, 0),
-            }
-        }
-        let magnified = |i: usize| r.output[i];
+        let layout = Layout {
+            fw,
+            fh: f.height(),
+            ow,
+            roi,
+            side,
+            whole,
+            key,
+            max: r.max,
+        };
+        let halves = r.halves.as_ref().map(|j| j as &dyn Join);
+        let (input, output) = (&r.input[..], &mut r.output[..]);
         match (o.pixels_mut(), src) {
             (PixelsMut::U8(p), PixelsRef::U8(s)) => {
-                let cast = |v: f32| v as u8;
-                write_frame(p, s, fw, ow, roi, side, whole, &r.input, cast, |i| {
-                    magnified(i) as u8
-                });
+                write_frame(p, s, input, output, &layout, halves, |v| v as u8)
             }
             (PixelsMut::U16(p), PixelsRef::U16(s)) => {
-                let cast = |v: f32| v as u16;
-                write_frame(p, s, fw, ow, roi, side, whole, &r.input, cast, |i| {
-                    magnified(i) as u16
-                });
+                write_frame(p, s, input, output, &layout, halves, |v| v as u16)
             }
             _ => {
                 return Err(StageError::format(
@@ -484,48 +467,206 @@ impl Stage for Magnify {
     }
 }
 
-/// Writes one output frame `p` (`ow` wide): the region's magnified pixels
-/// (`magnified(i)`, `i` the index in the region), after the input's own
-/// pixels where the output shows them: the whole input frame `src` (`fw`
-/// wide) around the region with `whole`, the input on the left with
-/// `side` (the region's `input` values, `cast` to pixels, or the whole
-/// frame).
-#[allow(clippy::too_many_arguments)]
-fn write_frame<T: Copy>(
-    p: &mut [T],
+/// The region `roi` of a frame `src` (`fw` wide) into `input` as `f32`,
+/// in two halves of rows through `halves` when there is a helper.
+fn load_region<T: Copy + Send + Sync + Into<f32>>(
+    input: &mut [f32],
     src: &[T],
     fw: usize,
+    roi: Roi,
+    halves: Option<&dyn Join>,
+) {
+    let load = |rows: &mut [f32], y0: usize| {
+        for (y, row) in rows.chunks_exact_mut(roi.w).enumerate() {
+            let start = (roi.y + y0 + y) * fw + roi.x;
+            for (o, v) in row.iter_mut().zip(&src[start..start + roi.w]) {
+                *o = (*v).into();
+            }
+        }
+    };
+    match halves {
+        Some(j) => {
+            let cut = roi.h / 2;
+            let (a, b) = input.split_at_mut(cut * roi.w);
+            j.join(&mut || load(a, 0), &mut || load(b, cut));
+        }
+        None => load(input, 0),
+    }
+}
+
+/// Where an output frame's pixels come from.
+struct Layout {
+    /// Input frame size.
+    fw: usize,
+    fh: usize,
+    /// Output frame width.
     ow: usize,
     roi: Roi,
     side: bool,
     whole: bool,
+    /// The dither's key for this frame.
+    key: u64,
+    /// The largest pixel level.
+    max: f32,
+}
+
+/// Writes one output frame `p`: the region's magnified values `output`
+/// (dithered and rounded in place, [`dither_round`]), after the input's
+/// own pixels where the output shows them: the whole input frame `src`
+/// around the region with `whole`, the input on the left with `side` (the
+/// region's `input` values, `cast` to pixels, or the whole frame). In two
+/// halves of rows through `halves` when there is a helper; the same bytes
+/// either way (the dither depends on the pixel, not on the half).
+fn write_frame<T: Copy + Send + Sync>(
+    p: &mut [T],
+    src: &[T],
     input: &[f32],
-    cast: impl Fn(f32) -> T,
-    magnified: impl Fn(usize) -> T,
+    output: &mut [f32],
+    at: &Layout,
+    halves: Option<&dyn Join>,
+    cast: impl Fn(f32) -> T + Sync,
 ) {
-    let (w, h, ox, oy) = if whole {
-        (fw, src.len() / fw.max(1), roi.x, roi.y)
-    } else {
-        (roi.w, roi.h, 0, 0)
+    let roi = at.roi;
+    // Output rows, and the region's first row in them.
+    let (h, oy) = if at.whole { (at.fh, roi.y) } else { (roi.h, 0) };
+    let rows = |p: &mut [T], output: &mut [f32], y0: usize, y1: usize| {
+        // The region's rows among output rows `y0..y1` (`output` holds them).
+        let r0 = y0.clamp(oy, oy + roi.h) - oy;
+        dither_round(output, at.key, r0 * roi.w, at.max);
+        write_rows(p, src, input, output, at, y0..y1, r0, &cast);
     };
-    for y in 0..h {
-        let base = y * ow;
-        let main = if side { base + w } else { base };
-        if whole {
+    let cut = match halves {
+        Some(_) => h / 2,
+        None => h,
+    };
+    let region_cut = cut.clamp(oy, oy + roi.h) - oy;
+    let (pa, pb) = p.split_at_mut((cut * at.ow).min(p.len()));
+    let (oa, ob) = output.split_at_mut(region_cut * roi.w);
+    match halves {
+        Some(j) => j.join(&mut || rows(pa, oa, 0, cut), &mut || rows(pb, ob, cut, h)),
+        None => rows(pa, oa, 0, cut),
+    }
+}
+
+/// Output rows `ys` of [`write_frame`] into `p` (those rows), the
+/// region's rounded values from its row `r0` in `magnified`.
+#[allow(clippy::too_many_arguments)]
+fn write_rows<T: Copy>(
+    p: &mut [T],
+    src: &[T],
+    input: &[f32],
+    magnified: &[f32],
+    at: &Layout,
+    ys: std::ops::Range<usize>,
+    r0: usize,
+    cast: &impl Fn(f32) -> T,
+) {
+    let (roi, fw, ow) = (at.roi, at.fw, at.ow);
+    let (w, ox, oy) = if at.whole {
+        (fw, roi.x, roi.y)
+    } else {
+        (roi.w, 0, 0)
+    };
+    for (dy, y) in ys.enumerate() {
+        let base = dy * ow;
+        let main = if at.side { base + w } else { base };
+        let region = (oy..oy + roi.h).contains(&y);
+        if at.whole {
             let row = &src[y * fw..(y + 1) * fw];
-            p[main..main + w].copy_from_slice(row);
-            if side {
+            if region {
+                // Only the pixels around the region: it is written below.
+                p[main..main + ox].copy_from_slice(&row[..ox]);
+                p[main + ox + roi.w..main + w].copy_from_slice(&row[ox + roi.w..]);
+            } else {
+                p[main..main + w].copy_from_slice(row);
+            }
+            if at.side {
                 p[base..base + w].copy_from_slice(row);
             }
-        } else if side {
+        } else if at.side {
             for (d, v) in p[base..base + w].iter_mut().zip(&input[y * w..(y + 1) * w]) {
                 *d = cast(*v);
             }
         }
-        if (oy..oy + roi.h).contains(&y) {
-            let ry = y - oy;
-            for (k, d) in p[main + ox..main + ox + roi.w].iter_mut().enumerate() {
-                *d = magnified(ry * roi.w + k);
+        if region {
+            let ry = y - oy - r0;
+            let values = &magnified[ry * roi.w..(ry + 1) * roi.w];
+            for (d, v) in p[main + ox..main + ox + roi.w].iter_mut().zip(values) {
+                *d = cast(*v);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+
+    /// An output frame made in two halves of rows (through the spinning
+    /// helper) has the same bytes as one made in one pass, and both hold
+    /// what each layout promises pixel by pixel: the region's values
+    /// dithered and rounded, the input around the region (`whole`), the
+    /// input on the left (`side`).
+    #[test]
+    fn output_frames_in_halves_equal_the_plain_layout() {
+        let (fw, fh) = (37usize, 23usize);
+        let src: Vec<u8> = (0..fw * fh).map(|i| (i * 31 % 251) as u8).collect();
+        let j = SpinJoin::new("test-half", Duration::from_micros(50)).unwrap();
+        for (x, y, w, h) in [
+            (0, 0, 37, 23),
+            (5, 3, 11, 7),
+            (0, 12, 37, 11),
+            (20, 0, 17, 1),
+        ] {
+            let roi = Roi { x, y, w, h };
+            let mut input = vec![0.0f32; w * h];
+            load_region(&mut input, &src, fw, roi, Some(&j));
+            for (k, v) in input.iter().enumerate() {
+                assert_eq!(*v, f32::from(src[(y + k / w) * fw + x + k % w]));
+            }
+            let values: Vec<f32> = (0..w * h)
+                .map(|i| 100.0 + (i as f32 * 0.37).sin() * 90.0)
+                .collect();
+            for (side, whole) in [(false, false), (true, false), (false, true), (true, true)] {
+                let (cw, ch) = if whole { (fw, fh) } else { (w, h) };
+                let ow = if side { 2 * cw } else { cw };
+                let at = Layout {
+                    fw,
+                    fh,
+                    ow,
+                    roi,
+                    side,
+                    whole,
+                    key: 7,
+                    max: 255.0,
+                };
+                let mut frames = Vec::new();
+                for halves in [None, Some(&j as &dyn Join)] {
+                    let (mut p, mut out) = (vec![0u8; ow * ch], values.clone());
+                    write_frame(&mut p, &src, &input, &mut out, &at, halves, |v| v as u8);
+                    frames.push(p);
+                }
+                assert_eq!(frames[0], frames[1], "{roi:?} side {side} whole {whole}");
+                let mut rounded = values.clone();
+                dither_round(&mut rounded, 7, 0, 255.0);
+                let p = &frames[0];
+                for oy in 0..ch {
+                    for ox in 0..cw {
+                        let main = p[oy * ow + if side { cw } else { 0 } + ox];
+                        let (fx, fy) = if whole { (ox, oy) } else { (x + ox, y + oy) };
+                        let inside = (x..x + w).contains(&fx) && (y..y + h).contains(&fy);
+                        let want = if inside {
+                            rounded[(fy - y) * w + fx - x] as u8
+                        } else {
+                            src[fy * fw + fx]
+                        };
+                        assert_eq!(main, want, "{roi:?} side {side} whole {whole} at {ox},{oy}");
+                        if side {
+                            assert_eq!(p[oy * ow + ox], src[fy * fw + fx], "left at {ox},{oy}");
+                        }
+                    }
+                }
             }
         }
     }
