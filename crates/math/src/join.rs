@@ -111,8 +111,20 @@ pub(crate) struct Par<'a> {
 }
 
 /// `a` and `b` through `par`'s join (each calls kernels made with
-/// [`simd_fn`], given `par.simd`).
+/// [`simd_fn`], given `par.simd`) when the work was `split`; in turn on
+/// this thread when it was not (one of the two has nothing to do, and a
+/// hand-over costs more than nothing).
 #[inline(always)]
-pub(crate) fn both(par: Par<'_>, mut a: impl FnMut() + Send, mut b: impl FnMut() + Send) {
-    par.j.join(&mut a, &mut b);
+pub(crate) fn both(
+    par: Par<'_>,
+    split: bool,
+    mut a: impl FnMut() + Send,
+    mut b: impl FnMut() + Send,
+) {
+    if split {
+        par.j.join(&mut a, &mut b);
+    } else {
+        a();
+        b();
+    }
 }

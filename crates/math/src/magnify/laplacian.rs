@@ -211,6 +211,7 @@ fn reduce(
     let v = j.simd;
     both(
         j,
+        hm < h,
         || reduce_rows(v, &src[..hm * w], t0, w, nw),
         || reduce_rows(v, &src[hm * w..h * w], t1, w, nw),
     );
@@ -220,6 +221,7 @@ fn reduce(
     let (d0, d1) = dst[..nh * nw].split_at_mut(nm * nw);
     both(
         j,
+        nm < nh,
         || reduce_cols(v, tmp, nw, h, d0, 0),
         || reduce_cols(v, tmp, nw, h, d1, nm),
     );
@@ -386,6 +388,7 @@ fn expand(
     let v = j.simd;
     both(
         j,
+        nm < nh,
         || expand_rows(v, &src[..nm * nw], t0, nw, w),
         || expand_rows(v, &src[nm * nw..nh * nw], t1, nw, w),
     );
@@ -394,6 +397,7 @@ fn expand(
     let (d0, d1) = dst[..h * w].split_at_mut(hm * w);
     both(
         j,
+        hm < h,
         || expand_cols(v, tmp, w, h, nh, d0, 0, put),
         || expand_cols(v, tmp, w, h, nh, d1, hm, put),
     );

@@ -302,6 +302,7 @@ fn blur3_cols_with(
     };
     both(
         j,
+        hm < h,
         || half(0, [&mut *x0, &mut *x1, &mut *x2], &mut *after0),
         || half(hm, [&mut *y0, &mut *y1, &mut *y2], &mut *after1),
     );
@@ -852,6 +853,7 @@ impl Magnifier {
                     let (x2, y2) = t2.split_at_mut(cut);
                     both(
                         j,
+                        hm < h,
                         || {
                             riesz_phase_run(
                                 v,
@@ -917,6 +919,7 @@ impl Magnifier {
                         let (ns0, ns1) = ns.split_at(mid);
                         both(
                             j,
+                            hm < h,
                             || riesz_shift(v, b0, [q10, q20], [d0, nc0, ns0], false, fa, mp),
                             || riesz_shift(v, b1, [q11, q21], [d1, nc1, ns1], false, fa, mp),
                         );

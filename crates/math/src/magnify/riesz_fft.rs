@@ -128,6 +128,7 @@ impl RieszFft {
             };
             both(
                 j,
+                hm < h,
                 || fwd(&band[..hm * w], b0, s0),
                 || fwd(&band[hm * w..], b1, s1),
             );
@@ -148,7 +149,7 @@ impl RieszFft {
                 }
                 col_inv.process_with_scratch(t, s);
             };
-            both(j, || cols(t0, m0, 0, s0), || cols(t1, m1, wm, s1));
+            both(j, wm < w, || cols(t0, m0, 0, s0), || cols(t1, m1, wm, s1));
         }
         {
             let src = &*tr;
@@ -169,7 +170,12 @@ impl RieszFft {
                     *c = z.im;
                 }
             };
-            both(j, || inv(b0, 0, a0, c0, s0), || inv(b1, hm, a1, c1, s1));
+            both(
+                j,
+                hm < h,
+                || inv(b0, 0, a0, c0, s0),
+                || inv(b1, hm, a1, c1, s1),
+            );
         }
     }
 }

@@ -93,6 +93,7 @@ impl RieszFir {
         let v = j.simd;
         both(
             j,
+            hm < h,
             || pair_rows(v, band, w, h, 0, a0, c0, s0),
             || pair_rows(v, band, w, h, hm, a1, c1, s1),
         );
