@@ -68,7 +68,8 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
     // Round to nearest by adding and removing 1.5·2^23 (exact below 2^22;
     // `f32::round` is a library call without SSE4.1).
     const ROUND: f32 = 12_582_912.0;
-    let q = (x * FRAC_2_PI + ROUND) - ROUND;
+    let t = x * FRAC_2_PI + ROUND;
+    let q = t - ROUND;
     let r = (x - q * PI_2_HI) - q * PI_2_LO;
     let r2 = r * r;
     let s = r + r * r2 * (-1.0 / 6.0 + r2 * (1.0 / 120.0 + r2 * (-1.0 / 5040.0)));
@@ -76,8 +77,12 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
     // Quadrant by bit operations (no branch: the quadrant of a phase near
     // zero flips at random): odd q swaps sin and cos, q = 2, 3 negate the
     // sine, q = 1, 2 the cosine.
-    // (|q| < 2^31 for any argument the reduction keeps digits of.)
-    let qi = q as i32 as u32;
+    // The quadrant's integer from `t`'s bits: `t` lies in [2^23, 2^24),
+    // where floats are one apart, so its bits less ROUND's are `q` (for
+    // |q| < 2^22, every argument the reduction keeps digits of). `q as
+    // i32` (saturating) would make the same bits, but its NaN and range
+    // checks keep it from vectorising: it ran lane by lane.
+    let qi = t.to_bits().wrapping_sub(ROUND.to_bits());
     let swap = 0u32.wrapping_sub(qi & 1);
     let (sb, cb) = (s.to_bits(), c.to_bits());
     let a = sb ^ ((sb ^ cb) & swap);
@@ -90,6 +95,29 @@ pub fn sin_cos(x: f32) -> (f32, f32) {
 
 #[cfg(test)]
 mod tests {
+    /// The quadrant from the rounded value's bits equals the saturating
+    /// conversion of the rounded value (the earlier code) bit for bit,
+    /// over the range the reduction keeps digits of.
+    #[test]
+    fn sin_cos_quadrant_from_bits_equals_the_conversion() {
+        use std::f32::consts::FRAC_2_PI;
+        let mut n = 0;
+        for i in -400_000..=400_000i32 {
+            // Up to about 2^21 · π/2 in steps that reach every quadrant.
+            let x = i as f32 * 8.237 + (i % 7) as f32 * 0.31;
+            let q = (x * FRAC_2_PI + 12_582_912.0) - 12_582_912.0;
+            let want = q as i32 as u32;
+            let t = x * FRAC_2_PI + 12_582_912.0;
+            assert_eq!(
+                t.to_bits().wrapping_sub(12_582_912.0f32.to_bits()),
+                want,
+                "x {x}"
+            );
+            n += 1;
+        }
+        assert_eq!(n, 800_001);
+    }
+
     #[test]
     fn sin_cos_matches_libm() {
         let mut worst = 0.0f32;
