@@ -349,25 +349,7 @@ fn taps_sum<'a>(kernel: &[f32], out: &mut [f32], src: impl Fn(usize) -> &'a [f32
     }
 }
 
-/// Calls `$f::<N>` with the kernel as `&[f32; N]` for the odd lengths up
-/// to [`MAX_FIXED_TAPS`], or runs `$else` for any other length.
-macro_rules! with_fixed_taps {
-    ($kernel:expr, $f:ident($($a:expr),*), $else:expr) => {
-        match $kernel.len() {
-            3 => $f::<3>(fixed($kernel), $($a),*),
-            5 => $f::<5>(fixed($kernel), $($a),*),
-            7 => $f::<7>(fixed($kernel), $($a),*),
-            9 => $f::<9>(fixed($kernel), $($a),*),
-            11 => $f::<11>(fixed($kernel), $($a),*),
-            13 => $f::<13>(fixed($kernel), $($a),*),
-            15 => $f::<15>(fixed($kernel), $($a),*),
-            17 => $f::<17>(fixed($kernel), $($a),*),
-            _ => $else,
-        }
-    };
-}
-
-/// The longest kernel [`with_fixed_taps`] sums with its length fixed.
+/// The longest kernel [`blur_rows`] sums with its length fixed.
 const MAX_FIXED_TAPS: usize = 17;
 
 /// `kernel` as an array of its own length (the caller matched the length).
@@ -375,7 +357,7 @@ const MAX_FIXED_TAPS: usize = 17;
 fn fixed<const N: usize>(kernel: &[f32]) -> &[f32; N] {
     match kernel.try_into() {
         Ok(k) => k,
-        Err(_) => unreachable!("with_fixed_taps matched the kernel's length"),
+        Err(_) => unreachable!("blur_rows matched the kernel's length"),
     }
 }
 
@@ -448,10 +430,22 @@ fn pad_window<'a, const N: usize>(row: &[f32], at: usize, pad: &'a mut [f32]) ->
 }
 
 simd_fn! {
-/// The horizontal pass of [`blur`] over whole rows of `src` into `out`.
+/// The horizontal pass of [`blur`] over whole rows of `src` into `out`:
+/// with the kernel's length fixed for the odd lengths up to
+/// [`MAX_FIXED_TAPS`], the general way for any other.
 fn blur_rows(kernel: &[f32], src: &[f32], out: &mut [f32], w: usize) {
     let rows = src.chunks_exact(w).zip(out.chunks_exact_mut(w));
-    with_fixed_taps!(kernel, blur_rows_fixed(rows), blur_rows_any(kernel, rows))
+    match kernel.len() {
+        3 => blur_rows_fixed::<3>(fixed(kernel), rows),
+        5 => blur_rows_fixed::<5>(fixed(kernel), rows),
+        7 => blur_rows_fixed::<7>(fixed(kernel), rows),
+        9 => blur_rows_fixed::<9>(fixed(kernel), rows),
+        11 => blur_rows_fixed::<11>(fixed(kernel), rows),
+        13 => blur_rows_fixed::<13>(fixed(kernel), rows),
+        15 => blur_rows_fixed::<15>(fixed(kernel), rows),
+        17 => blur_rows_fixed::<17>(fixed(kernel), rows),
+        _ => blur_rows_any(kernel, rows),
+    }
 }
 }
 

@@ -529,9 +529,11 @@ fn write_frame<T: Copy + Send + Sync>(
     let roi = at.roi;
     // Output rows, and the region's first row in them.
     let (h, oy) = if at.whole { (at.fh, roi.y) } else { (roi.h, 0) };
+    // The region's first row at or after output row `y`.
+    let region_row = |y: usize| y.clamp(oy, oy + roi.h) - oy;
     let rows = |p: &mut [T], output: &mut [f32], y0: usize, y1: usize| {
         // The region's rows among output rows `y0..y1` (`output` holds them).
-        let r0 = y0.clamp(oy, oy + roi.h) - oy;
+        let r0 = region_row(y0);
         dither_round(output, at.key, r0 * roi.w, at.max);
         write_rows(p, src, input, output, at, y0..y1, r0, &cast);
     };
@@ -539,9 +541,8 @@ fn write_frame<T: Copy + Send + Sync>(
         Some(_) => h / 2,
         None => h,
     };
-    let region_cut = cut.clamp(oy, oy + roi.h) - oy;
     let (pa, pb) = p.split_at_mut((cut * at.ow).min(p.len()));
-    let (oa, ob) = output.split_at_mut(region_cut * roi.w);
+    let (oa, ob) = output.split_at_mut(region_row(cut) * roi.w);
     match halves {
         Some(j) => j.join(&mut || rows(pa, oa, 0, cut), &mut || rows(pb, ob, cut, h)),
         None => rows(pa, oa, 0, cut),
