@@ -35,8 +35,8 @@ mod riesz_fir;
 pub mod temporal;
 
 use crate::join::{both, simd_fn, Join, Par, Serial, Simd};
+use crate::pyramid::MAX_SCALES;
 use crate::pyramid::{Complex32, ComplexSteerablePyramid, PyramidCoeffs, PyramidError};
-use laplacian::mid_row;
 use laplacian::Laplacian;
 use riesz_fir::RieszFir;
 use temporal::{BandpassDesign, FilterPart, PixelFilter, CHUNK};
@@ -253,59 +253,6 @@ impl WeightedBlur {
             }
         }
     }
-}
-
-/// What [`blur3_with`] hands on: the first row of a group of rows and the
-/// three buffers' blurred rows of the group.
-type AfterRows<'a> = &'a mut (dyn FnMut(usize, [&[f32]; 3]) + Send);
-
-/// The vertical pass of [`blur`] for three buffers at once (their
-/// horizontal passes already in `tmp`, three buffers' worth), rows `..hm`
-/// and `hm..` through `j`, by groups of rows: `after[half]` gets each
-/// group as soon as it is blurred (while it is in cache).
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn blur3_cols_with(
-    kernel: &[f32],
-    bufs: [&mut [f32]; 3],
-    tmp: &[f32],
-    w: usize,
-    h: usize,
-    hm: usize,
-    j: Par<'_>,
-    after: [AfterRows<'_>; 2],
-) {
-    let (n, v) = (w * h, j.simd);
-    let [b0, b1, b2] = bufs;
-    let (t0, rest) = tmp[..3 * n].split_at(n);
-    let (t1, t2) = rest.split_at(n);
-    let tmps = [t0, t1, t2];
-    let (x0, y0) = b0[..n].split_at_mut(hm * w);
-    let (x1, y1) = b1[..n].split_at_mut(hm * w);
-    let (x2, y2) = b2[..n].split_at_mut(hm * w);
-    let [after0, after1] = after;
-    // Rows `first..` of the output, `outs` holding them, by groups.
-    let half = |first: usize, outs: [&mut [f32]; 3], after: AfterRows<'_>| {
-        const GROUP: usize = 8;
-        let [o0, o1, o2] = outs;
-        let groups = o0
-            .chunks_mut(GROUP * w)
-            .zip(o1.chunks_mut(GROUP * w))
-            .zip(o2.chunks_mut(GROUP * w));
-        for (g, ((a, b), c)) in groups.enumerate() {
-            let y = first + g * GROUP;
-            for (t, o) in tmps.iter().zip([&mut *a, &mut *b, &mut *c]) {
-                blur_cols(v, kernel, t, o, w, h, y);
-            }
-            after(y, [&*a, &*b, &*c]);
-        }
-    };
-    both(
-        j,
-        hm < h,
-        || half(0, [&mut *x0, &mut *x1, &mut *x2], &mut *after0),
-        || half(hm, [&mut *y0, &mut *y1, &mut *y2], &mut *after1),
-    );
 }
 
 /// Separable blur of `buf` (`w x h`) in place, edges clamped. Each pass
@@ -526,6 +473,13 @@ struct RieszState {
     /// The band-pass of the summed phase·cos θ and phase·sin θ, per level,
     /// fed their changes ([`BandpassDesign::on_increments`]): no sums kept.
     filters: Vec<[PixelFilter; 2]>,
+    /// Where each level starts in `r1` .. `ps` (and in the blur's
+    /// `tmp3`, three times as far): the levels one after another, so
+    /// that one hand-over runs a pass over every level.
+    offs: Vec<usize>,
+    /// The row where a level of `h` rows is cut into its two halves
+    /// (`h / 2`; the tests move it: any cut gives the same bits).
+    cut: fn(usize) -> usize,
     r1: Vec<f32>,
     r2: Vec<f32>,
     amp: Vec<f32>,
@@ -601,7 +555,6 @@ impl Magnifier {
         crate::pyramid::check_params(width, height, params.scales, params.orientations)?;
         let design = temporal::design(params.order, params.lo_hz, params.hi_hz, params.fps);
         let n = width * height;
-        let blur = WeightedBlur::new(params.sigma, n, params.pyramid == PyramidKind::Riesz);
         let state = match params.pyramid {
             PyramidKind::Csp => {
                 // Only this part's bands: their masks and coefficients.
@@ -642,6 +595,13 @@ impl Magnifier {
                     .iter()
                     .map(|&(w, h)| w * h)
                     .collect();
+                let offs: Vec<usize> = std::iter::once(0)
+                    .chain(lens.iter().scan(0, |o, l| {
+                        *o += l;
+                        Some(*o)
+                    }))
+                    .collect();
+                let total = offs[lens.len()];
                 let z = |l: usize| vec![0.0f32; l];
                 State::Riesz(Box::new(RieszState {
                     prev: lens.iter().map(|&l| [z(l), z(l), z(l)]).collect(),
@@ -656,14 +616,21 @@ impl Magnifier {
                         .iter()
                         .map(|&(w, h)| RieszFir::new(w, h))
                         .collect(),
-                    r1: z(n),
-                    r2: z(n),
-                    amp: z(n),
-                    pc: z(n),
-                    ps: z(n),
+                    offs,
+                    cut: |h| h / 2,
+                    r1: z(total),
+                    r2: z(total),
+                    amp: z(total),
+                    pc: z(total),
+                    ps: z(total),
                     lap,
                 }))
             }
+        };
+        // The Riesz magnifier blurs every level's three channels at once.
+        let blur = match &state {
+            State::Csp(_) => WeightedBlur::new(params.sigma, n, false),
+            State::Riesz(s) => WeightedBlur::new(params.sigma, s.r1.len(), true),
         };
         Ok(Self {
             params,
@@ -808,121 +775,274 @@ impl Magnifier {
             State::Riesz(s) => {
                 s.lap.analyze_with(frame, j);
                 laps.lap(0);
-                for l in 0..p.scales {
-                    let (w, h) = s.lap.dims[l];
-                    let len = w * h;
-                    let band = &mut s.lap.bands[l][..len];
-                    let (r1, r2) = (&mut s.r1[..len], &mut s.r2[..len]);
-                    s.pairs[l].pair(band, r1, r2, j);
-                    laps.lap(1);
-                    let [pi, p1, p2] = &mut s.prev[l];
-                    // `den` ends as G*A, `nc` and `ns` as G*(A·φ) of the
-                    // two phase components (the filtered φ itself when
-                    // there is no smoothing).
-                    let (den, nc, ns) = (&mut s.amp[..len], &mut s.pc[..len], &mut s.ps[..len]);
-                    let smooth = self.blur.kernel.len() > 1;
-                    let [fc, fs] = &mut s.filters[l];
-                    // The level's rows in two halves; with smoothing, each
-                    // row's horizontal blur follows its phase step at once.
-                    let hm = mid_row(h, w);
-                    let mid = hm * w;
-                    let ((mut fc0, mut fc1), (mut fs0, mut fs1)) = (fc.parts(hm), fs.parts(hm));
-                    let v = j.simd;
-                    let (b0, b1) = band.split_at(mid);
-                    let (q10, q11) = r1.split_at(mid);
-                    let (q20, q21) = r2.split_at(mid);
-                    let (pi0, pi1) = pi[..len].split_at_mut(mid);
-                    let (p10, p11) = p1[..len].split_at_mut(mid);
-                    let (p20, p21) = p2[..len].split_at_mut(mid);
-                    let (d0, d1) = den.split_at_mut(mid);
-                    let (nc0, nc1) = nc.split_at_mut(mid);
-                    let (ns0, ns1) = ns.split_at_mut(mid);
-                    let kernel = &self.blur.kernel[..];
-                    let tmp3 = &mut self.blur.tmp3[..if smooth { 3 * len } else { 0 }];
-                    let (t0, rest) = tmp3.split_at_mut(if smooth { len } else { 0 });
-                    let (t1, t2) = rest.split_at_mut(if smooth { len } else { 0 });
-                    let cut = if smooth { mid } else { 0 };
-                    let (x0, y0) = t0.split_at_mut(cut);
-                    let (x1, y1) = t1.split_at_mut(cut);
-                    let (x2, y2) = t2.split_at_mut(cut);
+                // Each pass over the levels is one hand-over: every
+                // level's rows in two halves, the first half of each
+                // level on one thread and the second on the other (a
+                // level's passes need only its own band and state, so the
+                // small levels split too, and nothing waits between them).
+                let split = self.width * self.height >= laplacian::SPLIT_MIN;
+                let (v, scales) = (j.simd, p.scales);
+                let (dims, offs) = (&s.lap.dims[..scales], &s.offs);
+                let cut = s.cut;
+                let mid = |l: usize| cut(dims[l].1) * dims[l].0;
+                let len = |l: usize| dims[l].0 * dims[l].1;
+                {
+                    let mut jobs: [[Option<PairJob>; MAX_SCALES]; 2] = Default::default();
+                    let (mut r1, mut r2) = (&mut s.r1[..], &mut s.r2[..]);
+                    for (l, fir) in s.pairs.iter_mut().enumerate().take(scales) {
+                        let band = &s.lap.bands[l][..len(l)];
+                        let q1 = take_level(&mut r1, len(l)).split_at_mut(mid(l));
+                        let q2 = take_level(&mut r2, len(l)).split_at_mut(mid(l));
+                        let [f0, f1] = fir.halves();
+                        let y1 = cut(dims[l].1);
+                        jobs[0][l] = Some(PairJob {
+                            fir: f0,
+                            band,
+                            y0: 0,
+                            r1: q1.0,
+                            r2: q2.0,
+                        });
+                        jobs[1][l] = Some(PairJob {
+                            fir: f1,
+                            band,
+                            y0: y1,
+                            r1: q1.1,
+                            r2: q2.1,
+                        });
+                    }
+                    let [a, b] = &mut jobs;
                     both(
                         j,
-                        hm < h,
-                        || {
-                            riesz_phase_run(
-                                v,
-                                v,
-                                first,
-                                w,
-                                0,
-                                [b0, q10, q20],
-                                [&mut *pi0, &mut *p10, &mut *p20],
-                                [&mut *d0, &mut *nc0, &mut *ns0],
-                                [&mut fc0, &mut fs0],
-                                kernel,
-                                [&mut *x0, &mut *x1, &mut *x2],
-                            )
-                        },
-                        || {
-                            riesz_phase_run(
-                                v,
-                                v,
-                                first,
-                                w,
-                                hm,
-                                [b1, q11, q21],
-                                [&mut *pi1, &mut *p11, &mut *p21],
-                                [&mut *d1, &mut *nc1, &mut *ns1],
-                                [&mut fc1, &mut fs1],
-                                kernel,
-                                [&mut *y0, &mut *y1, &mut *y2],
-                            )
-                        },
+                        split,
+                        || PairJob::run_all(a, v),
+                        || PairJob::run_all(b, v),
                     );
-                    laps.lap(2);
-                    laps.lap(3);
-                    let (fa, mp) = (p.factor, p.max_phase);
-                    if smooth {
-                        // The blur's vertical pass hands each group of rows
-                        // on to the phase shift at once.
-                        let (b0, b1) = band.split_at_mut(hm * w);
-                        let (r1, r2) = (&*r1, &*r2);
-                        let mut shift0 = |y: usize, [d, c, sn]: [&[f32]; 3]| {
-                            let rows = y * w..y * w + d.len();
-                            let q = [&r1[rows.clone()], &r2[rows.clone()]];
-                            riesz_shift(v, &mut b0[rows], q, [d, c, sn], true, fa, mp);
-                        };
-                        let mut shift1 = |y: usize, [d, c, sn]: [&[f32]; 3]| {
-                            let rows = y * w..y * w + d.len();
-                            let q = [&r1[rows.clone()], &r2[rows.clone()]];
-                            let local = rows.start - hm * w..rows.end - hm * w;
-                            riesz_shift(v, &mut b1[local], q, [d, c, sn], true, fa, mp);
-                        };
-                        let bufs = [&mut *den, &mut *nc, &mut *ns];
-                        let after: [AfterRows; 2] = [&mut shift0, &mut shift1];
-                        let kernel = &self.blur.kernel;
-                        blur3_cols_with(kernel, bufs, &self.blur.tmp3, w, h, hm, j, after);
-                        laps.lap(4);
-                    } else {
-                        laps.lap(4);
-                        let (b0, b1) = band.split_at_mut(mid);
-                        let (q10, q11) = r1.split_at(mid);
-                        let (q20, q21) = r2.split_at(mid);
-                        let (d0, d1) = den.split_at(mid);
-                        let (nc0, nc1) = nc.split_at(mid);
-                        let (ns0, ns1) = ns.split_at(mid);
-                        both(
-                            j,
-                            hm < h,
-                            || riesz_shift(v, b0, [q10, q20], [d0, nc0, ns0], false, fa, mp),
-                            || riesz_shift(v, b1, [q11, q21], [d1, nc1, ns1], false, fa, mp),
-                        );
-                    }
-                    laps.lap(5);
                 }
+                laps.lap(1);
+                let smooth = self.blur.kernel.len() > 1;
+                let kernel = &self.blur.kernel[..];
+                {
+                    let mut jobs: [[Option<PhaseJob>; MAX_SCALES]; 2] = Default::default();
+                    let (mut den, mut nc, mut ns) = (&mut s.amp[..], &mut s.pc[..], &mut s.ps[..]);
+                    let mut tmp = &mut self.blur.tmp3[..if smooth { 3 * offs[scales] } else { 0 }];
+                    let levels = s.prev.iter_mut().zip(s.filters.iter_mut());
+                    for (l, ([pi, p1, p2], [fc, fs])) in levels.enumerate().take(scales) {
+                        let (w, h) = dims[l];
+                        let (n, m, o) = (len(l), mid(l), offs[l]);
+                        let b = s.lap.bands[l][..n].split_at(m);
+                        let (q1, q2) = (s.r1[o..o + n].split_at(m), s.r2[o..o + n].split_at(m));
+                        let (pi, p1, p2) = (
+                            pi[..n].split_at_mut(m),
+                            p1[..n].split_at_mut(m),
+                            p2[..n].split_at_mut(m),
+                        );
+                        let outs =
+                            [&mut den, &mut nc, &mut ns].map(|x| take_level(x, n).split_at_mut(m));
+                        let [d, c, sn] = outs;
+                        let ((fc0, fc1), (fs0, fs1)) = (fc.parts(cut(h)), fs.parts(cut(h)));
+                        let t = take_level(&mut tmp, if smooth { 3 * n } else { 0 });
+                        let (t0, t12) = t.split_at_mut(t.len() / 3);
+                        let (t1, t2) = t12.split_at_mut(t0.len());
+                        let at = if smooth { m } else { 0 };
+                        let (x0, y0) = t0.split_at_mut(at);
+                        let (x1, y1) = t1.split_at_mut(at);
+                        let (x2, y2) = t2.split_at_mut(at);
+                        jobs[0][l] = Some(PhaseJob {
+                            w,
+                            y0: 0,
+                            input: [b.0, q1.0, q2.0],
+                            state: [pi.0, p1.0, p2.0],
+                            outs: [d.0, c.0, sn.0],
+                            filters: [fc0, fs0],
+                            rows_out: [x0, x1, x2],
+                        });
+                        jobs[1][l] = Some(PhaseJob {
+                            w,
+                            y0: cut(h),
+                            input: [b.1, q1.1, q2.1],
+                            state: [pi.1, p1.1, p2.1],
+                            outs: [d.1, c.1, sn.1],
+                            filters: [fc1, fs1],
+                            rows_out: [y0, y1, y2],
+                        });
+                    }
+                    let [a, b] = &mut jobs;
+                    both(
+                        j,
+                        split,
+                        || PhaseJob::run_all(a, v, first, kernel),
+                        || PhaseJob::run_all(b, v, first, kernel),
+                    );
+                }
+                laps.lap(2);
+                laps.lap(3);
+                if !smooth {
+                    laps.lap(4);
+                }
+                {
+                    let mut jobs: [[Option<ShiftJob>; MAX_SCALES]; 2] = Default::default();
+                    let (mut den, mut nc, mut ns) = (&mut s.amp[..], &mut s.pc[..], &mut s.ps[..]);
+                    let tmp = &self.blur.tmp3[..if smooth { 3 * offs[scales] } else { 0 }];
+                    for (l, band) in s.lap.bands.iter_mut().enumerate().take(scales) {
+                        let (w, h) = dims[l];
+                        let (n, m, o) = (len(l), mid(l), offs[l]);
+                        let (q1, q2) = (s.r1[o..o + n].split_at(m), s.r2[o..o + n].split_at(m));
+                        let b = band[..n].split_at_mut(m);
+                        let [d, c, sn] =
+                            [&mut den, &mut nc, &mut ns].map(|x| take_level(x, n).split_at_mut(m));
+                        let t = if smooth {
+                            &tmp[3 * o..3 * (o + n)]
+                        } else {
+                            &[][..]
+                        };
+                        let (t0, t12) = t.split_at(t.len() / 3);
+                        let (t1, t2) = t12.split_at(t0.len());
+                        jobs[0][l] = Some(ShiftJob {
+                            w,
+                            h,
+                            y0: 0,
+                            band: b.0,
+                            pair: [q1.0, q2.0],
+                            outs: [d.0, c.0, sn.0],
+                            tmps: [t0, t1, t2],
+                        });
+                        jobs[1][l] = Some(ShiftJob {
+                            w,
+                            h,
+                            y0: cut(h),
+                            band: b.1,
+                            pair: [q1.1, q2.1],
+                            outs: [d.1, c.1, sn.1],
+                            tmps: [t0, t1, t2],
+                        });
+                    }
+                    let (fa, mp) = (p.factor, p.max_phase);
+                    let run = |jobs: &mut [Option<ShiftJob>]| {
+                        ShiftJob::run_all(jobs, v, kernel, fa, mp);
+                    };
+                    let [a, b] = &mut jobs;
+                    both(j, split, || run(a), || run(b));
+                }
+                if smooth {
+                    laps.lap(4);
+                }
+                laps.lap(5);
                 s.lap.collapse_with(out, j);
                 laps.lap(6);
                 Ok(())
+            }
+        }
+    }
+}
+
+/// The next `n` values of `rest` (levels one after another); `rest`
+/// keeps the ones after them.
+#[inline(always)]
+fn take_level<'a>(rest: &mut &'a mut [f32], n: usize) -> &'a mut [f32] {
+    let (level, tail) = std::mem::take(rest).split_at_mut(n);
+    *rest = tail;
+    level
+}
+
+/// One half of a level's rows of the Riesz pair, for the pass over every
+/// level.
+struct PairJob<'a> {
+    fir: riesz_fir::PairHalf<'a>,
+    /// The whole level (the filter reads 3 rows beyond the half).
+    band: &'a [f32],
+    y0: usize,
+    r1: &'a mut [f32],
+    r2: &'a mut [f32],
+}
+
+impl PairJob<'_> {
+    #[inline(always)]
+    fn run_all(jobs: &mut [Option<Self>], v: Simd) {
+        for job in jobs.iter_mut().flatten() {
+            job.fir.rows(v, job.band, job.y0, job.r1, job.r2);
+        }
+    }
+}
+
+/// One half of a level's rows of the phase step, band-pass and the
+/// blur's horizontal pass ([`riesz_phase_run`]).
+struct PhaseJob<'a> {
+    w: usize,
+    y0: usize,
+    input: [&'a [f32]; 3],
+    state: [&'a mut [f32]; 3],
+    outs: [&'a mut [f32]; 3],
+    filters: [FilterPart<'a>; 2],
+    rows_out: [&'a mut [f32]; 3],
+}
+
+impl PhaseJob<'_> {
+    #[inline(always)]
+    fn run_all(jobs: &mut [Option<Self>], v: Simd, first: bool, kernel: &[f32]) {
+        for job in jobs.iter_mut().flatten() {
+            let [pi, p1, p2] = &mut job.state;
+            let [d, c, sn] = &mut job.outs;
+            let [fc, fs] = &mut job.filters;
+            let [x0, x1, x2] = &mut job.rows_out;
+            riesz_phase_run(
+                v,
+                v,
+                first,
+                job.w,
+                job.y0,
+                job.input,
+                [&mut **pi, &mut **p1, &mut **p2],
+                [&mut **d, &mut **c, &mut **sn],
+                [fc, fs],
+                kernel,
+                [&mut **x0, &mut **x1, &mut **x2],
+            );
+        }
+    }
+}
+
+/// One half of a level's rows of the blur's vertical pass (with
+/// smoothing) and the phase shift.
+struct ShiftJob<'a> {
+    w: usize,
+    h: usize,
+    y0: usize,
+    band: &'a mut [f32],
+    pair: [&'a [f32]; 2],
+    /// `den`, `nc`, `ns`: the blur's output rows (without smoothing, the
+    /// unsmoothed values themselves).
+    outs: [&'a mut [f32]; 3],
+    /// The horizontal pass of the whole level's three channels (empty
+    /// without smoothing).
+    tmps: [&'a [f32]; 3],
+}
+
+impl ShiftJob<'_> {
+    /// With smoothing, by groups of rows: each group's vertical blur is
+    /// handed to the shift at once, while it is in cache.
+    #[inline(always)]
+    fn run_all(jobs: &mut [Option<Self>], v: Simd, kernel: &[f32], factor: f32, limit: f32) {
+        const GROUP: usize = 8;
+        let smooth = kernel.len() > 1;
+        for job in jobs.iter_mut().flatten() {
+            let (w, h) = (job.w, job.h);
+            let [r1, r2] = job.pair;
+            let [d, c, sn] = &mut job.outs;
+            if !smooth {
+                let outs = [&**d, &**c, &**sn];
+                riesz_shift(v, job.band, [r1, r2], outs, false, factor, limit);
+                continue;
+            }
+            let g = GROUP * w;
+            let groups = d.chunks_mut(g).zip(c.chunks_mut(g)).zip(sn.chunks_mut(g));
+            for (k, ((d, c), sn)) in groups.enumerate() {
+                let y = job.y0 + k * GROUP;
+                for (t, o) in job.tmps.iter().zip([&mut *d, &mut *c, &mut *sn]) {
+                    blur_cols(v, kernel, t, o, w, h, y);
+                }
+                let rows = k * g..k * g + d.len();
+                let q = [&r1[rows.clone()], &r2[rows.clone()]];
+                riesz_shift(v, &mut job.band[rows], q, [d, c, sn], true, factor, limit);
             }
         }
     }

@@ -29,8 +29,8 @@
 //! single pass over rows, from cache. The magnifier's figures moved by
 //! little (README: x7.10 for x10 where the FFT gave x7.15).
 
-use super::laplacian::{mid_row, reflect};
-use crate::join::{both, simd_fn, Par, Simd};
+use super::laplacian::reflect;
+use crate::join::{simd_fn, Simd};
 
 /// Half-width of the filter (7x7).
 const K: usize = 3;
@@ -83,8 +83,18 @@ impl RieszFir {
     /// Allocates nothing. The rows in two halves through `j`: the same
     /// bits however `j` runs them, and on every vector width (no fused
     /// multiply-add; the sums in one order).
-    #[inline(always)]
-    pub(crate) fn pair(&mut self, band: &[f32], r1: &mut [f32], r2: &mut [f32], j: Par<'_>) {
+    /// (The magnifier runs every level's halves in one hand-over:
+    /// [`Self::halves`].)
+    #[cfg(test)]
+    pub(crate) fn pair(
+        &mut self,
+        band: &[f32],
+        r1: &mut [f32],
+        r2: &mut [f32],
+        j: crate::join::Par<'_>,
+    ) {
+        use super::laplacian::mid_row;
+        use crate::join::both;
         let (w, h) = (self.w, self.h);
         let hm = mid_row(h, w);
         let (a0, a1) = r1.split_at_mut(hm * w);
@@ -97,6 +107,40 @@ impl RieszFir {
             || pair_rows(v, band, w, h, 0, a0, c0, s0),
             || pair_rows(v, band, w, h, hm, a1, c1, s1),
         );
+    }
+}
+
+impl RieszFir {
+    /// The two halves' scratch, for a pass that hands every level's
+    /// halves over at once (the magnifier's): each computes any rows
+    /// with [`PairHalf::rows`].
+    pub(crate) fn halves(&mut self) -> [PairHalf<'_>; 2] {
+        let (w, h) = (self.w, self.h);
+        let [a, b] = &mut self.rows;
+        [PairHalf { w, h, rows: a }, PairHalf { w, h, rows: b }]
+    }
+}
+
+/// One half's scratch of a [`RieszFir`] ([`RieszFir::halves`]).
+pub(crate) struct PairHalf<'a> {
+    w: usize,
+    h: usize,
+    rows: &'a mut Rows,
+}
+
+impl PairHalf<'_> {
+    /// Rows `y0..y0 + r1.len() / w` of the pair of `band` (the whole
+    /// level): the bits [`RieszFir::pair`] gives them.
+    #[inline(always)]
+    pub(crate) fn rows(
+        &mut self,
+        v: Simd,
+        band: &[f32],
+        y0: usize,
+        r1: &mut [f32],
+        r2: &mut [f32],
+    ) {
+        pair_rows(v, band, self.w, self.h, y0, r1, r2, self.rows);
     }
 }
 
@@ -217,7 +261,7 @@ fn pair_row(
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
-    use crate::join::Serial;
+    use crate::join::{Par, Serial};
 
     /// A plane wave `cos(k·x)` has the pair `(kx, ky)/|k| · sin(k·x)`; the
     /// filter gives it to within its stated error inside the band it was

@@ -403,30 +403,78 @@ impl Join for TwoThreads {
 /// same IEEE operations in the same order.
 #[test]
 fn riesz_halves_and_vector_widths_give_the_same_bits() {
-    // 144x112: level 0 and 1 are split (over SPLIT_MIN), the rest not;
-    // neither side a multiple of the filter's block.
-    let (w, h) = (144, 112);
-    let base = texture(w, h, 7);
-    // With the amplitude-weighted smoothing (fused into the phase pass and
-    // the shift) and without.
+    // Frames over SPLIT_MIN, whose every level is split at half its
+    // height: 144x112 (neither side a multiple of the filter's block),
+    // and 260x40 with 7 scales (levels of odd heights, the last one row
+    // high: its first half is empty).
+    for (w, h, scales) in [(144, 112, 4), (260, 40, 7)] {
+        let base = texture(w, h, 7);
+        // With the amplitude-weighted smoothing (fused into the phase pass and
+        // the shift) and without.
+        for sigma in [DEFAULT_SIGMA, 0.0] {
+            let mut p = MagnifyParams::new(100.0, 8.0, 12.0, 20.0);
+            p.pyramid = PyramidKind::Riesz;
+            p.scales = scales;
+            p.sigma = sigma;
+            let mut serial = Magnifier::new(w, h, p).unwrap();
+            serial.simd = Simd::Sse2;
+            let mut split = Magnifier::new(w, h, p).unwrap();
+            let (mut a, mut b) = (vec![0.0; w * h], vec![0.0; w * h]);
+            for t in 0..24 {
+                let d = 0.3 * (std::f32::consts::TAU * 10.0 * t as f32 / 100.0).sin();
+                let frame = shifted(&base, w, h, d);
+                serial.process(&frame, &mut a).unwrap();
+                split.process_with(&frame, &mut b, &TwoThreads).unwrap();
+                assert!(
+                a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{w}x{h}, σ {sigma}, frame {t}: {} (two threads) differs from sse2 (one thread)",
+                split.simd()
+            );
+            }
+        }
+    }
+}
+
+/// Where the Riesz magnifier cuts its levels into halves does not change
+/// a bit: every row computes the same sums whichever half it is in (a
+/// half that read or wrote its rows from the wrong place would differ
+/// between cuts).
+#[test]
+fn riesz_halves_cut_anywhere_give_the_same_bits() {
+    let (w, h) = (96, 70);
+    let base = texture(w, h, 3);
+    let cuts: [fn(usize) -> usize; 4] = [|h| h / 2, |_| 0, |h| h, |h| h / 3 + 1];
     for sigma in [DEFAULT_SIGMA, 0.0] {
         let mut p = MagnifyParams::new(100.0, 8.0, 12.0, 20.0);
         p.pyramid = PyramidKind::Riesz;
+        p.scales = 5;
         p.sigma = sigma;
-        let mut serial = Magnifier::new(w, h, p).unwrap();
-        serial.simd = Simd::Sse2;
-        let mut split = Magnifier::new(w, h, p).unwrap();
-        let (mut a, mut b) = (vec![0.0; w * h], vec![0.0; w * h]);
-        for t in 0..24 {
+        let mut ms: Vec<Magnifier> = cuts
+            .iter()
+            .map(|&c| {
+                let mut m = Magnifier::new(w, h, p).unwrap();
+                let State::Riesz(s) = &mut m.state else {
+                    unreachable!()
+                };
+                s.cut = c;
+                m
+            })
+            .collect();
+        let mut outs = vec![vec![0.0; w * h]; cuts.len()];
+        for t in 0..12 {
             let d = 0.3 * (std::f32::consts::TAU * 10.0 * t as f32 / 100.0).sin();
             let frame = shifted(&base, w, h, d);
-            serial.process(&frame, &mut a).unwrap();
-            split.process_with(&frame, &mut b, &TwoThreads).unwrap();
-            assert!(
-                a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
-                "σ {sigma}, frame {t}: {} (two threads) differs from sse2 (one thread)",
-                split.simd()
-            );
+            for (m, o) in ms.iter_mut().zip(outs.iter_mut()) {
+                m.process(&frame, o).unwrap();
+            }
+            for (k, o) in outs.iter().enumerate().skip(1) {
+                assert!(
+                    o.iter()
+                        .zip(&outs[0])
+                        .all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "σ {sigma}, frame {t}: cut {k} differs from the cut at half the rows"
+                );
+            }
         }
     }
 }
