@@ -681,9 +681,11 @@ impl Magnifier {
         self.process_with(frame, out, &Serial)
     }
 
-    /// [`Self::process`], the Riesz magnifier's passes over a level each
-    /// in two halves through `j` (both cores, when `j` runs them at once):
-    /// the same bits however `j` runs them. The steerable pyramid's
+    /// [`Self::process`], each of the Riesz magnifier's passes in two
+    /// halves through `j` (both cores, when `j` runs them at once): the
+    /// pyramid's passes level by level, the pair, the phase step and the
+    /// shift over every level at once, each level's rows cut in two. The
+    /// same bits however `j` runs them. The steerable pyramid's
     /// magnifier runs on the caller's thread (it splits by orientations:
     /// [`Self::new_part`]).
     pub fn process_with(
@@ -822,6 +824,9 @@ impl Magnifier {
                 let smooth = self.blur.kernel.len() > 1;
                 let kernel = &self.blur.kernel[..];
                 {
+                    // `den` ends as G*A, `nc` and `ns` as G*(A·φ) of the
+                    // two phase components (the filtered φ itself when
+                    // there is no smoothing).
                     let mut jobs: [[Option<PhaseJob>; MAX_SCALES]; 2] = Default::default();
                     let (mut den, mut nc, mut ns) = (&mut s.amp[..], &mut s.pc[..], &mut s.ps[..]);
                     let mut tmp = &mut self.blur.tmp3[..if smooth { 3 * offs[scales] } else { 0 }];
