@@ -1,6 +1,28 @@
 //! Small numeric helpers shared across the crate (and by the command line):
 //! the greatest common divisor, the median, the delete-one jackknife's
-//! spread, the modified Bessel function `I0` (Kaiser windows).
+//! spread, the modified Bessel function `I0` (Kaiser windows), and
+//! zeroed buffers whose pages are mapped at once.
+
+/// `n` zeros, every page of them written now. `vec![0.0; n]` takes the
+/// allocator's lazily mapped zero pages: a streaming kernel's state that
+/// is read before it is written (a filter's state, the previous frame's
+/// band) then costs, on its first frame, a read fault mapping the shared
+/// zero page and a copy-on-write fault per page, whose TLB flush
+/// interrupts the process's other core (in a VM, an exit each). Measured
+/// on `magnify --pyramid riesz`, 4 frames of 256x256: 957 copy-on-write
+/// faults and 20.4 ms against 16 and 13.9 ms with the magnifier's
+/// buffers made here.
+pub fn zeros_touched<T: Copy + Default>(n: usize) -> Vec<T> {
+    let mut v = vec![T::default(); n];
+    let per_page = (4096 / std::mem::size_of::<T>().max(1)).max(1);
+    for x in v.iter_mut().step_by(per_page) {
+        *x = std::hint::black_box(T::default());
+    }
+    if let Some(x) = v.last_mut() {
+        *x = std::hint::black_box(T::default());
+    }
+    v
+}
 
 /// Greatest common divisor (`gcd(a, 0) = a`).
 pub fn gcd(mut a: u64, mut b: u64) -> u64 {
@@ -86,6 +108,20 @@ pub fn fit_cos_sin(samples: impl IntoIterator<Item = (usize, f64)>, w: f64) -> O
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Zeros of the length asked, whatever the length against a page (a
+    /// page is 1024 f32 or 512 complex values).
+    #[test]
+    fn zeros_touched_are_zeros_of_the_length_asked() {
+        for n in [0, 1, 1023, 1024, 1025, 5000, 70_001] {
+            let v: Vec<f32> = zeros_touched(n);
+            assert_eq!(v.len(), n);
+            assert!(v.iter().all(|x| x.to_bits() == 0), "n {n}");
+            let c: Vec<crate::pyramid::Complex32> = zeros_touched(n);
+            assert_eq!(c.len(), n);
+            assert!(c.iter().all(|x| x.re.to_bits() == 0 && x.im.to_bits() == 0));
+        }
+    }
 
     #[test]
     fn gcd_median_i0() {

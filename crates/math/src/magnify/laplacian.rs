@@ -47,12 +47,15 @@ impl Laplacian {
             w = w.div_ceil(2);
             h = h.div_ceil(2);
         }
-        let bands = dims.iter().map(|&(w, h)| vec![0.0; w * h]).collect();
+        let bands = dims
+            .iter()
+            .map(|&(w, h)| crate::numeric::zeros_touched(w * h))
+            .collect();
         Self {
             dims,
             bands,
-            tmp: vec![0.0; width * height],
-            up: vec![0.0; width * height],
+            tmp: crate::numeric::zeros_touched(width * height),
+            up: crate::numeric::zeros_touched(width * height),
         }
     }
 

@@ -212,10 +212,10 @@ impl WeightedBlur {
         };
         Self {
             kernel,
-            num: vec![0.0; one],
-            den: vec![0.0; one],
-            tmp: vec![0.0; one],
-            tmp3: vec![0.0; three],
+            num: crate::numeric::zeros_touched(one),
+            den: crate::numeric::zeros_touched(one),
+            tmp: crate::numeric::zeros_touched(one),
+            tmp3: crate::numeric::zeros_touched(three),
         }
     }
 
@@ -578,12 +578,15 @@ impl Magnifier {
                 State::Csp(Box::new(CspState {
                     prev: lens
                         .iter()
-                        .map(|&l| vec![Complex32::new(0.0, 0.0); l])
+                        .map(|&l| crate::numeric::zeros_touched(l))
                         .collect(),
-                    acc: lens.iter().map(|&l| vec![0.0; l]).collect(),
+                    acc: lens
+                        .iter()
+                        .map(|&l| crate::numeric::zeros_touched(l))
+                        .collect(),
                     filters: lens.iter().map(|&l| PixelFilter::new(&design, l)).collect(),
-                    phase: vec![0.0; max],
-                    amp: vec![0.0; max],
+                    phase: crate::numeric::zeros_touched(max),
+                    amp: crate::numeric::zeros_touched(max),
                     pyr,
                     coeffs,
                 }))
@@ -602,7 +605,7 @@ impl Magnifier {
                     }))
                     .collect();
                 let total = offs[lens.len()];
-                let z = |l: usize| vec![0.0f32; l];
+                let z = crate::numeric::zeros_touched::<f32>;
                 State::Riesz(Box::new(RieszState {
                     prev: lens.iter().map(|&l| [z(l), z(l), z(l)]).collect(),
                     filters: lap.dims[..params.scales]

@@ -184,7 +184,7 @@ impl PixelFilter {
     pub fn with_rows(design: &BandpassDesign, w: usize, h: usize) -> Self {
         let per_row = w.div_ceil(CHUNK);
         Self {
-            state: vec![0.0; h * per_row * 2 * CHUNK * design.sections.len()],
+            state: crate::numeric::zeros_touched(h * per_row * 2 * CHUNK * design.sections.len()),
             sections: design.sections.clone(),
             w,
             per_row,
