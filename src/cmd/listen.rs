@@ -113,6 +113,13 @@ pub struct Args {
     /// in µm or mm use `spectrum --waveform OUT.csv --scale MM_PER_PX`.
     #[arg(long)]
     float: bool,
+    /// With --method phase --pyramid csp: the steerable pyramid's
+    /// orientations 0 and 90° on half grids (their band values every second
+    /// column or row: exact, half the work): about twice as fast; the
+    /// A²-weighted sums see half the samples, which costs up to 0.3 dB of
+    /// SNR on noisy scenes (docs/performance.md). Not with --calibration.
+    #[arg(long)]
+    half_grids: bool,
     /// Also play the sound on a speaker, in real time, resampled to the
     /// device rate: the default output, part of a device's name, or
     /// `null` (a virtual device that discards audio).
@@ -275,6 +282,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         filters,
         rate: output_rate(a.rate.as_deref())?,
         float: a.float,
+        half_grids: a.half_grids,
         run: RunSettings { progress: true },
     };
     super::warn_playback_rate(&o.video, o.fps);

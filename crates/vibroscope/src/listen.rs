@@ -25,8 +25,8 @@ pub use crate::pipeline::BandFilter;
 pub use crate::pipeline::Denoise;
 use crate::pipeline::{self, by, PipelineOptions, Region, RunSettings};
 use crate::stages::params::{
-    AlignParams, ExposureParams, GapFillParams, ResampleParams, RowsParams, SpeakerParams,
-    WavParams,
+    AlignParams, ExposureParams, GapFillParams, PhaseParams, ResampleParams, RowsParams,
+    SpeakerParams, WavParams,
 };
 use crate::stages::transform::gap_fill::FillMethod;
 use crate::stages::transform::resample::{default_rate_hz, resample_all};
@@ -119,6 +119,10 @@ pub struct ListenOptions {
     /// 32-bit float in the signal's own units (radians of phase; px for
     /// rows) instead of normalised 16-bit PCM.
     pub float: bool,
+    /// `--method phase --pyramid csp` on the pyramid's half grids (the
+    /// `phase` kind's `half_grids`): about twice as fast, up to 0.3 dB
+    /// less SNR on noisy scenes.
+    pub half_grids: bool,
     pub run: RunSettings,
 }
 
@@ -163,6 +167,19 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     } else {
         Some(method(o)?)
     };
+    if o.half_grids {
+        let why = if o.calibration.is_some() {
+            Some("not available with --calibration (calibrations are fitted on the full grids)")
+        } else if method != Some(Method::Phase) || o.region.pyramid != crate::pipeline::Pyramid::Csp
+        {
+            Some("applies to `--method phase --pyramid csp` (the steerable pyramid's grids)")
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(Error::usage("--half-grids", why));
+        }
+    }
     let stored = match &o.calibration {
         Some(path) => {
             if o.speaker.is_some() {
@@ -228,6 +245,11 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
             let method = method.unwrap_or_default();
             let mut decl =
                 listen_pipeline(&o.video, &o.output, o.fps, (&o.region, method), o.denoise)?;
+            if o.half_grids {
+                let origin = by("--half-grids");
+                let phase = visual_microphone::PHASE;
+                pipeline::set(&mut decl, phase, PhaseParams::half_grids, true, origin)?;
+            }
             if let Some(n) = o.sources {
                 let align = match method {
                     Method::Phase => visual_microphone::ALIGN,

@@ -251,6 +251,16 @@ impl PhaseBands for PyramidCoeffs {
         if weights.len() != k || out.len() != k {
             return Err(PyramidError::LayoutMismatch);
         }
+        // One region for every orientation only where they share a grid
+        // (not a compact pyramid's orientations 0 and K/2).
+        let shape = |o: usize| {
+            self.bands
+                .get(scale * k + o)
+                .map(|b| (b.info.width, b.info.height))
+        };
+        if (1..k).any(|o| shape(o) != shape(0)) {
+            return Err(PyramidError::LayoutMismatch);
+        }
         for (o, (wt, sum)) in weights.iter().zip(out.iter_mut()).enumerate() {
             *sum = self.weighted_phase_delta_sum(
                 reference,
@@ -324,8 +334,10 @@ fn angular(ux: f64, uy: f64, theta: f64, orientations: usize) -> f64 {
 struct Grid {
     w: usize,
     h: usize,
-    /// Signed x index per column of the grid.
+    /// Signed x index per column of the grid (of the full spectrum).
     kx: Vec<isize>,
+    /// Signed y index per row of the grid (of the full spectrum).
+    ky: Vec<isize>,
     /// Full-spectrum row index of `+ky` and of `-ky`, per grid row.
     uy_pos: Vec<usize>,
     uy_neg: Vec<usize>,
@@ -338,6 +350,35 @@ struct Grid {
     inv_y: Arc<dyn Fft<f32>>,
 }
 
+impl Grid {
+    /// The grid of the full spectrum's bins `kx` (columns) and `ky`
+    /// (rows) of a `width x height` input, with its FFTs planned.
+    fn new(
+        kx: Vec<isize>,
+        ky: Vec<isize>,
+        width: usize,
+        height: usize,
+        planner: &mut FftPlanner<f32>,
+    ) -> Self {
+        let (gw, gh) = (kx.len(), ky.len());
+        let (wi, hi) = (width as isize, height as isize);
+        Grid {
+            w: gw,
+            h: gh,
+            uy_pos: ky.iter().map(|&k| k.rem_euclid(hi) as usize).collect(),
+            uy_neg: ky.iter().map(|&k| (-k).rem_euclid(hi) as usize).collect(),
+            ux_pos: kx.iter().map(|&k| k.rem_euclid(wi) as usize).collect(),
+            ux_neg: kx.iter().map(|&k| (-k).rem_euclid(wi) as usize).collect(),
+            kx,
+            ky,
+            fwd_x: planner.plan_fft_forward(gw),
+            inv_x: planner.plan_fft_inverse(gw),
+            fwd_y: planner.plan_fft_forward(gh),
+            inv_y: planner.plan_fft_inverse(gh),
+        }
+    }
+}
+
 /// Complex steerable pyramid for one frame size; see the module docs.
 pub struct ComplexSteerablePyramid {
     key: LayoutKey,
@@ -348,8 +389,11 @@ pub struct ComplexSteerablePyramid {
     /// The orientations `analyze` and `synthesize` compute (all by
     /// default): a part of the pyramid, for work split across threads.
     orient: std::ops::Range<usize>,
-    /// Grids of scales `0..S` and, last, the low-pass grid `S`.
+    /// Grids of scales `0..S`, the low-pass grid `S`, then (compact
+    /// pyramids only) the half grids of the bands that have one.
     grids: Vec<Grid>,
+    /// The grid of each band (scale-major), an index into `grids`.
+    band_grid: Vec<usize>,
     /// Product masks per band (scale-major), on the band's grid, layout
     /// `[kx'][ky']` (x-major).
     band_masks: Vec<Vec<f32>>,
@@ -411,6 +455,38 @@ impl ComplexSteerablePyramid {
         orientations: usize,
         part: std::ops::Range<usize>,
     ) -> Result<Self, PyramidError> {
+        Self::build(width, height, scales, orientations, part, false)
+    }
+
+    /// [`Self::new`] with **compact** bands: a band whose frequencies all
+    /// lie on one side of an axis (orientation 0, whose mask is zero where
+    /// `kx <= 0`, and orientation `K/2` for an even `K`, zero where `ky <=
+    /// 0`) is computed on half its scale's grid along that axis, from the
+    /// positive bins alone. Its values are then exactly the full band's at
+    /// every second column (row) of the scale's grid: the bins dropped
+    /// hold zeros, so the shorter inverse FFT only samples the same
+    /// band-limited image more coarsely ([`BandInfo::step_x`] says how).
+    /// With `K = 2` (the phase method's default) every band is compact:
+    /// half the band pixels, about half the analysis. [`Self::synthesize`]
+    /// still inverts [`Self::analyze`]. The other orientations' bands have
+    /// frequencies on both sides of both axes and keep their grids.
+    pub fn new_compact(
+        width: usize,
+        height: usize,
+        scales: usize,
+        orientations: usize,
+    ) -> Result<Self, PyramidError> {
+        Self::build(width, height, scales, orientations, 0..orientations, true)
+    }
+
+    fn build(
+        width: usize,
+        height: usize,
+        scales: usize,
+        orientations: usize,
+        part: std::ops::Range<usize>,
+        compact: bool,
+    ) -> Result<Self, PyramidError> {
         check_params(width, height, scales, orientations)?;
         let part = part.start.min(orientations)..part.end.min(orientations);
         let (w, h) = (width, height);
@@ -419,6 +495,7 @@ impl ComplexSteerablePyramid {
             height,
             scales,
             orientations,
+            compact,
         };
         let mut planner = FftPlanner::<f32>::new();
         let mut rplanner = RealFftPlanner::<f32>::new();
@@ -433,38 +510,46 @@ impl ComplexSteerablePyramid {
             .max(col_fwd.get_inplace_scratch_len())
             .max(col_inv.get_inplace_scratch_len());
 
+        let signed = |m: usize| (0..m).map(|i| signed_index(i, m)).collect::<Vec<_>>();
         let mut grids = Vec::with_capacity(scales + 1);
         let (mut gw, mut gh) = (w, h);
         for _ in 0..=scales {
-            let kx: Vec<isize> = (0..gw).map(|i| signed_index(i, gw)).collect();
-            let ky: Vec<isize> = (0..gh).map(|i| signed_index(i, gh)).collect();
-            let wi = w as isize;
-            let hi = h as isize;
-            let grid = Grid {
-                w: gw,
-                h: gh,
-                uy_pos: ky.iter().map(|&k| k.rem_euclid(hi) as usize).collect(),
-                uy_neg: ky.iter().map(|&k| (-k).rem_euclid(hi) as usize).collect(),
-                ux_pos: kx.iter().map(|&k| k.rem_euclid(wi) as usize).collect(),
-                ux_neg: kx.iter().map(|&k| (-k).rem_euclid(wi) as usize).collect(),
-                kx,
-                fwd_x: planner.plan_fft_forward(gw),
-                inv_x: planner.plan_fft_inverse(gw),
-                fwd_y: planner.plan_fft_forward(gh),
-                inv_y: planner.plan_fft_inverse(gh),
-            };
+            grids.push(Grid::new(signed(gw), signed(gh), w, h, &mut planner));
+            gw = gw.div_ceil(2);
+            gh = gh.div_ceil(2);
+        }
+        // Compact bands: orientation 0 on the non-negative kx of its
+        // scale's grid, orientation K/2 (even K) on the non-negative ky.
+        // (The bins left out are zero in their masks: the half plane's
+        // other side and its edge, and the grid's Nyquist bin, where the
+        // radial chain ends.)
+        let half = |m: usize| (0..m.div_ceil(2) as isize).collect::<Vec<_>>();
+        let mut band_grid = Vec::with_capacity(scales * orientations);
+        for s in 0..scales {
+            let (gw, gh) = (grids[s].w, grids[s].h);
+            for b in 0..orientations {
+                let g = if compact && b == 0 && gw >= 2 {
+                    grids.push(Grid::new(half(gw), signed(gh), w, h, &mut planner));
+                    grids.len() - 1
+                } else if compact && 2 * b == orientations && gh >= 2 {
+                    grids.push(Grid::new(signed(gw), half(gh), w, h, &mut planner));
+                    grids.len() - 1
+                } else {
+                    s
+                };
+                band_grid.push(g);
+            }
+        }
+        for grid in &grids {
             for p in [&grid.fwd_x, &grid.inv_x, &grid.fwd_y, &grid.inv_y] {
                 scratch_len = scratch_len.max(p.get_inplace_scratch_len());
             }
-            grids.push(grid);
-            gw = gw.div_ceil(2);
-            gh = gh.div_ceil(2);
         }
 
         // Normalised frequency of a grid bin, in units of the input Nyquist.
         let uxy = |grid: &Grid, kxp: usize, kyp: usize| -> (f64, f64) {
             let kx = grid.kx[kxp] as f64;
-            let ky = signed_index(kyp, grid.h) as f64;
+            let ky = grid.ky[kyp] as f64;
             (2.0 * kx / w as f64, 2.0 * ky / h as f64)
         };
         // Radial low-pass chain down to (not including) scale `s`.
@@ -478,8 +563,9 @@ impl ComplexSteerablePyramid {
 
         let mut band_masks = Vec::with_capacity(scales * orientations);
         let mut infos = Vec::with_capacity(scales * orientations);
-        for (s, grid) in grids.iter().enumerate().take(scales) {
+        for s in 0..scales {
             for b in 0..orientations {
+                let grid = &grids[band_grid[s * orientations + b]];
                 let theta = PI * b as f64 / orientations as f64;
                 infos.push(BandInfo {
                     scale: s,
@@ -549,6 +635,7 @@ impl ComplexSteerablePyramid {
             col_inv,
             orient: part.clone(),
             masked: part,
+            band_grid,
             spec: vec![Complex32::default(); spec_len],
             work: vec![Complex32::default(); full.max(spec_len)],
             work2: vec![Complex32::default(); full.max(spec_len)],
@@ -593,6 +680,10 @@ impl ComplexSteerablePyramid {
     fn check_coeffs(&self, c: &PyramidCoeffs) -> Result<(), PyramidError> {
         let ok = c.key == self.key
             && c.bands.len() == self.infos.len()
+            && c.bands
+                .iter()
+                .zip(&self.infos)
+                .all(|(b, i)| (b.info.width, b.info.height) == (i.width, i.height))
             && c.bands.iter().enumerate().all(|(bi, b)| {
                 b.data.len() == b.info.len() || (!self.band_active(bi) && b.data.is_empty())
             })
@@ -622,12 +713,11 @@ impl ComplexSteerablePyramid {
         }
 
         // Complex bands.
-        let k = self.key.orientations;
         for (bi, band) in out.bands.iter_mut().enumerate() {
             if !self.band_active(bi) {
                 continue;
             }
-            let grid = &self.grids[bi / k];
+            let grid = &self.grids[self.band_grid[bi]];
             let n = grid.w * grid.h;
             gather(
                 &self.spec,
@@ -732,12 +822,11 @@ impl ComplexSteerablePyramid {
 
         // Bands: forward FFT on their grid, times mask, symmetrised into the
         // half spectrum (Re of the one-sided sum == the tight-frame inverse).
-        let k = self.key.orientations;
         for (bi, band) in coeffs.bands.iter().enumerate() {
             if !self.band_active(bi) {
                 continue;
             }
-            let grid = &self.grids[bi / k];
+            let grid = &self.grids[self.band_grid[bi]];
             let n = grid.w * grid.h;
             self.work2[..n].copy_from_slice(&band.data);
             grid.fwd_x
@@ -798,16 +887,22 @@ impl ComplexSteerablePyramid {
     /// the x-major half spectrum `spec`: real rows, then columns.
     fn forward_2d(&mut self, rows: &[f32]) -> Result<(), PyramidError> {
         let (w, h) = (self.key.width, self.key.height);
-        let spec_len = self.half_w * h;
-        for (y, row) in rows.chunks_exact(w).enumerate() {
+        let half_w = self.half_w;
+        let spec_len = half_w * h;
+        // The rows' spectra one after another (`[y][ux]` in `work`), then
+        // one cache-aware transpose into `spec`: writing each row's
+        // spectrum straight into its column of `spec` took one cache line
+        // a value.
+        for (row, dst) in rows
+            .chunks_exact(w)
+            .zip(self.work[..spec_len].chunks_exact_mut(half_w))
+        {
             self.row_real.copy_from_slice(row);
             self.r2c
-                .process_with_scratch(&mut self.row_real, &mut self.row_cplx, &mut self.scratch)
+                .process_with_scratch(&mut self.row_real, dst, &mut self.scratch)
                 .map_err(|e| PyramidError::Fft(e.to_string()))?;
-            for (ux, v) in self.row_cplx.iter().enumerate() {
-                self.spec[ux * h + y] = *v;
-            }
         }
+        transpose(&self.work[..spec_len], h, half_w, &mut self.spec);
         self.col_fwd
             .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
         Ok(())
@@ -824,12 +919,21 @@ impl ComplexSteerablePyramid {
     ) -> Result<(), PyramidError> {
         let (w, h) = (self.key.width, self.key.height);
         let half_w = self.half_w;
-        let src = if from_work { &self.work } else { &self.spec };
+        let spec_len = half_w * h;
+        // Transposed to `[y][ux]` first (into the buffer not read), so
+        // that each row's spectrum is read in one run.
+        let (src, rows_buf) = if from_work {
+            (&self.work, &mut self.work2)
+        } else {
+            (&self.spec, &mut self.work)
+        };
+        transpose(&src[..spec_len], half_w, h, rows_buf);
         let even_w = w.is_multiple_of(2);
-        for (y, row) in out.chunks_exact_mut(w).enumerate() {
-            for (ux, v) in self.row_cplx.iter_mut().enumerate() {
-                *v = src[ux * h + y];
-            }
+        for (row, spec_row) in out
+            .chunks_exact_mut(w)
+            .zip(rows_buf[..spec_len].chunks_exact(half_w))
+        {
+            self.row_cplx.copy_from_slice(spec_row);
             self.row_cplx[0].im = 0.0;
             if even_w {
                 self.row_cplx[half_w - 1].im = 0.0;
@@ -862,13 +966,12 @@ impl ComplexSteerablePyramid {
                 }
             }
         }
-        let k = self.key.orientations;
         let masks = self
             .band_masks
             .iter()
             .enumerate()
             .filter(|(_, m)| !m.is_empty())
-            .map(|(bi, m)| (&self.grids[bi / k], m))
+            .map(|(bi, m)| (&self.grids[self.band_grid[bi]], m))
             .chain(std::iter::once((
                 &self.grids[self.key.scales],
                 &self.low_mask,

@@ -571,3 +571,133 @@ fn a_part_holds_only_its_bands_and_computes_them_as_the_whole_does() {
     // A whole pyramid's coefficients do not fit a part's, nor the reverse.
     assert!(whole.analyze(&img, &mut cp).is_err());
 }
+
+/// Compact bands ([`ComplexSteerablePyramid::new_compact`]) are the full
+/// bands at every second column (orientation 0) or row (orientation K/2),
+/// to float rounding, at every scale, on even and odd sizes; the other
+/// orientations' bands are the full ones; and the compact pyramid still
+/// reconstructs the frame.
+#[test]
+fn compact_bands_are_the_full_bands_sampled_more_coarsely() {
+    let cases = [
+        (64, 48, 4, 2),
+        (64, 64, 3, 4),
+        (45, 38, 3, 2),
+        (37, 29, 4, 3),
+        (20, 21, 5, 1),
+    ];
+    for (i, &(w, h, scales, k)) in cases.iter().enumerate() {
+        let img = texture(w, h, 11 + i as u64, Texture::Natural, 0.0, 0.0);
+        let mut full = ComplexSteerablePyramid::new(w, h, scales, k).unwrap();
+        let mut cf = full.alloc_coeffs();
+        full.analyze(&img, &mut cf).unwrap();
+        let mut comp = ComplexSteerablePyramid::new_compact(w, h, scales, k).unwrap();
+        let mut cc = comp.alloc_coeffs();
+        comp.analyze(&img, &mut cc).unwrap();
+        let mut halved = 0;
+        for (bi, (f, c)) in cf.bands.iter().zip(&cc.bands).enumerate() {
+            let (o, (gw, gh)) = (bi % k, (f.width(), f.height()));
+            let (sx, sy) = if o == 0 && gw >= 2 {
+                (2, 1)
+            } else if 2 * o == k && gh >= 2 {
+                (1, 2)
+            } else {
+                (1, 1)
+            };
+            assert_eq!(
+                (c.width(), c.height()),
+                (gw.div_ceil(sx), gh.div_ceil(sy)),
+                "{w}x{h} K={k} band {bi}"
+            );
+            if sx * sy > 1 {
+                halved += 1;
+            }
+            // The compact step is the full one times 2 only where the
+            // grid is even; on an odd grid the samples fall between.
+            let exact_x = sx == 1 || gw % 2 == 0;
+            let exact_y = sy == 1 || gh % 2 == 0;
+            assert!(
+                (c.info().step_x / f.info().step_x - (gw as f32 / c.width() as f32)).abs() < 1e-6
+                    && (c.info().step_y / f.info().step_y - (gh as f32 / c.height() as f32)).abs()
+                        < 1e-6,
+                "{w}x{h} K={k} band {bi}: steps"
+            );
+            let peak = f.data().iter().map(|v| v.norm()).fold(0.0f32, f32::max);
+            if exact_x && exact_y {
+                for y in 0..c.height() {
+                    for x in 0..c.width() {
+                        let a = c.data()[y * c.width() + x];
+                        let b = f.data()[y * sy * gw + x * sx];
+                        assert!(
+                            (a - b).norm() <= 1e-5 * peak.max(1e-6),
+                            "{w}x{h} K={k} band {bi} ({x},{y}): {a} against {b}"
+                        );
+                    }
+                }
+            }
+        }
+        if k == 2 {
+            // Both orientations' bands halved at every scale.
+            assert_eq!(halved, 2 * scales, "{w}x{h} K={k}");
+        }
+        assert!(halved >= 1, "{w}x{h} K={k}: no band halved");
+        let mut out = vec![0.0f32; w * h];
+        comp.synthesize(&cc, &mut out).unwrap();
+        let e = rel_l2(&out, &img);
+        println!(
+            "compact CSP {w}x{h} S={scales} K={k}: {halved} bands halved, reconstruction {e:.2e}"
+        );
+        assert!(e < 1e-4, "{w}x{h} S={scales} K={k}: {e}");
+        // The full pyramid's coefficients do not fit the compact one's.
+        assert!(comp.analyze(&img, &mut cf).is_err());
+    }
+}
+
+/// What the `phase` stage reads from compact bands: the A²-weighted phase
+/// change of a band under a sub-pixel shift, summed over its half grid, is
+/// half the full grid's sum (the same band-limited image sampled half as
+/// densely); and one region for all of a scale's orientations is refused,
+/// since they no longer share a grid.
+#[test]
+fn compact_sums_are_half_the_full_sums() {
+    let (w, h, scales, k) = (64, 64, 3, 2);
+    let sums = |compact: bool| {
+        let new = if compact {
+            ComplexSteerablePyramid::new_compact
+        } else {
+            ComplexSteerablePyramid::new
+        };
+        let mut p = new(w, h, scales, k).unwrap();
+        let (mut c0, mut c1) = (p.alloc_coeffs(), p.alloc_coeffs());
+        p.analyze(&texture(w, h, 3, Texture::Natural, 0.0, 0.0), &mut c0)
+            .unwrap();
+        p.analyze(&texture(w, h, 3, Texture::Natural, 0.07, 0.05), &mut c1)
+            .unwrap();
+        let mut out = Vec::new();
+        for bi in 0..c0.num_bands() {
+            let b = c0.band(bi).unwrap();
+            let wt: Vec<f32> = b.data().iter().map(|v| v.norm_sqr()).collect();
+            out.push(
+                c1.weighted_phase_delta_sum(&c0, bi, &wt, 0..b.height(), 0..b.width())
+                    .unwrap(),
+            );
+        }
+        let wts: Vec<Vec<f32>> = (0..k)
+            .map(|o| vec![1.0; c0.band(o).unwrap().data().len()])
+            .collect();
+        let wts: Vec<&[f32]> = wts.iter().map(|v| &v[..]).collect();
+        let refused = c1
+            .scale_phase_delta_sums(&c0, 0, &wts, 0..1, 0..1, &mut [0.0; 2])
+            .is_err();
+        (out, refused)
+    };
+    let ((full, full_refused), (comp, comp_refused)) = (sums(false), sums(true));
+    assert!(!full_refused && comp_refused);
+    for (bi, (f, c)) in full.iter().zip(&comp).enumerate() {
+        println!("band {bi}: full {f:.5e}, compact x2 {:.5e}", 2.0 * c);
+        assert!(
+            (2.0 * c / f - 1.0).abs() < 0.02,
+            "band {bi}: full {f}, compact {c}"
+        );
+    }
+}

@@ -75,6 +75,9 @@ pub(crate) struct LayoutKey {
     pub(crate) height: usize,
     pub(crate) scales: usize,
     pub(crate) orientations: usize,
+    /// The steerable pyramid's compact bands
+    /// ([`ComplexSteerablePyramid::new_compact`]); false for the Riesz pyramid.
+    pub(crate) compact: bool,
 }
 
 /// `with_defaults` and the size getters, the same in both pyramids (each
@@ -209,7 +212,10 @@ pub trait PhaseBands {
     /// orientation of one scale at once: `out[k]` for band
     /// `scale * orientations + k`, weighted by `weights[k]`. The bands of a
     /// scale share their shape, so one region serves all; a pyramid whose
-    /// orientations share work per pixel (Riesz) does it once.
+    /// orientations share work per pixel (Riesz) does it once. (A compact
+    /// steerable pyramid's do not share it,
+    /// [`ComplexSteerablePyramid::new_compact`]: sum its bands one by one,
+    /// each over its own region; here they are refused.)
     fn scale_phase_delta_sums(
         &self,
         reference: &Self,

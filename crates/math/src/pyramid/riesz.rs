@@ -390,6 +390,7 @@ impl RieszPyramid {
             height,
             scales,
             orientations,
+            compact: false,
         };
         let mut dims = Vec::with_capacity(scales);
         let (mut w, mut h) = (width, height);

@@ -67,6 +67,7 @@ fn region_sound(path: &Path, fps: Option<f64>, sel: &Selection) -> ApiResult<Val
         filters: Vec::new(),
         rate: vibroscope::listen::OutputRate::Hz(LISTEN_RATE_HZ),
         float: false,
+        half_grids: false,
         run: Default::default(),
     };
     let report = vibroscope::listen::listen(&o)?;

@@ -45,13 +45,13 @@
 
 use super::audio_out::Batcher;
 use super::pyramid::{
-    pyramid_err as err, resolve_threads, Analyzer, Carried, Crew, OnFrames, PyramidKind,
-    FRAME_THREADS, ORIENTATIONS, PYRAMID, SCALES,
+    new_csp, pyramid_err as err, resolve_threads, Analyzer, Carried, Crew, OnFrames, PyramidKind,
+    FRAME_THREADS, HALF_GRIDS, ORIENTATIONS, PYRAMID, SCALES,
 };
 use super::roi::{plan_region, resolve_region, Mask, Roi, RoiParam};
 use crate::*;
 use vibroscope_math::kernels::MAX_ORIENT;
-use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands, PyramidError};
+use vibroscope_math::pyramid::{PhaseBands, PyramidError};
 use vibroscope_math::riesz::RieszPyramid;
 
 params! {
@@ -60,6 +60,7 @@ params! {
         pyramid: PyramidKind = PYRAMID,
         scales: usize = SCALES,
         orientations: usize = ORIENTATIONS,
+        half_grids: bool = HALF_GRIDS,
         roi: Option<RoiParam> = super::reduce::ROI,
         mask: Option<std::path::PathBuf> = super::roi::MASK,
         block: usize = ParamSpec::of(ParamType::Int, Def::Int(64))
@@ -139,6 +140,7 @@ impl Plan for PhasePlan {
             kind: v.pyramid,
             scales: v.scales,
             orientations: v.orientations,
+            half_grids: v.half_grids,
             roi: v.roi,
             mask,
             block: v.block,
@@ -558,18 +560,39 @@ fn compute<A: Analyzer>(
             for (o, d) in weights.iter_mut().enumerate().take(k) {
                 *d = &r.weights[s * k + if shared { 0 } else { o }];
             }
-            let b = &bands[s * k];
+            let scale_bands = &bands[s * k..(s + 1) * k];
+            let b = &scale_bands[0];
+            // A compact steerable pyramid's orientations 0 and K/2 have
+            // grids of their own (half the columns or rows): each band
+            // then sums its own region.
+            let shared_grid = scale_bands
+                .iter()
+                .all(|o| (o.width, o.len) == (b.width, b.len));
             for t in 0..tiles * tiles {
                 let (ty, tx) = (t / tiles, t % tiles);
                 let o = t * nb + s * k;
-                if let Err(e) = c.scale_phase_delta_sums(
-                    &r.c,
-                    s,
-                    &weights[..k],
-                    b.ys[ty]..b.ys[ty + 1],
-                    b.xs[tx]..b.xs[tx + 1],
-                    &mut sums[o..o + k],
-                ) {
+                let res = if shared_grid {
+                    c.scale_phase_delta_sums(
+                        &r.c,
+                        s,
+                        &weights[..k],
+                        b.ys[ty]..b.ys[ty + 1],
+                        b.xs[tx]..b.xs[tx + 1],
+                        &mut sums[o..o + k],
+                    )
+                } else {
+                    scale_bands.iter().enumerate().try_for_each(|(j, bj)| {
+                        sums[o + j] = c.weighted_phase_delta_sum(
+                            &r.c,
+                            s * k + j,
+                            weights[j],
+                            bj.ys[ty]..bj.ys[ty + 1],
+                            bj.xs[tx]..bj.xs[tx + 1],
+                        )?;
+                        Ok(())
+                    })
+                };
+                if let Err(e) = res {
                     result = Err(err(e));
                     return;
                 }
@@ -634,6 +657,7 @@ struct Phase {
     kind: PyramidKind,
     scales: usize,
     orientations: usize,
+    half_grids: bool,
     roi: Option<RoiParam>,
     mask: Option<(std::path::PathBuf, Mask)>,
     block: usize,
@@ -717,11 +741,11 @@ impl Phase {
                 }
             }
             _ => {
-                let (s, k) = (self.scales, self.orientations);
+                let (s, k, half) = (self.scales, self.orientations, self.half_grids);
                 match self.kind {
                     PyramidKind::Csp => Box::new(Engine::new(
                         || {
-                            let mut p = ComplexSteerablePyramid::new(w, h, s, k)?;
+                            let mut p = new_csp(w, h, s, k, half)?;
                             p.set_residuals(false);
                             Ok(OnFrames(p))
                         },
