@@ -214,6 +214,7 @@ fn main() {
             listen_bounds[0],
             listen_bounds[1],
             listen_bounds[2],
+            listen_bounds[3],
         ],
     );
 }
@@ -225,17 +226,19 @@ fn main() {
 /// docs/performance.md ("The phase method's kernels").
 ///
 /// Returns each pyramid's one-core bound for a frame (analysis and sums in
-/// turn), Mpix/s: Riesz, then steerable; then the tile method's sums'.
-fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, roofs: &Roofs) -> [f64; 3] {
+/// turn), Mpix/s: Riesz, then steerable; then the tile method's sums';
+/// then the steerable pyramid's on half grids.
+fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, roofs: &Roofs) -> [f64; 4] {
     use vibroscope_math::pyramid::{ComplexSteerablePyramid, PhaseBands};
     use vibroscope_math::riesz::RieszPyramid;
     let (scales, k) = (4, 2);
     let px = (w * h) as f64;
     // (name, flops, bytes, memory level) per input pixel.
     let riesz_counts = [(43.8, 38.5, 2u8), (82.0, 42.5, 3u8)];
-    // The steerable pyramid as the `phase` stage builds it, with compact
-    // bands (half grids): 1.33 band pixels a pixel, not 2.66.
-    let csp_counts = [(138.0, 105.0, 2u8), (44.0, 26.6, 3u8)];
+    let csp_counts = [(250.0, 190.0, 2u8), (88.0, 53.0, 3u8)];
+    // The same on half grids (`listen --half-grids`): 1.33 band pixels a
+    // pixel, not 2.66.
+    let half_counts = [(138.0, 105.0, 2u8), (44.0, 26.6, 3u8)];
     println!("\n  listen --method phase kernels, one core, {scales} scales, {k} orientations:");
     println!(
         "    {:<58} {:>8} {:>10} {:>8} {:>8} {:>4} {:>10} {:>7}",
@@ -362,17 +365,29 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, roofs: &Roofs) -> [f6
         ],
         &row,
     );
-    let mut cp = ComplexSteerablePyramid::new_compact(w, h, scales, k).expect("csp");
-    cp.set_residuals(false);
-    let sink = sink
-        + time(
+    let steerable = |half: bool, [an, sum]: [Kernel<'_>; 2]| {
+        let mut cp = if half {
+            ComplexSteerablePyramid::new_compact(w, h, scales, k)
+        } else {
+            ComplexSteerablePyramid::new(w, h, scales, k)
+        }
+        .expect("csp");
+        cp.set_residuals(false);
+        time(
             frames,
             (cp.alloc_coeffs(), cp.alloc_coeffs()),
             |f, c| cp.analyze(f, c).expect("analyze"),
             (scales, k),
+            [an, sum],
+            &row,
+        )
+    };
+    let sink = sink
+        + steerable(
+            false,
             [
                 (
-                    "steerable pyramid: FFT, masks, 8 band FFTs on half grids",
+                    "steerable pyramid: FFT, masks, 8 inverse band FFTs",
                     csp_counts[0],
                 ),
                 (
@@ -380,14 +395,24 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, roofs: &Roofs) -> [f6
                     csp_counts[1],
                 ),
             ],
-            &row,
         );
     let sink = sink + tile_sums(frames, w, h, best, &row);
+    let sink = sink
+        + steerable(
+            true,
+            [
+                (
+                    "steerable pyramid on half grids (listen --half-grids)",
+                    half_counts[0],
+                ),
+                ("steerable phase sums on half grids", half_counts[1]),
+            ],
+        );
     println!("    (checksum {sink:.3e})");
     // A frame's time at the bound is the analysis's plus the sums'.
     let b = bounds.into_inner();
     let pair = |i: usize| 1.0 / (1.0 / b[i] + 1.0 / b[i + 1]);
-    [pair(0), pair(2), b[4]]
+    [pair(0), pair(2), b[4], pair(5)]
 }
 
 /// Prints a kernel's row: its name, seconds a frame, and (flops, bytes,
@@ -476,7 +501,7 @@ fn tile_sums(
 /// magnifier) with how well its output agrees with ours, and beside the
 /// bound of the command's kernels on every core (`bounds`: one core's
 /// whole-frame bounds of the sections above, times the cores).
-fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 5]) {
+fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 6]) {
     let dir = std::env::temp_dir().join(format!("vibroscope-roofline-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("temp dir");
     timing::render_tones_scene(&dir, (w, h), 400);
@@ -489,7 +514,7 @@ fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 5]) {
         println!("    numpy reference: not run ({why})");
     }
     println!(
-        "    {:<44} {:>9} {:>9} {:>7} {:>9} {:>9} {:>9}",
+        "    {:<48} {:>9} {:>9} {:>7} {:>9} {:>9} {:>9}",
         "command", "Mpix/s", "numpy", "agrees", "bound", "of bound", "x numpy"
     );
     // The phase methods: (command, pyramid, the reference's frames, the
@@ -522,6 +547,28 @@ fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 5]) {
             (label, args, Some((task, pyramid, frames)), Some(bound))
         })
         .collect();
+    // The steerable pyramid on half grids (its reference: the same
+    // script's steerable pyramid, full grids).
+    cases.push((
+        "listen --method phase --pyramid csp --half-grids".to_string(),
+        [
+            "listen",
+            "scene.y4m",
+            "--method",
+            "phase",
+            "--pyramid",
+            "csp",
+            "--half-grids",
+            "--rate",
+            "native",
+            "-o",
+            "l_csp_half.wav",
+        ]
+        .map(String::from)
+        .to_vec(),
+        Some(("listen", "csp", 100)),
+        Some(bounds[5]),
+    ));
     cases.push((
         "listen (tiles, gradient; the default)".to_string(),
         [
@@ -553,7 +600,7 @@ fn end_to_end((w, h): (usize, usize), cores: usize, bounds: [f64; 5]) {
             |v: Option<f64>, prec: usize| v.map_or("-".to_string(), |v| format!("{v:.prec$}"));
         let all = bound.map(|b| b * cores as f64);
         println!(
-            "    {label:<44} {ours:>9.1} {:>9} {:>7} {:>9} {:>9} {:>9}",
+            "    {label:<48} {ours:>9.1} {:>9} {:>7} {:>9} {:>9} {:>9}",
             cell(reference.map(|r| r.0), 2),
             cell(reference.map(|r| r.1), 4),
             cell(all, 1),
