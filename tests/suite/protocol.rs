@@ -9,7 +9,8 @@
 //! SNR, [`crate::calibrate::held_out_snr`]):
 //! - `none`: the second recording with an empty report;
 //! - `with`: the second recording with the chirp's report;
-//! - `ceiling`: the same speech recording without the effect (what a
+//! - `ceiling`: the same speech recording without the effect, its
+//!   object where the case puts it ([`framing`]; what a
 //!   perfect correction would reach).
 //!
 //! Every case: `with` at most 0.3 dB below `none` (the transfer bar:
@@ -42,7 +43,8 @@
 //! movers inside the region, after the explainer began to observe the
 //! tiles there that move on their own), [`SEVENTH`] (session 56, a shaking
 //! camera with movers in view, after the tiles that move least were
-//! pooled for it).
+//! pooled for it), [`EIGHTH`] (session 62, static responses, before the
+//! response was fitted forward).
 //!
 //! The catalog's families outside that set ([`FAMILIES`]: dropped frames,
 //! the gain's drift, the region's gain) are held to the transfer bar only,
@@ -599,6 +601,42 @@ background_motion = [{ rect = [100, 0, 28, 128], signal = { type = "noise", rate
     ),
 ];
 
+/// The eighth held-out set (session 62), written down and committed
+/// before any of it was run, after `mixed_poly` (third set, looked at)
+/// showed that an inverse polynomial fitted on a sweep of constant
+/// amplitude is right at that amplitude only. Four static responses on
+/// the `Object` scene, even terms negated on the speech's recording (its
+/// object moves the other way): a square and a cubic term of other signs,
+/// a hardening cubic, a strong square term on an object moved off
+/// centre, and a response with a fifth-power term. Figures reported as
+/// they come, under [`fresh`]'s rules.
+const EIGHTH: [Case; 4] = [
+    case(
+        "square_and_cubic",
+        Scene::Object,
+        "response_poly = [-0.2, -0.15]",
+        "response_poly = [0.2, -0.15]",
+    ),
+    case(
+        "hardening",
+        Scene::Object,
+        "response_poly = [0.0, 0.25]",
+        "response_poly = [0.0, 0.25]",
+    ),
+    case(
+        "square_offcentre",
+        Scene::Object,
+        "object = [12, 16, 36, 30]\nresponse_poly = [0.4]",
+        "object = [12, 16, 36, 30]\nresponse_poly = [-0.4]",
+    ),
+    case(
+        "fifth_power_mix",
+        Scene::Object,
+        "response_poly = [0.1, -0.15, 0.0, -0.05]",
+        "response_poly = [-0.1, -0.15, 0.0, -0.05]",
+    ),
+];
+
 /// The catalog's other families, outside the protocol's set (they were
 /// designed on these scenes): only the transfer bar. Dropped frames and
 /// the gain's drift belong to one recording and are left out by `listen
@@ -639,6 +677,21 @@ fn scene_text(scene: Scene, wav: &Path, amplitude_px: Option<f64>, extra: &str) 
         amplitude_px.unwrap_or(chirp_px),
         wav.display().to_string()
     )
+}
+
+/// The lines of a case's keys that frame the scene rather than add an
+/// effect (`object`: where the object is and how large), each ending in
+/// a newline. The recording without the effect (`ceiling`) keeps them:
+/// a smaller object is heard worse with or without the effect, and
+/// until session 62 the ceiling of [`FOURTH`]'s three moved or resized
+/// objects was measured on the default object, so their cost held the
+/// framing's share (`square_small_object`: 9.96 dB, of which the
+/// object's size took about 5.5).
+fn framing(keys: &str) -> String {
+    keys.lines()
+        .filter(|l| l.split('=').next().is_some_and(|k| k.trim() == "object"))
+        .map(|l| format!("{l}\n"))
+        .collect()
 }
 
 /// Renders `text` to `dir/NAME.y4m`.
@@ -741,7 +794,12 @@ fn run(c: &Case) -> Option<Outcome> {
     render(
         dir,
         "control",
-        &scene_text(c.scene, &speech, speech_px, second),
+        &scene_text(
+            c.scene,
+            &speech,
+            speech_px,
+            &format!("{}{second}", framing(c.speech)),
+        ),
     );
     let mut args = vec![
         "calibrate",
@@ -922,6 +980,11 @@ fn sixth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Optio
 /// A case of the seventh held-out set, under [`fresh`]'s rules.
 fn seventh(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
     unseen(&SEVENTH, name, transfer_short, short)
+}
+
+/// A case of the eighth held-out set, under [`fresh`]'s rules.
+fn eighth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
+    unseen(&EIGHTH, name, transfer_short, short)
 }
 
 /// A case of the third held-out set, under [`fresh`]'s rules.
@@ -1519,13 +1582,16 @@ fn fourth_soft_clip_offcentre() {
 fn fourth_cubic_offcentre() {
     let _ = fourth("cubic_offcentre", None, None);
 }
+/// First run (session 54): +2.96 dB of what was then measured as a 9.96
+/// dB cost, the 3 dB bar missed (kept static_nonlinearity, 16.35 ->
+/// 31.16 dB on the chirp; scale carried 1.320, read on 3 and 2 tiles).
+/// That ceiling was the default object's, twice this one's side: with
+/// the ceiling framed as the case (session 62, [`framing`]) the effect
+/// costs 3.90 dB, weak (1 dB asked), and the same +2.96 meets the bar.
+/// Its speech figures did not change.
 #[test]
 fn fourth_square_small_object() {
-    let _ = fourth(
-        "square_small_object",
-        None,
-        Some("first run (session 54): +2.96 dB of the 9.96 dB it costs (kept static_nonlinearity, 16.35 -> 31.16 dB on the chirp; scale carried 1.320, read on 3 and 2 tiles)"),
-    );
+    let _ = fourth("square_small_object", None, None);
 }
 #[test]
 fn fourth_soft_clip_and_resonance() {
@@ -1586,4 +1652,20 @@ fn seventh_camera_weak_and_mover() {
         None,
         Some("first run (session 56): +0.00 dB of the 1.61 dB it costs (weak: 1 dB asked); nothing kept on the chirp (6.46 dB: a 0.02 px shake under 2 DN of noise)"),
     );
+}
+#[test]
+fn eighth_square_and_cubic() {
+    let _ = eighth("square_and_cubic", None, None);
+}
+#[test]
+fn eighth_hardening() {
+    let _ = eighth("hardening", None, None);
+}
+#[test]
+fn eighth_square_offcentre() {
+    let _ = eighth("square_offcentre", None, None);
+}
+#[test]
+fn eighth_fifth_power_mix() {
+    let _ = eighth("fifth_power_mix", None, None);
 }
