@@ -36,14 +36,28 @@ pub fn load(path: &Path) -> Result<Stored> {
     let v = read_report(path)?;
     let named = |m: cal::ReportError| Error::input(path, m.to_string());
     let mut corrections = cal::reusable_from_report(&v).map_err(named)?;
-    // A static response's inverse is carried only when it explained the
-    // harmonics it was kept for: one that leaves them is a compromise over
-    // the calibration's amplitudes, which another recording does not share.
+    // A static response's inverse fitted on the calibration's own
+    // amplitudes is carried only when it explained the harmonics it was
+    // kept for: one that leaves them is a compromise over those
+    // amplitudes, which another recording does not share. One derived
+    // from the object's fitted response (`"fitted": "response"`) is meant
+    // for other amplitudes and leaves some of the sweep's harmonics by
+    // design (it trades the sweep's peaks for the amplitudes speech spends
+    // its time at), so it is carried.
     let left = cal::harmonics_left_from_report(&v).map_err(named)?;
     let mut notes = Vec::new();
     if !left.is_empty() {
         let (dropped, kept): (Vec<Correction>, Vec<Correction>) =
-            corrections.into_iter().partition(Correction::needs_frame);
+            corrections.into_iter().partition(|c| {
+                c.needs_frame()
+                    && !matches!(
+                        c,
+                        Correction::Polynomial {
+                            from_response: true,
+                            ..
+                        }
+                    )
+            });
         corrections = kept;
         if !dropped.is_empty() {
             let names: Vec<&str> = dropped.iter().map(|c| c.kind().name()).collect();
@@ -455,6 +469,39 @@ pub fn describe(corrections: &[Correction]) -> String {
 #[allow(clippy::unwrap_used, clippy::expect_used)]
 mod tests {
     use super::*;
+
+    /// A report whose residual still holds the reference's harmonics: a
+    /// static response's inverse fitted on the calibration's own
+    /// amplitudes is left out (and said), one derived from the fitted
+    /// response (`"fitted": "response"`) is carried.
+    #[test]
+    fn a_static_response_derived_from_the_fitted_response_is_carried() {
+        let dir = tempfile::tempdir().unwrap();
+        let report = |fitted: Option<&str>| {
+            let mut p = serde_json::json!({"coefficients": [-2.0, 30.0], "range": 0.02});
+            if let Some(f) = fitted {
+                p["fitted"] = serde_json::json!(f);
+            }
+            serde_json::json!({
+                "effects": [{"name": "static_nonlinearity", "parameters": p}],
+                "unexplained": [{"kind": "harmonics", "order": 3}]
+            })
+        };
+        for (fitted, carried) in [(None, false), (Some("response"), true)] {
+            let path = dir.path().join("report.json");
+            std::fs::write(&path, report(fitted).to_string()).unwrap();
+            let s = load(&path).unwrap();
+            assert_eq!(s.corrections.len(), usize::from(carried), "{fitted:?}");
+            assert_eq!(
+                s.notes
+                    .iter()
+                    .any(|n| n.contains("static_nonlinearity left out")),
+                !carried,
+                "{fitted:?}: {:?}",
+                s.notes
+            );
+        }
+    }
 
     /// Denoising again after a calibration keeps every sample at its time:
     /// a chirp in noise comes out at lag 0, as long as it went in.

@@ -72,11 +72,15 @@ pub enum Correction {
     /// (`coefs = [a2, a3, …]`, recovery units) on `u`, the recovery with
     /// its high-pass undone, then high-passed again (as for soft
     /// clipping). The terms are held at ±`range` (the recovery's peak when
-    /// it was fitted) beyond it.
+    /// it was fitted) beyond it. `from_response`: derived from the
+    /// object's fitted response over the amplitudes speech spends its time
+    /// at (since session 62), not fitted on the calibration's own
+    /// amplitudes (the report's `"fitted": "response"`).
     Polynomial {
         coefs: Vec<f64>,
         range: f64,
         highpass: Option<(usize, f64)>,
+        from_response: bool,
     },
     /// Divide by the gain's trend over the recording: Legendre
     /// coefficients (relative to the mean) over `samples` samples; the
@@ -198,6 +202,7 @@ impl Correction {
                 coefs,
                 range,
                 highpass,
+                ..
             } => apply_polynomial(z, fs, coefs, *range, *highpass),
             Correction::GainDrift { coefs, samples, .. } => apply_gain_drift(z, coefs, *samples),
             // Applied to the strips (`super::combine`), not here.

@@ -159,6 +159,7 @@ impl Correction {
                 coefs,
                 range,
                 highpass,
+                from_response,
             } if ratio.is_finite() && ratio != 0.0 => Correction::Polynomial {
                 // u' = ratio u: u + a u² + ... in u is, in u',
                 // u' + (a / ratio) u'² + (a / ratio²) u'³ + ...
@@ -169,6 +170,7 @@ impl Correction {
                     .collect(),
                 range: range * ratio.abs(),
                 highpass: *highpass,
+                from_response: *from_response,
             },
             Correction::SoftClip {
                 a3,
@@ -286,6 +288,7 @@ mod tests {
             coefs: vec![-0.125],
             range: 10.0,
             highpass: None,
+            from_response: true,
         };
         let ratio = -0.7;
         let Correction::Polynomial { coefs, range, .. } = inv.rescaled(ratio) else {

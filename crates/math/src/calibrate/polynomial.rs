@@ -1,8 +1,9 @@
 //! Effect (g): a static nonlinear response with even and odd terms, the
 //! family soft clipping (f) is the odd, saturating member of. A response
 //! `x + c2 x² + c3 x³ + …` of the object (or loudspeaker) puts energy at
-//! 2x, 3x, … the reference's frequency; its inverse is fitted as a
-//! polynomial of the recovery, `u + a2 u² + … + aP u^P`, whose order `P`
+//! 2x, 3x, … the reference's frequency; the response is fitted as a
+//! polynomial of the motion the linear model predicts (and inverted
+//! sample by sample where it is applied), whose order `P`
 //! (2 to [`MAX_ORDER`]) is chosen by cross-validation within the fit
 //! blocks (so the held-out blocks that decide whether the effect is kept
 //! stay unseen). [`super::calibrate`] fits it only when the residual holds
@@ -15,29 +16,55 @@ use super::{Candidate, Correction, Uncertainty};
 /// Highest order tried.
 pub const MAX_ORDER: usize = 5;
 
-/// The inverse response's coefficients by linear least squares: with `u`
-/// the recovery with its high-pass undone (the nonlinearity acts on the
-/// motion, before the pipeline's high-pass), `T ≈ HP(b1 u + b2 u² + … +
-/// bP u^P)`, so `ak = bk / b1`. `None` when no order keeps the inverse
-/// monotonic over the recovery's range (a response that folds back is not
-/// invertible) or the fit is degenerate.
+/// The static response's inverse, fitted in two steps (since session
+/// 62). First the object's response, forward, by linear least squares:
+/// with `x` the target with its high-pass undone (the motion as the
+/// linear model sees it, before the pipeline's high-pass), the recovery
+/// `z ≈ HP(b1 x + b2 x² + … + bP x^P)`, its order `P` chosen by
+/// cross-validation within the fit blocks. Its regressors are the
+/// noiseless reference, and a response of few terms holds at every
+/// amplitude. Then the inverse `u + a2 u² + … + a5 u⁵` that
+/// [`Correction::Polynomial`] applies, by least squares over motions
+/// drawn from a Laplace distribution (speech's amplitudes, peaked at
+/// rest; its scale an eighth of the swept range) passed through that
+/// response and the fit's own noise ([`inverse_over_amplitudes`]).
+///
+/// Why not the inverse fitted on the recording itself, as before: a sweep
+/// of constant amplitude tells an inverse polynomial only what it must do
+/// at that amplitude (its terms trade against each other there), and
+/// speech spends its time at smaller ones. On `mixed_poly`
+/// (`x + 0.15 x² - 0.2 x³`, session 62) the inverse fitted on the chirp
+/// undid 2.4 of the 4.7 dB the response cost the next recording's
+/// speech. `None` when no order keeps the response rising over the
+/// motion's range (it would not be invertible) or a fit is degenerate.
 pub(super) fn fit_polynomial(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
     let hp = m.opts.highpass;
-    let u = undo_highpass(z, m.fs, hp);
-    let peak = u.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    if !(peak.is_finite() && peak > 0.0) {
+    let x = undo_highpass(&fit.t, m.fs, hp);
+    let peak = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let range = undo_highpass(z, m.fs, hp)
+        .iter()
+        .fold(0.0f64, |a, v| a.max(v.abs()));
+    if !(peak.is_finite() && peak > 0.0 && range.is_finite() && range > 0.0) {
         return None;
     }
-    // Columns (u / peak)^k, k = 1..=MAX_ORDER, each high-passed as the target is.
+    // Columns (x / peak)^k, k = 1..=MAX_ORDER, each high-passed as the
+    // recovery is.
     let cols: Vec<Vec<f64>> = (1..=MAX_ORDER as i32)
         .map(|k| {
             redo_highpass(
-                &u.iter().map(|v| (v / peak).powi(k)).collect::<Vec<_>>(),
+                &x.iter().map(|v| (v / peak).powi(k)).collect::<Vec<_>>(),
                 m.fs,
                 hp,
             )
         })
         .collect();
+    // The motion's range on the fit blocks, scaled to its peak: where the
+    // response must rise.
+    let (lo, hi) = (0..x.len().min(z.len()))
+        .filter(|&i| m.is_fit(i))
+        .fold((0.0f64, 0.0f64), |(lo, hi), i| {
+            (lo.min(x[i] / peak), hi.max(x[i] / peak))
+        });
     // The order by three-fold cross-validation within the fit blocks (0,
     // 2 and 4 of every five): each order is fitted on two of them and
     // checked on the third, the checks summed.
@@ -49,29 +76,48 @@ pub(super) fn fit_polynomial(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidat
         for held in [0, 2, 4] {
             let train = |i: usize| matches!(part(i), 0 | 2 | 4) && part(i) != held;
             let check = |i: usize| part(i) == held;
-            let Some((b, _)) = solve(&cols, &fit.t, p, &train) else {
+            let Some((b, _)) = solve(&cols, z, p, &train) else {
                 continue 'orders;
             };
-            if !monotonic(&b) {
+            if !rising(&b, lo, hi) {
                 continue 'orders;
             }
-            total += sse(&cols, &fit.t, &b, &check);
+            total += sse(&cols, z, &b, &check);
         }
         if best.is_none_or(|(_, e)| total < e) {
             best = Some((p, total));
         }
     }
     let (p, _) = best?;
-    let (b, var) = solve(&cols, &fit.t, p, &|i| m.is_fit(i))?;
-    if !monotonic(&b) {
+    let fitted = |i: usize| m.is_fit(i);
+    let (b, var) = solve(&cols, z, p, &fitted)?;
+    if !rising(&b, lo, hi) {
         return None;
     }
-    // Back to the recovery's units: ak (u / peak)^k / (u / peak) scaled.
-    let coefs: Vec<f64> = (2..=p)
-        .map(|k| b[k - 1] / b[0] / peak.powi(k as i32 - 1))
-        .collect();
-    let sds: Vec<f64> = (2..=p)
-        .map(|k| var[k - 1].sqrt() / b[0].abs() / peak.powi(k as i32 - 1))
+    let count = (0..z.len().min(cols[0].len()))
+        .filter(|&i| fitted(i))
+        .count();
+    let noise = (sse(&cols, z, &b, &fitted) / count.saturating_sub(p).max(1) as f64).sqrt();
+    // In the recovery's units (X = b1 x / peak): X + Σ ck X^k, ck = bk / b1^k.
+    let response: Vec<f64> = (2..=p).map(|k| b[k - 1] / b[0].powi(k as i32)).collect();
+    let (x0, x1) = {
+        let (a, c) = (b[0] * lo, b[0] * hi);
+        (a.min(c), a.max(c))
+    };
+    let (coefs, drawn_sds) = inverse_over_amplitudes(&response, (x0, x1), noise, range)?;
+    // The inverse's uncertainty is the response's: to first order its
+    // term in u^k moves with the response's in X^k (a2 = -c2), and the
+    // draws' own least squares, over 20 000 noiseless motions, says
+    // nothing of the recording. Terms beyond the response's order keep the
+    // draws' figure.
+    let sds: Vec<f64> = (2..=MAX_ORDER)
+        .map(|k| {
+            if k <= p {
+                var[k - 1].sqrt() / b[0].abs().powi(k as i32)
+            } else {
+                drawn_sds[k - 2]
+            }
+        })
         .collect();
     if coefs.iter().chain(&sds).any(|v| !v.is_finite()) {
         return None;
@@ -79,11 +125,72 @@ pub(super) fn fit_polynomial(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidat
     Some(Candidate {
         correction: Correction::Polynomial {
             coefs,
-            range: peak,
+            range,
             highpass: hp,
+            from_response: true,
         },
         uncertainty: Uncertainty::Polynomial { coefficients: sds },
     })
+}
+
+/// How many motions [`inverse_over_amplitudes`] draws.
+const DRAWS: usize = 20_000;
+
+/// The inverse `u + a2 u² + … + a5 u⁵` (recovery units, `[a2, …]`, and
+/// each one's standard error) of the response `X + c2 X² + …`
+/// (`response = [c2, …]`) by least squares over motions `X` drawn from a
+/// Laplace distribution of scale an eighth of `span` (truncated to it),
+/// each passed through the response with Gaussian noise of `noise`: the
+/// estimate of the motion a recording of that noise allows, at the
+/// amplitudes speech spends its time at rather than the sweep's. The
+/// draws are seeded (the same fit gives the same inverse). Scaled so
+/// that its linear term is 1 (the recovery's scale is the linear
+/// model's).
+fn inverse_over_amplitudes(
+    response: &[f64],
+    span: (f64, f64),
+    noise: f64,
+    range: f64,
+) -> Option<(Vec<f64>, Vec<f64>)> {
+    let (x0, x1) = span;
+    if !(x1 > x0 && noise.is_finite() && range > 0.0) {
+        return None;
+    }
+    let f = |x: f64| -> f64 {
+        let mut acc = 0.0;
+        for c in response.iter().rev() {
+            acc = acc * x + c;
+        }
+        x + acc * x * x
+    };
+    let scale = (x1 - x0) / 8.0;
+    let mut rng = crate::rng::Xoshiro256::new(62);
+    let mut us = Vec::with_capacity(DRAWS);
+    let mut xs = Vec::with_capacity(DRAWS);
+    while xs.len() < DRAWS {
+        let v = rng.next_f64() - 0.5;
+        let x = -scale * v.signum() * (1.0 - 2.0 * v.abs()).max(1e-300).ln();
+        if !(x > x0 && x < x1) {
+            continue;
+        }
+        // Box-Muller.
+        let (a, c) = (rng.next_f64().max(1e-300), rng.next_f64());
+        let n = (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * c).cos();
+        us.push((f(x) + noise * n) / range);
+        xs.push(x);
+    }
+    let cols: Vec<Vec<f64>> = (1..=MAX_ORDER as i32)
+        .map(|k| us.iter().map(|u| u.powi(k)).collect())
+        .collect();
+    let (a, var) = solve(&cols, &xs, MAX_ORDER, &|_| true)?;
+    // x ≈ Σ ak (u / range)^k, to u + Σ (ak / a1) u^k / range^(k-1).
+    let coefs = (2..=MAX_ORDER)
+        .map(|k| a[k - 1] / a[0] / range.powi(k as i32 - 1))
+        .collect();
+    let sds = (2..=MAX_ORDER)
+        .map(|k| var[k - 1].sqrt() / a[0].abs() / range.powi(k as i32 - 1))
+        .collect();
+    Some((coefs, sds))
 }
 
 /// Least squares of `t` on the first `p` columns over the samples `use_i`
@@ -139,9 +246,9 @@ fn sse(cols: &[Vec<f64>], t: &[f64], b: &[f64], use_i: &dyn Fn(usize) -> bool) -
         .sum()
 }
 
-/// The inverse `b1 x + b2 x² + …` keeps the sign of its slope on |x| <= 1
-/// (the recovery's range, scaled to its peak).
-fn monotonic(b: &[f64]) -> bool {
+/// The response `b1 x + b2 x² + …` keeps the sign of its slope at 0 over
+/// `lo..=hi` (the motion's range, scaled to its peak).
+fn rising(b: &[f64], lo: f64, hi: f64) -> bool {
     let slope = |x: f64| -> f64 {
         b.iter()
             .enumerate()
@@ -149,5 +256,5 @@ fn monotonic(b: &[f64]) -> bool {
             .sum()
     };
     let s0 = slope(0.0);
-    (-100..=100).all(|i| slope(i as f64 / 100.0) * s0 > 0.0)
+    (0..=200).all(|i| slope(lo + (hi - lo) * i as f64 / 200.0) * s0 > 0.0)
 }

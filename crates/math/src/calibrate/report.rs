@@ -101,8 +101,13 @@ pub enum Parameters {
         first_rows: Vec<u32>,
         weights: Vec<f64>,
     },
+    /// `fitted`: `"response"` where the inverse was derived from the
+    /// object's fitted response (since session 62), absent where it was
+    /// fitted on the calibration's own amplitudes (reports before).
     Polynomial {
         coefficients: Vec<f64>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        fitted: Option<&'static str>,
         highpass_hz: Option<f64>,
         highpass_order: Option<usize>,
         inverse_in_reference_units: Vec<f64>,
@@ -504,8 +509,10 @@ impl Correction {
                 coefs,
                 range,
                 highpass,
+                from_response,
             } => Parameters::Polynomial {
                 coefficients: coefs.clone(),
+                fitted: from_response.then_some("response"),
                 highpass_hz: highpass.map(|h| h.1),
                 highpass_order: highpass.map(|h| h.0),
                 inverse_in_reference_units: coefs
@@ -606,6 +613,7 @@ enum Stored {
     Num(f64),
     List(Vec<Stored>),
     Map(BTreeMap<String, Stored>),
+    Str(String),
     Other(serde::de::IgnoredAny),
 }
 
@@ -1096,10 +1104,16 @@ fn from_report(
             let range = poly_range()?;
             poly_terms(&coefs, range)?;
             let highpass = highpass()?;
+            let from_response = match p.get("fitted") {
+                None => false,
+                Some(Stored::Str(s)) if s == "response" => true,
+                Some(_) => return Err(field("fitted", "\"response\" or absent")),
+            };
             Some(Correction::Polynomial {
                 coefs,
                 range,
                 highpass,
+                from_response,
             })
         }
         Some(kind @ (EffectKind::CaptureTime | EffectKind::RegionGain)) => {
