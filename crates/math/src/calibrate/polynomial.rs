@@ -2,12 +2,12 @@
 //! family soft clipping (f) is the odd, saturating member of. A response
 //! `x + c2 x² + c3 x³ + …` of the object (or loudspeaker) puts energy at
 //! 2x, 3x, … the reference's frequency; the response is fitted as a
-//! polynomial of the motion the linear model predicts (and inverted
-//! sample by sample where it is applied), whose order `P`
+//! polynomial of the motion the linear model predicts, whose order `P`
 //! (2 to [`MAX_ORDER`]) is chosen by cross-validation within the fit
 //! blocks (so the held-out blocks that decide whether the effect is kept
-//! stay unseen). [`super::calibrate`] fits it only when the residual holds
-//! harmonics of the reference.
+//! stay unseen), and the inverse `listen` applies is derived from it
+//! ([`fit_polynomial`]). [`super::calibrate`] fits it only when the
+//! residual holds harmonics of the reference.
 
 use super::model::{Fit, Model};
 use super::signal::{redo_highpass, stft_len, undo_highpass};
