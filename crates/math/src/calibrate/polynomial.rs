@@ -76,7 +76,7 @@ pub(super) fn fit_polynomial(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidat
         for held in [0, 2, 4] {
             let train = |i: usize| matches!(part(i), 0 | 2 | 4) && part(i) != held;
             let check = |i: usize| part(i) == held;
-            let Some((b, _)) = solve(&cols, z, p, &train) else {
+            let Some((b, ..)) = solve(&cols, z, p, &train) else {
                 continue 'orders;
             };
             if !rising(&b, lo, hi) {
@@ -90,14 +90,11 @@ pub(super) fn fit_polynomial(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidat
     }
     let (p, _) = best?;
     let fitted = |i: usize| m.is_fit(i);
-    let (b, var) = solve(&cols, z, p, &fitted)?;
+    let (b, var, sigma2) = solve(&cols, z, p, &fitted)?;
     if !rising(&b, lo, hi) {
         return None;
     }
-    let count = (0..z.len().min(cols[0].len()))
-        .filter(|&i| fitted(i))
-        .count();
-    let noise = (sse(&cols, z, &b, &fitted) / count.saturating_sub(p).max(1) as f64).sqrt();
+    let noise = sigma2.sqrt();
     // In the recovery's units (X = b1 x / peak): X + Σ ck X^k, ck = bk / b1^k.
     let response: Vec<f64> = (2..=p).map(|k| b[k - 1] / b[0].powi(k as i32)).collect();
     let (x0, x1) = {
@@ -182,7 +179,7 @@ fn inverse_over_amplitudes(
     let cols: Vec<Vec<f64>> = (1..=MAX_ORDER as i32)
         .map(|k| us.iter().map(|u| u.powi(k)).collect())
         .collect();
-    let (a, var) = solve(&cols, &xs, MAX_ORDER, &|_| true)?;
+    let (a, var, _) = solve(&cols, &xs, MAX_ORDER, &|_| true)?;
     // x ≈ Σ ak (u / range)^k, to u + Σ (ak / a1) u^k / range^(k-1).
     let coefs = (2..=MAX_ORDER)
         .map(|k| a[k - 1] / a[0] / range.powi(k as i32 - 1))
@@ -194,14 +191,14 @@ fn inverse_over_amplitudes(
 }
 
 /// Least squares of `t` on the first `p` columns over the samples `use_i`
-/// selects: the coefficients and their variances (residual variance taken
-/// as white).
+/// selects: the coefficients, their variances (residual variance taken
+/// as white) and that residual variance.
 fn solve(
     cols: &[Vec<f64>],
     t: &[f64],
     p: usize,
     use_i: &dyn Fn(usize) -> bool,
-) -> Option<(Vec<f64>, Vec<f64>)> {
+) -> Option<(Vec<f64>, Vec<f64>, f64)> {
     let n = t.len().min(cols[0].len());
     let mut a = nalgebra::DMatrix::<f64>::zeros(p, p);
     let mut rhs = nalgebra::DVector::<f64>::zeros(p);
@@ -232,7 +229,7 @@ fn solve(
     let e = sse(cols, t, &b, use_i);
     let sigma2 = e / (count - p) as f64;
     let var = (0..p).map(|k| inv[(k, k)] * sigma2).collect();
-    Some((b, var))
+    Some((b, var, sigma2))
 }
 
 fn sse(cols: &[Vec<f64>], t: &[f64], b: &[f64], use_i: &dyn Fn(usize) -> bool) -> f64 {
