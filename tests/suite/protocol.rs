@@ -1124,9 +1124,73 @@ fn tenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Optio
     unseen(&TENTH, name, transfer_short, short)
 }
 
-/// A case of the eleventh held-out set, under [`fresh`]'s rules.
-fn eleventh(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
-    unseen(&ELEVENTH, name, transfer_short, short)
+/// A case of the eleventh held-out set: the transfer bar, then the gain
+/// bar or its other branch, [`gain_or_level_named`] at the case's
+/// resonance `at_hz` (the rule written down before the set ran).
+fn eleventh(name: &str, at_hz: f64, short: Option<&str>) -> Option<Outcome> {
+    let c = ELEVENTH.iter().find(|c| c.name == name).unwrap();
+    let o = carries(c, None)?;
+    if o.cost() < 1.0 {
+        eprintln!(
+            "protocol {name}: the effect costs the speech {:.2} dB, under 1 dB: held to the transfer bar alone (speech {:+.2}; kept {})",
+            o.cost(),
+            o.gain(),
+            o.kept
+        );
+        assert!(
+            short.is_none(),
+            "{name}: a mark on a case with nothing to gain"
+        );
+        return Some(o);
+    }
+    gain_or_level_named(name, &o, at_hz, short);
+    Some(o)
+}
+
+/// The gain asked of a held-out effect, or the acceptance's other branch:
+/// the report says in words that the residual is explained by an
+/// observable it cannot correct, and why. Here: a resonance at `at_hz`
+/// (the case's, known by construction) drives the object's static
+/// response into its nonlinear range, and the chirp's report holds a
+/// `level_dependent` entry (the recovery's harmonics imply that the gain
+/// measured there holds only at the sweep's level) whose frequencies
+/// come within two bins of it. A case whose gain meets the bar passes
+/// either way; one that meets neither fails (or, marked, must still miss
+/// both: see [`bar`]).
+fn gain_or_level_named(name: &str, o: &Outcome, at_hz: f64, short: Option<&str>) {
+    let named: Vec<&str> = o.report["unexplained"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .filter(|u| u["kind"] == "level_dependent")
+        .filter(|u| {
+            u["frequencies_hz"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(|f| f.as_f64())
+                .any(|f| (f - at_hz).abs() <= 2.0 * 2200.0 / 256.0)
+        })
+        .filter_map(|u| u["description"].as_str())
+        .collect();
+    let need = o.need();
+    let figure = format!(
+        "speech {:.2} -> {:.2} dB ({:+.2}); the effect costs {:.2} dB{} (kept {}); the report names a level-dependent gain at {at_hz:.0} Hz: {}",
+        o.none,
+        o.with,
+        o.gain(),
+        o.cost(),
+        if need < 3.0 { ", weak" } else { "" },
+        o.kept,
+        named.first().copied().unwrap_or("no")
+    );
+    bar(
+        name,
+        &format!("the gain asked of a held-out effect ({need} dB), or the report's words for what it cannot correct"),
+        o.gain() >= need || !named.is_empty(),
+        figure,
+        short,
+    );
 }
 
 /// A case of the third held-out set, under [`fresh`]'s rules.
@@ -1855,22 +1919,34 @@ fn tenth_fold_offcentre() {
 }
 #[test]
 fn tenth_fold_and_resonance() {
-    let short = "first runs (session 62): -13.44 dB (9.63 -> -3.81) of the 16.58 dB it costs; only transfer_function kept on the chirp (8.94 -> 10.14 dB), which boosts by up to 14.8 dB at 275-327 Hz (listen says so)";
-    let _ = tenth("fold_and_resonance", Some(short), Some(short));
+    // First runs (session 62): -13.44 dB (9.63 -> -3.81) of the 16.58 dB
+    // it costs; only transfer_function kept on the chirp (8.94 -> 10.14
+    // dB), boosting by up to 14.8 dB at 275-327 Hz, where the resonance
+    // folds the response and the sweep measured a dip. Session 63 designed
+    // the table's level-dependent bins on this case (so it is seen from
+    // then on): the transfer bar is met, and the gain bar by its other
+    // branch ([`gain_or_level_named`]).
+    let c = TENTH
+        .iter()
+        .find(|c| c.name == "fold_and_resonance")
+        .unwrap();
+    if let Some(o) = carries(c, None) {
+        gain_or_level_named(c.name, &o, 300.0, None);
+    }
 }
 #[test]
 fn eleventh_soft_fold_at_resonance() {
-    let _ = eleventh("soft_fold_at_resonance", None, None);
+    let _ = eleventh("soft_fold_at_resonance", 450.0, None);
 }
 #[test]
 fn eleventh_fold_at_high_resonance() {
-    let _ = eleventh("fold_at_high_resonance", None, None);
+    let _ = eleventh("fold_at_high_resonance", 700.0, None);
 }
 #[test]
 fn eleventh_one_sided_at_resonance() {
-    let _ = eleventh("one_sided_at_resonance", None, None);
+    let _ = eleventh("one_sided_at_resonance", 350.0, None);
 }
 #[test]
 fn eleventh_stiffening_at_resonance() {
-    let _ = eleventh("stiffening_at_resonance", None, None);
+    let _ = eleventh("stiffening_at_resonance", 400.0, None);
 }

@@ -406,9 +406,17 @@ pub fn calibrate_with(
         return Err(CalError::NonFinite);
     }
     relation::check_silent(r)?;
-    let m = Model { r, fr, fs, opts };
-    let recovery = y;
+    let m = Model {
+        r,
+        fr,
+        fs,
+        opts,
+        level: &[],
+    };
     let fit0 = m.fit_linear(y);
+    let level = transfer::level_dependent(&m, y, &fit0.t);
+    let m = Model { level: &level, ..m };
+    let recovery = y;
     let before = m.errors(y, &fit0);
     let mut linear_residual = unexplained(&m, y, &fit0);
     let mut kept: Vec<Kept> = Vec::new();

@@ -10,6 +10,13 @@ pub(super) struct Model<'a> {
     pub(super) fr: f64,
     pub(super) fs: f64,
     pub(super) opts: &'a Options,
+    /// The STFT bins where the gain a sweep measures holds only at its
+    /// level, each with its harmonics-to-fundamental ratio (dB) and the
+    /// gain error that implies over the band's median (dB), read once on
+    /// the recording as recovered ([`super::transfer::level_dependent`]):
+    /// the transfer table leaves them out and the residual's report names
+    /// them.
+    pub(super) level: &'a [(usize, f64, f64)],
 }
 
 /// The linear model on a recovery.

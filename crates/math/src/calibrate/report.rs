@@ -350,6 +350,19 @@ pub enum Unexplained {
         loss_db: f64,
         rows: Vec<f64>,
     },
+    /// Frequencies where the gain a sweep measures holds only at its level:
+    /// the recovery's harmonics there imply a gain error beyond the rest
+    /// of the band's by more than [`super::transfer::LEVEL_DB`]; the
+    /// transfer table leaves them out.
+    LevelDependent {
+        description: String,
+        /// The bins left out, each with its harmonics-to-fundamental ratio.
+        frequencies_hz: Vec<f64>,
+        harmonics_db: Vec<f64>,
+        kind: UnexplainedKind,
+        /// The largest implied gain error over the band's median.
+        max_error_db: f64,
+    },
     /// A lag that changes over time.
     LagOverTime {
         description: String,
@@ -371,6 +384,7 @@ pub enum UnexplainedKind {
     GainOverTime,
     LagAcrossImage,
     GainAcrossImage,
+    LevelDependent,
 }
 
 impl Unexplained {
@@ -383,7 +397,8 @@ impl Unexplained {
             | Unexplained::LagOverTime { kind, .. }
             | Unexplained::GainOverTime { kind, .. }
             | Unexplained::LagAcrossImage { kind, .. }
-            | Unexplained::GainAcrossImage { kind, .. } => *kind,
+            | Unexplained::GainAcrossImage { kind, .. }
+            | Unexplained::LevelDependent { kind, .. } => *kind,
         }
     }
 
@@ -396,7 +411,8 @@ impl Unexplained {
             | Unexplained::LagOverTime { description, .. }
             | Unexplained::GainOverTime { description, .. }
             | Unexplained::LagAcrossImage { description, .. }
-            | Unexplained::GainAcrossImage { description, .. } => description,
+            | Unexplained::GainAcrossImage { description, .. }
+            | Unexplained::LevelDependent { description, .. } => description,
         }
     }
 }

@@ -4,7 +4,7 @@
 use super::correlation::{local_lags, local_window, recurrence};
 use super::model::{Fit, Model};
 use super::report::{Unexplained, UnexplainedKind};
-use super::signal::{alias, stft, stft_len};
+use super::signal::{alias, dominant, stft, stft_len};
 use crate::numeric::median;
 use realfft::num_complex::Complex;
 
@@ -67,24 +67,7 @@ pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Unexplained> {
         if frame_e[i] < 1e-3 * emax {
             continue;
         }
-        let (kref, pref) = b
-            .iter()
-            .enumerate()
-            .map(|(k, c)| (k, c.norm_sqr()))
-            .max_by(|x, y| x.1.total_cmp(&y.1))
-            .unwrap_or((0, 0.0));
-        // Dominant reference frequency (parabolic refinement).
-        let fref = if kref > 0 && kref + 1 < nb {
-            let (l, c, r) = (
-                b[kref - 1].norm_sqr().max(1e-300).ln(),
-                pref.max(1e-300).ln(),
-                b[kref + 1].norm_sqr().max(1e-300).ln(),
-            );
-            let den = l - 2.0 * c + r;
-            (kref as f64 + if den < 0.0 { 0.5 * (l - r) / den } else { 0.0 }) * df
-        } else {
-            kref as f64 * df
-        };
+        let (_, pref, fref) = dominant(b, df);
         for k in lo_bin..nb {
             let p = a[k].norm_sqr();
             if b[k].norm_sqr() > 1e-3 * pref || p < 10.0 * floor[k] {
@@ -127,6 +110,45 @@ pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Unexplained> {
                 rlo, rhi,
                 if h as f64 * rhi > m.fs / 2.0 { "its aliases below fs/2" } else { "those multiples" },
                 level
+            ),
+        });
+    }
+    // Frequencies where the sweep's gain holds only at its level (read
+    // once, on the recording as recovered).
+    let level = m.level;
+    if let Some(worst) = level.iter().map(|l| l.2).reduce(f64::max) {
+        let freqs: Vec<f64> = level.iter().map(|l| l.0 as f64 * df).collect();
+        let harmonics_db: Vec<f64> = level.iter().map(|l| l.1).collect();
+        let top = harmonics_db
+            .iter()
+            .cloned()
+            .fold(f64::NEG_INFINITY, f64::max);
+        // Contiguous runs of bins, as ranges.
+        let mut runs: Vec<(f64, f64)> = Vec::new();
+        for (i, &(k, ..)) in level.iter().enumerate() {
+            match runs.last_mut() {
+                Some(r) if i > 0 && level[i - 1].0 + 1 == k => r.1 = k as f64 * df,
+                _ => runs.push((k as f64 * df, k as f64 * df)),
+            }
+        }
+        let where_ = runs
+            .iter()
+            .map(|(a, b)| {
+                if a == b {
+                    format!("{a:.0} Hz")
+                } else {
+                    format!("{a:.0}-{b:.0} Hz")
+                }
+            })
+            .collect::<Vec<_>>()
+            .join(", ");
+        out.push(Unexplained::LevelDependent {
+            kind: UnexplainedKind::LevelDependent,
+            frequencies_hz: freqs,
+            harmonics_db,
+            max_error_db: worst,
+            description: format!(
+                "the gain at {where_} holds only at the sweep's level: there the recovery's harmonics reach {top:+.1} dB against its fundamental, a gain error of up to {worst:.1} dB beyond the rest of the band's; the object's response is in its nonlinear range at those frequencies (a resonance driving it into saturation or past a fold), and no linear gain measured at one level carries to a recording at another, so a transfer table fitted on this sweep leaves those frequencies out (interpolated from their neighbours) and nothing here corrects them; sweep at a lower level to measure them"
             ),
         });
     }

@@ -261,6 +261,31 @@ pub(super) fn gain_sse(t: &[f64], z: &[f64]) -> (f64, f64) {
     (g, (zz - g * tz).max(0.0))
 }
 
+/// A spectrum's strongest bin, its power and the frequency of its peak
+/// (refined by a parabola through the log powers of the bin and its
+/// neighbours), with `df` the bin's width.
+pub(super) fn dominant(b: &[Complex<f64>], df: f64) -> (usize, f64, f64) {
+    let nb = b.len();
+    let (k, p) = b
+        .iter()
+        .enumerate()
+        .map(|(k, c)| (k, c.norm_sqr()))
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+        .unwrap_or((0, 0.0));
+    let f = if k > 0 && k + 1 < nb {
+        let (l, c, r) = (
+            b[k - 1].norm_sqr().max(1e-300).ln(),
+            p.max(1e-300).ln(),
+            b[k + 1].norm_sqr().max(1e-300).ln(),
+        );
+        let den = l - 2.0 * c + r;
+        (k as f64 + if den < 0.0 { 0.5 * (l - r) / den } else { 0.0 }) * df
+    } else {
+        k as f64 * df
+    };
+    (k, p, f)
+}
+
 /// Alias of frequency `f` sampled at `fs`, folded into `[0, fs/2]`.
 pub fn alias(f: f64, fs: f64) -> f64 {
     let m = f.rem_euclid(fs);

@@ -127,6 +127,7 @@ fn time_base_on_a_pure_signal() {
         fr,
         fs,
         opts: &opts(),
+        level: &[],
     };
     // Captured at the true rate fs (1 + e), high-passed, scaled.
     let y = noisy(&m.target(4000, 0, 0.0, e * 1e6), 1);
@@ -157,6 +158,7 @@ fn frame_events_are_found_and_undone() {
         fr,
         fs,
         opts: &o,
+        level: &[],
     };
     let clean = noisy(&m.target(4000, 0, 0.0, 0.0), 3);
     // Drop capture 1500, repeat capture 3000.
@@ -493,6 +495,7 @@ fn strip_model<'a>(r: &'a [f64], o: &'a Options) -> Model<'a> {
         fr: STRIP_FR,
         fs: STRIP_FS,
         opts: o,
+        level: &[],
     }
 }
 
@@ -706,6 +709,7 @@ fn the_lag_over_time_against_a_tone_follows_the_period() {
         fr,
         fs,
         opts: &o,
+        level: &[],
     };
     let y = noisy(&m.target(3000, 0, 0.0, 600.0), 3);
     let cal = calibrate(&y, fs, &r, fr, &o).unwrap();
@@ -753,6 +757,7 @@ fn sample_at_a_hair_from_a_sample_is_that_sample() {
         fr,
         fs: 2200.0,
         opts: &o,
+        level: &[],
     };
     assert!(m.target(6600, 0, 0.0, 0.0).iter().all(|v| v.is_finite()));
 }
@@ -968,4 +973,97 @@ fn a_static_response_found_on_a_sweep_is_undone_at_other_amplitudes() {
         "under half the sweep's level: {low:?}"
     );
     assert!(high.1 > high.0 + 6.0, "near the sweep's level: {high:?}");
+}
+
+/// Issue 50 (session 63): a resonance that drives the object's response
+/// into its nonlinear range changes the gain a sweep measures there with
+/// the sweep's level, and the transfer table leaves those frequencies
+/// out (the report says why). A +8 dB resonance at 400 Hz (Q 3) before
+/// `x - 0.42 x³` on a sweep of 0.5: past the response's fold near the
+/// resonance, linear elsewhere. The same resonance without the cubic,
+/// and the cubic alone on a sweep of 0.9 (distortion the same at every
+/// frequency), leave nothing out.
+#[test]
+fn a_gain_that_holds_only_at_the_sweeps_level_is_left_out_of_the_table() {
+    let (fs, fr) = (2200.0, 8000.0);
+    let resonate = |x: &[f64], on: bool| -> Vec<f64> {
+        if !on {
+            return x.to_vec();
+        }
+        let (a, w0) = (10f64.powf(8.0 / 40.0), 2.0 * PI * 400.0 / fs);
+        let alpha = w0.sin() / (2.0 * 3.0);
+        let (b, d) = (
+            [1.0 + alpha * a, -2.0 * w0.cos(), 1.0 - alpha * a],
+            [1.0 + alpha / a, -2.0 * w0.cos(), 1.0 - alpha / a],
+        );
+        let (mut s1, mut s2) = (0.0, 0.0);
+        x.iter()
+            .map(|&u| {
+                let y = (b[0] * u + s1) / d[0];
+                s1 = (b[1] * u - d[1] * y) + s2;
+                s2 = b[2] * u - d[2] * y;
+                y
+            })
+            .collect()
+    };
+    let o = Options {
+        effects: vec![EffectKind::Transfer],
+        explain: false,
+        ..opts()
+    };
+    let run = |level: f64, resonance: bool, cubic: f64| {
+        let r: Vec<f64> = chirp(fr, 2.0, 100.0, 1000.0)
+            .iter()
+            .map(|v| level * v)
+            .collect();
+        let x = resonate(
+            &chirp(fs, 2.0, 100.0, 1000.0)
+                .iter()
+                .map(|v| level * v)
+                .collect::<Vec<_>>(),
+            resonance,
+        );
+        let y: Vec<f64> = x.iter().map(|v| v - cubic * v * v * v).collect();
+        calibrate(&noisy(&y, 5), fs, &r, fr, &o).unwrap()
+    };
+    let left_out = |c: &Calibration| -> Vec<f64> {
+        c.report
+            .unexplained
+            .iter()
+            .filter_map(|u| match u {
+                Unexplained::LevelDependent { frequencies_hz, .. } => Some(frequencies_hz.clone()),
+                _ => None,
+            })
+            .flatten()
+            .collect()
+    };
+    let folded = run(0.5, true, 0.42);
+    let f = left_out(&folded);
+    assert!(
+        f.iter().any(|&f| (f - 400.0).abs() < 10.0) && f.iter().all(|&f| (f - 400.0).abs() < 150.0),
+        "left out: {f:?} ({:?})",
+        folded.report.unexplained
+    );
+    if let Some(Correction::Transfer { freqs_hz, .. }) = folded
+        .corrections
+        .iter()
+        .find(|c| matches!(c, Correction::Transfer { .. }))
+    {
+        assert!(
+            freqs_hz
+                .iter()
+                .all(|t| f.iter().all(|l| (l - t).abs() > 1.0)),
+            "the table keeps a bin it left out: {freqs_hz:?} against {f:?}"
+        );
+    }
+    for (what, c) in [
+        ("the linear resonance", run(0.5, true, 0.0)),
+        ("the cubic alone", run(0.9, false, 0.3)),
+    ] {
+        assert!(
+            left_out(&c).is_empty(),
+            "{what}: {:?}",
+            c.report.unexplained
+        );
+    }
 }

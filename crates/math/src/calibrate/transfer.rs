@@ -1,13 +1,112 @@
 //! Effect (a): the object's transfer function (thesis ch. 4.3.3).
 
 use super::model::{eq_sse, Fit, Model};
-use super::signal::{curvature_sigma, golden, jackknife, peak, smooth3, stft, stft_len};
+use super::signal::{
+    alias, curvature_sigma, dominant, golden, jackknife, peak, smooth3, stft, stft_len,
+};
 use super::{Candidate, Correction, Uncertainty};
+use crate::numeric::median;
 use realfft::num_complex::Complex;
 
 /// The share of the reference's median power (per bin, over the fit
 /// frames) below which the table's edge bins are left out.
 const EDGE_POWER: f64 = 0.1;
+
+/// How far (dB) the error that a bin's harmonics imply for the gain
+/// measured there may exceed the table's median before the bin is left
+/// out ([`level_dependent`]).
+pub(super) const LEVEL_DB: f64 = 3.0;
+
+/// Where the gain a sweep measures holds only at its level. A static
+/// response `x - c x³` driven at amplitude `A` passes the fundamental at
+/// `1 - 3cA²/4` and puts a third harmonic of `cA³/4` beside it: the
+/// fundamental's gain is off by `1 + 3r` (to first order) where `r` is
+/// the harmonic's amplitude over the fundamental's. A resonance that
+/// drives the object into its nonlinear range changes the gain the table
+/// reads at its frequencies with the level (down to a dip where a +5 dB
+/// resonance folds a cubic response), and a recording at another level
+/// (speech, quieter than the sweep) does not see that gain.
+///
+/// Per STFT bin over the fit frames: the harmonics-to-fundamental power
+/// ratio `R` of the frames whose reference is a tone (its strongest bin
+/// and the two either side hold half its power; others say nothing),
+/// weighted by the reference's power in that bin (as the table's own
+/// sums are). The harmonics are the recovery's power above its per-bin
+/// median at the aliases of 2 to 5 times the tone's frequency, where the
+/// reference has none. Each bin's implied error is `20 log10(1 + 3 √R)`
+/// dB; the bins where it exceeds the median over the reference's bins by
+/// [`LEVEL_DB`] are returned with their `R` (dB) and that excess. A
+/// distortion the same at every frequency changes the gain the same at
+/// every frequency, which the table (relative to its median) does not
+/// see.
+pub(super) fn level_dependent(m: &Model, z: &[f64], t: &[f64]) -> Vec<(usize, f64, f64)> {
+    let nfft = stft_len(m.fs);
+    let (fz, ft) = (stft(z, nfft), stft(t, nfft));
+    let nb = nfft / 2 + 1;
+    let df = m.fs / nfft as f64;
+    if fz.is_empty() {
+        return Vec::new();
+    }
+    let floor: Vec<f64> = (0..nb)
+        .map(|k| {
+            let mut v: Vec<f64> = fz.iter().map(|f| f[k].norm_sqr()).collect();
+            median(&mut v)
+        })
+        .collect();
+    let lo_bin = m
+        .opts
+        .highpass
+        .map_or(1, |(_, c)| (1.5 * c / df).ceil() as usize);
+    let (mut dist, mut w) = (vec![0.0; nb], vec![0.0; nb]);
+    for (i, (a, b)) in fz.iter().zip(&ft).enumerate() {
+        if !m.is_fit(i * nfft / 2 + nfft / 2) {
+            continue;
+        }
+        let (k0, pref, f0) = dominant(b, df);
+        let total: f64 = b.iter().map(|c| c.norm_sqr()).sum();
+        let near = |k: usize| k.abs_diff(k0) <= 2;
+        let tone: f64 = (0..nb).filter(|&k| near(k)).map(|k| b[k].norm_sqr()).sum();
+        if !(pref > 0.0 && tone >= 0.5 * total) {
+            continue;
+        }
+        let fund: f64 = (0..nb)
+            .filter(|&k| k.abs_diff(k0) <= 1)
+            .map(|k| a[k].norm_sqr())
+            .sum();
+        let mut harm = 0.0;
+        let mut seen = Vec::with_capacity(15);
+        for h in 2..=5 {
+            let kh = (alias(h as f64 * f0, m.fs) / df).round() as usize;
+            for k in kh.saturating_sub(1)..=(kh + 1).min(nb - 1) {
+                if k < lo_bin || near(k) || b[k].norm_sqr() > 1e-3 * pref || seen.contains(&k) {
+                    continue;
+                }
+                seen.push(k);
+                harm += (a[k].norm_sqr() - floor[k]).max(0.0);
+            }
+        }
+        if fund <= 0.0 {
+            continue;
+        }
+        for k in 0..nb {
+            let px = b[k].norm_sqr();
+            dist[k] += harm / fund * px;
+            w[k] += px;
+        }
+    }
+    let wmax = w.iter().cloned().fold(0.0, f64::max);
+    let bins: Vec<usize> = (lo_bin..nb).filter(|&k| w[k] > 1e-3 * wmax).collect();
+    let err = |k: usize| 20.0 * (1.0 + 3.0 * (dist[k] / w[k]).sqrt()).log10();
+    let mut all: Vec<f64> = bins.iter().map(|&k| err(k)).collect();
+    let med = median(&mut all);
+    if !med.is_finite() {
+        return Vec::new();
+    }
+    bins.into_iter()
+        .filter(|&k| err(k) > med + LEVEL_DB)
+        .map(|k| (k, 10.0 * (dist[k] / w[k]).max(1e-30).log10(), err(k) - med))
+        .collect()
+}
 
 /// Per STFT bin: Σ|Z| P, Σ|T| P, Σ P (P the reference's short-time power)
 /// and the cross-spectrum Σ Z T* sign(g), over some frames.
@@ -88,7 +187,7 @@ fn block_sums(m: &Model, z: &[f64], fit: &Fit) -> (Vec<Sums>, Sums) {
 
 /// The frequencies, smoothed coefficients (dB) and phases (degrees) of the
 /// bins `sums` says enough about.
-fn curve(m: &Model, sums: &Sums, g: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let Sums {
         num,
         den,
@@ -115,6 +214,9 @@ fn curve(m: &Model, sums: &Sums, g: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let b = valid.iter().rposition(|&k| ok(k)).map_or(0, |b| b + 1);
         valid[a..b.max(a)].to_vec()
     };
+    // The bins whose gain holds only at the sweep's level are left out
+    // (interpolated between their neighbours, as low-power bins are).
+    let valid: Vec<usize> = valid.into_iter().filter(|k| !skip.contains(k)).collect();
     let raw: Vec<f64> = valid
         .iter()
         .map(|&k| 20.0 * (num[k] / den[k] / g).max(1e-12).log10())
@@ -139,7 +241,7 @@ fn curve(m: &Model, sums: &Sums, g: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
 
 /// The delete-one-block jackknife's standard deviations of [`peak`]'s
 /// frequency and height (infinite with fewer than three fit blocks).
-fn peak_sd(m: &Model, (blocks, all): &(Vec<Sums>, Sums), g: f64) -> (f64, f64) {
+fn peak_sd(m: &Model, (blocks, all): &(Vec<Sums>, Sums), g: f64, skip: &[usize]) -> (f64, f64) {
     if blocks.len() < 3 {
         return (f64::INFINITY, f64::INFINITY);
     }
@@ -147,7 +249,7 @@ fn peak_sd(m: &Model, (blocks, all): &(Vec<Sums>, Sums), g: f64) -> (f64, f64) {
     for b in blocks {
         let mut s = all.clone();
         s.add(b, -1.0);
-        let (f, c, _) = curve(m, &s, g);
+        let (f, c, _) = curve(m, &s, g, skip);
         match peak(&f, &c) {
             Some(p) => loo.push(p),
             None => return (f64::INFINITY, f64::INFINITY),
@@ -232,7 +334,8 @@ pub(super) fn passive(c: &Correction, fs: f64) -> Correction {
 
 pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
     let sums = block_sums(m, z, fit);
-    let (freqs, coef, phase) = curve(m, &sums.1, fit.g);
+    let skip: Vec<usize> = m.level.iter().map(|(k, ..)| *k).collect();
+    let (freqs, coef, phase) = curve(m, &sums.1, fit.g, &skip);
     if freqs.len() < 3 {
         return None;
     }
@@ -256,7 +359,7 @@ pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate>
     let (k, sse) = golden(|k| eq_sse(m, z, fit, &corr(k)), lo.max(0.0), hi, 16);
     let nf = m.nfit(z.len());
     let sd = curvature_sigma(|k| eq_sse(m, z, fit, &corr(k)), k, 0.02, sse / nf as f64);
-    let (peak_hz, peak_db) = peak_sd(m, &sums, fit.g);
+    let (peak_hz, peak_db) = peak_sd(m, &sums, fit.g, &skip);
     Some(Candidate {
         correction: corr(k),
         uncertainty: Uncertainty::Transfer {
