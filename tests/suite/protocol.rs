@@ -47,7 +47,8 @@
 //! responses, before and after the inverse was derived from the object's
 //! fitted response), [`TENTH`] (session 62, responses that fold back
 //! within the sweep: all four miss), [`ELEVENTH`] (session 63, resonances
-//! that drive a static response into its nonlinear range).
+//! that drive a static response into its nonlinear range), [`TWELFTH`]
+//! (session 63, more of them, after the table's change on the eleventh).
 //!
 //! The catalog's families outside that set ([`FAMILIES`]: dropped frames,
 //! the gain's drift, the region's gain) are held to the transfer bar only,
@@ -764,6 +765,49 @@ const ELEVENTH: [Case; 4] = [
     ),
 ];
 
+/// The twelfth held-out set (session 63), written down and committed
+/// before any of it was run, after the eleventh set's first run led the
+/// table to leave out the flanks of a level-dependent response too. Five
+/// cases on the `Object` scene, even terms negated on the speech's
+/// recording: a fold at a low resonance, a compressive response at two
+/// resonances, a fold at a resonance on an object off the centre, a
+/// quintic at a resonance, and a square law at a resonance (its second
+/// harmonic does not change the fundamental's gain, so the report's
+/// words do not count there: the gain bar alone). Figures reported as
+/// they come, under the eleventh set's rule.
+const TWELFTH: [Case; 5] = [
+    case(
+        "fold_low_resonance",
+        Scene::Object,
+        "response_poly = [0.0, -0.4]\nresonances = [{ freq_hz = 200.0, q = 3.0, gain_db = 5.0 }]",
+        "response_poly = [0.0, -0.4]\nresonances = [{ freq_hz = 200.0, q = 3.0, gain_db = 5.0 }]",
+    ),
+    case(
+        "compress_two_resonances",
+        Scene::Object,
+        "response_poly = [0.0, -0.3]\nresonances = [{ freq_hz = 350.0, q = 4.0, gain_db = 5.0 }, { freq_hz = 650.0, q = 4.0, gain_db = 5.0 }]",
+        "response_poly = [0.0, -0.3]\nresonances = [{ freq_hz = 350.0, q = 4.0, gain_db = 5.0 }, { freq_hz = 650.0, q = 4.0, gain_db = 5.0 }]",
+    ),
+    case(
+        "fold_at_resonance_offcentre",
+        Scene::Object,
+        "object = [10, 14, 36, 34]\nresponse_poly = [0.0, -0.4]\nresonances = [{ freq_hz = 500.0, q = 3.0, gain_db = 5.0 }]",
+        "object = [10, 14, 36, 34]\nresponse_poly = [0.0, -0.4]\nresonances = [{ freq_hz = 500.0, q = 3.0, gain_db = 5.0 }]",
+    ),
+    case(
+        "quintic_at_resonance",
+        Scene::Object,
+        "response_poly = [0.0, 0.0, 0.0, -0.35]\nresonances = [{ freq_hz = 600.0, q = 3.0, gain_db = 5.0 }]",
+        "response_poly = [0.0, 0.0, 0.0, -0.35]\nresonances = [{ freq_hz = 600.0, q = 3.0, gain_db = 5.0 }]",
+    ),
+    case(
+        "square_at_resonance",
+        Scene::Object,
+        "response_poly = [0.3]\nresonances = [{ freq_hz = 450.0, q = 3.0, gain_db = 5.0 }]",
+        "response_poly = [-0.3]\nresonances = [{ freq_hz = 450.0, q = 3.0, gain_db = 5.0 }]",
+    ),
+];
+
 /// The catalog's other families, outside the protocol's set (they were
 /// designed on these scenes): only the transfer bar. Dropped frames and
 /// the gain's drift belong to one recording and are left out by `listen
@@ -1128,7 +1172,18 @@ fn tenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Optio
 /// bar or its other branch, [`gain_or_level_named`] at the case's
 /// resonance `at_hz` (the rule written down before the set ran).
 fn eleventh(name: &str, at_hz: f64, short: Option<&str>) -> Option<Outcome> {
-    let c = ELEVENTH.iter().find(|c| c.name == name).unwrap();
+    level_case(&ELEVENTH, name, &[at_hz], short)
+}
+
+/// A case of the twelfth held-out set, under the eleventh's rule (`at_hz`
+/// empty: the gain bar alone).
+fn twelfth(name: &str, at_hz: &[f64], short: Option<&str>) -> Option<Outcome> {
+    level_case(&TWELFTH, name, at_hz, short)
+}
+
+/// The eleventh set's rule, for a case of `set`.
+fn level_case(set: &[Case], name: &str, at_hz: &[f64], short: Option<&str>) -> Option<Outcome> {
+    let c = set.iter().find(|c| c.name == name).unwrap();
     let o = carries(c, None)?;
     if o.cost() < 1.0 {
         eprintln!(
@@ -1157,7 +1212,7 @@ fn eleventh(name: &str, at_hz: f64, short: Option<&str>) -> Option<Outcome> {
 /// come within two bins of it. A case whose gain meets the bar passes
 /// either way; one that meets neither fails (or, marked, must still miss
 /// both: see [`bar`]).
-fn gain_or_level_named(name: &str, o: &Outcome, at_hz: f64, short: Option<&str>) {
+fn gain_or_level_named(name: &str, o: &Outcome, at_hz: &[f64], short: Option<&str>) {
     let named: Vec<&str> = o.report["unexplained"]
         .as_array()
         .into_iter()
@@ -1169,13 +1224,13 @@ fn gain_or_level_named(name: &str, o: &Outcome, at_hz: f64, short: Option<&str>)
                 .into_iter()
                 .flatten()
                 .filter_map(|f| f.as_f64())
-                .any(|f| (f - at_hz).abs() <= 2.0 * 2200.0 / 256.0)
+                .any(|f| at_hz.iter().any(|a| (f - a).abs() <= 2.0 * 2200.0 / 256.0))
         })
         .filter_map(|u| u["description"].as_str())
         .collect();
     let need = o.need();
     let figure = format!(
-        "speech {:.2} -> {:.2} dB ({:+.2}); the effect costs {:.2} dB{} (kept {}); the report names a level-dependent gain at {at_hz:.0} Hz: {}",
+        "speech {:.2} -> {:.2} dB ({:+.2}); the effect costs {:.2} dB{} (kept {}); the report names a level-dependent gain at {at_hz:?} Hz: {}",
         o.none,
         o.with,
         o.gain(),
@@ -1184,6 +1239,9 @@ fn gain_or_level_named(name: &str, o: &Outcome, at_hz: f64, short: Option<&str>)
         o.kept,
         named.first().copied().unwrap_or("no")
     );
+    if o.gain() < need && !named.is_empty() && short.is_none() {
+        eprintln!("protocol {name}: the gain bar met by its other branch: {figure}");
+    }
     bar(
         name,
         &format!("the gain asked of a held-out effect ({need} dB), or the report's words for what it cannot correct"),
@@ -1931,7 +1989,7 @@ fn tenth_fold_and_resonance() {
         .find(|c| c.name == "fold_and_resonance")
         .unwrap();
     if let Some(o) = carries(c, None) {
-        gain_or_level_named(c.name, &o, 300.0, None);
+        gain_or_level_named(c.name, &o, &[300.0], None);
     }
 }
 #[test]
@@ -1949,4 +2007,24 @@ fn eleventh_one_sided_at_resonance() {
 #[test]
 fn eleventh_stiffening_at_resonance() {
     let _ = eleventh("stiffening_at_resonance", 400.0, None);
+}
+#[test]
+fn twelfth_fold_low_resonance() {
+    let _ = twelfth("fold_low_resonance", &[200.0], None);
+}
+#[test]
+fn twelfth_compress_two_resonances() {
+    let _ = twelfth("compress_two_resonances", &[350.0, 650.0], None);
+}
+#[test]
+fn twelfth_fold_at_resonance_offcentre() {
+    let _ = twelfth("fold_at_resonance_offcentre", &[500.0], None);
+}
+#[test]
+fn twelfth_quintic_at_resonance() {
+    let _ = twelfth("quintic_at_resonance", &[600.0], None);
+}
+#[test]
+fn twelfth_square_at_resonance() {
+    let _ = twelfth("square_at_resonance", &[], None);
 }

@@ -412,10 +412,16 @@ pub fn calibrate_with(
         fs,
         opts,
         level: &[],
+        fold: None,
     };
     let fit0 = m.fit_linear(y);
     let level = transfer::level_dependent(&m, y, &fit0.t);
-    let m = Model { level: &level, ..m };
+    let fold = polynomial::fold(&m, y, &fit0);
+    let m = Model {
+        level: &level,
+        fold: fold.as_ref(),
+        ..m
+    };
     let recovery = y;
     let before = m.errors(y, &fit0);
     let mut linear_residual = unexplained(&m, y, &fit0);

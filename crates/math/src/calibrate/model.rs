@@ -17,6 +17,10 @@ pub(super) struct Model<'a> {
     /// the transfer table leaves them out and the residual's report names
     /// them.
     pub(super) level: &'a [(usize, f64, f64)],
+    /// The object's static response, where it stops rising within the
+    /// sweep, read once on the recording as recovered
+    /// ([`super::polynomial::fold`]): the residual's report names it.
+    pub(super) fold: Option<&'a super::polynomial::Fold>,
 }
 
 /// The linear model on a recovery.

@@ -39,58 +39,11 @@ pub const MAX_ORDER: usize = 5;
 /// motion's range (it would not be invertible) or a fit is degenerate.
 pub(super) fn fit_polynomial(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
     let hp = m.opts.highpass;
-    let x = undo_highpass(&fit.t, m.fs, hp);
-    let peak = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
-    let range = undo_highpass(z, m.fs, hp)
-        .iter()
-        .fold(0.0f64, |a, v| a.max(v.abs()));
-    if !(peak.is_finite() && peak > 0.0 && range.is_finite() && range > 0.0) {
-        return None;
-    }
-    // Columns (x / peak)^k, k = 1..=MAX_ORDER, each high-passed as the
-    // recovery is.
-    let cols: Vec<Vec<f64>> = (1..=MAX_ORDER as i32)
-        .map(|k| {
-            redo_highpass(
-                &x.iter().map(|v| (v / peak).powi(k)).collect::<Vec<_>>(),
-                m.fs,
-                hp,
-            )
-        })
-        .collect();
-    // The motion's range on the fit blocks, scaled to its peak: where the
-    // response must rise.
-    let (lo, hi) = (0..x.len().min(z.len()))
-        .filter(|&i| m.is_fit(i))
-        .fold((0.0f64, 0.0f64), |(lo, hi), i| {
-            (lo.min(x[i] / peak), hi.max(x[i] / peak))
-        });
-    // The order by three-fold cross-validation within the fit blocks (0,
-    // 2 and 4 of every five): each order is fitted on two of them and
-    // checked on the third, the checks summed.
-    let block = stft_len(m.fs);
-    let part = move |i: usize| (i / block) % 5;
-    let mut best: Option<(usize, f64)> = None;
-    'orders: for p in 2..=MAX_ORDER {
-        let mut total = 0.0;
-        for held in [0, 2, 4] {
-            let train = |i: usize| matches!(part(i), 0 | 2 | 4) && part(i) != held;
-            let check = |i: usize| part(i) == held;
-            let Some((b, ..)) = solve(&cols, z, p, &train) else {
-                continue 'orders;
-            };
-            if !rising(&b, lo, hi) {
-                continue 'orders;
-            }
-            total += sse(&cols, z, &b, &check);
-        }
-        if best.is_none_or(|(_, e)| total < e) {
-            best = Some((p, total));
-        }
-    }
-    let (p, _) = best?;
+    let s = Sweep::read(m, z, fit)?;
+    let (p, _) = s.order(m, z, true)?;
     let fitted = |i: usize| m.is_fit(i);
-    let (b, var, sigma2) = solve(&cols, z, p, &fitted)?;
+    let (b, var, sigma2) = solve(&s.cols, z, p, &fitted)?;
+    let (lo, hi, range) = (s.lo, s.hi, s.range);
     if !rising(&b, lo, hi) {
         return None;
     }
@@ -127,6 +80,143 @@ pub(super) fn fit_polynomial(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidat
             from_response: true,
         },
         uncertainty: Uncertainty::Polynomial { coefficients: sds },
+    })
+}
+
+/// A sweep's motion and the columns a static response is fitted on.
+struct Sweep {
+    /// `(x / peak)^k`, k = 1..=[`MAX_ORDER`], each high-passed as the
+    /// recovery is (`x` the target with its high-pass undone).
+    cols: Vec<Vec<f64>>,
+    /// The motion's range on the fit blocks, scaled to its peak: where the
+    /// response must rise.
+    lo: f64,
+    hi: f64,
+    /// The recovery's peak with its high-pass undone.
+    range: f64,
+}
+
+impl Sweep {
+    fn read(m: &Model, z: &[f64], fit: &Fit) -> Option<Sweep> {
+        let hp = m.opts.highpass;
+        let x = undo_highpass(&fit.t, m.fs, hp);
+        let peak = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let range = undo_highpass(z, m.fs, hp)
+            .iter()
+            .fold(0.0f64, |a, v| a.max(v.abs()));
+        if !(peak.is_finite() && peak > 0.0 && range.is_finite() && range > 0.0) {
+            return None;
+        }
+        let cols: Vec<Vec<f64>> = (1..=MAX_ORDER as i32)
+            .map(|k| {
+                redo_highpass(
+                    &x.iter().map(|v| (v / peak).powi(k)).collect::<Vec<_>>(),
+                    m.fs,
+                    hp,
+                )
+            })
+            .collect();
+        let (lo, hi) = (0..x.len().min(z.len()))
+            .filter(|&i| m.is_fit(i))
+            .fold((0.0f64, 0.0f64), |(lo, hi), i| {
+                (lo.min(x[i] / peak), hi.max(x[i] / peak))
+            });
+        Some(Sweep {
+            cols,
+            lo,
+            hi,
+            range,
+        })
+    }
+
+    /// The order (2 to [`MAX_ORDER`]) by three-fold cross-validation
+    /// within the fit blocks (0, 2 and 4 of every five): each order is
+    /// fitted on two of them and checked on the third, the checks summed;
+    /// with `rising`, only orders whose every fit rises over the motion's
+    /// range. The order and its summed check.
+    fn order(&self, m: &Model, z: &[f64], rising_only: bool) -> Option<(usize, f64)> {
+        let block = stft_len(m.fs);
+        let part = move |i: usize| (i / block) % 5;
+        let mut best: Option<(usize, f64)> = None;
+        'orders: for p in 2..=MAX_ORDER {
+            let mut total = 0.0;
+            for held in [0, 2, 4] {
+                let train = |i: usize| matches!(part(i), 0 | 2 | 4) && part(i) != held;
+                let check = |i: usize| part(i) == held;
+                let Some((b, ..)) = solve(&self.cols, z, p, &train) else {
+                    continue 'orders;
+                };
+                if rising_only && !rising(&b, self.lo, self.hi) {
+                    continue 'orders;
+                }
+                total += sse(&self.cols, z, &b, &check);
+            }
+            if best.is_none_or(|(_, e)| total < e) {
+                best = Some((p, total));
+            }
+        }
+        best
+    }
+}
+
+/// A static response that stops rising within the sweep ([`fold`]).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Fold {
+    /// Where its slope first turns, as a share of the sweep's peak motion
+    /// (signed: the side it turns on).
+    pub(super) at: f64,
+    /// The response `u + c2 u² + …` with `u` the motion over the sweep's
+    /// peak: `[c2, …]`.
+    pub(super) response: Vec<f64>,
+    /// How much less the cross-validated error is than that of the best
+    /// response that rises (dB).
+    pub(super) better_db: f64,
+}
+
+/// The error (dB) by which a response that folds must beat every response
+/// that rises before [`fold`] says it folds.
+const FOLD_BETTER_DB: f64 = 1.0;
+
+/// Whether the object's static response, fitted forward as
+/// [`fit_polynomial`] fits it but free to fall, stops rising within the
+/// sweep: the order chosen by cross-validation falls somewhere in the
+/// motion's range, and it explains the recovery (held out within the fit
+/// blocks) at least [`FOLD_BETTER_DB`] better than the best response that
+/// rises. Two motions then give one image, and no inverse undoes it at
+/// the sweep's level; [`fit_polynomial`] keeps none that falls.
+pub(super) fn fold(m: &Model, z: &[f64], fit: &Fit) -> Option<Fold> {
+    let s = Sweep::read(m, z, fit)?;
+    let (p, free) = s.order(m, z, false)?;
+    let rises = s.order(m, z, true).map_or(f64::INFINITY, |(_, e)| e);
+    let better_db = 10.0 * (rises / free).log10();
+    if better_db.is_nan() || better_db < FOLD_BETTER_DB {
+        return None;
+    }
+    let (b, ..) = solve(&s.cols, z, p, &|i| m.is_fit(i))?;
+    if rising(&b, s.lo, s.hi) {
+        return None;
+    }
+    let slope = |x: f64| -> f64 {
+        b.iter()
+            .enumerate()
+            .map(|(k, bk)| (k + 1) as f64 * bk * x.powi(k as i32))
+            .sum()
+    };
+    // From rest outward on each side, the first step where the slope's
+    // sign turns; the nearer of the two.
+    let turn = |end: f64| -> Option<f64> {
+        (1..=400)
+            .map(|i| end * i as f64 / 400.0)
+            .find(|&x| slope(x) * b[0] <= 0.0)
+    };
+    let at = [turn(s.lo), turn(s.hi)]
+        .into_iter()
+        .flatten()
+        .min_by(|a, c| a.abs().total_cmp(&c.abs()))?;
+    Some(Fold {
+        at,
+        response: (1..p).map(|k| b[k] / b[0]).collect(),
+        better_db,
     })
 }
 

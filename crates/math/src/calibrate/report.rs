@@ -363,6 +363,20 @@ pub enum Unexplained {
         /// The largest implied gain error over the band's median.
         max_error_db: f64,
     },
+    /// The object's static response stops rising within the sweep.
+    ResponseFolds {
+        description: String,
+        frequencies_hz: [f64; 0],
+        kind: UnexplainedKind,
+        /// Where it turns, as a share of the sweep's peak motion (signed).
+        fold_at: f64,
+        /// The response fitted forward, `u + c2 u² + …` with `u` the
+        /// motion over the sweep's peak: `[c2, …]`.
+        response: Vec<f64>,
+        /// How much better it explains the recovery than any response
+        /// that rises (dB, held out within the fit blocks).
+        better_db: f64,
+    },
     /// A lag that changes over time.
     LagOverTime {
         description: String,
@@ -385,6 +399,7 @@ pub enum UnexplainedKind {
     LagAcrossImage,
     GainAcrossImage,
     LevelDependent,
+    ResponseFolds,
 }
 
 impl Unexplained {
@@ -398,7 +413,8 @@ impl Unexplained {
             | Unexplained::GainOverTime { kind, .. }
             | Unexplained::LagAcrossImage { kind, .. }
             | Unexplained::GainAcrossImage { kind, .. }
-            | Unexplained::LevelDependent { kind, .. } => *kind,
+            | Unexplained::LevelDependent { kind, .. }
+            | Unexplained::ResponseFolds { kind, .. } => *kind,
         }
     }
 
@@ -412,7 +428,8 @@ impl Unexplained {
             | Unexplained::GainOverTime { description, .. }
             | Unexplained::LagAcrossImage { description, .. }
             | Unexplained::GainAcrossImage { description, .. }
-            | Unexplained::LevelDependent { description, .. } => description,
+            | Unexplained::LevelDependent { description, .. }
+            | Unexplained::ResponseFolds { description, .. } => description,
         }
     }
 }

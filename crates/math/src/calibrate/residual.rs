@@ -152,6 +152,37 @@ pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Unexplained> {
             ),
         });
     }
+    // A static response that stops rising within the sweep (read once).
+    if let Some(f) = m.fold {
+        let terms: String = f
+            .response
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.abs() >= 0.005)
+            .map(|(i, c)| {
+                format!(
+                    " {} {:.2} u{}",
+                    if *c < 0.0 { '-' } else { '+' },
+                    c.abs(),
+                    ["²", "³", "⁴", "⁵"].get(i).copied().unwrap_or("ⁿ")
+                )
+            })
+            .collect();
+        out.push(Unexplained::ResponseFolds {
+            kind: UnexplainedKind::ResponseFolds,
+            frequencies_hz: [],
+            fold_at: f.at,
+            response: f.response.clone(),
+            better_db: f.better_db,
+            description: format!(
+                "the object's response stops rising at {:.2} of the sweep's peak motion ({} side) and falls beyond it: fitted forward, u{terms} (u the motion over the sweep's peak), {:.1} dB closer to the recovery held out than any response that rises; beyond the fold two motions give the same image, so no inverse undoes this sweep's distortion, and a static correction fitted on it can only follow a response that rises; sweep below {:.2} of this level to measure it",
+                f.at.abs(),
+                if f.at > 0.0 { "positive" } else { "negative" },
+                f.better_db,
+                f.at.abs()
+            ),
+        });
+    }
     // Coherent energy with no reference: bands of excess energy.
     let total_other: f64 = other.iter().sum();
     if total_other > NOTABLE * residual {

@@ -128,6 +128,7 @@ fn time_base_on_a_pure_signal() {
         fs,
         opts: &opts(),
         level: &[],
+        fold: None,
     };
     // Captured at the true rate fs (1 + e), high-passed, scaled.
     let y = noisy(&m.target(4000, 0, 0.0, e * 1e6), 1);
@@ -159,6 +160,7 @@ fn frame_events_are_found_and_undone() {
         fs,
         opts: &o,
         level: &[],
+        fold: None,
     };
     let clean = noisy(&m.target(4000, 0, 0.0, 0.0), 3);
     // Drop capture 1500, repeat capture 3000.
@@ -496,6 +498,7 @@ fn strip_model<'a>(r: &'a [f64], o: &'a Options) -> Model<'a> {
         fs: STRIP_FS,
         opts: o,
         level: &[],
+        fold: None,
     }
 }
 
@@ -710,6 +713,7 @@ fn the_lag_over_time_against_a_tone_follows_the_period() {
         fs,
         opts: &o,
         level: &[],
+        fold: None,
     };
     let y = noisy(&m.target(3000, 0, 0.0, 600.0), 3);
     let cal = calibrate(&y, fs, &r, fr, &o).unwrap();
@@ -758,6 +762,7 @@ fn sample_at_a_hair_from_a_sample_is_that_sample() {
         fs: 2200.0,
         opts: &o,
         level: &[],
+        fold: None,
     };
     assert!(m.target(6600, 0, 0.0, 0.0).iter().all(|v| v.is_finite()));
 }
