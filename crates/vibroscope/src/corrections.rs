@@ -26,8 +26,10 @@ pub struct Stored {
     /// kept effects the report's own identifiability check cannot tell
     /// from none ([`cal::Unsettled`]: applied, and said), and a static
     /// response's inverse left out because the calibration's residual
-    /// still holds harmonics ([`cal::harmonics_left_from_report`]), and
-    /// where a transfer function's inverse boosts ([`boost_note`]).
+    /// still holds harmonics ([`cal::harmonics_left_from_report`]),
+    /// where a transfer function's inverse boosts ([`boost_note`]), and
+    /// linear corrections measured on a sweep that drove the object into
+    /// its nonlinear range ([`cal::level_dependent_from_report`]).
     pub notes: Vec<String>,
 }
 
@@ -80,6 +82,27 @@ pub fn load(path: &Path) -> Result<Stored> {
             .map(|u| u.why),
     );
     notes.extend(corrections.iter().filter_map(boost_note));
+    // A sweep that drove the object into its nonlinear range: the table
+    // leaves those frequencies out, but a phase or gain measured around
+    // them may still carry the level's effect (issue 50, session 63: a
+    // clock error read from a compressed resonance's phase).
+    let level = cal::level_dependent_from_report(&v).map_err(named)?;
+    let linear: Vec<&str> = corrections
+        .iter()
+        .filter(|c| matches!(c, Correction::Transfer { .. } | Correction::TimeBase { .. }))
+        .map(|c| c.kind().name())
+        .collect();
+    if let (Some(lo), Some(hi), false) = (
+        level.iter().copied().reduce(f64::min),
+        level.iter().copied().reduce(f64::max),
+        linear.is_empty(),
+    ) {
+        notes.push(format!(
+            "the calibration's sweep drove the object into its nonlinear range at {lo:.0}-{hi:.0} Hz (its report's level_dependent): the transfer table leaves those frequencies out, but {} {} measured on a sweep whose gain and phase there change with its level; if this recording comes out worse with the calibration than without, that is the likely cause: calibrate again at a lower level",
+            linear.join(" and "),
+            if linear.len() > 1 { "were" } else { "was" }
+        ));
+    }
     Ok(Stored {
         corrections,
         frame: cal::frame_from_report(&v).map_err(named)?,
@@ -501,6 +524,44 @@ mod tests {
                 s.notes
             );
         }
+    }
+
+    /// Issue 50 (session 63): a report whose sweep drove the object into
+    /// its nonlinear range (`level_dependent`) makes `listen` say so when
+    /// it applies a clock error or a transfer function, and not otherwise;
+    /// a `level_dependent` entry whose frequencies are not numbers is
+    /// refused, naming the field.
+    #[test]
+    fn linear_corrections_from_a_sweep_past_the_linear_range_are_said() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("report.json");
+        let level =
+            serde_json::json!({"kind": "level_dependent", "frequencies_hz": [627.0, 700.0, 799.0]});
+        let clock =
+            serde_json::json!({"name": "time_base", "parameters": {"clock_error_ppm": 110.0}});
+        for (effects, unexplained, said) in [
+            (vec![clock.clone()], vec![level.clone()], true),
+            (vec![clock.clone()], vec![], false),
+            (vec![], vec![level.clone()], false),
+        ] {
+            let report = serde_json::json!({"effects": effects, "unexplained": unexplained});
+            std::fs::write(&path, report.to_string()).unwrap();
+            let s = load(&path).unwrap();
+            let note = s.notes.iter().find(|n| n.contains("nonlinear range"));
+            assert_eq!(note.is_some(), said, "{report}: {:?}", s.notes);
+            if let Some(n) = note {
+                assert!(
+                    n.contains("627-799 Hz") && n.contains("time_base was"),
+                    "{n}"
+                );
+            }
+        }
+        let bad = serde_json::json!({"effects": [clock], "unexplained": [{"kind": "level_dependent", "frequencies_hz": ["x"]}]});
+        std::fs::write(&path, bad.to_string()).unwrap();
+        let Err(e) = load(&path) else {
+            panic!("a bad level_dependent entry was read");
+        };
+        assert!(e.to_string().contains("unexplained"), "{e}");
     }
 
     /// Denoising again after a calibration keeps every sample at its time:

@@ -90,9 +90,10 @@ pub use frame::{pixel_frame, pixel_frame_on_tiles, PixelFrame};
 pub use identify::Confound;
 pub use relation::{check_silent, LINE_DB, MARGIN_DB, SILENT_PEAK};
 pub use report::{
-    explained_from_report, frame_from_report, harmonics_left_from_report, reusable_from_report,
-    unsettled_from_report, EventReport, LineReport, LineUncertainty, Parameters, ReportError,
-    Uncertainty, Unexplained, UnexplainedKind, Unsettled, MAX_STORED_TILES,
+    explained_from_report, frame_from_report, harmonics_left_from_report,
+    level_dependent_from_report, reusable_from_report, unsettled_from_report, EventReport,
+    LineReport, LineUncertainty, Parameters, ReportError, Uncertainty, Unexplained,
+    UnexplainedKind, Unsettled, MAX_STORED_TILES,
 };
 pub use signal::{alias, equalize, sample_at, stft_len};
 pub use signal::{peak, smooth3};

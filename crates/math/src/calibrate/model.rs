@@ -13,14 +13,29 @@ pub(super) struct Model<'a> {
     /// The STFT bins where the gain a sweep measures holds only at its
     /// level, each with its harmonics-to-fundamental ratio (dB) and the
     /// gain error that implies over the band's median (dB), read once on
-    /// the recording as recovered ([`super::transfer::level_dependent`]):
+    /// the recording as recovered (the transfer family's
+    /// `level_dependent`):
     /// the transfer table leaves them out and the residual's report names
     /// them.
     pub(super) level: &'a [(usize, f64, f64)],
     /// The object's static response, where it stops rising within the
-    /// sweep, read once on the recording as recovered
-    /// ([`super::polynomial::fold`]): the residual's report names it.
-    pub(super) fold: Option<&'a super::polynomial::Fold>,
+    /// sweep, read once on the recording as recovered (the polynomial
+    /// family's `fold`): the residual's report names it.
+    pub(super) fold: Option<&'a Fold>,
+}
+
+/// A static response that stops rising within the sweep (the polynomial family's `fold`).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Fold {
+    /// Where its slope first turns, as a share of the sweep's peak motion
+    /// (signed: the side it turns on).
+    pub(super) at: f64,
+    /// The response `u + c2 u² + …` with `u` the motion over the sweep's
+    /// peak: `[c2, …]`.
+    pub(super) response: Vec<f64>,
+    /// How much less the cross-validated error is than that of the best
+    /// response that rises (dB).
+    pub(super) better_db: f64,
 }
 
 /// The linear model on a recovery.

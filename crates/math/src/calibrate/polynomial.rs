@@ -9,7 +9,7 @@
 //! ([`fit_polynomial`]). [`super::calibrate`] fits it only when the
 //! residual holds harmonics of the reference.
 
-use super::model::{Fit, Model};
+use super::model::{Fit, Fold, Model};
 use super::signal::{redo_highpass, stft_len, undo_highpass};
 use super::{Candidate, Correction, Uncertainty};
 
@@ -157,20 +157,6 @@ impl Sweep {
         }
         best
     }
-}
-
-/// A static response that stops rising within the sweep ([`fold`]).
-#[derive(Clone, Debug, PartialEq)]
-pub(super) struct Fold {
-    /// Where its slope first turns, as a share of the sweep's peak motion
-    /// (signed: the side it turns on).
-    pub(super) at: f64,
-    /// The response `u + c2 u² + …` with `u` the motion over the sweep's
-    /// peak: `[c2, …]`.
-    pub(super) response: Vec<f64>,
-    /// How much less the cross-validated error is than that of the best
-    /// response that rises (dB).
-    pub(super) better_db: f64,
 }
 
 /// The error (dB) by which a response that folds must beat every response

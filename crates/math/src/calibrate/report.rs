@@ -682,6 +682,8 @@ struct StoredFinding {
     kind: String,
     #[serde(default)]
     order: Option<u32>,
+    #[serde(default)]
+    frequencies_hz: Vec<f64>,
 }
 
 /// The orders of the harmonics of the reference a stored report leaves in
@@ -709,6 +711,24 @@ where
     orders.sort_unstable();
     orders.dedup();
     Ok(orders)
+}
+
+/// The frequencies (Hz) where a stored report's sweep measured a gain that
+/// holds only at its level (`unexplained`, kind `level_dependent`: the
+/// object driven into its nonlinear range there); empty when there are
+/// none. Errors name the field.
+pub fn level_dependent_from_report<'de, D: ?Sized>(report: &'de D) -> Result<Vec<f64>, ReportError>
+where
+    &'de D: Deserializer<'de>,
+{
+    let stored = StoredUnexplained::deserialize(report)
+        .map_err(|e| ReportError::Parse(format!("unexplained: {e}")))?;
+    Ok(stored
+        .unexplained
+        .into_iter()
+        .filter(|f| f.kind == "level_dependent")
+        .flat_map(|f| f.frequencies_hz)
+        .collect())
 }
 
 /// The part of a report [`unsettled_from_report`] reads: each confound's

@@ -17,14 +17,6 @@ const EDGE_POWER: f64 = 0.1;
 /// out ([`level_dependent`]).
 pub(super) const LEVEL_DB: f64 = 3.0;
 
-/// Around such a bin, its neighbours are left out too for as long as
-/// their excess stays over this (dB): the flanks of the same
-/// level-dependent response, where the sweep already measured part of it
-/// (session 63: on `fold_at_high_resonance` the table's interpolation
-/// between flanks still 2-3 dB into it boosted the resonance it should
-/// have cut).
-const LEVEL_EDGE_DB: f64 = 1.0;
-
 /// Where the gain a sweep measures holds only at its level. A static
 /// response `x - c x³` driven at amplitude `A` passes the fundamental at
 /// `1 - 3cA²/4` and puts a third harmonic of `cA³/4` beside it: the
@@ -43,8 +35,7 @@ const LEVEL_EDGE_DB: f64 = 1.0;
 /// median at the aliases of 2 to 5 times the tone's frequency, where the
 /// reference has none. Each bin's implied error is `20 log10(1 + 3 √R)`
 /// dB; the bins where it exceeds the median over the reference's bins by
-/// [`LEVEL_DB`], with their neighbours while it exceeds
-/// [`LEVEL_EDGE_DB`], are returned with their `R` (dB) and that excess. A
+/// [`LEVEL_DB`] are returned with their `R` (dB) and that excess. A
 /// distortion the same at every frequency changes the gain the same at
 /// every frequency, which the table (relative to its median) does not
 /// see.
@@ -111,28 +102,9 @@ pub(super) fn level_dependent(m: &Model, z: &[f64], t: &[f64]) -> Vec<(usize, f6
     if !med.is_finite() {
         return Vec::new();
     }
-    // The bins over the core's level, and their neighbours on either
-    // side for as long as they stay over the edge's.
-    let excess: Vec<f64> = bins.iter().map(|&k| err(k) - med).collect();
-    let mut out = vec![false; bins.len()];
-    for i in (0..bins.len()).filter(|&i| excess[i] > LEVEL_DB) {
-        out[i] = true;
-        let mut j = i;
-        while j > 0 && bins[j - 1] + 1 == bins[j] && excess[j - 1] > LEVEL_EDGE_DB {
-            j -= 1;
-            out[j] = true;
-        }
-        let mut j = i;
-        while j + 1 < bins.len() && bins[j] + 1 == bins[j + 1] && excess[j + 1] > LEVEL_EDGE_DB {
-            j += 1;
-            out[j] = true;
-        }
-    }
-    bins.iter()
-        .zip(&excess)
-        .zip(&out)
-        .filter(|(_, &o)| o)
-        .map(|((&k, &e), _)| (k, 10.0 * (dist[k] / w[k]).max(1e-30).log10(), e))
+    bins.into_iter()
+        .filter(|&k| err(k) > med + LEVEL_DB)
+        .map(|k| (k, 10.0 * (dist[k] / w[k]).max(1e-30).log10(), err(k) - med))
         .collect()
 }
 
