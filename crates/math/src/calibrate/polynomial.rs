@@ -40,7 +40,7 @@ pub const MAX_ORDER: usize = 5;
 pub(super) fn fit_polynomial(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
     let hp = m.opts.highpass;
     let s = Sweep::read(m, z, fit)?;
-    let (p, _) = s.order(m, z, true)?;
+    let (p, _) = s.orders(m, z).1?;
     let fitted = |i: usize| m.is_fit(i);
     let (b, var, sigma2) = solve(&s.cols, z, p, &fitted)?;
     let (lo, hi, range) = (s.lo, s.hi, s.range);
@@ -82,6 +82,9 @@ pub(super) fn fit_polynomial(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidat
         uncertainty: Uncertainty::Polynomial { coefficients: sds },
     })
 }
+
+/// An order chosen by [`Sweep::orders`] and its summed check.
+type Choice = Option<(usize, f64)>;
 
 /// A sweep's motion and the columns a static response is fitted on.
 struct Sweep {
@@ -131,31 +134,32 @@ impl Sweep {
 
     /// The order (2 to [`MAX_ORDER`]) by three-fold cross-validation
     /// within the fit blocks (0, 2 and 4 of every five): each order is
-    /// fitted on two of them and checked on the third, the checks summed;
-    /// with `rising`, only orders whose every fit rises over the motion's
-    /// range. The order and its summed check.
-    fn order(&self, m: &Model, z: &[f64], rising_only: bool) -> Option<(usize, f64)> {
+    /// fitted on two of them and checked on the third, the checks summed.
+    /// Two choices from the same fits: `(any, rising)`, the best of every
+    /// order, and the best of the orders whose every fit rises over the
+    /// motion's range; each the order and its summed check.
+    fn orders(&self, m: &Model, z: &[f64]) -> (Choice, Choice) {
         let block = stft_len(m.fs);
         let part = move |i: usize| (i / block) % 5;
-        let mut best: Option<(usize, f64)> = None;
+        let (mut any, mut rises): (Choice, Choice) = (None, None);
         'orders: for p in 2..=MAX_ORDER {
-            let mut total = 0.0;
+            let (mut total, mut all_rise) = (0.0, true);
             for held in [0, 2, 4] {
                 let train = |i: usize| matches!(part(i), 0 | 2 | 4) && part(i) != held;
                 let check = |i: usize| part(i) == held;
                 let Some((b, ..)) = solve(&self.cols, z, p, &train) else {
                     continue 'orders;
                 };
-                if rising_only && !rising(&b, self.lo, self.hi) {
-                    continue 'orders;
-                }
+                all_rise &= rising(&b, self.lo, self.hi);
                 total += sse(&self.cols, z, &b, &check);
             }
-            if best.is_none_or(|(_, e)| total < e) {
-                best = Some((p, total));
+            for (best, counts) in [(&mut any, true), (&mut rises, all_rise)] {
+                if counts && best.is_none_or(|(_, e)| total < e) {
+                    *best = Some((p, total));
+                }
             }
         }
-        best
+        (any, rises)
     }
 }
 
@@ -172,8 +176,9 @@ const FOLD_BETTER_DB: f64 = 1.0;
 /// the sweep's level; [`fit_polynomial`] keeps none that falls.
 pub(super) fn fold(m: &Model, z: &[f64], fit: &Fit) -> Option<Fold> {
     let s = Sweep::read(m, z, fit)?;
-    let (p, free) = s.order(m, z, false)?;
-    let rises = s.order(m, z, true).map_or(f64::INFINITY, |(_, e)| e);
+    let (any, rises) = s.orders(m, z);
+    let (p, free) = any?;
+    let rises = rises.map_or(f64::INFINITY, |(_, e)| e);
     let better_db = 10.0 * (rises / free).log10();
     if better_db.is_nan() || better_db < FOLD_BETTER_DB {
         return None;
@@ -182,18 +187,12 @@ pub(super) fn fold(m: &Model, z: &[f64], fit: &Fit) -> Option<Fold> {
     if rising(&b, s.lo, s.hi) {
         return None;
     }
-    let slope = |x: f64| -> f64 {
-        b.iter()
-            .enumerate()
-            .map(|(k, bk)| (k + 1) as f64 * bk * x.powi(k as i32))
-            .sum()
-    };
     // From rest outward on each side, the first step where the slope's
     // sign turns; the nearer of the two.
     let turn = |end: f64| -> Option<f64> {
         (1..=400)
             .map(|i| end * i as f64 / 400.0)
-            .find(|&x| slope(x) * b[0] <= 0.0)
+            .find(|&x| slope(&b, x) * b[0] <= 0.0)
     };
     let at = [turn(s.lo), turn(s.hi)]
         .into_iter()
@@ -322,12 +321,14 @@ fn sse(cols: &[Vec<f64>], t: &[f64], b: &[f64], use_i: &dyn Fn(usize) -> bool) -
 /// The response `b1 x + b2 x² + …` keeps the sign of its slope at 0 over
 /// `lo..=hi` (the motion's range, scaled to its peak).
 fn rising(b: &[f64], lo: f64, hi: f64) -> bool {
-    let slope = |x: f64| -> f64 {
-        b.iter()
-            .enumerate()
-            .map(|(k, bk)| (k + 1) as f64 * bk * x.powi(k as i32))
-            .sum()
-    };
-    let s0 = slope(0.0);
-    (0..=200).all(|i| slope(lo + (hi - lo) * i as f64 / 200.0) * s0 > 0.0)
+    let s0 = slope(b, 0.0);
+    (0..=200).all(|i| slope(b, lo + (hi - lo) * i as f64 / 200.0) * s0 > 0.0)
+}
+
+/// The slope of the response `b1 x + b2 x² + …` at `x`.
+fn slope(b: &[f64], x: f64) -> f64 {
+    b.iter()
+        .enumerate()
+        .map(|(k, bk)| (k + 1) as f64 * bk * x.powi(k as i32))
+        .sum()
 }
