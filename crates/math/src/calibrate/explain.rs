@@ -440,8 +440,10 @@ pub(super) fn explain(
             .map(|((x, y), w)| x * y * w)
             .sum()
     };
-    let held_energy =
-        |a: &[f64]| -> f64 { a.iter().zip(&fitw).map(|(x, w)| x * x * (1.0 - w)).sum() };
+    let heldw: Vec<f64> = (0..len)
+        .map(|i| f64::from(u8::from(m.is_held(i))))
+        .collect();
+    let held_energy = |a: &[f64]| -> f64 { a.iter().zip(&heldw).map(|(x, w)| x * x * w).sum() };
     // Which tiles' motion may explain: those outside the region, and
     // those inside it that move on their own.
     // Each tile's motion, high-passed (read by both below).

@@ -11,7 +11,11 @@
 //! kept or not: fitted first, the others refitted on top.) An alternative
 //! better by [`super::Options::min_gain_db`] becomes the kept explanation;
 //! where either holds a transfer function, the two are judged with its
-//! phase made from its gain ([`Confound::passive_snr_db`]).
+//! phase made from its gain ([`Confound::passive_snr_db`]), unless the
+//! table leaves out level-dependent bins (its gain there is interpolated,
+//! and no phase follows from it). Before the pairs, every kept effect
+//! must still earn [`super::Options::min_gain_db`] with the others
+//! refitted without it ([`let_go`]).
 
 use super::model::Model;
 use super::report::{Parameters, UnexplainedKind};
@@ -186,6 +190,67 @@ pub(super) fn refit(m: &Model, y: &[f64], kept: &mut [Kept]) -> f64 {
         }
     }
     cur
+}
+
+/// Every kept effect must still earn its place with the others refitted
+/// without it: one kept early that a later one explains better (a clock
+/// error read from a resonance's phase before the transfer function took
+/// it) is let go when the held-out SNR loses less than `min_gain_db`
+/// without it, the least needed first, the rest refitted each time
+/// (together, or the last one alone on the recovery; a refit kept only
+/// where it does not lower the held-out SNR). Returns each effect let go
+/// with what the held-out SNR lost without it.
+pub(super) fn let_go(
+    m: &Model,
+    y: &[f64],
+    kept: &mut Vec<Kept>,
+    min_gain_db: f64,
+) -> Vec<(Kept, f64)> {
+    let snr = |ks: &[Kept]| {
+        let z = apply_all(&chain(ks), y, m.fs);
+        m.errors(&z, &m.fit_linear(&z)).snr_db
+    };
+    let settle = |ks: &mut Vec<Kept>| {
+        if ks.len() > 1 {
+            refit(m, y, ks);
+        } else if let Some(k) = ks.first_mut() {
+            if let Some(c) = fit_effect(k.c.correction.kind(), m, y, &m.fit_linear(y)) {
+                let before = snr(std::slice::from_ref(k));
+                let old = std::mem::replace(&mut k.c, c);
+                let after = snr(std::slice::from_ref(k));
+                if after.is_nan() || after < before - 0.05 {
+                    k.c = old;
+                }
+            }
+        }
+    };
+    let mut out = Vec::new();
+    while kept.len() > 1 {
+        let cur = snr(kept);
+        let without = |i: usize| {
+            let mut others: Vec<Kept> = kept
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .map(|(_, k)| k.clone())
+                .collect();
+            settle(&mut others);
+            cur - snr(&others)
+        };
+        let Some((i, loss)) = (0..kept.len())
+            .map(|i| (i, without(i)))
+            .filter(|(_, l)| l.is_finite())
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            break;
+        };
+        if loss >= min_gain_db {
+            break;
+        }
+        out.push((kept.remove(i), loss));
+        settle(kept);
+    }
+    out
 }
 
 /// The value a main parameter has when its effect is absent (no clock

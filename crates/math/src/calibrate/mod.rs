@@ -41,7 +41,15 @@
 //! Interference lines are subtracted from the recovery as delivered,
 //! before every other correction (their frequencies are on the declared
 //! time base). When more than one effect is kept, each one's reported gain
-//! is what the held-out SNR loses without it.
+//! is what the held-out SNR loses without it, and one that loses less
+//! than [`Options::min_gain_db`] with the others refitted is let go
+//! ([`identify`]).
+//!
+//! Where a sweep drives the object into its nonlinear range at some
+//! frequencies (the transfer family's level-dependent bins), the stretch
+//! of the sweep that stands there is left out of every effect's fit and
+//! of the held-out score: what the object did there held only at the
+//! sweep's level.
 //!
 //! Errors are on the held-out part: SNR and segmental SNR
 //! ([`crate::metrics`]) and the log-spectral distance (dB, STFT frames
@@ -413,15 +421,32 @@ pub fn calibrate_with(
         fs,
         opts,
         level: &[],
+        skip: &[],
         fold: None,
     };
     let fit0 = m.fit_linear(y);
     let level = transfer::level_dependent(&m, y, &fit0.t);
     let fold = polynomial::fold(&m, y, &fit0);
+    // Left out of the effects' fits and their score; with no effect to
+    // fit (the linear model's SNR alone, as the tests score a recording),
+    // the whole recording is scored, whatever its level did.
+    let skip = if opts.effects.is_empty() {
+        Vec::new()
+    } else {
+        transfer::level_stretch(&m, &fit0.t, &level)
+    };
     let m = Model {
         level: &level,
+        skip: &skip,
         fold: fold.as_ref(),
         ..m
+    };
+    // The linear model again without the stretch left out (the same fit
+    // where nothing is).
+    let fit0 = if skip.is_empty() {
+        fit0
+    } else {
+        m.fit_linear(y)
     };
     let recovery = y;
     let before = m.errors(y, &fit0);
@@ -636,6 +661,21 @@ pub fn calibrate_with(
         fit = m.fit_linear(&z);
         cur = m.errors(&z, &fit);
     }
+    // Every kept effect must still earn its place with the others in
+    // place (identify::let_go).
+    let gone = identify::let_go(&m, y, &mut kept, opts.min_gain_db);
+    if !gone.is_empty() {
+        for (k, loss) in gone {
+            rejected.push(Rejected {
+                name: k.c.correction.kind().name(),
+                parameters: k.c.correction.parameters(fs, fit.g),
+                snr_gain_db: loss,
+            });
+        }
+        z = apply_all(&chain(&kept), y, fs);
+        fit = m.fit_linear(&z);
+        cur = m.errors(&z, &fit);
+    }
     let gates: Vec<UnexplainedKind> = residual_start.iter().map(Unexplained::kind).collect();
     let mut found = identify::confounds(&m, y, &kept, cur.snr_db, fit.g, &gates);
     // Where either explanation holds a transfer function, the two are
@@ -652,7 +692,12 @@ pub fn calibrate_with(
         ks.iter()
             .any(|k| k.c.correction.kind() == EffectKind::Transfer)
     };
+    // Not where the table leaves out level-dependent bins: its gain there
+    // is interpolated, not the object's, and no phase follows from it.
     let annotate = |found: &mut [(Confound, Vec<Kept>)], kept: &[Kept]| {
+        if !m.level.is_empty() {
+            return;
+        }
         let kept_passive = has_transfer(kept).then(|| passive_snr(kept));
         for (c, alt) in found.iter_mut() {
             if kept_passive.is_some() || has_transfer(alt) {

@@ -18,6 +18,14 @@ pub(super) struct Model<'a> {
     /// the transfer table leaves them out and the residual's report names
     /// them.
     pub(super) level: &'a [(usize, f64, f64)],
+    /// The samples where the sweep stood in [`Model::level`]'s bins (one
+    /// flag per sample of the recording; shorter means the rest are not
+    /// left out): left out of every fit and of the held-out score, since
+    /// what the object did there held only at the sweep's level and no
+    /// linear effect measured there (a clock error that reads a
+    /// compressed resonance's phase as a lag moving with time, a gain)
+    /// carries to a recording at another.
+    pub(super) skip: &'a [bool],
     /// The object's static response, where it stops rising within the
     /// sweep, read once on the recording as recovered (the polynomial
     /// family's `fold`): the residual's report names it.
@@ -84,17 +92,30 @@ impl Model<'_> {
     /// out (60% / 40%, interleaved, so both parts see every frequency of a
     /// sweep and every stretch of a drift).
     pub(super) fn is_fit(&self, i: usize) -> bool {
-        !matches!((i / stft_len(self.fs)) % 5, 1 | 3)
+        !matches!((i / stft_len(self.fs)) % 5, 1 | 3) && !self.skipped(i)
+    }
+
+    /// Whether sample `i` is in the held-out part (neither fitted nor
+    /// left out).
+    pub(super) fn is_held(&self, i: usize) -> bool {
+        matches!((i / stft_len(self.fs)) % 5, 1 | 3) && !self.skipped(i)
+    }
+
+    /// Whether sample `i` is left out of every fit and score
+    /// ([`Model::skip`]).
+    pub(super) fn skipped(&self, i: usize) -> bool {
+        self.skip.get(i).copied().unwrap_or(false)
     }
 
     /// The fit part of `0..len`, one range per block (the units a
     /// jackknife deletes, long enough that a coloured residual stays
-    /// mostly within one).
+    /// mostly within one): the blocks that are fitted, each with the
+    /// samples [`Model::skip`] leaves out still in it (test [`Model::is_fit`]).
     pub(super) fn fit_blocks(&self, len: usize) -> Vec<std::ops::Range<usize>> {
         let b = stft_len(self.fs);
         (0..len.div_ceil(b))
             .map(|k| k * b..((k + 1) * b).min(len))
-            .filter(|r| self.is_fit(r.start))
+            .filter(|r| r.clone().any(|i| self.is_fit(i)))
             .collect()
     }
 
@@ -110,7 +131,7 @@ impl Model<'_> {
     pub(super) fn held(&self, x: &[f64]) -> Vec<f64> {
         x.iter()
             .enumerate()
-            .filter(|(i, _)| !self.is_fit(*i))
+            .filter(|(i, _)| self.is_held(*i))
             .map(|(_, &v)| v)
             .collect()
     }

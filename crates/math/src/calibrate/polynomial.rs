@@ -145,8 +145,8 @@ impl Sweep {
         'orders: for p in 2..=MAX_ORDER {
             let (mut total, mut all_rise) = (0.0, true);
             for held in [0, 2, 4] {
-                let train = |i: usize| matches!(part(i), 0 | 2 | 4) && part(i) != held;
-                let check = |i: usize| part(i) == held;
+                let train = |i: usize| m.is_fit(i) && part(i) != held;
+                let check = |i: usize| part(i) == held && m.is_fit(i);
                 let Some((b, ..)) = solve(&self.cols, z, p, &train) else {
                     continue 'orders;
                 };

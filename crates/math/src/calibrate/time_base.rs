@@ -79,7 +79,7 @@ fn jackknife_sd(m: &Model, z: &[f64], e: f64, tau: f64, centre: f64) -> f64 {
     let mut parts = Vec::with_capacity(blocks.len());
     for b in &blocks {
         let (mut a, mut s) = (Matrix3::<f64>::zeros(), Vector3::<f64>::zeros());
-        for i in b.clone() {
+        for i in b.clone().filter(|&i| m.is_fit(i)) {
             let j = Vector3::new(
                 g * (ep[i] - em[i]) / (2.0 * he),
                 g * (tp[i] - tm[i]) / (2.0 * ht),

@@ -108,6 +108,36 @@ pub(super) fn level_dependent(m: &Model, z: &[f64], t: &[f64]) -> Vec<(usize, f6
         .collect()
 }
 
+/// The samples of a recording of `n` where the sweep stood in the
+/// `level` bins ([`level_dependent`]): every sample of each STFT frame of
+/// the target `t` whose reference is a tone (as there) with its strongest
+/// bin within one of a level-dependent one. What the object did there
+/// held only at the sweep's level, so every fit and the held-out score
+/// leave it out ([`Model::skip`]); empty when no bin is.
+pub(super) fn level_stretch(m: &Model, t: &[f64], level: &[(usize, f64, f64)]) -> Vec<bool> {
+    if level.is_empty() {
+        return Vec::new();
+    }
+    let nfft = stft_len(m.fs);
+    let df = m.fs / nfft as f64;
+    let mut skip = vec![false; t.len()];
+    for (i, b) in stft(t, nfft).iter().enumerate() {
+        let (k0, pref, _) = dominant(b, df);
+        let total: f64 = b.iter().map(|c| c.norm_sqr()).sum();
+        let tone: f64 = b
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| k.abs_diff(k0) <= 2)
+            .map(|(_, c)| c.norm_sqr())
+            .sum();
+        if pref > 0.0 && tone >= 0.5 * total && level.iter().any(|l| l.0.abs_diff(k0) <= 1) {
+            let start = i * nfft / 2;
+            skip[start..(start + nfft).min(t.len())].fill(true);
+        }
+    }
+    skip
+}
+
 /// Per STFT bin: Σ|Z| P, Σ|T| P, Σ P (P the reference's short-time power)
 /// and the cross-spectrum Σ Z T* sign(g), over some frames.
 #[derive(Clone)]
