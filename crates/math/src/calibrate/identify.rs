@@ -156,13 +156,17 @@ fn separating_reference(a: EffectKind, b: EffectKind) -> &'static str {
     }
 }
 
+/// The held-out SNR (dB) of the recovery `y` with the corrections of
+/// `kept` applied, the linear model refitted.
+fn held_snr(m: &Model, y: &[f64], kept: &[Kept]) -> f64 {
+    let z = apply_all(&chain(kept), y, m.fs);
+    m.errors(&z, &m.fit_linear(&z)).snr_db
+}
+
 /// Refits each kept parametric effect with the others applied (twice over
 /// the list), keeping a refit only when the held-out SNR does not fall.
 pub(super) fn refit(m: &Model, y: &[f64], kept: &mut [Kept]) -> f64 {
-    let snr = |kept: &[Kept]| {
-        let z = apply_all(&chain(kept), y, m.fs);
-        m.errors(&z, &m.fit_linear(&z)).snr_db
-    };
+    let snr = |kept: &[Kept]| held_snr(m, y, kept);
     let mut cur = snr(kept);
     for _ in 0..2 {
         for i in 0..kept.len() {
@@ -206,10 +210,7 @@ pub(super) fn let_go(
     kept: &mut Vec<Kept>,
     min_gain_db: f64,
 ) -> Vec<(Kept, f64)> {
-    let snr = |ks: &[Kept]| {
-        let z = apply_all(&chain(ks), y, m.fs);
-        m.errors(&z, &m.fit_linear(&z)).snr_db
-    };
+    let snr = |ks: &[Kept]| held_snr(m, y, ks);
     let settle = |ks: &mut Vec<Kept>| {
         if ks.len() > 1 {
             refit(m, y, ks);

@@ -92,13 +92,18 @@ impl Model<'_> {
     /// out (60% / 40%, interleaved, so both parts see every frequency of a
     /// sweep and every stretch of a drift).
     pub(super) fn is_fit(&self, i: usize) -> bool {
-        !matches!((i / stft_len(self.fs)) % 5, 1 | 3) && !self.skipped(i)
+        !self.held_block(i) && !self.skipped(i)
     }
 
     /// Whether sample `i` is in the held-out part (neither fitted nor
     /// left out).
     pub(super) fn is_held(&self, i: usize) -> bool {
-        matches!((i / stft_len(self.fs)) % 5, 1 | 3) && !self.skipped(i)
+        self.held_block(i) && !self.skipped(i)
+    }
+
+    /// Whether sample `i` lies in a held-out block (1 or 3 of every five).
+    fn held_block(&self, i: usize) -> bool {
+        matches!((i / stft_len(self.fs)) % 5, 1 | 3)
     }
 
     /// Whether sample `i` is left out of every fit and score

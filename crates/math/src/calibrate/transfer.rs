@@ -62,13 +62,10 @@ pub(super) fn level_dependent(m: &Model, z: &[f64], t: &[f64]) -> Vec<(usize, f6
         if !m.is_fit(i * nfft / 2 + nfft / 2) {
             continue;
         }
-        let (k0, pref, f0) = dominant(b, df);
-        let total: f64 = b.iter().map(|c| c.norm_sqr()).sum();
-        let near = |k: usize| k.abs_diff(k0) <= 2;
-        let tone: f64 = (0..nb).filter(|&k| near(k)).map(|k| b[k].norm_sqr()).sum();
-        if !(pref > 0.0 && tone >= 0.5 * total) {
+        let Some((k0, pref, f0)) = tone(b, df) else {
             continue;
-        }
+        };
+        let near = |k: usize| k.abs_diff(k0) <= 2;
         let fund: f64 = (0..nb)
             .filter(|&k| k.abs_diff(k0) <= 1)
             .map(|k| a[k].norm_sqr())
@@ -110,7 +107,7 @@ pub(super) fn level_dependent(m: &Model, z: &[f64], t: &[f64]) -> Vec<(usize, f6
 
 /// The samples of a recording of `n` where the sweep stood in the
 /// `level` bins ([`level_dependent`]): every sample of each STFT frame of
-/// the target `t` whose reference is a tone (as there) with its strongest
+/// the target `t` whose reference is a tone ([`tone`]) with its strongest
 /// bin within one of a level-dependent one. What the object did there
 /// held only at the sweep's level, so every fit and the held-out score
 /// leave it out ([`Model::skip`]); empty when no bin is.
@@ -122,20 +119,31 @@ pub(super) fn level_stretch(m: &Model, t: &[f64], level: &[(usize, f64, f64)]) -
     let df = m.fs / nfft as f64;
     let mut skip = vec![false; t.len()];
     for (i, b) in stft(t, nfft).iter().enumerate() {
-        let (k0, pref, _) = dominant(b, df);
-        let total: f64 = b.iter().map(|c| c.norm_sqr()).sum();
-        let tone: f64 = b
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| k.abs_diff(k0) <= 2)
-            .map(|(_, c)| c.norm_sqr())
-            .sum();
-        if pref > 0.0 && tone >= 0.5 * total && level.iter().any(|l| l.0.abs_diff(k0) <= 1) {
+        let Some((k0, ..)) = tone(b, df) else {
+            continue;
+        };
+        if level.iter().any(|l| l.0.abs_diff(k0) <= 1) {
             let start = i * nfft / 2;
             skip[start..(start + nfft).min(t.len())].fill(true);
         }
     }
     skip
+}
+
+/// A frame's tone: its strongest bin, that bin's power and its refined
+/// frequency ([`dominant`]), where the strongest bin and the two either
+/// side hold half the frame's power; `None` where they do not (the frame
+/// is not a tone).
+fn tone(b: &[Complex<f64>], df: f64) -> Option<(usize, f64, f64)> {
+    let (k0, pref, f0) = dominant(b, df);
+    let total: f64 = b.iter().map(|c| c.norm_sqr()).sum();
+    let near: f64 = b
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| k.abs_diff(k0) <= 2)
+        .map(|(_, c)| c.norm_sqr())
+        .sum();
+    (pref > 0.0 && near >= 0.5 * total).then_some((k0, pref, f0))
 }
 
 /// Per STFT bin: Σ|Z| P, Σ|T| P, Σ P (P the reference's short-time power)
