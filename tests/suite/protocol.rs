@@ -1881,8 +1881,8 @@ fn fresh_interference_triple() {
 fn fresh_resonance_dip() {
     let Some(o) = fresh(
         "resonance_dip",
-        Some("first run (session 53): -6.18 dB; session 55, the chirp's calibration the dip's: -3.86 dB (its inverse boosts the speech's content folded from above 1100 Hz)"),
-        Some("first run (session 53): -6.18 dB of the 16.14 dB it costs; session 55: -3.86 dB"),
+        Some("first run (session 53): -6.18 dB; session 55, the chirp's calibration the dip's: -3.86 dB (its inverse boosts the speech's content folded from above 1100 Hz); session 65, its 1.3 sd clock error let go and a 3.4 sd one (-116 ppm) taken in its place by the phase judgement: -7.13 dB"),
+        Some("first run (session 53): -6.18 dB of the 16.14 dB it costs; session 55: -3.86 dB; session 65: -7.13 dB"),
     ) else {
         return;
     };
@@ -2146,14 +2146,15 @@ fn eleventh_one_sided_at_resonance() {
 fn eleventh_stiffening_at_resonance() {
     let _ = eleventh("stiffening_at_resonance", 400.0, None, None);
 }
+/// First run (session 63): +0.00 dB. Session 64 (the level-dependent
+/// stretch left out of every fit): -0.97 dB (12.09 -> 11.13), soft_clip
+/// and a -35 ppm time_base kept (the resonance's phase on either side of
+/// the stretch left out read as a clock error), the transfer bar missed.
+/// Session 65 (an effect within three standard deviations of none let
+/// go; the clock error stood at 2.8): soft_clip alone, +0.00 dB, met.
 #[test]
 fn twelfth_fold_low_resonance() {
-    let _ = twelfth(
-        "fold_low_resonance",
-        &[200.0],
-        Some("first run (session 63): +0.00 dB; since session 64 (the level-dependent stretch left out of every fit): -0.97 dB (12.09 -> 11.13) of the 14.11 dB it costs, soft_clip and time_base (-35 ppm) kept: the resonance's phase on either side of the stretch left out reads as a clock error"),
-        None,
-    );
+    let _ = twelfth("fold_low_resonance", &[200.0], None, None);
 }
 #[test]
 fn twelfth_compress_two_resonances() {

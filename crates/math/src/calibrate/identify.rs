@@ -254,6 +254,49 @@ pub(super) fn let_go(
     out
 }
 
+/// How many standard deviations from its neutral value a kept effect's
+/// main parameter must lie for the effect to be told from none.
+pub(super) const SIGNIFICANT_SD: f64 = 3.0;
+
+/// Kept effects whose main parameter lies within [`SIGNIFICANT_SD`]
+/// standard deviations of its neutral value (a clock error, an exposure, a
+/// transfer function's `k` or a drift that the recording cannot tell from
+/// none; not a polynomial, whose square term is zero for an odd response)
+/// are let go, the least significant first, the rest refitted each time:
+/// what such an effect gains held out is the noise of this recording,
+/// and on the next one it is an error. Returns each with its distance from
+/// neutral in standard deviations and the held-out SNR lost without it.
+pub(super) fn insignificant(m: &Model, y: &[f64], kept: &mut Vec<Kept>) -> Vec<(Kept, f64, f64)> {
+    let mut out = Vec::new();
+    loop {
+        let z = apply_all(&chain(kept), y, m.fs);
+        let g = m.fit_linear(&z).g;
+        let Some((i, d)) = kept
+            .iter()
+            .enumerate()
+            .filter_map(|(i, k)| {
+                let kind = k.c.correction.kind();
+                if kind == EffectKind::Polynomial {
+                    return None;
+                }
+                let (_, v, sd) = main_parameter(&k.c.correction, &k.c.uncertainty, g)?;
+                let d = (v - neutral(kind)?).abs() / sd;
+                (sd > 0.0 && d.is_finite() && d < SIGNIFICANT_SD).then_some((i, d))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            break;
+        };
+        let before = held_snr(m, y, kept);
+        let k = kept.remove(i);
+        if kept.len() > 1 {
+            refit(m, y, kept);
+        }
+        out.push((k, d, before - held_snr(m, y, kept)));
+    }
+    out
+}
+
 /// The value a main parameter has when its effect is absent (no clock
 /// error, no exposure, no equalising, no square term, no drift); `None`
 /// where absence is not a value (a saturation level).

@@ -43,7 +43,9 @@
 //! time base). When more than one effect is kept, each one's reported gain
 //! is what the held-out SNR loses without it, and one that loses less
 //! than [`Options::min_gain_db`] with the others refitted is let go
-//! ([`identify`]).
+//! ([`identify`]); so is one whose main parameter (a clock error, an
+//! exposure, a transfer function's `k`, a drift) lies within three of its
+//! standard deviations of none (since session 65).
 //!
 //! Where a sweep drives the object into its nonlinear range at some
 //! frequencies (the transfer family's level-dependent bins), the stretch
@@ -662,8 +664,19 @@ pub fn calibrate_with(
         cur = m.errors(&z, &fit);
     }
     // Every kept effect must still earn its place with the others in
-    // place (identify::let_go).
-    let gone = identify::let_go(&m, y, &mut kept, opts.min_gain_db);
+    // place (identify::let_go), and be told from none by its own
+    // uncertainty (identify::insignificant).
+    let mut gone = identify::let_go(&m, y, &mut kept, opts.min_gain_db);
+    for (k, sds, loss) in identify::insignificant(&m, y, &mut kept) {
+        tracing::info!(
+            effect = k.c.correction.kind().name(),
+            sds,
+            loss_db = loss,
+            "let go: within {} standard deviations of none",
+            identify::SIGNIFICANT_SD
+        );
+        gone.push((k, loss));
+    }
     if !gone.is_empty() {
         for (k, loss) in gone {
             rejected.push(Rejected {

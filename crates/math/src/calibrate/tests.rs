@@ -1201,3 +1201,45 @@ fn an_effect_another_explains_is_let_go() {
         gone.iter().map(|g| g.1).collect::<Vec<_>>()
     );
 }
+
+/// Issue 50 (session 65): a kept effect whose main parameter the
+/// recording cannot tell from none (an exposure of 0.2 ms with a standard
+/// deviation of 0.1 ms, 2 sd) is let go beside a clock error of 3000 ppm
+/// (hundreds of sd), which stays; the same exposure known to 20 µs (10
+/// sd) stays too.
+#[test]
+fn an_effect_the_recording_cannot_tell_from_none_is_let_go() {
+    let fr = 8000.0;
+    let r = chirp(fr, 2.0, 100.0, 1000.0);
+    let o = opts();
+    let m = strip_model(&r, &o);
+    let y = noisy(&m.target(4400, 0, 0.0, 3000.0), 4);
+    let fit = m.fit_linear(&y);
+    let clock = super::time_base::fit_time_base(&m, &y, &fit).unwrap();
+    let kept_with = |exposure_us: f64| -> Vec<Kept> {
+        vec![
+            Kept {
+                c: Candidate {
+                    correction: Correction::Exposure { exposure_s: 0.2e-3 },
+                    uncertainty: Uncertainty::Exposure { exposure_us },
+                },
+                gain: 1.0,
+                evidence: Vec::new(),
+            },
+            Kept {
+                c: clock.clone(),
+                gain: 20.0,
+                evidence: Vec::new(),
+            },
+        ]
+    };
+    let mut kept = kept_with(100.0);
+    let gone = super::identify::insignificant(&m, &y, &mut kept);
+    assert_eq!(kept.len(), 1);
+    assert_eq!(kept[0].c.correction.kind().name(), "time_base");
+    assert_eq!(gone.len(), 1);
+    assert!((gone[0].1 - 2.0).abs() < 1e-9, "{}", gone[0].1);
+    let mut kept = kept_with(20.0);
+    assert!(super::identify::insignificant(&m, &y, &mut kept).is_empty());
+    assert_eq!(kept.len(), 2);
+}
