@@ -20,9 +20,12 @@ use vibroscope::pipeline::RunSettings;
 /// what is left with the recording's own observables (the motion and
 /// intensity of tiles of the frame around the region: the camera or its
 /// mount, another vibrating thing in view, the light), kept by the same
-/// held-out test and named by their likely cause (per recording: not
-/// applied by `listen --calibration`). Report the errors before and after
-/// and the residual nothing explains.
+/// held-out test and named by their likely cause (`listen --calibration`
+/// measures each again on the new recording and subtracts it: fitted
+/// there when it does not follow the reference, through its stored FIR
+/// when it is a tile's motion that does; a tile's brightness or a
+/// sensor's line that follows the reference is left out, and said).
+/// Report the errors before and after and the residual nothing explains.
 #[derive(clap::Args)]
 #[command(after_help = "Examples:\n  \
     vibroscope calibrate chirp.y4m --reference chirp.wav --json report.json -o corrected.wav\n  \

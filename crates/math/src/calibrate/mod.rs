@@ -277,8 +277,11 @@ pub struct Report {
     pub confounded: Vec<Confound>,
     /// What the residual explainer found in the recording's own
     /// observables after the catalog ([`explain`]): each kept covariate
-    /// with its likely cause. Per recording: not applied by
-    /// `listen --calibration`.
+    /// with its likely cause. `listen --calibration` measures each term's
+    /// observable again on the new recording and subtracts it (fitted
+    /// there, or through its stored taps for a tile's motion that follows
+    /// the reference; a tile's brightness or a line that follows it is
+    /// left out).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub explained: Vec<Explanation>,
     /// The recovery against the region's motion in pixels ([`PixelFrame`]),
