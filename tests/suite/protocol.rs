@@ -487,7 +487,9 @@ const FOURTH: [Case; 4] = [
 /// reported as they come, under [`fresh`]'s rules. First run (session
 /// 55): all four meet both bars (speech +11.76, +5.32, +3.57, +5.27 dB);
 /// `resonance_and_drift` keeps no drift, `dip_and_clock` a false
-/// `explained:light` beside its time base and transfer function. With
+/// `explained:light` beside its time base and transfer function (a tile's
+/// brightness inside the region that follows the reference: named
+/// `explained:object` since session 65, and not carried). With
 /// the minimum-phase judgement switched off (a temporary edit), every
 /// figure is the same: no confound of this set is decided by it.
 const FIFTH: [Case; 4] = [

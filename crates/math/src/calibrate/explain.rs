@@ -251,7 +251,9 @@ pub struct Explanation {
     pub inside_region: bool,
     /// What it most likely is, in words.
     pub label: String,
-    /// The physical cause: `camera`, `other_object`, `light`, `sensor_rows`.
+    /// The physical cause: `camera`, `other_object`, `light`, `sensor_rows`,
+    /// `sensor_columns`, or `object` (a tile's brightness inside the region
+    /// that follows the reference: the object's own motion through its texture).
     pub cause: &'static str,
     /// Where the cause is seen: the rectangle holding the tiles that move
     /// or brighten with it.
@@ -681,6 +683,25 @@ pub(super) fn explain(
                     label(cov, (&covs[..singles], &observed), fs, hp),
                     follows_reference(&apply_all(&lin, &c.xs[0], fs), &fit.t, &dot, &held_energy),
                 ),
+            };
+            // A tile's brightness inside the region that follows the
+            // reference is the object's own motion, turned into
+            // brightness by the texture under the tile (issue 50, session
+            // 65: on `square_at_resonance` it was named the light).
+            let (cause, label) = if cov.observable == Observable::Intensity
+                && cov.inside
+                && follows >= FOLLOWS_SHARE
+            {
+                let [x, y, w, h] = cov.rect;
+                (
+                    "object",
+                    format!(
+                        "the object's own motion, seen in the brightness of [{x}, {y}, {w}, {h}] inside the region (the texture there turns motion into brightness): the reference explains {:.0}% of it, so it is the object's response beyond what the corrections model (its nonlinearity, say), read through that tile's texture, which another recording of another texture or light does not share",
+                        100.0 * follows
+                    ),
+                )
+            } else {
+                (cause, label)
             };
             Explanation {
                 observable: cov.observable,
