@@ -327,12 +327,12 @@ pub fn apply_observed(
     // Carried through its stored taps: only a tile's motion, which is in
     // pixels. A line's weights belong to each reference frame of the
     // recording they were fitted on; a tile's brightness that follows the
-    // reference is the object's motion seen through the texture under
-    // that tile, in DN per pixel of motion that another texture (or the
-    // same one lit otherwise) does not share (issue 50, session 65: on
-    // the protocol's `square_at_resonance`, such a term subtracted through
-    // its taps took the speech from 20.71 to 5.22 dB). Either is carried
-    // only where fitted again here.
+    // reference is motion (inside the region, the object's own) seen
+    // through the texture under that tile, in DN per pixel of motion that
+    // another texture (or the same one lit otherwise) does not share
+    // (issue 50, session 65: on the protocol's `square_at_resonance`, such
+    // a term subtracted through its taps took the speech from 20.71 to
+    // 5.22 dB). Either is carried only where fitted again here.
     let (terms, stranded): (Vec<&cal::StoredTerm>, Vec<&cal::StoredTerm>) = terms
         .iter()
         .partition(|t| t.refit || t.observable.is_motion());
@@ -411,7 +411,7 @@ pub fn apply_observed(
     }
     if stranded.len() > lines {
         note.push_str(&format!(
-            "; {} explained term(s) of a tile's brightness left out: their observables follow the calibration's reference, so they are the object's motion seen through the texture under the tile, and their taps (DN per pixel of motion) belong to the calibration's recording's texture and light",
+            "; {} explained term(s) of a tile's brightness left out: their observables follow the calibration's reference, so they are motion (the object's own, inside the region) seen through the texture under the tile, and their taps (DN per pixel of motion) belong to the calibration's recording's texture and light",
             stranded.len() - lines
         ));
     }
