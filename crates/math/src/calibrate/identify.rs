@@ -270,7 +270,7 @@ pub(super) fn insignificant(m: &Model, y: &[f64], kept: &mut Vec<Kept>) -> Vec<(
     let mut out = Vec::new();
     loop {
         let z = apply_all(&chain(kept), y, m.fs);
-        let g = m.fit_linear(&z).g;
+        let fit = m.fit_linear(&z);
         let Some((i, d)) = kept
             .iter()
             .enumerate()
@@ -279,7 +279,7 @@ pub(super) fn insignificant(m: &Model, y: &[f64], kept: &mut Vec<Kept>) -> Vec<(
                 if kind == EffectKind::Polynomial {
                     return None;
                 }
-                let (_, v, sd) = main_parameter(&k.c.correction, &k.c.uncertainty, g)?;
+                let (_, v, sd) = main_parameter(&k.c.correction, &k.c.uncertainty, fit.g)?;
                 let d = (v - neutral(kind)?).abs() / sd;
                 (sd > 0.0 && d.is_finite() && d < SIGNIFICANT_SD).then_some((i, d))
             })
@@ -287,7 +287,8 @@ pub(super) fn insignificant(m: &Model, y: &[f64], kept: &mut Vec<Kept>) -> Vec<(
         else {
             break;
         };
-        let before = held_snr(m, y, kept);
+        // The held-out SNR with it: `held_snr` of the set, from the fit above.
+        let before = m.errors(&z, &fit).snr_db;
         let k = kept.remove(i);
         if kept.len() > 1 {
             refit(m, y, kept);
