@@ -155,7 +155,7 @@ pub(super) fn unexplained(m: &Model, z: &[f64], fit: &Fit) -> Vec<Unexplained> {
             harmonics_db,
             max_error_db: worst,
             description: format!(
-                "the gain at {where_} holds only at the sweep's level: there the recovery's harmonics reach {top:+.1} dB against its fundamental, a gain error of up to {worst:.1} dB beyond the rest of the band's; the object's response is in its nonlinear range at those frequencies (a resonance driving it into saturation or past a fold), and no linear gain measured at one level carries to a recording at another, so {left}a transfer table fitted on this sweep interpolates those frequencies from their neighbours, and nothing here corrects them; sweep at a lower level to measure them"
+                "the gain at {where_} holds only at the sweep's level: there the recovery's harmonics reach {top:+.1} dB against its fundamental, a gain error of up to {worst:.1} dB beyond the rest of the band's; the object's response is in its nonlinear range at those frequencies (a resonance driving it into saturation or past a fold), and no linear gain measured at one level carries to a recording at another, so {left}a transfer table fitted on this sweep holds the rest of the band's gain there (its phase interpolated from their neighbours), and nothing here corrects them; sweep at a lower level to measure them"
             ),
         });
     }

@@ -252,9 +252,18 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
         let b = valid.iter().rposition(|&k| ok(k)).map_or(0, |b| b + 1);
         valid[a..b.max(a)].to_vec()
     };
-    // The bins whose gain holds only at the sweep's level are left out
-    // (interpolated between their neighbours, as low-power bins are).
+    // The bins whose gain holds only at the sweep's level are not
+    // measured here: the stretch of the sweep spent within a bin of them
+    // is left out of the fit, so they and their neighbours hold little of
+    // the reference's power, if any. Those within the table are put back
+    // below with the band's own gain.
     let valid: Vec<usize> = valid.into_iter().filter(|k| !skip.contains(k)).collect();
+    let level: Vec<usize> = match (valid.first(), valid.last()) {
+        (Some(&a), Some(&b)) => (a + 1..b)
+            .filter(|k| !valid.contains(k) && skip.iter().any(|s| s.abs_diff(*k) <= 1))
+            .collect(),
+        _ => Vec::new(),
+    };
     let raw: Vec<f64> = valid
         .iter()
         .map(|&k| 20.0 * (num[k] / den[k] / g).max(1e-12).log10())
@@ -270,11 +279,41 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
             c.arg().to_degrees()
         })
         .collect();
-    let freqs = valid
+    let freqs: Vec<f64> = valid
         .iter()
         .map(|&k| k as f64 * m.fs / nfft as f64)
         .collect();
-    (freqs, smooth, phase)
+    if level.is_empty() || freqs.is_empty() {
+        return (freqs, smooth, phase);
+    }
+    // A bin whose gain holds only at the sweep's level holds the band's
+    // median gain: the sweep measured there a gain the object has at no
+    // other level (compressed, or past a fold), and an interpolation
+    // from its neighbours, themselves part-way into the compression,
+    // claims a gain nobody measured. Neither is boosted nor cut; its phase
+    // is interpolated from its neighbours (past a fold the fundamental's
+    // phase turns over too, so the bin's own is not read).
+    let neutral = {
+        let mut c = smooth.clone();
+        median(&mut c)
+    };
+    let mut rows: Vec<(f64, f64, f64)> = freqs
+        .iter()
+        .zip(&smooth)
+        .zip(&phase)
+        .map(|((&f, &c), &p)| (f, c, p))
+        .collect();
+    for k in level {
+        let f = k as f64 * m.fs / nfft as f64;
+        let p = super::correction::interp_held(&freqs, &phase, f);
+        rows.push((f, neutral, p));
+    }
+    rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+    (
+        rows.iter().map(|r| r.0).collect(),
+        rows.iter().map(|r| r.1).collect(),
+        rows.iter().map(|r| r.2).collect(),
+    )
 }
 
 /// The delete-one-block jackknife's standard deviations of [`peak`]'s
