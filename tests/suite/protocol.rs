@@ -51,7 +51,9 @@
 //! nonlinear range), [`TWELFTH`] (session 63, more of them, written for a
 //! change that was not kept and first run on the code as kept),
 //! [`THIRTEENTH`] (session 64, more of them, for a change that leaves the
-//! sweep's level-dependent stretch out of every linear fit).
+//! sweep's level-dependent stretch out of every linear fit), [`FOURTEENTH`]
+//! (session 67, linear responses at the top of the sweep and above it,
+//! for a change to the transfer table's upper end and phase).
 //!
 //! The catalog's families outside that set ([`FAMILIES`]: dropped frames,
 //! the gain's drift, the region's gain) are held to the transfer bar only,
@@ -888,6 +890,58 @@ const THIRTEENTH: [Case; 5] = [
     ),
 ];
 
+/// The fourteenth held-out set (session 67), written down and committed
+/// before any of it was run, for a change to the transfer table's upper
+/// end and phase: above the highest frequency the sweep reached, the
+/// table returns to the band's median gain (it held the last row's value,
+/// a resonance's or a dip's, up to the Nyquist frequency), and its phase
+/// carries no pure delay (designed on `resonance_dip`, looked at since
+/// session 53, and the transfer tables of the sets before). Six linear
+/// responses on the `Object` scene, at or beyond the top of the sweep
+/// (the chirp's recording reaches about 870 Hz of its 1000 Hz) or broad
+/// enough to reach it: a dip and a resonance near the top, a dip and a
+/// resonance above it, a resonance low with a dip near the top, and a
+/// broad dip high in the band. Figures reported as they come, under
+/// [`fresh`]'s rules.
+const FOURTEENTH: [Case; 6] = [
+    case(
+        "dip_near_top",
+        Scene::Object,
+        "resonances = [{ freq_hz = 860.0, q = 3.0, gain_db = -8.0 }]",
+        "resonances = [{ freq_hz = 860.0, q = 3.0, gain_db = -8.0 }]",
+    ),
+    case(
+        "resonance_near_top",
+        Scene::Object,
+        "resonances = [{ freq_hz = 880.0, q = 4.0, gain_db = 6.0 }]",
+        "resonances = [{ freq_hz = 880.0, q = 4.0, gain_db = 6.0 }]",
+    ),
+    case(
+        "dip_above_sweep",
+        Scene::Object,
+        "resonances = [{ freq_hz = 1000.0, q = 2.0, gain_db = -8.0 }]",
+        "resonances = [{ freq_hz = 1000.0, q = 2.0, gain_db = -8.0 }]",
+    ),
+    case(
+        "resonance_above_sweep",
+        Scene::Object,
+        "resonances = [{ freq_hz = 980.0, q = 3.0, gain_db = 6.0 }]",
+        "resonances = [{ freq_hz = 980.0, q = 3.0, gain_db = 6.0 }]",
+    ),
+    case(
+        "resonance_low_dip_top",
+        Scene::Object,
+        "resonances = [{ freq_hz = 350.0, q = 4.0, gain_db = 6.0 }, { freq_hz = 820.0, q = 3.0, gain_db = -6.0 }]",
+        "resonances = [{ freq_hz = 350.0, q = 4.0, gain_db = 6.0 }, { freq_hz = 820.0, q = 3.0, gain_db = -6.0 }]",
+    ),
+    case(
+        "broad_dip_high",
+        Scene::Object,
+        "resonances = [{ freq_hz = 720.0, q = 1.5, gain_db = -8.0 }]",
+        "resonances = [{ freq_hz = 720.0, q = 1.5, gain_db = -8.0 }]",
+    ),
+];
+
 /// The catalog's other families, outside the protocol's set (they were
 /// designed on these scenes): only the transfer bar. Dropped frames and
 /// the gain's drift belong to one recording and are left out by `listen
@@ -1269,6 +1323,11 @@ fn twelfth(
     words_case(&TWELFTH, name, transfer_short, |o| {
         gain_or_level_named(name, o, at_hz, short)
     })
+}
+
+/// A case of the fourteenth held-out set, under [`fresh`]'s rules.
+fn fourteenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
+    unseen(&FOURTEENTH, name, transfer_short, short)
 }
 
 /// A case of the thirteenth held-out set, under the eleventh's rule.
@@ -2247,4 +2306,28 @@ fn thirteenth_quintic_low_resonance() {
 #[test]
 fn thirteenth_fold_at_resonance_small_object() {
     let _ = thirteenth("fold_at_resonance_small_object", &[420.0], None);
+}
+#[test]
+fn fourteenth_dip_near_top() {
+    let _ = fourteenth("dip_near_top", None, None);
+}
+#[test]
+fn fourteenth_resonance_near_top() {
+    let _ = fourteenth("resonance_near_top", None, None);
+}
+#[test]
+fn fourteenth_dip_above_sweep() {
+    let _ = fourteenth("dip_above_sweep", None, None);
+}
+#[test]
+fn fourteenth_resonance_above_sweep() {
+    let _ = fourteenth("resonance_above_sweep", None, None);
+}
+#[test]
+fn fourteenth_resonance_low_dip_top() {
+    let _ = fourteenth("resonance_low_dip_top", None, None);
+}
+#[test]
+fn fourteenth_broad_dip_high() {
+    let _ = fourteenth("broad_dip_high", None, None);
 }
