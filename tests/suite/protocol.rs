@@ -902,7 +902,17 @@ const THIRTEENTH: [Case; 5] = [
 /// enough to reach it: a dip and a resonance near the top, a dip and a
 /// resonance above it, a resonance low with a dip near the top, and a
 /// broad dip high in the band. Figures reported as they come, under
-/// [`fresh`]'s rules.
+/// [`fresh`]'s rules. First run (session 67, on the change as first
+/// written: the table returned to the median from the last bin of the fit
+/// frames): +1.34, +4.85, +0.00, -0.21, +8.78, +6.30 dB, every case
+/// meeting the transfer bar; the gain bar met by three and missed by the
+/// dip near the top and by both effects above the sweep's band, which no
+/// measurement on this sweep reaches. The change was then moved (the
+/// table holds its last row to the last bin the sweep reaches over the
+/// whole recording; the chirp's own held-out score had dropped by up to
+/// 12 dB on cases of earlier sets, whose held-out frames at the sweep's
+/// end lie above the fit frames' last bin), with this set seen: +2.51,
+/// +4.98, -0.09, -0.20, +8.52, +6.18 dB (not held-out figures).
 const FOURTEENTH: [Case; 6] = [
     case(
         "dip_near_top",
@@ -1950,15 +1960,20 @@ fn fresh_interference_triple() {
 /// first and the table refitted on top judged 0.9 dB better with the
 /// tables' phases made from their gains, and kept: -7.13 dB; the
 /// explainer's brightness term no longer carried: -7.43 dB.
+/// Session 67: the table's phase held a delay of about 80 µs (the dip's
+/// group delay had biased the linear model's lag on the sweep), which
+/// shifts the speech's content folded from above 1100 Hz as though it
+/// were in band, and its last row (the dip's -6.2 dB at 851 Hz) held up
+/// to the Nyquist frequency. The table now returns to the band's median
+/// gain above the sweep and its phase carries no pure delay: no clock
+/// error is kept (transfer_function alone), +3.13 dB, both bars met (not
+/// a held-out figure: designed on this case).
 #[test]
 fn fresh_resonance_dip() {
-    let Some(o) = fresh(
-        "resonance_dip",
-        Some("first run (session 53): -6.18 dB; session 55, the chirp's calibration the dip's: -3.86 dB (its inverse boosts the speech's content folded from above 1100 Hz); session 65, its 1.3 sd clock error let go and a 3.4 sd one (-116 ppm) taken in its place by the phase judgement: -7.13 dB; its brightness term no longer carried: -7.43 dB"),
-        Some("first run (session 53): -6.18 dB of the 16.14 dB it costs; session 55: -3.86 dB; session 65: -7.43 dB"),
-    ) else {
+    let Some(o) = fresh("resonance_dip", None, None) else {
         return;
     };
+    assert!(!o.kept.contains("time_base"), "kept {}", o.kept);
     // The gain drift that took the dip before is judged out by the phase.
     assert!(!o.kept.contains("gain_drift"), "kept {}", o.kept);
     assert!(
@@ -2307,21 +2322,47 @@ fn thirteenth_quintic_low_resonance() {
 fn thirteenth_fold_at_resonance_small_object() {
     let _ = thirteenth("fold_at_resonance_small_object", &[420.0], None);
 }
+/// First run: +1.34 dB of the 12.79 dB it costs (transfer_function,
+/// exposure and explained:object kept), on the change as first written
+/// (the table returned to the median from the fit frames' last bin, 868
+/// Hz). On the change as kept (from the last bin the sweep reaches over
+/// the whole recording; this set had been seen by then): +2.51 dB.
 #[test]
 fn fourteenth_dip_near_top() {
-    let _ = fourteenth("dip_near_top", None, None);
+    let _ = fourteenth(
+        "dip_near_top",
+        None,
+        Some("first run (session 67): +1.34 dB of the 12.79 dB it costs; on the change as kept: +2.51 dB"),
+    );
 }
 #[test]
 fn fourteenth_resonance_near_top() {
     let _ = fourteenth("resonance_near_top", None, None);
 }
+/// First run: +0.00 dB of the 13.28 dB it costs (gain_drift kept, which
+/// `listen --calibration` does not carry; no table). The dip (1000 Hz)
+/// lies above the highest frequency the sweep reaches (about 920 Hz on
+/// this recording): nothing measured it. On the change as kept: -0.09 dB
+/// (a table kept beside the drift).
 #[test]
 fn fourteenth_dip_above_sweep() {
-    let _ = fourteenth("dip_above_sweep", None, None);
+    let _ = fourteenth(
+        "dip_above_sweep",
+        None,
+        Some("first run (session 67): +0.00 dB of the 13.28 dB it costs (the dip lies above the sweep's band); on the change as kept: -0.09 dB"),
+    );
 }
+/// First run: -0.21 dB of the 11.55 dB it costs (gain_drift and
+/// transfer_function kept). The resonance (980 Hz) lies above the
+/// highest frequency the sweep reaches: nothing measured it. On the
+/// change as kept: -0.20 dB.
 #[test]
 fn fourteenth_resonance_above_sweep() {
-    let _ = fourteenth("resonance_above_sweep", None, None);
+    let _ = fourteenth(
+        "resonance_above_sweep",
+        None,
+        Some("first run (session 67): -0.21 dB of the 11.55 dB it costs (the resonance lies above the sweep's band); on the change as kept: -0.20 dB"),
+    );
 }
 #[test]
 fn fourteenth_resonance_low_dip_top() {

@@ -1000,21 +1000,7 @@ fn a_gain_that_holds_only_at_the_sweeps_level_is_left_out_of_the_table() {
         if !on {
             return x.to_vec();
         }
-        let (a, w0) = (10f64.powf(8.0 / 40.0), 2.0 * PI * 400.0 / fs);
-        let alpha = w0.sin() / (2.0 * 3.0);
-        let (b, d) = (
-            [1.0 + alpha * a, -2.0 * w0.cos(), 1.0 - alpha * a],
-            [1.0 + alpha / a, -2.0 * w0.cos(), 1.0 - alpha / a],
-        );
-        let (mut s1, mut s2) = (0.0, 0.0);
-        x.iter()
-            .map(|&u| {
-                let y = (b[0] * u + s1) / d[0];
-                s1 = (b[1] * u - d[1] * y) + s2;
-                s2 = b[2] * u - d[2] * y;
-                y
-            })
-            .collect()
+        peaking(x, fs, 400.0, 3.0, 8.0)
     };
     let o = Options {
         effects: vec![EffectKind::Transfer],
@@ -1253,4 +1239,91 @@ fn an_effect_the_recording_cannot_tell_from_none_is_let_go() {
     let mut kept = kept_with(20.0);
     assert!(super::identify::insignificant(&m, &y, &mut kept).is_empty());
     assert_eq!(kept.len(), 2);
+}
+
+/// Issue 50 (session 67): above the highest frequency the sweep reaches,
+/// the transfer table returns to the band's median gain instead of
+/// holding its last row (here a dip's) up to the Nyquist frequency, and
+/// its phase carries no pure delay: the phase is the minimum phase of the
+/// table's gain up to a delay, which is taken out (measured on the
+/// protocol's `resonance_dip`, where the delay was about 80 µs). A -10 dB
+/// dip at 800 Hz (Q 2.5) on a sweep of 100-900 Hz at 2200 fps. Before:
+/// the table ended near 860 Hz and its last gain, the dip's, held above.
+#[test]
+fn the_transfer_table_returns_to_the_bands_gain_above_the_sweep_and_holds_no_delay() {
+    let (fs, fr) = (2200.0, 8000.0);
+    let o = Options {
+        effects: vec![EffectKind::Transfer],
+        explain: false,
+        ..opts()
+    };
+    let r = chirp(fr, 2.0, 100.0, 900.0);
+    let y = peaking(&chirp(fs, 2.0, 100.0, 900.0), fs, 800.0, 2.5, -10.0);
+    let c = calibrate(&noisy(&y, 3), fs, &r, fr, &o).unwrap();
+    let Some(Correction::Transfer {
+        freqs_hz,
+        coef_db,
+        phase_deg,
+        ..
+    }) = c
+        .corrections
+        .iter()
+        .find(|c| matches!(c, Correction::Transfer { .. }))
+    else {
+        panic!("no table kept: {:?}", c.report.effects);
+    };
+    let last = *freqs_hz.last().unwrap();
+    assert!(last > 1050.0, "the table ends at {last} Hz");
+    let measured: Vec<f64> = freqs_hz
+        .iter()
+        .zip(coef_db)
+        .filter(|(f, _)| **f < 850.0)
+        .map(|(_, c)| *c)
+        .collect();
+    let mut m = measured.clone();
+    let median = crate::numeric::median(&mut m);
+    let top = *coef_db.last().unwrap();
+    assert!(
+        (top - median).abs() < 0.01,
+        "the table's top gain {top:.2} dB against the band's median {median:.2} dB"
+    );
+    // Deep in the dip the gain was measured, not returned to the median.
+    let at = |hz: f64| super::correction::interp_held(freqs_hz, coef_db, hz);
+    assert!(
+        at(800.0) < median - 6.0,
+        "at 800 Hz {:.2} dB against the median {median:.2} dB",
+        at(800.0)
+    );
+    // Above the sweep, the phase is the minimum phase of the table's gain
+    // as measured (before its scale `k` is fitted; the table holds no
+    // delay there either).
+    let mp = super::transfer::minimum_phase_deg(freqs_hz, coef_db, fs);
+    for ((f, p), q) in freqs_hz.iter().zip(phase_deg).zip(&mp) {
+        if *f > 1000.0 {
+            assert!(
+                (p - q).abs() < 0.5,
+                "{f} Hz: phase {p:.2} against {q:.2} degrees"
+            );
+        }
+    }
+}
+
+/// `x` through a peaking section (RBJ's cookbook: `gain_db` at `f0` Hz,
+/// quality `q`) at `fs`.
+fn peaking(x: &[f64], fs: f64, f0: f64, q: f64, gain_db: f64) -> Vec<f64> {
+    let (a, w0) = (10f64.powf(gain_db / 40.0), 2.0 * PI * f0 / fs);
+    let alpha = w0.sin() / (2.0 * q);
+    let (b, d) = (
+        [1.0 + alpha * a, -2.0 * w0.cos(), 1.0 - alpha * a],
+        [1.0 + alpha / a, -2.0 * w0.cos(), 1.0 - alpha / a],
+    );
+    let (mut s1, mut s2) = (0.0, 0.0);
+    x.iter()
+        .map(|&u| {
+            let y = (b[0] * u + s1) / d[0];
+            s1 = (b[1] * u - d[1] * y) + s2;
+            s2 = b[2] * u - d[2] * y;
+            y
+        })
+        .collect()
 }

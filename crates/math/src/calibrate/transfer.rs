@@ -147,13 +147,16 @@ fn tone(b: &[Complex<f64>], df: f64) -> Option<(usize, f64, f64)> {
 }
 
 /// Per STFT bin: Σ|Z| P, Σ|T| P, Σ P (P the reference's short-time power)
-/// and the cross-spectrum Σ Z T* sign(g), over some frames.
+/// and the cross-spectrum Σ Z T* sign(g), over some frames; and the
+/// reference's power over every frame of the recording, held out or not
+/// (the band the sweep covers), in a total only.
 #[derive(Clone)]
 struct Sums {
     num: Vec<f64>,
     den: Vec<f64>,
     wsum: Vec<f64>,
     cross: Vec<Complex<f64>>,
+    whole: Vec<f64>,
 }
 
 impl Sums {
@@ -163,6 +166,7 @@ impl Sums {
             den: vec![0.0; nb],
             wsum: vec![0.0; nb],
             cross: vec![Complex::new(0.0, 0.0); nb],
+            whole: vec![0.0; nb],
         }
     }
 
@@ -182,7 +186,8 @@ impl Sums {
 /// time power, over the same average of the reference's magnitude; in dB
 /// relative to the linear gain, smoothed over three bins; bins where the
 /// reference has little energy are left out (interpolated between
-/// neighbours inside the table; beyond its ends the end values hold). Also
+/// neighbours inside the table; below it the first row holds, above it
+/// [`curve`] returns to the band's median gain). Also
 /// the phase of the response: the angle of the cross-spectrum (recovery
 /// times the conjugate reference, sign of the gain removed) summed over the
 /// same frames, smoothed over three bins. The thesis' coefficients are
@@ -220,6 +225,11 @@ fn block_sums(m: &Model, z: &[f64], fit: &Fit) -> (Vec<Sums>, Sums) {
     let blocks: Vec<Sums> = blocks.into_iter().map(|(_, s)| s).collect();
     let mut all = Sums::new(nb);
     blocks.iter().for_each(|b| all.add(b, 1.0));
+    for b in &ft {
+        for (w, c) in all.whole.iter_mut().zip(b) {
+            *w += c.norm_sqr();
+        }
+    }
     (blocks, all)
 }
 
@@ -231,6 +241,7 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
         den,
         wsum,
         cross,
+        whole,
     } = sums;
     let nb = num.len();
     let nfft = stft_len(m.fs);
@@ -240,9 +251,15 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
     let valid: Vec<usize> = (1..nb)
         .filter(|&k| wsum[k] > 1e-3 * wmax && den[k] > 0.0 && k as f64 * m.fs / nfft as f64 >= lo)
         .collect();
+    // The last bin the reference feeds at all over the whole recording
+    // (its leakage included).
+    let reach = {
+        let top = whole.iter().cloned().fold(0.0, f64::max);
+        (1..nb).rev().find(|&k| whole[k] > 1e-3 * top).unwrap_or(0)
+    };
     // The table's ends: the bins at either edge that the reference feeds
     // only through the window's leakage (under a tenth of its median
-    // power) are left out; the curve holds its end values beyond them.
+    // power) are left out (what the table holds beyond them: below).
     let valid: Vec<usize> = {
         let mut w: Vec<f64> = valid.iter().map(|&k| wsum[k]).collect();
         w.sort_by(f64::total_cmp);
@@ -283,7 +300,7 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
         .iter()
         .map(|&k| k as f64 * m.fs / nfft as f64)
         .collect();
-    if level.is_empty() || freqs.is_empty() {
+    if freqs.len() < 3 {
         return (freqs, smooth, phase);
     }
     // A bin whose gain holds only at the sweep's level holds the band's
@@ -309,11 +326,63 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
         rows.push((f, neutral, p));
     }
     rows.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Above the sweep's band nothing was measured either. The last row
+    // is held up to the last bin the reference feeds over the whole
+    // recording (the table's own rows end where the fit frames' power
+    // does, and the held-out frames at the sweep's end reach a little
+    // further); from there the gain returns to the band's median by
+    // halfway to the Nyquist frequency, rather than holding the last
+    // row's value (a resonance's or a dip's) across every frequency above
+    // it, which a later recording with content there (speech) would be
+    // boosted or cut by. Below the band the first row is held: an
+    // object's gain under its first resonance is its stiffness's, flat
+    // towards zero frequency.
+    let top = valid.last().copied().unwrap_or(0);
+    if reach > top {
+        let (_, c, p) = rows[rows.len() - 1];
+        rows.push((reach as f64 * m.fs / nfft as f64, c, p));
+    }
+    let measured = rows.len();
+    let (last_hz, last_db) = (rows[measured - 1].0, rows[measured - 1].1);
+    let width = 0.5 * (0.5 * m.fs - last_hz);
+    for k in reach.max(top) + 1..nfft / 2 {
+        let f = k as f64 * m.fs / nfft as f64;
+        let t = ((f - last_hz) / width).min(1.0);
+        rows.push((f, last_db + (neutral - last_db) * t, 0.0));
+    }
+    // The table carries no pure delay. Its phase is measured against the
+    // lag the linear model fitted to the raw recovery, which the object's
+    // own phase biases (a dip's or a resonance's group delay), and the
+    // table's phase then holds the opposite delay. A later recording's lag
+    // is fitted again, so the delay does nothing for what the band holds,
+    // but it shifts what folds into the band from above the Nyquist
+    // frequency as though it were in band. So the delay (least squares,
+    // through zero frequency) that separates the measured phase from the
+    // minimum phase of the table's gain is taken out: an object's response
+    // is minimum phase up to a delay. The rows above the band take the
+    // minimum phase.
+    let f: Vec<f64> = rows.iter().map(|r| r.0).collect();
+    let gain: Vec<f64> = rows.iter().map(|r| r.1).collect();
+    let mp = minimum_phase_deg(&f, &gain, m.fs);
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (r, p) in rows[..measured].iter().zip(&mp) {
+        sxy += wrap_deg(r.2 - p) * r.0;
+        sxx += r.0 * r.0;
+    }
+    let delay = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    for (i, (r, p)) in rows.iter_mut().zip(&mp).enumerate() {
+        r.2 = if i < measured { r.2 - delay * r.0 } else { *p };
+    }
     (
         rows.iter().map(|r| r.0).collect(),
         rows.iter().map(|r| r.1).collect(),
         rows.iter().map(|r| r.2).collect(),
     )
+}
+
+/// `d` (degrees) wrapped into [-180, 180).
+fn wrap_deg(d: f64) -> f64 {
+    (d + 180.0).rem_euclid(360.0) - 180.0
 }
 
 /// The delete-one-block jackknife's standard deviations of [`peak`]'s
