@@ -898,7 +898,8 @@ const THIRTEENTH: [Case; 5] = [
 /// carries no pure delay (designed on `resonance_dip`, looked at since
 /// session 53, and the transfer tables of the sets before). Six linear
 /// responses on the `Object` scene, at or beyond the top of the sweep
-/// (the chirp's recording reaches about 870 Hz of its 1000 Hz) or broad
+/// (the chirp's fit frames reach about 870 Hz of its 1000 Hz, as written
+/// before the run; its whole recording about 920 Hz) or broad
 /// enough to reach it: a dip and a resonance near the top, a dip and a
 /// resonance above it, a resonance low with a dip near the top, and a
 /// broad dip high in the band. Figures reported as they come, under
