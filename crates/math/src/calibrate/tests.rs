@@ -1042,16 +1042,8 @@ fn a_gain_that_holds_only_at_the_sweeps_level_is_left_out_of_the_table() {
     );
     // The table holds the band's median gain at every bin left out:
     // neither boosted nor cut.
-    let Some(Correction::Transfer {
-        freqs_hz, coef_db, ..
-    }) = folded
-        .corrections
-        .iter()
-        .find(|c| matches!(c, Correction::Transfer { .. }))
-    else {
-        panic!("no table kept: {:?}", folded.report.effects);
-    };
-    let med = crate::numeric::median(&mut coef_db.clone());
+    let (freqs_hz, coef_db, _) = kept_table(&folded);
+    let med = crate::numeric::median(&mut coef_db.to_vec());
     for l in &f {
         let i = freqs_hz
             .iter()
@@ -1260,28 +1252,16 @@ fn the_transfer_table_returns_to_the_bands_gain_above_the_sweep_and_holds_no_del
     let r = chirp(fr, 2.0, 100.0, 900.0);
     let y = peaking(&chirp(fs, 2.0, 100.0, 900.0), fs, 800.0, 2.5, -10.0);
     let c = calibrate(&noisy(&y, 3), fs, &r, fr, &o).unwrap();
-    let Some(Correction::Transfer {
-        freqs_hz,
-        coef_db,
-        phase_deg,
-        ..
-    }) = c
-        .corrections
-        .iter()
-        .find(|c| matches!(c, Correction::Transfer { .. }))
-    else {
-        panic!("no table kept: {:?}", c.report.effects);
-    };
+    let (freqs_hz, coef_db, phase_deg) = kept_table(&c);
     let last = *freqs_hz.last().unwrap();
     assert!(last > 1050.0, "the table ends at {last} Hz");
-    let measured: Vec<f64> = freqs_hz
+    let mut measured: Vec<f64> = freqs_hz
         .iter()
         .zip(coef_db)
         .filter(|(f, _)| **f < 850.0)
         .map(|(_, c)| *c)
         .collect();
-    let mut m = measured.clone();
-    let median = crate::numeric::median(&mut m);
+    let median = crate::numeric::median(&mut measured);
     let top = *coef_db.last().unwrap();
     assert!(
         (top - median).abs() < 0.01,
@@ -1326,4 +1306,22 @@ fn peaking(x: &[f64], fs: f64, f0: f64, q: f64, gain_db: f64) -> Vec<f64> {
             y
         })
         .collect()
+}
+
+/// The frequencies, gains (dB) and phases (degrees) of the transfer table
+/// `c` keeps (panics, naming what was kept, without one).
+fn kept_table(c: &Calibration) -> (&[f64], &[f64], &[f64]) {
+    match c
+        .corrections
+        .iter()
+        .find(|c| matches!(c, Correction::Transfer { .. }))
+    {
+        Some(Correction::Transfer {
+            freqs_hz,
+            coef_db,
+            phase_deg,
+            ..
+        }) => (freqs_hz, coef_db, phase_deg),
+        _ => panic!("no table kept: {:?}", c.report.effects),
+    }
 }

@@ -245,11 +245,12 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
     } = sums;
     let nb = num.len();
     let nfft = stft_len(m.fs);
+    let hz = |k: usize| k as f64 * m.fs / nfft as f64;
     let wmax = wsum.iter().cloned().fold(0.0, f64::max);
     let lo = m.opts.highpass.map_or(0.0, |(_, c)| 1.5 * c);
     let g = g.abs().max(1e-300);
     let valid: Vec<usize> = (1..nb)
-        .filter(|&k| wsum[k] > 1e-3 * wmax && den[k] > 0.0 && k as f64 * m.fs / nfft as f64 >= lo)
+        .filter(|&k| wsum[k] > 1e-3 * wmax && den[k] > 0.0 && hz(k) >= lo)
         .collect();
     // The last bin the reference feeds at all over the whole recording
     // (its leakage included).
@@ -296,10 +297,7 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
             c.arg().to_degrees()
         })
         .collect();
-    let freqs: Vec<f64> = valid
-        .iter()
-        .map(|&k| k as f64 * m.fs / nfft as f64)
-        .collect();
+    let freqs: Vec<f64> = valid.iter().map(|&k| hz(k)).collect();
     if freqs.len() < 3 {
         return (freqs, smooth, phase);
     }
@@ -321,7 +319,7 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
         .map(|((&f, &c), &p)| (f, c, p))
         .collect();
     for k in level {
-        let f = k as f64 * m.fs / nfft as f64;
+        let f = hz(k);
         let p = super::correction::interp_held(&freqs, &phase, f);
         rows.push((f, neutral, p));
     }
@@ -340,13 +338,13 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
     let top = valid.last().copied().unwrap_or(0);
     if reach > top {
         let (_, c, p) = rows[rows.len() - 1];
-        rows.push((reach as f64 * m.fs / nfft as f64, c, p));
+        rows.push((hz(reach), c, p));
     }
     let measured = rows.len();
     let (last_hz, last_db) = (rows[measured - 1].0, rows[measured - 1].1);
     let width = 0.5 * (0.5 * m.fs - last_hz);
     for k in reach.max(top) + 1..nfft / 2 {
-        let f = k as f64 * m.fs / nfft as f64;
+        let f = hz(k);
         let t = ((f - last_hz) / width).min(1.0);
         rows.push((f, last_db + (neutral - last_db) * t, 0.0));
     }
