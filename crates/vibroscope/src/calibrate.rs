@@ -905,7 +905,13 @@ pub fn calibrate(o: &CalibrateOptions) -> Result<CalibrationReport> {
         o.run,
         o.on_step.as_ref(),
     )?;
-    let mut notes = Vec::new();
+    // Where a kept transfer table was not measured (above the highest
+    // frequency the reference reached).
+    let mut notes: Vec<String> = c
+        .corrections
+        .iter()
+        .filter_map(|k| k.unmeasured(fs))
+        .collect();
     if let Some(hz) = o.reference_tone_hz {
         if let Some(cal::Parameters::TimeBase {
             clock_error_ppm,

@@ -252,14 +252,15 @@ impl Observe {
     /// calibration says so, [`cal::Explanation::refit`]) are subtracted,
     /// then `corrections` rescaled by the
     /// ratio apply as in [`apply_to_wav`] (with `denoise`); the WAV is
-    /// rewritten once. Returns a note saying what was done.
+    /// rewritten once. Returns notes: what was done, then what the
+    /// corrections say of this recording ([`apply_to_wav`]'s).
     pub fn apply(
         &self,
         path: &Path,
         (corrections, denoise): (&[Correction], Denoise),
         frame: cal::PixelFrame,
         terms: &[cal::StoredTerm],
-    ) -> Result<String> {
+    ) -> Result<Vec<String>> {
         let observed = crate::calibrate::read_observed(self.temp.path())?;
         apply_observed(
             path,
@@ -280,7 +281,7 @@ pub fn apply_observed(
     (corrections, denoise): (&[Correction], Denoise),
     frame: cal::PixelFrame,
     terms: &[cal::StoredTerm],
-) -> Result<String> {
+) -> Result<Vec<String>> {
     let (rate, y) = crate::io::wav::read_mono(path)?;
     let fs = f64::from(rate);
     if observed.len() != 3 * tiles.rects.len() || tiles.rects.is_empty() {
@@ -381,7 +382,7 @@ pub fn apply_observed(
     let (mut z, removed) = cal::remove_explained(&y[..n], &measured, fs, hp);
     z.extend_from_slice(&y[n..]);
     let rescaled: Vec<Correction> = corrections.iter().map(|c| c.rescaled(ratio)).collect();
-    write_corrected(path, (rate, &z), &rescaled, denoise)?;
+    let said = write_corrected(path, (rate, &z), &rescaled, denoise)?;
     let on = |f: &cal::PixelFrame| match f.tiles {
         0 => "the region's motion".to_string(),
         k => format!("{k} of the region's tiles that move with the recovery"),
@@ -420,7 +421,7 @@ pub fn apply_observed(
             "; amplitude-dependent corrections rescaled by {ratio:+.4}"
         ));
     }
-    Ok(note)
+    Ok(std::iter::once(note).chain(said).collect())
 }
 
 /// Applies `corrections` to the WAV at `path` in place (at its own rate).
@@ -428,18 +429,28 @@ pub fn apply_observed(
 /// again after the corrections, as in the thesis' Table 4.2: equalising
 /// boosts the noise in the bands it lifts, and that noise is removed
 /// again. Samples keep their times.
-pub fn apply_to_wav(path: &Path, corrections: &[Correction], denoise: Denoise) -> Result<()> {
+pub fn apply_to_wav(
+    path: &Path,
+    corrections: &[Correction],
+    denoise: Denoise,
+) -> Result<Vec<String>> {
     let (rate, y) = crate::io::wav::read_mono(path)?;
     write_corrected(path, (rate, &y), corrections, denoise)
 }
 
-/// [`apply_to_wav`] on the samples `y` (at `rate`), written to `path`.
+/// [`apply_to_wav`] on the samples `y` (at `rate`), written to `path`;
+/// what it says of `y`: how much of it lies where a transfer table was
+/// not measured ([`Correction::outside_measured`]).
 fn write_corrected(
     path: &Path,
     (rate, y): (u32, &[f64]),
     corrections: &[Correction],
     denoise: Denoise,
-) -> Result<()> {
+) -> Result<Vec<String>> {
+    let said = corrections
+        .iter()
+        .filter_map(|c| c.outside_measured(y, f64::from(rate)))
+        .collect();
     let mut z = cal::apply_all(corrections, y, rate as f64);
     z = denoise_again(&z, rate as f64, denoise)?;
     let peak = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
@@ -448,7 +459,7 @@ fn write_corrected(
     let s = if peak > 0.0 { ypeak / peak } else { 1.0 };
     let z: Vec<f64> = z.iter().map(|v| v * s).collect();
     crate::io::wav::write_mono_f32(path, rate, &z)?;
-    Ok(())
+    Ok(said)
 }
 
 /// Runs the denoiser (default settings, as the stage's) over `x`; `x`

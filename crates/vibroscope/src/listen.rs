@@ -328,18 +328,19 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         if let Some(c) = &corrections {
             match (frame, &observe) {
                 (Some(f), Some(obs)) => match obs.apply(&o.output, (c, o.denoise), f, &terms) {
-                    Ok(note) => notes.push(note),
+                    Ok(said) => notes.extend(said),
                     // Interrupted too early to measure this recording's
                     // frame: what needs it is left out, and said.
                     Err(e) if run.is_err() => {
                         let plain: Vec<Correction> =
                             c.iter().filter(|c| !c.needs_frame()).cloned().collect();
-                        corrections::apply_to_wav(&o.output, &plain, o.denoise)?;
+                        let said = corrections::apply_to_wav(&o.output, &plain, o.denoise)?;
                         notes.push(format!("{e}: the calibration's amplitude-dependent corrections and explained terms were left out"));
+                        notes.extend(said);
                     }
                     Err(e) => return Err(e),
                 },
-                _ => corrections::apply_to_wav(&o.output, c, o.denoise)?,
+                _ => notes.extend(corrections::apply_to_wav(&o.output, c, o.denoise)?),
             }
         }
         finish_wav(o, corrections.is_some())?;
@@ -503,14 +504,18 @@ fn listen_strips(
         }
     }
     match frame {
-        Some(f) if !tiles.is_empty() => notes.push(corrections::apply_observed(
+        Some(f) if !tiles.is_empty() => notes.extend(corrections::apply_observed(
             &o.output,
             (&tiles, &observed),
             (corrections, Denoise::None),
             f,
             terms,
         )?),
-        _ => corrections::apply_to_wav(&o.output, corrections, Denoise::None)?,
+        _ => notes.extend(corrections::apply_to_wav(
+            &o.output,
+            corrections,
+            Denoise::None,
+        )?),
     }
     finish_wav(o, true)?;
     Ok(report(o, Some(corrections), method, notes, run))
@@ -624,7 +629,7 @@ fn listen_rows(
     }
     let run = pipeline::run(&decl, o.run);
     if matches!(run, Ok(_) | Err(Error::Interrupted { .. })) && o.output.exists() {
-        corrections::apply_to_wav(&o.output, &rest, Denoise::None)?;
+        notes.extend(corrections::apply_to_wav(&o.output, &rest, Denoise::None)?);
         finish_wav(o, true)?;
     }
     let run = run?;

@@ -51,6 +51,13 @@ pub enum Correction {
         coef_db: Vec<f64>,
         phase_deg: Vec<f64>,
         k: f64,
+        /// The band (Hz) the table's rows were measured over. Rows
+        /// outside it are not measurements: above the sweep's band the
+        /// table returns to its median gain (see `transfer::curve`).
+        /// Applying the table does not read it; what reports the band
+        /// does (`listen --calibration`'s note on a recording's power
+        /// outside it).
+        measured_hz: [f64; 2],
     },
     /// Undo a soft saturation: `u + a3 u³ + a5 u⁵` (recovery units) on
     /// `u`, the recovery with its high-pass undone, then high-passed again
@@ -119,6 +126,10 @@ pub enum Correction {
 pub(super) const EXPOSURE_MAX_GAIN: f64 = 4.0;
 /// Most boost or cut the transfer equaliser applies, dB.
 pub(super) const TRANSFER_MAX_DB: f64 = 30.0;
+/// A transfer table measured to within this fraction of the Nyquist
+/// frequency covers the band ([`Correction::unmeasured`]): the last few
+/// bins hold the reference's window edge, not a band left out.
+pub const UNMEASURED_EDGE: f64 = 0.05;
 
 impl Correction {
     pub fn kind(&self) -> EffectKind {
@@ -176,6 +187,83 @@ impl Correction {
             gain(fs),
             fs,
             1.0 / e,
+        ))
+    }
+
+    /// Where a transfer table was not measured, in words (`None` for
+    /// any other correction, or a table measured to within
+    /// [`UNMEASURED_EDGE`] of the Nyquist frequency of `fs`): above the
+    /// highest frequency its reference reached, the table is not a
+    /// measurement, and a later recording's content there is left as
+    /// recorded.
+    pub fn unmeasured(&self, fs: f64) -> Option<String> {
+        let Correction::Transfer {
+            measured_hz: [lo, hi],
+            ..
+        } = *self
+        else {
+            return None;
+        };
+        let nyq = fs / 2.0;
+        if !(hi > 0.0 && hi < (1.0 - UNMEASURED_EDGE) * nyq) {
+            return None;
+        }
+        Some(format!(
+            "transfer_function measured the object's response at {lo:.0}-{hi:.0} Hz, where the reference had power; from {hi:.0} Hz to the frame rate's Nyquist frequency ({nyq:.0} Hz) nothing was measured (the table holds its last row to the highest frequency the reference reached, then returns to its median gain; below {lo:.0} Hz it holds its first row), so a resonance or dip of the object there is not corrected on a later recording with content there (speech has some: `listen --calibration` says how much); a reference that sweeps to {nyq:.0} Hz would measure it"
+        ))
+    }
+
+    /// How much of a new recording `z` (at `fs`) lies outside the band a
+    /// transfer table was measured over, in words, where that band stops
+    /// short of the Nyquist frequency as in [`Correction::unmeasured`]
+    /// (`None` otherwise, and for any other correction). Of the recovery
+    /// before any correction, noise included. Said whatever the share: a
+    /// dip of the object there lowers the share itself (issue 50, session
+    /// 68: on the protocol's `dip_above_sweep`, a -8 dB dip at 1000 Hz
+    /// above a table measured to 851 Hz, the speech's recovery holds 0.9%
+    /// of its power above 851 Hz, the same speech without the dip 2.7%),
+    /// so no threshold on it tells a user whether the object hid
+    /// something there.
+    pub fn outside_measured(&self, z: &[f64], fs: f64) -> Option<String> {
+        self.unmeasured(fs)?;
+        let Correction::Transfer {
+            measured_hz: [lo, hi],
+            ..
+        } = *self
+        else {
+            return None;
+        };
+        let n = z.len();
+        if n < 16 {
+            return None;
+        }
+        let mean = z.iter().sum::<f64>() / n as f64;
+        let mut x: Vec<f64> = z.iter().map(|v| v - mean).collect();
+        let mut spec = vec![Complex::new(0.0, 0.0); n / 2 + 1];
+        let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(n);
+        fft.process(&mut x, &mut spec).ok()?;
+        let (mut below, mut above, mut all) = (0.0, 0.0, 0.0);
+        for (k, c) in spec.iter().enumerate().skip(1) {
+            let (f, p) = (k as f64 * fs / n as f64, c.norm_sqr());
+            all += p;
+            if f < lo {
+                below += p;
+            } else if f > hi {
+                above += p;
+            }
+        }
+        if all.is_nan() || all <= 0.0 {
+            return None;
+        }
+        let pct = |p: f64| match p / all {
+            s if s < 1e-3 => "under 0.1%".to_string(),
+            s => format!("{:.1}% ({:.1} dB)", 100.0 * s, 10.0 * s.log10()),
+        };
+        Some(format!(
+            "this recording holds {} of its power above {hi:.0} Hz and {} below {lo:.0} Hz (its recovery before the calibration, noise included), outside the band where the calibration's reference measured the object's response ({lo:.0}-{hi:.0} Hz): the transfer table there is not a measurement (above, its last row held to the reference's reach, then its median gain; below, its first row held), so a resonance or dip of the object there is not corrected, and that part of the error stays (a dip there also makes the share above look smaller than the sound's); a reference that sweeps to {:.0} Hz would measure it",
+            pct(above),
+            pct(below),
+            fs / 2.0
         ))
     }
 
@@ -249,6 +337,7 @@ impl Correction {
                 coef_db,
                 phase_deg,
                 k,
+                ..
             } => {
                 let c = interp_held(freqs_hz, coef_db, f);
                 let ph = interp_held(freqs_hz, phase_deg, f).to_radians();

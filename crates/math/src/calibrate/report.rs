@@ -46,12 +46,16 @@ pub enum Parameters {
     Interference {
         lines: Vec<LineReport>,
     },
-    /// The measured response (`k` scales it when applied), and its
-    /// highest point: frequency, and height above the curve's median.
+    /// The measured response (`k` scales it when applied), its highest
+    /// point (frequency, and height above the curve's median), and the
+    /// band its rows were measured over (the rows outside it are not
+    /// measurements; a report without it was measured over the whole
+    /// table).
     Transfer {
         coefficients_db: Vec<f64>,
         frequencies_hz: Vec<f64>,
         k: f64,
+        measured_hz: [f64; 2],
         peak_db: f64,
         peak_hz: f64,
         phase_deg: Vec<f64>,
@@ -163,11 +167,15 @@ impl fmt::Display for Parameters {
                 coefficients_db,
                 frequencies_hz,
                 k,
+                measured_hz: [lo, hi],
                 peak_db,
                 peak_hz,
                 phase_deg,
             } => {
-                write!(f, "k {k}, peak {peak_hz} Hz {peak_db} dB, frequencies_hz ")?;
+                write!(
+                    f,
+                    "k {k}, peak {peak_hz} Hz {peak_db} dB, measured {lo}-{hi} Hz, frequencies_hz "
+                )?;
                 list(f, frequencies_hz)?;
                 write!(f, ", coefficients_db ")?;
                 list(f, coefficients_db)?;
@@ -482,6 +490,7 @@ impl Correction {
                 coef_db,
                 phase_deg,
                 k,
+                measured_hz,
             } => {
                 let (peak_hz, peak_db) =
                     super::signal::peak(freqs_hz, coef_db).unwrap_or((f64::NAN, f64::NAN));
@@ -489,6 +498,7 @@ impl Correction {
                     coefficients_db: coef_db.clone(),
                     frequencies_hz: freqs_hz.clone(),
                     k: *k,
+                    measured_hz: *measured_hz,
                     peak_db,
                     peak_hz,
                     phase_deg: phase_deg.clone(),
@@ -1117,11 +1127,29 @@ fn from_report(
             if !(0.0..=MAX_TRANSFER_K).contains(&k) {
                 return Err(out_of_range("k", "within 0..=10", k));
             }
+            // Written since session 68; a report before it measured
+            // every row it holds.
+            let measured_hz = match p.get("measured_hz") {
+                None => [
+                    f.first().copied().unwrap_or(0.0),
+                    f.last().copied().unwrap_or(0.0),
+                ],
+                Some(_) => match list("measured_hz")?[..] {
+                    [a, b] if a.is_finite() && b.is_finite() && 0.0 <= a && a <= b => [a, b],
+                    _ => {
+                        return Err(field(
+                            "measured_hz",
+                            "two frequencies [low, high] in Hz, 0 <= low <= high",
+                        ))
+                    }
+                },
+            };
             Some(Correction::Transfer {
                 freqs_hz: f,
                 coef_db: c,
                 phase_deg: phase,
                 k,
+                measured_hz,
             })
         }
         // Carried since session 54 (brought to the next recording by the

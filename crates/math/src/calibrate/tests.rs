@@ -231,6 +231,7 @@ fn report_round_trips_the_reusable_corrections() {
             coef_db: vec![3.0, -2.0],
             phase_deg: vec![10.0, -20.0],
             k: 1.2,
+            measured_hz: [100.0, 150.0],
         },
     ];
     let effects: Vec<Value> = c
@@ -248,6 +249,25 @@ fn report_round_trips_the_reusable_corrections() {
     assert!(
         reusable_from_report(&json!({"effects": [{"name": "nope", "parameters": {}}]})).is_err()
     );
+    // The band the table was measured over: a report written before it
+    // was stored measured the whole table; a damaged one is an error
+    // naming the field.
+    let table = |measured: Option<Value>| {
+        let mut p = json!({"frequencies_hz": [100.0, 200.0, 300.0],
+            "coefficients_db": [0.0, 1.0, 2.0], "k": 1.0});
+        if let Some(m) = measured {
+            p["measured_hz"] = m;
+        }
+        reusable_from_report(&json!({"effects": [{"name": "transfer_function", "parameters": p}]}))
+    };
+    match &table(None).unwrap()[0] {
+        Correction::Transfer { measured_hz, .. } => assert_eq!(*measured_hz, [100.0, 300.0]),
+        other => panic!("{other:?}"),
+    }
+    for bad in [json!([300.0, 100.0]), json!([100.0]), json!("x")] {
+        let e = table(Some(bad.clone())).unwrap_err().to_string();
+        assert!(e.contains("measured_hz"), "{bad}: {e}");
+    }
 }
 
 /// Issue 50 (session 53): a kept reusable effect whose confound range
@@ -887,6 +907,7 @@ fn the_transfer_table_holds_its_end_values_beyond_it() {
         coef_db: vec![6.0, 0.0, -6.0],
         phase_deg: vec![10.0, 0.0, -30.0],
         k: 1.0,
+        measured_hz: [100.0, 300.0],
     };
     let at = |f: f64| c.response(f).unwrap();
     let (lo, hi, mid) = (at(20.0), at(1000.0), at(250.0));
@@ -1255,6 +1276,18 @@ fn the_transfer_table_returns_to_the_bands_gain_above_the_sweep_and_holds_no_del
     let (freqs_hz, coef_db, phase_deg) = kept_table(&c);
     let last = *freqs_hz.last().unwrap();
     assert!(last > 1050.0, "the table ends at {last} Hz");
+    // The table says which of its rows were measured: those within the
+    // sweep's band (session 68), not the rows added above it.
+    let band = c.corrections.iter().find_map(|c| match c {
+        Correction::Transfer { measured_hz, .. } => Some(*measured_hz),
+        _ => None,
+    });
+    let [lo, hi] = band.unwrap();
+    assert!(
+        (95.0..=160.0).contains(&lo) && (800.0..=900.0).contains(&hi),
+        "measured over {lo}-{hi} Hz of a 100-900 Hz sweep"
+    );
+    assert!(freqs_hz.iter().any(|&f| f > hi + 100.0));
     let mut measured: Vec<f64> = freqs_hz
         .iter()
         .zip(coef_db)
@@ -1324,4 +1357,54 @@ fn kept_table(c: &Calibration) -> (&[f64], &[f64], &[f64]) {
         }) => (freqs_hz, coef_db, phase_deg),
         _ => panic!("no table kept: {:?}", c.report.effects),
     }
+}
+
+/// A transfer table says where it was not measured (issue 50, session
+/// 68): the calibration, when its measured band stops short of the
+/// Nyquist frequency; a new recording then, with the share of its power
+/// on each side of that band. A table measured to the Nyquist frequency
+/// and any other correction say nothing.
+#[test]
+fn a_transfer_table_says_where_it_was_not_measured() {
+    let fs = 2200.0;
+    let table = |hi: f64| Correction::Transfer {
+        freqs_hz: vec![100.0, 500.0, hi, 1099.0],
+        coef_db: vec![0.0; 4],
+        phase_deg: vec![0.0; 4],
+        k: 1.0,
+        measured_hz: [100.0, hi],
+    };
+    let said = table(850.0).unmeasured(fs).unwrap();
+    assert!(
+        said.contains("100-850 Hz") && said.contains("1100 Hz"),
+        "{said}"
+    );
+    let tone = |f: f64, a: f64| -> Vec<f64> {
+        (0..4400)
+            .map(|n| a * (2.0 * PI * f * n as f64 / fs).sin())
+            .collect()
+    };
+    let add =
+        |a: Vec<f64>, b: Vec<f64>| -> Vec<f64> { a.iter().zip(&b).map(|(x, y)| x + y).collect() };
+    // 400 Hz inside; 1000 Hz at a fifth of its amplitude: 1/26 of the
+    // power (3.8%) above the band; 60 Hz at a tenth: 0.96% below it.
+    let z = add(add(tone(400.0, 1.0), tone(1000.0, 0.2)), tone(60.0, 0.1));
+    let said = table(850.0).outside_measured(&z, fs).unwrap();
+    assert!(
+        said.contains("3.8% (-14.2 dB) of its power above 850 Hz"),
+        "{said}"
+    );
+    assert!(said.contains("1.0% (-20.2 dB) below 100 Hz"), "{said}");
+    let said = table(850.0)
+        .outside_measured(&tone(400.0, 1.0), fs)
+        .unwrap();
+    assert!(
+        said.contains("under 0.1% of its power above 850 Hz and under 0.1% below"),
+        "{said}"
+    );
+    assert!(table(1090.0).unmeasured(fs).is_none());
+    assert!(table(1090.0).outside_measured(&z, fs).is_none());
+    let other = Correction::TimeBase { ppm: 10.0 };
+    assert!(other.unmeasured(fs).is_none());
+    assert!(other.outside_measured(&z, fs).is_none());
 }

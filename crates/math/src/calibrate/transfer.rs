@@ -233,9 +233,15 @@ fn block_sums(m: &Model, z: &[f64], fit: &Fit) -> (Vec<Sums>, Sums) {
     (blocks, all)
 }
 
+/// A transfer table: its frequencies (Hz), smoothed coefficients (dB) and
+/// phases (degrees), and the band (Hz) its rows were measured over.
+type Table = (Vec<f64>, Vec<f64>, Vec<f64>, [f64; 2]);
+
 /// The frequencies, smoothed coefficients (dB) and phases (degrees) of the
-/// bins `sums` says enough about.
-fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+/// bins `sums` says enough about, and the band they were measured over:
+/// from the first to the last of those bins (the rows outside it, added
+/// below, are not measurements).
+fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> Table {
     let Sums {
         num,
         den,
@@ -298,8 +304,12 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
         })
         .collect();
     let freqs: Vec<f64> = valid.iter().map(|&k| hz(k)).collect();
+    let band = match (freqs.first(), freqs.last()) {
+        (Some(&a), Some(&b)) => [a, b],
+        _ => [0.0, 0.0],
+    };
     if freqs.len() < 3 {
-        return (freqs, smooth, phase);
+        return (freqs, smooth, phase, band);
     }
     // A bin whose gain holds only at the sweep's level holds the band's
     // median gain: the sweep measured there a gain the object has at no
@@ -375,6 +385,7 @@ fn curve(m: &Model, sums: &Sums, g: f64, skip: &[usize]) -> (Vec<f64>, Vec<f64>,
         rows.iter().map(|r| r.0).collect(),
         rows.iter().map(|r| r.1).collect(),
         rows.iter().map(|r| r.2).collect(),
+        band,
     )
 }
 
@@ -393,7 +404,7 @@ fn peak_sd(m: &Model, (blocks, all): &(Vec<Sums>, Sums), g: f64, skip: &[usize])
     for b in blocks {
         let mut s = all.clone();
         s.add(b, -1.0);
-        let (f, c, _) = curve(m, &s, g, skip);
+        let (f, c, ..) = curve(m, &s, g, skip);
         match peak(&f, &c) {
             Some(p) => loo.push(p),
             None => return (f64::INFINITY, f64::INFINITY),
@@ -462,6 +473,7 @@ pub(super) fn passive(c: &Correction, fs: f64) -> Correction {
             freqs_hz,
             coef_db,
             k,
+            measured_hz,
             ..
         } => {
             let gain: Vec<f64> = coef_db.iter().map(|c| k * c).collect();
@@ -470,6 +482,7 @@ pub(super) fn passive(c: &Correction, fs: f64) -> Correction {
                 coef_db: coef_db.clone(),
                 phase_deg: minimum_phase_deg(freqs_hz, &gain, fs),
                 k: *k,
+                measured_hz: *measured_hz,
             }
         }
         other => other.clone(),
@@ -479,7 +492,7 @@ pub(super) fn passive(c: &Correction, fs: f64) -> Correction {
 pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate> {
     let sums = block_sums(m, z, fit);
     let skip: Vec<usize> = m.level.iter().map(|(k, ..)| *k).collect();
-    let (freqs, coef, phase) = curve(m, &sums.1, fit.g, &skip);
+    let (freqs, coef, phase, measured_hz) = curve(m, &sums.1, fit.g, &skip);
     if freqs.len() < 3 {
         return None;
     }
@@ -488,6 +501,7 @@ pub(super) fn fit_transfer(m: &Model, z: &[f64], fit: &Fit) -> Option<Candidate>
         coef_db: coef.clone(),
         phase_deg: phase.clone(),
         k,
+        measured_hz,
     };
     let grid: Vec<(f64, f64)> = (0..=12)
         .map(|i| {
