@@ -2395,6 +2395,7 @@ fn says_unmeasured(o: Option<&Outcome>) {
 /// transfer_function kept). The resonance (980 Hz) lies above the
 /// highest frequency the sweep reaches: nothing measured it. On the
 /// change as kept: -0.20 dB.
+///
 /// The words of session 68: as for `dip_above_sweep`.
 #[test]
 fn fourteenth_resonance_above_sweep() {
