@@ -2376,7 +2376,7 @@ fn says_unmeasured(o: Option<&Outcome>) {
         .find(|e| e["name"] == "transfer_function")
         .and_then(|e| e["parameters"]["measured_hz"][1].as_f64());
     let Some(hi) = band else { return };
-    if hi >= 0.95 * 1100.0 {
+    if hi >= (1.0 - vibroscope_math::calibrate::UNMEASURED_EDGE) * 1100.0 {
         return;
     }
     let calibrate = o.report["notes"].to_string();

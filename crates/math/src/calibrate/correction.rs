@@ -190,6 +190,21 @@ impl Correction {
         ))
     }
 
+    /// The band a transfer table was measured over, where it stops more
+    /// than [`UNMEASURED_EDGE`] short of the Nyquist frequency of `fs`
+    /// (`None` otherwise, and for any other correction): the condition
+    /// [`Correction::unmeasured`] and [`Correction::outside_measured`]
+    /// both speak on.
+    fn unmeasured_band(&self, fs: f64) -> Option<[f64; 2]> {
+        match *self {
+            Correction::Transfer {
+                measured_hz: [lo, hi],
+                ..
+            } if hi > 0.0 && hi < (1.0 - UNMEASURED_EDGE) * fs / 2.0 => Some([lo, hi]),
+            _ => None,
+        }
+    }
+
     /// Where a transfer table was not measured, in words (`None` for
     /// any other correction, or a table measured to within
     /// [`UNMEASURED_EDGE`] of the Nyquist frequency of `fs`): above the
@@ -197,17 +212,8 @@ impl Correction {
     /// measurement, and a later recording's content there is left as
     /// recorded.
     pub fn unmeasured(&self, fs: f64) -> Option<String> {
-        let Correction::Transfer {
-            measured_hz: [lo, hi],
-            ..
-        } = *self
-        else {
-            return None;
-        };
+        let [lo, hi] = self.unmeasured_band(fs)?;
         let nyq = fs / 2.0;
-        if !(hi > 0.0 && hi < (1.0 - UNMEASURED_EDGE) * nyq) {
-            return None;
-        }
         Some(format!(
             "transfer_function measured the object's response at {lo:.0}-{hi:.0} Hz, where the reference had power; from {hi:.0} Hz to the frame rate's Nyquist frequency ({nyq:.0} Hz) nothing was measured (the table holds its last row to the highest frequency the reference reached, then returns to its median gain; below {lo:.0} Hz it holds its first row), so a resonance or dip of the object there is not corrected on a later recording with content there (speech has some: `listen --calibration` says how much); a reference that sweeps to {nyq:.0} Hz would measure it"
         ))
@@ -225,14 +231,7 @@ impl Correction {
     /// so no threshold on it tells a user whether the object hid
     /// something there.
     pub fn outside_measured(&self, z: &[f64], fs: f64) -> Option<String> {
-        self.unmeasured(fs)?;
-        let Correction::Transfer {
-            measured_hz: [lo, hi],
-            ..
-        } = *self
-        else {
-            return None;
-        };
+        let [lo, hi] = self.unmeasured_band(fs)?;
         let n = z.len();
         if n < 16 {
             return None;
