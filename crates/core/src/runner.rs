@@ -6,7 +6,7 @@
 //! graceful stop (sources end, queues drain) and is reported with the stage
 //! id; sinks still finalise what reached them.
 
-use super::edge::{edge, EdgeRx, EdgeStats, Recv};
+use super::edge::{edge, edge_resuming_at_half, EdgeRx, EdgeStats, Recv};
 use super::graph::{BuildCtx, Graph};
 use super::item::PortType;
 use super::latency::{LatencyHist, LatencySummary};
@@ -259,8 +259,15 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
     for (i, node) in graph.nodes.iter().enumerate() {
         let mut stats = Vec::new();
         let mut cap = 0;
+        let single = node.inputs.len() == 1;
         for inp in &node.inputs {
-            let (tx, rx, st) = edge(inp.capacity, inp.policy);
+            // A stage with one input drains it whenever it can, so its
+            // producer can wait for half the ring (one wake-up per half).
+            let (tx, rx, st) = if single {
+                edge_resuming_at_half(inp.capacity, inp.policy)
+            } else {
+                edge(inp.capacity, inp.policy)
+            };
             outs[inp.from].push(tx);
             ins[i].push(rx);
             stats.push(st);

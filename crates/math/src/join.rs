@@ -43,7 +43,8 @@ impl Simd {
             let avx2 =
                 std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
             let avx512 = std::is_x86_feature_detected!("avx512f")
-                && std::is_x86_feature_detected!("avx512vl");
+                && std::is_x86_feature_detected!("avx512vl")
+                && std::is_x86_feature_detected!("avx512dq");
             if avx2 && avx512 {
                 return Simd::Avx512;
             }
@@ -77,7 +78,7 @@ macro_rules! simd_fn {
             #[allow(clippy::too_many_arguments)]
             fn body($($a: $t),*) $(-> $r)? $body
             #[cfg(target_arch = "x86_64")]
-            #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+            #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,fma")]
             #[allow(clippy::too_many_arguments)]
             unsafe fn avx512($($a: $t),*) $(-> $r)? {
                 body($($a),*)

@@ -76,8 +76,14 @@ impl Laplacian {
     /// same bits however `j` runs them).
     #[inline(always)]
     pub(crate) fn analyze_with(&mut self, frame: &[f32], j: Par<'_>) {
-        let levels = self.levels();
         self.bands[0].copy_from_slice(frame);
+        self.analyze_loaded_with(j);
+    }
+
+    /// [`Self::analyze_with`] of the frame already in the first level.
+    #[inline(always)]
+    pub(crate) fn analyze_loaded_with(&mut self, j: Par<'_>) {
+        let levels = self.levels();
         for l in 0..levels {
             let (w, h) = self.dims[l];
             let (nw, nh) = self.dims[l + 1];

@@ -184,15 +184,13 @@ struct WeightedBlur {
     kernel: Vec<f32>,
     num: Vec<f32>,
     den: Vec<f32>,
-    /// `num`, `den`, `tmp`: for `apply` (the steerable pyramid); empty for Riesz.
+    /// `num`, `den`, `tmp`: for `apply` (the steerable pyramid); empty for
+    /// Riesz (its three channels are blurred in [`RieszFrame::tmp3`]).
     tmp: Vec<f32>,
-    /// Three buffers' intermediate rows (the Riesz magnifier's three
-    /// channels blurred at once); empty for the steerable pyramid.
-    tmp3: Vec<f32>,
 }
 
 impl WeightedBlur {
-    fn new(sigma: f32, max_len: usize, three: bool) -> Self {
+    fn new(sigma: f32, max_len: usize) -> Self {
         let kernel = if sigma > 0.0 {
             let r = (3.0 * sigma).ceil() as isize;
             let k: Vec<f32> = (-r..=r)
@@ -203,19 +201,11 @@ impl WeightedBlur {
         } else {
             vec![1.0]
         };
-        // The Riesz magnifier blurs its three channels in its own buffers
-        // and uses only `tmp3`; `apply` (the steerable pyramid's) the rest.
-        let (one, three) = if three {
-            (0, 3 * max_len)
-        } else {
-            (max_len, 0)
-        };
         Self {
             kernel,
-            num: crate::numeric::zeros_touched(one),
-            den: crate::numeric::zeros_touched(one),
-            tmp: crate::numeric::zeros_touched(one),
-            tmp3: crate::numeric::zeros_touched(three),
+            num: crate::numeric::zeros_touched(max_len),
+            den: crate::numeric::zeros_touched(max_len),
+            tmp: crate::numeric::zeros_touched(max_len),
         }
     }
 
@@ -465,7 +455,6 @@ struct CspState {
 
 /// Per-level state of the Riesz magnifier.
 struct RieszState {
-    lap: Laplacian,
     /// The Riesz pair's filter per level ([`riesz_fir`]).
     pairs: Vec<RieszFir>,
     /// Previous (I, R1, R2) per level.
@@ -473,18 +462,76 @@ struct RieszState {
     /// The band-pass of the summed phase·cos θ and phase·sin θ, per level,
     /// fed their changes ([`BandpassDesign::on_increments`]): no sums kept.
     filters: Vec<[PixelFilter; 2]>,
-    /// Where each level starts in `r1` .. `ps` (and in the blur's
-    /// `tmp3`, three times as far): the levels one after another, so
-    /// that one hand-over runs a pass over every level.
+    /// (width, height) of the levels (the pair's and phase's).
+    dims: Vec<(usize, usize)>,
+    /// Where each level starts in `r1` .. `ps` (and in `tmp3`, three
+    /// times as far): the levels one after another, so that one
+    /// hand-over runs a pass over every level.
     offs: Vec<usize>,
     /// The row where a level of `h` rows is cut into its two halves
     /// (`h / 2`; the tests move it: any cut gives the same bits).
     cut: fn(usize) -> usize,
+    /// One frame's buffers; a second one once frames are pipelined
+    /// ([`Magnifier::process_pipelined`]), built on its first call.
+    bufs: Vec<RieszFrame>,
+    /// Which of `bufs` holds a frame whose shift and collapse have not run.
+    pending: Option<usize>,
+    /// The pipelined frames' output (empty until then).
+    out: Vec<f32>,
+}
+
+/// One frame's buffers of the Riesz magnifier, from its pyramid to the
+/// phase pass's outputs: what that frame's shift and collapse read.
+struct RieszFrame {
+    lap: Laplacian,
     r1: Vec<f32>,
     r2: Vec<f32>,
     amp: Vec<f32>,
     pc: Vec<f32>,
     ps: Vec<f32>,
+    /// The blur's horizontal pass of the three channels, every level
+    /// (empty without smoothing).
+    tmp3: Vec<f32>,
+}
+
+impl RieszFrame {
+    fn new(width: usize, height: usize, scales: usize, smooth: bool) -> Self {
+        let lap = Laplacian::new(width, height, scales);
+        let total: usize = lap.dims[..scales].iter().map(|&(w, h)| w * h).sum();
+        let z = crate::numeric::zeros_touched::<f32>;
+        Self {
+            lap,
+            r1: z(total),
+            r2: z(total),
+            amp: z(total),
+            pc: z(total),
+            ps: z(total),
+            tmp3: z(if smooth { 3 * total } else { 0 }),
+        }
+    }
+}
+
+/// Writes a frame (row-major, the magnifier's size) into the slice given:
+/// [`Magnifier::process_pipelined`]'s input.
+pub type Load<'a> = &'a mut (dyn FnMut(&mut [f32]) + Send);
+/// Takes a magnified frame: [`Magnifier::process_pipelined`]'s output.
+pub type Deliver<'a> = &'a mut (dyn FnMut(&[f32]) + Send);
+
+/// What [`Magnifier::process_body`] is asked for.
+enum Job<'a> {
+    /// `frame`, magnified into `out`.
+    Whole {
+        frame: &'a [f32],
+        out: &'a mut [f32],
+    },
+    /// Riesz: the frame `load` writes, up to its phase pass, and the rest
+    /// of the pending one, given to `deliver`.
+    Pipelined {
+        load: Load<'a>,
+        deliver: Deliver<'a>,
+    },
+    /// Riesz: the rest of the pending frame, given to `deliver`.
+    Flush { deliver: Deliver<'a> },
 }
 
 enum State {
@@ -503,6 +550,9 @@ pub struct Magnifier {
     frames: u64,
     simd: Simd,
     profile: Option<Profile>,
+    /// The steerable magnifier's frame and output when it is called as a
+    /// pipelined one (empty until then).
+    scratch: (Vec<f32>, Vec<f32>),
 }
 
 impl std::fmt::Debug for Magnifier {
@@ -593,47 +643,40 @@ impl Magnifier {
             }
             PyramidKind::Riesz => {
                 let steps = design.on_increments();
-                let lap = Laplacian::new(width, height, params.scales);
-                let lens: Vec<usize> = lap.dims[..params.scales]
-                    .iter()
-                    .map(|&(w, h)| w * h)
-                    .collect();
+                let first = RieszFrame::new(width, height, params.scales, params.sigma > 0.0);
+                let dims = &first.lap.dims[..params.scales];
+                let lens: Vec<usize> = dims.iter().map(|&(w, h)| w * h).collect();
                 let offs: Vec<usize> = std::iter::once(0)
                     .chain(lens.iter().scan(0, |o, l| {
                         *o += l;
                         Some(*o)
                     }))
                     .collect();
-                let total = offs[lens.len()];
                 let z = crate::numeric::zeros_touched::<f32>;
                 State::Riesz(Box::new(RieszState {
                     prev: lens.iter().map(|&l| [z(l), z(l), z(l)]).collect(),
-                    filters: lap.dims[..params.scales]
+                    filters: dims
                         .iter()
                         .map(|&(w, h)| {
                             let f = || PixelFilter::with_rows(&steps, w, h);
                             [f(), f()]
                         })
                         .collect(),
-                    pairs: lap.dims[..params.scales]
-                        .iter()
-                        .map(|&(w, h)| RieszFir::new(w, h))
-                        .collect(),
+                    pairs: dims.iter().map(|&(w, h)| RieszFir::new(w, h)).collect(),
                     offs,
+                    dims: dims.to_vec(),
                     cut: |h| h / 2,
-                    r1: z(total),
-                    r2: z(total),
-                    amp: z(total),
-                    pc: z(total),
-                    ps: z(total),
-                    lap,
+                    bufs: vec![first],
+                    pending: None,
+                    out: Vec::new(),
                 }))
             }
         };
-        // The Riesz magnifier blurs every level's three channels at once.
+        // (The Riesz magnifier blurs its three channels in its frame's
+        // buffers: only the kernel.)
         let blur = match &state {
-            State::Csp(_) => WeightedBlur::new(params.sigma, n, false),
-            State::Riesz(s) => WeightedBlur::new(params.sigma, s.r1.len(), true),
+            State::Csp(_) => WeightedBlur::new(params.sigma, n),
+            State::Riesz(_) => WeightedBlur::new(params.sigma, 0),
         };
         Ok(Self {
             params,
@@ -645,6 +688,7 @@ impl Magnifier {
             frames: 0,
             simd: Simd::detect(),
             profile: None,
+            scratch: Default::default(),
         })
     }
 
@@ -690,7 +734,8 @@ impl Magnifier {
     /// shift over every level at once, each level's rows cut in two. The
     /// same bits however `j` runs them. The steerable pyramid's
     /// magnifier runs on the caller's thread (it splits by orientations:
-    /// [`Self::new_part`]).
+    /// [`Self::new_part`]). Not to be mixed with
+    /// [`Self::process_pipelined`] without a [`Self::flush`] between.
     pub fn process_with(
         &mut self,
         frame: &[f32],
@@ -700,47 +745,110 @@ impl Magnifier {
         let n = self.width * self.height;
         crate::pyramid::check_len(n, frame.len())?;
         crate::pyramid::check_len(n, out.len())?;
+        self.dispatch(Job::Whole { frame, out }, j).map(|_| ())
+    }
+
+    /// [`Self::process_with`] with two frames in flight, for the Riesz
+    /// magnifier on two threads. `load` writes the frame (row-major,
+    /// `width x height`) straight into the pyramid; `deliver` is given
+    /// the *previous* frame, magnified. Two hand-overs a frame where
+    /// [`Self::process_with`] makes about twenty: the first runs this
+    /// frame's `load` and pyramid, then the first rows of the previous
+    /// frame's shift, on the calling thread, and the other rows of that
+    /// shift on the other; the second runs the previous frame's collapse
+    /// and `deliver`, then the first rows of this frame's Riesz pair and
+    /// phase pass, on the calling thread, and the other rows on the
+    /// other. Both closures run on the calling thread. The cost: a second
+    /// frame's buffers, and one frame of latency.
+    ///
+    /// Returns whether `deliver` was called (not on the first frame after
+    /// [`Self::new`] or a [`Self::flush`]); [`Self::flush`] delivers the
+    /// last frame. The frames are the same bits as
+    /// [`Self::process_with`]'s, one call later. The steerable pyramid's
+    /// magnifier has no such split: it loads, magnifies and delivers the
+    /// frame itself in the one call, and returns `true`.
+    pub fn process_pipelined(
+        &mut self,
+        load: Load<'_>,
+        deliver: Deliver<'_>,
+        j: &dyn Join,
+    ) -> Result<bool, PyramidError> {
+        self.dispatch(Job::Pipelined { load, deliver }, j)
+    }
+
+    /// The frame [`Self::process_pipelined`] still holds, magnified and
+    /// given to `deliver`; `false` (`deliver` not called) when it holds
+    /// none.
+    pub fn flush(&mut self, deliver: Deliver<'_>, j: &dyn Join) -> Result<bool, PyramidError> {
+        self.dispatch(Job::Flush { deliver }, j)
+    }
+
+    fn dispatch(&mut self, job: Job<'_>, j: &dyn Join) -> Result<bool, PyramidError> {
         #[cfg(target_arch = "x86_64")]
         match self.simd {
             // SAFETY: `simd` names only what the running CPU reported
             // (`Simd::detect`), which is all these paths need.
-            Simd::Avx512 => return unsafe { self.process_avx512(frame, out, j) },
-            Simd::Avx2 => return unsafe { self.process_avx2(frame, out, j) },
+            Simd::Avx512 => return unsafe { self.process_avx512(job, j) },
+            Simd::Avx2 => return unsafe { self.process_avx2(job, j) },
             Simd::Sse2 => {}
         }
-        self.process_body(frame, out, j)
+        self.process_body(job, j)
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-    unsafe fn process_avx512(
-        &mut self,
-        frame: &[f32],
-        out: &mut [f32],
-        j: &dyn Join,
-    ) -> Result<(), PyramidError> {
-        self.process_body(frame, out, j)
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,fma")]
+    unsafe fn process_avx512(&mut self, job: Job<'_>, j: &dyn Join) -> Result<bool, PyramidError> {
+        self.process_body(job, j)
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn process_avx2(
-        &mut self,
-        frame: &[f32],
-        out: &mut [f32],
-        j: &dyn Join,
-    ) -> Result<(), PyramidError> {
-        self.process_body(frame, out, j)
+    unsafe fn process_avx2(&mut self, job: Job<'_>, j: &dyn Join) -> Result<bool, PyramidError> {
+        self.process_body(job, j)
     }
 
     #[inline(always)]
-    fn process_body(
-        &mut self,
-        frame: &[f32],
-        out: &mut [f32],
-        j: &dyn Join,
-    ) -> Result<(), PyramidError> {
+    fn process_body(&mut self, job: Job<'_>, j: &dyn Join) -> Result<bool, PyramidError> {
         let j = Par { j, simd: self.simd };
+        let n = self.width * self.height;
+        let (frame, out, mut load, deliver) = match job {
+            Job::Whole { frame, out } => (frame, out, None, None),
+            Job::Pipelined { load, deliver } => {
+                if let State::Csp(_) = self.state {
+                    // No split: this frame, at once.
+                    let (mut frame, mut out) = std::mem::take(&mut self.scratch);
+                    frame.resize(n, 0.0);
+                    out.resize(n, 0.0);
+                    load(&mut frame);
+                    let whole = Job::Whole {
+                        frame: &frame,
+                        out: &mut out,
+                    };
+                    let r = self.dispatch(whole, j.j);
+                    if r.is_ok() {
+                        deliver(&out);
+                    }
+                    self.scratch = (frame, out);
+                    return r;
+                }
+                (&[][..], &mut [][..], Some(load), Some(deliver))
+            }
+            Job::Flush { deliver } => {
+                let State::Riesz(s) = &mut self.state else {
+                    return Ok(false);
+                };
+                let Some(i) = s.pending.take() else {
+                    return Ok(false);
+                };
+                let (p, kernel) = (self.params, &self.blur.kernel[..]);
+                let geo = RieszGeo::new(&s.dims, &s.offs, s.cut, n);
+                let b = &mut s.bufs[i];
+                geo.shift(b, kernel, p.factor, p.max_phase, j, || {});
+                b.lap.collapse_with(&mut s.out, j);
+                deliver(&s.out);
+                return Ok(true);
+            }
+        };
         let first = self.frames == 0;
         self.frames += 1;
         let p = self.params;
@@ -775,171 +883,360 @@ impl Magnifier {
                 }
                 let r = s.pyr.synthesize(&s.coeffs, out);
                 laps.lap(6);
-                r
+                r.map(|_| true)
             }
             State::Riesz(s) => {
-                s.lap.analyze_with(frame, j);
-                laps.lap(0);
-                // Each pass over the levels is one hand-over: every
-                // level's rows in two halves, the first half of each
-                // level on one thread and the second on the other (a
-                // level's passes need only its own band and state, so the
-                // small levels split too, and nothing waits between them).
-                let split = self.width * self.height >= laplacian::SPLIT_MIN;
-                let (v, scales) = (j.simd, p.scales);
-                let (dims, offs) = (&s.lap.dims[..scales], &s.offs);
-                let cut = s.cut;
-                let mid = |l: usize| cut(dims[l].1) * dims[l].0;
-                let len = |l: usize| dims[l].0 * dims[l].1;
-                {
-                    let mut jobs: [[Option<PairJob>; MAX_SCALES]; 2] = Default::default();
-                    let (mut r1, mut r2) = (&mut s.r1[..], &mut s.r2[..]);
-                    for (l, fir) in s.pairs.iter_mut().enumerate().take(scales) {
-                        let band = &s.lap.bands[l][..len(l)];
-                        let q1 = take_level(&mut r1, len(l)).split_at_mut(mid(l));
-                        let q2 = take_level(&mut r2, len(l)).split_at_mut(mid(l));
-                        let [f0, f1] = fir.halves();
-                        let y1 = cut(dims[l].1);
-                        jobs[0][l] = Some(PairJob {
-                            fir: f0,
-                            band,
-                            y0: 0,
-                            r1: q1.0,
-                            r2: q2.0,
-                        });
-                        jobs[1][l] = Some(PairJob {
-                            fir: f1,
-                            band,
-                            y0: y1,
-                            r1: q1.1,
-                            r2: q2.1,
-                        });
-                    }
-                    let [a, b] = &mut jobs;
-                    both(
-                        j,
-                        split,
-                        || PairJob::run_all(a, v),
-                        || PairJob::run_all(b, v),
-                    );
-                }
-                laps.lap(1);
-                let smooth = self.blur.kernel.len() > 1;
+                let geo = RieszGeo::new(&s.dims, &s.offs, s.cut, n);
                 let kernel = &self.blur.kernel[..];
-                {
-                    // `den` ends as G*A, `nc` and `ns` as G*(A·φ) of the
-                    // two phase components (the filtered φ itself when
-                    // there is no smoothing).
-                    let mut jobs: [[Option<PhaseJob>; MAX_SCALES]; 2] = Default::default();
-                    let (mut den, mut nc, mut ns) = (&mut s.amp[..], &mut s.pc[..], &mut s.ps[..]);
-                    let mut tmp = &mut self.blur.tmp3[..if smooth { 3 * offs[scales] } else { 0 }];
-                    let levels = s.prev.iter_mut().zip(s.filters.iter_mut());
-                    for (l, ([pi, p1, p2], [fc, fs])) in levels.enumerate().take(scales) {
-                        let (w, h) = dims[l];
-                        let (n, m, o) = (len(l), mid(l), offs[l]);
-                        let b = s.lap.bands[l][..n].split_at(m);
-                        let (q1, q2) = (s.r1[o..o + n].split_at(m), s.r2[o..o + n].split_at(m));
-                        let (pi, p1, p2) = (
-                            pi[..n].split_at_mut(m),
-                            p1[..n].split_at_mut(m),
-                            p2[..n].split_at_mut(m),
-                        );
-                        let outs =
-                            [&mut den, &mut nc, &mut ns].map(|x| take_level(x, n).split_at_mut(m));
-                        let [d, c, sn] = outs;
-                        let ((fc0, fc1), (fs0, fs1)) = (fc.parts(cut(h)), fs.parts(cut(h)));
-                        let t = take_level(&mut tmp, if smooth { 3 * n } else { 0 });
-                        let (t0, t12) = t.split_at_mut(t.len() / 3);
-                        let (t1, t2) = t12.split_at_mut(t0.len());
-                        let at = if smooth { m } else { 0 };
-                        let (x0, y0) = t0.split_at_mut(at);
-                        let (x1, y1) = t1.split_at_mut(at);
-                        let (x2, y2) = t2.split_at_mut(at);
-                        jobs[0][l] = Some(PhaseJob {
-                            w,
-                            y0: 0,
-                            input: [b.0, q1.0, q2.0],
-                            state: [pi.0, p1.0, p2.0],
-                            outs: [d.0, c.0, sn.0],
-                            filters: [fc0, fs0],
-                            rows_out: [x0, x1, x2],
-                        });
-                        jobs[1][l] = Some(PhaseJob {
-                            w,
-                            y0: cut(h),
-                            input: [b.1, q1.1, q2.1],
-                            state: [pi.1, p1.1, p2.1],
-                            outs: [d.1, c.1, sn.1],
-                            filters: [fc1, fs1],
-                            rows_out: [y0, y1, y2],
-                        });
-                    }
-                    let [a, b] = &mut jobs;
-                    both(
+                let smooth = kernel.len() > 1;
+                if load.is_none() {
+                    let b = &mut s.bufs[0];
+                    b.lap.analyze_with(frame, j);
+                    laps.lap(0);
+                    geo.pair(b, &mut s.pairs, j);
+                    laps.lap(1);
+                    geo.phase(
+                        b,
+                        &mut s.prev,
+                        &mut s.filters,
+                        None,
+                        kernel,
+                        first,
                         j,
-                        split,
-                        || PhaseJob::run_all(a, v, first, kernel),
-                        || PhaseJob::run_all(b, v, first, kernel),
+                        || {},
                     );
+                    laps.lap(2);
+                    laps.lap(3);
+                    if !smooth {
+                        laps.lap(4);
+                    }
+                    geo.shift(b, kernel, p.factor, p.max_phase, j, || {});
+                    if smooth {
+                        laps.lap(4);
+                    }
+                    laps.lap(5);
+                    b.lap.collapse_with(out, j);
+                    laps.lap(6);
+                    return Ok(true);
+                }
+                // Pipelined: this frame into the buffers the pending one
+                // does not hold.
+                let (Some(load), Some(deliver)) = (load.as_mut(), deliver) else {
+                    return Ok(false);
+                };
+                if s.bufs.len() < 2 {
+                    s.bufs
+                        .push(RieszFrame::new(self.width, self.height, p.scales, smooth));
+                    s.out = crate::numeric::zeros_touched(n);
+                }
+                let cur = s.pending.map_or(0, |i| 1 - i);
+                let (lo, hi) = s.bufs.split_at_mut(1);
+                let (b, older) = if cur == 0 {
+                    (&mut lo[0], &mut hi[0])
+                } else {
+                    (&mut hi[0], &mut lo[0])
+                };
+                let wrote = s.pending.is_some();
+                let pairs = Some(&mut s.pairs[..]);
+                let (prev, filters, out) = (&mut s.prev, &mut s.filters, &mut s.out);
+                if wrote {
+                    // Inside a half, its passes in turn.
+                    let one = Par {
+                        j: &Serial,
+                        simd: j.simd,
+                    };
+                    // Hand-over 1: this frame's load and pyramid, then the
+                    // first rows of the previous frame's shift, on this
+                    // thread; the rest of the shift on the other.
+                    let shift = RieszGeo {
+                        cut: |h| h * SHIFT_SHARE / 100,
+                        ..geo
+                    };
+                    let (fa, mp) = (p.factor, p.max_phase);
+                    let pyramid = || {
+                        load(&mut b.lap.bands[0][..n]);
+                        b.lap.analyze_loaded_with(one);
+                    };
+                    shift.shift(older, kernel, fa, mp, j, pyramid);
+                    // Hand-over 2: the previous frame's collapse and
+                    // delivery, then the first rows of this frame's pair
+                    // and phase pass, on this thread; the rest of them on
+                    // the other.
+                    let phase = RieszGeo {
+                        cut: |h| h * PHASE_SHARE / 100,
+                        ..geo
+                    };
+                    let collapse = || {
+                        older.lap.collapse_with(out, one);
+                        deliver(out);
+                    };
+                    phase.phase(b, prev, filters, pairs, kernel, first, j, collapse);
+                } else {
+                    load(&mut b.lap.bands[0][..n]);
+                    b.lap.analyze_loaded_with(j);
+                    geo.phase(b, prev, filters, pairs, kernel, first, j, || {});
                 }
                 laps.lap(2);
-                laps.lap(3);
-                if !smooth {
-                    laps.lap(4);
-                }
-                {
-                    let mut jobs: [[Option<ShiftJob>; MAX_SCALES]; 2] = Default::default();
-                    let (mut den, mut nc, mut ns) = (&mut s.amp[..], &mut s.pc[..], &mut s.ps[..]);
-                    let tmp = &self.blur.tmp3[..if smooth { 3 * offs[scales] } else { 0 }];
-                    for (l, band) in s.lap.bands.iter_mut().enumerate().take(scales) {
-                        let (w, h) = dims[l];
-                        let (n, m, o) = (len(l), mid(l), offs[l]);
-                        let (q1, q2) = (s.r1[o..o + n].split_at(m), s.r2[o..o + n].split_at(m));
-                        let b = band[..n].split_at_mut(m);
-                        let [d, c, sn] =
-                            [&mut den, &mut nc, &mut ns].map(|x| take_level(x, n).split_at_mut(m));
-                        let t = if smooth {
-                            &tmp[3 * o..3 * (o + n)]
-                        } else {
-                            &[][..]
-                        };
-                        let (t0, t12) = t.split_at(t.len() / 3);
-                        let (t1, t2) = t12.split_at(t0.len());
-                        jobs[0][l] = Some(ShiftJob {
-                            w,
-                            h,
-                            y0: 0,
-                            band: b.0,
-                            pair: [q1.0, q2.0],
-                            outs: [d.0, c.0, sn.0],
-                            tmps: [t0, t1, t2],
-                        });
-                        jobs[1][l] = Some(ShiftJob {
-                            w,
-                            h,
-                            y0: cut(h),
-                            band: b.1,
-                            pair: [q1.1, q2.1],
-                            outs: [d.1, c.1, sn.1],
-                            tmps: [t0, t1, t2],
-                        });
-                    }
-                    let (fa, mp) = (p.factor, p.max_phase);
-                    let run = |jobs: &mut [Option<ShiftJob>]| {
-                        ShiftJob::run_all(jobs, v, kernel, fa, mp);
-                    };
-                    let [a, b] = &mut jobs;
-                    both(j, split, || run(a), || run(b));
-                }
-                if smooth {
-                    laps.lap(4);
-                }
-                laps.lap(5);
-                s.lap.collapse_with(out, j);
-                laps.lap(6);
-                Ok(())
+                s.pending = Some(cur);
+                Ok(wrote)
             }
         }
+    }
+}
+
+/// Two frames in flight ([`Magnifier::process_pipelined`]): the first
+/// half's share, in hundredths of each level's rows, of the shift (that
+/// thread also loads the next frame and builds its pyramid: 0.12 of 0.22
+/// ms a frame at 256x256 on one core) and of the pair and phase pass (it
+/// also collapses and delivers the previous frame: about 0.08 of 0.47
+/// ms), so that the two threads finish together. Any share gives the same
+/// bits; the times are `cargo bench --bench roofline -- --kernels`.
+const SHIFT_SHARE: usize = 23;
+const PHASE_SHARE: usize = 42;
+
+/// Where the Riesz magnifier's levels are and how they are cut: what each
+/// of its passes over every level needs besides a frame's buffers.
+#[derive(Clone, Copy)]
+struct RieszGeo<'a> {
+    dims: &'a [(usize, usize)],
+    offs: &'a [usize],
+    cut: fn(usize) -> usize,
+    /// The passes are split in halves (the frame is large enough).
+    split: bool,
+}
+
+impl<'a> RieszGeo<'a> {
+    fn new(
+        dims: &'a [(usize, usize)],
+        offs: &'a [usize],
+        cut: fn(usize) -> usize,
+        pixels: usize,
+    ) -> Self {
+        Self {
+            dims,
+            offs,
+            cut,
+            split: pixels >= laplacian::SPLIT_MIN,
+        }
+    }
+
+    /// First row of a level's second half, as an index into the level.
+    #[inline(always)]
+    fn mid(&self, l: usize) -> usize {
+        (self.cut)(self.dims[l].1) * self.dims[l].0
+    }
+
+    #[inline(always)]
+    fn len(&self, l: usize) -> usize {
+        self.dims[l].0 * self.dims[l].1
+    }
+
+    /// The Riesz pair of every level of `b`'s pyramid.
+    #[inline(always)]
+    fn pair(&self, b: &mut RieszFrame, pairs: &mut [RieszFir], j: Par<'_>) {
+        let (v, cut) = (j.simd, self.cut);
+        let mut jobs: [[Option<PairJob>; MAX_SCALES]; 2] = Default::default();
+        let (mut r1, mut r2) = (&mut b.r1[..], &mut b.r2[..]);
+        for (l, fir) in pairs.iter_mut().enumerate().take(self.dims.len()) {
+            let band = &b.lap.bands[l][..self.len(l)];
+            let q1 = take_level(&mut r1, self.len(l)).split_at_mut(self.mid(l));
+            let q2 = take_level(&mut r2, self.len(l)).split_at_mut(self.mid(l));
+            let [f0, f1] = fir.halves();
+            let y1 = cut(self.dims[l].1);
+            jobs[0][l] = Some(PairJob {
+                fir: f0,
+                band,
+                y0: 0,
+                r1: q1.0,
+                r2: q2.0,
+            });
+            jobs[1][l] = Some(PairJob {
+                fir: f1,
+                band,
+                y0: y1,
+                r1: q1.1,
+                r2: q2.1,
+            });
+        }
+        let [x, y] = &mut jobs;
+        both(
+            j,
+            self.split,
+            || PairJob::run_all(x, v),
+            || PairJob::run_all(y, v),
+        );
+    }
+
+    /// The phase pass of every level of `b` against the state `prev` and
+    /// `filters` (the frames' order): `amp` ends as the amplitude, `pc`
+    /// and `ps` as `A·φ` of the two phase components (the filtered φ
+    /// itself without smoothing), `tmp3` as their blur's horizontal pass.
+    /// With `pairs`, each half first makes its rows of the Riesz pair (as
+    /// [`Self::pair`] would), so that the pass needs no hand-over of its
+    /// own; `before` runs first in the first half.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn phase(
+        &self,
+        b: &mut RieszFrame,
+        prev: &mut [[Vec<f32>; 3]],
+        filters: &mut [[PixelFilter; 2]],
+        pairs: Option<&mut [RieszFir]>,
+        kernel: &[f32],
+        first: bool,
+        j: Par<'_>,
+        mut before: impl FnMut() + Send,
+    ) {
+        let (v, cut, offs) = (j.simd, self.cut, self.offs);
+        let smooth = kernel.len() > 1;
+        let scales = self.dims.len();
+        let mut jobs: [[Option<PhaseJob>; MAX_SCALES]; 2] = Default::default();
+        let (mut den, mut nc, mut ns) = (&mut b.amp[..], &mut b.pc[..], &mut b.ps[..]);
+        let (mut r1, mut r2) = (&mut b.r1[..], &mut b.r2[..]);
+        let mut tmp = &mut b.tmp3[..if smooth { 3 * offs[scales] } else { 0 }];
+        let mut firs = pairs.map(|p| p.iter_mut());
+        let levels = prev.iter_mut().zip(filters.iter_mut());
+        for (l, ([pi, p1, p2], [fc, fs])) in levels.enumerate().take(scales) {
+            let (w, h) = self.dims[l];
+            let (n, m) = (self.len(l), self.mid(l));
+            let level = &b.lap.bands[l][..n];
+            let bd = level.split_at(m);
+            let q1 = take_level(&mut r1, n).split_at_mut(m);
+            let q2 = take_level(&mut r2, n).split_at_mut(m);
+            let (pair0, pair1) = match firs.as_mut().and_then(|f| f.next()) {
+                Some(fir) => {
+                    let [f0, f1] = fir.halves();
+                    (
+                        PairIn::Make {
+                            fir: f0,
+                            level,
+                            r: [q1.0, q2.0],
+                        },
+                        PairIn::Make {
+                            fir: f1,
+                            level,
+                            r: [q1.1, q2.1],
+                        },
+                    )
+                }
+                None => (
+                    PairIn::Given([&*q1.0, &*q2.0]),
+                    PairIn::Given([&*q1.1, &*q2.1]),
+                ),
+            };
+            let (pi, p1, p2) = (
+                pi[..n].split_at_mut(m),
+                p1[..n].split_at_mut(m),
+                p2[..n].split_at_mut(m),
+            );
+            let outs = [&mut den, &mut nc, &mut ns].map(|x| take_level(x, n).split_at_mut(m));
+            let [d, c, sn] = outs;
+            let ((fc0, fc1), (fs0, fs1)) = (fc.parts(cut(h)), fs.parts(cut(h)));
+            let t = take_level(&mut tmp, if smooth { 3 * n } else { 0 });
+            let (t0, t12) = t.split_at_mut(t.len() / 3);
+            let (t1, t2) = t12.split_at_mut(t0.len());
+            let at = if smooth { m } else { 0 };
+            let (x0, y0) = t0.split_at_mut(at);
+            let (x1, y1) = t1.split_at_mut(at);
+            let (x2, y2) = t2.split_at_mut(at);
+            jobs[0][l] = Some(PhaseJob {
+                w,
+                y0: 0,
+                band: bd.0,
+                pair: pair0,
+                state: [pi.0, p1.0, p2.0],
+                outs: [d.0, c.0, sn.0],
+                filters: [fc0, fs0],
+                rows_out: [x0, x1, x2],
+            });
+            jobs[1][l] = Some(PhaseJob {
+                w,
+                y0: cut(h),
+                band: bd.1,
+                pair: pair1,
+                state: [pi.1, p1.1, p2.1],
+                outs: [d.1, c.1, sn.1],
+                filters: [fc1, fs1],
+                rows_out: [y0, y1, y2],
+            });
+        }
+        let [x, y] = &mut jobs;
+        both(
+            j,
+            self.split,
+            || {
+                before();
+                PhaseJob::run_all(x, v, first, kernel)
+            },
+            || PhaseJob::run_all(y, v, first, kernel),
+        );
+    }
+
+    /// The blur's vertical pass and the phase shift of every level of
+    /// `b`, in place in its pyramid's bands.
+    /// `before` runs first in the first half.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn shift(
+        &self,
+        b: &mut RieszFrame,
+        kernel: &[f32],
+        factor: f32,
+        limit: f32,
+        j: Par<'_>,
+        mut before: impl FnMut() + Send,
+    ) {
+        let (v, cut, offs) = (j.simd, self.cut, self.offs);
+        let smooth = kernel.len() > 1;
+        let scales = self.dims.len();
+        let mut jobs: [[Option<ShiftJob>; MAX_SCALES]; 2] = Default::default();
+        let (mut den, mut nc, mut ns) = (&mut b.amp[..], &mut b.pc[..], &mut b.ps[..]);
+        let tmp = &b.tmp3[..if smooth { 3 * offs[scales] } else { 0 }];
+        for (l, band) in b.lap.bands.iter_mut().enumerate().take(scales) {
+            let (w, h) = self.dims[l];
+            let (n, m, o) = (self.len(l), self.mid(l), offs[l]);
+            let (q1, q2) = (b.r1[o..o + n].split_at(m), b.r2[o..o + n].split_at(m));
+            let bd = band[..n].split_at_mut(m);
+            let [d, c, sn] = [&mut den, &mut nc, &mut ns].map(|x| take_level(x, n).split_at_mut(m));
+            let t = if smooth {
+                &tmp[3 * o..3 * (o + n)]
+            } else {
+                &[][..]
+            };
+            let (t0, t12) = t.split_at(t.len() / 3);
+            let (t1, t2) = t12.split_at(t0.len());
+            jobs[0][l] = Some(ShiftJob {
+                w,
+                h,
+                y0: 0,
+                band: bd.0,
+                pair: [q1.0, q2.0],
+                outs: [d.0, c.0, sn.0],
+                tmps: [t0, t1, t2],
+            });
+            jobs[1][l] = Some(ShiftJob {
+                w,
+                h,
+                y0: cut(h),
+                band: bd.1,
+                pair: [q1.1, q2.1],
+                outs: [d.1, c.1, sn.1],
+                tmps: [t0, t1, t2],
+            });
+        }
+        let run = |jobs: &mut [Option<ShiftJob>]| {
+            ShiftJob::run_all(jobs, v, kernel, factor, limit);
+        };
+        let [x, y] = &mut jobs;
+        both(
+            j,
+            self.split,
+            || {
+                before();
+                run(x)
+            },
+            || run(y),
+        );
     }
 }
 
@@ -977,7 +1274,9 @@ impl PairJob<'_> {
 struct PhaseJob<'a> {
     w: usize,
     y0: usize,
-    input: [&'a [f32]; 3],
+    /// This half's rows of the band.
+    band: &'a [f32],
+    pair: PairIn<'a>,
     state: [&'a mut [f32]; 3],
     outs: [&'a mut [f32]; 3],
     filters: [FilterPart<'a>; 2],
@@ -988,6 +1287,17 @@ impl PhaseJob<'_> {
     #[inline(always)]
     fn run_all(jobs: &mut [Option<Self>], v: Simd, first: bool, kernel: &[f32]) {
         for job in jobs.iter_mut().flatten() {
+            let (q1, q2): (&[f32], &[f32]) = match &mut job.pair {
+                PairIn::Given([q1, q2]) => (q1, q2),
+                PairIn::Make {
+                    fir,
+                    level,
+                    r: [q1, q2],
+                } => {
+                    fir.rows(v, level, job.y0, q1, q2);
+                    (q1, q2)
+                }
+            };
             let [pi, p1, p2] = &mut job.state;
             let [d, c, sn] = &mut job.outs;
             let [fc, fs] = &mut job.filters;
@@ -998,7 +1308,7 @@ impl PhaseJob<'_> {
                 first,
                 job.w,
                 job.y0,
-                job.input,
+                [job.band, q1, q2],
                 [&mut **pi, &mut **p1, &mut **p2],
                 [&mut **d, &mut **c, &mut **sn],
                 [fc, fs],
@@ -1007,6 +1317,18 @@ impl PhaseJob<'_> {
             );
         }
     }
+}
+
+/// A half's rows of the Riesz pair, for the phase pass.
+enum PairIn<'a> {
+    /// Made by [`RieszGeo::pair`] before the pass.
+    Given([&'a [f32]; 2]),
+    /// To be made by the half itself from the whole `level`, into `r`.
+    Make {
+        fir: riesz_fir::PairHalf<'a>,
+        level: &'a [f32],
+        r: [&'a mut [f32]; 2],
+    },
 }
 
 /// One half of a level's rows of the blur's vertical pass (with
@@ -1298,14 +1620,55 @@ fn riesz_shift(
 }
 }
 
+/// The dither of pixel `i` under `key`: uniform in `[-½, ½)`.
+#[inline(always)]
+fn dither(key: u64, i: usize) -> f32 {
+    let h = crate::rng::mix64(key ^ i as u64);
+    (h >> 40) as f32 * (1.0 / 16_777_216.0) - 0.5
+}
+
 simd_fn! {
 fn dither_round_body(values: &mut [f32], key: u64, first: usize, max: f32) {
     for (i, v) in values.iter_mut().enumerate() {
-        let h = crate::rng::mix64(key ^ (first + i) as u64);
-        let d = (h >> 40) as f32 * (1.0 / 16_777_216.0) - 0.5;
-        *v = (*v + d).round().clamp(0.0, max);
+        *v = (*v + dither(key, first + i)).round().clamp(0.0, max);
     }
 }
+}
+
+/// `$name`: [`dither_round`] into pixels of type `$t`, whose largest
+/// value is `$lim`.
+macro_rules! dither_round_into {
+    ($name:ident, $t:ty, $lim:expr) => {
+        simd_fn! {
+        fn $name(values: &[f32], key: u64, first: usize, max: f32, out: &mut [$t]) {
+            // (`as` would saturate the same way; this limit lets the
+            // conversion below skip the checks that kept it from
+            // vectorising.)
+            let max = max.min($lim);
+            for (i, (o, v)) in out.iter_mut().zip(values).enumerate() {
+                let r = (*v + dither(key, first + i)).round().clamp(0.0, max);
+                // A NaN value becomes 0, as `as` makes it.
+                let r = if r >= 0.0 { r } else { 0.0 };
+                // SAFETY: `r` is finite and in `0..=$lim`, which `i32` holds.
+                *o = unsafe { r.to_int_unchecked::<i32>() } as $t;
+            }
+        }
+        }
+    };
+}
+dither_round_into!(dither_round_u8_body, u8, 255.0);
+dither_round_into!(dither_round_u16_body, u16, 65535.0);
+
+/// [`dither_round`] written as 8-bit pixels into `out` (as long as
+/// `values`; `max` at most 255): the same levels in one pass, `values`
+/// left as they are.
+pub fn dither_round_u8(values: &[f32], key: u64, first: usize, max: f32, out: &mut [u8]) {
+    dither_round_u8_body(Simd::detect(), values, key, first, max, out);
+}
+
+/// [`dither_round_u8`] for 16-bit pixels (`max` at most 65535).
+pub fn dither_round_u16(values: &[f32], key: u64, first: usize, max: f32, out: &mut [u16]) {
+    dither_round_u16_body(Simd::detect(), values, key, first, max, out);
 }
 
 /// A magnified frame's values made pixel levels: each `values[i]` (pixel

@@ -291,7 +291,7 @@ fn in_band_tone_is_scaled_by_the_factor() {
 /// shorter than, equal to and longer than the kernel.
 #[test]
 fn blur_matches_the_clamped_convolution() {
-    let kernel = WeightedBlur::new(1.5, 1, false).kernel;
+    let kernel = WeightedBlur::new(1.5, 1).kernel;
     let r = (kernel.len() / 2) as isize;
     for (w, h) in [(1, 1), (3, 2), (9, 4), (10, 7), (33, 5)] {
         let src: Vec<f32> = (0..w * h)
@@ -334,7 +334,7 @@ fn blur_matches_the_clamped_convolution() {
 #[test]
 fn fixed_length_blur_rows_equal_the_general_ones() {
     for sigma in [0.5f32, 1.0, 1.5, 2.5] {
-        let kernel = WeightedBlur::new(sigma, 1, false).kernel;
+        let kernel = WeightedBlur::new(sigma, 1).kernel;
         assert!(kernel.len() <= MAX_FIXED_TAPS, "sigma {sigma}");
         for w in (1..=100).chain([127, 255, 256]) {
             let h = 9;
@@ -430,6 +430,63 @@ fn riesz_halves_and_vector_widths_give_the_same_bits() {
                 "{w}x{h}, σ {sigma}, frame {t}: {} (two threads) differs from sse2 (one thread)",
                 split.simd()
             );
+            }
+        }
+    }
+}
+
+/// Two frames in flight (`process_pipelined`, on two threads) give each
+/// frame's bits one call later, the last one from `flush`; after a flush
+/// the next call starts a new pipeline on the same state, so a run that
+/// flushes midway still matches. A frame too small to split (under
+/// `SPLIT_MIN`) and one that splits, with smoothing and without.
+#[test]
+fn riesz_pipelined_frames_are_the_same_bits_one_call_later() {
+    for (w, h, scales) in [(144, 112, 4), (60, 40, 3)] {
+        let base = texture(w, h, 11);
+        for sigma in [DEFAULT_SIGMA, 0.0] {
+            let mut p = MagnifyParams::new(100.0, 8.0, 12.0, 20.0);
+            p.pyramid = PyramidKind::Riesz;
+            p.scales = scales;
+            p.sigma = sigma;
+            let mut whole = Magnifier::new(w, h, p).unwrap();
+            let mut piped = Magnifier::new(w, h, p).unwrap();
+            let mut want: Vec<Vec<f32>> = Vec::new();
+            let mut got: Vec<Vec<f32>> = Vec::new();
+            let mut o = vec![0.0; w * h];
+            let frames = 20;
+            for t in 0..frames {
+                let d = 0.3 * (std::f32::consts::TAU * 10.0 * t as f32 / 100.0).sin();
+                let frame = shifted(&base, w, h, d);
+                whole.process(&frame, &mut o).unwrap();
+                want.push(o.clone());
+                let before = got.len();
+                let mut load = |dst: &mut [f32]| dst.copy_from_slice(&frame);
+                let mut deliver = |m: &[f32]| got.push(m.to_vec());
+                let wrote = piped
+                    .process_pipelined(&mut load, &mut deliver, &TwoThreads)
+                    .unwrap();
+                // Nothing comes out of the first call, nor of the first
+                // after a flush.
+                assert_eq!(wrote, t != 0 && t != 8, "frame {t}");
+                assert_eq!(got.len(), before + usize::from(wrote), "frame {t}");
+                // A flush midway: the held frame comes out, the next call
+                // holds its own.
+                if t == 7 {
+                    let mut deliver = |m: &[f32]| got.push(m.to_vec());
+                    assert!(piped.flush(&mut deliver, &TwoThreads).unwrap());
+                    assert!(!piped.flush(&mut deliver, &TwoThreads).unwrap());
+                }
+            }
+            let mut deliver = |m: &[f32]| got.push(m.to_vec());
+            assert!(piped.flush(&mut deliver, &TwoThreads).unwrap());
+            assert!(!piped.flush(&mut deliver, &TwoThreads).unwrap());
+            assert_eq!(got.len(), frames, "{w}x{h}, σ {sigma}: frames out");
+            for (t, (a, b)) in want.iter().zip(&got).enumerate() {
+                assert!(
+                    a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "{w}x{h}, σ {sigma}, frame {t}: pipelined differs from one frame at a time"
+                );
             }
         }
     }
@@ -625,5 +682,47 @@ fn levels_are_the_binomial_reduce_and_expand() {
                 "{w}x{h}, residual {i}"
             );
         }
+    }
+}
+
+/// The dither written straight into 8- and 16-bit pixels gives the levels
+/// of `dither_round` then a cast, for values inside the range, beyond both
+/// ends, at the levels' midpoints and NaN; `values` stay as they were.
+#[test]
+fn dithered_pixels_are_the_rounded_values_cast() {
+    let mut values: Vec<f32> = (0..3000)
+        .map(|i| (i as f32 * 0.731).sin() * 400.0 + 100.0)
+        .collect();
+    values.extend([
+        f32::NAN,
+        -0.5,
+        0.5,
+        254.5,
+        255.5,
+        1e9,
+        -1e9,
+        65535.5,
+        70000.0,
+    ]);
+    for (max, first) in [(255.0, 0usize), (255.0, 1234), (65535.0, 7), (1023.0, 0)] {
+        let mut rounded = values.clone();
+        dither_round(&mut rounded, 99, first, max);
+        let keep = values.clone();
+        if max <= 255.0 {
+            let mut px = vec![0u8; values.len()];
+            dither_round_u8(&values, 99, first, max, &mut px);
+            for (i, (p, r)) in px.iter().zip(&rounded).enumerate() {
+                assert_eq!(*p, *r as u8, "max {max}, value {} at {i}", values[i]);
+            }
+        }
+        let mut px = vec![0u16; values.len()];
+        dither_round_u16(&values, 99, first, max, &mut px);
+        for (i, (p, r)) in px.iter().zip(&rounded).enumerate() {
+            assert_eq!(*p, *r as u16, "max {max}, value {} at {i}", values[i]);
+        }
+        assert!(values
+            .iter()
+            .zip(&keep)
+            .all(|(a, b)| a.to_bits() == b.to_bits()));
     }
 }

@@ -564,7 +564,7 @@ impl RieszPyramid {
     /// The same code compiled for AVX-512 (the same operations: the same
     /// bits).
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+    #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,fma")]
     unsafe fn levels_avx512(
         &mut self,
         frame: &[f32],

@@ -5,6 +5,12 @@
 //! method. With `roi` only that region is processed and written; with
 //! `side_by_side` each output frame holds the input (left) and the
 //! magnified frame (right). Output frames come from the stage's own pool.
+//!
+//! The Riesz magnifier on two threads keeps two frames in flight
+//! (`Magnifier::process_pipelined`: two hand-overs between the threads a
+//! frame instead of about twenty): each magnified frame leaves when the
+//! next input frame comes, the last one at the end, so a live view shows
+//! it one frame later. The frames are the bytes one thread writes.
 
 use super::reduce::ROI;
 use super::roi::{Roi, RoiParam};
@@ -13,7 +19,7 @@ use crate::*;
 use std::sync::Arc;
 use std::time::Duration;
 use vibroscope_math::join::Join;
-use vibroscope_math::magnify::dither_round;
+use vibroscope_math::magnify::{dither_round_u16, dither_round_u8};
 use vibroscope_math::magnify::{
     Magnifier, MagnifyError, MagnifyParams as Method, PyramidKind, DEFAULT_MAX_PHASE,
     DEFAULT_ORDER, DEFAULT_ORIENTATIONS, DEFAULT_SIGMA,
@@ -118,6 +124,11 @@ impl Plan for MagnifyPlan {
             tuned: 0,
         })))
     }
+
+    /// The Riesz magnifier on two threads holds the frame in flight.
+    fn frames_held(&self) -> usize {
+        1
+    }
 }
 
 /// The steerable pyramid's orientations are magnified in this many parts.
@@ -144,6 +155,13 @@ struct Run {
     input: Vec<f32>,
     output: Vec<f32>,
     max: f32,
+    /// The Riesz magnifier on two threads keeps two frames in flight
+    /// (`Magnifier::process_pipelined`): each frame leaves when the next
+    /// one comes, or at the end.
+    pipelined: bool,
+    /// The frame in flight, whose magnified frame the next call (or
+    /// `finish`) gives.
+    held: Option<Frame>,
 }
 
 struct Magnify {
@@ -354,15 +372,22 @@ impl Magnify {
         } else {
             None
         };
+        // Two frames in flight take two hand-overs a frame between the
+        // threads where one frame at a time takes about twenty.
+        let pipelined = !csp && halves.is_some();
         Ok(Run {
             size: (f.width(), f.height()),
             roi,
             parts,
             halves,
             pool: FramePool::new(format, self.pool_frames.max(2)),
-            input: vec![0.0; roi.w * roi.h],
-            output: vec![0.0; roi.w * roi.h],
+            // (The pipelined magnifier loads its frames and keeps its
+            // output itself.)
+            input: vec![0.0; if pipelined { 0 } else { roi.w * roi.h }],
+            output: vec![0.0; if pipelined { 0 } else { roi.w * roi.h }],
             max: fmt.max_value() as f32,
+            pipelined,
+            held: None,
         })
     }
 }
@@ -372,11 +397,12 @@ impl Stage for Magnify {
         let Item::Frame(f) = item else {
             return Err(StageError::expected("frames"));
         };
-        if let Some(t) = &self.tuning {
-            if t.version() != self.tuned {
-                let t = Arc::clone(t);
-                self.retune(&t, &f);
-            }
+        let tuned = self.tuned;
+        if let Some(t) = self.tuning.as_ref().filter(|t| t.version() != tuned) {
+            let t = Arc::clone(t);
+            // The frame in flight leaves with the settings it came under.
+            self.flush(out)?;
+            self.retune(&t, &f);
         }
         if self.run.is_none() {
             self.run = Some(self.start(&f)?);
@@ -384,7 +410,7 @@ impl Stage for Magnify {
         let Some(r) = self.run.as_mut() else {
             return Ok(());
         };
-        let (fw, roi) = (f.width(), r.roi);
+        let roi = r.roi;
         if (f.width(), f.height()) != r.size {
             return Err(StageError::format(format!(
                 "the frame size changed mid-stream ({}x{} to {}x{})",
@@ -394,12 +420,33 @@ impl Stage for Magnify {
                 f.height()
             )));
         }
-        let src = f.pixels();
-        let halves = r.halves.as_ref().map(|j| j as &dyn Join);
-        match src {
-            PixelsRef::U8(p) => load_region(&mut r.input, p, fw, roi, halves),
-            PixelsRef::U16(p) => load_region(&mut r.input, p, fw, roi, halves),
+        let dsp =
+            |e: vibroscope_math::pyramid::PyramidError| StageError::dsp(format!("magnify: {e}"));
+        if r.pipelined {
+            if let ([one], Some(j)) = (r.parts.as_mut_slice(), &r.halves) {
+                // This frame goes in; the one held comes out.
+                let held = r.held.take();
+                let mut o = match &held {
+                    Some(_) => out.acquire(&r.pool),
+                    None => None,
+                };
+                let mut put = Put::new(&mut o, held.as_ref(), r.roi, &self.p, r.max);
+                let mut deliver = |values: &[f32]| put.write(values);
+                let mut load = |dst: &mut [f32]| load_frame(dst, &f, roi, None);
+                let wrote = one
+                    .magnifier
+                    .process_pipelined(&mut load, &mut deliver, j)
+                    .map_err(dsp)?;
+                put.result()?;
+                r.held = Some(f);
+                if let (true, Some(o)) = (wrote, o) {
+                    let _ = out.emit(Item::Frame(o.freeze()));
+                }
+                return Ok(());
+            }
         }
+        let halves = r.halves.as_ref().map(|j| j as &dyn Join);
+        load_frame(&mut r.input, &f, roi, halves);
         match r.parts.as_mut_slice() {
             [one] => {
                 one.result = match &r.halves {
@@ -423,47 +470,129 @@ impl Stage for Magnify {
             }
         }
         for p in r.parts.iter_mut() {
-            std::mem::replace(&mut p.result, Ok(()))
-                .map_err(|e| StageError::dsp(format!("magnify: {e}")))?;
+            std::mem::replace(&mut p.result, Ok(())).map_err(dsp)?;
         }
-        let Some(mut o) = out.acquire(&r.pool) else {
+        let Some(o) = out.acquire(&r.pool) else {
             return Ok(());
         };
-        *o.meta_mut() = *f.meta();
-        let ow = o.format().width as usize;
-        let (side, whole) = (self.p.side_by_side, self.p.whole_frame);
-        // The magnified frame is dithered (uniform, ±½ DN) before rounding:
-        // a change smaller than half a level would otherwise round back to
-        // the input's own integers, and small motions (or factors near 1)
-        // would vanish in a dead zone. Deterministic per frame and pixel.
-        let key = mix64(f.meta().seq ^ 0x006d_6167_6e69_6679);
-        let layout = Layout {
-            fw,
-            fh: f.height(),
-            ow,
-            roi,
-            side,
-            whole,
-            key,
-            max: r.max,
-        };
         let halves = r.halves.as_ref().map(|j| j as &dyn Join);
-        let (input, output) = (&r.input[..], &mut r.output[..]);
-        match (o.pixels_mut(), src) {
-            (PixelsMut::U8(p), PixelsRef::U8(s)) => {
-                write_frame(p, s, input, output, &layout, halves, |v| v as u8)
+        let mut o = Some(o);
+        let mut put = Put::new(&mut o, Some(&f), r.roi, &self.p, r.max);
+        put.write_in_halves(&r.output, halves);
+        put.result()?;
+        if let Some(o) = o {
+            let _ = out.emit(Item::Frame(o.freeze()));
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, out: &mut Emitter) -> Result<(), StageError> {
+        self.flush(out)
+    }
+}
+
+impl Magnify {
+    /// The frame in flight (the Riesz magnifier on two threads), magnified
+    /// and sent.
+    fn flush(&mut self, out: &mut Emitter) -> Result<(), StageError> {
+        let Some(r) = self.run.as_mut() else {
+            return Ok(());
+        };
+        let Some(held) = r.held.take() else {
+            return Ok(());
+        };
+        let ([one], Some(j)) = (r.parts.as_mut_slice(), &r.halves) else {
+            return Ok(());
+        };
+        let mut o = out.acquire(&r.pool);
+        let mut put = Put::new(&mut o, Some(&held), r.roi, &self.p, r.max);
+        let mut deliver = |values: &[f32]| put.write(values);
+        let wrote = one
+            .magnifier
+            .flush(&mut deliver, j)
+            .map_err(|e| StageError::dsp(format!("magnify: {e}")))?;
+        put.result()?;
+        if let (true, Some(o)) = (wrote, o) {
+            let _ = out.emit(Item::Frame(o.freeze()));
+        }
+        Ok(())
+    }
+}
+
+/// Writes the magnified values of input frame `f` into an output frame
+/// from the pool (its meta set to `f`'s): the layout of [`write_frame`].
+/// With no output frame (the run is stopping) or no input frame, nothing.
+struct Put<'a> {
+    o: &'a mut Option<FrameMut>,
+    f: Option<&'a Frame>,
+    at: Option<Layout>,
+    failed: Option<StageError>,
+}
+
+impl<'a> Put<'a> {
+    fn new(o: &'a mut Option<FrameMut>, f: Option<&'a Frame>, roi: Roi, p: &P, max: f32) -> Self {
+        let at = o.as_mut().zip(f).map(|(o, f)| {
+            *o.meta_mut() = *f.meta();
+            Layout {
+                fw: f.width(),
+                fh: f.height(),
+                ow: o.format().width as usize,
+                roi,
+                side: p.side_by_side,
+                whole: p.whole_frame,
+                // The magnified frame is dithered (uniform, ±½ DN) before
+                // rounding: a change smaller than half a level would
+                // otherwise round back to the input's own integers, and
+                // small motions (or factors near 1) would vanish in a dead
+                // zone. Deterministic per frame and pixel.
+                key: mix64(f.meta().seq ^ 0x006d_6167_6e69_6679),
+                max,
             }
-            (PixelsMut::U16(p), PixelsRef::U16(s)) => {
-                write_frame(p, s, input, output, &layout, halves, |v| v as u16)
+        });
+        Self {
+            o,
+            f,
+            at,
+            failed: None,
+        }
+    }
+
+    /// The magnified `values`, in one pass on this thread.
+    fn write(&mut self, values: &[f32]) {
+        self.write_in_halves(values, None);
+    }
+
+    /// The magnified `values`, in two halves of rows through `halves`.
+    fn write_in_halves(&mut self, values: &[f32], halves: Option<&dyn Join>) {
+        let (Some(o), Some(f), Some(at)) = (self.o.as_mut(), self.f, self.at.as_ref()) else {
+            return;
+        };
+        match (o.pixels_mut(), f.pixels()) {
+            (PixelsMut::U8(px), PixelsRef::U8(s)) => {
+                write_frame(px, s, values, at, halves, dither_round_u8)
+            }
+            (PixelsMut::U16(px), PixelsRef::U16(s)) => {
+                write_frame(px, s, values, at, halves, dither_round_u16)
             }
             _ => {
-                return Err(StageError::format(
+                self.failed = Some(StageError::format(
                     "the output's depth differs from the input's",
                 ))
             }
         }
-        let _ = out.emit(Item::Frame(o.freeze()));
-        Ok(())
+    }
+
+    fn result(&mut self) -> Result<(), StageError> {
+        self.failed.take().map_or(Ok(()), Err)
+    }
+}
+
+/// The region `roi` of frame `f` into `input` as `f32`, in two halves of
+/// rows through `halves` when there is a helper.
+fn load_frame(input: &mut [f32], f: &Frame, roi: Roi, halves: Option<&dyn Join>) {
+    match f.pixels() {
+        PixelsRef::U8(p) => load_region(input, p, f.width(), roi, halves),
+        PixelsRef::U16(p) => load_region(input, p, f.width(), roi, halves),
     }
 }
 
@@ -510,57 +639,51 @@ struct Layout {
     max: f32,
 }
 
+/// How the region's magnified values become pixels: `(values, key,
+/// first, max, out)` writes `values` (pixels `first..` of the region)
+/// dithered, rounded and limited to `0..=max` into `out`
+/// ([`dither_round_u8`], [`dither_round_u16`]).
+type Round<T> = fn(&[f32], u64, usize, f32, &mut [T]);
+
 /// Writes one output frame `p`: the region's magnified values `output`
-/// (dithered and rounded in place, [`dither_round`]), after the input's
-/// own pixels where the output shows them: the whole input frame `src`
-/// around the region with `whole`, the input on the left with `side` (the
-/// region's `input` values, `cast` to pixels, or the whole frame). In two
-/// halves of rows through `halves` when there is a helper; the same bytes
-/// either way (the dither depends on the pixel, not on the half).
+/// (dithered and rounded by `put`), after the input's own pixels where the
+/// output shows them: the whole input frame `src` around the region with
+/// `whole`, the input on the left with `side` (its region, or the whole
+/// frame). In two halves of rows through `halves` when there is a helper;
+/// the same bytes either way (the dither depends on the pixel, not on the
+/// half).
 fn write_frame<T: Copy + Send + Sync>(
     p: &mut [T],
     src: &[T],
-    input: &[f32],
-    output: &mut [f32],
+    output: &[f32],
     at: &Layout,
     halves: Option<&dyn Join>,
-    cast: impl Fn(f32) -> T + Sync,
+    put: Round<T>,
 ) {
-    let roi = at.roi;
-    // Output rows, and the region's first row in them.
-    let (h, oy) = if at.whole { (at.fh, roi.y) } else { (roi.h, 0) };
-    // The region's first row at or after output row `y`.
-    let region_row = |y: usize| y.clamp(oy, oy + roi.h) - oy;
-    let rows = |p: &mut [T], output: &mut [f32], y0: usize, y1: usize| {
-        // The region's rows among output rows `y0..y1` (`output` holds them).
-        let r0 = region_row(y0);
-        dither_round(output, at.key, r0 * roi.w, at.max);
-        write_rows(p, src, input, output, at, y0..y1, r0, &cast);
+    let h = if at.whole { at.fh } else { at.roi.h };
+    let rows = |p: &mut [T], y0: usize, y1: usize| {
+        write_rows(p, src, output, at, y0..y1, put);
     };
     let cut = match halves {
         Some(_) => h / 2,
         None => h,
     };
     let (pa, pb) = p.split_at_mut((cut * at.ow).min(p.len()));
-    let (oa, ob) = output.split_at_mut(region_row(cut) * roi.w);
     match halves {
-        Some(j) => j.join(&mut || rows(pa, oa, 0, cut), &mut || rows(pb, ob, cut, h)),
-        None => rows(pa, oa, 0, cut),
+        Some(j) => j.join(&mut || rows(pa, 0, cut), &mut || rows(pb, cut, h)),
+        None => rows(pa, 0, cut),
     }
 }
 
 /// Output rows `ys` of [`write_frame`] into `p` (those rows), the
-/// region's rounded values from its row `r0` in `magnified`.
-#[allow(clippy::too_many_arguments)]
+/// region's values from `magnified` (the whole region's).
 fn write_rows<T: Copy>(
     p: &mut [T],
     src: &[T],
-    input: &[f32],
     magnified: &[f32],
     at: &Layout,
     ys: std::ops::Range<usize>,
-    r0: usize,
-    cast: &impl Fn(f32) -> T,
+    put: Round<T>,
 ) {
     let (roi, fw, ow) = (at.roi, at.fw, at.ow);
     let (w, ox, oy) = if at.whole {
@@ -585,16 +708,19 @@ fn write_rows<T: Copy>(
                 p[base..base + w].copy_from_slice(row);
             }
         } else if at.side {
-            for (d, v) in p[base..base + w].iter_mut().zip(&input[y * w..(y + 1) * w]) {
-                *d = cast(*v);
-            }
+            let start = (roi.y + y) * fw + roi.x;
+            p[base..base + w].copy_from_slice(&src[start..start + w]);
         }
         if region {
-            let ry = y - oy - r0;
-            let values = &magnified[ry * roi.w..(ry + 1) * roi.w];
-            for (d, v) in p[main + ox..main + ox + roi.w].iter_mut().zip(values) {
-                *d = cast(*v);
-            }
+            let first = (y - oy) * roi.w;
+            let values = &magnified[first..first + roi.w];
+            put(
+                values,
+                at.key,
+                first,
+                at.max,
+                &mut p[main + ox..main + ox + roi.w],
+            );
         }
     }
 }
@@ -609,6 +735,8 @@ mod tests {
     /// what each layout promises pixel by pixel: the region's values
     /// dithered and rounded, the input around the region (`whole`), the
     /// input on the left (`side`).
+    use vibroscope_math::magnify::dither_round;
+
     #[test]
     fn output_frames_in_halves_equal_the_plain_layout() {
         let (fw, fh) = (37usize, 23usize);
@@ -644,8 +772,8 @@ mod tests {
                 };
                 let mut frames = Vec::new();
                 for halves in [None, Some(&j as &dyn Join)] {
-                    let (mut p, mut out) = (vec![0u8; ow * ch], values.clone());
-                    write_frame(&mut p, &src, &input, &mut out, &at, halves, |v| v as u8);
+                    let mut p = vec![0u8; ow * ch];
+                    write_frame(&mut p, &src, &values, &at, halves, dither_round_u8);
                     frames.push(p);
                 }
                 assert_eq!(frames[0], frames[1], "{roi:?} side {side} whole {whole}");
