@@ -984,6 +984,15 @@ impl Magnifier {
     }
 }
 
+/// The largest frame (pixels) whose Riesz magnifier is worth running with
+/// two frames in flight ([`Magnifier::process_pipelined`]), on a 2-core
+/// Xeon with AVX-512 (`magnify`, session 69): 1.17x faster at 256x256,
+/// 1.1x at 640x480, the same at 384x384, but 1.5x slower at 1920x1080
+/// (42 against 28.6 ms a frame), where every pass of one frame takes
+/// milliseconds and its halves' hand-overs cost nothing, while the
+/// pipeline's fixed shares of the work no longer balance its threads.
+pub const PIPELINE_MAX_PIXELS: usize = 640 * 480;
+
 /// Two frames in flight ([`Magnifier::process_pipelined`]): the first
 /// half's share, in hundredths of each level's rows, of the shift (that
 /// thread also loads the next frame and builds its pyramid: 0.12 of 0.22

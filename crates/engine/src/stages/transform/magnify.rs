@@ -6,11 +6,12 @@
 //! `side_by_side` each output frame holds the input (left) and the
 //! magnified frame (right). Output frames come from the stage's own pool.
 //!
-//! The Riesz magnifier on two threads keeps two frames in flight
-//! (`Magnifier::process_pipelined`: two hand-overs between the threads a
-//! frame instead of about twenty): each magnified frame leaves when the
-//! next input frame comes, the last one at the end, so a live view shows
-//! it one frame later. The frames are the bytes one thread writes.
+//! The Riesz magnifier on two threads keeps two frames in flight on
+//! regions up to 640x480 pixels (`Magnifier::process_pipelined`: two
+//! hand-overs between the threads a frame instead of about twenty): each
+//! magnified frame leaves when the next input frame comes, the last one
+//! at the end, so a live view shows it one frame later. The frames are
+//! the bytes one thread writes.
 
 use super::reduce::ROI;
 use super::roi::{Roi, RoiParam};
@@ -19,7 +20,7 @@ use crate::*;
 use std::sync::Arc;
 use std::time::Duration;
 use vibroscope_math::join::Join;
-use vibroscope_math::magnify::{dither_round_u16, dither_round_u8};
+use vibroscope_math::magnify::{dither_round_u16, dither_round_u8, PIPELINE_MAX_PIXELS};
 use vibroscope_math::magnify::{
     Magnifier, MagnifyError, MagnifyParams as Method, PyramidKind, DEFAULT_MAX_PHASE,
     DEFAULT_ORDER, DEFAULT_ORIENTATIONS, DEFAULT_SIGMA,
@@ -373,8 +374,9 @@ impl Magnify {
             None
         };
         // Two frames in flight take two hand-overs a frame between the
-        // threads where one frame at a time takes about twenty.
-        let pipelined = !csp && halves.is_some();
+        // threads where one frame at a time takes about twenty: faster
+        // where a hand-over costs as much as a pass's half.
+        let pipelined = !csp && halves.is_some() && roi.w * roi.h <= PIPELINE_MAX_PIXELS;
         Ok(Run {
             size: (f.width(), f.height()),
             roi,
