@@ -758,8 +758,10 @@ impl Magnifier {
     /// shift on the other; the second runs the previous frame's collapse
     /// and `deliver`, then the first rows of this frame's Riesz pair and
     /// phase pass, on the calling thread, and the other rows on the
-    /// other. Both closures run on the calling thread. The cost: a second
-    /// frame's buffers, and one frame of latency.
+    /// other. Both closures run in the first half of a hand-over (on the
+    /// calling thread with a join that runs its first half there, as the
+    /// engine's does). The cost: a second frame's buffers, and one frame
+    /// of latency.
     ///
     /// Returns whether `deliver` was called (not on the first frame after
     /// [`Self::new`] or a [`Self::flush`]); [`Self::flush`] delivers the
