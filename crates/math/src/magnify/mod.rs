@@ -813,8 +813,9 @@ impl Magnifier {
     fn process_body(&mut self, job: Job<'_>, j: &dyn Join) -> Result<bool, PyramidError> {
         let j = Par { j, simd: self.simd };
         let n = self.width * self.height;
-        let (frame, out, mut load, deliver) = match job {
-            Job::Whole { frame, out } => (frame, out, None, None),
+        // `piped`: the pipelined call's closures (the Riesz magnifier's).
+        let (frame, out, piped) = match job {
+            Job::Whole { frame, out } => (frame, out, None),
             Job::Pipelined { load, deliver } => {
                 if let State::Csp(_) = self.state {
                     // No split: this frame, at once.
@@ -833,7 +834,7 @@ impl Magnifier {
                     self.scratch = (frame, out);
                     return r;
                 }
-                (&[][..], &mut [][..], Some(load), Some(deliver))
+                (&[][..], &mut [][..], Some((load, deliver)))
             }
             Job::Flush { deliver } => {
                 let State::Riesz(s) = &mut self.state else {
@@ -891,7 +892,7 @@ impl Magnifier {
                 let geo = RieszGeo::new(&s.dims, &s.offs, s.cut, n);
                 let kernel = &self.blur.kernel[..];
                 let smooth = kernel.len() > 1;
-                if load.is_none() {
+                let Some((load, deliver)) = piped else {
                     let b = &mut s.bufs[0];
                     b.lap.analyze_with(frame, j);
                     laps.lap(0);
@@ -920,12 +921,9 @@ impl Magnifier {
                     b.lap.collapse_with(out, j);
                     laps.lap(6);
                     return Ok(true);
-                }
+                };
                 // Pipelined: this frame into the buffers the pending one
                 // does not hold.
-                let (Some(load), Some(deliver)) = (load.as_mut(), deliver) else {
-                    return Ok(false);
-                };
                 if s.bufs.len() < 2 {
                     s.bufs
                         .push(RieszFrame::new(self.width, self.height, p.scales, smooth));
