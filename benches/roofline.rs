@@ -38,11 +38,13 @@ const RIESZ_COUNTS: [(f64, f64, u8); 7] = [
 const CSP_COUNTS: [(f64, f64, u8); 7] = [
     (800.0, 680.0, 2), // pyramid build (FFT, masks, band inverse FFTs)
     (0.0, 0.0, 0),     // (no Riesz pair)
-    (382.0, 424.0, 3), // phase difference, sum, amplitude
-    (191.0, 424.0, 3), // temporal band-pass
-    (615.0, 678.0, 2), // amplitude-weighted blur (a band at a time: in L2)
-    (339.0, 212.0, 3), // phase shift
-    (800.0, 680.0, 2), // pyramid collapse (band FFTs, masks, inverse FFT)
+    // One sweep of each band's rows (`csp_band`): phase step, band-pass,
+    // blur, shift; from L3 only the state (previous phase, band-pass).
+    (1484.0, 424.0, 3), // phase difference, amplitude + band-pass + blur + shift (fused)
+    (0.0, 0.0, 1),      // (fused into the step before)
+    (0.0, 0.0, 1),      // (fused into the step before)
+    (0.0, 0.0, 1),      // (fused into the step before)
+    (800.0, 680.0, 2),  // pyramid collapse (band FFTs, masks, inverse FFT)
 ];
 
 fn main() {
@@ -132,15 +134,16 @@ fn main() {
             if flops == 0.0 && bytes == 0.0 {
                 continue;
             }
-            // A step fused with the next one (no count of its own) takes
-            // its time too.
-            let fused = counts.get(k + 1).is_some_and(|c| c.2 == 1);
-            let secs = prof.seconds[k] + if fused { prof.seconds[k + 1] } else { 0.0 };
-            let name = if fused {
-                format!("{name} + {}", STEPS[k + 1])
-            } else {
-                name.to_string()
-            };
+            // The steps fused with this one (no count of their own) take
+            // their time too.
+            let fused: Vec<usize> = (k + 1..counts.len())
+                .take_while(|&i| counts[i].2 == 1)
+                .collect();
+            let secs = prof.seconds[k] + fused.iter().map(|&i| prof.seconds[i]).sum::<f64>();
+            let name = std::iter::once(name.to_string())
+                .chain(fused.iter().map(|&i| STEPS[i].to_string()))
+                .collect::<Vec<_>>()
+                .join(" + ");
             let s = secs / prof.frames as f64;
             let rate = px / s / 1e6;
             // Mpix/s the step could reach at the one-core peaks.

@@ -178,19 +178,15 @@ pub enum MagnifyError {
     Pyramid(#[from] PyramidError),
 }
 
-/// Amplitude-weighted Gaussian smoothing, allocated once for the largest band.
+/// The kernel of the amplitude-weighted Gaussian smoothing of the phase
+/// (its sums: [`csp_band`] and the Riesz magnifier's phase pass).
 #[derive(Clone, Debug)]
 struct WeightedBlur {
     kernel: Vec<f32>,
-    num: Vec<f32>,
-    den: Vec<f32>,
-    /// `num`, `den`, `tmp`: for `apply` (the steerable pyramid); empty for
-    /// Riesz (its three channels are blurred in [`RieszFrame::tmp3`]).
-    tmp: Vec<f32>,
 }
 
 impl WeightedBlur {
-    fn new(sigma: f32, max_len: usize) -> Self {
+    fn new(sigma: f32) -> Self {
         let kernel = if sigma > 0.0 {
             let r = (3.0 * sigma).ceil() as isize;
             let k: Vec<f32> = (-r..=r)
@@ -201,54 +197,14 @@ impl WeightedBlur {
         } else {
             vec![1.0]
         };
-        Self {
-            kernel,
-            num: crate::numeric::zeros_touched(max_len),
-            den: crate::numeric::zeros_touched(max_len),
-            tmp: crate::numeric::zeros_touched(max_len),
-        }
-    }
-
-    /// `phase[c] <- G*(amp·phase[c]) / G*amp` for each channel `c` (the
-    /// channels share the weights).
-    #[inline(always)]
-    fn apply(&mut self, amp: &[f32], phases: &mut [&mut [f32]], w: usize, h: usize, simd: Simd) {
-        if self.kernel.len() == 1 {
-            return;
-        }
-        let n = w * h;
-        self.den[..n].copy_from_slice(&amp[..n]);
-        blur(
-            &self.kernel,
-            &mut self.den[..n],
-            &mut self.tmp[..n],
-            w,
-            h,
-            simd,
-        );
-        for p in phases.iter_mut() {
-            for ((o, a), v) in self.num[..n].iter_mut().zip(&amp[..n]).zip(p.iter()) {
-                *o = a * v;
-            }
-            blur(
-                &self.kernel,
-                &mut self.num[..n],
-                &mut self.tmp[..n],
-                w,
-                h,
-                simd,
-            );
-            for ((v, nu), de) in p.iter_mut().zip(&self.num[..n]).zip(&self.den[..n]) {
-                *v = if *de > 1e-12 { nu / de } else { 0.0 };
-            }
-        }
+        Self { kernel }
     }
 }
 
-/// Separable blur of `buf` (`w x h`) in place, edges clamped. Each pass
-/// runs tap by tap over whole rows (the interior without index clamping),
-/// which vectorises.
-#[inline(always)]
+/// Separable blur of `buf` (`w x h`) in place, edges clamped: the passes
+/// one after another over the whole image, which the steerable magnifier
+/// ran before [`csp_band`] (the tests' reference for it).
+#[cfg(test)]
 fn blur(kernel: &[f32], buf: &mut [f32], tmp: &mut [f32], w: usize, h: usize, simd: Simd) {
     blur_rows(simd, kernel, &buf[..w * h], &mut tmp[..w * h], w);
     blur_cols(simd, kernel, &tmp[..w * h], &mut buf[..w * h], w, h, 0);
@@ -371,7 +327,15 @@ simd_fn! {
 /// with the kernel's length fixed for the odd lengths up to
 /// [`MAX_FIXED_TAPS`], the general way for any other.
 fn blur_rows(kernel: &[f32], src: &[f32], out: &mut [f32], w: usize) {
-    let rows = src.chunks_exact(w).zip(out.chunks_exact_mut(w));
+    blur_rows_inline(kernel, src.chunks_exact(w).zip(out.chunks_exact_mut(w)));
+}
+}
+
+/// [`blur_rows`]'s body over the rows given (each row with its output),
+/// compiled for the caller's vectors: the fused steerable band pass
+/// ([`csp_band`]) blurs one row at a time with it.
+#[inline(always)]
+fn blur_rows_inline<'a>(kernel: &[f32], rows: impl Iterator<Item = (&'a [f32], &'a mut [f32])>) {
     match kernel.len() {
         3 => blur_rows_fixed::<3>(fixed(kernel), rows),
         5 => blur_rows_fixed::<5>(fixed(kernel), rows),
@@ -383,7 +347,6 @@ fn blur_rows(kernel: &[f32], src: &[f32], out: &mut [f32], w: usize) {
         17 => blur_rows_fixed::<17>(fixed(kernel), rows),
         _ => blur_rows_any(kernel, rows),
     }
-}
 }
 
 /// [`blur_rows`] for a kernel of `N` taps.
@@ -446,11 +409,52 @@ fn shift(phi: f32, factor: f32, limit: f32) -> f32 {
 struct CspState {
     pyr: ComplexSteerablePyramid,
     coeffs: PyramidCoeffs,
-    prev: Vec<Vec<Complex32>>,
-    acc: Vec<Vec<f32>>,
+    /// Each band's phase in the previous frame.
+    prev: Vec<Vec<f32>>,
+    /// Each band's band-pass state, row by row ([`PixelFilter::with_rows`]).
     filters: Vec<PixelFilter>,
+    /// [`csp_band`]'s rows.
+    rows: CspRows,
+    /// The band being magnified (the largest band's size).
+    band: Vec<Complex32>,
+}
+
+/// The rows [`csp_band`] works in, for bands up to `w` pixels wide and a
+/// blur of up to `taps` taps: one row of phase, amplitude and weighted
+/// phase, and the blur's horizontal pass of the weights and of the
+/// weighted phase for the `taps` rows its vertical pass reads.
+struct CspRows {
+    w: usize,
+    taps: usize,
     phase: Vec<f32>,
     amp: Vec<f32>,
+    num: Vec<f32>,
+    den: Vec<f32>,
+    /// Row `y`'s horizontal pass at `(y % taps) * w`.
+    hden: Vec<f32>,
+    hnum: Vec<f32>,
+    /// Without a blur: the filtered phase of a row.
+    plain: Vec<f32>,
+    /// Where the vertical pass's rows sit in `hden` and `hnum`.
+    slots: Vec<usize>,
+}
+
+impl CspRows {
+    fn new(w: usize, taps: usize) -> Self {
+        let z = crate::numeric::zeros_touched::<f32>;
+        Self {
+            w,
+            taps,
+            phase: z(w),
+            amp: z(w),
+            num: z(w),
+            den: z(w),
+            hden: z(w * taps),
+            hnum: z(w * taps),
+            plain: z(w),
+            slots: vec![0; taps],
+        }
+    }
 }
 
 /// Per-level state of the Riesz magnifier.
@@ -604,7 +608,6 @@ impl Magnifier {
         }
         crate::pyramid::check_params(width, height, params.scales, params.orientations)?;
         let design = temporal::design(params.order, params.lo_hz, params.hi_hz, params.fps);
-        let n = width * height;
         let state = match params.pyramid {
             PyramidKind::Csp => {
                 // Only this part's bands: their masks and coefficients.
@@ -624,19 +627,26 @@ impl Magnifier {
                     .enumerate()
                     .map(|(bi, b)| if pyr.band_active(bi) { b.len() } else { 0 })
                     .collect();
-                let max = lens.iter().copied().max().unwrap_or(0);
+                let infos = pyr.band_infos();
+                // The band-pass fed each frame's phase change.
+                let steps = design.on_increments();
+                let wide = infos.iter().map(|b| b.width).max().unwrap_or(0);
+                let taps = WeightedBlur::new(params.sigma).kernel.len();
                 State::Csp(Box::new(CspState {
                     prev: lens
                         .iter()
                         .map(|&l| crate::numeric::zeros_touched(l))
                         .collect(),
-                    acc: lens
+                    filters: lens
                         .iter()
-                        .map(|&l| crate::numeric::zeros_touched(l))
+                        .zip(infos)
+                        .map(|(&l, b)| match l {
+                            0 => PixelFilter::new(&steps, 0),
+                            _ => PixelFilter::with_rows(&steps, b.width, b.height),
+                        })
                         .collect(),
-                    filters: lens.iter().map(|&l| PixelFilter::new(&design, l)).collect(),
-                    phase: crate::numeric::zeros_touched(max),
-                    amp: crate::numeric::zeros_touched(max),
+                    rows: CspRows::new(wide, taps),
+                    band: vec![Complex32::default(); lens.iter().copied().max().unwrap_or(0)],
                     pyr,
                     coeffs,
                 }))
@@ -672,12 +682,7 @@ impl Magnifier {
                 }))
             }
         };
-        // (The Riesz magnifier blurs its three channels in its frame's
-        // buffers: only the kernel.)
-        let blur = match &state {
-            State::Csp(_) => WeightedBlur::new(params.sigma, n),
-            State::Riesz(_) => WeightedBlur::new(params.sigma, 0),
-        };
+        let blur = WeightedBlur::new(params.sigma);
         Ok(Self {
             params,
             width,
@@ -861,30 +866,36 @@ impl Magnifier {
         let mut laps = Laps::new(self.profile.as_mut());
         match &mut self.state {
             State::Csp(s) => {
-                s.pyr.analyze(frame, &mut s.coeffs)?;
+                // A band at a time from its inverse FFT to its forward
+                // one (in cache throughout), one buffer for every band.
+                s.pyr.stream_begin(frame, &mut s.coeffs)?;
                 laps.lap(0);
-                for bi in 0..s.coeffs.num_bands() {
+                for (bi, b) in s.pyr.band_infos().to_vec().iter().enumerate() {
                     if !s.pyr.band_active(bi) {
                         continue;
                     }
-                    let Some(band) = s.coeffs.band_mut(bi) else {
-                        continue;
-                    };
-                    let (w, h) = (band.width(), band.height());
-                    let len = w * h;
-                    let data = band.data_mut();
-                    let (prev, acc) = (&mut s.prev[bi], &mut s.acc[bi]);
-                    let (phase, amp) = (&mut s.phase[..len], &mut s.amp[..len]);
-                    csp_phase_step(data, prev, acc, phase, amp, first);
+                    let (w, h) = (b.width, b.height);
+                    let data = &mut s.band[..w * h];
+                    s.pyr.stream_band(bi, data)?;
+                    laps.lap(0);
+                    csp_band(
+                        BandSweep {
+                            data,
+                            prev: &mut s.prev[bi],
+                            filter: &mut s.filters[bi],
+                            w,
+                            h,
+                        },
+                        &mut s.rows,
+                        &self.blur.kernel,
+                        (p.factor, p.max_phase),
+                        first,
+                    );
                     laps.lap(2);
-                    s.filters[bi].step(phase);
-                    laps.lap(3);
-                    self.blur.apply(amp, &mut [phase], w, h, j.simd);
-                    laps.lap(4);
-                    csp_shift(data, phase, p.factor, p.max_phase);
-                    laps.lap(5);
+                    s.pyr.stream_band_back(bi, data)?;
+                    laps.lap(6);
                 }
-                let r = s.pyr.synthesize(&s.coeffs, out);
+                let r = s.pyr.stream_end(&s.coeffs, out);
                 laps.lap(6);
                 r.map(|_| true)
             }
@@ -1395,101 +1406,192 @@ impl ShiftJob<'_> {
 const CSP_LANES: usize = 16;
 
 /// The steerable magnifier's phase step on one band (Eq. 3.2): each
-/// pixel's wrapped phase change since the previous frame (`prev`), summed
-/// into `acc` and copied to `phase`; its amplitude into `amp`; `prev`
-/// takes the band. The first frame adds no change.
+/// pixel's phase, its change since the previous frame's (`prev`) wrapped
+/// into `[-π, π]` into `change` (0 on the first frame), the phase into
+/// `prev`, the amplitude into `amp`. The band-pass takes the changes
+/// ([`BandpassDesign::on_increments`]): no running sum of them is kept
+/// (in f32 it lost digits as the phase drifted), and a pixel's state is
+/// its phase, 4 bytes where the previous complex value and the sum were 12.
 #[inline(always)]
 fn csp_phase_step(
     data: &[Complex32],
-    prev: &mut [Complex32],
-    acc: &mut [f32],
-    phase: &mut [f32],
+    prev: &mut [f32],
+    change: &mut [f32],
     amp: &mut [f32],
     first: bool,
 ) {
-    #[inline(always)]
-    fn one(c: Complex32, pv: &mut Complex32, a: &mut f32, ph: &mut f32, am: &mut f32, first: bool) {
-        if !first {
-            let d = c * pv.conj();
-            *a += crate::fastmath::atan2(d.im, d.re);
-        }
-        *pv = c;
-        *ph = *a;
-        *am = (c.re * c.re + c.im * c.im).sqrt();
-    }
+    use std::f32::consts::{PI, TAU};
     const K: usize = CSP_LANES;
-    let n = data.len() / K * K;
-    let (d0, d1) = data.split_at(n);
-    let (p0, p1) = prev.split_at_mut(n);
-    let (a0, a1) = acc.split_at_mut(n);
-    let (h0, h1) = phase.split_at_mut(n);
-    let (m0, m1) = amp.split_at_mut(n);
-    for ((((c, pv), a), ph), am) in d0
+    let n = data.len().min(prev.len()).min(change.len()).min(amp.len());
+    let whole = n / K * K;
+    #[inline(always)]
+    fn one(re: f32, im: f32, pv: &mut f32, ch: &mut f32, am: &mut f32, first: bool) {
+        let a = crate::fastmath::atan2(im, re);
+        let d = a - *pv;
+        let d = if d > PI {
+            d - TAU
+        } else if d < -PI {
+            d + TAU
+        } else {
+            d
+        };
+        *ch = if first { 0.0 } else { d };
+        *pv = a;
+        *am = (re * re + im * im).sqrt();
+    }
+    for (((c, pv), ch), am) in data[..whole]
         .chunks_exact(K)
-        .zip(p0.chunks_exact_mut(K))
-        .zip(a0.chunks_exact_mut(K))
-        .zip(h0.chunks_exact_mut(K))
-        .zip(m0.chunks_exact_mut(K))
+        .zip(prev[..whole].chunks_exact_mut(K))
+        .zip(change[..whole].chunks_exact_mut(K))
+        .zip(amp[..whole].chunks_exact_mut(K))
     {
-        let (mut re, mut im, mut pr, mut pi) = ([0f32; K], [0f32; K], [0f32; K], [0f32; K]);
+        let (mut re, mut im) = ([0f32; K], [0f32; K]);
         for i in 0..K {
             re[i] = c[i].re;
             im[i] = c[i].im;
-            pr[i] = pv[i].re;
-            pi[i] = pv[i].im;
         }
         for i in 0..K {
-            // `prev` takes the band whole, below.
-            let mut p = Complex32::new(pr[i], pi[i]);
-            one(
-                Complex32::new(re[i], im[i]),
-                &mut p,
-                &mut a[i],
-                &mut ph[i],
-                &mut am[i],
-                first,
+            one(re[i], im[i], &mut pv[i], &mut ch[i], &mut am[i], first);
+        }
+    }
+    for (((c, pv), ch), am) in data[whole..n]
+        .iter()
+        .zip(&mut prev[whole..n])
+        .zip(&mut change[whole..n])
+        .zip(&mut amp[whole..n])
+    {
+        one(c.re, c.im, pv, ch, am, first);
+    }
+}
+
+/// One band of the steerable magnifier and its state.
+struct BandSweep<'a> {
+    data: &'a mut [Complex32],
+    prev: &'a mut [f32],
+    filter: &'a mut PixelFilter,
+    w: usize,
+    h: usize,
+}
+
+/// The steerable magnifier's per-pixel steps on one band in one sweep of
+/// its rows: a row's phase step ([`csp_phase_step`]), band-pass and the
+/// blur's horizontal pass as soon as the blur's vertical pass needs it,
+/// then that pass, the weighted mean and the shift ([`csp_shift`]) of
+/// the row `r` above (`r` the kernel's radius). A row's values are still
+/// in L1 or L2 when the next step reads them, where a pass over the
+/// whole band per step wrote and read them from L3 (the band's state
+/// does not fit L2 at 256x256). The same operations on each pixel as the
+/// steps one after another: the same bits.
+#[inline(always)]
+fn csp_band(
+    band: BandSweep<'_>,
+    rows: &mut CspRows,
+    kernel: &[f32],
+    (factor, limit): (f32, f32),
+    first: bool,
+) {
+    let BandSweep {
+        data,
+        prev,
+        filter,
+        w,
+        h,
+    } = band;
+    if w * h == 0 {
+        return;
+    }
+    if w > rows.w || kernel.len() > rows.taps {
+        // (Not reached: the magnifier sized them for its bands and kernel.)
+        *rows = CspRows::new(w.max(rows.w), kernel.len().max(rows.taps));
+    }
+    let CspRows {
+        phase,
+        amp,
+        num,
+        den,
+        hden,
+        hnum,
+        plain,
+        slots,
+        ..
+    } = rows;
+    let (phase, amp, num, den) = (&mut phase[..w], &mut amp[..w], &mut num[..w], &mut den[..w]);
+    // Row `y`'s phase step and band-pass into `phase` and `amp` (a
+    // macro, not a closure: a closure is not compiled for the calling
+    // function's vectors).
+    macro_rules! step {
+        ($y:expr, $phase:expr, $amp:expr) => {{
+            let at = $y * w..($y + 1) * w;
+            csp_phase_step(&data[at.clone()], &mut prev[at], $phase, $amp, first);
+            filter.step_row($y, $phase);
+        }};
+    }
+    if kernel.len() <= 1 {
+        // No blur: each row shifted by its own filtered phase.
+        for y in 0..h {
+            step!(y, &mut plain[..w], amp);
+            let turns = (&mut num[..], &mut den[..]);
+            csp_shift(
+                &mut data[y * w..(y + 1) * w],
+                &plain[..w],
+                turns,
+                factor,
+                limit,
             );
         }
-        pv.copy_from_slice(c);
+        return;
     }
-    for ((((c, pv), a), ph), am) in d1
-        .iter()
-        .zip(p1.iter_mut())
-        .zip(a1.iter_mut())
-        .zip(h1.iter_mut())
-        .zip(m1.iter_mut())
-    {
-        one(*c, pv, a, ph, am, first);
+    let (k, r) = (kernel.len(), kernel.len() / 2);
+    let mut done = 0;
+    for y in 0..h {
+        // The rows the vertical pass of row `y` reads, up to `y + r`.
+        while done < (y + r + 1).min(h) {
+            step!(done, phase, amp);
+            for ((o, a), v) in num.iter_mut().zip(amp.iter()).zip(phase.iter()) {
+                *o = a * v;
+            }
+            let slot = (done % k) * w..(done % k + 1) * w;
+            let (hd, hn) = (&mut hden[slot.clone()], &mut hnum[slot]);
+            blur_rows_inline(kernel, [(&*amp, hd), (&*num, hn)].into_iter());
+            done += 1;
+        }
+        // The ring's slot of row `y + i - r` (clamped to the band, as
+        // `blur_cols` clamps).
+        for (i, o) in slots.iter_mut().enumerate().take(k) {
+            let yi = (y as isize + i as isize - r as isize).clamp(0, h as isize - 1) as usize;
+            *o = (yi % k) * w;
+        }
+        taps_sum(kernel, den, |i| &hden[slots[i]..slots[i] + w]);
+        taps_sum(kernel, num, |i| &hnum[slots[i]..slots[i] + w]);
+        for ((v, nu), de) in phase.iter_mut().zip(num.iter()).zip(den.iter()) {
+            *v = if *de > 1e-12 { nu / de } else { 0.0 };
+        }
+        let turns = (&mut num[..], &mut den[..]);
+        csp_shift(&mut data[y * w..(y + 1) * w], phase, turns, factor, limit);
     }
 }
 
 /// The steerable magnifier's phase shift on one band: each pixel turned
-/// by its magnified phase change ([`shift`] of `phase`).
+/// by its magnified phase change ([`shift`] of `phase`), the turns' sines
+/// and cosines first into `sn` and `cs` (at least as long as `data`):
+/// two plain loops over the row, which vectorise wherever they are
+/// inlined (lanes of 16 in one loop did not, inlined into the band's
+/// sweep: its sine and cosine ran lane by lane).
 #[inline(always)]
-fn csp_shift(data: &mut [Complex32], phase: &[f32], factor: f32, limit: f32) {
-    #[inline(always)]
-    fn turn(ph: f32, factor: f32, limit: f32) -> Complex32 {
-        let psi = shift(ph, factor, limit);
-        let (sn, cs) = crate::fastmath::sin_cos(psi);
-        Complex32::new(cs, sn)
+fn csp_shift(
+    data: &mut [Complex32],
+    phase: &[f32],
+    (sn, cs): (&mut [f32], &mut [f32]),
+    factor: f32,
+    limit: f32,
+) {
+    let n = data.len().min(phase.len()).min(sn.len()).min(cs.len());
+    let (data, phase, sn, cs) = (&mut data[..n], &phase[..n], &mut sn[..n], &mut cs[..n]);
+    for ((s, c), &ph) in sn.iter_mut().zip(cs.iter_mut()).zip(phase) {
+        (*s, *c) = crate::fastmath::sin_cos(shift(ph, factor, limit));
     }
-    const K: usize = CSP_LANES;
-    let n = data.len() / K * K;
-    let (d0, d1) = data.split_at_mut(n);
-    let (h0, h1) = phase.split_at(n);
-    for (c, ph) in d0.chunks_exact_mut(K).zip(h0.chunks_exact(K)) {
-        let (mut re, mut im) = ([0f32; K], [0f32; K]);
-        for i in 0..K {
-            let r = Complex32::new(c[i].re, c[i].im) * turn(ph[i], factor, limit);
-            re[i] = r.re;
-            im[i] = r.im;
-        }
-        for i in 0..K {
-            c[i] = Complex32::new(re[i], im[i]);
-        }
-    }
-    for (c, &ph) in d1.iter_mut().zip(h1) {
-        *c *= turn(ph, factor, limit);
+    for ((d, &s), &c) in data.iter_mut().zip(sn.iter()).zip(cs.iter()) {
+        *d *= Complex32::new(c, s);
     }
 }
 

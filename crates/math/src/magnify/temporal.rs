@@ -206,6 +206,19 @@ impl PixelFilter {
         }
     }
 
+    /// One time step of row `y`'s pixels in place (a filter made
+    /// [`Self::with_rows`]; `x` is the row, at most `w` pixels): the
+    /// same operations on each pixel as [`Self::step`].
+    #[inline(always)]
+    pub fn step_row(&mut self, y: usize, x: &mut [f32]) {
+        let b = self.block_len();
+        let row = &mut self.state[y * self.per_row * b..(y + 1) * self.per_row * b];
+        let len = x.len().min(self.w);
+        for (xs, st) in x[..len].chunks_mut(CHUNK).zip(row.chunks_exact_mut(b)) {
+            step_block(&self.sections, st, xs);
+        }
+    }
+
     /// The state split at row `mid`: rows `..mid` and `mid..`, to step at
     /// once.
     pub fn parts(&mut self, mid: usize) -> (FilterPart<'_>, FilterPart<'_>) {

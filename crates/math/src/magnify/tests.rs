@@ -291,7 +291,7 @@ fn in_band_tone_is_scaled_by_the_factor() {
 /// shorter than, equal to and longer than the kernel.
 #[test]
 fn blur_matches_the_clamped_convolution() {
-    let kernel = WeightedBlur::new(1.5, 1).kernel;
+    let kernel = WeightedBlur::new(1.5).kernel;
     let r = (kernel.len() / 2) as isize;
     for (w, h) in [(1, 1), (3, 2), (9, 4), (10, 7), (33, 5)] {
         let src: Vec<f32> = (0..w * h)
@@ -334,7 +334,7 @@ fn blur_matches_the_clamped_convolution() {
 #[test]
 fn fixed_length_blur_rows_equal_the_general_ones() {
     for sigma in [0.5f32, 1.0, 1.5, 2.5] {
-        let kernel = WeightedBlur::new(sigma, 1).kernel;
+        let kernel = WeightedBlur::new(sigma).kernel;
         assert!(kernel.len() <= MAX_FIXED_TAPS, "sigma {sigma}");
         for w in (1..=100).chain([127, 255, 256]) {
             let h = 9;
@@ -536,13 +536,16 @@ fn riesz_halves_cut_anywhere_give_the_same_bits() {
     }
 }
 
-/// The steerable magnifier's phase step and shift, taken apart into lanes
-/// of [`CSP_LANES`] pixels, give the bits of the pixel-by-pixel loops they
-/// replaced, at every length about a whole number of lanes, on the first
-/// frame and after it (magnitudes from 1e-30 to 1e3, so that tiny bands
-/// and wrapped phases are covered).
+/// The steerable magnifier's phase step, taken apart into lanes of
+/// [`CSP_LANES`] pixels, gives the bits of the pixel-by-pixel loop, at
+/// every length about a whole number of lanes, on the first frame and
+/// after it (magnitudes from 1e-30 to 1e3, phases on both sides of ±π, so
+/// that tiny bands and wrapped changes are covered); its change is the
+/// wrapped difference of the phases within 1e-6 rad (f64). The shift
+/// gives the bits of the loop it replaced.
 #[test]
 fn csp_lanes_give_the_bits_of_the_pixel_loop() {
+    use std::f32::consts::{PI, TAU};
     let mut r = Rng::new(11);
     let mut c = || {
         let m = 10f64.powf(-30.0 + 33.0 * r.next_f64());
@@ -552,40 +555,54 @@ fn csp_lanes_give_the_bits_of_the_pixel_loop() {
     for len in [0, 1, 15, 16, 17, 31, 32, 33, 100, 257] {
         for first in [true, false] {
             let data: Vec<Complex32> = (0..len).map(|_| c()).collect();
-            let prev: Vec<Complex32> = (0..len).map(|_| c()).collect();
-            let acc: Vec<f32> = (0..len).map(|i| i as f32 * 0.37 - 20.0).collect();
-            // The loop as it was.
-            let (mut p0, mut a0) = (prev.clone(), acc.clone());
-            let (mut ph0, mut am0) = (vec![0f32; len], vec![0f32; len]);
-            for ((((c, pv), a), ph), am) in data
+            let prev: Vec<f32> = (0..len).map(|i| (i as f32 * 0.37).sin() * 3.1).collect();
+            // The loop, pixel by pixel.
+            let mut p0 = prev.clone();
+            let (mut ch0, mut am0) = (vec![0f32; len], vec![0f32; len]);
+            for (((c, pv), ch), am) in data
                 .iter()
                 .zip(p0.iter_mut())
-                .zip(a0.iter_mut())
-                .zip(ph0.iter_mut())
+                .zip(ch0.iter_mut())
                 .zip(am0.iter_mut())
             {
-                if !first {
-                    let d = c * pv.conj();
-                    *a += crate::fastmath::atan2(d.im, d.re);
+                let a = crate::fastmath::atan2(c.im, c.re);
+                let mut d = a - *pv;
+                if d > PI {
+                    d -= TAU;
+                } else if d < -PI {
+                    d += TAU;
                 }
-                *pv = *c;
-                *ph = *a;
+                *ch = if first { 0.0 } else { d };
+                *pv = a;
                 *am = (c.re * c.re + c.im * c.im).sqrt();
             }
-            let (mut p1, mut a1) = (prev.clone(), acc.clone());
-            let (mut ph1, mut am1) = (vec![0f32; len], vec![0f32; len]);
-            csp_phase_step(&data, &mut p1, &mut a1, &mut ph1, &mut am1, first);
+            let mut p1 = prev.clone();
+            let (mut ch1, mut am1) = (vec![0f32; len], vec![0f32; len]);
+            csp_phase_step(&data, &mut p1, &mut ch1, &mut am1, first);
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
             let cbits = |v: &[Complex32]| {
                 v.iter()
                     .map(|x| (x.re.to_bits(), x.im.to_bits()))
                     .collect::<Vec<_>>()
             };
-            assert_eq!(cbits(&p0), cbits(&p1), "prev, len {len}");
-            assert_eq!(bits(&a0), bits(&a1), "acc, len {len}");
-            assert_eq!(bits(&ph0), bits(&ph1), "phase, len {len}");
+            assert_eq!(bits(&p0), bits(&p1), "prev, len {len}");
+            assert_eq!(bits(&ch0), bits(&ch1), "change, len {len}");
             assert_eq!(bits(&am0), bits(&am1), "amp, len {len}");
-            // The shift, as it was and in lanes.
+            for i in 0..len {
+                let (c, pv) = (data[i], f64::from(prev[i]));
+                let d = f64::from(c.im).atan2(f64::from(c.re)) - pv;
+                let want = if first {
+                    0.0
+                } else {
+                    (d + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                        - std::f64::consts::PI
+                };
+                let err = (f64::from(ch1[i]) - want).abs();
+                // (±π are the same change.)
+                let err = err.min((err - std::f64::consts::TAU).abs());
+                assert!(err < 1e-6, "len {len}, pixel {i}: {} vs {want}", ch1[i]);
+            }
+            // The shift, as it was and as it is.
             let phase: Vec<f32> = (0..len).map(|i| (i as f32 - 50.0) * 0.05).collect();
             let (factor, limit) = (9.0, DEFAULT_MAX_PHASE);
             let mut s0 = data.clone();
@@ -595,8 +612,88 @@ fn csp_lanes_give_the_bits_of_the_pixel_loop() {
                 *c *= Complex32::new(cs, sn);
             }
             let mut s1 = data.clone();
-            csp_shift(&mut s1, &phase, factor, limit);
+            let (mut sn, mut cs) = (vec![0f32; len], vec![0f32; len]);
+            csp_shift(&mut s1, &phase, (&mut sn, &mut cs), factor, limit);
             assert_eq!(cbits(&s0), cbits(&s1), "shift, len {len}");
+        }
+    }
+}
+
+/// [`csp_band`]'s one sweep of a band's rows gives the bits of its steps
+/// one after another over the whole band (the phase step, the band-pass,
+/// the blur's two passes over the band, the weighted mean, the shift), as
+/// the steerable magnifier ran them before: frames in turn, bands wider
+/// and narrower than a blur block, fewer rows than the kernel's taps,
+/// kernels of 1, 7 and 19 taps (19: past the fixed lengths).
+#[test]
+fn csp_band_sweep_gives_the_bits_of_the_passes() {
+    let design = temporal::design(2, 35.0, 45.0, 500.0).on_increments();
+    let mut r = Rng::new(5);
+    for sigma in [0.0f32, 1.0, 3.0] {
+        let kernel = WeightedBlur::new(sigma).kernel;
+        for (w, h) in [(1, 1), (5, 3), (33, 4), (64, 20), (70, 9)] {
+            let n = w * h;
+            let mut rows = CspRows::new(80, kernel.len());
+            let (mut filter_a, mut filter_b) = (
+                PixelFilter::new(&design, n),
+                PixelFilter::with_rows(&design, w, h),
+            );
+            let (mut prev_a, mut prev_b) = (vec![0f32; n], vec![0f32; n]);
+            let base: Vec<Complex32> = (0..n)
+                .map(|_| Complex32::new(r.next_f64() as f32 + 0.2, r.next_f64() as f32 - 0.5))
+                .collect();
+            for t in 0..6 {
+                // The band turning a little more each frame.
+                let turn = Complex32::from_polar(1.0, 0.3 * t as f32);
+                let frame: Vec<Complex32> = base
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &b)| b * turn * (1.0 + 0.01 * (i % 7) as f32))
+                    .collect();
+                let (factor, limit) = (10.0, DEFAULT_MAX_PHASE);
+                // The passes one after another.
+                let mut a = frame.clone();
+                let (mut phase, mut amp) = (vec![0f32; n], vec![0f32; n]);
+                csp_phase_step(&a, &mut prev_a, &mut phase, &mut amp, t == 0);
+                filter_a.step(&mut phase);
+                if kernel.len() > 1 {
+                    let (mut den, mut tmp) = (amp.clone(), vec![0f32; n]);
+                    let simd = crate::join::Simd::detect();
+                    blur(&kernel, &mut den, &mut tmp, w, h, simd);
+                    let mut num: Vec<f32> = amp.iter().zip(&phase).map(|(a, v)| a * v).collect();
+                    blur(&kernel, &mut num, &mut tmp, w, h, simd);
+                    for ((v, nu), de) in phase.iter_mut().zip(&num).zip(&den) {
+                        *v = if *de > 1e-12 { nu / de } else { 0.0 };
+                    }
+                }
+                let (mut sn, mut cs) = (vec![0f32; n], vec![0f32; n]);
+                csp_shift(&mut a, &phase, (&mut sn, &mut cs), factor, limit);
+                // The sweep.
+                let mut b = frame.clone();
+                csp_band(
+                    BandSweep {
+                        data: &mut b,
+                        prev: &mut prev_b,
+                        filter: &mut filter_b,
+                        w,
+                        h,
+                    },
+                    &mut rows,
+                    &kernel,
+                    (factor, limit),
+                    t == 0,
+                );
+                for (i, (x, y)) in a.iter().zip(&b).enumerate() {
+                    assert!(
+                        x.re.to_bits() == y.re.to_bits() && x.im.to_bits() == y.im.to_bits(),
+                        "σ {sigma}, {w}x{h}, frame {t}, pixel {i}: {x} vs {y}"
+                    );
+                }
+                assert!(
+                    t == 0 || a.iter().zip(&frame).any(|(x, f)| x != f),
+                    "σ {sigma}, {w}x{h}, frame {t}: nothing was shifted"
+                );
+            }
         }
     }
 }

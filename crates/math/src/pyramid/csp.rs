@@ -411,6 +411,9 @@ pub struct ComplexSteerablePyramid {
     col_inv: Arc<dyn Fft<f32>>,
     /// Half spectrum `[ux in 0..=W/2][uy in 0..H]`.
     spec: Vec<Complex32>,
+    /// The synthesis's sum while bands are streamed
+    /// ([`ComplexSteerablePyramid::stream_begin`]; empty until then).
+    spec_synth: Vec<Complex32>,
     work: Vec<Complex32>,
     work2: Vec<Complex32>,
     row_real: Vec<f32>,
@@ -637,6 +640,7 @@ impl ComplexSteerablePyramid {
             masked: part,
             band_grid,
             spec: vec![Complex32::default(); spec_len],
+            spec_synth: Vec::new(),
             work: vec![Complex32::default(); full.max(spec_len)],
             work2: vec![Complex32::default(); full.max(spec_len)],
             row_real: vec![0.0; w],
@@ -714,28 +718,110 @@ impl ComplexSteerablePyramid {
 
         // Complex bands.
         for (bi, band) in out.bands.iter_mut().enumerate() {
-            if !self.band_active(bi) {
-                continue;
-            }
-            let grid = &self.grids[self.band_grid[bi]];
-            let n = grid.w * grid.h;
-            gather(
-                &self.spec,
-                h,
-                grid,
-                &self.band_masks[bi],
-                &mut self.work[..n],
-            );
-            grid.inv_y
-                .process_with_scratch(&mut self.work[..n], &mut self.scratch);
-            transpose(&self.work[..n], grid.w, grid.h, &mut band.data);
-            grid.inv_x
-                .process_with_scratch(&mut band.data, &mut self.scratch);
-            for v in band.data.iter_mut() {
-                *v *= norm;
+            if self.band_active(bi) {
+                self.band_into(bi, &mut band.data, norm);
             }
         }
         Ok(())
+    }
+
+    /// Band `bi` of the spectrum in `spec` into `data` (its grid's size),
+    /// times `norm`.
+    fn band_into(&mut self, bi: usize, data: &mut [Complex32], norm: f32) {
+        let h = self.key.height;
+        let grid = &self.grids[self.band_grid[bi]];
+        let n = grid.w * grid.h;
+        gather(
+            &self.spec,
+            h,
+            grid,
+            &self.band_masks[bi],
+            &mut self.work[..n],
+        );
+        grid.inv_y
+            .process_with_scratch(&mut self.work[..n], &mut self.scratch);
+        transpose(&self.work[..n], grid.w, grid.h, data);
+        grid.inv_x.process_with_scratch(data, &mut self.scratch);
+        for v in data.iter_mut() {
+            *v *= norm;
+        }
+    }
+
+    /// Band-at-a-time analysis and synthesis, for a caller that changes
+    /// each band between the two (the magnifier): this frame's spectrum
+    /// and residuals (as [`Self::analyze`] computes them), and the
+    /// synthesis's sum started from the high-pass residual. Then
+    /// [`Self::stream_band`] and [`Self::stream_band_back`] for each band
+    /// in turn, then [`Self::stream_end`]: the same bits as
+    /// [`Self::analyze`], the changes, then [`Self::synthesize`], with
+    /// each band still in cache from its inverse FFT to its forward one.
+    pub fn stream_begin(
+        &mut self,
+        frame: &[f32],
+        coeffs: &mut PyramidCoeffs,
+    ) -> Result<(), PyramidError> {
+        let (w, h) = (self.key.width, self.key.height);
+        check_len(w * h, frame.len())?;
+        self.check_coeffs(coeffs)?;
+        self.forward_2d(frame)?;
+        if self.residuals {
+            self.residuals_into(coeffs)?;
+        }
+        // The synthesis's sum in `spec` and the analysed spectrum in
+        // `spec_synth`, until `stream_band` swaps them back.
+        self.spec_synth
+            .resize(self.spec.len(), Complex32::default());
+        std::mem::swap(&mut self.spec, &mut self.spec_synth);
+        let started = self.synthesis_start(&coeffs.highpass);
+        std::mem::swap(&mut self.spec, &mut self.spec_synth);
+        started
+    }
+
+    /// Band `bi` of this frame (after [`Self::stream_begin`]) into
+    /// `data` (the band's size, [`BandInfo`]), which may be one buffer
+    /// for every band.
+    pub fn stream_band(&mut self, bi: usize, data: &mut [Complex32]) -> Result<(), PyramidError> {
+        self.check_stream_band(bi, data.len())?;
+        let (w, h) = (self.key.width, self.key.height);
+        self.band_into(bi, data, 1.0 / (w as f32 * h as f32));
+        Ok(())
+    }
+
+    /// Band `bi` (`data`) added into the synthesis's sum.
+    pub fn stream_band_back(&mut self, bi: usize, data: &[Complex32]) -> Result<(), PyramidError> {
+        self.check_stream_band(bi, data.len())?;
+        std::mem::swap(&mut self.spec, &mut self.spec_synth);
+        self.band_add(bi, data);
+        std::mem::swap(&mut self.spec, &mut self.spec_synth);
+        Ok(())
+    }
+
+    /// The synthesis's end: the low-pass residual of `coeffs` added and
+    /// the frame into `out`.
+    pub fn stream_end(
+        &mut self,
+        coeffs: &PyramidCoeffs,
+        out: &mut [f32],
+    ) -> Result<(), PyramidError> {
+        self.check_synthesis(coeffs, out)?;
+        std::mem::swap(&mut self.spec, &mut self.spec_synth);
+        let r = self.synthesis_end(&coeffs.lowpass, out);
+        std::mem::swap(&mut self.spec, &mut self.spec_synth);
+        r
+    }
+
+    /// A synthesis's coefficients and output of this pyramid's layout.
+    fn check_synthesis(&self, coeffs: &PyramidCoeffs, out: &[f32]) -> Result<(), PyramidError> {
+        check_len(self.key.width * self.key.height, out.len())?;
+        self.check_coeffs(coeffs)
+    }
+
+    fn check_stream_band(&self, bi: usize, len: usize) -> Result<(), PyramidError> {
+        let grid = self.band_grid.get(bi).map(|&g| &self.grids[g]);
+        match grid {
+            Some(g) if self.band_active(bi) && len == g.w * g.h => Ok(()),
+            _ => Err(PyramidError::LayoutMismatch),
+        }
     }
 
     /// Skips (false) or computes (true, the default) the high- and
@@ -802,59 +888,69 @@ impl ComplexSteerablePyramid {
         coeffs: &PyramidCoeffs,
         out: &mut [f32],
     ) -> Result<(), PyramidError> {
-        let (w, h) = (self.key.width, self.key.height);
-        check_len(w * h, out.len())?;
-        self.check_coeffs(coeffs)?;
-        let half_w = self.half_w;
-        let spec_len = half_w * h;
-        let wh = w as f32 * h as f32;
+        self.check_synthesis(coeffs, out)?;
+        self.synthesis_start(&coeffs.highpass)?;
+        for (bi, band) in coeffs.bands.iter().enumerate() {
+            if self.band_active(bi) {
+                self.band_add(bi, &band.data);
+            }
+        }
+        self.synthesis_end(&coeffs.lowpass, out)
+    }
 
-        // High-pass residual: its half spectrum times the mask starts the
-        // sum (without the residuals, an empty spectrum does).
+    /// The synthesis's sum in `spec` started: the high-pass residual's
+    /// half spectrum times the mask (without the residuals, an empty
+    /// spectrum).
+    fn synthesis_start(&mut self, highpass: &[f32]) -> Result<(), PyramidError> {
         if self.residuals {
-            self.forward_2d(&coeffs.highpass)?;
+            self.forward_2d(highpass)?;
             for (s, m) in self.spec.iter_mut().zip(&self.hi_mask) {
                 *s *= *m;
             }
         } else {
             self.spec.fill(Complex32::default());
         }
+        Ok(())
+    }
 
-        // Bands: forward FFT on their grid, times mask, symmetrised into the
-        // half spectrum (Re of the one-sided sum == the tight-frame inverse).
-        for (bi, band) in coeffs.bands.iter().enumerate() {
-            if !self.band_active(bi) {
-                continue;
-            }
-            let grid = &self.grids[self.band_grid[bi]];
-            let n = grid.w * grid.h;
-            self.work2[..n].copy_from_slice(&band.data);
-            grid.fwd_x
-                .process_with_scratch(&mut self.work2[..n], &mut self.scratch);
-            transpose(&self.work2[..n], grid.h, grid.w, &mut self.work[..n]);
-            grid.fwd_y
-                .process_with_scratch(&mut self.work[..n], &mut self.scratch);
-            let scale = wh / n as f32 * 0.25;
-            scatter_sym(
-                &self.work[..n],
-                grid,
-                &self.band_masks[bi],
-                scale,
-                w,
-                h,
-                &mut self.spec,
-            );
-        }
+    /// Band `bi` (`data`) added into the synthesis's sum in `spec`:
+    /// forward FFT on its grid, times mask, symmetrised into the half
+    /// spectrum (Re of the one-sided sum == the tight-frame inverse).
+    fn band_add(&mut self, bi: usize, data: &[Complex32]) {
+        let (w, h) = (self.key.width, self.key.height);
+        let wh = w as f32 * h as f32;
+        let grid = &self.grids[self.band_grid[bi]];
+        let n = grid.w * grid.h;
+        self.work2[..n].copy_from_slice(data);
+        grid.fwd_x
+            .process_with_scratch(&mut self.work2[..n], &mut self.scratch);
+        transpose(&self.work2[..n], grid.h, grid.w, &mut self.work[..n]);
+        grid.fwd_y
+            .process_with_scratch(&mut self.work[..n], &mut self.scratch);
+        let scale = wh / n as f32 * 0.25;
+        scatter_sym(
+            &self.work[..n],
+            grid,
+            &self.band_masks[bi],
+            scale,
+            w,
+            h,
+            &mut self.spec,
+        );
+    }
 
-        // Low-pass residual (real, so its spectrum is already Hermitian).
+    /// The synthesis's end: the low-pass residual (real, so its spectrum
+    /// is already Hermitian) added to the sum in `spec`, then the inverse:
+    /// columns, then real rows, into `out`.
+    fn synthesis_end(&mut self, lowpass: &[f32], out: &mut [f32]) -> Result<(), PyramidError> {
+        let (w, h) = (self.key.width, self.key.height);
+        let spec_len = self.half_w * h;
         if self.residuals {
-            self.add_lowpass(&coeffs.lowpass);
+            self.add_lowpass(lowpass);
         }
-
-        // Inverse: columns, then real rows.
         self.col_inv
             .process_with_scratch(&mut self.spec[..spec_len], &mut self.scratch);
-        self.inverse_rows(false, out, 1.0 / wh)
+        self.inverse_rows(false, out, 1.0 / (w as f32 * h as f32))
     }
 
     /// Adds the low-pass residual `lowpass` to the half spectrum `spec`.
