@@ -36,7 +36,7 @@ pub mod temporal;
 
 use crate::join::{both, simd_fn, Join, Par, Serial, Simd};
 use crate::pyramid::MAX_SCALES;
-use crate::pyramid::{Complex32, ComplexSteerablePyramid, PyramidCoeffs, PyramidError};
+use crate::pyramid::{BandInfo, Complex32, ComplexSteerablePyramid, PyramidCoeffs, PyramidError};
 use laplacian::Laplacian;
 use riesz_fir::RieszFir;
 use temporal::{BandpassDesign, FilterPart, PixelFilter, CHUNK};
@@ -870,11 +870,18 @@ impl Magnifier {
                 // one (in cache throughout), one buffer for every band.
                 s.pyr.stream_begin(frame, &mut s.coeffs)?;
                 laps.lap(0);
-                for (bi, b) in s.pyr.band_infos().to_vec().iter().enumerate() {
+                for bi in 0..s.prev.len() {
                     if !s.pyr.band_active(bi) {
                         continue;
                     }
-                    let (w, h) = (b.width, b.height);
+                    let Some(&BandInfo {
+                        width: w,
+                        height: h,
+                        ..
+                    }) = s.pyr.band_infos().get(bi)
+                    else {
+                        continue;
+                    };
                     let data = &mut s.band[..w * h];
                     s.pyr.stream_band(bi, data)?;
                     laps.lap(0);

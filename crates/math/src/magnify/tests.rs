@@ -823,3 +823,45 @@ fn dithered_pixels_are_the_rounded_values_cast() {
             .all(|(a, b)| a.to_bits() == b.to_bits()));
     }
 }
+
+/// Magnifying a frame allocates nothing once the magnifier is built and
+/// has seen its first frames: both pyramids, whole and in the steerable
+/// pyramid's parts, with and without the blur.
+#[test]
+fn magnifying_a_frame_allocates_nothing() {
+    use crate::pyramid::tests::alloc_count;
+    let (w, h) = (48, 40);
+    let frames: Vec<Vec<f32>> = (0..6)
+        .map(|t| {
+            (0..w * h)
+                .map(|i| ((i * 7 + t * 3) % 23) as f32 + ((i / w) as f32 * 0.3).sin())
+                .collect()
+        })
+        .collect();
+    for (pyramid, sigma, part) in [
+        (PyramidKind::Csp, DEFAULT_SIGMA, 0..DEFAULT_ORIENTATIONS),
+        (PyramidKind::Csp, 0.0, 0..DEFAULT_ORIENTATIONS),
+        (PyramidKind::Csp, DEFAULT_SIGMA, 0..DEFAULT_ORIENTATIONS / 2),
+        (PyramidKind::Riesz, DEFAULT_SIGMA, 0..DEFAULT_ORIENTATIONS),
+    ] {
+        let mut p = MagnifyParams::new(500.0, 35.0, 45.0, 10.0);
+        p.pyramid = pyramid;
+        p.sigma = sigma;
+        p.scales = 3;
+        let whole = part == (0..p.orientations);
+        let mut m = Magnifier::new_part(w, h, p, part.clone(), whole).unwrap();
+        let mut out = vec![0.0f32; w * h];
+        for f in &frames[..2] {
+            m.process(f, &mut out).unwrap();
+        }
+        let before = alloc_count::allocations();
+        for f in &frames[2..] {
+            m.process(f, &mut out).unwrap();
+        }
+        let n = alloc_count::allocations() - before;
+        assert_eq!(
+            n, 0,
+            "{pyramid:?}, σ {sigma}, part {part:?}: {n} allocations"
+        );
+    }
+}
