@@ -767,8 +767,9 @@ impl ComplexSteerablePyramid {
         if self.residuals {
             self.residuals_into(coeffs)?;
         }
-        // The synthesis's sum in `spec` and the analysed spectrum in
-        // `spec_synth`, until `stream_band` swaps them back.
+        // The synthesis's sum starts in `spec_synth` (swapped in for the
+        // call: `synthesis_start` writes `spec`); `spec` keeps the
+        // analysed spectrum for `stream_band`.
         self.spec_synth
             .resize(self.spec.len(), Complex32::default());
         std::mem::swap(&mut self.spec, &mut self.spec_synth);
