@@ -408,6 +408,7 @@ fn shift(phi: f32, factor: f32, limit: f32) -> f32 {
 /// Per-band state of the CSP magnifier.
 struct CspState {
     pyr: ComplexSteerablePyramid,
+    /// The residuals ([`ComplexSteerablePyramid::alloc_residuals`]).
     coeffs: PyramidCoeffs,
     /// Each band's phase in the previous frame.
     prev: Vec<Vec<f32>>,
@@ -433,8 +434,6 @@ struct CspRows {
     /// Row `y`'s horizontal pass at `(y % taps) * w`.
     hden: Vec<f32>,
     hnum: Vec<f32>,
-    /// Without a blur: the filtered phase of a row.
-    plain: Vec<f32>,
     /// Where the vertical pass's rows sit in `hden` and `hnum`.
     slots: Vec<usize>,
 }
@@ -451,7 +450,6 @@ impl CspRows {
             den: z(w),
             hden: z(w * taps),
             hnum: z(w * taps),
-            plain: z(w),
             slots: vec![0; taps],
         }
     }
@@ -619,7 +617,8 @@ impl Magnifier {
                     orientations.clone(),
                 )?;
                 pyr.set_residuals(residuals);
-                let coeffs = pyr.alloc_coeffs();
+                // The residuals only: the bands are streamed through `band`.
+                let coeffs = pyr.alloc_residuals();
                 // Per-band state only for this part's bands.
                 let lens: Vec<usize> = pyr
                     .band_infos()
@@ -1518,7 +1517,6 @@ fn csp_band(
         den,
         hden,
         hnum,
-        plain,
         slots,
         ..
     } = rows;
@@ -1536,15 +1534,9 @@ fn csp_band(
     if kernel.len() <= 1 {
         // No blur: each row shifted by its own filtered phase.
         for y in 0..h {
-            step!(y, &mut plain[..w], amp);
+            step!(y, phase, amp);
             let turns = (&mut num[..], &mut den[..]);
-            csp_shift(
-                &mut data[y * w..(y + 1) * w],
-                &plain[..w],
-                turns,
-                factor,
-                limit,
-            );
+            csp_shift(&mut data[y * w..(y + 1) * w], phase, turns, factor, limit);
         }
         return;
     }

@@ -658,12 +658,23 @@ impl ComplexSteerablePyramid {
 
     /// Allocates coefficient storage for this pyramid (once; reuse it).
     pub fn alloc_coeffs(&self) -> PyramidCoeffs {
+        self.alloc(true)
+    }
+
+    /// Coefficient storage for the residuals only, every band empty: what
+    /// [`Self::stream_begin`] and [`Self::stream_end`] need, whose caller
+    /// holds the bands it streams.
+    pub fn alloc_residuals(&self) -> PyramidCoeffs {
+        self.alloc(false)
+    }
+
+    fn alloc(&self, bands: bool) -> PyramidCoeffs {
         let bands = self
             .infos
             .iter()
             .map(|info| CspBand {
                 info: info.clone(),
-                data: if self.masked.contains(&info.orientation) {
+                data: if bands && self.masked.contains(&info.orientation) {
                     vec![Complex32::default(); info.len()]
                 } else {
                     Vec::new()
@@ -682,6 +693,12 @@ impl ComplexSteerablePyramid {
     }
 
     fn check_coeffs(&self, c: &PyramidCoeffs) -> Result<(), PyramidError> {
+        self.check_layout(c, true)
+    }
+
+    /// `c` of this pyramid's layout; with `bands`, holding every active
+    /// band (else any band may be empty: [`Self::alloc_residuals`]).
+    fn check_layout(&self, c: &PyramidCoeffs, bands: bool) -> Result<(), PyramidError> {
         let ok = c.key == self.key
             && c.bands.len() == self.infos.len()
             && c.bands
@@ -689,7 +706,8 @@ impl ComplexSteerablePyramid {
                 .zip(&self.infos)
                 .all(|(b, i)| (b.info.width, b.info.height) == (i.width, i.height))
             && c.bands.iter().enumerate().all(|(bi, b)| {
-                b.data.len() == b.info.len() || (!self.band_active(bi) && b.data.is_empty())
+                b.data.len() == b.info.len()
+                    || ((!self.band_active(bi) || !bands) && b.data.is_empty())
             })
             && c.highpass.len() == self.key.width * self.key.height
             && c.lowpass.len() == c.low_width * c.low_height
@@ -748,7 +766,8 @@ impl ComplexSteerablePyramid {
     }
 
     /// Band-at-a-time analysis and synthesis, for a caller that changes
-    /// each band between the two (the magnifier): this frame's spectrum
+    /// each band between the two (the magnifier) and holds the bands
+    /// itself (`coeffs` from [`Self::alloc_residuals`] will do): this frame's spectrum
     /// and residuals (as [`Self::analyze`] computes them), and the
     /// synthesis's sum started from the high-pass residual. Then
     /// [`Self::stream_band`] and [`Self::stream_band_back`] for each band
@@ -762,7 +781,7 @@ impl ComplexSteerablePyramid {
     ) -> Result<(), PyramidError> {
         let (w, h) = (self.key.width, self.key.height);
         check_len(w * h, frame.len())?;
-        self.check_coeffs(coeffs)?;
+        self.check_layout(coeffs, false)?;
         self.forward_2d(frame)?;
         if self.residuals {
             self.residuals_into(coeffs)?;
@@ -804,17 +823,23 @@ impl ComplexSteerablePyramid {
         coeffs: &PyramidCoeffs,
         out: &mut [f32],
     ) -> Result<(), PyramidError> {
-        self.check_synthesis(coeffs, out)?;
+        self.check_synthesis(coeffs, out, false)?;
         std::mem::swap(&mut self.spec, &mut self.spec_synth);
         let r = self.synthesis_end(&coeffs.lowpass, out);
         std::mem::swap(&mut self.spec, &mut self.spec_synth);
         r
     }
 
-    /// A synthesis's coefficients and output of this pyramid's layout.
-    fn check_synthesis(&self, coeffs: &PyramidCoeffs, out: &[f32]) -> Result<(), PyramidError> {
+    /// A synthesis's coefficients (holding its bands with `bands`) and
+    /// output of this pyramid's layout.
+    fn check_synthesis(
+        &self,
+        coeffs: &PyramidCoeffs,
+        out: &[f32],
+        bands: bool,
+    ) -> Result<(), PyramidError> {
         check_len(self.key.width * self.key.height, out.len())?;
-        self.check_coeffs(coeffs)
+        self.check_layout(coeffs, bands)
     }
 
     fn check_stream_band(&self, bi: usize, len: usize) -> Result<(), PyramidError> {
@@ -889,7 +914,7 @@ impl ComplexSteerablePyramid {
         coeffs: &PyramidCoeffs,
         out: &mut [f32],
     ) -> Result<(), PyramidError> {
-        self.check_synthesis(coeffs, out)?;
+        self.check_synthesis(coeffs, out, true)?;
         self.synthesis_start(&coeffs.highpass)?;
         for (bi, band) in coeffs.bands.iter().enumerate() {
             if self.band_active(bi) {

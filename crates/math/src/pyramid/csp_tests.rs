@@ -736,7 +736,13 @@ fn streamed_bands_give_the_bits_of_analyze_then_synthesize() {
 
             let mut q = ComplexSteerablePyramid::new_part(w, h, scales, k, part.clone()).unwrap();
             q.set_residuals(residuals);
-            let mut c2 = q.alloc_coeffs();
+            // The residuals only (the bands come through `buf`), and the
+            // whole storage: both are taken.
+            let mut c2 = if residuals {
+                q.alloc_residuals()
+            } else {
+                q.alloc_coeffs()
+            };
             let most = q.band_infos().iter().map(|b| b.len()).max().unwrap();
             let mut buf = vec![Complex32::default(); most];
             q.stream_begin(&img, &mut c2).unwrap();
@@ -758,6 +764,10 @@ fn streamed_bands_give_the_bits_of_analyze_then_synthesize() {
             }
             let mut out = vec![0.0f32; w * h];
             q.stream_end(&c2, &mut out).unwrap();
+            // Whole-pyramid calls need the bands' storage.
+            let mut bare = q.alloc_residuals();
+            assert!(q.analyze(&img, &mut bare).is_err());
+            assert!(q.synthesize(&bare, &mut vec![0.0; w * h]).is_err());
             assert!(
                 out.iter()
                     .zip(&want)
