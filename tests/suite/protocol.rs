@@ -53,7 +53,10 @@
 //! [`THIRTEENTH`] (session 64, more of them, for a change that leaves the
 //! sweep's level-dependent stretch out of every linear fit), [`FOURTEENTH`]
 //! (session 67, linear responses at the top of the sweep and above it,
-//! for a change to the transfer table's upper end and phase).
+//! for a change to the transfer table's upper end and phase), [`FIFTEENTH`]
+//! (session 71, faint effects outside the object, after the explainer
+//! began to keep a weak term it fits again on the next recording when it
+//! lies beyond chance).
 //!
 //! The catalog's families outside that set ([`FAMILIES`]: dropped frames,
 //! the gain's drift, the region's gain) are held to the transfer bar only,
@@ -953,6 +956,53 @@ const FOURTEENTH: [Case; 6] = [
     ),
 ];
 
+/// The fifteenth held-out set (session 71), written down and committed
+/// before any of it was run, after the explainer began to keep a weak
+/// term (a held-out gain under `min_gain_db` but at least 0.1 dB) when
+/// `listen --calibration` fits it again on the next recording and its
+/// held-out removal lies beyond chance, against the same observable
+/// shifted in time (found on `camera_weak_and_mover`, seventh set, then
+/// looked at). Five faint effects outside the object on the `Site` scene,
+/// each weak beside the sensor's 2 DN: a 0.02 px shake along y, a 0.015
+/// px shake at 45°, a light varying by 4% across the image, the ring
+/// around the object inside the region moving 0.08 px, and a 0.015 px
+/// shake with a mover in the bottom rows. Figures reported as they come,
+/// under [`fresh`]'s rules.
+const FIFTEENTH: [Case; 5] = [
+    case(
+        "faint_shake_y",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 151 }, amplitude_px = 0.02, direction_deg = 90.0 }"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 152 }, amplitude_px = 0.02, direction_deg = 90.0 }"#,
+    ),
+    case(
+        "faint_shake_diagonal",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 1800.0, duration_s = 3.0, seed = 153 }, amplitude_px = 0.015, direction_deg = 45.0 }"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 1800.0, duration_s = 3.0, seed = 154 }, amplitude_px = 0.015, direction_deg = 45.0 }"#,
+    ),
+    case(
+        "faint_light",
+        Scene::Site,
+        r#"light = { signal = { type = "noise", rate_hz = 500.0, duration_s = 3.0, seed = 155 }, depth = 0.04 }"#,
+        r#"light = { signal = { type = "noise", rate_hz = 500.0, duration_s = 3.0, seed = 156 }, depth = 0.04 }"#,
+    ),
+    case(
+        "faint_ring",
+        Scene::Site,
+        r#"background_motion = [{ rect = [32, 32, 64, 64], signal = { type = "noise", rate_hz = 700.0, duration_s = 3.0, seed = 157 }, amplitude_px = 0.08 }]"#,
+        r#"background_motion = [{ rect = [32, 32, 64, 64], signal = { type = "noise", rate_hz = 700.0, duration_s = 3.0, seed = 158 }, amplitude_px = 0.08 }]"#,
+    ),
+    case(
+        "faint_shake_and_mover",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 159 }, amplitude_px = 0.015 }
+background_motion = [{ rect = [0, 100, 128, 28], signal = { type = "noise", rate_hz = 800.0, duration_s = 3.0, seed = 161 }, amplitude_px = 0.3 }]"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 160 }, amplitude_px = 0.015 }
+background_motion = [{ rect = [0, 100, 128, 28], signal = { type = "noise", rate_hz = 800.0, duration_s = 3.0, seed = 162 }, amplitude_px = 0.3 }]"#,
+    ),
+];
+
 /// The catalog's other families, outside the protocol's set (they were
 /// designed on these scenes): only the transfer bar. Dropped frames and
 /// the gain's drift belong to one recording and are left out by `listen
@@ -1339,6 +1389,11 @@ fn twelfth(
 /// A case of the fourteenth held-out set, under [`fresh`]'s rules.
 fn fourteenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
     unseen(&FOURTEENTH, name, transfer_short, short)
+}
+
+/// A case of the fifteenth held-out set, under [`fresh`]'s rules.
+fn fifteenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
+    unseen(&FIFTEENTH, name, transfer_short, short)
 }
 
 /// A case of the thirteenth held-out set, under the eleventh's rule.
@@ -2413,4 +2468,24 @@ fn fourteenth_resonance_low_dip_top() {
 #[test]
 fn fourteenth_broad_dip_high() {
     let _ = fourteenth("broad_dip_high", None, None);
+}
+#[test]
+fn fifteenth_faint_shake_y() {
+    let _ = fifteenth("faint_shake_y", None, None);
+}
+#[test]
+fn fifteenth_faint_shake_diagonal() {
+    let _ = fifteenth("faint_shake_diagonal", None, None);
+}
+#[test]
+fn fifteenth_faint_light() {
+    let _ = fifteenth("faint_light", None, None);
+}
+#[test]
+fn fifteenth_faint_ring() {
+    let _ = fifteenth("faint_ring", None, None);
+}
+#[test]
+fn fifteenth_faint_shake_and_mover() {
+    let _ = fifteenth("faint_shake_and_mover", None, None);
 }
