@@ -20,7 +20,9 @@ use vibroscope::pipeline::RunSettings;
 /// what is left with the recording's own observables (the motion and
 /// intensity of tiles of the frame around the region: the camera or its
 /// mount, another vibrating thing in view, the light), kept by the same
-/// held-out test and named by their likely cause (`listen --calibration`
+/// held-out test (a weak one that is fitted again on each recording also
+/// when its gain lies far beyond what the same observable shifted in time
+/// gains) and named by their likely cause (`listen --calibration`
 /// measures each again on the new recording and subtracts it: fitted
 /// there when it does not follow the reference, through its stored FIR
 /// when it is a tile's motion that does; a tile's brightness or a
