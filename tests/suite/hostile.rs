@@ -1058,7 +1058,8 @@ fn frames_too_large_for_the_memory_limit_are_refused() {
         assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
     }
     assert!(!d.join("m.png").exists());
-    // Magnification of the same frames: 670 bytes a pixel by default.
+    // Magnification of the same frames: 584 bytes a pixel by default (8
+    // orientations).
     let o = bin()
         .current_dir(d)
         .env("VIBROSCOPE_MAX_MEMORY", "300M")

@@ -139,10 +139,11 @@ pub fn modes_bound(width: usize, height: usize, scale: usize) -> u64 {
 /// `whole_frame`), two bytes each.
 /// Measured (peak RSS of `vibroscope run magnify --replay V.y4m` on 1024²
 /// and 2048² frames, 2, 4 and 8 orientations, 4 and 6 scales, both
-/// pyramids; docs/hostile-input.md) and rounded up: 2048² took 2.77 GB with
+/// pyramids; docs/hostile-input.md) and rounded up: 2048² took 1.79 GB with
 /// the steerable pyramid and 8 orientations (the default; its two halves
-/// each hold the pyramid's buffers), 1.07 GB with 2, and 831 MB with the
-/// Riesz pyramid; the scales barely count.
+/// each hold the pyramid's buffers; 2.77 GB before session 70 streamed its
+/// bands), 987 MB with 2, and 862 MB with the Riesz pyramid; the scales
+/// barely count.
 pub fn magnify_bound(
     width: usize,
     height: usize,
@@ -152,7 +153,7 @@ pub fn magnify_bound(
 ) -> u64 {
     let px = width as u64 * height as u64;
     let per_px = if csp {
-        200 + 72 * orientations as u64
+        200 + 48 * orientations as u64
     } else {
         240
     };
@@ -248,15 +249,18 @@ mod tests {
     #[test]
     fn the_magnify_bound_covers_the_measured_peaks() {
         // (side, orientations, csp, measured peak RSS in kB, 4 scales)
+        // Session 71 (the steerable magnifier streaming its bands since
+        // session 70): 1024² 8 frames, 2048² 40 frames. The Riesz 2048²
+        // k=2 figure is session 58's.
         for (side, k, csp, kb) in [
-            (1024, 2, true, 275_308u64),
-            (1024, 8, true, 700_296),
-            (2048, 2, true, 1_068_944),
-            (2048, 4, true, 1_635_020),
-            (2048, 8, true, 2_766_884),
-            (1024, 8, false, 150_048),
+            (1024, 2, true, 185_424u64),
+            (1024, 8, true, 382_072),
+            (2048, 2, true, 964_096),
+            (2048, 4, true, 1_225_164),
+            (2048, 8, true, 1_747_612),
+            (1024, 8, false, 154_472),
             (2048, 2, false, 830_900),
-            (2048, 8, false, 830_976),
+            (2048, 8, false, 841_556),
         ] {
             let bound = magnify_bound(side, side, k, csp, 0);
             assert!(
