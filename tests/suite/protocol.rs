@@ -2491,11 +2491,16 @@ fn fifteenth_faint_ring() {
     let _ = fifteenth("faint_ring", None, None);
 }
 /// First run: +0.05 dB of the 1.24 dB it costs (weak: 1 dB asked). The
-/// chirp kept explained:camera as a weak term (+0.13 dB there, 19
+/// chirp kept explained:camera as a weak term (+0.13 dB there, 12.5
 /// standard deviations beyond chance); on the speech the term fitted
 /// again removes 0.5% of the recovery's energy. The cost is the shake's
 /// alone: the speech rendered with the mover and without the shake scores
-/// as without either (`vibroscope score`, 9.53 dB both).
+/// as without either (`vibroscope score`, 9.53 dB both). Measured after
+/// the run (numpy over the tiles' `displacement`): the shake rendered
+/// without noise (the true motion) would remove 2.37% of the speech
+/// recovery's energy, the kept term's 16 tiles remove 0.63%, and weighed
+/// by each tile's noise 0.80%: the image's own tiles hold this shake at
+/// about -6 dB under their noise.
 #[test]
 fn fifteenth_faint_shake_and_mover() {
     let _ = fifteenth(

@@ -400,8 +400,8 @@ fn project_out(
 /// How many standard deviations `took` (the held-out energy a candidate
 /// removes) lies above what the same observable `x` removes when shifted
 /// in time by [`NULL_SHIFTS`] circular shifts spread over the recording
-/// (`null`: the held-out energy a shifted copy removes, fitted the same
-/// way). The shifts keep the observable's spectrum and the residual's, and
+/// (`null`: the held-out energy a shifted copy removes, its lag chosen and
+/// its taps fitted the same way). The shifts keep the observable's spectrum and the residual's, and
 /// break only their alignment: chance as this recording makes it. `0`
 /// when the shifts remove as much.
 fn beyond_chance(took: f64, x: &[f64], null: impl Fn(&[f64]) -> f64) -> f64 {
@@ -686,8 +686,17 @@ pub(super) fn explain(
                 && follows_reference(&apply_all(&lin, &c.xs[0], fs), &fit.t, &dot, &held_energy)
                     < FOLLOWS_SHARE
                 && {
+                    // Each shifted copy chooses its own lag as the
+                    // candidate did, so that the choice's luck is in
+                    // chance too.
+                    let reach = covs[c.index]
+                        .observable
+                        .lag_reach(m.opts.line_reach.min(MAX_LINE_REACH));
                     let null = |x: &[f64]| {
-                        let cols = shifted(&apply_all(&lin, x, fs), &c.shifts);
+                        let through = [apply_all(&lin, x, fs)];
+                        let shifts =
+                            tile_shifts_about(&through, reach, |cols| removed(cols, &resid));
+                        let cols = shifted(&through[0], &shifts);
                         removed(&project_out(cols, &basis, &dot), &resid)
                     };
                     let z = beyond_chance(took, &c.xs[0], null);
