@@ -1019,7 +1019,12 @@ background_motion = [{ rect = [0, 100, 128, 28], signal = { type = "noise", rate
 /// each with something else in view: a mover along the top, a mover in a
 /// corner with a diagonal shake, a light with a vertical shake, movers on
 /// both sides, and the ring around the object moving. Figures reported as
-/// they come, under [`fresh`]'s rules.
+/// they come, under [`fresh`]'s rules. First run (session 71, on the
+/// change): `shake_and_top_mover` +2.59 dB of the 3.35 it costs,
+/// `diagonal_shake_and_corner_mover` +1.61 of 2.30, `shake_and_side_movers`
+/// +1.78 of 2.62, `shake_and_ring` +2.85 of 3.55 (all weak, 1 dB asked:
+/// met); `vertical_shake_and_light` +0.90 of 1.10 (missed by 0.10,
+/// marked). All meet the transfer bar.
 const SIXTEENTH: [Case; 5] = [
     case(
         "shake_and_top_mover",
@@ -2251,7 +2256,7 @@ fn seventh_camera_weak_and_mover() {
     let _ = seventh(
         "camera_weak_and_mover",
         None,
-        Some("first run (session 56): +0.00 dB of the 1.61 dB it costs (weak: 1 dB asked); nothing kept on the chirp (6.46 dB: a 0.02 px shake under 2 DN of noise). Since session 71 (weak terms kept beyond chance, designed on this case) explained:camera and explained:other_object are kept (6.46 -> 6.90 dB on the chirp) and the speech gains +0.68 dB"),
+        Some("first run (session 56): +0.00 dB of the 1.61 dB it costs (weak: 1 dB asked); nothing kept on the chirp (6.46 dB: a 0.02 px shake under 2 DN of noise). Since session 71 (weak terms kept beyond chance, designed on this case) explained:camera and explained:other_object are kept (6.46 -> 6.90 dB on the chirp) and the speech gains +0.68 dB; with the tiles that move least weighed by their noise (session 71, later) +0.39 dB, the second term kept a single tile of the mover's instead of the mean of all tiles"),
     );
 }
 #[test]
@@ -2566,7 +2571,7 @@ fn fifteenth_faint_shake_and_mover() {
     let _ = fifteenth(
         "faint_shake_and_mover",
         None,
-        Some("first run (session 71): +0.05 dB of the 1.24 dB it costs (weak: 1 dB asked; explained:camera kept, +0.13 dB on the chirp)"),
+        Some("first run (session 71): +0.05 dB of the 1.24 dB it costs (weak: 1 dB asked; explained:camera kept, +0.13 dB on the chirp); with the tiles that move least weighed by their noise (session 71, seen) +0.11 dB"),
     );
 }
 #[test]
@@ -2577,9 +2582,16 @@ fn sixteenth_shake_and_top_mover() {
 fn sixteenth_diagonal_shake_and_corner_mover() {
     let _ = sixteenth("diagonal_shake_and_corner_mover", None, None);
 }
+/// First run: +0.90 dB of the 1.10 dB it costs (weak: 1 dB asked),
+/// explained:light kept alone; the 0.025 px vertical shake was not kept
+/// on the chirp.
 #[test]
 fn sixteenth_vertical_shake_and_light() {
-    let _ = sixteenth("vertical_shake_and_light", None, None);
+    let _ = sixteenth(
+        "vertical_shake_and_light",
+        None,
+        Some("first run (session 71): +0.90 dB of the 1.10 dB it costs (weak: 1 dB asked; explained:light kept alone)"),
+    );
 }
 #[test]
 fn sixteenth_shake_and_side_movers() {

@@ -352,6 +352,11 @@ pub fn apply_observed(
             };
             let channels = if t.observable.is_line() {
                 cal::line_channels(t.observable, &t.tiles, n, of)
+            } else if t.weighed {
+                // The tiles' motion as the explainer pooled it, each tile
+                // weighed by its noise on this recording.
+                let tiles: Vec<&[f64]> = (0..t.tiles.len()).map(of).collect();
+                vec![cal::pooled_motion(&tiles, fs, hp)]
             } else {
                 // The tiles' plain mean, as the explainer pooled them.
                 let mut mean = vec![0.0; n];

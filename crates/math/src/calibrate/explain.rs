@@ -315,6 +315,11 @@ pub struct Explanation {
     /// holds the new recording's own coupling (a texture couples a shake
     /// across the measured axis into the recovery its own way).
     pub refit: bool,
+    /// Its tiles' motion is pooled weighing each tile by its noise
+    /// ([`pooled_motion`]: the tiles that move least, for a motion of the
+    /// whole image), on this recording and again on the new one.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub weighed: bool,
 }
 
 /// An explanation as a stored report holds it: what to measure again on a
@@ -332,6 +337,11 @@ pub struct StoredTerm {
     /// before the calibration said: the stored taps).
     #[serde(default)]
     pub refit: bool,
+    /// Its tiles' motion pooled weighing each by its noise
+    /// ([`pooled_motion`]; absent in a report written before: the plain
+    /// mean).
+    #[serde(default)]
+    pub weighed: bool,
 }
 
 /// What [`explain`] found.
@@ -523,7 +533,7 @@ pub(super) fn explain(
     // Each tile is noisy alone: means over tiles that share a cause (all
     // those observed, a row of tiles, a column, those inside the region
     // that move on their own) join the candidates.
-    let pooled = pool(&covs, &observed, &moving, n);
+    let pooled = pool(&covs, &observed, &moving, (n, fs, hp));
     let singles = covs.len();
     let joints = joint_lines(&lines, n);
     // The tiles each candidate is the mean of (for lines, the parts of
@@ -536,6 +546,11 @@ pub(super) fn explain(
         .collect();
     // The lines of each joint candidate, by the candidate's index.
     let pooled_len = pooled.len();
+    // Whether each candidate's tiles are weighed by their noise.
+    let weighed_of: Vec<bool> = std::iter::repeat_n(false, singles)
+        .chain(pooled.iter().map(|p| p.2))
+        .chain(joints.iter().map(|_| false))
+        .collect();
     let mut channels_of: Vec<Option<Vec<Vec<f64>>>> = vec![None; singles + pooled_len];
     let covs: Vec<Covariate> = covs
         .into_iter()
@@ -817,6 +832,7 @@ pub(super) fn explain(
                     .map(|(a, b)| [a, b]),
                 follows_reference: follows,
                 refit: follows < FOLLOWS_SHARE,
+                weighed: weighed_of[c.index],
             }
         })
         .collect();
@@ -921,19 +937,66 @@ fn observed_motion(
         .collect()
 }
 
+/// The motion of a group of tiles (each one value per frame, in pixels):
+/// their mean, each tile weighed by the inverse of its own noise, read as
+/// the power of its (high-passed: `fs`, `hp`) motion about the tiles'
+/// plain mean. A motion the tiles share (the camera's) stays in pixels;
+/// a tile with less texture, whose motion is noisier, counts less, and a
+/// tile something else also moves counts less too. `calibrate` pools
+/// the tiles so and `listen --calibration` again on the new recording,
+/// whose texture (and so whose weights) may differ. The plain mean where
+/// any tile's power is not positive and finite (one tile, tiles alike).
+pub fn pooled_motion(tiles: &[&[f64]], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
+    let n = tiles.iter().map(|t| t.len()).min().unwrap_or(0);
+    let k = tiles.len().max(1) as f64;
+    let mut plain = vec![0.0; n];
+    for t in tiles {
+        for (m, v) in plain.iter_mut().zip(t.iter()) {
+            *m += v / k;
+        }
+    }
+    if tiles.len() < 2 {
+        return plain;
+    }
+    let weights: Vec<f64> = tiles
+        .iter()
+        .map(|t| {
+            let dev: Vec<f64> = t.iter().zip(&plain).map(|(a, m)| a - m).collect();
+            let d = centred_highpass(&dev, fs, hp);
+            1.0 / (d.iter().map(|v| v * v).sum::<f64>() / n.max(1) as f64)
+        })
+        .collect();
+    if !weights.iter().all(|w| w.is_finite() && *w > 0.0) {
+        return plain;
+    }
+    let total: f64 = weights.iter().sum();
+    let mut out = vec![0.0; n];
+    for (t, w) in tiles.iter().zip(&weights) {
+        for (o, v) in out.iter_mut().zip(t.iter()) {
+            *o += v * w / total;
+        }
+    }
+    out
+}
+
 /// Means of tiles' observables that share a cause, as candidates: for
 /// motion (each axis), of the tiles `observed` ([`observed_motion`]): all
 /// of them, those inside the region, those whose motion has at most
 /// [`COMMON_POWER`] times the median tile's power (`moving`: each tile's
 /// high-passed motion), each row of tiles and each column;
 /// for intensity, every tile, each row and each column. A mean's
-/// rectangle holds its tiles.
+/// rectangle holds its tiles. The tiles that move least, which stand for
+/// a motion of the whole image, are weighed each by its noise
+/// ([`pooled_motion`]; `fs`, `hp`: the recovery's high-pass; the flag
+/// returned), and come first, so that when they are all the tiles the
+/// weighted mean is the one kept; the other means are plain, since a
+/// mover's tiles, which the weights would silence, are what they pool.
 fn pool(
     covs: &[Covariate],
     observed: &[bool],
     moving: &[Option<Vec<f64>>],
-    n: usize,
-) -> Vec<(Covariate, Vec<[u32; 4]>)> {
+    (n, fs, hp): (usize, f64, Option<(usize, f64)>),
+) -> Vec<(Covariate, Vec<[u32; 4]>, bool)> {
     let mut out = Vec::new();
     for obs in [
         Observable::MotionX,
@@ -944,10 +1007,9 @@ fn pool(
             .filter(|&i| covs[i].observable == obs && covs[i].values.len() == n && observed[i])
             .collect();
         let tiles: Vec<&Covariate> = at.iter().map(|&i| &covs[i]).collect();
-        let mut groups: Vec<Vec<&Covariate>> = vec![tiles.clone()];
+        // Each group with whether its mean is weighed.
+        let mut groups: Vec<(Vec<&Covariate>, bool)> = Vec::new();
         if obs.is_motion() {
-            // The tiles inside the region that move on their own.
-            groups.push(tiles.iter().copied().filter(|c| c.inside).collect());
             // The tiles that move least: a motion of the whole image is in
             // every tile, and the tiles a mover also moves, whose motion
             // has more power, would only add it to their mean.
@@ -958,16 +1020,20 @@ fn pool(
             let mut sorted = power.clone();
             sorted.sort_by(f64::total_cmp);
             if let Some(&median) = sorted.get(sorted.len() / 2) {
-                groups.push(
+                groups.push((
                     tiles
                         .iter()
                         .zip(&power)
                         .filter(|&(_, &p)| p <= COMMON_POWER * median)
                         .map(|(c, _)| *c)
                         .collect(),
-                );
+                    true,
+                ));
             }
+            // The tiles inside the region that move on their own.
+            groups.push((tiles.iter().copied().filter(|c| c.inside).collect(), false));
         }
+        groups.insert(usize::from(obs.is_motion()), (tiles.clone(), false));
         // Each row of tiles (same rows), then each column (same columns).
         let rows = |c: &Covariate| (c.rect[1], c.rect[3]);
         let cols = |c: &Covariate| (c.rect[0], c.rect[2]);
@@ -976,22 +1042,31 @@ fn pool(
             keys.sort_unstable();
             keys.dedup();
             for k in keys {
-                groups.push(tiles.iter().copied().filter(|c| key(c) == k).collect());
+                groups.push((
+                    tiles.iter().copied().filter(|c| key(c) == k).collect(),
+                    false,
+                ));
             }
         }
         let mut seen: Vec<Vec<[u32; 4]>> = Vec::new();
-        for g in groups {
+        for (g, weighed) in groups {
             let rects: Vec<[u32; 4]> = g.iter().map(|c| c.rect).collect();
             if g.len() < 2 || seen.contains(&rects) {
                 continue;
             }
             seen.push(rects);
-            let mut values = vec![0.0; n];
-            for c in &g {
-                for (v, x) in values.iter_mut().zip(&c.values) {
-                    *v += x / g.len() as f64;
+            let values = if weighed {
+                let tiles: Vec<&[f64]> = g.iter().map(|c| c.values.as_slice()).collect();
+                pooled_motion(&tiles, fs, hp)
+            } else {
+                let mut values = vec![0.0; n];
+                for c in &g {
+                    for (v, x) in values.iter_mut().zip(&c.values) {
+                        *v += x / g.len() as f64;
+                    }
                 }
-            }
+                values
+            };
             out.push((
                 Covariate {
                     observable: obs,
@@ -1000,6 +1075,7 @@ fn pool(
                     values,
                 },
                 g.iter().map(|c| c.rect).collect(),
+                weighed,
             ));
         }
     }
@@ -1752,6 +1828,68 @@ mod tests {
             assert!(c.report.explained.is_empty(), "{:#?}", c.report.explained);
         }
         nothing_kept_without_it(case);
+    }
+
+    /// A motion every tile shares, each tile with noise of its own (one
+    /// ten times noisier, one moved by something else too): the weighed
+    /// mean stays in pixels and lies nearer the shared motion than the
+    /// plain mean; one tile, or tiles alike, give the plain mean.
+    #[test]
+    fn pooled_motion_weighs_each_tile_by_its_noise() {
+        let (fs, n) = (2200.0, 4400);
+        let hp = Options::for_rate(fs).highpass;
+        let mut rng = Xoshiro256::new(7);
+        let shared = gauss(&mut rng, n, 1.0);
+        let mover = gauss(&mut rng, n, 3.0);
+        let tiles: Vec<Vec<f64>> = [0.3, 0.3, 0.3, 3.0, 0.3]
+            .iter()
+            .enumerate()
+            .map(|(k, &s)| {
+                let own = gauss(&mut rng, n, s);
+                (0..n)
+                    .map(|i| shared[i] + own[i] + if k == 4 { mover[i] } else { 0.0 })
+                    .collect()
+            })
+            .collect();
+        let refs: Vec<&[f64]> = tiles.iter().map(Vec::as_slice).collect();
+        let err = |v: &[f64]| {
+            let d = centred_highpass(
+                &v.iter()
+                    .zip(&shared)
+                    .map(|(a, b)| a - b)
+                    .collect::<Vec<_>>(),
+                fs,
+                hp,
+            );
+            d.iter().map(|x| x * x).sum::<f64>() / n as f64
+        };
+        let weighed = pooled_motion(&refs, fs, hp);
+        let mut plain = vec![0.0; n];
+        for t in &tiles {
+            for (p, v) in plain.iter_mut().zip(t) {
+                *p += v / tiles.len() as f64;
+            }
+        }
+        let (ew, ep) = (err(&weighed), err(&plain));
+        assert!(ew < 0.1 * ep, "weighed {ew}, plain {ep}");
+        // In pixels: the shared motion's gain is one.
+        let g = weighed.iter().zip(&shared).map(|(a, b)| a * b).sum::<f64>()
+            / shared.iter().map(|b| b * b).sum::<f64>();
+        assert!((g - 1.0).abs() < 0.02, "gain {g}");
+        assert_eq!(pooled_motion(&refs[..1], fs, hp), tiles[0]);
+        let same = [refs[0], refs[0]];
+        assert_eq!(pooled_motion(&same, fs, hp), tiles[0]);
+        // A stored term says whether its tiles are weighed; a report
+        // written before says nothing, and is read as the plain mean.
+        let term = |extra: &str| {
+            let v: serde_json::Value = serde_json::from_str(&format!(
+                r#"{{"explained": [{{"observable": "motion_x", "tiles": [[0, 0, 10, 10], [10, 0, 10, 10]], "taps": [0, 0, 1, 0, 0]{extra}}}]}}"#
+            ))
+            .unwrap();
+            super::super::explained_from_report(&v).unwrap()[0].weighed
+        };
+        assert!(term(r#", "weighed": true"#));
+        assert!(!term(""));
     }
 
     /// Chance as the recording makes it: a removal as large as the
