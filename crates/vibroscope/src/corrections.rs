@@ -352,20 +352,14 @@ pub fn apply_observed(
             };
             let channels = if t.observable.is_line() {
                 cal::line_channels(t.observable, &t.tiles, n, of)
-            } else if t.weighed {
-                // The tiles' motion as the explainer pooled it, each tile
-                // weighed by its noise on this recording.
-                let tiles: Vec<&[f64]> = (0..t.tiles.len()).map(of).collect();
-                vec![cal::pooled_motion(&tiles, fs, hp)]
             } else {
-                // The tiles' plain mean, as the explainer pooled them.
-                let mut mean = vec![0.0; n];
-                for i in 0..t.tiles.len() {
-                    for (m, v) in mean.iter_mut().zip(of(i)) {
-                        *m += v / t.tiles.len() as f64;
-                    }
-                }
-                vec![mean]
+                // The tiles' mean as the explainer pooled them: weighed
+                // each by its noise on this recording, or plain.
+                let tiles: Vec<&[f64]> = (0..t.tiles.len()).map(of).collect();
+                vec![match t.weighed {
+                    true => cal::pooled_motion(&tiles, fs, hp),
+                    false => cal::mean_of(&tiles),
+                }]
             };
             cal::Measured {
                 observable: t.observable,

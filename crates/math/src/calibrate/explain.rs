@@ -390,21 +390,17 @@ fn linear(c: &Correction) -> bool {
     )
 }
 
-/// `cols` with the span of `basis` (orthonormal under `dot`) taken out.
-fn project_out(
-    mut cols: Vec<Vec<f64>>,
-    basis: &[Vec<f64>],
-    dot: &dyn Fn(&[f64], &[f64]) -> f64,
-) -> Vec<Vec<f64>> {
-    for b in basis {
-        for col in &mut cols {
+/// Takes the span of `basis` (orthonormal under `dot`) out of each of
+/// `cols`.
+fn project_out(cols: &mut [Vec<f64>], basis: &[Vec<f64>], dot: &dyn Fn(&[f64], &[f64]) -> f64) {
+    for col in cols {
+        for b in basis {
             let g = dot(b, col);
             for (a, v) in col.iter_mut().zip(b) {
                 *a -= g * v;
             }
         }
     }
-    cols
 }
 
 /// How many standard deviations `took` (the held-out energy a candidate
@@ -711,8 +707,9 @@ pub(super) fn explain(
                         let through = [apply_all(&lin, x, fs)];
                         let shifts =
                             tile_shifts_about(&through, reach, |cols| removed(cols, &resid));
-                        let cols = shifted(&through[0], &shifts);
-                        removed(&project_out(cols, &basis, &dot), &resid)
+                        let mut cols = shifted(&through[0], &shifts);
+                        project_out(&mut cols, &basis, &dot);
+                        removed(&cols, &resid)
                     };
                     let z = beyond_chance(took, &c.xs[0], null);
                     tracing::debug!(z, "explainer's weak candidate against chance");
@@ -734,21 +731,11 @@ pub(super) fn explain(
         let c = cands.swap_remove(ci);
         // Its span joins the basis; the others and the residual lose it.
         let q = orthonormal(&c.cols, &dot);
-        basis.extend(q.iter().cloned());
-        for b in &q {
-            let beta = dot(b, &resid);
-            for (r, v) in resid.iter_mut().zip(b) {
-                *r -= beta * v;
-            }
-            for o in &mut cands {
-                for col in &mut o.cols {
-                    let g = dot(b, col);
-                    for (a, v) in col.iter_mut().zip(b) {
-                        *a -= g * v;
-                    }
-                }
-            }
+        project_out(std::slice::from_mut(&mut resid), &q, &dot);
+        for o in &mut cands {
+            project_out(&mut o.cols, &q, &dot);
         }
+        basis.extend(q);
         kept.push(c);
     }
     if kept.is_empty() {
@@ -937,6 +924,20 @@ fn observed_motion(
         .collect()
 }
 
+/// The plain mean of `tiles` (one value per frame each), as long as the
+/// shortest.
+pub fn mean_of(tiles: &[&[f64]]) -> Vec<f64> {
+    let n = tiles.iter().map(|t| t.len()).min().unwrap_or(0);
+    let k = tiles.len().max(1) as f64;
+    let mut mean = vec![0.0; n];
+    for t in tiles {
+        for (m, v) in mean.iter_mut().zip(t.iter()) {
+            *m += v / k;
+        }
+    }
+    mean
+}
+
 /// The motion of a group of tiles (each one value per frame, in pixels):
 /// their mean, each tile weighed by the inverse of its own noise, read as
 /// the power of its (high-passed: `fs`, `hp`) motion about the tiles'
@@ -947,14 +948,8 @@ fn observed_motion(
 /// whose texture (and so whose weights) may differ. The plain mean where
 /// any tile's power is not positive and finite (one tile, tiles alike).
 pub fn pooled_motion(tiles: &[&[f64]], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
-    let n = tiles.iter().map(|t| t.len()).min().unwrap_or(0);
-    let k = tiles.len().max(1) as f64;
-    let mut plain = vec![0.0; n];
-    for t in tiles {
-        for (m, v) in plain.iter_mut().zip(t.iter()) {
-            *m += v / k;
-        }
-    }
+    let plain = mean_of(tiles);
+    let n = plain.len();
     if tiles.len() < 2 {
         return plain;
     }
@@ -1055,17 +1050,10 @@ fn pool(
                 continue;
             }
             seen.push(rects);
-            let values = if weighed {
-                let tiles: Vec<&[f64]> = g.iter().map(|c| c.values.as_slice()).collect();
-                pooled_motion(&tiles, fs, hp)
-            } else {
-                let mut values = vec![0.0; n];
-                for c in &g {
-                    for (v, x) in values.iter_mut().zip(&c.values) {
-                        *v += x / g.len() as f64;
-                    }
-                }
-                values
+            let tiles: Vec<&[f64]> = g.iter().map(|c| c.values.as_slice()).collect();
+            let values = match weighed {
+                true => pooled_motion(&tiles, fs, hp),
+                false => mean_of(&tiles),
             };
             out.push((
                 Covariate {
