@@ -221,10 +221,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             )
         };
         eprintln!(
-            "{:<19} {:<5} {:>11} dB  {what} of [{x}, {y}, {w}, {h}], {:.0}% of the residual: {}; {carried}",
+            "{:<19} {:<5} {:>11} dB  {what} of [{x}, {y}, {w}, {h}], kept with {:+.2} dB after the terms above ({:.0}% of the residual): {}; {carried}",
             format!("explained:{}", e.cause),
             "yes",
             format!("{:+.2}", e.snr_gain_db),
+            e.kept_gain_db,
             100.0 * e.residual_share,
             e.label
         );

@@ -85,12 +85,13 @@ fn calibrate_in(dir: &Path, name: &str, extra: &str) -> Calibration {
     );
     for e in &cal.report.explained {
         eprintln!(
-            "  {} {:?} {:?} (seen at {:?}): +{:.2} dB, {:.0}% of the residual: {}",
+            "  {} {:?} {:?} (seen at {:?}): +{:.2} dB without it, kept with +{:.2} dB, {:.0}% of the residual: {}",
             e.cause,
             e.observable,
             e.rect,
             e.seen_at,
             e.snr_gain_db,
+            e.kept_gain_db,
             100.0 * e.residual_share,
             e.label
         );

@@ -279,11 +279,17 @@ pub struct Explanation {
     /// move or brighten with it, and how many were looked at.
     pub tiles_with_it: usize,
     pub tiles_of: usize,
-    /// Share of the held-out residual's energy (before the explainer) that
-    /// this covariate's part of the fit removes.
+    /// Share of the held-out error's energy before the explainer that
+    /// keeping this covariate removed, after the ones kept before it (the
+    /// report's order): in [0, 1], and the shares add up to what the
+    /// explainer removes.
     pub residual_share: f64,
     /// Held-out SNR lost without it, the others kept (dB).
     pub snr_gain_db: f64,
+    /// Held-out SNR gained when it was kept, after the ones before it
+    /// (dB; the report's order): these add up to the explainer's gain,
+    /// and [`Explanation::residual_share`] is their energy.
+    pub kept_gain_db: f64,
     /// The FIR from the observable (px or DN) to the recovery (recovery
     /// units), at the lags of [`Explanation::shifts`]: what is subtracted
     /// at frame n is `Σ taps[k] x[n - shifts[k]]`. For lines, one such
@@ -574,7 +580,6 @@ pub(super) fn explain(
     }
     // The residual of the best model so far.
     let resid0: Vec<f64> = z.iter().zip(&fit.t).map(|(a, t)| a - fit.g * t).collect();
-    let e0_held = held_energy(&resid0);
     // The held-out energy of `r` that `cols` remove, fitted on the fit
     // part.
     let removed = |cols: &[Vec<f64>], r: &[f64]| {
@@ -648,6 +653,8 @@ pub(super) fn explain(
     let mut taps_all: Vec<Vec<f64>> = Vec::new();
     // The kept candidates' span, orthonormal on the fit part.
     let mut basis: Vec<Vec<f64>> = Vec::new();
+    // The held-out SNR before the explainer, then after each kept term.
+    let mut steps = vec![start.snr_db];
     while kept.len() < MAX_KEPT && !cands.is_empty() {
         // Rank by the held-out residual energy each removes. Candidates
         // within 2% of the best carry the same signal (a light reads as
@@ -726,6 +733,7 @@ pub(super) fn explain(
             "explainer keeps"
         );
         cur = e2;
+        steps.push(cur.snr_db);
         cleaned = y2;
         taps_all = taps;
         let c = cands.swap_remove(ci);
@@ -746,14 +754,8 @@ pub(super) fn explain(
         .iter()
         .enumerate()
         .map(|(k, c)| {
-            // Its own part of the joint fit, on the held-out residual.
+            // Its own part of the joint fit (for the labels below).
             let part = c.part(&taps_all[k], (&lin, fs), len);
-            let after: Vec<f64> = resid0.iter().zip(&part).map(|(a, b)| a - b).collect();
-            let share = if e0_held > 0.0 {
-                ((e0_held - held_energy(&after)) / e0_held).clamp(-1.0, 1.0)
-            } else {
-                0.0
-            };
             // Without it, the others kept (as fitted).
             let others: Vec<&Cand> = refs
                 .iter()
@@ -768,6 +770,20 @@ pub(super) fn explain(
                 .collect();
             let w = apply_all(chain, &subtract(y, &others, &others_taps), fs);
             let without = m.errors(&w, &m.fit_linear(&w)).snr_db;
+            // What keeping it removed of the held-out error, after the
+            // terms kept before it, as a share of the error before the
+            // explainer (the SNR's reference power is the same at every
+            // step, so an error's energy is 10^(-SNR/10) of it): in
+            // [0, 1], and the shares add up to what the explainer removes.
+            // Its own part's share of the joint fit was reported until
+            // session 72: two terms that move together (the camera's
+            // tiles, then all tiles) cancel in part, and one read "+1.61
+            // dB, -15% of the residual". The energy of its gain without
+            // it (the others kept as fitted) is no better: it can pass
+            // 100% where a second term cancels a nuisance the first
+            // brought in.
+            let left = |snr: f64| 10f64.powf(-(snr - steps[0]) / 10.0);
+            let share = (left(steps[k]) - left(steps[k + 1])).clamp(0.0, 1.0);
             let cov = &covs[c.index];
             let ((cause, label, (with_it, of), seen_at), follows) = match &channels_of[c.index] {
                 // The lines' fitted sum: one line alone is mostly noise.
@@ -811,6 +827,7 @@ pub(super) fn explain(
                 tiles_of: of,
                 residual_share: share,
                 snr_gain_db: cur.snr_db - without,
+                kept_gain_db: steps[k + 1] - steps[k],
                 taps: taps_all[k].clone(),
                 shifts: c.shifts.clone(),
                 renewal: channels_of[c.index]
@@ -1787,6 +1804,61 @@ mod tests {
         // the high-pass).
         assert!((e[0].taps[LAGS] - 0.5).abs() < 0.1, "{:?}", e[0].taps);
         nothing_kept_without_it(case);
+    }
+
+    /// Two terms whose parts of the joint fit cancel in part (one tile
+    /// sees the leak and a nuisance, the other the nuisance alone): each
+    /// term's share is what its step removed, not its own part's share
+    /// (negative for both here: each part alone brings the nuisance
+    /// back).
+    #[test]
+    fn overlapping_terms_report_the_share_of_their_gain() {
+        let Leaking {
+            y,
+            r,
+            opts,
+            c,
+            mut rng,
+            ..
+        } = leaking(0.5, 3, 0);
+        let n = y.len();
+        let d = gauss(&mut rng, n, 2.0);
+        let tile = |rect, values| Covariate {
+            observable: Observable::MotionX,
+            rect,
+            inside: false,
+            values,
+        };
+        let covs = vec![
+            tile(
+                [0, 0, 10, 10],
+                c.iter().zip(&d).map(|(a, b)| a + b).collect(),
+            ),
+            tile([50, 0, 10, 10], d.clone()),
+        ];
+        let cal =
+            calibrate_with(&y, (None, &covs), 2200.0, (&r, 8800.0), &opts, &mut |_| {}).unwrap();
+        let e = &cal.report.explained;
+        assert_eq!(e.len(), 2, "{e:#?}");
+        let total = cal.report.after.snr_db - cal.report.before.snr_db;
+        assert!(total > 3.0, "gain {total} dB");
+        // In the order kept: each share is the energy its step removed,
+        // in [0, 1], and they add up to the error removed in all.
+        let (mut at, mut shares) = (0.0, 0.0);
+        let left = |db: f64| 10f64.powf(-db / 10.0);
+        for t in e {
+            assert!(t.kept_gain_db > 0.0 && t.residual_share > 0.0, "{t:#?}");
+            let want = left(at) - left(at + t.kept_gain_db);
+            assert!((t.residual_share - want).abs() < 1e-9, "{t:#?}: {want}");
+            at += t.kept_gain_db;
+            shares += t.residual_share;
+        }
+        assert!((at - total).abs() < 1e-9, "steps {at} against {total} dB");
+        assert!((shares - (1.0 - left(total))).abs() < 1e-9 && shares < 1.0);
+        // The gain without a term (the others as fitted) is another
+        // figure: here it passes the total, since each part alone brings
+        // the nuisance back.
+        assert!(e.iter().all(|t| t.snr_gain_db > total), "{e:#?}");
     }
 
     /// A weak leak (a faint shake: its term gains under `min_gain_db` on
