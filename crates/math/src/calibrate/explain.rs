@@ -326,6 +326,12 @@ pub struct Explanation {
     /// whole image), on this recording and again on the new one.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub weighed: bool,
+    /// For tiles weighed by their noise: the share of their pooled
+    /// motion's power that is the tiles' own noise
+    /// ([`pooled_noise_share`]); subtracting the term removes at most
+    /// about one minus it of what the motion costs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tiles_noise_share: Option<f64>,
 }
 
 /// An explanation as a stored report holds it: what to measure again on a
@@ -815,6 +821,32 @@ pub(super) fn explain(
             } else {
                 (cause, label)
             };
+            // For tiles weighed by their noise: how much of the pooled
+            // motion is that noise, which bounds what subtracting it can
+            // gain (said when it is most of it).
+            let noise_share = weighed_of[c.index]
+                .then(|| {
+                    let tiles: Vec<&[f64]> = members[c.index]
+                        .iter()
+                        .filter_map(|r| {
+                            covs[..singles]
+                                .iter()
+                                .find(|t| t.rect == *r && t.observable == cov.observable)
+                                .map(|t| t.values.as_slice())
+                        })
+                        .collect();
+                    pooled_noise_share(&tiles, fs, hp)
+                })
+                .flatten();
+            let label = match noise_share {
+                Some(q) if q >= 0.5 => format!(
+                    "{label}; its {} tiles' own noise is {:.0}% of their pooled motion's power, so subtracting it removes at most about {:.0}% of what this motion costs (more texture in view outside the region would measure it better)",
+                    members[c.index].len(),
+                    100.0 * q,
+                    100.0 * (1.0 - q)
+                ),
+                _ => label,
+            };
             Explanation {
                 observable: cov.observable,
                 rect: cov.rect,
@@ -837,6 +869,7 @@ pub(super) fn explain(
                 follows_reference: follows,
                 refit: follows < FOLLOWS_SHARE,
                 weighed: weighed_of[c.index],
+                tiles_noise_share: noise_share,
             }
         })
         .collect();
@@ -966,29 +999,82 @@ pub fn mean_of(tiles: &[&[f64]]) -> Vec<f64> {
 /// any tile's power is not positive and finite (one tile, tiles alike).
 pub fn pooled_motion(tiles: &[&[f64]], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
     let plain = mean_of(tiles);
-    let n = plain.len();
-    if tiles.len() < 2 {
+    let Some(weights) = pool_weights(tiles, &plain, fs, hp) else {
         return plain;
-    }
-    let weights: Vec<f64> = tiles
-        .iter()
-        .map(|t| {
-            let dev: Vec<f64> = t.iter().zip(&plain).map(|(a, m)| a - m).collect();
-            let d = centred_highpass(&dev, fs, hp);
-            1.0 / (d.iter().map(|v| v * v).sum::<f64>() / n.max(1) as f64)
-        })
-        .collect();
-    if !weights.iter().all(|w| w.is_finite() && *w > 0.0) {
-        return plain;
-    }
+    };
     let total: f64 = weights.iter().sum();
-    let mut out = vec![0.0; n];
+    let mut out = vec![0.0; plain.len()];
     for (t, w) in tiles.iter().zip(&weights) {
         for (o, v) in out.iter_mut().zip(t.iter()) {
             *o += v * w / total;
         }
     }
     out
+}
+
+/// [`pooled_motion`]'s weights: each tile's inverse noise power (its
+/// high-passed motion about the tiles' plain mean `plain`); `None` where
+/// the plain mean is used.
+fn pool_weights(
+    tiles: &[&[f64]],
+    plain: &[f64],
+    fs: f64,
+    hp: Option<(usize, f64)>,
+) -> Option<Vec<f64>> {
+    if tiles.len() < 2 {
+        return None;
+    }
+    let n = plain.len().max(1) as f64;
+    let weights: Vec<f64> = tiles
+        .iter()
+        .map(|t| {
+            let dev: Vec<f64> = t.iter().zip(plain).map(|(a, m)| a - m).collect();
+            let d = centred_highpass(&dev, fs, hp);
+            1.0 / (d.iter().map(|v| v * v).sum::<f64>() / n)
+        })
+        .collect();
+    weights
+        .iter()
+        .all(|w| w.is_finite() && *w > 0.0)
+        .then_some(weights)
+}
+
+/// The share of [`pooled_motion`]'s high-passed power that is its tiles'
+/// own noise: the weighed mean's noise power (each tile's noise read
+/// from its power about the plain mean) over the pooled motion's power,
+/// at most 1. A correction made from the pooled
+/// motion removes at most about one minus this share of what the motion
+/// it stands for costs (the best gain on a signal seen through white
+/// noise). `None` where the plain mean is used.
+pub fn pooled_noise_share(tiles: &[&[f64]], fs: f64, hp: Option<(usize, f64)>) -> Option<f64> {
+    let plain = mean_of(tiles);
+    let weights = pool_weights(tiles, &plain, fs, hp)?;
+    let pooled = pooled_motion(tiles, fs, hp);
+    let p = centred_highpass(&pooled, fs, hp);
+    let power = p.iter().map(|v| v * v).sum::<f64>() / p.len().max(1) as f64;
+    // A tile's power about the plain mean, d_i = 1 / w_i, holds its own
+    // noise's σ_i² (1 - 2/N) and the mean's Σσ²/N²: so Σσ² = Σd · N/(N-1),
+    // and each σ_i² = (d_i - Σσ²/N²) / (1 - 2/N) (for two tiles, which
+    // cannot be told apart, half of Σσ² each). The weighed mean's noise is
+    // then Σ w_i² σ_i² / (Σ w)².
+    let k = tiles.len() as f64;
+    let d: Vec<f64> = weights.iter().map(|w| 1.0 / w).collect();
+    let all = d.iter().sum::<f64>() * k / (k - 1.0);
+    let own = |di: f64| {
+        if tiles.len() > 2 {
+            ((di - all / (k * k)) / (1.0 - 2.0 / k)).max(0.0)
+        } else {
+            all / k
+        }
+    };
+    let total: f64 = weights.iter().sum();
+    let noise = weights
+        .iter()
+        .zip(&d)
+        .map(|(w, &di)| w * w * own(di))
+        .sum::<f64>()
+        / (total * total);
+    (power > 0.0 && noise.is_finite()).then(|| (noise / power).min(1.0))
 }
 
 /// Means of tiles' observables that share a cause, as candidates: for
@@ -1804,6 +1890,47 @@ mod tests {
         // the high-pass).
         assert!((e[0].taps[LAGS] - 0.5).abs() < 0.1, "{:?}", e[0].taps);
         nothing_kept_without_it(case);
+    }
+
+    /// The share of the pooled motion that is its tiles' noise, against
+    /// the truth (the pooled motion less the shared one): a faint shared
+    /// motion under the noise, a strong one over it, tiles alike and not.
+    #[test]
+    fn pooled_noise_share_is_the_noise_in_the_pooled_motion() {
+        let (fs, n) = (2200.0, 4400);
+        let hp = Options::for_rate(fs).highpass;
+        let power = |v: &[f64]| {
+            let d = centred_highpass(v, fs, hp);
+            d.iter().map(|x| x * x).sum::<f64>() / n as f64
+        };
+        for (seed, motion, noise) in [
+            (1, 0.05, &[0.3, 0.3, 0.3, 0.3, 0.3][..]),
+            (2, 0.1, &[0.2, 0.4, 0.3, 0.6, 0.25, 0.3, 0.5, 0.2][..]),
+            (3, 1.0, &[0.3, 0.3, 0.3, 0.3][..]),
+            (4, 0.02, &[0.05, 0.1, 0.2][..]),
+        ] {
+            let mut rng = Xoshiro256::new(seed);
+            let shared = gauss(&mut rng, n, motion);
+            let tiles: Vec<Vec<f64>> = noise
+                .iter()
+                .map(|&s| {
+                    let own = gauss(&mut rng, n, s);
+                    (0..n).map(|i| shared[i] + own[i]).collect()
+                })
+                .collect();
+            let refs: Vec<&[f64]> = tiles.iter().map(Vec::as_slice).collect();
+            let pooled = pooled_motion(&refs, fs, hp);
+            let err: Vec<f64> = pooled.iter().zip(&shared).map(|(a, b)| a - b).collect();
+            let truth = power(&err) / power(&pooled);
+            let got = pooled_noise_share(&refs, fs, hp).unwrap();
+            eprintln!("seed {seed}: noise share {got:.3}, truth {truth:.3}");
+            assert!(
+                (got - truth).abs() < 0.1 * truth.max(0.05),
+                "seed {seed}: {got} against {truth}"
+            );
+        }
+        let one = vec![1.0; n];
+        assert_eq!(pooled_noise_share(&[&one], fs, hp), None);
     }
 
     /// Two terms whose parts of the joint fit cancel in part (one tile
