@@ -1040,12 +1040,12 @@ fn pool_weights(
 }
 
 /// The share of [`pooled_motion`]'s high-passed power that is its tiles'
-/// own noise: the weighed mean's noise power (each tile's noise read
-/// from its power about the plain mean) over the pooled motion's power,
-/// at most 1. A correction made from the pooled
-/// motion removes at most about one minus this share of what the motion
-/// it stands for costs (the best gain on a signal seen through white
-/// noise). `None` where the plain mean is used.
+/// own noise: the weighed mean's noise power (each tile's noise read from
+/// its power about the plain mean) over the pooled motion's power, at
+/// most 1. A correction made from the pooled motion removes at most about
+/// one minus this share of what the motion it stands for costs (the best
+/// gain on a signal seen through white noise). `None` where the plain
+/// mean is used.
 pub fn pooled_noise_share(tiles: &[&[f64]], fs: f64, hp: Option<(usize, f64)>) -> Option<f64> {
     let plain = mean_of(tiles);
     let weights = pool_weights(tiles, &plain, fs, hp)?;
