@@ -1194,9 +1194,16 @@ impl Outcome {
 /// without espeak-ng or sox.
 fn run(c: &Case) -> Option<Outcome> {
     let d = tempfile::tempdir().unwrap();
-    // PROTOCOL_KEEP=1 keeps each case's files (printed).
+    // PROTOCOL_KEEP=1 keeps each case's files (printed) in one directory
+    // a case under the system's temporary directory, the last run's
+    // replaced: a fresh directory a run filled /tmp (541 of them, 56 GB,
+    // by session 72).
     let dir = &if std::env::var_os("PROTOCOL_KEEP").is_some() {
-        let kept = d.keep();
+        let kept = std::env::temp_dir()
+            .join("vibroscope-protocol")
+            .join(c.name);
+        let _ = std::fs::remove_dir_all(&kept);
+        std::fs::create_dir_all(&kept).unwrap();
         eprintln!("protocol {}: files kept in {}", c.name, kept.display());
         kept
     } else {
