@@ -999,12 +999,17 @@ pub fn mean_of(tiles: &[&[f64]]) -> Vec<f64> {
 /// any tile's power is not positive and finite (one tile, tiles alike).
 pub fn pooled_motion(tiles: &[&[f64]], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
     let plain = mean_of(tiles);
-    let Some(weights) = pool_weights(tiles, &plain, fs, hp) else {
-        return plain;
-    };
+    match pool_weights(tiles, &plain, fs, hp) {
+        Some(weights) => weighed_mean(tiles, &weights, plain.len()),
+        None => plain,
+    }
+}
+
+/// The mean of `tiles`' first `n` values, each tile counted by its weight.
+fn weighed_mean(tiles: &[&[f64]], weights: &[f64], n: usize) -> Vec<f64> {
     let total: f64 = weights.iter().sum();
-    let mut out = vec![0.0; plain.len()];
-    for (t, w) in tiles.iter().zip(&weights) {
+    let mut out = vec![0.0; n];
+    for (t, w) in tiles.iter().zip(weights) {
         for (o, v) in out.iter_mut().zip(t.iter()) {
             *o += v * w / total;
         }
@@ -1049,8 +1054,7 @@ fn pool_weights(
 pub fn pooled_noise_share(tiles: &[&[f64]], fs: f64, hp: Option<(usize, f64)>) -> Option<f64> {
     let plain = mean_of(tiles);
     let weights = pool_weights(tiles, &plain, fs, hp)?;
-    let pooled = pooled_motion(tiles, fs, hp);
-    let p = centred_highpass(&pooled, fs, hp);
+    let p = centred_highpass(&weighed_mean(tiles, &weights, plain.len()), fs, hp);
     let power = p.iter().map(|v| v * v).sum::<f64>() / p.len().max(1) as f64;
     // A tile's power about the plain mean, d_i = 1 / w_i, holds its own
     // noise's σ_i² (1 - 2/N) and the mean's Σσ²/N²: so Σσ² = Σd · N/(N-1),
