@@ -344,6 +344,9 @@ struct Grid {
     /// Full-spectrum column index of `+kx` and `-kx` (mod W), per grid column.
     ux_pos: Vec<usize>,
     ux_neg: Vec<usize>,
+    /// `uy_pos` and `uy_neg` as runs of consecutive rows ([`gather`]).
+    pos_runs: Vec<Run>,
+    neg_runs: Vec<Run>,
     fwd_x: Arc<dyn Fft<f32>>,
     inv_x: Arc<dyn Fft<f32>>,
     fwd_y: Arc<dyn Fft<f32>>,
@@ -362,11 +365,15 @@ impl Grid {
     ) -> Self {
         let (gw, gh) = (kx.len(), ky.len());
         let (wi, hi) = (width as isize, height as isize);
+        let uy_pos: Vec<usize> = ky.iter().map(|&k| k.rem_euclid(hi) as usize).collect();
+        let uy_neg: Vec<usize> = ky.iter().map(|&k| (-k).rem_euclid(hi) as usize).collect();
         Grid {
             w: gw,
             h: gh,
-            uy_pos: ky.iter().map(|&k| k.rem_euclid(hi) as usize).collect(),
-            uy_neg: ky.iter().map(|&k| (-k).rem_euclid(hi) as usize).collect(),
+            pos_runs: runs(&uy_pos),
+            neg_runs: runs(&uy_neg),
+            uy_pos,
+            uy_neg,
             ux_pos: kx.iter().map(|&k| k.rem_euclid(wi) as usize).collect(),
             ux_neg: kx.iter().map(|&k| (-k).rem_euclid(wi) as usize).collect(),
             kx,
@@ -397,6 +404,10 @@ pub struct ComplexSteerablePyramid {
     /// Product masks per band (scale-major), on the band's grid, layout
     /// `[kx'][ky']` (x-major).
     band_masks: Vec<Vec<f32>>,
+    /// Per band, the ranges of its grid's columns `kx'` whose mask is not
+    /// zero throughout (orientation 0's is zero on the half plane `kx <=
+    /// 0`): the others' values and inverse FFTs are zero, and skipped.
+    band_live: Vec<Vec<std::ops::Range<usize>>>,
     /// The orientations whose bands have masks (all but in a part, see
     /// [`ComplexSteerablePyramid::new_part`]).
     masked: std::ops::Range<usize>,
@@ -599,6 +610,11 @@ impl ComplexSteerablePyramid {
                 band_masks.push(m);
             }
         }
+        let band_live = band_masks
+            .iter()
+            .zip(&band_grid)
+            .map(|(m, &g)| live_columns(m, grids[g].h))
+            .collect();
         let low_grid = &grids[scales];
         let mut low_mask = vec![0.0f32; low_grid.w * low_grid.h];
         for kxp in 0..low_grid.w {
@@ -639,6 +655,7 @@ impl ComplexSteerablePyramid {
             orient: part.clone(),
             masked: part,
             band_grid,
+            band_live,
             spec: vec![Complex32::default(); spec_len],
             spec_synth: Vec::new(),
             work: vec![Complex32::default(); full.max(spec_len)],
@@ -749,20 +766,24 @@ impl ComplexSteerablePyramid {
         let h = self.key.height;
         let grid = &self.grids[self.band_grid[bi]];
         let n = grid.w * grid.h;
+        let live = &self.band_live[bi];
         gather(
             &self.spec,
             h,
             grid,
-            &self.band_masks[bi],
+            (&self.band_masks[bi], norm),
+            live,
             &mut self.work[..n],
         );
-        grid.inv_y
-            .process_with_scratch(&mut self.work[..n], &mut self.scratch);
+        // The columns that are zero stay zero (their inverse FFT is).
+        for r in live {
+            grid.inv_y.process_with_scratch(
+                &mut self.work[r.start * grid.h..r.end * grid.h],
+                &mut self.scratch,
+            );
+        }
         transpose(&self.work[..n], grid.w, grid.h, data);
         grid.inv_x.process_with_scratch(data, &mut self.scratch);
-        for v in data.iter_mut() {
-            *v *= norm;
-        }
     }
 
     /// Band-at-a-time analysis and synthesis, for a caller that changes
@@ -895,7 +916,14 @@ impl ComplexSteerablePyramid {
         // Low-pass residual (real).
         let grid = &self.grids[self.key.scales];
         let n = grid.w * grid.h;
-        gather(&self.spec, h, grid, &self.low_mask, &mut self.work[..n]);
+        gather(
+            &self.spec,
+            h,
+            grid,
+            (&self.low_mask, 1.0),
+            std::slice::from_ref(&(0..grid.w)),
+            &mut self.work[..n],
+        );
         grid.inv_y
             .process_with_scratch(&mut self.work[..n], &mut self.scratch);
         transpose(&self.work[..n], grid.w, grid.h, &mut self.work2[..n]);
@@ -951,16 +979,22 @@ impl ComplexSteerablePyramid {
         grid.fwd_x
             .process_with_scratch(&mut self.work2[..n], &mut self.scratch);
         transpose(&self.work2[..n], grid.h, grid.w, &mut self.work[..n]);
-        grid.fwd_y
-            .process_with_scratch(&mut self.work[..n], &mut self.scratch);
+        // Only the columns the mask keeps (the others are multiplied by
+        // zero).
+        let live = &self.band_live[bi];
+        for r in live {
+            grid.fwd_y.process_with_scratch(
+                &mut self.work[r.start * grid.h..r.end * grid.h],
+                &mut self.scratch,
+            );
+        }
         let scale = wh / n as f32 * 0.25;
         scatter_sym(
             &self.work[..n],
-            grid,
+            (grid, live),
             &self.band_masks[bi],
             scale,
-            w,
-            h,
+            (w, h),
             &mut self.spec,
         );
     }
@@ -996,11 +1030,10 @@ impl ComplexSteerablePyramid {
         let scale = wh / n as f32 * 0.5;
         scatter_sym(
             &self.work[..n],
-            grid,
+            (grid, std::slice::from_ref(&(0..grid.w))),
             &self.low_mask,
             scale,
-            w,
-            h,
+            (w, h),
             &mut self.spec,
         );
     }
@@ -1121,59 +1154,184 @@ impl ComplexSteerablePyramid {
     }
 }
 
-/// Copies the crop of the half spectrum `spec` (`[ux][uy]`, `h` rows per
-/// column) that `grid` covers, times `mask`, into `dst` (`[kx'][ky']`).
-/// Negative x frequencies come from Hermitian symmetry.
-fn gather(spec: &[Complex32], h: usize, grid: &Grid, mask: &[f32], dst: &mut [Complex32]) {
-    let gh = grid.h;
-    for (kxp, (row, mrow)) in dst
-        .chunks_exact_mut(gh)
-        .zip(mask.chunks_exact(gh))
-        .enumerate()
-    {
-        let kx = grid.kx[kxp];
-        if kx >= 0 {
-            let col = &spec[kx as usize * h..(kx as usize + 1) * h];
-            for ((d, m), &uy) in row.iter_mut().zip(mrow).zip(&grid.uy_pos) {
-                *d = col[uy] * *m;
-            }
-        } else {
-            let c = (-kx) as usize;
-            let col = &spec[c * h..(c + 1) * h];
-            for ((d, m), &uy) in row.iter_mut().zip(mrow).zip(&grid.uy_neg) {
-                *d = col[uy].conj() * *m;
+/// Grid rows `dst..dst + len` that read the full spectrum's rows `src,
+/// src + 1, ...` (or `src, src - 1, ...` when `rev`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Run {
+    dst: usize,
+    src: usize,
+    len: usize,
+    rev: bool,
+}
+
+/// `idx` (a full-spectrum row per grid row) as runs of consecutive rows,
+/// rising or falling: a grid's rows are two or three of them, so
+/// [`gather`] copies slices (vectorised) instead of indexing a bin at a
+/// time.
+fn runs(idx: &[usize]) -> Vec<Run> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < idx.len() {
+        let rev = i + 1 < idx.len() && idx[i + 1] + 1 == idx[i];
+        let mut len = 1;
+        while i + len < idx.len() {
+            let (a, b) = (idx[i + len - 1], idx[i + len]);
+            if (rev && b + 1 == a) || (!rev && b == a + 1) {
+                len += 1;
+            } else {
+                break;
             }
         }
+        out.push(Run {
+            dst: i,
+            src: idx[i],
+            len,
+            rev,
+        });
+        i += len;
     }
+    out
+}
+
+/// The ranges of columns (rows of `gh` values of `mask`) holding a value
+/// other than zero.
+fn live_columns(mask: &[f32], gh: usize) -> Vec<std::ops::Range<usize>> {
+    let mut out: Vec<std::ops::Range<usize>> = Vec::new();
+    if gh == 0 {
+        return out;
+    }
+    for (c, row) in mask.chunks_exact(gh).enumerate() {
+        if row.iter().all(|&v| v == 0.0) {
+            continue;
+        }
+        match out.last_mut() {
+            Some(r) if r.end == c => r.end = c + 1,
+            _ => out.push(c..c + 1),
+        }
+    }
+    out
+}
+
+/// Copies the crop of the half spectrum `spec` (`[ux][uy]`, `h` rows per
+/// column) that `grid` covers, times `mask` and `norm`, into `dst`
+/// (`[kx'][ky']`), for the grid's columns in `live`; the others are zero.
+/// Negative x frequencies come from Hermitian symmetry. (`norm` here,
+/// not after the inverse FFTs, saves a pass over the band: the same bits
+/// where it is a power of two, as for every grid of 2^k x 2^k, since
+/// scaling by one commutes with every rounding.)
+fn gather(
+    spec: &[Complex32],
+    h: usize,
+    grid: &Grid,
+    (mask, norm): (&[f32], f32),
+    live: &[std::ops::Range<usize>],
+    dst: &mut [Complex32],
+) {
+    let gh = grid.h;
+    let zero = Complex32::default();
+    let mut next = 0;
+    for r in live {
+        dst[next * gh..r.start * gh].fill(zero);
+        for kxp in r.clone() {
+            let row = &mut dst[kxp * gh..(kxp + 1) * gh];
+            let mrow = &mask[kxp * gh..(kxp + 1) * gh];
+            let kx = grid.kx[kxp];
+            let (c, runs, conj) = if kx >= 0 {
+                (kx as usize, &grid.pos_runs, false)
+            } else {
+                ((-kx) as usize, &grid.neg_runs, true)
+            };
+            let col = &spec[c * h..(c + 1) * h];
+            for run in runs {
+                let d = &mut row[run.dst..run.dst + run.len];
+                let m = &mrow[run.dst..run.dst + run.len];
+                match (run.rev, conj) {
+                    (false, false) => {
+                        let s = &col[run.src..run.src + run.len];
+                        for ((d, m), s) in d.iter_mut().zip(m).zip(s) {
+                            *d = s * (*m * norm);
+                        }
+                    }
+                    (false, true) => {
+                        let s = &col[run.src..run.src + run.len];
+                        for ((d, m), s) in d.iter_mut().zip(m).zip(s) {
+                            *d = s.conj() * (*m * norm);
+                        }
+                    }
+                    (true, false) => {
+                        let s = &col[run.src + 1 - run.len..=run.src];
+                        for ((d, m), s) in d.iter_mut().zip(m).zip(s.iter().rev()) {
+                            *d = s * (*m * norm);
+                        }
+                    }
+                    (true, true) => {
+                        let s = &col[run.src + 1 - run.len..=run.src];
+                        for ((d, m), s) in d.iter_mut().zip(m).zip(s.iter().rev()) {
+                            *d = s.conj() * (*m * norm);
+                        }
+                    }
+                }
+            }
+        }
+        next = r.end;
+    }
+    dst[next * gh..grid.w * gh].fill(zero);
 }
 
 /// Adds `src * mask * scale` (grid layout `[kx'][ky']`) at `+k` and its
 /// conjugate at `-k` into the half spectrum `acc` (`[ux][uy]`), keeping only
-/// bins of the half plane `ux <= W/2`.
+/// bins of the half plane `ux <= W/2`, for the grid's columns in `live`
+/// (the mask is zero on the others).
 fn scatter_sym(
     src: &[Complex32],
-    grid: &Grid,
+    (grid, live): (&Grid, &[std::ops::Range<usize>]),
     mask: &[f32],
     scale: f32,
-    w: usize,
-    h: usize,
+    (w, h): (usize, usize),
     acc: &mut [Complex32],
 ) {
     let half = w / 2;
     let gh = grid.h;
-    for (kxp, (row, mrow)) in src.chunks_exact(gh).zip(mask.chunks_exact(gh)).enumerate() {
-        let px = grid.ux_pos[kxp];
-        let nx = grid.ux_neg[kxp];
-        if px <= half {
-            let col = &mut acc[px * h..(px + 1) * h];
-            for ((v, m), &uy) in row.iter().zip(mrow).zip(&grid.uy_pos) {
-                col[uy] += v * (*m * scale);
+    for kxp in live.iter().flat_map(|r| r.clone()) {
+        let row = &src[kxp * gh..(kxp + 1) * gh];
+        let mrow = &mask[kxp * gh..(kxp + 1) * gh];
+        for (x, conj) in [(grid.ux_pos[kxp], false), (grid.ux_neg[kxp], true)] {
+            if x > half {
+                continue;
             }
-        }
-        if nx <= half {
-            let col = &mut acc[nx * h..(nx + 1) * h];
-            for ((v, m), &uy) in row.iter().zip(mrow).zip(&grid.uy_neg) {
-                col[uy] += v.conj() * (*m * scale);
+            let col = &mut acc[x * h..(x + 1) * h];
+            let runs = if conj { &grid.neg_runs } else { &grid.pos_runs };
+            for run in runs {
+                let v = &row[run.dst..run.dst + run.len];
+                let m = &mrow[run.dst..run.dst + run.len];
+                let (lo, hi) = if run.rev {
+                    (run.src + 1 - run.len, run.src + 1)
+                } else {
+                    (run.src, run.src + run.len)
+                };
+                let c = &mut col[lo..hi];
+                match (run.rev, conj) {
+                    (false, false) => {
+                        for ((c, v), m) in c.iter_mut().zip(v).zip(m) {
+                            *c += v * (*m * scale);
+                        }
+                    }
+                    (false, true) => {
+                        for ((c, v), m) in c.iter_mut().zip(v).zip(m) {
+                            *c += v.conj() * (*m * scale);
+                        }
+                    }
+                    (true, false) => {
+                        for ((c, v), m) in c.iter_mut().rev().zip(v).zip(m) {
+                            *c += v * (*m * scale);
+                        }
+                    }
+                    (true, true) => {
+                        for ((c, v), m) in c.iter_mut().rev().zip(v).zip(m) {
+                            *c += v.conj() * (*m * scale);
+                        }
+                    }
+                }
             }
         }
     }
