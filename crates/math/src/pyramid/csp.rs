@@ -1217,8 +1217,9 @@ fn live_columns(mask: &[f32], gh: usize) -> Vec<std::ops::Range<usize>> {
 /// (`[kx'][ky']`), for the grid's columns in `live`; the others are zero.
 /// Negative x frequencies come from Hermitian symmetry. (`norm` here,
 /// not after the inverse FFTs, saves a pass over the band: the same bits
-/// where it is a power of two, as for every grid of 2^k x 2^k, since
-/// scaling by one commutes with every rounding.)
+/// where it is a power of two, as for frames of 2^k x 2^k, since scaling
+/// by a power of two commutes with every rounding (unless `mask · norm`
+/// falls below f32's normal range); elsewhere the last bits move.)
 fn gather(
     spec: &[Complex32],
     h: usize,
