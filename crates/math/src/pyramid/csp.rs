@@ -1164,6 +1164,18 @@ struct Run {
     rev: bool,
 }
 
+impl Run {
+    /// The spectrum rows the run reads, in rising order (a falling run
+    /// reads them from the end).
+    fn src_span(&self) -> std::ops::Range<usize> {
+        if self.rev {
+            self.src + 1 - self.len..self.src + 1
+        } else {
+            self.src..self.src + self.len
+        }
+    }
+}
+
 /// `idx` (a full-spectrum row per grid row) as runs of consecutive rows,
 /// rising or falling: a grid's rows are two or three of them, so
 /// [`gather`] copies slices (vectorised) instead of indexing a bin at a
@@ -1246,27 +1258,24 @@ fn gather(
             for run in runs {
                 let d = &mut row[run.dst..run.dst + run.len];
                 let m = &mrow[run.dst..run.dst + run.len];
+                let s = &col[run.src_span()];
                 match (run.rev, conj) {
                     (false, false) => {
-                        let s = &col[run.src..run.src + run.len];
                         for ((d, m), s) in d.iter_mut().zip(m).zip(s) {
                             *d = s * (*m * norm);
                         }
                     }
                     (false, true) => {
-                        let s = &col[run.src..run.src + run.len];
                         for ((d, m), s) in d.iter_mut().zip(m).zip(s) {
                             *d = s.conj() * (*m * norm);
                         }
                     }
                     (true, false) => {
-                        let s = &col[run.src + 1 - run.len..=run.src];
                         for ((d, m), s) in d.iter_mut().zip(m).zip(s.iter().rev()) {
                             *d = s * (*m * norm);
                         }
                     }
                     (true, true) => {
-                        let s = &col[run.src + 1 - run.len..=run.src];
                         for ((d, m), s) in d.iter_mut().zip(m).zip(s.iter().rev()) {
                             *d = s.conj() * (*m * norm);
                         }
@@ -1305,12 +1314,7 @@ fn scatter_sym(
             for run in runs {
                 let v = &row[run.dst..run.dst + run.len];
                 let m = &mrow[run.dst..run.dst + run.len];
-                let (lo, hi) = if run.rev {
-                    (run.src + 1 - run.len, run.src + 1)
-                } else {
-                    (run.src, run.src + run.len)
-                };
-                let c = &mut col[lo..hi];
+                let c = &mut col[run.src_span()];
                 match (run.rev, conj) {
                     (false, false) => {
                         for ((c, v), m) in c.iter_mut().zip(v).zip(m) {
