@@ -1193,7 +1193,8 @@ impl Outcome {
 /// report, with the chirp's, and without the effect. `None` (printed)
 /// without espeak-ng or sox.
 fn run(c: &Case) -> Option<Outcome> {
-    let d = tempfile::tempdir().unwrap();
+    // A temporary directory only where the files are not kept.
+    let mut temp = None;
     // PROTOCOL_KEEP=1 keeps each case's files (printed) in one directory
     // a case under the system's temporary directory, the last run's
     // replaced: a fresh directory a run filled /tmp (541 of them, 56 GB,
@@ -1207,7 +1208,9 @@ fn run(c: &Case) -> Option<Outcome> {
         eprintln!("protocol {}: files kept in {}", c.name, kept.display());
         kept
     } else {
-        d.path().to_path_buf()
+        temp.insert(tempfile::tempdir().unwrap())
+            .path()
+            .to_path_buf()
     };
     let speech = speech_wav(dir)?;
     let chirp = dir.join("chirp.wav");
