@@ -62,7 +62,9 @@
 //! (session 74, linear responses between the last bin the fit part
 //! measures and the top of the sweep, for a change that measures the
 //! stored transfer table on the whole recording once the effects are
-//! chosen).
+//! chosen), [`EIGHTEENTH`] (session 74, more of them and static responses
+//! at a resonance, for the change as narrowed: the table extended above
+//! the fit part's last bin, not measured again below it).
 //!
 //! The catalog's families outside that set ([`FAMILIES`]: dropped frames,
 //! the gain's drift, the region's gain) are held to the transfer bar only,
@@ -1119,6 +1121,54 @@ const SEVENTEENTH: [Case; 6] = [
     ),
 ];
 
+/// The eighteenth held-out set (session 74), written down and committed
+/// before any of it ran, for the change as narrowed after the whole
+/// protocol had run on it as first written (the kept table measured again
+/// over the whole recording moved the static responses at a resonance,
+/// `stiffening_at_resonance` -4.13 dB): the table extended over the
+/// whole recording above the fit part's last measured bin only. Linear
+/// responses at the sweep's top, and static responses at resonances
+/// (where the first version lost). Figures reported as they come, under
+/// [`fresh`]'s rules.
+const EIGHTEENTH: [Case; 6] = [
+    case(
+        "dip_at_865",
+        Scene::Object,
+        "resonances = [{ freq_hz = 865.0, q = 5.0, gain_db = -8.0 }]",
+        "resonances = [{ freq_hz = 865.0, q = 5.0, gain_db = -8.0 }]",
+    ),
+    case(
+        "resonance_at_890",
+        Scene::Object,
+        "resonances = [{ freq_hz = 890.0, q = 3.0, gain_db = 6.0 }]",
+        "resonances = [{ freq_hz = 890.0, q = 3.0, gain_db = 6.0 }]",
+    ),
+    case(
+        "wide_dip_at_850",
+        Scene::Object,
+        "resonances = [{ freq_hz = 850.0, q = 2.0, gain_db = -8.0 }]",
+        "resonances = [{ freq_hz = 850.0, q = 2.0, gain_db = -8.0 }]",
+    ),
+    case(
+        "stiffening_at_high_resonance",
+        Scene::Object,
+        "response_poly = [0.0, 0.3]\nresonances = [{ freq_hz = 600.0, q = 3.0, gain_db = 5.0 }]",
+        "response_poly = [0.0, 0.3]\nresonances = [{ freq_hz = 600.0, q = 3.0, gain_db = 5.0 }]",
+    ),
+    case(
+        "soft_clip_at_resonance_500",
+        Scene::Object,
+        "soft_clip_px = 0.15\nresonances = [{ freq_hz = 500.0, q = 4.0, gain_db = 6.0 }]",
+        "soft_clip_px = 0.15\nresonances = [{ freq_hz = 500.0, q = 4.0, gain_db = 6.0 }]",
+    ),
+    case(
+        "dips_mid_and_top",
+        Scene::Object,
+        "resonances = [{ freq_hz = 350.0, q = 3.0, gain_db = -6.0 }, { freq_hz = 870.0, q = 3.0, gain_db = -6.0 }]",
+        "resonances = [{ freq_hz = 350.0, q = 3.0, gain_db = -6.0 }, { freq_hz = 870.0, q = 3.0, gain_db = -6.0 }]",
+    ),
+];
+
 /// The catalog's other families, outside the protocol's set (they were
 /// designed on these scenes): only the transfer bar. Dropped frames and
 /// the gain's drift belong to one recording and are left out by `listen
@@ -1530,6 +1580,11 @@ fn sixteenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> O
 /// A case of the seventeenth held-out set, under [`fresh`]'s rules.
 fn seventeenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
     unseen(&SEVENTEENTH, name, transfer_short, short)
+}
+
+/// A case of the eighteenth held-out set, under [`fresh`]'s rules.
+fn eighteenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
+    unseen(&EIGHTEENTH, name, transfer_short, short)
 }
 
 /// A case of the thirteenth held-out set, under the eleventh's rule.
@@ -2519,13 +2574,12 @@ fn thirteenth_fold_at_resonance_small_object() {
 /// (the table returned to the median from the fit frames' last bin, 868
 /// Hz). On the change as kept (from the last bin the sweep reaches over
 /// the whole recording; this set had been seen by then): +2.51 dB.
+/// Since session 74 (the kept table measured on the whole recording,
+/// designed on this case's report, so not a held-out figure): +3.21 dB,
+/// the mark removed.
 #[test]
 fn fourteenth_dip_near_top() {
-    let _ = fourteenth(
-        "dip_near_top",
-        None,
-        Some("first run (session 67): +1.34 dB of the 12.79 dB it costs; on the change as kept: +2.51 dB"),
-    );
+    let _ = fourteenth("dip_near_top", None, None);
 }
 #[test]
 fn fourteenth_resonance_near_top() {
@@ -2667,17 +2721,35 @@ fn sixteenth_shake_and_side_movers() {
 fn sixteenth_shake_and_ring() {
     let _ = sixteenth("shake_and_ring", None, None);
 }
+/// First run (session 74, on the change): +2.00 dB of the 11.11 dB it
+/// costs (transfer_function and explained:object kept); +1.70 on the
+/// code before the change.
 #[test]
 fn seventeenth_dip_at_875() {
-    let _ = seventeenth("dip_at_875", None, None);
+    let _ = seventeenth(
+        "dip_at_875",
+        None,
+        Some("first run (session 74): +2.00 dB of the 11.11 dB it costs (+1.70 on the code before the change)"),
+    );
 }
 #[test]
 fn seventeenth_resonance_at_870() {
     let _ = seventeenth("resonance_at_870", None, None);
 }
+/// First run (session 74, on the change): +2.49 dB of the 10.17 dB it
+/// costs (transfer_function and gain_drift kept); +2.91 on the code
+/// before the change. The kept table (measured to 902 Hz) is broader
+/// than the dip (each STFT frame spans about 47 Hz of the sweep there):
+/// against the band's median it cuts 4.8 dB at 842 Hz and 5.4 at 920,
+/// where the object cuts 1.9 and 3.6, and it returns to the median only
+/// by 1005 Hz (the object: -1.1 dB at 954 Hz).
 #[test]
 fn seventeenth_dip_at_895() {
-    let _ = seventeenth("dip_at_895", None, None);
+    let _ = seventeenth(
+        "dip_at_895",
+        None,
+        Some("first run (session 74): +2.49 dB of the 10.17 dB it costs (+2.91 on the code before the change)"),
+    );
 }
 #[test]
 fn seventeenth_sharp_resonance_at_855() {
@@ -2690,4 +2762,28 @@ fn seventeenth_mid_resonance_top_dip() {
 #[test]
 fn seventeenth_resonance_at_910() {
     let _ = seventeenth("resonance_at_910", None, None);
+}
+#[test]
+fn eighteenth_dip_at_865() {
+    let _ = eighteenth("dip_at_865", None, None);
+}
+#[test]
+fn eighteenth_resonance_at_890() {
+    let _ = eighteenth("resonance_at_890", None, None);
+}
+#[test]
+fn eighteenth_wide_dip_at_850() {
+    let _ = eighteenth("wide_dip_at_850", None, None);
+}
+#[test]
+fn eighteenth_stiffening_at_high_resonance() {
+    let _ = eighteenth("stiffening_at_high_resonance", None, None);
+}
+#[test]
+fn eighteenth_soft_clip_at_resonance_500() {
+    let _ = eighteenth("soft_clip_at_resonance_500", None, None);
+}
+#[test]
+fn eighteenth_dips_mid_and_top() {
+    let _ = eighteenth("dips_mid_and_top", None, None);
 }
