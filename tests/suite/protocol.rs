@@ -64,7 +64,11 @@
 //! measured the stored transfer table on the whole recording once the
 //! effects were chosen), [`EIGHTEENTH`] (session 74, more of them and
 //! static responses at a resonance, for that change as narrowed: the
-//! table extended above the fit part's last bin; not kept either).
+//! table extended above the fit part's last bin; not kept either),
+//! [`NINETEENTH`] (session 75, dips and resonances over the band and
+//! beside static responses, for a change to how `listen --calibration`
+//! applies the table: a Wiener inverse against what folds into the band
+//! from above the Nyquist frequency).
 //!
 //! The catalog's families outside that set ([`FAMILIES`]: dropped frames,
 //! the gain's drift, the region's gain) are held to the transfer bar only,
@@ -1180,6 +1184,56 @@ const EIGHTEENTH: [Case; 6] = [
     ),
 ];
 
+/// The nineteenth held-out set (session 75), written down and committed
+/// before any of it ran, for a change to how `listen --calibration`
+/// applies a transfer table to a new recording: not its plain inverse but
+/// a Wiener inverse against the content that folds onto each bin from
+/// above the Nyquist frequency, its level the recording's own spectrum
+/// extrapolated along its trend (the object's response there unmeasured,
+/// taken as the table's median). Dips and resonances in the band's
+/// middle (where the plain inverse should stay), near its top (where
+/// folded speech outweighs the object's own), a broad dip, and a dip
+/// beside a static response. Figures reported as they come, under
+/// [`fresh`]'s rules.
+const NINETEENTH: [Case; 6] = [
+    case(
+        "dip_at_600",
+        Scene::Object,
+        "resonances = [{ freq_hz = 600.0, q = 3.0, gain_db = -8.0 }]",
+        "resonances = [{ freq_hz = 600.0, q = 3.0, gain_db = -8.0 }]",
+    ),
+    case(
+        "dip_at_780",
+        Scene::Object,
+        "resonances = [{ freq_hz = 780.0, q = 4.0, gain_db = -8.0 }]",
+        "resonances = [{ freq_hz = 780.0, q = 4.0, gain_db = -8.0 }]",
+    ),
+    case(
+        "deep_dip_at_880",
+        Scene::Object,
+        "resonances = [{ freq_hz = 880.0, q = 6.0, gain_db = -10.0 }]",
+        "resonances = [{ freq_hz = 880.0, q = 6.0, gain_db = -10.0 }]",
+    ),
+    case(
+        "low_resonance_top_dip",
+        Scene::Object,
+        "resonances = [{ freq_hz = 250.0, q = 4.0, gain_db = 6.0 }, { freq_hz = 900.0, q = 3.0, gain_db = -6.0 }]",
+        "resonances = [{ freq_hz = 250.0, q = 4.0, gain_db = 6.0 }, { freq_hz = 900.0, q = 3.0, gain_db = -6.0 }]",
+    ),
+    case(
+        "broad_dip_at_700",
+        Scene::Object,
+        "resonances = [{ freq_hz = 700.0, q = 1.0, gain_db = -6.0 }]",
+        "resonances = [{ freq_hz = 700.0, q = 1.0, gain_db = -6.0 }]",
+    ),
+    case(
+        "soft_clip_and_top_dip",
+        Scene::Object,
+        "soft_clip_px = 0.15\nresonances = [{ freq_hz = 850.0, q = 3.0, gain_db = -6.0 }]",
+        "soft_clip_px = 0.15\nresonances = [{ freq_hz = 850.0, q = 3.0, gain_db = -6.0 }]",
+    ),
+];
+
 /// The catalog's other families, outside the protocol's set (they were
 /// designed on these scenes): only the transfer bar. Dropped frames and
 /// the gain's drift belong to one recording and are left out by `listen
@@ -1596,6 +1650,11 @@ fn seventeenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) ->
 /// A case of the eighteenth held-out set, under [`fresh`]'s rules.
 fn eighteenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
     unseen(&EIGHTEENTH, name, transfer_short, short)
+}
+
+/// A case of the nineteenth held-out set, under [`fresh`]'s rules.
+fn nineteenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> Option<Outcome> {
+    unseen(&NINETEENTH, name, transfer_short, short)
 }
 
 /// A case of the thirteenth held-out set, under the eleventh's rule.
@@ -2809,4 +2868,28 @@ fn eighteenth_soft_clip_at_resonance_500() {
 #[test]
 fn eighteenth_dips_mid_and_top() {
     let _ = eighteenth("dips_mid_and_top", None, None);
+}
+#[test]
+fn nineteenth_dip_at_600() {
+    let _ = nineteenth("dip_at_600", None, None);
+}
+#[test]
+fn nineteenth_dip_at_780() {
+    let _ = nineteenth("dip_at_780", None, None);
+}
+#[test]
+fn nineteenth_deep_dip_at_880() {
+    let _ = nineteenth("deep_dip_at_880", None, None);
+}
+#[test]
+fn nineteenth_low_resonance_top_dip() {
+    let _ = nineteenth("low_resonance_top_dip", None, None);
+}
+#[test]
+fn nineteenth_broad_dip_at_700() {
+    let _ = nineteenth("broad_dip_at_700", None, None);
+}
+#[test]
+fn nineteenth_soft_clip_and_top_dip() {
+    let _ = nineteenth("soft_clip_and_top_dip", None, None);
 }
