@@ -105,6 +105,22 @@ pub fn fit_cos_sin(samples: impl IntoIterator<Item = (usize, f64)>, w: f64) -> O
     Some(((yc * ss - ys * cs) / det, (ys * cc - yc * cs) / det))
 }
 
+/// Least-squares line through `pts` (x, y): the means of x and y and the
+/// slope (0 where every x is the same); `None` for no points.
+pub fn line_fit(pts: &[(f64, f64)]) -> Option<(f64, f64, f64)> {
+    if pts.is_empty() {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let (mx, my) = (
+        pts.iter().map(|p| p.0).sum::<f64>() / n,
+        pts.iter().map(|p| p.1).sum::<f64>() / n,
+    );
+    let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
+    let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
+    Some((mx, my, if sxx > 0.0 { sxy / sxx } else { 0.0 }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

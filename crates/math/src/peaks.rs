@@ -203,22 +203,17 @@ impl DriftFloor {
         let mut keep = vec![true; bands.len()];
         let mut fit = (0.0, 0.0);
         for _ in 0..3 {
-            let pts: Vec<&(f64, f64)> = bands
+            let pts: Vec<(f64, f64)> = bands
                 .iter()
                 .zip(&keep)
-                .filter_map(|(b, &k)| k.then_some(b))
+                .filter_map(|(b, &k)| k.then_some(*b))
                 .collect();
             if pts.len() < 2 {
                 break;
             }
-            let n = pts.len() as f64;
-            let (mx, my) = (
-                pts.iter().map(|p| p.0).sum::<f64>() / n,
-                pts.iter().map(|p| p.1).sum::<f64>() / n,
-            );
-            let sxx: f64 = pts.iter().map(|p| (p.0 - mx).powi(2)).sum();
-            let sxy: f64 = pts.iter().map(|p| (p.0 - mx) * (p.1 - my)).sum();
-            let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+            let Some((mx, my, slope)) = crate::numeric::line_fit(&pts) else {
+                break;
+            };
             fit = (my - slope * mx, slope);
             // Bands sticking out above the line by more than 6 dB hold a
             // line of their own: left out of the next fit.

@@ -446,11 +446,12 @@ fn write_corrected(
     corrections: &[Correction],
     denoise: Denoise,
 ) -> Result<Vec<String>> {
-    let said = corrections
+    let mut said: Vec<String> = corrections
         .iter()
         .filter_map(|c| c.outside_measured(y, f64::from(rate)))
         .collect();
-    let mut z = cal::apply_all(corrections, y, rate as f64);
+    let (mut z, folded) = cal::apply_to_recording(corrections, y, rate as f64);
+    said.extend(folded.iter().map(|f| f.note(f64::from(rate))));
     z = denoise_again(&z, rate as f64, denoise)?;
     let peak = z.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let ypeak = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));

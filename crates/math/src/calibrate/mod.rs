@@ -75,6 +75,7 @@ mod correction;
 mod correlation;
 mod explain;
 mod exposure;
+mod folded;
 mod frame;
 mod frames;
 mod gain_drift;
@@ -97,6 +98,7 @@ pub use explain::{
     Covariate, Explanation, Measured, Observable, StoredTerm, FOLLOWS_SHARE, LAGS, MAX_LINE_REACH,
     MAX_LINE_SHIFTS,
 };
+pub use folded::Folding;
 pub use frame::{pixel_frame, pixel_frame_on_tiles, PixelFrame};
 pub use identify::Confound;
 pub use relation::{check_silent, LINE_DB, MARGIN_DB, SILENT_PEAK};
@@ -883,6 +885,30 @@ pub fn apply_all(corrections: &[Correction], y: &[f64], fs: f64) -> Vec<f64> {
         z = c.apply(&z, fs);
     }
     z
+}
+
+/// Applies `corrections` in order to a new recording's recovery at `fs`,
+/// as `listen --calibration` does: as [`apply_all`], except that a
+/// transfer table is applied as a Wiener inverse against what folds into
+/// the band from above the Nyquist frequency ([`folded`]), with what that
+/// found.
+pub fn apply_to_recording(
+    corrections: &[Correction],
+    y: &[f64],
+    fs: f64,
+) -> (Vec<f64>, Vec<Folding>) {
+    let mut z = y.to_vec();
+    let mut found = Vec::new();
+    for c in corrections {
+        match folded::apply(c, &z, fs) {
+            Some((out, f)) => {
+                z = out;
+                found.push(f);
+            }
+            None => z = c.apply(&z, fs),
+        }
+    }
+    (z, found)
 }
 
 #[cfg(test)]
