@@ -134,7 +134,15 @@ pub struct Args {
     /// fitted again here; a static nonlinearity and the explainer's terms
     /// brought to this recording's scale (its region's motion and the
     /// terms' tiles are measured in the same run); not the per-recording
-    /// ones (dropped frames, soft clipping, gain drift). A readout found across the rows
+    /// ones (dropped frames, soft clipping, gain drift). The transfer
+    /// function applies as a Wiener inverse against what folds into the
+    /// band from above the Nyquist frequency: where the object dips, the
+    /// recording there is partly the sound above the Nyquist frequency,
+    /// which the object's response there (unmeasured) shaped, so the dip
+    /// is boosted less than its plain inverse would, by how much this
+    /// recording's falling spectrum, extrapolated, puts there (the note
+    /// says; a spectrum that does not fall, or content that stops short of
+    /// the Nyquist frequency, gets the plain inverse). A readout found across the rows
     /// (capture_time) recombines the strips of rows it was found on, each
     /// at its delay, and unfolds what they sampled above the frame rate's
     /// Nyquist frequency where they show it holds something (see

@@ -23,11 +23,13 @@
 //! table corrects it, fitted as an exponential in frequency over the
 //! band's middle ([`FIT_FROM`] to [`FIT_TO`] of the Nyquist frequency)
 //! and extrapolated to the images `m fs ± f` ([`IMAGES`] of each sign),
-//! a trend never rising (a slope above zero is taken as flat). That
-//! extrapolation is checked against the recording's top ([`TOP`] of the
-//! Nyquist frequency to it), where the recovery holds `S(f) + A(f)` with
-//! `f` and `fs - f` close: the folded part is scaled by the share of the
-//! model the recording holds there, at most 1. A recording with nothing
+//! no further above the Nyquist frequency than that band is wide (in
+//! full to half its width). A trend that does not fall is taken as the
+//! noise's, and the plain inverse applies. The extrapolation is checked
+//! against the recording's top ([`TOP`] of the Nyquist frequency to it),
+//! where the recovery holds `S(f) + A(f)` with `f` and `fs - f` close:
+//! the folded part is scaled by the share of the model the recording
+//! holds there over [`FULL_AT`], at most 1. A recording with nothing
 //! above some frequency below the Nyquist frequency (a sweep that stops
 //! short of it) holds little there and keeps the plain inverse. Where the
 //! object's response is the median, the correction is the plain one.
@@ -129,9 +131,21 @@ pub fn apply(c: &Correction, z: &[f64], fs: f64) -> Option<(Vec<f64>, Folding)> 
     }
     // Relative to the fit's centre, so that nothing overflows.
     let ext = |f: f64| (slope * (f - mf)).exp() * mv.exp();
+    // The trend is carried above the Nyquist frequency no further than
+    // the band it was fitted over is wide: in full up to half that width
+    // above it, then less, to nothing at the whole width. A recording's
+    // spectrum can fall faster above the band it was fitted on (a sound
+    // low-passed, an exposure's boxcar), and an image far above it is a
+    // guess (issue 50, session 75: without this, two noisy sentences of
+    // `table_4_2_equalised_speech` on the simulator's seeds 7 and 99 lost
+    // their gain, +0.74 -> -0.06 and +0.98 -> -0.05 dB: the trend carried
+    // to 2 kHz took the table's boost at 180 Hz for folded speech).
+    let span = fit_hz[1] - fit_hz[0];
+    let reach = |image: f64| ((nyq + span - image) / (0.5 * span)).clamp(0.0, 1.0);
     let folded = |f: f64| -> f64 {
         (1..=IMAGES)
-            .map(|m| ext(m as f64 * fs - f) + ext(m as f64 * fs + f))
+            .flat_map(|m| [m as f64 * fs - f, m as f64 * fs + f])
+            .map(|image| reach(image) * ext(image))
             .sum()
     };
     let (held, model) = (0..s.len())
