@@ -340,8 +340,7 @@ impl Correction {
             } => {
                 let c = interp_held(freqs_hz, coef_db, f);
                 let ph = interp_held(freqs_hz, phase_deg, f).to_radians();
-                let g = 10f64.powf((-k * c).clamp(-TRANSFER_MAX_DB, TRANSFER_MAX_DB) / 20.0);
-                Some(Complex::from_polar(g, -ph))
+                Some(Complex::from_polar(transfer_gain(*k, c), -ph))
             }
             _ => None,
         }
@@ -369,6 +368,12 @@ impl Correction {
         }
         l
     }
+}
+
+/// The transfer equaliser's gain where its table reads `coef_db` (dB):
+/// `coefficient^-k`, at most [`TRANSFER_MAX_DB`] either way.
+pub(super) fn transfer_gain(k: f64, coef_db: f64) -> f64 {
+    10f64.powf((-k * coef_db).clamp(-TRANSFER_MAX_DB, TRANSFER_MAX_DB) / 20.0)
 }
 
 /// `x[n] -= a cos(w n) + b sin(w n)`: a line (`w` radians per sample)

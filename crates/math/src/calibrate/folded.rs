@@ -129,8 +129,9 @@ pub fn apply(c: &Correction, z: &[f64], fs: f64) -> Option<(Vec<f64>, Folding)> 
     if slope.is_nan() || slope >= 0.0 {
         return None;
     }
-    // Relative to the fit's centre, so that nothing overflows.
-    let ext = |f: f64| (slope * (f - mf)).exp() * mv.exp();
+    // The trend relative to its level at the fit's centre (`exp(mv)`),
+    // so that nothing overflows or underflows.
+    let ext = |f: f64| (slope * (f - mf)).exp();
     // The trend is carried above the Nyquist frequency no further than
     // the band it was fitted over is wide: in full up to half that width
     // above it, then less, to nothing at the whole width. A recording's
@@ -153,19 +154,14 @@ pub fn apply(c: &Correction, z: &[f64], fs: f64) -> Option<(Vec<f64>, Folding)> 
         .zip(&s)
         .filter(|(f, _)| *f >= TOP * nyq && *f <= nyq)
         .fold((0.0, 0.0), |(h, m), (f, v)| (h + v, m + ext(f) + folded(f)));
-    let share = if model > 0.0 && held.is_finite() {
-        (held / model / FULL_AT).clamp(0.0, 1.0)
+    let share = if model > 0.0 && held > 0.0 && held.is_finite() {
+        ((held.ln() - mv - model.ln()).exp() / FULL_AT).clamp(0.0, 1.0)
     } else {
         0.0
     };
     let mut rows = coef_db.clone();
     let med = median(&mut rows);
-    let unit = 10f64.powf(
-        (-k * med).clamp(
-            -super::correction::TRANSFER_MAX_DB,
-            super::correction::TRANSFER_MAX_DB,
-        ) / 20.0,
-    );
+    let unit = super::correction::transfer_gain(*k, med);
     let mut most = (0.0, 0.0, 0.0, 0.0);
     let gains: Vec<Complex<f64>> = plain
         .iter()

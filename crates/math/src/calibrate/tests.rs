@@ -1321,15 +1321,20 @@ fn the_transfer_table_returns_to_the_bands_gain_above_the_sweep_and_holds_no_del
     }
 }
 
-/// `x` through a peaking section (RBJ's cookbook: `gain_db` at `f0` Hz,
-/// quality `q`) at `fs`.
-fn peaking(x: &[f64], fs: f64, f0: f64, q: f64, gain_db: f64) -> Vec<f64> {
+/// A peaking section's coefficients (RBJ's cookbook: `gain_db` at `f0`
+/// Hz, quality `q`, at `fs`): numerator and denominator, not normalised.
+fn peaking_section(fs: f64, f0: f64, q: f64, gain_db: f64) -> ([f64; 3], [f64; 3]) {
     let (a, w0) = (10f64.powf(gain_db / 40.0), 2.0 * PI * f0 / fs);
     let alpha = w0.sin() / (2.0 * q);
-    let (b, d) = (
+    (
         [1.0 + alpha * a, -2.0 * w0.cos(), 1.0 - alpha * a],
         [1.0 + alpha / a, -2.0 * w0.cos(), 1.0 - alpha / a],
-    );
+    )
+}
+
+/// `x` through a peaking section ([`peaking_section`]) at `fs`.
+fn peaking(x: &[f64], fs: f64, f0: f64, q: f64, gain_db: f64) -> Vec<f64> {
+    let (b, d) = peaking_section(fs, f0, q, gain_db);
     let (mut s1, mut s2) = (0.0, 0.0);
     x.iter()
         .map(|&u| {
@@ -1424,33 +1429,13 @@ fn a_transfer_table_says_where_it_was_not_measured() {
 fn a_transfer_table_on_a_new_recording_weighs_what_folds_from_above_the_nyquist_frequency() {
     let (fs, up) = (2200.0, 8usize);
     let hi = fs * up as f64;
-    // RBJ peaking section at `hi`, its coefficients and its response.
+    // The object: a peaking section at `hi` ([`peaking_section`]).
     let (f0, q, gain_db) = (880.0, 4.0, -10.0);
-    let a = 10f64.powf(gain_db / 40.0);
-    let w0 = 2.0 * PI * f0 / hi;
-    let alpha = w0.sin() / (2.0 * q);
-    let a0 = 1.0 + alpha / a;
-    let b = [
-        (1.0 + alpha * a) / a0,
-        -2.0 * w0.cos() / a0,
-        (1.0 - alpha * a) / a0,
-    ];
-    let den = [1.0, -2.0 * w0.cos() / a0, (1.0 - alpha / a) / a0];
+    let (b, den) = peaking_section(hi, f0, q, gain_db);
     let response = |f: f64| -> Complex<f64> {
         let z1 = Complex::from_polar(1.0, -2.0 * PI * f / hi);
         let z2 = z1 * z1;
         (b[0] + z1 * b[1] + z2 * b[2]) / (den[0] + z1 * den[1] + z2 * den[2])
-    };
-    let dip = |x: &[f64]| -> Vec<f64> {
-        let mut s = [0.0f64; 2];
-        x.iter()
-            .map(|&v| {
-                let y = b[0] * v + s[0];
-                s[0] = b[1] * v - den[1] * y + s[1];
-                s[1] = b[2] * v - den[2] * y;
-                y
-            })
-            .collect()
     };
     let freqs: Vec<f64> = (0..=110).map(|i| i as f64 * 10.0).collect();
     let table = Correction::Transfer {
@@ -1490,7 +1475,7 @@ fn a_transfer_table_on_a_new_recording_weighs_what_folds_from_above_the_nyquist_
             lp
         })
         .collect();
-    let through = dip(&x);
+    let through = peaking(&x, hi, f0, q, gain_db);
     let recording: Vec<f64> = through.iter().step_by(up).copied().collect();
     let reference: Vec<f64> = x.iter().step_by(up).copied().collect();
     let plain = table.apply(&recording, fs);
