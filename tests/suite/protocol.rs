@@ -1242,6 +1242,58 @@ const NINETEENTH: [Case; 6] = [
     ),
 ];
 
+/// The twentieth held-out set (session 76), written down and committed
+/// before any of it ran, for the gain bar's other branch on effects that
+/// lie wholly outside the object: `listen --calibration` says how much of
+/// each pooled motion it subtracts is its tiles' own noise on the new
+/// recording, and the protocol checks that against the truth (the same
+/// recording rendered without the sensor's noise) and asks how much the
+/// best correction made from the kept observables could gain, fitted on
+/// the effect's own part of the recovery. Five faint shakes of the
+/// camera on the `Site` scene, alone or with movers outside the region.
+/// Figures reported as they come, under [`fresh`]'s rules.
+#[allow(dead_code)]
+const TWENTIETH: [Case; 5] = [
+    case(
+        "faint_shake_and_left_mover",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 201 }, amplitude_px = 0.018 }
+background_motion = [{ rect = [0, 0, 24, 128], signal = { type = "noise", rate_hz = 700.0, duration_s = 3.0, seed = 203 }, amplitude_px = 0.3 }]"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 202 }, amplitude_px = 0.018 }
+background_motion = [{ rect = [0, 0, 24, 128], signal = { type = "noise", rate_hz = 700.0, duration_s = 3.0, seed = 204 }, amplitude_px = 0.3 }]"#,
+    ),
+    case(
+        "faint_vertical_shake_and_top_mover",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 205 }, amplitude_px = 0.02, direction_deg = 90.0 }
+background_motion = [{ rect = [0, 0, 128, 24], signal = { type = "noise", rate_hz = 600.0, duration_s = 3.0, seed = 207 }, amplitude_px = 0.3 }]"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 206 }, amplitude_px = 0.02, direction_deg = 90.0 }
+background_motion = [{ rect = [0, 0, 128, 24], signal = { type = "noise", rate_hz = 600.0, duration_s = 3.0, seed = 208 }, amplitude_px = 0.3 }]"#,
+    ),
+    case(
+        "faint_shake_at_60",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 209 }, amplitude_px = 0.02, direction_deg = 60.0 }"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 210 }, amplitude_px = 0.02, direction_deg = 60.0 }"#,
+    ),
+    case(
+        "faint_shake_and_corner_movers",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 211 }, amplitude_px = 0.02 }
+background_motion = [{ rect = [0, 0, 28, 28], signal = { type = "noise", rate_hz = 800.0, duration_s = 3.0, seed = 213 }, amplitude_px = 0.3 }, { rect = [100, 100, 28, 28], signal = { type = "noise", rate_hz = 500.0, duration_s = 3.0, seed = 215 }, amplitude_px = 0.3 }]"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 212 }, amplitude_px = 0.02 }
+background_motion = [{ rect = [0, 0, 28, 28], signal = { type = "noise", rate_hz = 800.0, duration_s = 3.0, seed = 214 }, amplitude_px = 0.3 }, { rect = [100, 100, 28, 28], signal = { type = "noise", rate_hz = 500.0, duration_s = 3.0, seed = 216 }, amplitude_px = 0.3 }]"#,
+    ),
+    case(
+        "shake_and_bottom_mover",
+        Scene::Site,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 217 }, amplitude_px = 0.025 }
+background_motion = [{ rect = [0, 104, 128, 24], signal = { type = "noise", rate_hz = 900.0, duration_s = 3.0, seed = 219 }, amplitude_px = 0.3 }]"#,
+        r#"camera_motion = { signal = { type = "noise", rate_hz = 2000.0, duration_s = 3.0, seed = 218 }, amplitude_px = 0.025 }
+background_motion = [{ rect = [0, 104, 128, 24], signal = { type = "noise", rate_hz = 900.0, duration_s = 3.0, seed = 220 }, amplitude_px = 0.3 }]"#,
+    ),
+];
+
 /// The catalog's other families, outside the protocol's set (they were
 /// designed on these scenes): only the transfer bar. Dropped frames and
 /// the gain's drift belong to one recording and are left out by `listen
