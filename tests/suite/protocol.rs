@@ -21,7 +21,13 @@
 //! that 3 dB could only be gained by a correction within 1 dB of perfect.
 //! The held-out exposure may instead meet the acceptance's other branch
 //! (the report says what it cannot correct, and why), checked by
-//! measurement: see [`held_out_exposure`].
+//! measurement: see [`held_out_exposure`]. So may an effect wholly outside
+//! the object (a shaking camera, movers in view) whose correction its own
+//! observables bound: `listen --calibration` says how much of each pooled
+//! motion is its tiles' noise, checked against the recording rendered
+//! without the sensor's noise, and the best correction made from the kept
+//! observables, fitted with the truth's help, gains less than the bar
+//! asks (since session 76: see [`gain_or_bounded`]).
 //!
 //! Which cases were looked at while the explainer and the carrying of
 //! corrections were designed and tuned (`seen`), and which are run only
@@ -68,7 +74,9 @@
 //! [`NINETEENTH`] (session 75, dips and resonances over the band and
 //! beside static responses, for a change to how `listen --calibration`
 //! applies the table: a Wiener inverse against what folds into the band
-//! from above the Nyquist frequency).
+//! from above the Nyquist frequency), [`TWENTIETH`] (session 76, faint
+//! shakes of the camera with movers in view, for the gain bar's branch on
+//! a correction bounded by its observables' noise).
 //!
 //! The catalog's families outside that set ([`FAMILIES`]: dropped frames,
 //! the gain's drift, the region's gain) are held to the transfer bar only,
@@ -1251,8 +1259,15 @@ const NINETEENTH: [Case; 6] = [
 /// best correction made from the kept observables could gain, fitted on
 /// the effect's own part of the recovery. Five faint shakes of the
 /// camera on the `Site` scene, alone or with movers outside the region.
-/// Figures reported as they come, under [`fresh`]'s rules.
-#[allow(dead_code)]
+/// Figures reported as they come, under [`fresh`]'s rules. First run
+/// (session 76, on the change): `faint_shake_and_left_mover` +0.54 dB of
+/// the 1.46 it costs (the best correction from its kept observables
+/// +0.53; noise share said 0.49, true 0.46) and
+/// `faint_shake_and_corner_movers` +0.69 of 1.48 (best +0.73; 0.50 and
+/// 0.51): the gain bar met by its branch; `shake_and_bottom_mover` +1.60
+/// of 2.56 (met); `faint_shake_at_60` costs 0.10 dB and
+/// `faint_vertical_shake_and_top_mover` 0.60 (+0.39 kept): the transfer
+/// bar alone. All meet the transfer bar.
 const TWENTIETH: [Case; 5] = [
     case(
         "faint_shake_and_left_mover",
@@ -1395,6 +1410,9 @@ struct Outcome {
     speech: (u32, Vec<f32>),
     /// The second recording's WAV with an empty report (rate, samples).
     recording: (u32, Vec<f32>),
+    /// What the kept observables could do at best on the second recording
+    /// ([`bounded`]), where asked for.
+    bound: Option<Bound>,
 }
 
 impl Outcome {
@@ -1419,6 +1437,12 @@ impl Outcome {
 /// report, with the chirp's, and without the effect. `None` (printed)
 /// without espeak-ng or sox.
 fn run(c: &Case) -> Option<Outcome> {
+    run_with(c, false)
+}
+
+/// [`run`], and with `with_bound` what the kept observables could do at
+/// best on the second recording ([`bounded`]).
+fn run_with(c: &Case, with_bound: bool) -> Option<Outcome> {
     // A temporary directory only where the files are not kept.
     let mut temp = None;
     // PROTOCOL_KEEP=1 keeps each case's files (printed) in one directory
@@ -1515,6 +1539,7 @@ fn run(c: &Case) -> Option<Outcome> {
         notes: notes.clone(),
         speech: crate::common::read_wav(&speech),
         recording: crate::common::read_wav(&wavs[0]),
+        bound: None,
     };
     if rates[1] != rates[0] {
         eprintln!(
@@ -1540,6 +1565,9 @@ fn run(c: &Case) -> Option<Outcome> {
         out.scored,
         notes.trim().replace('\n', "\n  ")
     );
+    if with_bound {
+        out.bound = bounded(dir, c, &report);
+    }
     Some(out)
 }
 
@@ -1563,7 +1591,11 @@ fn bar(name: &str, what: &str, met: bool, figure: String, short: Option<&str>) {
 
 /// The transfer bar, for every case (`short`: see [`bar`]).
 fn carries(c: &Case, short: Option<&str>) -> Option<Outcome> {
-    let o = run(c)?;
+    carries_with(run(c)?, c, short)
+}
+
+/// The transfer bar on an outcome of `c` already run.
+fn carries_with(o: Outcome, c: &Case, short: Option<&str>) -> Option<Outcome> {
     bar(
         c.name,
         "the transfer bar (at most 0.3 dB lost)",
@@ -1717,6 +1749,11 @@ fn nineteenth(name: &str, transfer_short: Option<&str>, short: Option<&str>) -> 
     unseen(&NINETEENTH, name, transfer_short, short)
 }
 
+/// A case of the twentieth held-out set, under [`unseen_bounded`]'s rules.
+fn twentieth(name: &str) -> Option<Outcome> {
+    unseen_bounded(&TWENTIETH, name)
+}
+
 /// A case of the thirteenth held-out set, under the eleventh's rule.
 fn thirteenth(name: &str, at_hz: &[f64], transfer_short: Option<&str>) -> Option<Outcome> {
     words_case(&THIRTEENTH, name, transfer_short, |o| {
@@ -1829,6 +1866,219 @@ fn gain_or_named(name: &str, o: &Outcome, what: &str, words: &[&str], short: Opt
         figure,
         short,
     );
+}
+
+/// What the terms the chirp's calibration kept could do at best on the
+/// second recording, measured against the truth ([`bounded`]).
+struct Bound {
+    /// Each pooled motion's share of its own tiles' noise, as `listen
+    /// --calibration` estimates it (and says) and as the truth has it.
+    shares: Vec<(f64, f64)>,
+    /// The second recording's held-out SNR (dB) after the best correction
+    /// made from the kept terms' observables as measured there: an FIR of
+    /// -12..=12 frames on each, fitted on the effect's own part of the
+    /// recovery (the recovery with the effect less the one without it).
+    oracle: f64,
+}
+
+/// A signal less its centred running mean over 111 samples (a high-pass
+/// at about 20 Hz at 2200 fps).
+fn detrended(x: &[f64]) -> Vec<f64> {
+    let h = 55usize;
+    (0..x.len())
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(h), (i + h + 1).min(x.len()));
+            x[i] - x[a..b].iter().sum::<f64>() / (b - a) as f64
+        })
+        .collect()
+}
+
+/// [`Bound`] for a case whose effect lies wholly outside the object and
+/// whose chirp's report kept terms of tiles only (no sensor's lines): the
+/// second recording rendered again without the sensor's noise (the
+/// truth of every tile's motion), the kept terms' tiles measured on both
+/// by a `displacement` stage as `listen --calibration` measures them, and
+/// the oracle's correction scored as the protocol scores the speech.
+/// `None` (printed) where it does not apply.
+fn bounded(dir: &Path, c: &Case, report: &serde_json::Value) -> Option<Bound> {
+    use vibroscope_math::calibrate as cal;
+    let terms: Vec<cal::StoredTerm> =
+        serde_json::from_value(report["explained"].clone()).unwrap_or_default();
+    if terms.is_empty() || terms.iter().any(|t| t.observable.is_line()) {
+        eprintln!("protocol {}: no bound (no kept term, or a line's)", c.name);
+        return None;
+    }
+    let speech = std::fs::read_to_string(dir.join("speech.toml")).unwrap();
+    assert!(speech.contains("noise_std = 2.0\n"), "{}: {speech}", c.name);
+    render(
+        dir,
+        "clean",
+        &speech.replace("noise_std = 2.0\n", "noise_std = 0.0\n"),
+    );
+    let mut rects: Vec<[u32; 4]> = Vec::new();
+    for t in &terms {
+        for r in &t.tiles {
+            if !rects.contains(r) {
+                rects.push(*r);
+            }
+        }
+    }
+    let rois: Vec<String> = rects.iter().flatten().map(|v| v.to_string()).collect();
+    let observed = |video: &str| -> Vec<Vec<f64>> {
+        let toml = format!(
+            "[pipeline]\nname = \"observe\"\n[[stage]]\nid = \"src\"\nkind = \"file\"\npath = \"{video}.y4m\"\n[[stage]]\nid = \"d\"\nkind = \"displacement\"\ninput = \"src\"\nrois = [{}]\nintensity = true\nuntextured = \"zero\"\n[[stage]]\nid = \"out\"\nkind = \"csv\"\ninput = \"d\"\npath = \"{video}-tiles.csv\"\n",
+            rois.join(", ")
+        );
+        std::fs::write(dir.join(format!("{video}-tiles.toml")), toml).unwrap();
+        let o = run_in(dir, &["run", &format!("{video}-tiles.toml")]);
+        assert_eq!(code(&o), 0, "{}: {}", c.name, stderr(&o));
+        vibroscope::calibrate::read_observed(&dir.join(format!("{video}-tiles.csv"))).unwrap()
+    };
+    let (noisy, clean) = (observed("speech"), observed("clean"));
+    let y: Vec<f64> = crate::common::read_wav(&dir.join("speech-none.wav"))
+        .1
+        .iter()
+        .map(|&v| f64::from(v))
+        .collect();
+    let (rate, y0) = crate::common::read_wav(&dir.join("control-none.wav"));
+    let y0: Vec<f64> = y0.iter().map(|&v| f64::from(v)).collect();
+    let fs = f64::from(rate);
+    let n = y.len().min(y0.len()).min(noisy[0].len());
+    let hp = cal::Options::for_rate(fs).highpass;
+    let channel = |o: cal::Observable| match o {
+        cal::Observable::MotionX => 0,
+        cal::Observable::MotionY => 1,
+        _ => 2,
+    };
+    let mut shares = Vec::new();
+    let mut measured = Vec::new();
+    for t in &terms {
+        let of = |set: &[Vec<f64>]| -> Vec<Vec<f64>> {
+            t.tiles
+                .iter()
+                .map(|r| {
+                    let k = rects.iter().position(|x| x == r).unwrap();
+                    set[3 * k + channel(t.observable)][..n].to_vec()
+                })
+                .collect()
+        };
+        let (tn, tc) = (of(&noisy), of(&clean));
+        let tiles: Vec<&[f64]> = tn.iter().map(|v| v.as_slice()).collect();
+        let pooled = match t.weighed {
+            true => cal::pooled_motion(&tiles, fs, hp),
+            false => cal::mean_of(&tiles),
+        };
+        if t.weighed && t.observable.is_motion() {
+            // The truth: without the sensor's noise every tile of the
+            // term moves as the rest of the image does, so their plain
+            // mean is the motion the pooled one measures through noise.
+            let truth = detrended(&cal::mean_of(
+                &tc.iter().map(|v| v.as_slice()).collect::<Vec<_>>(),
+            ));
+            let p = detrended(&pooled);
+            let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
+            let r2 = dot(&p, &truth).powi(2) / (dot(&p, &p) * dot(&truth, &truth));
+            let stated = cal::pooled_noise_share(&tiles, fs, hp).unwrap_or(f64::NAN);
+            shares.push((stated, 1.0 - r2));
+        }
+        // Lags -12..=12: five columns of lags -2..=2 about 0, ±5, ±10.
+        for k in [-10i64, -5, 0, 5, 10] {
+            let moved: Vec<f64> = (0..n as i64)
+                .map(|i| pooled.get((i - k) as usize).copied().unwrap_or(0.0))
+                .collect();
+            measured.push(cal::Measured {
+                observable: cal::Observable::Intensity,
+                channels: vec![moved],
+                reach: 0,
+                shifts: (-(cal::LAGS as i64)..=cal::LAGS as i64).collect(),
+                spans: cal::reference_spans(n, None),
+                taps: None,
+            });
+        }
+    }
+    let d: Vec<f64> = (0..n).map(|i| y[i] - y0[i]).collect();
+    let (left, _) = cal::remove_explained(&d, &measured, fs, hp);
+    let fixed: Vec<f32> = (0..n).map(|i| (y0[i] + left[i]) as f32).collect();
+    let path = dir.join("speech-oracle.wav");
+    crate::common::write_wav_f32(&path, rate, &fixed);
+    let oracle = held_out_snr(&path, &dir.join("speech.wav"));
+    Some(Bound { shares, oracle })
+}
+
+/// The gain bar, or its branch for a correction its own observables
+/// bound: each pooled motion `listen --calibration` subtracts says its
+/// tiles' noise on the second recording (its words checked), within 0.1
+/// of the truth ([`bounded`]), and the best correction made from the kept
+/// observables, fitted with the truth's help, gains less than the bar
+/// asks: no correction made from them can meet it.
+fn gain_or_bounded(name: &str, o: &Outcome) {
+    let need = o.need();
+    let b = o.bound.as_ref();
+    let shares = b.map_or(String::from("-"), |b| {
+        b.shares
+            .iter()
+            .map(|(s, t)| format!("{s:.2} said, {t:.2} true"))
+            .collect::<Vec<_>>()
+            .join("; ")
+    });
+    let oracle = b.map_or(f64::NAN, |b| b.oracle - o.none);
+    let figure = format!(
+        "speech {:.2} -> {:.2} dB ({:+.2}); the effect costs {:.2} dB{} (kept {}); the best correction from the kept observables {:+.2}; their noise share {shares}",
+        o.none,
+        o.with,
+        o.gain(),
+        o.cost(),
+        if need < 3.0 { ", weak" } else { "" },
+        o.kept,
+        oracle,
+    );
+    let said = b.is_some_and(|b| {
+        !b.shares.is_empty()
+            && b.shares.iter().all(|&(s, t)| {
+                (s - t).abs() <= 0.1
+                    && o.notes.contains(&format!(
+                        "is measured here with their own noise at {:.0}% of its power",
+                        100.0 * s
+                    ))
+            })
+    });
+    if o.gain() < need && said && oracle < need {
+        eprintln!("protocol {name}: the gain bar met by its other branch (bounded by the observables' noise): {figure}");
+    }
+    assert!(
+        o.gain() >= need || (said && oracle < need),
+        "{name}: the gain asked of a held-out effect ({need} dB), or a bound by the kept observables' noise, said and below it: {figure}"
+    );
+}
+
+/// The case `name` of the unseen `set` whose effect lies wholly outside
+/// the object: the transfer bar, then (where it costs the speech 1 dB or
+/// more) the gain bar or its branch for a correction bounded by its
+/// observables ([`gain_or_bounded`]).
+fn unseen_bounded(set: &[Case], name: &str) -> Option<Outcome> {
+    let c = set.iter().find(|c| c.name == name).unwrap();
+    assert!(
+        c.speech
+            .lines()
+            .all(|l| ["camera_motion", "background_motion"]
+                .iter()
+                .any(|k| l.starts_with(k))),
+        "{name}: an effect on the object"
+    );
+    let o = carries_with(run_with(c, true)?, c, None)?;
+    if o.cost() < 1.0 {
+        eprintln!(
+            "protocol {name}: the effect costs the speech {:.2} dB, under 1 dB: held to the transfer bar alone (speech {:.2} -> {:.2} dB, {:+.2}; kept {})",
+            o.cost(),
+            o.none,
+            o.with,
+            o.gain(),
+            o.kept
+        );
+        return Some(o);
+    }
+    gain_or_bounded(name, &o);
+    Some(o)
 }
 
 /// A case of the third held-out set, under [`fresh`]'s rules.
@@ -2502,13 +2752,20 @@ fn seventh_camera_y_and_mover() {
 fn seventh_camera_and_two_movers() {
     let _ = seventh("camera_and_two_movers", None, None);
 }
+/// Marked until session 76 (first run, session 56: +0.00 dB of the 1.61
+/// dB it costs, nothing kept; since session 71 +0.39 dB, explained:camera
+/// and explained:other_object kept). Since session 76 held to the gain
+/// bar or its branch for a correction its own observables bound
+/// ([`gain_or_bounded`], designed after this case's figures were known;
+/// the twentieth set is its unseen check): `listen --calibration` says
+/// the camera's 18 tiles hold their own noise at 35% of its power (0.27
+/// true), and the best correction from the kept observables, fitted on
+/// the effect's own part with the truth's help, gains +0.71 dB of the 1
+/// asked (the camera's noise, and the mover beside the region leaking
+/// into the recovery's coarse bands, which its single tile follows).
 #[test]
 fn seventh_camera_weak_and_mover() {
-    let _ = seventh(
-        "camera_weak_and_mover",
-        None,
-        Some("first run (session 56): +0.00 dB of the 1.61 dB it costs (weak: 1 dB asked); nothing kept on the chirp (6.46 dB: a 0.02 px shake under 2 DN of noise). Since session 71 (weak terms kept beyond chance, designed on this case) explained:camera and explained:other_object are kept (6.46 -> 6.90 dB on the chirp) and the speech gains +0.68 dB; with the tiles that move least weighed by their noise (session 71, later) +0.39 dB, the second term kept a single tile of the mover's instead of the mean of all tiles"),
-    );
+    let _ = unseen_bounded(&SEVENTH, "camera_weak_and_mover");
 }
 #[test]
 fn eighth_square_and_cubic() {
@@ -2818,14 +3075,16 @@ fn fifteenth_faint_ring() {
 /// without noise (the true motion) would remove 2.37% of the speech
 /// recovery's energy, the kept term's 16 tiles remove 0.63%, and weighed
 /// by each tile's noise 0.80%: the image's own tiles hold this shake at
-/// about -6 dB under their noise.
+/// about -6 dB under their noise. Marked until session 76 (+0.11 dB with
+/// the tiles weighed); since then held to the gain bar or its branch for
+/// a correction its own observables bound ([`gain_or_bounded`], designed
+/// after this case's figures were known; the twentieth set is its unseen
+/// check): `listen --calibration` says the 16 tiles hold their own noise
+/// at 63% of the pooled motion's power (0.59 true), and the best
+/// correction from them, fitted with the truth's help, gains +0.20 dB.
 #[test]
 fn fifteenth_faint_shake_and_mover() {
-    let _ = fifteenth(
-        "faint_shake_and_mover",
-        None,
-        Some("first run (session 71): +0.05 dB of the 1.24 dB it costs (weak: 1 dB asked; explained:camera kept, +0.13 dB on the chirp); with the tiles that move least weighed by their noise (session 71, seen) +0.11 dB"),
-    );
+    let _ = unseen_bounded(&FIFTEENTH, "faint_shake_and_mover");
 }
 #[test]
 fn sixteenth_shake_and_top_mover() {
@@ -2944,4 +3203,34 @@ fn nineteenth_broad_dip_at_700() {
 #[test]
 fn nineteenth_soft_clip_and_top_dip() {
     let _ = nineteenth("soft_clip_and_top_dip", None, None);
+}
+
+/// First run (session 76): +0.54 dB of the 1.46 it costs; the best from
+/// its kept observables +0.53 (the branch).
+#[test]
+fn twentieth_faint_shake_and_left_mover() {
+    let _ = twentieth("faint_shake_and_left_mover");
+}
+/// First run (session 76): costs 0.60 dB (+0.39 kept): the transfer bar
+/// alone.
+#[test]
+fn twentieth_faint_vertical_shake_and_top_mover() {
+    let _ = twentieth("faint_vertical_shake_and_top_mover");
+}
+/// First run (session 76): costs 0.10 dB, nothing kept: the transfer bar
+/// alone.
+#[test]
+fn twentieth_faint_shake_at_60() {
+    let _ = twentieth("faint_shake_at_60");
+}
+/// First run (session 76): +0.69 dB of the 1.48 it costs; the best from
+/// its kept observables +0.73 (the branch).
+#[test]
+fn twentieth_faint_shake_and_corner_movers() {
+    let _ = twentieth("faint_shake_and_corner_movers");
+}
+/// First run (session 76): +1.60 dB of the 2.56 it costs (met).
+#[test]
+fn twentieth_shake_and_bottom_mover() {
+    let _ = twentieth("shake_and_bottom_mover");
 }

@@ -337,6 +337,9 @@ pub fn apply_observed(
     let (terms, stranded): (Vec<&cal::StoredTerm>, Vec<&cal::StoredTerm>) = terms
         .iter()
         .partition(|t| t.refit || t.observable.is_motion());
+    // Each weighed term's tiles' own noise on this recording, which bounds
+    // what subtracting it can remove here (said in the note).
+    let mut noisy: Vec<String> = Vec::new();
     let measured: Vec<cal::Measured> = terms
         .iter()
         .map(|t| {
@@ -356,6 +359,11 @@ pub fn apply_observed(
                 // The tiles' mean as the explainer pooled them: weighed
                 // each by its noise on this recording, or plain.
                 let tiles: Vec<&[f64]> = (0..t.tiles.len()).map(of).collect();
+                if t.weighed {
+                    if let Some(q) = cal::pooled_noise_share(&tiles, fs, hp) {
+                        noisy.push(noise_words(t, q));
+                    }
+                }
                 vec![match t.weighed {
                     true => cal::pooled_motion(&tiles, fs, hp),
                     false => cal::mean_of(&tiles),
@@ -403,6 +411,9 @@ pub fn apply_observed(
                 terms.len() - refit
             ));
     }
+    for words in &noisy {
+        note.push_str(&format!("; {words}"));
+    }
     let lines = stranded.iter().filter(|t| t.observable.is_line()).count();
     if lines > 0 {
         note.push_str(&format!(
@@ -421,6 +432,24 @@ pub fn apply_observed(
         ));
     }
     Ok(std::iter::once(note).chain(said).collect())
+}
+
+/// What a term pooled from tiles weighed by their noise can remove on
+/// this recording: `q` is the share of its pooled motion's power that is
+/// the tiles' own noise ([`cal::pooled_noise_share`]), so subtracting it
+/// removes at most about `1 - q` of what the motion it stands for costs
+/// (the best gain on a signal seen through white noise).
+fn noise_words(t: &cal::StoredTerm, q: f64) -> String {
+    let axis = match t.observable {
+        cal::Observable::MotionY => "y",
+        _ => "x",
+    };
+    format!(
+        "the motion along {axis} pooled from {} tiles is measured here with their own noise at {:.0}% of its power, so subtracting it removes at most about {:.0}% of what that motion costs this recording",
+        t.tiles.len(),
+        100.0 * q,
+        100.0 * (1.0 - q)
+    )
 }
 
 /// Applies `corrections` to the WAV at `path` in place (at its own rate).

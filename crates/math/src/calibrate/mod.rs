@@ -94,9 +94,9 @@ mod transfer;
 pub use capture_time::{combine, unfold, Strips, Unfolded, UNFOLD_MAX_CORRELATION};
 pub use correction::{Correction, FrameEvent, Line, UNMEASURED_EDGE};
 pub use explain::{
-    line_channels, line_groups, mean_of, pooled_motion, reference_spans, remove_explained,
-    Covariate, Explanation, Measured, Observable, StoredTerm, FOLLOWS_SHARE, LAGS, MAX_LINE_REACH,
-    MAX_LINE_SHIFTS,
+    line_channels, line_groups, mean_of, pooled_motion, pooled_noise_share, reference_spans,
+    remove_explained, Covariate, Explanation, Measured, Observable, StoredTerm, FOLLOWS_SHARE,
+    LAGS, MAX_LINE_REACH, MAX_LINE_SHIFTS,
 };
 pub use folded::Folding;
 pub use frame::{pixel_frame, pixel_frame_on_tiles, PixelFrame};
