@@ -1929,6 +1929,12 @@ fn gain_or_named(name: &str, o: &Outcome, what: &str, words: &[&str], short: Opt
     );
 }
 
+/// How far under the bar the best correction from the kept observables
+/// must stay for [`gain_or_bounded`]'s branch, dB: it is the least-squares
+/// best on the effect's part, not a strict bound on the held-out SNR (on
+/// `faint_shake_and_left_mover` the calibration gains 0.01 dB more).
+const BOUND_MARGIN: f64 = 0.1;
+
 /// What the terms the chirp's calibration kept could do at best on the
 /// second recording, measured against the truth ([`bounded`]).
 struct Bound {
@@ -2071,7 +2077,8 @@ fn bounded(dir: &Path, c: &Case, report: &serde_json::Value) -> Option<Bound> {
 /// tiles' noise on the second recording (its words checked), within 0.1
 /// of the truth ([`bounded`]), and the best correction made from the kept
 /// observables, fitted with the truth's help, gains less than the bar
-/// asks: no correction made from them can meet it.
+/// asks by [`BOUND_MARGIN`] or more: no correction made from them can
+/// meet it.
 fn gain_or_bounded(name: &str, o: &Outcome) {
     let need = o.need();
     let b = o.bound.as_ref();
@@ -2103,12 +2110,13 @@ fn gain_or_bounded(name: &str, o: &Outcome) {
                     ))
             })
     });
-    if o.gain() < need && said && oracle < need {
+    let bounded = said && oracle + BOUND_MARGIN <= need;
+    if o.gain() < need && bounded {
         eprintln!("protocol {name}: the gain bar met by its other branch (bounded by the observables' noise): {figure}");
     }
     assert!(
-        o.gain() >= need || (said && oracle < need),
-        "{name}: the gain asked of a held-out effect ({need} dB), or a bound by the kept observables' noise, said and below it: {figure}"
+        o.gain() >= need || bounded,
+        "{name}: the gain asked of a held-out effect ({need} dB), or a bound by the kept observables' noise, said and {BOUND_MARGIN} dB or more below it: {figure}"
     );
 }
 
