@@ -1822,6 +1822,24 @@ fn thirteenth(name: &str, at_hz: &[f64], transfer_short: Option<&str>) -> Option
     })
 }
 
+/// Whether a held-out case is held to the transfer bar alone: its effect
+/// costs the speech under 1 dB, so no gain of the bar's size can be
+/// measured (said).
+fn transfer_alone(name: &str, o: &Outcome) -> bool {
+    let alone = o.cost() < 1.0;
+    if alone {
+        eprintln!(
+            "protocol {name}: the effect costs the speech {:.2} dB, under 1 dB: no gain of the bar's size can be measured (speech {:.2} -> {:.2} dB, {:+.2}; kept {}); held to the transfer bar alone",
+            o.cost(),
+            o.none,
+            o.with,
+            o.gain(),
+            o.kept
+        );
+    }
+    alone
+}
+
 /// The case `name` of `set`: the transfer bar, then `gain` (a gain bar
 /// with its other branch) where the effect costs the speech 1 dB or more.
 fn words_case(
@@ -1832,13 +1850,7 @@ fn words_case(
 ) -> Option<Outcome> {
     let c = set.iter().find(|c| c.name == name).unwrap();
     let o = carries(c, transfer_short)?;
-    if o.cost() < 1.0 {
-        eprintln!(
-            "protocol {name}: the effect costs the speech {:.2} dB, under 1 dB: held to the transfer bar alone (speech {:+.2}; kept {})",
-            o.cost(),
-            o.gain(),
-            o.kept
-        );
+    if transfer_alone(name, &o) {
         return Some(o);
     }
     gain(&o);
@@ -2135,15 +2147,7 @@ fn unseen_bounded(set: &[Case], name: &str) -> Option<Outcome> {
         "{name}: an effect on the object"
     );
     let o = carries_with(run_with(c, true)?, c, None)?;
-    if o.cost() < 1.0 {
-        eprintln!(
-            "protocol {name}: the effect costs the speech {:.2} dB, under 1 dB: held to the transfer bar alone (speech {:.2} -> {:.2} dB, {:+.2}; kept {})",
-            o.cost(),
-            o.none,
-            o.with,
-            o.gain(),
-            o.kept
-        );
+    if transfer_alone(name, &o) {
         return Some(o);
     }
     gain_or_bounded(name, &o);
@@ -2165,15 +2169,7 @@ fn unseen(
 ) -> Option<Outcome> {
     let c = set.iter().find(|c| c.name == name).unwrap();
     let o = carries(c, transfer_short)?;
-    if o.cost() < 1.0 {
-        eprintln!(
-            "protocol {name}: the effect costs the speech {:.2} dB, under 1 dB: no gain of the bar's size can be measured (speech {:.2} -> {:.2} dB, {:+.2}; kept {}); held to the transfer bar alone",
-            o.cost(),
-            o.none,
-            o.with,
-            o.gain(),
-            o.kept
-        );
+    if transfer_alone(name, &o) {
         assert!(
             short.is_none(),
             "{name}: a mark on a case with nothing to gain"
