@@ -68,8 +68,11 @@ params! {
             .unit("frames")
             .doc("frames per emitted block"),
         /// (The reference is fixed, so frames are independent: each is
-        /// computed whole by one worker. A frame waits for at most
-        /// `threads - 1` later frames.)
+        /// computed whole by one worker, the workers taking the frames of
+        /// a batch as each is free. A batch is `threads` frames live, so a
+        /// frame waits for at most `threads - 1` later ones; on a replay
+        /// [`REPLAY_DEPTH`] times that, so that a worker held up by
+        /// another thread on its core costs the others less.)
         threads: usize = FRAME_THREADS,
         reference_interval_s: f64 = REFERENCE_INTERVAL,
         reference_overlap: usize = REFERENCE_OVERLAP,
@@ -130,13 +133,20 @@ struct PhasePlan {
     mask: Option<(std::path::PathBuf, Mask)>,
 }
 
+/// Frames a worker takes in a batch on a replay (live: one, so that no
+/// frame waits for more than the other workers' frames). The output is
+/// the same bits either way.
+const REPLAY_DEPTH: usize = 4;
+
 impl Plan for PhasePlan {
-    fn build(self: Box<Self>, _: &BuildCtx) -> Result<Node, StageError> {
+    fn build(self: Box<Self>, ctx: &BuildCtx) -> Result<Node, StageError> {
         let PhasePlan { p: v, mask } = *self;
         let threads = resolve_threads(v.threads);
+        let batch_frames = threads * if ctx.live { 1 } else { REPLAY_DEPTH };
         Ok(Node::Stage(Box::new(Phase {
             crew: Crew::new(threads, "phase-worker")?,
             threads,
+            batch_frames,
             kind: v.pyramid,
             scales: v.scales,
             orientations: v.orientations,
@@ -151,13 +161,13 @@ impl Plan for PhasePlan {
                 normalise: v.normalise,
             },
             engine: None,
-            pending: Vec::with_capacity(threads),
+            pending: Vec::with_capacity(batch_frames),
             batch: None,
         })))
     }
 
     fn frames_held(&self) -> usize {
-        resolve_threads(self.p.threads)
+        resolve_threads(self.p.threads) * REPLAY_DEPTH
     }
 }
 
@@ -208,7 +218,11 @@ struct Worker<A: Analyzer> {
     an: A,
     c: A::C,
     input: Vec<f32>,
-    /// Σ A² Δφ per band against the reference, for this worker's frame.
+}
+
+/// What one frame of a batch gives (whichever worker computed it).
+struct Slot {
+    /// Σ A² Δφ per band against the reference.
     sums: Vec<f64>,
     /// The same against the next reference, during a handover.
     next_sums: Vec<f64>,
@@ -218,6 +232,8 @@ struct Worker<A: Analyzer> {
 /// Per-band weighted phase sums, frames spread over workers.
 struct Engine<A: Analyzer> {
     workers: Vec<Worker<A>>,
+    /// One a frame of a batch (the most frames a batch takes).
+    slots: Vec<std::sync::Mutex<Slot>>,
     reference: Option<Reference<A::C>>,
     handover: Option<Handover<A::C>>,
     /// A retired reference, recycled for the next renewal.
@@ -266,7 +282,7 @@ trait FrameSignals: Send {
 impl<A: Analyzer> Engine<A> {
     fn new(
         mut make: impl FnMut() -> Result<A, PyramidError>,
-        workers: usize,
+        (workers, batch_frames): (usize, usize),
         (scales, orientations): (usize, usize),
         (roi, mask, tiles): (Roi, Option<&Mask>, usize),
         renewal: Renewal,
@@ -282,11 +298,17 @@ impl<A: Analyzer> Engine<A> {
                 an,
                 c,
                 input: vec![0.0; width * height],
-                sums: vec![0.0; nb],
-                next_sums: vec![0.0; nb],
-                result: Ok(()),
             });
         }
+        let slots = (0..batch_frames.max(workers).max(1))
+            .map(|_| {
+                std::sync::Mutex::new(Slot {
+                    sums: vec![0.0; nb],
+                    next_sums: vec![0.0; nb],
+                    result: Ok(()),
+                })
+            })
+            .collect();
         let c = &ws[0].c;
         let mut bands = Vec::with_capacity(c.num_bands());
         for i in 0..c.num_bands() {
@@ -335,6 +357,7 @@ impl<A: Analyzer> Engine<A> {
         let interval_ns = (renewal.interval_s > 0.0).then_some((renewal.interval_s * 1e9) as i64);
         Ok(Self {
             workers: ws,
+            slots,
             reference: None,
             handover: None,
             spare: None,
@@ -454,8 +477,8 @@ impl<A: Analyzer> Engine<A> {
         }
     }
 
-    /// Computes `batch` (one frame per worker; during a handover also
-    /// against the next reference) and emits it in order.
+    /// Computes `batch` (its frames shared among the workers; during a
+    /// handover also against the next reference) and emits it in order.
     fn batch(
         &mut self,
         batch: &[Item],
@@ -468,11 +491,21 @@ impl<A: Analyzer> Engine<A> {
         let next = self.handover.as_ref().map(|h| &h.next);
         let (bands, scales, k) = (&self.bands[..], self.scales, self.orientations);
         let tiles = self.tiles;
-        let workers = &mut self.workers[..batch.len()];
-        crew.spread(workers, batch, |w: &mut Worker<A>, f: &Item| {
-            w.result = compute(w, f, (reference, next), bands, (scales, k, tiles));
+        let slots = &self.slots[..batch.len()];
+        crew.share(&mut self.workers, batch.len(), |w: &mut Worker<A>, i| {
+            let mut s = slots[i].lock().unwrap_or_else(|e| e.into_inner());
+            let s = &mut *s;
+            s.result = compute(
+                w,
+                s,
+                &batch[i],
+                (reference, next),
+                bands,
+                (scales, k, tiles),
+            );
         });
-        for (w, f) in workers.iter_mut().zip(batch) {
+        for (slot, f) in self.slots.iter_mut().zip(batch) {
+            let w = slot.get_mut().unwrap_or_else(|e| e.into_inner());
             std::mem::replace(&mut w.result, Ok(()))?;
             let now = self.vals.iter_mut().zip(&w.sums).zip(&reference.offset);
             for (((v, s), o), d) in now.zip(&reference.divisor) {
@@ -530,20 +563,17 @@ impl<A: Analyzer> Engine<A> {
 /// (and tile), against the reference and, during a handover, the next one.
 fn compute<A: Analyzer>(
     w: &mut Worker<A>,
+    slot: &mut Slot,
     f: &Item,
     (reference, next): (&Reference<A::C>, Option<&Reference<A::C>>),
     bands: &[BandState],
     (scales, k, tiles): (usize, usize, usize),
 ) -> Result<(), StageError> {
     let nb = scales * k;
-    let Worker {
-        an,
-        c,
-        input,
-        sums,
-        next_sums,
-        ..
-    } = w;
+    let Worker { an, c, input } = w;
+    let Slot {
+        sums, next_sums, ..
+    } = slot;
     let mut refs = [Some((reference, sums)), next.map(|n| (n, next_sums))];
     // Each scale's sums are taken as soon as the analysis has made it
     // (still in cache, for a pyramid built scale by scale).
@@ -632,7 +662,7 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
                 continue;
             }
             // A batch never spans a change of reference.
-            let mut n = rest.len().min(self.workers.len());
+            let mut n = rest.len().min(self.slots.len());
             match &self.handover {
                 Some(h) => n = n.min(h.left.max(1)),
                 None => {
@@ -654,6 +684,8 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
 struct Phase {
     crew: Crew,
     threads: usize,
+    /// Frames computed together (see [`REPLAY_DEPTH`]).
+    batch_frames: usize,
     kind: PyramidKind,
     scales: usize,
     orientations: usize,
@@ -664,7 +696,7 @@ struct Phase {
     tiles: usize,
     renewal: Renewal,
     engine: Option<Box<dyn FrameSignals>>,
-    /// Frames (or their pyramids) waiting for a full batch (one per worker).
+    /// Frames (or their pyramids) waiting for a full batch.
     pending: Vec<Item>,
     /// Band signals into sample blocks (set up with the engine).
     batch: Option<Batcher>,
@@ -712,7 +744,13 @@ impl Phase {
     fn init(&mut self, f: &Item) -> Result<(), StageError> {
         let (w, h) = item_size(f).ok_or_else(|| StageError::expected("frames or a pyramid"))?;
         let (roi, mask) = resolve_region(self.roi.as_ref(), self.mask.take(), w, h)?;
-        let n = self.threads;
+        // Coefficients from an upstream `pyramid` stage come in buffers
+        // it recycles once let go: hold no more of them than the workers
+        // (the analysis, the work a deeper batch shares out, is upstream).
+        if let Item::Pyramid(_) = f {
+            self.batch_frames = self.threads;
+        }
+        let n = (self.threads, self.batch_frames);
         if let Item::Frame(_) = f {
             self.check_memory(w, h)?;
         }
@@ -801,7 +839,7 @@ impl Stage for Phase {
             }
         }
         self.pending.push(item);
-        if self.pending.len() >= self.threads {
+        if self.pending.len() >= self.batch_frames {
             self.run_pending(out)?;
         }
         Ok(())

@@ -69,7 +69,7 @@ pub(super) const ORIENTATIONS: ParamSpec =
 /// `threads`, shared by `pyramid` and `phase`.
 pub(super) const FRAME_THREADS: ParamSpec = ParamSpec::new("threads", ParamType::Int, Def::Int(0))
     .ints(0, 256)
-    .doc("frames analysed at once, one per worker (0 = one per core, at most 8); bit-identical for any");
+    .doc("workers, each analysing whole frames, so as many frames at once (0 = one per core, at most 8); bit-identical for any");
 
 /// The steerable pyramid of `phase` and `pyramid`: with `half_grids`,
 /// compact ([`ComplexSteerablePyramid::new_compact`]).
@@ -392,6 +392,38 @@ impl Crew {
                     .for_each(|(w, t)| job(w, t))
             }),
             (_, workers, batch) => workers.iter_mut().zip(batch).for_each(|(w, t)| job(w, t)),
+        }
+    }
+
+    /// Runs `job(worker, i)` for each `i` in `0..n`, each worker taking
+    /// the next `i` as soon as it is free (so a worker whose core the OS
+    /// lent to another thread takes fewer, and neither waits for the
+    /// other's share); in order on the first worker when alone.
+    pub(super) fn share<W: Send>(
+        &self,
+        workers: &mut [W],
+        n: usize,
+        job: impl Fn(&mut W, usize) + Send + Sync,
+    ) {
+        use rayon::prelude::*;
+        use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
+        let next = AtomicUsize::new(0);
+        let take = |w: &mut W| loop {
+            let i = next.fetch_add(1, Relaxed);
+            if i >= n {
+                break;
+            }
+            job(w, i);
+        };
+        match (self, workers) {
+            (Crew::Pair(two), [w0, w1, ..]) if n > 1 => {
+                two.join(&mut || take(w0), &mut || take(w1));
+            }
+            (Crew::Pool(pool), workers) if n > 1 && workers.len() > 1 => {
+                pool.install(|| workers.par_iter_mut().for_each(take))
+            }
+            (_, [w0, ..]) => take(w0),
+            (_, []) => {}
         }
     }
 }
