@@ -16,15 +16,33 @@ const SMALL: &[&str] = &[
     "cam.frames=50",
 ];
 
-#[test]
-fn truncated_y4m_keeps_a_valid_wav_of_what_was_processed() {
+/// A directory with `scene.y4m` ([`SMALL`]) less its last `bytes` bytes.
+fn cut_scene(bytes: u64) -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
     render_y4m(dir.path(), "scene.y4m", SMALL);
     let p = dir.path().join("scene.y4m");
     let len = std::fs::metadata(&p).unwrap().len();
-    // Cut the last frame in half.
     let f = std::fs::OpenOptions::new().write(true).open(&p).unwrap();
-    f.set_len(len - 64 * 48 / 2).unwrap();
+    f.set_len(len - bytes).unwrap();
+    dir
+}
+
+/// The error a cut `scene.y4m` gives: exit 1, the file and its fault named.
+fn says_truncated(o: &std::process::Output) -> String {
+    let err = stderr(o);
+    assert_eq!(code(o), 1, "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        err.contains("scene.y4m") && err.contains("truncated"),
+        "{err}"
+    );
+    err
+}
+
+#[test]
+fn truncated_y4m_keeps_a_valid_wav_of_what_was_processed() {
+    // The last frame cut in half.
+    let dir = cut_scene(64 * 48 / 2);
     let o = run_in(
         dir.path(),
         &[
@@ -37,13 +55,7 @@ fn truncated_y4m_keeps_a_valid_wav_of_what_was_processed() {
             "--quiet",
         ],
     );
-    let err = stderr(&o);
-    assert_eq!(code(&o), 1, "{err}");
-    assert!(!err.contains("panicked"), "{err}");
-    assert!(
-        err.contains("scene.y4m") && err.contains("truncated"),
-        "{err}"
-    );
+    let err = says_truncated(&o);
     assert!(err.contains("stage `src`"), "{err}");
     let (_, samples) = read_wav(&dir.path().join("t.wav"));
     assert_eq!(
@@ -51,6 +63,32 @@ fn truncated_y4m_keeps_a_valid_wav_of_what_was_processed() {
         49,
         "every whole frame before the cut is in the WAV"
     );
+}
+
+/// `listen` on a recording cut short: the error names the file, and the
+/// WAV of what was read is finished as a whole run's is (16-bit PCM at
+/// the output rate, its peak at -1 dBFS), not left as the stream wrote it
+/// (32-bit float at the recovery's scale), and the run says it kept it.
+#[test]
+fn truncated_y4m_gives_listen_a_finished_wav_of_what_was_read() {
+    let dir = cut_scene(64 * 48 * 5);
+    let o = run_in(dir.path(), &["listen", "scene.y4m", "-o", "t.wav"]);
+    let err = says_truncated(&o);
+    assert!(
+        err.contains("t.wav: kept the sound of what was read before the error"),
+        "{err}"
+    );
+    let spec = hound::WavReader::open(dir.path().join("t.wav"))
+        .unwrap()
+        .spec();
+    assert_eq!(
+        (spec.sample_format, spec.bits_per_sample, spec.sample_rate),
+        (hound::SampleFormat::Int, 16, 48000),
+        "{err}"
+    );
+    let (_, s) = read_wav(&dir.path().join("t.wav"));
+    let peak = s.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    assert!(!s.is_empty() && (peak - 0.891).abs() < 0.01, "peak {peak}");
 }
 
 #[test]

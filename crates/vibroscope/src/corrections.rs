@@ -272,6 +272,19 @@ impl Observe {
     }
 }
 
+/// Which of a tile's three channels of observables (motion x, y,
+/// intensity, as the `displacement` stage writes them) an observable is
+/// read from (a line's intensity from its tiles' intensity).
+pub fn observed_channel(o: cal::Observable) -> usize {
+    match o {
+        cal::Observable::MotionX => 0,
+        cal::Observable::MotionY => 1,
+        cal::Observable::Intensity
+        | cal::Observable::RowIntensity
+        | cal::Observable::ColumnIntensity => 2,
+    }
+}
+
 /// [`Observe::apply`] with the observables already read: `observed` holds
 /// three channels (motion x, y, intensity) for each tile of `tiles`
 /// ([`Observe::tiles`]), one value per frame.
@@ -318,13 +331,6 @@ pub fn apply_observed(
             ))
         })?;
     let ratio = here.recovery_per_px / frame.recovery_per_px;
-    let channel = |o: cal::Observable| match o {
-        cal::Observable::MotionX => 0,
-        cal::Observable::MotionY => 1,
-        cal::Observable::Intensity
-        | cal::Observable::RowIntensity
-        | cal::Observable::ColumnIntensity => 2,
-    };
     // Carried through its stored taps: only a tile's motion, which is in
     // pixels. A line's weights belong to each reference frame of the
     // recording they were fitted on; a tile's brightness that follows the
@@ -351,7 +357,7 @@ pub fn apply_observed(
                     .skip(1)
                     .position(|x| *x == t.tiles[i])
                     .map_or(0, |k| k + 1);
-                &observed[3 * k + channel(t.observable)][..n]
+                &observed[3 * k + observed_channel(t.observable)][..n]
             };
             let channels = if t.observable.is_line() {
                 cal::line_channels(t.observable, &t.tiles, n, of)
@@ -359,13 +365,14 @@ pub fn apply_observed(
                 // The tiles' mean as the explainer pooled them: weighed
                 // each by its noise on this recording, or plain.
                 let tiles: Vec<&[f64]> = (0..t.tiles.len()).map(of).collect();
-                if t.weighed {
-                    if let Some(q) = cal::pooled_noise_share(&tiles, fs, hp) {
-                        noisy.push(noise_words(t, q));
-                    }
-                }
                 vec![match t.weighed {
-                    true => cal::pooled_motion(&tiles, fs, hp),
+                    true => {
+                        let (pooled, share) = cal::pooled_motion_and_share(&tiles, fs, hp);
+                        if let Some(q) = share {
+                            noisy.push(noise_words(t, q));
+                        }
+                        pooled
+                    }
                     false => cal::mean_of(&tiles),
                 }]
             };

@@ -322,28 +322,65 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
         add_speaker(&mut decl, dev)?;
     }
     let run = pipeline::run(&decl, o.run);
-    // Ctrl-C: the WAV holds what was processed; finish it as well, with the
-    // observables measured on the same frames.
-    if matches!(run, Ok(_) | Err(Error::Interrupted { .. })) && o.output.exists() {
-        if let Some(c) = &corrections {
-            match (frame, &observe) {
-                (Some(f), Some(obs)) => match obs.apply(&o.output, (c, o.denoise), f, &terms) {
-                    Ok(said) => notes.extend(said),
-                    // Interrupted too early to measure this recording's
-                    // frame: what needs it is left out, and said.
-                    Err(e) if run.is_err() => {
-                        let plain: Vec<Correction> =
-                            c.iter().filter(|c| !c.needs_frame()).cloned().collect();
-                        let said = corrections::apply_to_wav(&o.output, &plain, o.denoise)?;
-                        notes.push(format!("{e}: the calibration's amplitude-dependent corrections and explained terms were left out"));
-                        notes.extend(said);
+    // Ctrl-C, or a stage's error (a recording cut short): the WAV holds
+    // what was processed; finish it as well, with the observables
+    // measured on the same frames.
+    if matches!(
+        run,
+        Ok(_) | Err(Error::Interrupted { .. } | Error::Stages { .. })
+    ) && o.output.exists()
+    {
+        let finished = (|| -> Result<()> {
+            if let Some(c) = &corrections {
+                match (frame, &observe) {
+                    (Some(f), Some(obs)) => {
+                        match obs.apply(&o.output, (c, o.denoise), f, &terms) {
+                            Ok(said) => notes.extend(said),
+                            // Stopped too early to measure this recording's
+                            // frame: what needs it is left out, and said.
+                            Err(e) if run.is_err() => {
+                                let plain: Vec<Correction> =
+                                    c.iter().filter(|c| !c.needs_frame()).cloned().collect();
+                                let said = corrections::apply_to_wav(&o.output, &plain, o.denoise)?;
+                                notes.push(format!("{e}: the calibration's amplitude-dependent corrections and explained terms were left out"));
+                                notes.extend(said);
+                            }
+                            Err(e) => return Err(e),
+                        }
                     }
-                    Err(e) => return Err(e),
-                },
-                _ => notes.extend(corrections::apply_to_wav(&o.output, c, o.denoise)?),
+                    _ => notes.extend(corrections::apply_to_wav(&o.output, c, o.denoise)?),
+                }
             }
+            finish_wav(o, corrections.is_some())
+        })();
+        match finished {
+            Ok(()) if matches!(run, Err(Error::Stages { .. })) => {
+                let kept = hound::WavReader::open(&o.output)
+                    .map(|r| {
+                        let rate = r.spec().sample_rate.max(1);
+                        format!(
+                            " ({:.2} s at {rate} Hz)",
+                            f64::from(r.duration()) / f64::from(rate)
+                        )
+                    })
+                    .unwrap_or_default();
+                notes.push(format!(
+                    "{}: kept the sound of what was read before the error{kept}, finished as for a whole recording",
+                    o.output.display()
+                ));
+            }
+            Ok(()) => {}
+            // A run that stopped keeps its own error; a WAV that could
+            // not be finished is not left half done.
+            Err(e) if run.is_err() => {
+                let _ = std::fs::remove_file(&o.output);
+                notes.push(format!(
+                    "{}: removed: what the run wrote before it stopped could not be finished ({e})",
+                    o.output.display()
+                ));
+            }
+            Err(e) => return Err(e),
         }
-        finish_wav(o, corrections.is_some())?;
     }
     // An interrupted run returns no report: its notes are said here.
     if run.is_err() {

@@ -1052,20 +1052,42 @@ fn pool_weights(
 /// gain on a signal seen through white noise). `None` where the plain
 /// mean is used.
 pub fn pooled_noise_share(tiles: &[&[f64]], fs: f64, hp: Option<(usize, f64)>) -> Option<f64> {
+    pooled_motion_and_share(tiles, fs, hp).1
+}
+
+/// [`pooled_motion`] and [`pooled_noise_share`] from one reading of the
+/// tiles' weights (`listen --calibration` says the share of the motion it
+/// subtracts).
+pub fn pooled_motion_and_share(
+    tiles: &[&[f64]],
+    fs: f64,
+    hp: Option<(usize, f64)>,
+) -> (Vec<f64>, Option<f64>) {
     let plain = mean_of(tiles);
-    let weights = pool_weights(tiles, &plain, fs, hp)?;
-    let p = centred_highpass(&weighed_mean(tiles, &weights, plain.len()), fs, hp);
+    match pool_weights(tiles, &plain, fs, hp) {
+        Some(weights) => {
+            let pooled = weighed_mean(tiles, &weights, plain.len());
+            let share = noise_share(&weights, &pooled, fs, hp);
+            (pooled, share)
+        }
+        None => (plain, None),
+    }
+}
+
+/// [`pooled_noise_share`] of the motion `pooled` with the tiles' weights.
+fn noise_share(weights: &[f64], pooled: &[f64], fs: f64, hp: Option<(usize, f64)>) -> Option<f64> {
+    let p = centred_highpass(pooled, fs, hp);
     let power = p.iter().map(|v| v * v).sum::<f64>() / p.len().max(1) as f64;
     // A tile's power about the plain mean, d_i = 1 / w_i, holds its own
     // noise's σ_i² (1 - 2/N) and the mean's Σσ²/N²: so Σσ² = Σd · N/(N-1),
     // and each σ_i² = (d_i - Σσ²/N²) / (1 - 2/N) (for two tiles, which
     // cannot be told apart, half of Σσ² each). The weighed mean's noise is
     // then Σ w_i² σ_i² / (Σ w)².
-    let k = tiles.len() as f64;
+    let k = weights.len() as f64;
     let d: Vec<f64> = weights.iter().map(|w| 1.0 / w).collect();
     let all = d.iter().sum::<f64>() * k / (k - 1.0);
     let own = |di: f64| {
-        if tiles.len() > 2 {
+        if weights.len() > 2 {
             ((di - all / (k * k)) / (1.0 - 2.0 / k)).max(0.0)
         } else {
             all / k

@@ -94,9 +94,9 @@ mod transfer;
 pub use capture_time::{combine, unfold, Strips, Unfolded, UNFOLD_MAX_CORRELATION};
 pub use correction::{Correction, FrameEvent, Line, UNMEASURED_EDGE};
 pub use explain::{
-    line_channels, line_groups, mean_of, pooled_motion, pooled_noise_share, reference_spans,
-    remove_explained, Covariate, Explanation, Measured, Observable, StoredTerm, FOLLOWS_SHARE,
-    LAGS, MAX_LINE_REACH, MAX_LINE_SHIFTS,
+    line_channels, line_groups, mean_of, pooled_motion, pooled_motion_and_share,
+    pooled_noise_share, reference_spans, remove_explained, Covariate, Explanation, Measured,
+    Observable, StoredTerm, FOLLOWS_SHARE, LAGS, MAX_LINE_REACH, MAX_LINE_SHIFTS,
 };
 pub use folded::Folding;
 pub use frame::{pixel_frame, pixel_frame_on_tiles, PixelFrame};
@@ -108,7 +108,7 @@ pub use report::{
     LineReport, LineUncertainty, Parameters, ReportError, Uncertainty, Unexplained,
     UnexplainedKind, Unsettled, MAX_STORED_TILES,
 };
-pub use signal::{alias, equalize, sample_at, stft_len};
+pub use signal::{alias, centred_highpass, equalize, sample_at, stft_len};
 pub use signal::{peak, smooth3};
 
 use model::{Fit, Model};

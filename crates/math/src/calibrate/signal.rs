@@ -324,7 +324,7 @@ pub(super) fn redo_highpass(x: &[f64], fs: f64, hp: Option<(usize, f64)>) -> Vec
 
 /// `v` less its mean, through the recovery's high-pass: an observable
 /// (a tile's motion or intensity) made comparable with the recovery.
-pub(super) fn centred_highpass(v: &[f64], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
+pub fn centred_highpass(v: &[f64], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
     let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
     redo_highpass(&v.iter().map(|a| a - mean).collect::<Vec<_>>(), fs, hp)
 }
