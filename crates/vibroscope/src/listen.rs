@@ -321,14 +321,19 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     if let Some(dev) = &o.speaker {
         add_speaker(&mut decl, dev)?;
     }
+    // A file already at the output path that this run does not write (it
+    // stopped before any sound reached the WAV) is not finished again.
+    let modified = || std::fs::metadata(&o.output).and_then(|m| m.modified()).ok();
+    let before = modified();
     let run = pipeline::run(&decl, o.run);
     // Ctrl-C, or a stage's error (a recording cut short): the WAV holds
     // what was processed; finish it as well, with the observables
     // measured on the same frames.
+    let written = modified().is_some() && (run.is_ok() || modified() != before);
     if matches!(
         run,
         Ok(_) | Err(Error::Interrupted { .. } | Error::Stages { .. })
-    ) && o.output.exists()
+    ) && written
     {
         let finished = (|| -> Result<()> {
             if let Some(c) = &corrections {
