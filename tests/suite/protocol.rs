@@ -1323,8 +1323,9 @@ background_motion = [{ rect = [0, 104, 128, 24], signal = { type = "noise", rate
 /// Figures reported as they come, under [`fresh`]'s rules. The change
 /// was tried and not kept: on the seen cases it was written for
 /// (`ring_left_strip`, `cubic_and_camera`) the criterion never widened an
-/// FIR (a wider one removed under 0.05% more of the recovery's energy),
-/// and no figure moved. First run (session 76), on the code as kept:
+/// FIR (at -6..=6 a wider one removed at most 0.25% more of the
+/// recovery's energy, against the criterion's price of 0.38% for every
+/// two taps: docs/calibration.md), and no figure moved. First run (session 76), on the code as kept:
 /// `ring_bottom_strip` +1.06 dB of the 1.20 it costs and
 /// `camera_and_ring_strip` +2.85 of 3.62 (both weak, 1 dB asked: met);
 /// `ring_right_strip` costs 0.93 dB (+0.90), `ring_top_strip_along_y`

@@ -329,7 +329,8 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     // Ctrl-C, or a stage's error (a recording cut short): the WAV holds
     // what was processed; finish it as well, with the observables
     // measured on the same frames.
-    let written = modified().is_some() && (run.is_ok() || modified() != before);
+    let after = modified();
+    let written = after.is_some() && (run.is_ok() || after != before);
     if matches!(
         run,
         Ok(_) | Err(Error::Interrupted { .. } | Error::Stages { .. })
