@@ -289,48 +289,126 @@ fn radial_hi(r: f64, p: f64) -> f64 {
     if r <= 0.0 {
         return 0.0;
     }
-    let t = (p - r.log2()).clamp(0.0, 1.0);
-    (0.5 * PI * t).cos()
+    quarter_cos((p - r.log2()).clamp(0.0, 1.0))
 }
+
+/// `cos(π/2 · t)` for `t` in `[0, 1]`, its ends without a call: the
+/// same bits (`cos 0` is 1, and the f64 nearest `π/2` has this cosine;
+/// checked by `quarter_ends_are_the_library_values`). Most bins of a
+/// mask lie where the raised cosine is flat.
+#[inline]
+fn quarter_cos(t: f64) -> f64 {
+    if t <= 0.0 {
+        1.0
+    } else if t >= 1.0 {
+        COS_HALF_PI
+    } else {
+        (0.5 * PI * t).cos()
+    }
+}
+
+/// `sin(π/2 · t)` for `t` in `[0, 1]`, as [`quarter_cos`] (`sin 0` is
+/// 0, and the sine of the f64 nearest `π/2` rounds to 1).
+#[inline]
+fn quarter_sin(t: f64) -> f64 {
+    if t <= 0.0 {
+        0.0
+    } else if t >= 1.0 {
+        1.0
+    } else {
+        (0.5 * PI * t).sin()
+    }
+}
+
+/// `(π/2).cos()` in f64 (not zero: the f64 nearest π/2 falls short of it).
+const COS_HALF_PI: f64 = 6.123_233_995_736_766e-17;
 
 /// Complement of [`radial_hi`]: `hi² + lo² = 1`.
 fn radial_lo(r: f64, p: f64) -> f64 {
     if r <= 0.0 {
         return 1.0;
     }
-    let t = (p - r.log2()).clamp(0.0, 1.0);
-    (0.5 * PI * t).sin()
+    quarter_sin((p - r.log2()).clamp(0.0, 1.0))
 }
 
-/// Angular mask of orientation `theta` for `K = orientations`.
-fn angular(ux: f64, uy: f64, theta: f64, orientations: usize) -> f64 {
-    let order = orientations - 1;
-    let r = ux.hypot(uy);
+/// The angular mask of orientation `theta` for `K = orientations`: `2
+/// sqrt(c) cos^(K-1)(angle - theta)` on the side of the orientation,
+/// zero on the other, `c = 4^(K-1) ((K-1)!)² / (K (2(K-1))!)`; its
+/// constants computed once an orientation.
+struct Angular {
+    order: i32,
+    /// `2 sqrt(c)` and, for one orientation, `sqrt(2 c)`.
+    gain: f64,
+    even: f64,
+    cos_t: f64,
+    sin_t: f64,
+}
+
+impl Angular {
+    fn new(theta: f64, orientations: usize) -> Self {
+        let order = orientations - 1;
+        let mut fact = 1.0f64; // order!
+        for i in 1..=order {
+            fact *= i as f64;
+        }
+        let mut fact2 = 1.0f64; // (2 order)!
+        for i in 1..=(2 * order) {
+            fact2 *= i as f64;
+        }
+        let c = 4f64.powi(order as i32) * fact * fact / (orientations as f64 * fact2);
+        Angular {
+            order: order as i32,
+            gain: 2.0 * c.sqrt(),
+            even: (2.0 * c).sqrt(),
+            cos_t: theta.cos(),
+            sin_t: theta.sin(),
+        }
+    }
+
+    /// The mask at `(ux, uy)`, whose radius is `r`.
+    #[inline]
+    fn at(&self, ux: f64, uy: f64, r: f64) -> f64 {
+        if r <= 0.0 {
+            return 0.0;
+        }
+        let cosa = (ux * self.cos_t + uy * self.sin_t) / r;
+        if cosa > 1e-12 {
+            self.gain * cosa.powi(self.order)
+        } else if cosa >= -1e-12 && self.order == 0 {
+            // On the dividing line of a single orientation, split evenly between
+            // the two sides so that the symmetrised response stays exactly one.
+            self.even
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The radial part of scale `s`'s bands at radius `r`: the low-pass chain
+/// down to the scale times its high-pass edge, `chain(r, s) ·
+/// radial_hi(r, -s - 1)` in [`ComplexSteerablePyramid::new`]'s terms,
+/// with `log2 r` taken once (the same values: the same bits).
+fn band_radial(r: f64, s: usize) -> f64 {
     if r <= 0.0 {
+        // radial_lo is 1 and radial_hi 0 at the origin.
         return 0.0;
     }
-    let mut fact = 1.0f64; // order!
-    for i in 1..=order {
-        fact *= i as f64;
+    let lr = r.log2();
+    let t = |p: f64| (p - lr).clamp(0.0, 1.0);
+    let mut v = quarter_sin(t(0.0));
+    for j in 0..s {
+        // A factor of +0 makes the whole product +0 (the others are
+        // finite and not negative).
+        if v == 0.0 {
+            return 0.0;
+        }
+        v *= quarter_sin(t(-(j as f64) - 1.0));
     }
-    let mut fact2 = 1.0f64; // (2 order)!
-    for i in 1..=(2 * order) {
-        fact2 *= i as f64;
-    }
-    let c = 4f64.powi(order as i32) * fact * fact / (orientations as f64 * fact2);
-    let cosa = (ux * theta.cos() + uy * theta.sin()) / r;
-    if cosa > 1e-12 {
-        2.0 * c.sqrt() * cosa.powi(order as i32)
-    } else if cosa >= -1e-12 && order == 0 {
-        // On the dividing line of a single orientation, split evenly between
-        // the two sides so that the symmetrised response stays exactly one.
-        (2.0 * c).sqrt()
-    } else {
-        0.0
-    }
+    v * quarter_cos(t(-(s as f64) - 1.0))
 }
 
 /// One analysis grid: a centred crop of the input spectrum.
+#[derive(Clone)]
 struct Grid {
     w: usize,
     h: usize,
@@ -387,6 +465,10 @@ impl Grid {
 }
 
 /// Complex steerable pyramid for one frame size; see the module docs.
+/// A clone holds the same masks and FFT plans (made once; the plans
+/// shared) and buffers of its own: another worker's pyramid, without
+/// making its masks again.
+#[derive(Clone)]
 pub struct ComplexSteerablePyramid {
     key: LayoutKey,
     half_w: usize,
@@ -577,9 +659,13 @@ impl ComplexSteerablePyramid {
 
         let mut band_masks = Vec::with_capacity(scales * orientations);
         let mut infos = Vec::with_capacity(scales * orientations);
+        // The radial part of each grid's bins (every orientation of a
+        // scale shares it: made once, not once a band) and their radii.
+        let mut radial: Vec<Option<(Vec<f64>, Vec<f64>)>> = grids.iter().map(|_| None).collect();
         for s in 0..scales {
             for b in 0..orientations {
-                let grid = &grids[band_grid[s * orientations + b]];
+                let g = band_grid[s * orientations + b];
+                let grid = &grids[g];
                 let theta = PI * b as f64 / orientations as f64;
                 infos.push(BandInfo {
                     scale: s,
@@ -596,19 +682,37 @@ impl ComplexSteerablePyramid {
                     band_masks.push(Vec::new());
                     continue;
                 }
+                let (rad, radii) = radial[g].get_or_insert_with(|| {
+                    let n = grid.w * grid.h;
+                    let (mut rad, mut radii) = (Vec::with_capacity(n), Vec::with_capacity(n));
+                    for kxp in 0..grid.w {
+                        for kyp in 0..grid.h {
+                            let (ux, uy) = uxy(grid, kxp, kyp);
+                            let r = ux.hypot(uy);
+                            radii.push(r);
+                            rad.push(band_radial(r, s));
+                        }
+                    }
+                    (rad, radii)
+                });
+                let ang = Angular::new(theta, orientations);
                 let mut m = vec![0.0f32; grid.w * grid.h];
                 for kxp in 0..grid.w {
                     for kyp in 0..grid.h {
-                        let (ux, uy) = uxy(grid, kxp, kyp);
-                        let r = ux.hypot(uy);
-                        let v = chain(r, s)
-                            * radial_hi(r, -(s as f64) - 1.0)
-                            * angular(ux, uy, theta, orientations);
-                        m[kxp * grid.h + kyp] = v as f32;
+                        let i = kxp * grid.h + kyp;
+                        // Outside the scale's annulus the product is +0
+                        // whatever the angle (the angular mask is finite
+                        // and not negative).
+                        if rad[i] != 0.0 {
+                            let (ux, uy) = uxy(grid, kxp, kyp);
+                            m[i] = (rad[i] * ang.at(ux, uy, radii[i])) as f32;
+                        }
                     }
                 }
                 band_masks.push(m);
             }
+            // No later scale reads this scale's grids (16 bytes a bin).
+            radial.iter_mut().for_each(|r| *r = None);
         }
         let band_live = band_masks
             .iter()

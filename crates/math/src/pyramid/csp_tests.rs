@@ -939,3 +939,111 @@ fn runs_split_rising_and_falling_rows() {
         vec![1..2, 3..4]
     );
 }
+
+/// The band masks as `build` made them until session 78, a bin at a
+/// time: the low-pass chain, the scale's high-pass edge and the angular
+/// mask each from the bin's frequency (every constant, `log2 r` and each
+/// raised cosine's sine or cosine computed again at every bin and for
+/// every orientation).
+fn mask_per_bin(ux: f64, uy: f64, s: usize, theta: f64, orientations: usize) -> f32 {
+    use std::f64::consts::PI;
+    let r = ux.hypot(uy);
+    let t = |p: f64| (p - r.log2()).clamp(0.0, 1.0);
+    let radial_lo = |p: f64| {
+        if r <= 0.0 {
+            1.0
+        } else {
+            (0.5 * PI * t(p)).sin()
+        }
+    };
+    let radial_hi = |p: f64| {
+        if r <= 0.0 {
+            0.0
+        } else {
+            (0.5 * PI * t(p)).cos()
+        }
+    };
+    let mut chain = radial_lo(0.0);
+    for j in 0..s {
+        chain *= radial_lo(-(j as f64) - 1.0);
+    }
+    let angular = {
+        let order = orientations - 1;
+        let mut fact = 1.0f64;
+        for i in 1..=order {
+            fact *= i as f64;
+        }
+        let mut fact2 = 1.0f64;
+        for i in 1..=(2 * order) {
+            fact2 *= i as f64;
+        }
+        let c = 4f64.powi(order as i32) * fact * fact / (orientations as f64 * fact2);
+        let cosa = (ux * theta.cos() + uy * theta.sin()) / r;
+        if r <= 0.0 {
+            0.0
+        } else if cosa > 1e-12 {
+            2.0 * c.sqrt() * cosa.powi(order as i32)
+        } else if cosa >= -1e-12 && order == 0 {
+            (2.0 * c).sqrt()
+        } else {
+            0.0
+        }
+    };
+    (chain * radial_hi(-(s as f64) - 1.0) * angular) as f32
+}
+
+/// The masks made once a grid's radial part (shared by a scale's
+/// orientations) and once an orientation's constants hold the per-bin
+/// code's bits, on full and compact pyramids, even and odd sizes, 1 to 8
+/// orientations; and some bins lie outside every annulus (the skip is
+/// exercised).
+#[test]
+fn masks_made_a_grid_at_a_time_give_the_per_bin_bits() {
+    let mut outside = 0;
+    for (w, h) in [(16, 16), (15, 9), (32, 20), (7, 33), (64, 48)] {
+        for k in [1, 2, 3, 4, 8] {
+            for compact in [false, true] {
+                let p = if compact {
+                    ComplexSteerablePyramid::new_compact(w, h, 3, k).unwrap()
+                } else {
+                    ComplexSteerablePyramid::new(w, h, 3, k).unwrap()
+                };
+                for (bi, mask) in p.band_masks.iter().enumerate() {
+                    let grid = &p.grids[p.band_grid[bi]];
+                    let (s, b) = (bi / k, bi % k);
+                    let theta = std::f64::consts::PI * b as f64 / k as f64;
+                    for kxp in 0..grid.w {
+                        for kyp in 0..grid.h {
+                            let ux = 2.0 * grid.kx[kxp] as f64 / w as f64;
+                            let uy = 2.0 * grid.ky[kyp] as f64 / h as f64;
+                            let want = mask_per_bin(ux, uy, s, theta, k);
+                            let got = mask[kxp * grid.h + kyp];
+                            assert_eq!(
+                                got.to_bits(),
+                                want.to_bits(),
+                                "{w}x{h} k {k} compact {compact} band {bi} bin ({kxp}, {kyp})"
+                            );
+                            outside += usize::from(band_radial(ux.hypot(uy), s) == 0.0);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(outside > 0);
+}
+
+/// The ends of the raised cosines are the library's values, so that
+/// leaving out their calls keeps the masks' bits.
+#[test]
+fn quarter_ends_are_the_library_values() {
+    use std::f64::consts::PI;
+    for t in [0.0f64, 1.0] {
+        assert_eq!(quarter_sin(t).to_bits(), (0.5 * PI * t).sin().to_bits());
+        assert_eq!(quarter_cos(t).to_bits(), (0.5 * PI * t).cos().to_bits());
+    }
+    for t in [1e-9, 0.25, 0.5, 0.999] {
+        assert_eq!(quarter_sin(t).to_bits(), (0.5 * PI * t).sin().to_bits());
+        assert_eq!(quarter_cos(t).to_bits(), (0.5 * PI * t).cos().to_bits());
+    }
+}

@@ -45,8 +45,8 @@
 
 use super::audio_out::Batcher;
 use super::pyramid::{
-    new_csp, pyramid_err as err, resolve_threads, Analyzer, Carried, Crew, OnFrames, PyramidKind,
-    FRAME_THREADS, HALF_GRIDS, ORIENTATIONS, PYRAMID, SCALES,
+    csp_workers, pyramid_err as err, resolve_threads, Analyzer, Carried, Crew, OnFrames,
+    PyramidKind, FRAME_THREADS, HALF_GRIDS, ORIENTATIONS, PYRAMID, SCALES,
 };
 use super::roi::{plan_region, resolve_region, Mask, Roi, RoiParam};
 use crate::*;
@@ -782,10 +782,9 @@ impl Phase {
                 let (s, k, half) = (self.scales, self.orientations, self.half_grids);
                 match self.kind {
                     PyramidKind::Csp => Box::new(Engine::new(
-                        || {
-                            let mut p = new_csp(w, h, s, k, half)?;
-                            p.set_residuals(false);
-                            Ok(OnFrames(p))
+                        {
+                            let mut make = csp_workers(w, h, s, k, half);
+                            move || make().map(OnFrames)
                         },
                         n,
                         (s, k),
