@@ -998,10 +998,16 @@ pub fn mean_of(tiles: &[&[f64]]) -> Vec<f64> {
 /// whose texture (and so whose weights) may differ. The plain mean where
 /// any tile's power is not positive and finite (one tile, tiles alike).
 pub fn pooled_motion(tiles: &[&[f64]], fs: f64, hp: Option<(usize, f64)>) -> Vec<f64> {
+    pool_tiles(tiles, fs, hp).0
+}
+
+/// [`pooled_motion`] and the tiles' weights (`None` where the plain mean
+/// is used).
+fn pool_tiles(tiles: &[&[f64]], fs: f64, hp: Option<(usize, f64)>) -> (Vec<f64>, Option<Vec<f64>>) {
     let plain = mean_of(tiles);
     match pool_weights(tiles, &plain, fs, hp) {
-        Some(weights) => weighed_mean(tiles, &weights, plain.len()),
-        None => plain,
+        Some(weights) => (weighed_mean(tiles, &weights, plain.len()), Some(weights)),
+        None => (plain, None),
     }
 }
 
@@ -1063,15 +1069,9 @@ pub fn pooled_motion_and_share(
     fs: f64,
     hp: Option<(usize, f64)>,
 ) -> (Vec<f64>, Option<f64>) {
-    let plain = mean_of(tiles);
-    match pool_weights(tiles, &plain, fs, hp) {
-        Some(weights) => {
-            let pooled = weighed_mean(tiles, &weights, plain.len());
-            let share = noise_share(&weights, &pooled, fs, hp);
-            (pooled, share)
-        }
-        None => (plain, None),
-    }
+    let (pooled, weights) = pool_tiles(tiles, fs, hp);
+    let share = weights.and_then(|w| noise_share(&w, &pooled, fs, hp));
+    (pooled, share)
 }
 
 /// [`pooled_noise_share`] of the motion `pooled` with the tiles' weights.

@@ -87,7 +87,7 @@ pub(super) fn new_csp(
     }
 }
 
-/// [`new_csp`] for the `n` workers of `phase` and `pyramid`, the
+/// [`new_csp`] for each worker of `phase` and `pyramid` in turn, the
 /// residuals off: the first made, the others its clones (the same masks,
 /// not made again: at 256x256 with 2 orientations a pyramid's masks took
 /// 6 ms to make).
