@@ -171,6 +171,10 @@ fn speech_reference(d: &std::path::Path) -> bool {
         .unwrap_or(false)
         && std::process::Command::new("sox")
             .args([
+                // Repeatable: sox dithers its 16-bit output with a seed
+                // taken from the clock, so without -R the reference (and
+                // every figure measured on it) moved from run to run.
+                "-R",
                 d.join("sp.wav").to_str().unwrap(),
                 "-r",
                 "2200",

@@ -50,6 +50,7 @@ fn speech(dir: &Path, voice: &str, p: u32) -> Option<std::path::PathBuf> {
         .map(|s| s.success())
         .unwrap_or(false)
         && std::process::Command::new("sox")
+            .arg("-R") // repeatable dither (see microphone.rs)
             .arg(&raw)
             .args(["-r", "2200", "-c", "1"])
             .arg(&out)
