@@ -254,15 +254,18 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, roofs: &Roofs) -> [f6
     let (scales, k) = (4, 2);
     let px = (w * h) as f64;
     // (name, flops, bytes, memory level) per input pixel.
-    let riesz_counts = [(43.8, 38.5, 2u8), (82.0, 42.5, 3u8)];
+    // (Since session 79 the sums' arctangent is a 6-term polynomial, 19
+    // flops where the 9-term one took 25: 74.4 flops, not 82.0; the
+    // steerable sums 71.9, not 88; on half grids 35.9, not 44.)
+    let riesz_counts = [(43.8, 38.5, 2u8), (74.4, 42.5, 3u8)];
     // (Since session 73 orientation 0's half plane, zero in its mask,
     // is neither gathered nor transformed along y, and the band's norm
     // rides in the gather: 223 flops and 153 bytes, not 250 and 190.)
-    let csp_counts = [(223.0, 153.0, 2u8), (88.0, 53.0, 3u8)];
+    let csp_counts = [(223.0, 153.0, 2u8), (71.9, 53.0, 3u8)];
     // The same on half grids (`listen --half-grids`): 1.33 band pixels a
     // pixel, not 2.66 (no half plane left out there: the norm's pass
     // alone, 105 bytes before).
-    let half_counts = [(138.0, 94.0, 2u8), (44.0, 26.6, 3u8)];
+    let half_counts = [(138.0, 94.0, 2u8), (35.9, 26.6, 3u8)];
     println!("\n  listen --method phase kernels, one core, {scales} scales, {k} orientations:");
     println!(
         "    {:<58} {:>8} {:>10} {:>8} {:>8} {:>4} {:>10} {:>7}",

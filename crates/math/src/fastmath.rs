@@ -14,8 +14,7 @@ const ATAN_F64: [f64; 9] = [
     -0.016_165_736_7,
     0.002_866_225_7,
 ];
-/// The same coefficients rounded to f32 (shared with the SIMD kernels).
-pub(crate) const ATAN_COEFFS: [f32; 9] = ATAN;
+/// The same coefficients rounded to f32.
 const ATAN: [f32; 9] = {
     let mut out = [0.0f32; 9];
     let mut i = 0;

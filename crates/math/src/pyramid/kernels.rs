@@ -23,8 +23,22 @@ use std::f32::consts::{FRAC_PI_2, PI};
 
 const L: usize = 8;
 
-/// The coefficients of [`crate::fastmath::atan2`], lane by lane.
-const ATAN: [f32; 9] = crate::fastmath::ATAN_COEFFS;
+/// The lanes' arctangent polynomial: atan(t) ≈ t·P(t²) on [0, 1], P of
+/// degree 5 with P(0) = 1 (so a small phase change keeps its scale
+/// exactly), its other coefficients the minimax fit of the error
+/// (a linear program on 4001 points of [0, 1]; `docs/performance.md`,
+/// session 79). In f32 it is within 2.5e-6 rad of atan everywhere and
+/// within 1.1e-7 of it relatively below t = 0.01: far under the phase's
+/// noise in any band, and 3 operations a lane fewer than the 9 terms of
+/// [`crate::fastmath::atan2`] (2e-8), which the scalar tails keep.
+const ATAN: [f32; 6] = [
+    1.0,
+    -0.332_961_92,
+    0.195_154_19,
+    -0.119_748,
+    0.055_732_65,
+    -0.012_781_097,
+];
 
 /// `atan2(y, x)` for `y >= 0`, from `t = min(y, |x|) / max(y, |x|)` and
 /// its flags (bit 0: `y > |x|`, bit 1: `x < 0`), on `N` lanes.
@@ -32,19 +46,14 @@ const ATAN: [f32; 9] = crate::fastmath::ATAN_COEFFS;
 fn atan_n<const N: usize>(t: &[f32; N], flags: &[u8; N]) -> [f32; N] {
     let mut r = [0.0f32; N];
     for l in 0..N {
-        // Estrin's scheme: the polynomial's dependency chain is 5
-        // operations deep instead of Horner's 16 (the kernel is bound by
-        // that latency, not by its operation count).
+        // Horner's scheme: with 6 terms its chain of 5 dependent
+        // multiply-adds overlaps with the lanes' other work as well as
+        // Estrin's 4 (measured), in 2 operations fewer.
         let x = t[l] * t[l];
-        let x2 = x * x;
-        let x4 = x2 * x2;
-        let q01 = ATAN[1].mul_add(x, ATAN[0]);
-        let q23 = ATAN[3].mul_add(x, ATAN[2]);
-        let q45 = ATAN[5].mul_add(x, ATAN[4]);
-        let q67 = ATAN[7].mul_add(x, ATAN[6]);
-        let r0 = q23.mul_add(x2, q01);
-        let r1 = q67.mul_add(x2, q45);
-        let p = ATAN[8].mul_add(x4, r1).mul_add(x4, r0);
+        let mut p = ATAN[5];
+        for &c in ATAN[..5].iter().rev() {
+            p = p.mul_add(x, c);
+        }
         let mut v = t[l] * p;
         v = if flags[l] & 1 != 0 { FRAC_PI_2 - v } else { v };
         r[l] = if flags[l] & 2 != 0 { PI - v } else { v };
@@ -61,7 +70,9 @@ fn octant(ay: f32, x: f32) -> (f32, f32, u8) {
     let swap = ay > ax;
     let num = if swap { ax } else { ay };
     let den = if swap { ay } else { ax };
-    let den = if den == 0.0 { 1.0 } else { den };
+    // 0 / 0 as 0 / MIN_POSITIVE (one operation, not a compare and a
+    // select; a subnormal `den` reads as MIN_POSITIVE).
+    let den = den.max(f32::MIN_POSITIVE);
     (num, den, u8::from(swap) | (u8::from(x < 0.0) << 1))
 }
 
@@ -88,14 +99,16 @@ fn csp_px<const N: usize>(
         sign[l] = im < 0.0;
     }
     let a = atan_n(&t, &flags);
+    // Each value weighed and added into its lane in one multiply-add, L
+    // at a time, in pixel order.
     let mut p = [0.0f32; N];
     for l in 0..N {
-        let v = if sign[l] { -a[l] } else { a[l] };
-        p[l] = w[s + l] * v;
+        p[l] = if sign[l] { -a[l] } else { a[l] };
     }
-    for g in p.chunks_exact(L) {
+    let wn = &w[s..s + N];
+    for (pg, wg) in p.chunks_exact(L).zip(wn.chunks_exact(L)) {
         for l in 0..L {
-            acc[l] += g[l];
+            acc[l] = wg[l].mul_add(pg[l], acc[l]);
         }
     }
 }
@@ -380,9 +393,10 @@ mod tests {
     }
 
     /// The lanes' arctangent (Estrin's scheme, fused multiply-adds) is
-    /// within 1e-6 rad of f64's everywhere, as the scalar one is.
+    /// within 3e-6 rad of f64's everywhere (the scalar one within 1e-6),
+    /// and within 2e-7 of it relatively for small angles.
     #[test]
-    fn lanes_atan2_is_within_1e6_of_f64() {
+    fn lanes_atan2_is_within_3e6_of_f64() {
         let mut s = 7u64;
 
         for _ in 0..20000 {
@@ -399,8 +413,17 @@ mod tests {
             for l in 0..L {
                 let want = (y[l] as f64).atan2(x[l] as f64);
                 let err = (a[l] as f64 - want).abs();
-                assert!(err < 1e-6, "{} {}: {} vs {want}", y[l], x[l], a[l]);
-                assert!((a[l] - atan2(y[l], x[l])).abs() < 1e-6);
+                assert!(err < 3e-6, "{} {}: {} vs {want}", y[l], x[l], a[l]);
+                assert!((a[l] - atan2(y[l], x[l])).abs() < 3e-6);
+                if want.abs() < 0.01 {
+                    assert!(
+                        err <= 2e-7 * want.abs(),
+                        "{} {}: {} vs {want}",
+                        y[l],
+                        x[l],
+                        a[l]
+                    );
+                }
             }
         }
         let z = atan2_lanes(&[0.0; L], &[0.0; L]);
