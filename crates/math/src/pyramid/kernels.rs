@@ -13,8 +13,8 @@
 //! same bits.
 //!
 //! Each kernel computes 4L pixels at a time (several vectors per value):
-//! its chains of dependent operations (the arctangent's polynomial, in
-//! Estrin's scheme) are then independent of each other and overlap. The
+//! its chains of dependent operations (the arctangent's polynomial) are
+//! then independent of each other and overlap. The
 //! per-pixel values are added into L lanes L at a time, in pixel order,
 //! so the width does not change the sums' rounding.
 
@@ -392,9 +392,10 @@ mod tests {
         r
     }
 
-    /// The lanes' arctangent (Estrin's scheme, fused multiply-adds) is
-    /// within 3e-6 rad of f64's everywhere (the scalar one within 1e-6),
-    /// and within 2e-7 of it relatively for small angles.
+    /// The lanes' arctangent (6 terms in Horner's scheme, fused
+    /// multiply-adds) is within 3e-6 rad of f64's everywhere (the scalar
+    /// one within 1e-6), and within 2e-7 of it relatively for small
+    /// angles.
     #[test]
     fn lanes_atan2_is_within_3e6_of_f64() {
         let mut s = 7u64;
