@@ -323,12 +323,22 @@ fn quarter_sin(t: f64) -> f64 {
 /// `(π/2).cos()` in f64 (not zero: the f64 nearest π/2 falls short of it).
 const COS_HALF_PI: f64 = 6.123_233_995_736_766e-17;
 
-/// Complement of [`radial_hi`]: `hi² + lo² = 1`.
-fn radial_lo(r: f64, p: f64) -> f64 {
-    if r <= 0.0 {
-        return 1.0;
+/// The radial low-pass chain down to (not including) scale `s` at a
+/// radius whose `log2` is `lr`: the product of the raised-cosine
+/// low-passes (each the complement of [`radial_hi`], `hi² + lo² = 1`)
+/// with their transitions ending at `log2 r = 0, -1, ..., -s`, `log2 r`
+/// taken once by the caller. A factor of +0 ends the product (the others
+/// are finite and not negative: the same bits).
+fn lo_chain(lr: f64, s: usize) -> f64 {
+    let t = |p: f64| (p - lr).clamp(0.0, 1.0);
+    let mut v = quarter_sin(t(0.0));
+    for j in 0..s {
+        if v == 0.0 {
+            return 0.0;
+        }
+        v *= quarter_sin(t(-(j as f64) - 1.0));
     }
-    quarter_sin((p - r.log2()).clamp(0.0, 1.0))
+    v
 }
 
 /// The angular mask of orientation `theta` for `K = orientations`: `2
@@ -390,21 +400,11 @@ impl Angular {
 /// with `log2 r` taken once (the same values: the same bits).
 fn band_radial(r: f64, s: usize) -> f64 {
     if r <= 0.0 {
-        // radial_lo is 1 and radial_hi 0 at the origin.
+        // The chain is 1 and radial_hi 0 at the origin.
         return 0.0;
     }
     let lr = r.log2();
-    let t = |p: f64| (p - lr).clamp(0.0, 1.0);
-    let mut v = quarter_sin(t(0.0));
-    for j in 0..s {
-        // A factor of +0 makes the whole product +0 (the others are
-        // finite and not negative).
-        if v == 0.0 {
-            return 0.0;
-        }
-        v *= quarter_sin(t(-(j as f64) - 1.0));
-    }
-    v * quarter_cos(t(-(s as f64) - 1.0))
+    lo_chain(lr, s) * quarter_cos((-(s as f64) - 1.0 - lr).clamp(0.0, 1.0))
 }
 
 /// One analysis grid: a centred crop of the input spectrum.
@@ -648,13 +648,14 @@ impl ComplexSteerablePyramid {
             let ky = grid.ky[kyp] as f64;
             (2.0 * kx / w as f64, 2.0 * ky / h as f64)
         };
-        // Radial low-pass chain down to (not including) scale `s`.
+        // Radial low-pass chain down to (not including) scale `s` (1 at
+        // the origin).
         let chain = |r: f64, s: usize| -> f64 {
-            let mut v = radial_lo(r, 0.0);
-            for j in 0..s {
-                v *= radial_lo(r, -(j as f64) - 1.0);
+            if r <= 0.0 {
+                1.0
+            } else {
+                lo_chain(r.log2(), s)
             }
-            v
         };
 
         let mut band_masks = Vec::with_capacity(scales * orientations);

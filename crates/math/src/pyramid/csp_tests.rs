@@ -949,13 +949,6 @@ fn mask_per_bin(ux: f64, uy: f64, s: usize, theta: f64, orientations: usize) -> 
     use std::f64::consts::PI;
     let r = ux.hypot(uy);
     let t = |p: f64| (p - r.log2()).clamp(0.0, 1.0);
-    let radial_lo = |p: f64| {
-        if r <= 0.0 {
-            1.0
-        } else {
-            (0.5 * PI * t(p)).sin()
-        }
-    };
     let radial_hi = |p: f64| {
         if r <= 0.0 {
             0.0
@@ -963,10 +956,7 @@ fn mask_per_bin(ux: f64, uy: f64, s: usize, theta: f64, orientations: usize) -> 
             (0.5 * PI * t(p)).cos()
         }
     };
-    let mut chain = radial_lo(0.0);
-    for j in 0..s {
-        chain *= radial_lo(-(j as f64) - 1.0);
-    }
+    let chain = chain_per_bin(r, s);
     let angular = {
         let order = orientations - 1;
         let mut fact = 1.0f64;
@@ -992,11 +982,30 @@ fn mask_per_bin(ux: f64, uy: f64, s: usize, theta: f64, orientations: usize) -> 
     (chain * radial_hi(-(s as f64) - 1.0) * angular) as f32
 }
 
+/// The low-pass chain down to scale `s` as `build` made it until session
+/// 78, `log2 r` and each raised cosine's sine computed again for every
+/// factor (also the low-pass residual's mask, at `s = scales`).
+fn chain_per_bin(r: f64, s: usize) -> f64 {
+    use std::f64::consts::PI;
+    let radial_lo = |p: f64| {
+        if r <= 0.0 {
+            1.0
+        } else {
+            (0.5 * PI * (p - r.log2()).clamp(0.0, 1.0)).sin()
+        }
+    };
+    let mut chain = radial_lo(0.0);
+    for j in 0..s {
+        chain *= radial_lo(-(j as f64) - 1.0);
+    }
+    chain
+}
+
 /// The masks made once a grid's radial part (shared by a scale's
-/// orientations) and once an orientation's constants hold the per-bin
-/// code's bits, on full and compact pyramids, even and odd sizes, 1 to 8
-/// orientations; and some bins lie outside every annulus (the skip is
-/// exercised).
+/// orientations) and once an orientation's constants, and the low-pass
+/// residual's mask, hold the per-bin code's bits, on full and compact
+/// pyramids, even and odd sizes, 1 to 8 orientations; and some bins
+/// lie outside every annulus (the skip is exercised).
 #[test]
 fn masks_made_a_grid_at_a_time_give_the_per_bin_bits() {
     let mut outside = 0;
@@ -1025,6 +1034,21 @@ fn masks_made_a_grid_at_a_time_give_the_per_bin_bits() {
                             );
                             outside += usize::from(band_radial(ux.hypot(uy), s) == 0.0);
                         }
+                    }
+                }
+                // The low-pass residual's mask: the chain down to the
+                // last scale.
+                let low = &p.grids[3];
+                for kxp in 0..low.w {
+                    for kyp in 0..low.h {
+                        let ux = 2.0 * low.kx[kxp] as f64 / w as f64;
+                        let uy = 2.0 * low.ky[kyp] as f64 / h as f64;
+                        let want = chain_per_bin(ux.hypot(uy), 3) as f32;
+                        assert_eq!(
+                            p.low_mask[kxp * low.h + kyp].to_bits(),
+                            want.to_bits(),
+                            "{w}x{h} k {k} compact {compact} low-pass bin ({kxp}, {kyp})"
+                        );
                     }
                 }
             }
