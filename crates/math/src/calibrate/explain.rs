@@ -516,17 +516,12 @@ pub(super) fn explain(
     let start = m.errors(&z, &fit);
     let len = z.len();
     let fitw: Vec<f64> = (0..len).map(|i| f64::from(u8::from(m.is_fit(i)))).collect();
-    let dot = |a: &[f64], b: &[f64]| -> f64 {
-        a.iter()
-            .zip(b)
-            .zip(&fitw)
-            .map(|((x, y), w)| x * y * w)
-            .sum()
-    };
+    let simd = crate::join::Simd::detect();
+    let dot = |a: &[f64], b: &[f64]| -> f64 { super::signal::weighted_dot(simd, a, b, &fitw) };
     let heldw: Vec<f64> = (0..len)
         .map(|i| f64::from(u8::from(m.is_held(i))))
         .collect();
-    let held_energy = |a: &[f64]| -> f64 { a.iter().zip(&heldw).map(|(x, w)| x * x * w).sum() };
+    let held_energy = |a: &[f64]| -> f64 { super::signal::weighted_dot(simd, a, a, &heldw) };
     // Which tiles' motion may explain: those outside the region, and
     // those inside it that move on their own.
     // Each tile's motion, high-passed (read by both below).
@@ -1283,7 +1278,8 @@ pub fn remove_explained(
     fs: f64,
     hp: Option<(usize, f64)>,
 ) -> (Vec<f64>, f64) {
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(u, v)| u * v).sum::<f64>();
+    let simd = crate::join::Simd::detect();
+    let dot = |a: &[f64], b: &[f64]| super::signal::plain_dot(simd, a, b);
     let mut out = y.to_vec();
     let mut cols = Vec::new();
     for t in terms {

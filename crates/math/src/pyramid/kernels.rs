@@ -16,7 +16,10 @@
 //! its chains of dependent operations (the arctangent's polynomial) are
 //! then independent of each other and overlap. The
 //! per-pixel values are added into L lanes L at a time, in pixel order,
-//! so the width does not change the sums' rounding.
+//! so the width does not change the sums' rounding. The last pixels of a
+//! span (fewer than L) go through the same lanes padded with zeros (a
+//! tile's row at a coarse level is shorter than L: one pixel at a time,
+//! such spans took most of a tiled analysis).
 
 use super::Complex32;
 use std::f32::consts::{FRAC_PI_2, PI};
@@ -30,7 +33,7 @@ const L: usize = 8;
 /// session 79). In f32 it is within 2.5e-6 rad of atan everywhere and
 /// within 1.1e-7 of it relatively below t = 0.01: far under the phase's
 /// noise in any band, and 3 operations a lane fewer than the 9 terms of
-/// [`crate::fastmath::atan2`] (2e-8), which the scalar tails keep.
+/// [`crate::fastmath::atan2`] (2e-8), which [`quat_phase_delta`] keeps.
 const ATAN: [f32; 6] = [
     1.0,
     -0.332_961_92,
@@ -135,15 +138,20 @@ fn csp_row_generic(cur: &[Complex32], reference: &[Complex32], w: &[f32]) -> f32
             ch += 1;
         }
     }
-    let mut tail = 0.0f32;
-    for i in chunks * L..n {
-        let (c, r) = (cur[i], reference[i]);
-        let re = c.re * r.re + c.im * r.im;
-        let im = c.im * r.re - c.re * r.im;
-        tail += w[i] * crate::fastmath::atan2(im, re);
+    // The last pixels (fewer than L) through the same lanes, padded with
+    // zeros, which add exactly 0 (as in `riesz_span`).
+    let s = chunks * L;
+    if s < n {
+        let mut c = [Complex32::default(); L];
+        let mut r = [Complex32::default(); L];
+        let mut wp = [0.0f32; L];
+        c[..n - s].copy_from_slice(&cur[s..n]);
+        r[..n - s].copy_from_slice(&reference[s..n]);
+        wp[..n - s].copy_from_slice(&w[s..n]);
+        csp_px::<L>(&c, &r, &wp, 0, &mut acc);
     }
     // Lanes added in a fixed order.
-    acc.iter().sum::<f32>() + tail
+    acc.iter().sum::<f32>()
 }
 
 /// Most orientations a fused Riesz call handles.
@@ -238,6 +246,37 @@ fn riesz_span<const K: usize>(
             ch += 1;
         }
     }
+    // The last pixels (fewer than L) through the same lanes, padded with
+    // zeros: a zero pixel adds exactly 0 (its weight is 0 and its change
+    // finite). A span shorter than L (a tile's row at a coarse level) is
+    // all tail: its pixels one at a time took 85% of a tiled analysis.
+    let s = chunks * L;
+    if s < n {
+        // Plain loops: a closure (or `map`) is not compiled for the
+        // caller's vectors, and its copies were called lane by lane.
+        let r = n - s;
+        let (mut c, mut p) = ([[0.0f32; L]; 3], [[0.0f32; L]; 3]);
+        for j in 0..3 {
+            c[j][..r].copy_from_slice(&cur[j][s..n]);
+            p[j][..r].copy_from_slice(&prev[j][s..n]);
+        }
+        let mut wp = [[0.0f32; L]; K];
+        for (o, v) in wp.iter_mut().zip(w) {
+            o[..r].copy_from_slice(&v[s..n]);
+        }
+        let mut ws: [&[f32]; K] = [&[]; K];
+        for (o, v) in ws.iter_mut().zip(&wp) {
+            *o = v;
+        }
+        riesz_px::<L, K>(
+            [&c[0], &c[1], &c[2]],
+            [&p[0], &p[1], &p[2]],
+            0,
+            dirs,
+            &ws,
+            &mut lanes,
+        );
+    }
     lanes
 }
 
@@ -262,7 +301,6 @@ fn riesz_row_generic(
         .chain(w[..k].iter().map(|s| s.len()))
         .min()
         .unwrap_or(0);
-    let chunks = n / L;
     let mut lanes = [[0.0f32; L]; MAX_ORIENT];
     macro_rules! span {
         ($k:literal) => {{
@@ -290,18 +328,8 @@ fn riesz_row_generic(
             lanes = riesz_span::<MAX_ORIENT>(cur, prev, &ws, &d, n);
         }
     }
-    for (o, (&(ck, sk), wk)) in dirs[..k].iter().zip(&w[..k]).enumerate() {
-        let mut tail = 0.0f32;
-        for i in chunks * L..n {
-            tail += wk[i]
-                * quat_phase_delta(
-                    [cur[0][i], cur[1][i], cur[2][i]],
-                    [prev[0][i], prev[1][i], prev[2][i]],
-                    ck,
-                    sk,
-                );
-        }
-        acc[o] += lanes[o].iter().sum::<f32>() + tail;
+    for (a, l) in acc[..k].iter_mut().zip(&lanes) {
+        *a += l.iter().sum::<f32>();
     }
 }
 
