@@ -466,6 +466,45 @@ fn bad_input_exits_2_naming_the_file() {
         assert!(stderr(&o).contains(needle), "{args:?}: {}", stderr(&o));
         assert!(!d.path().join("r.json").exists(), "{args:?}");
     }
+    // A recording cut short inside a frame, and one whose frame marker is
+    // damaged: the file and the frame named, exit 2 (nothing is made of
+    // part of a recording), no report; the recording itself untouched.
+    let whole = std::fs::read(d.path().join("s.y4m")).unwrap();
+    let cut = &whole[..whole.len() - 32 * 32 * 40 - 100];
+    std::fs::write(d.path().join("cut.y4m"), cut).unwrap();
+    let mut marred = whole.clone();
+    // The eleventh frame's marker (frames carry their own time after it).
+    let marker = whole
+        .windows(5)
+        .enumerate()
+        .filter(|(_, w)| *w == b"FRAME")
+        .nth(10)
+        .unwrap()
+        .0;
+    marred[marker] = b'X';
+    std::fs::write(d.path().join("marred.y4m"), &marred).unwrap();
+    for (video, needle) in [("cut.y4m", "truncated"), ("marred.y4m", "frame 10")] {
+        let o = run_in(
+            d.path(),
+            &[
+                "calibrate",
+                video,
+                "--reference",
+                "chirp.wav",
+                "--json",
+                "r.json",
+            ],
+        );
+        let err = stderr(&o);
+        assert_eq!(code(&o), 2, "{video}: {err}");
+        assert!(!err.contains("panicked"), "{video}: {err}");
+        assert!(
+            err.contains(video) && err.contains(needle),
+            "{video}: {err}"
+        );
+        assert!(!d.path().join("r.json").exists(), "{video}");
+    }
+    assert_eq!(std::fs::read(d.path().join("cut.y4m")).unwrap(), cut);
 }
 
 /// Exposure: each frame averages the motion over 450 µs (99% of the frame

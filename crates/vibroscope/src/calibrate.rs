@@ -576,7 +576,8 @@ pub fn calibrate_video_from(
                     format!("must be a frequency above 0 and at most {MAX_TONE_HZ} Hz, got {hz}"),
                 ));
             }
-            let (fs, y, strips, observed) = recover_all(video, fps, region, opts.as_ref(), run)?;
+            let (fs, y, strips, observed) = recover_all(video, fps, region, opts.as_ref(), run)
+                .map_err(Error::damaged_recording_as_input)?;
             // Sampled well above the frame rate and the tone (the model
             // samples it at the frame times, band-limited), a second
             // longer than the video (the delay is searched over ±0.5 s).
@@ -602,7 +603,8 @@ pub fn calibrate_video_from(
             ),
         ));
     }
-    let (fs, y, strips, observed) = recover_all(video, fps, region, opts.as_ref(), run)?;
+    let (fs, y, strips, observed) = recover_all(video, fps, region, opts.as_ref(), run)
+        .map_err(Error::damaged_recording_as_input)?;
     let (dv, dr) = (y.len() as f64 / fs, r.len() as f64 / fr);
     if dr + 0.5 / fs < dv {
         return Err(Error::input(

@@ -169,6 +169,37 @@ impl Error {
         }
     }
 
+    /// A run stopped by damage in its recording (a frame cut short or
+    /// malformed, a bad header) becomes [`Error::Input`] naming the file
+    /// (exit 2); any other error is returned unchanged. For a command that
+    /// makes nothing of part of a recording (`calibrate`): the file is the
+    /// user's to fix, where `listen` keeps what it read and exits 1.
+    pub(crate) fn damaged_recording_as_input(self) -> Error {
+        use crate::engine::StageError;
+        use crate::io::VideoError;
+        let Error::Stages { report } = &self else {
+            return self;
+        };
+        let damaged = report.errors.iter().find_map(|e| match &e.source {
+            StageError::Video(
+                v @ (VideoError::Truncated { .. }
+                | VideoError::BadFrame { .. }
+                | VideoError::Malformed { .. }
+                | VideoError::Header { .. }),
+            ) => Some(v),
+            _ => None,
+        });
+        match damaged {
+            Some(v) => {
+                let text = v.to_string();
+                let prefix = format!("{}: ", v.path());
+                let message = text.strip_prefix(&prefix).unwrap_or(&text).to_string();
+                Error::input(v.path(), message)
+            }
+            None => self,
+        }
+    }
+
     pub(crate) fn input(path: impl Into<PathBuf>, message: impl Into<String>) -> Error {
         Error::Input {
             path: path.into(),
