@@ -302,6 +302,36 @@ impl Interp {
     }
 }
 
+/// How many fractions a [`TapMemo`] keeps.
+const MEMO_SLOTS: usize = 4;
+
+/// [`Interp::taps_f32_reversed`] for the last few fractions asked, kept
+/// (one interpolator's: a memo is used with the one [`Interp`] it serves).
+/// A frame asks for the same fractions on each of its rows; a kept value
+/// is the one computed for that fraction, so the bits are the same.
+#[derive(Clone, Debug, Default)]
+pub struct TapMemo {
+    /// (the fraction's bits, its taps); the first `used` are filled.
+    slots: [(u64, [f32; TAPS]); MEMO_SLOTS],
+    used: usize,
+    next: usize,
+}
+
+impl TapMemo {
+    /// `interp.taps_f32_reversed(frac)`, from the memo when asked before.
+    pub fn taps_f32_reversed(&mut self, interp: &Interp, frac: f64) -> [f32; TAPS] {
+        let key = frac.to_bits();
+        if let Some((_, t)) = self.slots[..self.used].iter().find(|(k, _)| *k == key) {
+            return *t;
+        }
+        let t = interp.taps_f32_reversed(frac);
+        self.slots[self.next] = (key, t);
+        self.next = (self.next + 1) % MEMO_SLOTS;
+        self.used = (self.used + 1).min(MEMO_SLOTS);
+        t
+    }
+}
+
 /// `out[c] = Σ_s taps[s] · src[c + s]` for every `c` in `out`
 /// (`src.len() >= out.len() + TAPS - 1`).
 #[inline]
@@ -443,5 +473,27 @@ mod tests {
         }
         eprintln!("1-D interpolation worst error / texture std: {worst:.2e}");
         assert!(worst < 3e-6, "worst {worst}");
+    }
+
+    /// The memo gives the interpolator's own taps for every fraction,
+    /// asked again, after others have pushed it out, and for fractions
+    /// that differ in their last bit.
+    #[test]
+    fn the_memo_gives_the_interpolators_taps() {
+        let ip = Interp::new(1.5);
+        let mut memo = TapMemo::default();
+        let next = 0.3f64.next_up();
+        let fracs = [
+            0.3, 0.3, next, 0.0, 0.71, 0.3, 0.2, 0.9, 0.55, next, 0.3, 0.71,
+        ];
+        for f in fracs {
+            let want = ip.taps_f32_reversed(f);
+            assert_eq!(
+                memo.taps_f32_reversed(&ip, f).map(f32::to_bits),
+                want.map(f32::to_bits),
+                "{f}"
+            );
+        }
+        assert_ne!(ip.taps_f32_reversed(0.3), ip.taps_f32_reversed(0.71));
     }
 }

@@ -276,6 +276,7 @@ impl Scene {
             covx: vec![1.0; ncols],
             line: vec![0.0; w],
             noise: vec![0.0; w],
+            taps: Default::default(),
             modal_obj: vec![
                 0.0;
                 if modal.is_some() || fabric.is_some() {

@@ -133,6 +133,8 @@ struct Scratch {
     noise: Vec<f32>,
     /// The modal beam's object, `ow x oh` (empty without one).
     modal_obj: Vec<f32>,
+    /// The object's interpolator's taps for this frame's shifts.
+    taps: crate::texture::TapMemo,
 }
 
 /// The forward model: see the module docs.

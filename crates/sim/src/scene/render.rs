@@ -172,7 +172,7 @@ impl Model {
     pub(super) fn prepare_global(&self, d: f64, s: &mut Scratch) -> Option<(Span, Span)> {
         let (sx, sy) = self.spans(d)?;
         let n = sx.len();
-        let tx = self.interp.taps_f32_reversed(sx.frac);
+        let tx = s.taps.taps_f32_reversed(&self.interp, sx.frac);
         let rows = sy.len() + TAPS - 1;
         for (r, out) in s.hbuf[..rows * n].chunks_exact_mut(n).enumerate() {
             self.hrow(&tx, &sx, sy.g0 + r, out);
@@ -193,7 +193,7 @@ impl Model {
         if sy.frac == 0.0 {
             obj.copy_from_slice(&s.hbuf[(r + PAD) * n..(r + PAD + 1) * n]);
         } else {
-            let ty = self.interp.taps_f32_reversed(sy.frac);
+            let ty = s.taps.taps_f32_reversed(&self.interp, sy.frac);
             vcombine(&ty, &s.hbuf[r * n..(r + TAPS) * n], obj);
         }
         self.blend(
@@ -213,7 +213,7 @@ impl Model {
             return;
         }
         let n = sx.len();
-        let tx = self.interp.taps_f32_reversed(sx.frac);
+        let tx = s.taps.taps_f32_reversed(&self.interp, sx.frac);
         let g = sy.g0 + (y - sy.p0);
         if sy.frac == 0.0 {
             self.hrow(&tx, &sx, g + PAD, &mut s.obj[..n]);
@@ -221,7 +221,7 @@ impl Model {
             for (t, out) in s.rows8[..TAPS * n].chunks_exact_mut(n).enumerate() {
                 self.hrow(&tx, &sx, g + t, out);
             }
-            let ty = self.interp.taps_f32_reversed(sy.frac);
+            let ty = s.taps.taps_f32_reversed(&self.interp, sy.frac);
             vcombine(&ty, &s.rows8[..TAPS * n], &mut s.obj[..n]);
         }
         if self.edges == EdgeMode::Moving {

@@ -14,7 +14,7 @@
 //! capture time (exposure does not average them).
 
 use crate::rng::{hash2, Xoshiro256, Ziggurat};
-use crate::texture::{Interp, PAD, TAPS};
+use crate::texture::{Interp, TapMemo, PAD, TAPS};
 use crate::{detmath, Signal, SignalSpec, SimError};
 use serde::Deserialize;
 
@@ -110,6 +110,9 @@ pub(super) struct Motion {
     signal: Signal,
     amplitude_px: f64,
     dir: (f64, f64),
+    /// [`Motion::peak`], found once (a recorded signal's peak is a pass
+    /// over its samples, and the shift is asked for every row).
+    peak_px: f64,
 }
 
 impl Motion {
@@ -132,16 +135,18 @@ impl Motion {
             )));
         }
         let (sin, cos) = detmath::sin_cos_turns(spec.direction_deg / 360.0);
+        let peak_px = spec.amplitude_px.abs() * signal.peak_bound().max(1.0);
         Ok(Motion {
             signal,
             amplitude_px: spec.amplitude_px,
             dir: (cos, sin),
+            peak_px,
         })
     }
 
     /// The largest excursion, px.
     pub(super) fn peak(&self) -> f64 {
-        self.amplitude_px.abs() * self.signal.peak_bound().max(1.0)
+        self.peak_px
     }
 
     /// The shift `(x, y)` at `t_s`, px (bounded by [`Motion::peak`]).
@@ -180,6 +185,8 @@ pub(super) struct Surroundings {
     /// was last called for (empty without column noise).
     column_offsets: Vec<f32>,
     interp: Interp,
+    /// The interpolator's taps for this frame's shifts.
+    taps: TapMemo,
     zig: Ziggurat,
     /// One row of the background shifted, and a column buffer.
     tmp: Vec<f32>,
@@ -272,6 +279,7 @@ impl Surroundings {
             column_key: hash2(seed, 6),
             column_offsets: Vec::with_capacity(if spec.column_noise_dn > 0.0 { w } else { 0 }),
             interp: Interp::new(BACKGROUND_SIGMA_PX),
+            taps: TapMemo::default(),
             zig: Ziggurat::new(),
             tmp: vec![0.0; w],
         })
@@ -301,7 +309,7 @@ impl Surroundings {
         let h = bg.len() / w;
         if cam != (0.0, 0.0) {
             shifted_row(
-                &self.interp,
+                (&self.interp, &mut self.taps),
                 bg,
                 (w, h),
                 y,
@@ -319,7 +327,16 @@ impl Surroundings {
             }
             let (mx, my) = m.motion.shift(t_s);
             let s = (cam.0 + mx, cam.1 + my);
-            shifted_row(&self.interp, bg, (w, h), y, s, m.x, &mut self.tmp, line);
+            shifted_row(
+                (&self.interp, &mut self.taps),
+                bg,
+                (w, h),
+                y,
+                s,
+                m.x,
+                &mut self.tmp,
+                line,
+            );
         }
     }
 
@@ -382,7 +399,7 @@ impl Surroundings {
 /// `line`; `tmp` holds the vertical pass (`w` long).
 #[allow(clippy::too_many_arguments)]
 fn shifted_row(
-    interp: &Interp,
+    (interp, taps): (&Interp, &mut TapMemo),
     img: &[f32],
     (w, h): (usize, usize),
     y: usize,
@@ -397,8 +414,8 @@ fn shifted_row(
     };
     let (iy, fy) = split(sy);
     let (ix, fx) = split(sx);
-    let ty = interp.taps_f32_reversed(fy);
-    let tx = interp.taps_f32_reversed(fx);
+    let ty = taps.taps_f32_reversed(interp, fy);
+    let tx = taps.taps_f32_reversed(interp, fx);
     let clamp = |v: i64, n: usize| v.clamp(0, n as i64 - 1) as usize;
     // Columns the horizontal pass reads.
     let lo = clamp(x0 as i64 - ix - PAD as i64, w);
@@ -412,10 +429,19 @@ fn shifted_row(
         }
     }
     for (x, out) in line.iter_mut().enumerate().take(x1).skip(x0) {
+        let first = x as i64 - ix - PAD as i64;
         let mut acc = 0.0f32;
-        for (s, &t) in tx.iter().enumerate() {
-            let c = clamp(x as i64 - ix - PAD as i64 + s as i64, w);
-            acc += t * tmp[c];
+        if first >= 0 && first + TAPS as i64 <= w as i64 {
+            // Inside the image: no column to clamp (the same sum, in the
+            // same order).
+            let first = first as usize;
+            for (&t, &v) in tx.iter().zip(&tmp[first..first + TAPS]) {
+                acc += t * v;
+            }
+        } else {
+            for (s, &t) in tx.iter().enumerate() {
+                acc += t * tmp[clamp(first + s as i64, w)];
+            }
         }
         *out = acc;
     }
@@ -442,7 +468,7 @@ mod tests {
         for (sx, sy, tol) in [(2.0, -1.0, 1e-3), (0.3, 0.0, 0.05), (-0.45, 0.7, 0.05)] {
             let y = 15;
             shifted_row(
-                &interp,
+                (&interp, &mut TapMemo::default()),
                 &img,
                 (w, h),
                 y,

@@ -42,6 +42,7 @@ pub const KIND: KindSpec = KindSpec {
             path: v.path,
             out: None,
             pending: None,
+            line: String::new(),
         }))
     },
 };
@@ -51,6 +52,115 @@ struct Csv {
     out: Option<BufWriter<std::fs::File>>,
     /// The temporary file `out` writes, renamed on finish.
     pending: Option<Pending>,
+    /// A row of samples, made before it is written.
+    line: String,
+}
+
+/// Whether `v`'s exact decimal value has at most 10 significant digits
+/// (ryu's shortest digits for an `f32` are at most 9: a tie between two
+/// of them needs an exact value one digit longer, ending in 5).
+fn few_exact_digits(v: f32) -> bool {
+    let bits = v.to_bits() & 0x7fff_ffff;
+    let (biased, frac) = (bits >> 23, bits & 0x7f_ffff);
+    let (mut m, mut e) = match biased {
+        0 => (frac, -149i32),
+        _ => (frac | 0x80_0000, biased as i32 - 150),
+    };
+    if m == 0 {
+        return true;
+    }
+    let tz = m.trailing_zeros();
+    m >>= tz;
+    e += tz as i32;
+    // v = m 2^e, m odd. For e >= 0 the digits less their trailing zeros
+    // (at most 10 of them: m < 2^24 holds at most 5^10) are at least
+    // 2^(e - 10); for e < 0, v = m 5^-e / 10^-e and m 5^-e, odd, has no
+    // trailing zeros and is at least 5^-e.
+    let mut n: u128 = if e >= 0 {
+        if e >= 44 {
+            return false;
+        }
+        (m as u128) << e
+    } else {
+        if e <= -15 {
+            return false;
+        }
+        m as u128 * 5u128.pow((-e) as u32)
+    };
+    while n.is_multiple_of(10) {
+        n /= 10;
+    }
+    n < 10_000_000_000
+}
+
+/// Appends `v` as `format!("{v}")` writes it (the shortest digits that
+/// read back as `v`, never an exponent: `0.000012`, `-0`, `1`, `NaN`),
+/// through `ryu`, which finds the same digits several times faster than
+/// the formatting machinery (a sample block of the calibration's
+/// observables is hundreds of channels).
+fn push_display_f32(out: &mut String, v: f32) {
+    // The two choose the same shortest digits but for a tie (a value
+    // exactly halfway between two shortest candidates, 1765629.25): ryu
+    // rounds it to even, the formatting machinery up. A tie needs a value
+    // whose exact decimal has few digits; those take the slow path.
+    if !v.is_finite() || few_exact_digits(v) {
+        use std::fmt::Write as _;
+        let _ = write!(out, "{v}");
+        return;
+    }
+    let mut buf = ryu::Buffer::new();
+    let text = buf.format_finite(v);
+    // ryu writes `[-]int[.frac][e[-]exp]`; read off the digits and where
+    // the decimal point falls among them.
+    let (sign, body) = match text.strip_prefix('-') {
+        Some(b) => ("-", b),
+        None => ("", text),
+    };
+    let (mantissa, exp) = match body.split_once('e') {
+        Some((m, e)) => (m, e.parse::<i32>().unwrap_or(0)),
+        None => (body, 0),
+    };
+    let (int, frac) = mantissa.split_once('.').unwrap_or((mantissa, ""));
+    let frac = frac.trim_end_matches('0');
+    let int = int.trim_start_matches('0');
+    // The significant digits are `int` then `frac` (or `frac` less its
+    // leading zeros when the integer part is 0), the point after `point`
+    // of them.
+    let (digits, mut point) = if int.is_empty() {
+        let rest = frac.trim_start_matches('0');
+        (("", rest), exp - (frac.len() - rest.len()) as i32)
+    } else {
+        ((int, frac), int.len() as i32 + exp)
+    };
+    out.push_str(sign);
+    let n = digits.0.len() + digits.1.len();
+    if n == 0 {
+        out.push('0');
+        return;
+    }
+    // Digits `a..b` of the two parts, in order.
+    let put = |out: &mut String, a: usize, b: usize| {
+        let k = digits.0.len();
+        out.push_str(&digits.0[a.min(k)..b.min(k)]);
+        out.push_str(&digits.1[a.max(k) - k..b.max(k) - k]);
+    };
+    if point <= 0 {
+        out.push_str("0.");
+        while point < 0 {
+            out.push('0');
+            point += 1;
+        }
+        put(out, 0, n);
+    } else if point as usize >= n {
+        put(out, 0, n);
+        for _ in n..point as usize {
+            out.push('0');
+        }
+    } else {
+        put(out, 0, point as usize);
+        out.push('.');
+        put(out, point as usize, n);
+    }
 }
 
 impl Plan for Csv {
@@ -82,16 +192,21 @@ impl Csv {
                     }
                     writeln!(o)?;
                 }
+                let line = &mut self.line;
                 for (i, row) in s.data.chunks_exact(ch).enumerate() {
                     let t = match &s.times_ns {
                         Some(t) => t.get(i).copied().unwrap_or(0) as f64 * 1e-9,
                         None => s.t0_ns as f64 * 1e-9 + i as f64 / s.rate_hz,
                     };
-                    write!(o, "{t:.9}")?;
-                    for v in row {
-                        write!(o, ",{v}")?;
+                    line.clear();
+                    std::fmt::Write::write_fmt(line, format_args!("{t:.9}"))
+                        .map_err(std::io::Error::other)?;
+                    for &v in row {
+                        line.push(',');
+                        push_display_f32(line, v);
                     }
-                    writeln!(o)?;
+                    line.push('\n');
+                    o.write_all(line.as_bytes())?;
                 }
             }
             Item::Spectrum(s) => {
@@ -175,4 +290,56 @@ fn cut_to_whole_lines(path: &Path) -> std::io::Result<()> {
         end = start;
     }
     f.set_len(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fast path writes every value as `format!("{v}")` does: random
+    /// bit patterns over the whole range, every power of two and ten, the
+    /// neighbours of each, zeros, subnormals and the non-finite values.
+    #[test]
+    fn samples_are_written_as_display_writes_them() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut values: Vec<f32> = (0..400_000)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                f32::from_bits((state >> 32) as u32)
+            })
+            .collect();
+        for e in -45..39 {
+            let p = 10f32.powi(e);
+            values.extend([p, p.next_up(), p.next_down(), -p, 1.5 * p, 0.123 * p]);
+        }
+        for e in -149..128 {
+            let p = 2f32.powi(e);
+            values.extend([p, p.next_up(), p.next_down(), -p]);
+        }
+        values.extend([
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.1,
+            123_456_790.0,
+            // A tie: ryu's digits end 2, the formatting machinery's 3.
+            1_765_629.2,
+            f32::MIN_POSITIVE,
+            f32::from_bits(1),
+            f32::MAX,
+            f32::MIN,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ]);
+        let mut line = String::new();
+        for v in values {
+            line.clear();
+            push_display_f32(&mut line, v);
+            assert_eq!(line, format!("{v}"), "bits {:#010x}", v.to_bits());
+        }
+    }
 }
