@@ -58,11 +58,21 @@ struct Shared {
     /// A producer blocked on a full ring resumes when this many items or
     /// fewer are queued ([`edge_resuming_at_half`]).
     resume: usize,
+    /// The consumer polls ([`EdgeRx::recv_polling`]): the producer wakes
+    /// it only once the ring is half full, not for every item.
+    polled: AtomicBool,
     data: Notify,
     space: Notify,
     producer_done: AtomicBool,
     consumer_gone: AtomicBool,
     stats: Arc<EdgeStats>,
+}
+
+impl Shared {
+    /// The occupancy at which a polling consumer is woken.
+    fn wake_polled_at(&self) -> usize {
+        self.capacity.div_ceil(2)
+    }
 }
 
 enum ConsHalf {
@@ -151,6 +161,7 @@ fn make_edge(capacity: usize, policy: Policy, resume: usize) -> (EdgeTx, EdgeRx,
         policy,
         capacity,
         resume,
+        polled: AtomicBool::new(false),
         data: Notify::new(),
         space: Notify::new(),
         producer_done: AtomicBool::new(false),
@@ -205,9 +216,13 @@ impl EdgeTx {
                     Ok(()) => {
                         let st = &self.shared.stats;
                         st.pushed.fetch_add(1, Ordering::Relaxed);
-                        let occ = self.prod.occupied_len() as u64;
-                        st.max_occupancy.fetch_max(occ, Ordering::Relaxed);
-                        self.shared.data.notify();
+                        let occ = self.prod.occupied_len();
+                        st.max_occupancy.fetch_max(occ as u64, Ordering::Relaxed);
+                        if occ >= self.shared.wake_polled_at()
+                            || !self.shared.polled.load(Ordering::Relaxed)
+                        {
+                            self.shared.data.notify();
+                        }
                         return Sent::Queued { evicted };
                     }
                     Err(back) => item = back,
@@ -283,11 +298,21 @@ impl EdgeRx {
     }
 
     /// [`EdgeRx::recv`] for a consumer that does not want to be woken per
-    /// item: when the ring is empty it sleeps `period` and looks again, so
-    /// the producer never signals it (a cheap watcher of a fast stream
-    /// costs the producer nothing but the push).
+    /// item: when the ring is empty it sleeps up to `period` and looks
+    /// again, and the producer wakes it only when the ring is half full
+    /// (a cheap watcher of a fast stream costs the producer nothing but the
+    /// push; a writer of small frames, whose ring fills within the period,
+    /// does not hold its producer up for the rest of it).
     pub fn recv_polling(&mut self, stop: &AtomicBool, period: std::time::Duration) -> Recv {
-        self.recv_with(stop, |_| std::thread::sleep(period))
+        self.shared.polled.store(true, Ordering::Relaxed);
+        self.recv_with(stop, |rx| {
+            let shared = Arc::clone(&rx.shared);
+            let cons = &rx.cons;
+            let half = shared.wake_polled_at();
+            shared.data.wait_until(period, || {
+                cons.occupied() >= half || shared.producer_done.load(Ordering::Acquire)
+            });
+        })
     }
 
     /// The next item, the end of the stream or `stop`, calling `wait`
@@ -414,6 +439,35 @@ mod tests {
             }
             assert_eq!(next, 9);
         }
+    }
+
+    /// A polling consumer is woken when its ring is half full and at the
+    /// end of the stream, not only when its period (an hour here) ends:
+    /// a producer of small items is not held up for the rest of it.
+    #[test]
+    fn a_polling_consumer_is_woken_at_half_the_ring() {
+        let stop = Arc::new(AtomicBool::new(false));
+        let (mut tx, mut rx, _) = edge(8, Policy::Block);
+        let s2 = Arc::clone(&stop);
+        let producer = std::thread::spawn(move || {
+            for i in 0..101 {
+                assert_eq!(tx.send(audio(i), &s2), Sent::Queued { evicted: 0 });
+            }
+        });
+        let (done, got) = std::sync::mpsc::channel();
+        let s3 = Arc::clone(&stop);
+        std::thread::spawn(move || {
+            let mut next = 0;
+            while let Recv::Item(it) = rx.recv_polling(&s3, Duration::from_secs(3600)) {
+                assert_eq!(it.t_ns(), next);
+                next += 1;
+            }
+            let _ = done.send(next);
+        });
+        // (Each wait would otherwise last the hour.)
+        let received = got.recv_timeout(Duration::from_secs(60));
+        assert_eq!(received, Ok(101), "the polling consumer was not woken");
+        producer.join().unwrap();
     }
 
     #[test]

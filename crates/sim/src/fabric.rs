@@ -49,6 +49,8 @@ pub const LINE_SPACING_HZ: f64 = 0.02;
 pub const G: f64 = 9.81;
 /// Fractional-shift taps are tabulated at this many steps per pixel.
 const TAP_STEPS: usize = 256;
+/// Pixels a row's interpolation sums side by side (each its own sum).
+const LANES: usize = 8;
 
 /// How the fabric is excited.
 #[derive(serde::Deserialize, serde::Serialize, Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -439,6 +441,8 @@ pub struct Fabric {
     z: Vec<(f64, f64)>,
     q: Vec<f64>,
     rows: Vec<f64>,
+    /// A row's displacements (`ow`).
+    row_d: Vec<f64>,
     n_across: usize,
     taps: Vec<[f32; TAPS]>,
     /// The time `q` was computed for.
@@ -690,6 +694,7 @@ impl Fabric {
             z: vec![(0.0, 0.0); LINES],
             q: vec![0.0; modes.len()],
             rows: vec![0.0; n_across * oh],
+            row_d: vec![0.0; ow],
             freqs,
             coef,
             along,
@@ -852,28 +857,54 @@ impl Fabric {
                 self.rows[r * na + m] += y * q;
             }
         }
+        // Each pixel's sums are made in the order they always were (over
+        // the modes, then over the taps), several pixels side by side.
+        if self.row_d.len() != ow {
+            self.row_d.resize(ow, 0.0);
+        }
+        let row_d = &mut self.row_d[..];
         for r in 0..oh {
             let sums = &self.rows[r * na..(r + 1) * na];
             let grow = &lat.grid[(r + lat.pad) * lat.gw..(r + lat.pad + 1) * lat.gw];
-            for c in 0..ow {
-                let mut d = 0.0;
-                for (m, &s) in sums.iter().enumerate() {
-                    d += self.across[m][c] * s;
+            row_d.fill(0.0);
+            for (across, &s) in self.across.iter().zip(sums) {
+                for (d, &a) in row_d.iter_mut().zip(&across[..ow]) {
+                    *d += a * s;
                 }
-                let d = d.clamp(-lat.amp_max, lat.amp_max);
+            }
+            // Pixel `c`'s two neighbouring tap sets, the weight between
+            // them and its window of the texture.
+            let taps = &self.taps;
+            let pixel = |c: usize| {
+                let d = row_d[c].clamp(-lat.amp_max, lat.amp_max);
                 let i = d.floor();
                 let x = (d - i) * TAP_STEPS as f64;
                 let b = (x as usize).min(TAP_STEPS - 1);
                 let w = (x - b as f64) as f32;
-                let (t0, t1) = (&self.taps[b], &self.taps[b + 1]);
                 // Lattice column k = c - i; its window starts at grid column k - PAD + pad.
                 let g0 = (c as i64 - i as i64 - PAD as i64 + lat.pad as i64) as usize;
-                let win = &grow[g0..g0 + TAPS];
+                (&taps[b], &taps[b + 1], w, &grow[g0..g0 + TAPS])
+            };
+            let out = &mut out[r * ow..(r + 1) * ow];
+            let mut chunks = out.chunks_exact_mut(LANES);
+            for (k, o) in (&mut chunks).enumerate() {
+                let p: [_; LANES] = std::array::from_fn(|j| pixel(k * LANES + j));
+                let mut v = [0.0f32; LANES];
+                for s in 0..TAPS {
+                    for (v, (t0, t1, w, win)) in v.iter_mut().zip(&p) {
+                        *v += (t0[s] + w * (t1[s] - t0[s])) * win[s];
+                    }
+                }
+                o.copy_from_slice(&v);
+            }
+            let done = ow - chunks.into_remainder().len();
+            for (c, o) in out.iter_mut().enumerate().skip(done) {
+                let (t0, t1, w, win) = pixel(c);
                 let mut v = 0.0f32;
                 for s in 0..TAPS {
                     v += (t0[s] + w * (t1[s] - t0[s])) * win[s];
                 }
-                out[r * ow + c] = v;
+                *o = v;
             }
         }
     }
