@@ -114,6 +114,8 @@ pub enum ModalError {
     EmptyMask,
     #[error("the mask must be set before the first frame")]
     MaskTooLate,
+    #[error("{0}")]
+    Leader(&'static str),
 }
 
 /// A pyramid the imager analyses frames with.
@@ -298,6 +300,9 @@ pub struct ModalImager {
     /// Σ τ^k (k = 2, 3, 4) and Σ τ^k e^{-iωτ}: the taper's own sums.
     real_moments: [f64; 3],
     moments: [Complex64; 3],
+    /// Fed by a leader's pyramid ([`ModalImager::push_following`]), its
+    /// own left unused; `None` before the first frame.
+    follows: Option<bool>,
 }
 
 /// A modal image: complex amplitude (pixels of motion) per input pixel,
@@ -321,6 +326,26 @@ pub struct ModalImage {
     /// Frames and time span used.
     pub frames: u64,
     pub span_s: f64,
+}
+
+/// Adds frame time `tau` to the taper's sums (`real`: Σ τ^k, `moments`:
+/// Σ τ^k e^{-iωτ}, k = 2, 3, 4, at `freq_hz`); returns τ^k e^{-iωτ}.
+fn add_moments(
+    freq_hz: f64,
+    real: &mut [f64; 3],
+    moments: &mut [Complex64; 3],
+    tau: f64,
+) -> [Complex64; 3] {
+    let (s, co) = (TAU * freq_hz * tau).sin_cos();
+    let e = Complex64::new(co, -s);
+    let t2 = tau * tau;
+    let p = [t2, t2 * tau, t2 * t2];
+    let c = [e * p[0], e * p[1], e * p[2]];
+    for k in 0..3 {
+        real[k] += p[k];
+        moments[k] += c[k];
+    }
+    c
 }
 
 impl ModalImager {
@@ -367,6 +392,7 @@ impl ModalImager {
             frame_sum: vec![0.0; width * height],
             real_moments: [0.0; 3],
             moments: [Complex64::new(0.0, 0.0); 3],
+            follows: None,
         })
     }
 
@@ -411,6 +437,48 @@ impl ModalImager {
 
     /// Adds one frame (row-major `width x height`) captured at `t_ns`.
     pub fn push(&mut self, frame: &[f32], t_ns: i64) -> Result<(), ModalError> {
+        self.check(frame, t_ns, false)?;
+        self.pyr.analyze(frame)?;
+        let first = !self.pyr.has_reference();
+        if first {
+            self.pyr.keep_reference();
+        }
+        self.accumulate(None, frame, t_ns, first)
+    }
+
+    /// [`ModalImager::push`] with the pyramid `leader` has just analysed
+    /// `frame` with (its own `push` of the same frame): several imagers of
+    /// one recording (modes, axes) analyse each frame once, and each gets
+    /// the bits it would get on its own. `leader` must be the same size
+    /// and pyramid at the same scale, have taken every frame this imager
+    /// takes, the first the same; an imager takes every frame one way.
+    pub fn push_following(
+        &mut self,
+        leader: &ModalImager,
+        frame: &[f32],
+        t_ns: i64,
+    ) -> Result<(), ModalError> {
+        self.check(frame, t_ns, true)?;
+        let same = (
+            leader.width,
+            leader.height,
+            leader.cfg.scale,
+            leader.cfg.pyramid,
+        ) == (self.width, self.height, self.cfg.scale, self.cfg.pyramid);
+        if !same
+            || leader.follows != Some(false)
+            || leader.last_ns != t_ns
+            || leader.frames != self.frames + 1
+        {
+            return Err(ModalError::Leader(
+                "the leader must be an imager of the same size, pyramid and scale that has just taken this frame itself",
+            ));
+        }
+        self.accumulate(Some(&*leader.pyr), frame, t_ns, self.frames == 0)
+    }
+
+    /// The frame's size and time, and that the imager is fed one way.
+    fn check(&mut self, frame: &[f32], t_ns: i64, following: bool) -> Result<(), ModalError> {
         if frame.len() != self.width * self.height {
             return Err(ModalError::FrameSize {
                 expected: self.width * self.height,
@@ -420,12 +488,32 @@ impl ModalImager {
         if self.frames > 0 && t_ns < self.last_ns {
             return Err(ModalError::TimeOrder(t_ns, self.last_ns));
         }
-        self.pyr.analyze(frame)?;
+        if *self.follows.get_or_insert(following) != following {
+            return Err(ModalError::Leader(
+                "an imager takes every frame from its own pyramid or every frame from a leader's",
+            ));
+        }
+        Ok(())
+    }
+
+    /// Adds `frame`, analysed by `pyr` (this imager's own when `None`;
+    /// `first`: it is the reference).
+    fn accumulate(
+        &mut self,
+        pyr: Option<&dyn Phases>,
+        frame: &[f32],
+        t_ns: i64,
+        first: bool,
+    ) -> Result<(), ModalError> {
+        let pyr: &dyn Phases = match pyr {
+            Some(p) => p,
+            None => &*self.pyr,
+        };
         for (a, &v) in self.frame_sum.iter_mut().zip(frame) {
             *a += f64::from(v);
         }
         for b in &mut self.bands {
-            self.pyr.amplitude(b.band, &mut self.delta)?;
+            pyr.amplitude(b.band, &mut self.delta)?;
             for (p, &a) in b.power.iter_mut().zip(&self.delta) {
                 *p += f64::from(a) * f64::from(a);
             }
@@ -433,16 +521,16 @@ impl ModalImager {
         let t0 = *self.t0_ns.get_or_insert(t_ns);
         self.last_ns = t_ns;
         self.frames += 1;
-        if !self.pyr.has_reference() {
-            self.pyr.keep_reference();
+        let freq = self.cfg.freq_hz;
+        if first {
             // Δφ = 0 on the reference frame: only the taper's sums move.
-            self.add_moments(0.0);
+            add_moments(freq, &mut self.real_moments, &mut self.moments, 0.0);
             return Ok(());
         }
         let tau = (t_ns - t0) as f64 * 1e-9;
-        let c = self.add_moments(tau);
+        let c = add_moments(freq, &mut self.real_moments, &mut self.moments, tau);
         for b in &mut self.bands {
-            self.pyr.delta(b.band, &mut self.delta)?;
+            pyr.delta(b.band, &mut self.delta)?;
             for ((a, s), &d) in b.acc.iter_mut().zip(b.sum.iter_mut()).zip(&self.delta) {
                 let u = f64::from(d);
                 a[0] += c[0] * u;
@@ -452,20 +540,6 @@ impl ModalImager {
             }
         }
         Ok(())
-    }
-
-    /// Adds frame time `tau` to the taper's sums; returns τ^k e^{-iωτ}.
-    fn add_moments(&mut self, tau: f64) -> [Complex64; 3] {
-        let (s, co) = (TAU * self.cfg.freq_hz * tau).sin_cos();
-        let e = Complex64::new(co, -s);
-        let t2 = tau * tau;
-        let p = [t2, t2 * tau, t2 * t2];
-        let c = [e * p[0], e * p[1], e * p[2]];
-        for k in 0..3 {
-            self.real_moments[k] += p[k];
-            self.moments[k] += c[k];
-        }
-        c
     }
 
     /// Every band's phase change per input pixel of motion along x (along
@@ -1086,6 +1160,89 @@ pub fn read_npy_complex64(bytes: &[u8]) -> Result<(usize, usize, Vec<Complex32>)
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    /// Imagers fed a leader's analysis (two axes, two frequencies) give the
+    /// bits they give each on its own pyramid, on both pyramids; and a
+    /// leader of another scale, one that has not just taken the frame, or
+    /// an imager fed both ways is refused.
+    #[test]
+    fn imagers_following_a_leader_get_the_bits_they_get_alone() {
+        let (w, h, fps) = (40usize, 32usize, 200.0);
+        let frame = |k: usize| -> Vec<f32> {
+            let t = k as f64 / fps;
+            (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as f64, (i / w) as f64);
+                    let d =
+                        0.2 * (TAU * 12.0 * t).sin() * y / h as f64 + 0.1 * (TAU * 31.0 * t).sin();
+                    let e = 0.15 * (TAU * 12.0 * t).cos() * x / w as f64;
+                    (100.0
+                        + 40.0 * ((x - d) * 0.7).sin() * ((y - e) * 0.45).cos()
+                        + 20.0 * ((x - d) * 0.23 + (y - e) * 0.31).sin()) as f32
+                })
+                .collect()
+        };
+        let bits = |m: &ModalImage| -> Vec<(u32, u32, u32)> {
+            m.data
+                .iter()
+                .zip(&m.confidence)
+                .map(|(c, w)| (c.re.to_bits(), c.im.to_bits(), w.to_bits()))
+                .collect()
+        };
+        for pyramid in [PyramidKind::Csp, PyramidKind::Riesz] {
+            let cfg = |freq_hz, motion, scale| ModalConfig {
+                freq_hz,
+                scale,
+                sigma_px: 1.5,
+                motion,
+                normalize: true,
+                pyramid,
+            };
+            let cfgs = [
+                cfg(12.0, Motion::X, 0),
+                cfg(12.0, Motion::Y, 0),
+                cfg(31.0, Motion::Sum, 0),
+            ];
+            let make = || -> Vec<ModalImager> {
+                cfgs.iter()
+                    .map(|c| ModalImager::new(w, h, *c).unwrap())
+                    .collect()
+            };
+            let (mut alone, mut shared) = (make(), make());
+            let mut coarser = ModalImager::new(w, h, cfg(12.0, Motion::X, 1)).unwrap();
+            for k in 0..120 {
+                let (f, t) = (frame(k), (k as f64 / fps * 1e9) as i64);
+                for im in &mut alone {
+                    im.push(&f, t).unwrap();
+                }
+                let (lead, rest) = shared.split_first_mut().unwrap();
+                if k == 5 {
+                    // The leader has not taken this frame yet.
+                    assert!(matches!(
+                        rest[0].push_following(lead, &f, t),
+                        Err(ModalError::Leader(_))
+                    ));
+                }
+                lead.push(&f, t).unwrap();
+                for im in rest.iter_mut() {
+                    im.push_following(lead, &f, t).unwrap();
+                }
+                assert!(matches!(
+                    coarser.push_following(lead, &f, t),
+                    Err(ModalError::Leader(_))
+                ));
+            }
+            assert!(matches!(
+                shared[1].push(&frame(120), 120 * 5_000_000),
+                Err(ModalError::Leader(_))
+            ));
+            for (a, b) in alone.iter_mut().zip(&mut shared) {
+                let (a, b) = (a.finish().unwrap(), b.finish().unwrap());
+                assert!(a.data.iter().any(|c| c.norm() > 0.0));
+                assert_eq!(bits(&a), bits(&b), "{pyramid:?} {} Hz", a.freq_hz);
+            }
+        }
+    }
 
     #[test]
     fn npy_round_trips_and_pads_to_64() {

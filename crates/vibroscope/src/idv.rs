@@ -539,9 +539,16 @@ pub fn extract_basis(o: &BasisOptions) -> Result<Basis> {
             (None, Some(t)) => t,
             _ => (k as f64 / fps * 1e9).round() as i64,
         };
-        for im in &mut imagers {
-            im.push(&frame, t_ns)
+        // One pyramid analysis a frame: the first imager's, which the
+        // others (every mode, both axes) follow, each with the bits it
+        // would get on its own.
+        if let Some((lead, rest)) = imagers.split_first_mut() {
+            lead.push(&frame, t_ns)
                 .map_err(crate::math::MathError::from)?;
+            for im in rest {
+                im.push_following(lead, &frame, t_ns)
+                    .map_err(crate::math::MathError::from)?;
+            }
         }
         k += 1;
         if let Some(cb) = o.progress {
