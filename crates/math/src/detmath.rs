@@ -46,29 +46,82 @@ pub fn exp(x: f64) -> f64 {
     let k = (x * INV_LN2).round();
     // |r| <= ~0.3466; Taylor series to r^14: truncation error < 1e-18.
     let r = (x - k * LN2_HI) - k * LN2_LO;
-    const C: [f64; 15] = [
-        1.0,
-        1.0,
-        1.0 / 2.0,
-        1.0 / 6.0,
-        1.0 / 24.0,
-        1.0 / 120.0,
-        1.0 / 720.0,
-        1.0 / 5040.0,
-        1.0 / 40320.0,
-        1.0 / 362_880.0,
-        1.0 / 3_628_800.0,
-        1.0 / 39_916_800.0,
-        1.0 / 479_001_600.0,
-        1.0 / 6_227_020_800.0,
-        1.0 / 87_178_291_200.0,
-    ];
-    let mut p = C[14];
-    for &c in C[..14].iter().rev() {
+    let mut p = EXP_C[14];
+    for &c in EXP_C[..14].iter().rev() {
         p = p * r + c;
     }
     ldexp(p, k as i64)
 }
+
+/// [`exp`] of `N` values, each by the same operations (the same bits), side
+/// by side: the series' steps run in vector lanes.
+pub fn exp_many<const N: usize>(x: &[f64; N]) -> [f64; N] {
+    let mut k = [0.0f64; N];
+    let mut r = [0.0f64; N];
+    for ((k, r), &x) in k.iter_mut().zip(&mut r).zip(x) {
+        // Outside [-745.2, 709.8] (or NaN) the value is set below; a finite
+        // stand-in keeps the lanes' arithmetic plain.
+        let x = if (-745.2..=709.8).contains(&x) {
+            x
+        } else {
+            0.0
+        };
+        *k = round_half_away(x * INV_LN2);
+        *r = (x - *k * LN2_HI) - *k * LN2_LO;
+    }
+    let mut p = [EXP_C[14]; N];
+    for &c in EXP_C[..14].iter().rev() {
+        for (p, &r) in p.iter_mut().zip(&r) {
+            *p = *p * r + c;
+        }
+    }
+    let mut out = [0.0f64; N];
+    for (((o, &p), &k), &x) in out.iter_mut().zip(&p).zip(&k).zip(x) {
+        *o = if x.is_nan() {
+            x
+        } else if x > 709.8 {
+            f64::INFINITY
+        } else if x < -745.2 {
+            0.0
+        } else {
+            ldexp(p, k as i64)
+        };
+    }
+    out
+}
+
+/// `v.round()` (halves away from zero) for |v| < 2^52, without a call: the
+/// value less its integer part is exact there.
+fn round_half_away(v: f64) -> f64 {
+    let t = v as i64 as f64;
+    let d = v - t;
+    if d >= 0.5 {
+        t + 1.0
+    } else if d <= -0.5 {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
+/// The series of [`exp`]: 1/n! for n = 0..=14.
+const EXP_C: [f64; 15] = [
+    1.0,
+    1.0,
+    1.0 / 2.0,
+    1.0 / 6.0,
+    1.0 / 24.0,
+    1.0 / 120.0,
+    1.0 / 720.0,
+    1.0 / 5040.0,
+    1.0 / 40320.0,
+    1.0 / 362_880.0,
+    1.0 / 3_628_800.0,
+    1.0 / 39_916_800.0,
+    1.0 / 479_001_600.0,
+    1.0 / 6_227_020_800.0,
+    1.0 / 87_178_291_200.0,
+];
 
 /// Natural logarithm; NaN for x < 0, -inf for 0.
 pub fn ln(x: f64) -> f64 {
@@ -167,6 +220,37 @@ pub fn sin_turns(u: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Many values at once give each one's own `exp`, to the bit: over the
+    /// range, at its ends and beyond, halves of ln 2 (where the reduction
+    /// rounds), zeros and NaN.
+    #[test]
+    fn exp_of_many_values_is_each_ones_exp() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut xs: Vec<f64> = (0..4000)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 1600.0
+            })
+            .collect();
+        for k in -40..40 {
+            let h = (k as f64 + 0.5) * std::f64::consts::LN_2;
+            xs.extend([h, h.next_up(), h.next_down(), -h]);
+        }
+        xs.extend([0.0, -0.0, 709.8, 709.81, -745.2, -745.3, 1e300, -1e300]);
+        xs.extend([f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -1e-300]);
+        while !xs.len().is_multiple_of(8) {
+            xs.push(1.0);
+        }
+        for chunk in xs.chunks_exact(8) {
+            let chunk: [f64; 8] = chunk.try_into().unwrap();
+            for (x, got) in chunk.iter().zip(exp_many(&chunk)) {
+                assert_eq!(got.to_bits(), exp(*x).to_bits(), "{x}");
+            }
+        }
+    }
 
     fn rel(a: f64, b: f64) -> f64 {
         (a - b).abs() / b.abs().max(1e-300)

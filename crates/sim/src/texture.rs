@@ -287,6 +287,63 @@ impl Interp {
         h
     }
 
+    /// [`Interp::taps_f32_reversed`] for `N` fractions at once: each
+    /// fraction's taps by the same operations in the same order (the same
+    /// bits), the `N` side by side so that the solves run in vector lanes
+    /// (a modal plate asks for a fraction a pixel).
+    #[allow(clippy::needless_range_loop)] // the solves read best with indices
+    pub fn taps_f32_reversed_many<const N: usize>(&self, fracs: &[f64; N]) -> [[f32; TAPS]; N] {
+        let mut c = [[0.0f64; N]; TAPS];
+        for (t, ct) in c.iter_mut().enumerate() {
+            let mut arg = [0.0f64; N];
+            for (a, &frac) in arg.iter_mut().zip(fracs) {
+                let m = (TAP_MIN + t as i64) as f64 - frac;
+                *a = -m * m * self.inv_4s2;
+            }
+            *ct = detmath::exp_many(&arg);
+        }
+        let mut y = [[0.0f64; N]; TAPS];
+        for i in 0..TAPS {
+            let mut s = c[i];
+            for k in 0..i {
+                let lik = self.l[i][k];
+                for (s, &yk) in s.iter_mut().zip(&y[k]) {
+                    *s -= lik * yk;
+                }
+            }
+            let d = self.l[i][i];
+            for (yi, &s) in y[i].iter_mut().zip(&s) {
+                *yi = s / d;
+            }
+        }
+        let mut h = [[0.0f64; N]; TAPS];
+        for i in (0..TAPS).rev() {
+            let mut s = y[i];
+            for k in i + 1..TAPS {
+                let lki = self.l[k][i];
+                for (s, &hk) in s.iter_mut().zip(&h[k]) {
+                    *s -= lki * hk;
+                }
+            }
+            let d = self.l[i][i];
+            for (hi, &s) in h[i].iter_mut().zip(&s) {
+                *hi = s / d;
+            }
+        }
+        let mut r = [[0.0f32; TAPS]; N];
+        for (l, (rl, &frac)) in r.iter_mut().zip(fracs).enumerate() {
+            if frac == 0.0 || !frac.is_finite() {
+                // As `taps`: the identity.
+                rl[(TAPS as i64 - 1 + TAP_MIN) as usize] = 1.0;
+                continue;
+            }
+            for (s, v) in rl.iter_mut().enumerate() {
+                *v = h[TAPS - 1 - s][l] as f32;
+            }
+        }
+        r
+    }
+
     /// Taps in correlation order for [`correlate`]: `r[s] = h[TAPS-1-s]`.
     /// The value at lattice index `k` shifted by `frac`,
     /// `Σ_t h[t]·s(k - TAP_MIN - t)`, is then `Σ_s r[s]·s(k - PAD + s)`:
@@ -473,6 +530,43 @@ mod tests {
         }
         eprintln!("1-D interpolation worst error / texture std: {worst:.2e}");
         assert!(worst < 3e-6, "worst {worst}");
+    }
+
+    /// Many fractions at once give each one's own taps, to the bit: the
+    /// identity at 0 and for non-finite values, fractions across [0, 1)
+    /// and at its ends.
+    #[test]
+    fn taps_of_many_fractions_are_each_ones_taps() {
+        let ip = Interp::new(1.5);
+        let mut state = 12345u64;
+        let mut fracs: Vec<f64> = (0..400)
+            .map(|_| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (state >> 11) as f64 / (1u64 << 53) as f64
+            })
+            .collect();
+        fracs.extend([
+            0.0,
+            1.0f64.next_down(),
+            0.5,
+            f64::NAN,
+            f64::INFINITY,
+            1e-300,
+            0.25,
+        ]);
+        while !fracs.len().is_multiple_of(8) {
+            fracs.push(0.125);
+        }
+        for chunk in fracs.chunks_exact(8) {
+            let chunk: [f64; 8] = chunk.try_into().unwrap();
+            let many = ip.taps_f32_reversed_many(&chunk);
+            for (f, got) in chunk.iter().zip(&many) {
+                let want = ip.taps_f32_reversed(*f);
+                assert_eq!(got.map(f32::to_bits), want.map(f32::to_bits), "{f}");
+            }
+        }
     }
 
     /// The memo gives the interpolator's own taps for every fraction,
