@@ -360,7 +360,7 @@ impl Interp {
 }
 
 /// How many fractions a [`TapMemo`] keeps.
-const MEMO_SLOTS: usize = 4;
+const MEMO_SLOTS: usize = 8;
 
 /// [`Interp::taps_f32_reversed`] for the last few fractions asked, kept
 /// (one interpolator's: a memo is used with the one [`Interp`] it serves).
@@ -578,7 +578,7 @@ mod tests {
         let mut memo = TapMemo::default();
         let next = 0.3f64.next_up();
         let fracs = [
-            0.3, 0.3, next, 0.0, 0.71, 0.3, 0.2, 0.9, 0.55, next, 0.3, 0.71,
+            0.3, 0.3, next, 0.0, 0.71, 0.3, 0.2, 0.9, 0.55, next, 0.05, 0.15, 0.35, 0.45, 0.3, 0.71,
         ];
         for f in fracs {
             let want = ip.taps_f32_reversed(f);
