@@ -885,26 +885,17 @@ impl Fabric {
                 let g0 = (c as i64 - i as i64 - PAD as i64 + lat.pad as i64) as usize;
                 (&taps[b], &taps[b + 1], w, &grow[g0..g0 + TAPS])
             };
+            // (A row's last lanes past its end repeat its last pixel.)
             let out = &mut out[r * ow..(r + 1) * ow];
-            let mut chunks = out.chunks_exact_mut(LANES);
-            for (k, o) in (&mut chunks).enumerate() {
-                let p: [_; LANES] = std::array::from_fn(|j| pixel(k * LANES + j));
+            for (k, o) in out.chunks_mut(LANES).enumerate() {
+                let p: [_; LANES] = std::array::from_fn(|j| pixel((k * LANES + j).min(ow - 1)));
                 let mut v = [0.0f32; LANES];
                 for s in 0..TAPS {
                     for (v, (t0, t1, w, win)) in v.iter_mut().zip(&p) {
                         *v += (t0[s] + w * (t1[s] - t0[s])) * win[s];
                     }
                 }
-                o.copy_from_slice(&v);
-            }
-            let done = ow - chunks.into_remainder().len();
-            for (c, o) in out.iter_mut().enumerate().skip(done) {
-                let (t0, t1, w, win) = pixel(c);
-                let mut v = 0.0f32;
-                for s in 0..TAPS {
-                    v += (t0[s] + w * (t1[s] - t0[s])) * win[s];
-                }
-                *o = v;
+                o.copy_from_slice(&v[..o.len()]);
             }
         }
     }

@@ -256,43 +256,15 @@ impl Interp {
 
     /// Taps `h[t]` for offsets `j = TAP_MIN + t`, so that
     /// `Σ_t h[t] · s(u - j) ≈ s(u - frac)` for `frac` in [0, 1).
-    #[allow(clippy::needless_range_loop)]
     pub fn taps(&self, frac: f64) -> [f64; TAPS] {
-        let mut h = [0.0; TAPS];
-        if frac == 0.0 || !frac.is_finite() {
-            h[(-TAP_MIN) as usize] = 1.0;
-            return h;
-        }
-        let mut c = [0.0; TAPS];
-        for (t, ct) in c.iter_mut().enumerate() {
-            let m = (TAP_MIN + t as i64) as f64 - frac;
-            *ct = detmath::exp(-m * m * self.inv_4s2);
-        }
-        // Solve L y = c, then Lᵀ h = y.
-        let mut y = [0.0; TAPS];
-        for i in 0..TAPS {
-            let mut s = c[i];
-            for k in 0..i {
-                s -= self.l[i][k] * y[k];
-            }
-            y[i] = s / self.l[i][i];
-        }
-        for i in (0..TAPS).rev() {
-            let mut s = y[i];
-            for k in i + 1..TAPS {
-                s -= self.l[k][i] * h[k];
-            }
-            h[i] = s / self.l[i][i];
-        }
-        h
+        self.taps_many(&[frac])[0]
     }
 
-    /// [`Interp::taps_f32_reversed`] for `N` fractions at once: each
-    /// fraction's taps by the same operations in the same order (the same
-    /// bits), the `N` side by side so that the solves run in vector lanes
-    /// (a modal plate asks for a fraction a pixel).
+    /// [`Interp::taps`] for `N` fractions: the `N` side by side, each by
+    /// the same operations in the same order whatever `N` (the solves run
+    /// in vector lanes: a modal plate asks for a fraction a pixel).
     #[allow(clippy::needless_range_loop)] // the solves read best with indices
-    pub fn taps_f32_reversed_many<const N: usize>(&self, fracs: &[f64; N]) -> [[f32; TAPS]; N] {
+    fn taps_many<const N: usize>(&self, fracs: &[f64; N]) -> [[f64; TAPS]; N] {
         let mut c = [[0.0f64; N]; TAPS];
         for (t, ct) in c.iter_mut().enumerate() {
             let mut arg = [0.0f64; N];
@@ -302,6 +274,7 @@ impl Interp {
             }
             *ct = detmath::exp_many(&arg);
         }
+        // Solve L y = c, then Lᵀ h = y.
         let mut y = [[0.0f64; N]; TAPS];
         for i in 0..TAPS {
             let mut s = c[i];
@@ -330,18 +303,29 @@ impl Interp {
                 *hi = s / d;
             }
         }
-        let mut r = [[0.0f32; TAPS]; N];
-        for (l, (rl, &frac)) in r.iter_mut().zip(fracs).enumerate() {
+        let mut out = [[0.0f64; TAPS]; N];
+        for (l, (o, &frac)) in out.iter_mut().zip(fracs).enumerate() {
             if frac == 0.0 || !frac.is_finite() {
-                // As `taps`: the identity.
-                rl[(TAPS as i64 - 1 + TAP_MIN) as usize] = 1.0;
+                o[(-TAP_MIN) as usize] = 1.0;
                 continue;
             }
-            for (s, v) in rl.iter_mut().enumerate() {
-                *v = h[TAPS - 1 - s][l] as f32;
+            for (t, v) in o.iter_mut().enumerate() {
+                *v = h[t][l];
             }
         }
-        r
+        out
+    }
+
+    /// [`Interp::taps_f32_reversed`] for `N` fractions at once, each with
+    /// the bits it gets alone ([`Interp::taps`] side by side).
+    pub fn taps_f32_reversed_many<const N: usize>(&self, fracs: &[f64; N]) -> [[f32; TAPS]; N] {
+        self.taps_many(fracs).map(|h| {
+            let mut r = [0.0f32; TAPS];
+            for (s, v) in r.iter_mut().enumerate() {
+                *v = h[TAPS - 1 - s] as f32;
+            }
+            r
+        })
     }
 
     /// Taps in correlation order for [`correlate`]: `r[s] = h[TAPS-1-s]`.
@@ -350,12 +334,7 @@ impl Interp {
     /// with a grid stored from lattice index `-PAD`, the window for `k`
     /// starts at grid index `k`.
     pub fn taps_f32_reversed(&self, frac: f64) -> [f32; TAPS] {
-        let h = self.taps(frac);
-        let mut r = [0.0f32; TAPS];
-        for (s, v) in r.iter_mut().enumerate() {
-            *v = h[TAPS - 1 - s] as f32;
-        }
-        r
+        self.taps_f32_reversed_many(&[frac])[0]
     }
 }
 
@@ -538,15 +517,8 @@ mod tests {
     #[test]
     fn taps_of_many_fractions_are_each_ones_taps() {
         let ip = Interp::new(1.5);
-        let mut state = 12345u64;
-        let mut fracs: Vec<f64> = (0..400)
-            .map(|_| {
-                state = state
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (state >> 11) as f64 / (1u64 << 53) as f64
-            })
-            .collect();
+        let mut rng = crate::rng::Xoshiro256::new(7);
+        let mut fracs: Vec<f64> = (0..400).map(|_| rng.next_f64()).collect();
         fracs.extend([
             0.0,
             1.0f64.next_down(),

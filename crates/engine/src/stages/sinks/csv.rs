@@ -301,14 +301,9 @@ mod tests {
     /// neighbours of each, zeros, subnormals and the non-finite values.
     #[test]
     fn samples_are_written_as_display_writes_them() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rng = vibroscope_math::rng::Xoshiro256::new(7);
         let mut values: Vec<f32> = (0..400_000)
-            .map(|_| {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                f32::from_bits((state >> 32) as u32)
-            })
+            .map(|_| f32::from_bits((rng.next_u64() >> 32) as u32))
             .collect();
         for e in -45..39 {
             let p = 10f32.powi(e);
