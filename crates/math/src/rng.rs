@@ -46,16 +46,7 @@ impl Xoshiro256 {
 
     #[inline]
     pub fn next_u64(&mut self) -> u64 {
-        let s = &mut self.s;
-        let result = s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
-        let t = s[1] << 17;
-        s[2] ^= s[0];
-        s[3] ^= s[1];
-        s[1] ^= s[2];
-        s[0] ^= s[3];
-        s[2] ^= t;
-        s[3] = s[3].rotate_left(45);
-        result
+        step(&mut self.s)
     }
 
     /// Uniform in [0, 1).
@@ -69,6 +60,20 @@ impl Xoshiro256 {
     fn next_f64_open0(&mut self) -> f64 {
         1.0 - self.next_f64()
     }
+}
+
+/// One xoshiro256** step of the state `s`: its output.
+#[inline(always)]
+fn step(s: &mut [u64; 4]) -> u64 {
+    let result = s[1].wrapping_mul(5).rotate_left(7).wrapping_mul(9);
+    let t = s[1] << 17;
+    s[2] ^= s[0];
+    s[3] ^= s[1];
+    s[1] ^= s[2];
+    s[0] ^= s[3];
+    s[2] ^= t;
+    s[3] = s[3].rotate_left(45);
+    result
 }
 
 const ZIG_LAYERS: usize = 256;
@@ -134,6 +139,50 @@ impl Ziggurat {
         }
     }
 
+    /// `out[k] = (z_k * scale) as f32`, where `z_k` are the deviates of
+    /// as many calls to [`Self::sample`] in turn: the same draws, the same
+    /// bits. The generator's state is kept in registers between pixels;
+    /// the draws past the first of a deviate (about 1% of them) go through
+    /// a function that takes a copy of it. Through
+    /// `&mut Xoshiro256` in the caller's loop the state went back to
+    /// memory at every deviate (the simulator's sensor noise, one a
+    /// pixel: 12% of a protocol case's samples, `perf record`).
+    pub fn fill_scaled_f32(&self, rng: &mut Xoshiro256, scale: f64, out: &mut [f32]) {
+        // The state as a local (a struct whose address a call takes stays
+        // in memory, each draw waiting on its own stores).
+        let mut st = rng.s;
+        for v in out.iter_mut() {
+            let bits = step(&mut st);
+            let i = (bits & 0xff) as usize;
+            let u = 2.0 * unit_f64(bits) - 1.0;
+            let x = u * self.x[i];
+            let z = if x.abs() < self.x[i + 1] {
+                x
+            } else {
+                let mut g = Xoshiro256 { s: st };
+                let z = self.past_first(&mut g, i, u, x);
+                st = g.s;
+                z
+            };
+            *v = (z * scale) as f32;
+        }
+        rng.s = st;
+    }
+
+    /// The rest of [`Self::sample`] after its first draw missed the
+    /// layer's box: the draws it goes on to make.
+    #[cold]
+    #[inline(never)]
+    fn past_first(&self, rng: &mut Xoshiro256, i: usize, u: f64, x: f64) -> f64 {
+        if i == 0 {
+            self.tail(rng, u < 0.0)
+        } else if self.f[i + 1] + (self.f[i] - self.f[i + 1]) * rng.next_f64() < pdf(x) {
+            x
+        } else {
+            self.sample(rng)
+        }
+    }
+
     #[cold]
     fn tail(&self, rng: &mut Xoshiro256, negative: bool) -> f64 {
         loop {
@@ -151,6 +200,26 @@ impl Ziggurat {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    /// The batched fill gives the bits of `sample` called in turn, and
+    /// leaves the generator where those calls leave it: over a million
+    /// deviates, so that every slow path (the wedges, the tail at layer
+    /// 0, a wedge's rejection) is taken (fails when one draw is skipped).
+    #[test]
+    fn fill_scaled_gives_the_bits_of_sample_in_turn() {
+        let z = Ziggurat::new();
+        let (mut a, mut b) = (Xoshiro256::new(9), Xoshiro256::new(9));
+        let mut got = vec![0.0f32; 1 << 20];
+        z.fill_scaled_f32(&mut a, 2.5, &mut got);
+        let mut tail = 0;
+        for (k, g) in got.iter().enumerate() {
+            let want = z.sample(&mut b);
+            tail += usize::from(want.abs() > ZIG_R);
+            assert_eq!(g.to_bits(), ((want * 2.5) as f32).to_bits(), "deviate {k}");
+        }
+        assert!(tail > 0, "no deviate reached the tail");
+        assert_eq!(a.next_u64(), b.next_u64());
+    }
 
     #[test]
     fn xoshiro_is_reproducible_and_seed_dependent() {

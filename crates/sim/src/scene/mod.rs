@@ -412,9 +412,7 @@ impl Scene {
             }
             let noise = match rng.as_mut() {
                 Some(r) => {
-                    for v in s.noise.iter_mut() {
-                        *v = (m.zig.sample(r) * std) as f32;
-                    }
+                    m.zig.fill_scaled_f32(r, std, &mut s.noise);
                     Some(&s.noise[..])
                 }
                 None => None,
