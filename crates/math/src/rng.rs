@@ -145,8 +145,9 @@ impl Ziggurat {
     /// the draws past the first of a deviate (about 1% of them) go through
     /// a function that takes a copy of it. Through
     /// `&mut Xoshiro256` in the caller's loop the state went back to
-    /// memory at every deviate (the simulator's sensor noise, one a
-    /// pixel: 12% of a protocol case's samples, `perf record`).
+    /// memory at every deviate (the simulator's sensor noise, one a pixel:
+    /// the hottest part of its frame loop, `perf record`; a 256x256 render
+    /// of 2200 frames took 0.69 s of CPU, now 0.62-0.64).
     pub fn fill_scaled_f32(&self, rng: &mut Xoshiro256, scale: f64, out: &mut [f32]) {
         // The state as a local (a struct whose address a call takes stays
         // in memory, each draw waiting on its own stores).
@@ -203,8 +204,8 @@ mod tests {
 
     /// The batched fill gives the bits of `sample` called in turn, and
     /// leaves the generator where those calls leave it: over a million
-    /// deviates, so that every slow path (the wedges, the tail at layer
-    /// 0, a wedge's rejection) is taken (fails when one draw is skipped).
+    /// deviates, so that the slow paths (the wedges, and the tail, whose
+    /// deviates are counted) are taken (fails when one draw is skipped).
     #[test]
     fn fill_scaled_gives_the_bits_of_sample_in_turn() {
         let z = Ziggurat::new();
