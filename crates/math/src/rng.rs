@@ -121,21 +121,25 @@ impl Ziggurat {
     /// One standard normal deviate.
     #[inline]
     pub fn sample(&self, rng: &mut Xoshiro256) -> f64 {
-        loop {
-            let bits = rng.next_u64();
-            let i = (bits & 0xff) as usize;
-            // The top 52 bits give a uniform in (-1, 1) independent of `i`.
-            let u = 2.0 * unit_f64(bits) - 1.0;
-            let x = u * self.x[i];
-            if x.abs() < self.x[i + 1] {
-                return x;
-            }
-            if i == 0 {
-                return self.tail(rng, u < 0.0);
-            }
-            if self.f[i + 1] + (self.f[i] - self.f[i + 1]) * rng.next_f64() < pdf(x) {
-                return x;
-            }
+        match self.first_draw(rng.next_u64()) {
+            Ok(x) => x,
+            Err((i, u, x)) => self.past_first(rng, i, u, x),
+        }
+    }
+
+    /// A deviate's first draw `bits`: its candidate `x = u · x[i]` (layer
+    /// `i`, `u` uniform in (-1, 1)) when it lies in the layer's box (about
+    /// 99% do), else `(i, u, x)` for [`Self::past_first`].
+    #[inline(always)]
+    fn first_draw(&self, bits: u64) -> Result<f64, (usize, f64, f64)> {
+        let i = (bits & 0xff) as usize;
+        // The top 52 bits give a uniform in (-1, 1) independent of `i`.
+        let u = 2.0 * unit_f64(bits) - 1.0;
+        let x = u * self.x[i];
+        if x.abs() < self.x[i + 1] {
+            Ok(x)
+        } else {
+            Err((i, u, x))
         }
     }
 
@@ -153,25 +157,23 @@ impl Ziggurat {
         // in memory, each draw waiting on its own stores).
         let mut st = rng.s;
         for v in out.iter_mut() {
-            let bits = step(&mut st);
-            let i = (bits & 0xff) as usize;
-            let u = 2.0 * unit_f64(bits) - 1.0;
-            let x = u * self.x[i];
-            let z = if x.abs() < self.x[i + 1] {
-                x
-            } else {
-                let mut g = Xoshiro256 { s: st };
-                let z = self.past_first(&mut g, i, u, x);
-                st = g.s;
-                z
+            let z = match self.first_draw(step(&mut st)) {
+                Ok(x) => x,
+                Err((i, u, x)) => {
+                    let mut g = Xoshiro256 { s: st };
+                    let z = self.past_first(&mut g, i, u, x);
+                    st = g.s;
+                    z
+                }
             };
             *v = (z * scale) as f32;
         }
         rng.s = st;
     }
 
-    /// The rest of [`Self::sample`] after its first draw missed the
-    /// layer's box: the draws it goes on to make.
+    /// The rest of a deviate whose first draw missed its layer's box: the
+    /// tail (layer 0), the wedge's test (one more draw), or a deviate
+    /// drawn afresh.
     #[cold]
     #[inline(never)]
     fn past_first(&self, rng: &mut Xoshiro256, i: usize, u: f64, x: f64) -> f64 {
