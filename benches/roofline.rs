@@ -435,11 +435,32 @@ fn listen_kernels(frames: &[Vec<f32>], w: usize, h: usize, roofs: &Roofs) -> [f6
                 ("steerable phase sums on half grids", half_counts[1]),
             ],
         );
+    // The Riesz triples from the frame's bytes, as `listen` makes them
+    // since session 83 (`analyze_levels_u8`: the first level's blur in
+    // 16-bit integers, the same bits; the frame read as 1 byte a pixel,
+    // not 4): the bound below pairs this row with the sums.
+    let bytes: Vec<Vec<u8>> = frames
+        .iter()
+        .map(|f| {
+            f.iter()
+                .map(|v| v.round().clamp(0.0, 255.0) as u8)
+                .collect()
+        })
+        .collect();
+    let mut c = rp.alloc_coeffs();
+    row(
+        "Riesz pyramid from the frame's bytes (as `listen` runs it)",
+        best(&mut |i| {
+            rp.analyze_levels_u8(&bytes[i % bytes.len()], &mut c, &mut |_, _| {})
+                .expect("analyze")
+        }),
+        (riesz_counts[0].0, riesz_counts[0].1 - 3.0, 2u8),
+    );
     println!("    (checksum {sink:.3e})");
     // A frame's time at the bound is the analysis's plus the sums'.
     let b = bounds.into_inner();
     let pair = |i: usize| 1.0 / (1.0 / b[i] + 1.0 / b[i + 1]);
-    [pair(0), pair(2), b[4], pair(5)]
+    [1.0 / (1.0 / b[7] + 1.0 / b[1]), pair(2), b[4], pair(5)]
 }
 
 /// Prints a kernel's row: its name, seconds a frame, and (flops, bytes,

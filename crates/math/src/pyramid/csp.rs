@@ -464,6 +464,22 @@ impl Grid {
     }
 }
 
+/// A frame's rows as the forward FFT reads them.
+#[derive(Clone, Copy)]
+enum Rows<'a> {
+    F32(&'a [f32]),
+    U8(&'a [u8]),
+}
+
+impl Rows<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Rows::F32(r) => r.len(),
+            Rows::U8(r) => r.len(),
+        }
+    }
+}
+
 /// Complex steerable pyramid for one frame size; see the module docs.
 /// A clone holds the same masks and FFT plans (made once; the plans
 /// shared) and buffers of its own: another worker's pyramid, without
@@ -844,13 +860,32 @@ impl ComplexSteerablePyramid {
 
     /// Decomposes `frame` (row-major `width x height`) into `out`.
     pub fn analyze(&mut self, frame: &[f32], out: &mut PyramidCoeffs) -> Result<(), PyramidError> {
+        self.analyze_rows(Rows::F32(frame), out)
+    }
+
+    /// [`Self::analyze`] of a frame of bytes: each row widened as the
+    /// forward FFT takes it (exact, so the same bits as the frame widened
+    /// to `f32` first), without a copy of the whole frame.
+    pub fn analyze_u8(
+        &mut self,
+        frame: &[u8],
+        out: &mut PyramidCoeffs,
+    ) -> Result<(), PyramidError> {
+        self.analyze_rows(Rows::U8(frame), out)
+    }
+
+    fn analyze_rows(
+        &mut self,
+        frame: Rows<'_>,
+        out: &mut PyramidCoeffs,
+    ) -> Result<(), PyramidError> {
         let (w, h) = (self.key.width, self.key.height);
         check_len(w * h, frame.len())?;
         self.check_coeffs(out)?;
         let norm = 1.0 / (w as f32 * h as f32);
 
         // Forward 2D FFT into the x-major half spectrum.
-        self.forward_2d(frame)?;
+        self.forward_2d_rows(frame)?;
 
         if self.residuals {
             self.residuals_into(out)?;
@@ -1146,6 +1181,10 @@ impl ComplexSteerablePyramid {
     /// The forward 2D FFT of the real image `rows` (`width x height`) into
     /// the x-major half spectrum `spec`: real rows, then columns.
     fn forward_2d(&mut self, rows: &[f32]) -> Result<(), PyramidError> {
+        self.forward_2d_rows(Rows::F32(rows))
+    }
+
+    fn forward_2d_rows(&mut self, rows: Rows<'_>) -> Result<(), PyramidError> {
         let (w, h) = (self.key.width, self.key.height);
         let half_w = self.half_w;
         let spec_len = half_w * h;
@@ -1153,11 +1192,18 @@ impl ComplexSteerablePyramid {
         // one cache-aware transpose into `spec`: writing each row's
         // spectrum straight into its column of `spec` took one cache line
         // a value.
-        for (row, dst) in rows
-            .chunks_exact(w)
-            .zip(self.work[..spec_len].chunks_exact_mut(half_w))
-        {
-            self.row_real.copy_from_slice(row);
+        let rows_given = rows.len() / w.max(1);
+        let dsts = self.work[..spec_len].chunks_exact_mut(half_w);
+        for (y, dst) in dsts.enumerate().take(rows_given) {
+            let at = y * w..(y + 1) * w;
+            match rows {
+                Rows::F32(r) => self.row_real.copy_from_slice(&r[at]),
+                Rows::U8(r) => {
+                    for (d, &v) in self.row_real.iter_mut().zip(&r[at]) {
+                        *d = f32::from(v);
+                    }
+                }
+            }
             self.r2c
                 .process_with_scratch(&mut self.row_real, dst, &mut self.scratch)
                 .map_err(|e| PyramidError::Fft(e.to_string()))?;

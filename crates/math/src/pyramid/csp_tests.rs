@@ -1071,3 +1071,53 @@ fn quarter_ends_are_the_library_values() {
         assert_eq!(quarter_cos(t).to_bits(), (0.5 * PI * t).cos().to_bits());
     }
 }
+
+/// A frame of bytes analysed as bytes gives the bits of the same frame
+/// widened to `f32`: every band and both residuals, full and compact
+/// pyramids, even and odd sizes. Fails if a row is read from the wrong
+/// place or widened otherwise.
+#[test]
+fn frames_of_bytes_give_the_bits_of_their_f32() {
+    let mut seed = 11u64;
+    let mut ran = 0;
+    for (w, h) in [(1, 1), (5, 3), (16, 16), (33, 20), (64, 48)] {
+        let bytes: Vec<u8> = (0..w * h)
+            .map(|_| {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (seed >> 56) as u8
+            })
+            .collect();
+        let floats: Vec<f32> = bytes.iter().map(|&b| f32::from(b)).collect();
+        for compact in [false, true] {
+            let make = || {
+                if compact {
+                    ComplexSteerablePyramid::new_compact(w, h, 3, 2)
+                } else {
+                    ComplexSteerablePyramid::new(w, h, 3, 4)
+                }
+            };
+            let Ok(mut p) = make() else { continue };
+            ran += 1;
+            let (mut a, mut b) = (p.alloc_coeffs(), p.alloc_coeffs());
+            p.analyze(&floats, &mut a).unwrap();
+            p.analyze_u8(&bytes, &mut b).unwrap();
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(a.highpass()), bits(b.highpass()), "{w}x{h}");
+            assert_eq!(bits(a.lowpass()), bits(b.lowpass()), "{w}x{h}");
+            for (x, y) in a.bands().iter().zip(b.bands()) {
+                let re = |v: &[Complex32]| {
+                    v.iter()
+                        .flat_map(|c| [c.re.to_bits(), c.im.to_bits()])
+                        .collect::<Vec<_>>()
+                };
+                assert_eq!(re(x.data()), re(y.data()), "{w}x{h} compact {compact}");
+            }
+        }
+    }
+    assert!(ran >= 8, "only {ran} pyramids made");
+    let mut p = ComplexSteerablePyramid::new(8, 8, 2, 2).unwrap();
+    let mut c = p.alloc_coeffs();
+    assert!(p.analyze_u8(&[0u8; 63], &mut c).is_err());
+}

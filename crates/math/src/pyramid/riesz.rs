@@ -45,7 +45,9 @@
 //! speed_report -- --nocapture`, idle): 231 Mpix/s on the SSE2 baseline,
 //! 297 with AVX2, 334 with AVX-512. A reader of phase changes only (the
 //! `phase` stage) skips the amplitude and phases
-//! ([`RieszPyramid::set_triples_only`]).
+//! ([`RieszPyramid::set_triples_only`]). A frame of bytes is read as
+//! bytes ([`RieszPyramid::analyze_levels_u8`]): no `f32` copy of it, and
+//! the first blur in 16-bit integers, with the same bits.
 
 use super::kernels::quat_phase_delta;
 use super::{
@@ -347,6 +349,8 @@ pub struct RieszPyramid {
     inputs: Vec<Vec<f32>>,
     s_buf: Vec<f32>,
     vrow: Vec<f32>,
+    /// [`blur_row_u8`]'s vertical pass (a frame of bytes).
+    vrow16: Vec<u16>,
     trow: Vec<f32>,
     qrow: Vec<f32>,
     dirs: Vec<(f32, f32)>,
@@ -428,6 +432,7 @@ impl RieszPyramid {
             inputs,
             s_buf: vec![0.0; width * height],
             vrow: vec![0.0; width + 4],
+            vrow16: vec![0; width + 4],
             trow: vec![0.0; width],
             qrow: vec![0.0; width],
             dirs,
@@ -518,6 +523,30 @@ impl RieszPyramid {
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) -> Result<(), PyramidError> {
+        self.analyze_src(Src::F32(frame), out, each)
+    }
+
+    /// [`Self::analyze_levels`] of a frame of bytes: the same bits as of
+    /// the frame widened to `f32`, without that copy. The first level's
+    /// blur `S` is made in 16-bit integers (its every value is a multiple
+    /// of 1/256 below 256, which `f32` holds exactly, so the integer sums
+    /// scaled by 1/256 are the `f32` path's values to the bit), 32 lanes
+    /// to a 512-bit vector where `f32` has 16.
+    pub fn analyze_levels_u8(
+        &mut self,
+        frame: &[u8],
+        out: &mut RieszCoeffs,
+        each: &mut dyn FnMut(&RieszCoeffs, usize),
+    ) -> Result<(), PyramidError> {
+        self.analyze_src(Src::U8(frame), out, each)
+    }
+
+    fn analyze_src(
+        &mut self,
+        frame: Src<'_>,
+        out: &mut RieszCoeffs,
+        each: &mut dyn FnMut(&RieszCoeffs, usize),
+    ) -> Result<(), PyramidError> {
         check_len(self.key.width * self.key.height, frame.len())?;
         self.check_coeffs(out)?;
         #[cfg(target_arch = "x86_64")]
@@ -540,7 +569,7 @@ impl RieszPyramid {
 
     fn levels_generic(
         &mut self,
-        frame: &[f32],
+        frame: Src<'_>,
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) {
@@ -554,7 +583,7 @@ impl RieszPyramid {
     #[target_feature(enable = "avx2")]
     unsafe fn levels_avx2(
         &mut self,
-        frame: &[f32],
+        frame: Src<'_>,
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) {
@@ -567,7 +596,7 @@ impl RieszPyramid {
     #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,fma")]
     unsafe fn levels_avx512(
         &mut self,
-        frame: &[f32],
+        frame: Src<'_>,
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) {
@@ -577,7 +606,7 @@ impl RieszPyramid {
     #[inline(always)]
     fn levels(
         &mut self,
-        frame: &[f32],
+        frame: Src<'_>,
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) {
@@ -589,7 +618,11 @@ impl RieszPyramid {
             // Level input: the frame, or the decimated blur of the previous level.
             let split = l.min(self.inputs.len());
             let (before, after) = self.inputs.split_at_mut(split);
-            let src: &[f32] = if l == 0 { frame } else { &before[l - 1] };
+            let src = if l == 0 {
+                frame
+            } else {
+                Src::F32(&before[l - 1])
+            };
             let next = after.first_mut().filter(|_| l + 1 < scales);
             let level = &mut out.levels[l];
             sweep_level(
@@ -598,7 +631,11 @@ impl RieszPyramid {
                 &mut self.s_buf[..n],
                 level,
                 next.map(Vec::as_mut_slice),
-                (&mut self.vrow[..w + 4], &mut self.trow[..w]),
+                (
+                    &mut self.vrow[..w + 4],
+                    &mut self.vrow16[..w + 4],
+                    &mut self.trow[..w],
+                ),
             );
             if !self.triples_only {
                 derive_level(level, &self.dirs, &mut self.qrow[..w]);
@@ -686,21 +723,103 @@ fn blur_row(src: &[f32], (w, h): (usize, usize), y: usize, padded: &mut [f32], d
         return;
     }
     vblur_row(src, w, h, y, &mut padded[2..w + 2]);
+    let [a, b, c, d, e] = mirrored_taps(padded, w);
+    let o = &mut dst[..w];
+    for i in 0..w {
+        o[i] = B2 * (a[i] + e[i]) + B1 * (b[i] + d[i]) + B0 * c[i];
+    }
+}
+
+/// Sets the mirrored pixels on either side of `padded[2..w + 2]`
+/// (`x[-i] = x[i]`, `x[w-1+i] = x[w-1-i]`) and returns the five windows
+/// the horizontal taps read (`w >= 3`, `padded` at least `w + 4` long).
+#[inline(always)]
+fn mirrored_taps<T: Copy>(padded: &mut [T], w: usize) -> [&[T]; 5] {
     padded[0] = padded[4];
     padded[1] = padded[3];
     padded[w + 2] = padded[w];
     padded[w + 3] = padded[w - 1];
     let p = &padded[..w + 4];
-    let (a, b, c, d, e) = (
+    [
         &p[0..w],
         &p[1..w + 1],
         &p[2..w + 2],
         &p[3..w + 3],
         &p[4..w + 4],
-    );
+    ]
+}
+
+/// A level's input: the frame (as `f32`, or as bytes) or the previous
+/// level's decimated blur.
+#[derive(Clone, Copy)]
+enum Src<'a> {
+    F32(&'a [f32]),
+    U8(&'a [u8]),
+}
+
+impl Src<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Src::F32(x) => x.len(),
+            Src::U8(x) => x.len(),
+        }
+    }
+}
+
+/// [`blur_row`] of a frame of bytes, into `f32`, in 16-bit integers: with
+/// the taps `[1 4 6 4 1]`, the vertical pass of bytes is at most
+/// 16 · 255 and the horizontal pass of those at most 256 · 255 = 65280,
+/// so neither overflows; `blur_row`'s `f32` sums of the same pixels are
+/// exact (multiples of 1/16, then of 1/256, below 256: at most 16 bits
+/// of mantissa), so this row, scaled by 1/256, is its row to the bit.
+/// `padded` holds the vertical pass with its mirrored pixels, as in
+/// [`blur_row`]. Rows too narrow for the padding go through `blur_row`'s
+/// own narrow path, their bytes widened first.
+#[inline(always)]
+fn blur_row_u8(src: &[u8], (w, h): (usize, usize), y: usize, padded: &mut [u16], dst: &mut [f32]) {
+    let vertical = |x: usize, o: &mut u16| {
+        let at = |d: isize| u16::from(src[reflect(y as isize + d, h) * w + x]);
+        *o = (at(-2) + at(2)) + 4 * (at(-1) + at(1)) + 6 * at(0);
+    };
+    if w < 3 || padded.len() < w + 4 || dst.len() < w {
+        // As `blur_row`'s narrow path: the vertical pass into `padded`,
+        // then the horizontal one mirrored pixel by pixel.
+        let n = w.min(padded.len());
+        for (x, o) in padded[..n].iter_mut().enumerate() {
+            vertical(x, o);
+        }
+        let m = n.min(dst.len());
+        let at = |i: isize| padded[reflect(i, m)];
+        for (x, o) in dst.iter_mut().enumerate().take(m) {
+            let x = x as isize;
+            let v = (at(x - 2) + at(x + 2)) + 4 * (at(x - 1) + at(x + 1)) + 6 * at(x);
+            *o = f32::from(v) * (1.0 / 256.0);
+        }
+        return;
+    }
+    let row = |d: isize| -> &[u8] {
+        let yy = reflect(y as isize + d, h);
+        &src[yy * w..(yy + 1) * w]
+    };
+    let (a, b, c, d, e) = (row(-2), row(-1), row(0), row(1), row(2));
+    {
+        let o = &mut padded[2..w + 2];
+        for i in 0..w {
+            let (a, b, c, d, e) = (
+                u16::from(a[i]),
+                u16::from(b[i]),
+                u16::from(c[i]),
+                u16::from(d[i]),
+                u16::from(e[i]),
+            );
+            o[i] = (a + e) + 4 * (b + d) + 6 * c;
+        }
+    }
+    let [a, b, c, d, e] = mirrored_taps(padded, w);
     let o = &mut dst[..w];
     for i in 0..w {
-        o[i] = B2 * (a[i] + e[i]) + B1 * (b[i] + d[i]) + B0 * c[i];
+        let v = (a[i] + e[i]) + 4 * (b[i] + d[i]) + 6 * c[i];
+        o[i] = f32::from(v) * (1.0 / 256.0);
     }
 }
 
@@ -712,12 +831,12 @@ fn blur_row(src: &[f32], (w, h): (usize, usize), y: usize, padded: &mut [f32], d
 /// per step: the same bits.
 #[inline(always)]
 fn sweep_level(
-    src: &[f32],
+    src: Src<'_>,
     (w, h): (usize, usize),
     s: &mut [f32],
     level: &mut RieszLevel,
     mut next: Option<&mut [f32]>,
-    (vrow, trow): (&mut [f32], &mut [f32]),
+    (vrow, vrow16, trow): (&mut [f32], &mut [u16], &mut [f32]),
 ) {
     let nw = w.div_ceil(2);
     let RieszLevel { band, r1, r2, .. } = level;
@@ -726,7 +845,11 @@ fn sweep_level(
     let mut done = 0;
     for y in 0..h {
         while done < (y + 3).min(h) {
-            blur_row(src, (w, h), done, vrow, &mut s[done * w..(done + 1) * w]);
+            let dst = &mut s[done * w..(done + 1) * w];
+            match src {
+                Src::F32(x) => blur_row(x, (w, h), done, vrow, dst),
+                Src::U8(x) => blur_row_u8(x, (w, h), done, vrow16, dst),
+            }
             done += 1;
         }
         blur_row(s, (w, h), y, vrow, trow);

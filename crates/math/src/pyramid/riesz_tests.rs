@@ -419,6 +419,96 @@ fn weighted_sums_match_the_per_pixel_phase_changes() {
     }
 }
 
+/// A frame of bytes analysed as bytes gives the bits of the same frame
+/// widened to `f32`: every level's triple and derived values, on every
+/// vector path this CPU has, for frames narrower than the blur's padding
+/// (1 and 2 columns), with fewer rows than its taps, odd and even sizes,
+/// and bytes at both ends of their range (where the 16-bit sums are
+/// largest). Fails if the integer blur overflows or rounds otherwise.
+#[test]
+fn frames_of_bytes_give_the_bits_of_their_f32() {
+    use crate::join::Simd;
+    let mut seed = 7u64;
+    let best = Simd::detect();
+    for (w, h) in [
+        (1, 1),
+        (1, 9),
+        (2, 5),
+        (3, 3),
+        (7, 4),
+        (33, 17),
+        (64, 64),
+        (256, 8),
+    ] {
+        for fill in 0..3 {
+            let bytes: Vec<u8> = (0..w * h)
+                .map(|i| match fill {
+                    0 => {
+                        seed = seed
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
+                        (seed >> 56) as u8
+                    }
+                    1 => 255,
+                    _ => {
+                        if (i / w + i % w) % 2 == 0 {
+                            255
+                        } else {
+                            0
+                        }
+                    }
+                })
+                .collect();
+            let floats: Vec<f32> = bytes.iter().map(|&b| f32::from(b)).collect();
+            for simd in [Simd::Sse2, Simd::Avx2, Simd::Avx512] {
+                if simd != Simd::Sse2
+                    && (best == Simd::Sse2 || (simd == Simd::Avx512 && best != simd))
+                {
+                    continue;
+                }
+                for triples_only in [false, true] {
+                    let mut p = RieszPyramid::new(w, h, 4, 2).unwrap();
+                    p.simd = simd;
+                    p.set_triples_only(triples_only);
+                    let (mut a, mut b) = (p.alloc_coeffs(), p.alloc_coeffs());
+                    let mut seen = Vec::new();
+                    p.analyze_levels(&floats, &mut a, &mut |_, l| seen.push(l))
+                        .unwrap();
+                    p.analyze_levels_u8(&bytes, &mut b, &mut |_, l| seen.push(l))
+                        .unwrap();
+                    assert_eq!(seen.len(), 2 * a.levels().len(), "{w}x{h}");
+                    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                    for (l, (x, y)) in a.levels().iter().zip(b.levels()).enumerate() {
+                        let what = format!("{w}x{h} fill {fill} {simd:?} level {l}");
+                        assert_eq!(bits(x.band()), bits(y.band()), "{what}: band");
+                        assert_eq!(bits(x.r1()), bits(y.r1()), "{what}: r1");
+                        assert_eq!(bits(x.r2()), bits(y.r2()), "{what}: r2");
+                        if !triples_only {
+                            assert_eq!(
+                                bits(x.amplitude()),
+                                bits(y.amplitude()),
+                                "{what}: amplitude"
+                            );
+                            for k in 0..2 {
+                                assert_eq!(
+                                    bits(x.phase(k).unwrap()),
+                                    bits(y.phase(k).unwrap()),
+                                    "{what}: phase {k}"
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let mut p = RieszPyramid::new(8, 8, 2, 2).unwrap();
+    let mut c = p.alloc_coeffs();
+    assert!(p
+        .analyze_levels_u8(&[0u8; 63], &mut c, &mut |_, _| {})
+        .is_err());
+}
+
 #[test]
 fn analyze_allocates_nothing() {
     let (w, h) = (100, 75);

@@ -182,6 +182,19 @@ pub(super) trait FramePyramid: Send {
         (0..scales).for_each(|s| each(c, s));
         Ok(())
     }
+    /// [`FramePyramid::analyze_frame_scales`] of a frame of bytes: by
+    /// default widened into `input` first.
+    fn analyze_bytes_scales(
+        &mut self,
+        px: &[u8],
+        input: &mut [f32],
+        c: &mut Self::C,
+        scales: usize,
+        each: &mut dyn FnMut(&Self::C, usize),
+    ) -> Result<(), PyramidError> {
+        input.iter_mut().zip(px).for_each(|(d, &s)| *d = s as f32);
+        self.analyze_frame_scales(input, c, scales, each)
+    }
     /// The coefficients as an edge payload.
     fn wrap(c: Arc<Self::C>) -> PyramidData;
 }
@@ -193,6 +206,20 @@ impl FramePyramid for ComplexSteerablePyramid {
     }
     fn analyze_frame(&mut self, x: &[f32], c: &mut PyramidCoeffs) -> Result<(), PyramidError> {
         self.analyze(x, c)
+    }
+    /// From the bytes, each row widened as the forward FFT takes it (the
+    /// same bits: [`ComplexSteerablePyramid::analyze_u8`]).
+    fn analyze_bytes_scales(
+        &mut self,
+        px: &[u8],
+        _input: &mut [f32],
+        c: &mut PyramidCoeffs,
+        scales: usize,
+        each: &mut dyn FnMut(&PyramidCoeffs, usize),
+    ) -> Result<(), PyramidError> {
+        self.analyze_u8(px, c)?;
+        (0..scales).for_each(|s| each(c, s));
+        Ok(())
     }
     fn wrap(c: Arc<PyramidCoeffs>) -> PyramidData {
         PyramidData::Csp(c)
@@ -218,6 +245,18 @@ impl FramePyramid for RieszPyramid {
     ) -> Result<(), PyramidError> {
         self.analyze_levels(x, c, each)
     }
+    /// From the bytes, without widening them into `input` (the same bits:
+    /// [`RieszPyramid::analyze_levels_u8`]).
+    fn analyze_bytes_scales(
+        &mut self,
+        px: &[u8],
+        _input: &mut [f32],
+        c: &mut RieszCoeffs,
+        _scales: usize,
+        each: &mut dyn FnMut(&RieszCoeffs, usize),
+    ) -> Result<(), PyramidError> {
+        self.analyze_levels_u8(px, c, each)
+    }
     fn wrap(c: Arc<RieszCoeffs>) -> PyramidData {
         PyramidData::Riesz(c)
     }
@@ -235,8 +274,7 @@ impl<P: FramePyramid> Analyzer for OnFrames<P> {
         let Item::Frame(f) = item else {
             return Err(StageError::expected("frames"));
         };
-        to_f32(f, input);
-        self.0.analyze_frame(input, c).map_err(pyramid_err)
+        analyze_frame_into(&mut self.0, f, input, c, 0, &mut |_, _| {}).map_err(pyramid_err)
     }
     fn analyze_scales(
         &mut self,
@@ -249,10 +287,28 @@ impl<P: FramePyramid> Analyzer for OnFrames<P> {
         let Item::Frame(f) = item else {
             return Err(StageError::expected("frames"));
         };
-        to_f32(f, input);
-        self.0
-            .analyze_frame_scales(input, c, scales, each)
-            .map_err(pyramid_err)
+        analyze_frame_into(&mut self.0, f, input, c, scales, each).map_err(pyramid_err)
+    }
+}
+
+/// `f` into `c` through `p`, calling `each(c, s)` for each of `scales`
+/// scales once it is complete: a frame of bytes read as bytes
+/// ([`FramePyramid::analyze_bytes_scales`], the same bits as widened),
+/// other frames widened into `input` first.
+fn analyze_frame_into<P: FramePyramid>(
+    p: &mut P,
+    f: &Frame,
+    input: &mut [f32],
+    c: &mut P::C,
+    scales: usize,
+    each: &mut dyn FnMut(&P::C, usize),
+) -> Result<(), PyramidError> {
+    match f.pixels() {
+        PixelsRef::U8(px) => p.analyze_bytes_scales(px, input, c, scales, each),
+        PixelsRef::U16(_) => {
+            to_f32(f, input);
+            p.analyze_frame_scales(input, c, scales, each)
+        }
     }
 }
 
@@ -526,10 +582,8 @@ impl<A: FramePyramid> Analyse for Workers<A> {
             }
             let job = |w: &mut Worker<A>, f: &Frame| {
                 w.result = match w.out.as_mut().and_then(Arc::get_mut) {
-                    Some(c) => {
-                        to_f32(f, &mut w.input);
-                        w.an.analyze_frame(&w.input, c).map_err(pyramid_err)
-                    }
+                    Some(c) => analyze_frame_into(&mut w.an, f, &mut w.input, c, 0, &mut |_, _| {})
+                        .map_err(pyramid_err),
                     None => Err(StageError::Internal("pyramid buffer still shared")),
                 };
             };
