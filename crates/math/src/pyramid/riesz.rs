@@ -773,8 +773,9 @@ impl Src<'_> {
 /// exact (multiples of 1/16, then of 1/256, below 256: at most 16 bits
 /// of mantissa), so this row, scaled by 1/256, is its row to the bit.
 /// `padded` holds the vertical pass with its mirrored pixels, as in
-/// [`blur_row`]. Rows too narrow for the padding go through `blur_row`'s
-/// own narrow path, their bytes widened first.
+/// [`blur_row`]. Rows too narrow for the padding are made as
+/// `blur_row`'s narrow path makes them (mirrored pixel by pixel), in the
+/// same integers.
 #[inline(always)]
 fn blur_row_u8(src: &[u8], (w, h): (usize, usize), y: usize, padded: &mut [u16], dst: &mut [f32]) {
     let vertical = |x: usize, o: &mut u16| {
