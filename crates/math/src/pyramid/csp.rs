@@ -49,7 +49,7 @@
 
 use super::{
     check_len, check_params, check_region, layout_accessors, BandInfo, Complex32, LayoutKey,
-    PhaseBands, PyramidError, DEFAULT_ORIENTATIONS, DEFAULT_SCALES,
+    PhaseBands, Pixels, PyramidError, DEFAULT_ORIENTATIONS, DEFAULT_SCALES,
 };
 use realfft::{ComplexToReal, RealFftPlanner, RealToComplex};
 use rustfft::{Fft, FftPlanner};
@@ -464,22 +464,6 @@ impl Grid {
     }
 }
 
-/// A frame's rows as the forward FFT reads them.
-#[derive(Clone, Copy)]
-enum Rows<'a> {
-    F32(&'a [f32]),
-    U8(&'a [u8]),
-}
-
-impl Rows<'_> {
-    fn len(&self) -> usize {
-        match self {
-            Rows::F32(r) => r.len(),
-            Rows::U8(r) => r.len(),
-        }
-    }
-}
-
 /// Complex steerable pyramid for one frame size; see the module docs.
 /// A clone holds the same masks and FFT plans (made once; the plans
 /// shared) and buffers of its own: another worker's pyramid, without
@@ -860,7 +844,7 @@ impl ComplexSteerablePyramid {
 
     /// Decomposes `frame` (row-major `width x height`) into `out`.
     pub fn analyze(&mut self, frame: &[f32], out: &mut PyramidCoeffs) -> Result<(), PyramidError> {
-        self.analyze_rows(Rows::F32(frame), out)
+        self.analyze_rows(Pixels::F32(frame), out)
     }
 
     /// [`Self::analyze`] of a frame of bytes: each row widened as the
@@ -871,12 +855,12 @@ impl ComplexSteerablePyramid {
         frame: &[u8],
         out: &mut PyramidCoeffs,
     ) -> Result<(), PyramidError> {
-        self.analyze_rows(Rows::U8(frame), out)
+        self.analyze_rows(Pixels::U8(frame), out)
     }
 
     fn analyze_rows(
         &mut self,
-        frame: Rows<'_>,
+        frame: Pixels<'_>,
         out: &mut PyramidCoeffs,
     ) -> Result<(), PyramidError> {
         let (w, h) = (self.key.width, self.key.height);
@@ -1181,10 +1165,10 @@ impl ComplexSteerablePyramid {
     /// The forward 2D FFT of the real image `rows` (`width x height`) into
     /// the x-major half spectrum `spec`: real rows, then columns.
     fn forward_2d(&mut self, rows: &[f32]) -> Result<(), PyramidError> {
-        self.forward_2d_rows(Rows::F32(rows))
+        self.forward_2d_rows(Pixels::F32(rows))
     }
 
-    fn forward_2d_rows(&mut self, rows: Rows<'_>) -> Result<(), PyramidError> {
+    fn forward_2d_rows(&mut self, rows: Pixels<'_>) -> Result<(), PyramidError> {
         let (w, h) = (self.key.width, self.key.height);
         let half_w = self.half_w;
         let spec_len = half_w * h;
@@ -1197,8 +1181,8 @@ impl ComplexSteerablePyramid {
         for (y, dst) in dsts.enumerate().take(rows_given) {
             let at = y * w..(y + 1) * w;
             match rows {
-                Rows::F32(r) => self.row_real.copy_from_slice(&r[at]),
-                Rows::U8(r) => {
+                Pixels::F32(r) => self.row_real.copy_from_slice(&r[at]),
+                Pixels::U8(r) => {
                     for (d, &v) in self.row_real.iter_mut().zip(&r[at]) {
                         *d = f32::from(v);
                     }

@@ -125,6 +125,23 @@ pub(crate) fn check_params(
     Ok(())
 }
 
+/// A frame's pixels as a pyramid reads them: `f32`, or bytes (read as
+/// bytes, widened exactly where they are used: the same bits).
+#[derive(Clone, Copy)]
+pub(crate) enum Pixels<'a> {
+    F32(&'a [f32]),
+    U8(&'a [u8]),
+}
+
+impl Pixels<'_> {
+    pub(crate) fn len(&self) -> usize {
+        match self {
+            Pixels::F32(x) => x.len(),
+            Pixels::U8(x) => x.len(),
+        }
+    }
+}
+
 pub(crate) fn check_len(expected: usize, got: usize) -> Result<(), PyramidError> {
     if expected == got {
         Ok(())

@@ -51,8 +51,8 @@
 
 use super::kernels::quat_phase_delta;
 use super::{
-    check_len, check_params, layout_accessors, BandInfo, LayoutKey, PhaseBands, PyramidError,
-    DEFAULT_ORIENTATIONS, DEFAULT_SCALES,
+    check_len, check_params, layout_accessors, BandInfo, LayoutKey, PhaseBands, Pixels,
+    PyramidError, DEFAULT_ORIENTATIONS, DEFAULT_SCALES,
 };
 use std::f32::consts::{FRAC_PI_2, PI};
 
@@ -523,7 +523,7 @@ impl RieszPyramid {
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) -> Result<(), PyramidError> {
-        self.analyze_src(Src::F32(frame), out, each)
+        self.analyze_src(Pixels::F32(frame), out, each)
     }
 
     /// [`Self::analyze_levels`] of a frame of bytes: the same bits as of
@@ -538,12 +538,12 @@ impl RieszPyramid {
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) -> Result<(), PyramidError> {
-        self.analyze_src(Src::U8(frame), out, each)
+        self.analyze_src(Pixels::U8(frame), out, each)
     }
 
     fn analyze_src(
         &mut self,
-        frame: Src<'_>,
+        frame: Pixels<'_>,
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) -> Result<(), PyramidError> {
@@ -569,7 +569,7 @@ impl RieszPyramid {
 
     fn levels_generic(
         &mut self,
-        frame: Src<'_>,
+        frame: Pixels<'_>,
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) {
@@ -583,7 +583,7 @@ impl RieszPyramid {
     #[target_feature(enable = "avx2")]
     unsafe fn levels_avx2(
         &mut self,
-        frame: Src<'_>,
+        frame: Pixels<'_>,
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) {
@@ -596,7 +596,7 @@ impl RieszPyramid {
     #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx2,fma")]
     unsafe fn levels_avx512(
         &mut self,
-        frame: Src<'_>,
+        frame: Pixels<'_>,
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) {
@@ -606,7 +606,7 @@ impl RieszPyramid {
     #[inline(always)]
     fn levels(
         &mut self,
-        frame: Src<'_>,
+        frame: Pixels<'_>,
         out: &mut RieszCoeffs,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
     ) {
@@ -621,7 +621,7 @@ impl RieszPyramid {
             let src = if l == 0 {
                 frame
             } else {
-                Src::F32(&before[l - 1])
+                Pixels::F32(&before[l - 1])
             };
             let next = after.first_mut().filter(|_| l + 1 < scales);
             let level = &mut out.levels[l];
@@ -749,23 +749,6 @@ fn mirrored_taps<T: Copy>(padded: &mut [T], w: usize) -> [&[T]; 5] {
     ]
 }
 
-/// A level's input: the frame (as `f32`, or as bytes) or the previous
-/// level's decimated blur.
-#[derive(Clone, Copy)]
-enum Src<'a> {
-    F32(&'a [f32]),
-    U8(&'a [u8]),
-}
-
-impl Src<'_> {
-    fn len(&self) -> usize {
-        match self {
-            Src::F32(x) => x.len(),
-            Src::U8(x) => x.len(),
-        }
-    }
-}
-
 /// [`blur_row`] of a frame of bytes, into `f32`, in 16-bit integers: with
 /// the taps `[1 4 6 4 1]`, the vertical pass of bytes is at most
 /// 16 · 255 and the horizontal pass of those at most 256 · 255 = 65280,
@@ -832,7 +815,7 @@ fn blur_row_u8(src: &[u8], (w, h): (usize, usize), y: usize, padded: &mut [u16],
 /// per step: the same bits.
 #[inline(always)]
 fn sweep_level(
-    src: Src<'_>,
+    src: Pixels<'_>,
     (w, h): (usize, usize),
     s: &mut [f32],
     level: &mut RieszLevel,
@@ -848,8 +831,8 @@ fn sweep_level(
         while done < (y + 3).min(h) {
             let dst = &mut s[done * w..(done + 1) * w];
             match src {
-                Src::F32(x) => blur_row(x, (w, h), done, vrow, dst),
-                Src::U8(x) => blur_row_u8(x, (w, h), done, vrow16, dst),
+                Pixels::F32(x) => blur_row(x, (w, h), done, vrow, dst),
+                Pixels::U8(x) => blur_row_u8(x, (w, h), done, vrow16, dst),
             }
             done += 1;
         }

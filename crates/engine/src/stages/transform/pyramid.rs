@@ -124,14 +124,6 @@ pub(super) fn pyramid_err(e: PyramidError) -> StageError {
     StageError::dsp(format!("pyramid: {e}"))
 }
 
-/// A frame's pixels as f32.
-pub(super) fn to_f32(f: &Frame, dst: &mut [f32]) {
-    match f.pixels() {
-        PixelsRef::U8(p) => dst.iter_mut().zip(p).for_each(|(d, &s)| *d = s as f32),
-        PixelsRef::U16(p) => dst.iter_mut().zip(p).for_each(|(d, &s)| *d = s as f32),
-    }
-}
-
 /// Something that turns an item into per-band coefficients: a pyramid
 /// (from a frame) or the coefficients an upstream `pyramid` stage carried.
 pub(super) trait Analyzer: Send {
@@ -182,19 +174,15 @@ pub(super) trait FramePyramid: Send {
         (0..scales).for_each(|s| each(c, s));
         Ok(())
     }
-    /// [`FramePyramid::analyze_frame_scales`] of a frame of bytes: by
-    /// default widened into `input` first.
+    /// [`FramePyramid::analyze_frame_scales`] of a frame of bytes, read as
+    /// bytes (no `f32` copy of the frame; the same bits).
     fn analyze_bytes_scales(
         &mut self,
         px: &[u8],
-        input: &mut [f32],
         c: &mut Self::C,
         scales: usize,
         each: &mut dyn FnMut(&Self::C, usize),
-    ) -> Result<(), PyramidError> {
-        input.iter_mut().zip(px).for_each(|(d, &s)| *d = s as f32);
-        self.analyze_frame_scales(input, c, scales, each)
-    }
+    ) -> Result<(), PyramidError>;
     /// The coefficients as an edge payload.
     fn wrap(c: Arc<Self::C>) -> PyramidData;
 }
@@ -212,7 +200,6 @@ impl FramePyramid for ComplexSteerablePyramid {
     fn analyze_bytes_scales(
         &mut self,
         px: &[u8],
-        _input: &mut [f32],
         c: &mut PyramidCoeffs,
         scales: usize,
         each: &mut dyn FnMut(&PyramidCoeffs, usize),
@@ -250,7 +237,6 @@ impl FramePyramid for RieszPyramid {
     fn analyze_bytes_scales(
         &mut self,
         px: &[u8],
-        _input: &mut [f32],
         c: &mut RieszCoeffs,
         _scales: usize,
         each: &mut dyn FnMut(&RieszCoeffs, usize),
@@ -294,7 +280,7 @@ impl<P: FramePyramid> Analyzer for OnFrames<P> {
 /// `f` into `c` through `p`, calling `each(c, s)` for each of `scales`
 /// scales once it is complete: a frame of bytes read as bytes
 /// ([`FramePyramid::analyze_bytes_scales`], the same bits as widened),
-/// other frames widened into `input` first.
+/// 16-bit frames widened into `input` first.
 fn analyze_frame_into<P: FramePyramid>(
     p: &mut P,
     f: &Frame,
@@ -304,9 +290,12 @@ fn analyze_frame_into<P: FramePyramid>(
     each: &mut dyn FnMut(&P::C, usize),
 ) -> Result<(), PyramidError> {
     match f.pixels() {
-        PixelsRef::U8(px) => p.analyze_bytes_scales(px, input, c, scales, each),
-        PixelsRef::U16(_) => {
-            to_f32(f, input);
+        PixelsRef::U8(px) => p.analyze_bytes_scales(px, c, scales, each),
+        PixelsRef::U16(px) => {
+            input
+                .iter_mut()
+                .zip(px)
+                .for_each(|(d, &s)| *d = f32::from(s));
             p.analyze_frame_scales(input, c, scales, each)
         }
     }
