@@ -18,6 +18,8 @@ use std::path::Path;
 const MAGIC: &[u8] = b"YUV4MPEG2";
 /// Size of the scratch buffer for 16-bit samples and of file read buffers.
 const CHUNK: usize = 64 * 1024;
+/// The buffer of a seekable file of large mono frames (see [`Y4mReader::open`]).
+const HEADER_CHUNK: usize = 4 * 1024;
 
 /// How one line read with [`read_line_bounded`] ended.
 #[derive(Debug, PartialEq, Eq)]
@@ -274,6 +276,17 @@ impl Y4mReader<BufReader<File>> {
         let file_len = file.metadata().map_err(|e| io_error(&name, e))?.len();
         let mut r = Self::from_reader(BufReader::with_capacity(CHUNK, file), &name)?;
         r.count_frames(file_len)?;
+        // Frames of 32 KiB and more with nothing to skip (mono): a small
+        // buffer for the frame headers, so that most of each frame's pixels
+        // are read straight into the frame (`BufReader` bypasses its buffer
+        // for a read at least as long as it, once the buffer is empty)
+        // rather than into the buffer and copied again: 20% of the source's
+        // CPU time at 256x256. The counting's seek left the buffer empty,
+        // so nothing is lost by the swap.
+        if r.layout.skip_bytes == 0 && r.layout.luma_bytes >= 32 * 1024 && r.src.buffer().is_empty()
+        {
+            r.src = BufReader::with_capacity(HEADER_CHUNK, r.src.into_inner());
+        }
         Ok(r)
     }
 
@@ -355,6 +368,7 @@ pub fn cut_to_whole_frames(path: &Path) -> Result<u64, VideoError> {
 
 /// Reads the line starting at `pos` of a file (at most [`MAX_HEADER_LINE`] bytes).
 fn line_at(file: &mut File, pos: u64, buf: &mut Vec<u8>) -> io::Result<Line> {
+    #[cfg(not(unix))]
     file.seek(SeekFrom::Start(pos))?;
     buf.clear();
     // Most frame headers are short: try a small read first.
@@ -362,6 +376,11 @@ fn line_at(file: &mut File, pos: u64, buf: &mut Vec<u8>) -> io::Result<Line> {
     loop {
         let start = buf.len();
         buf.resize(start + want, 0);
+        // One positioned read where the system has it (a seek and a read
+        // otherwise): the count reads every frame's header.
+        #[cfg(unix)]
+        let got = read_full_at(file, pos + start as u64, &mut buf[start..])?;
+        #[cfg(not(unix))]
         let got = read_full(file, &mut buf[start..])?;
         buf.truncate(start + got);
         if let Some(i) = buf[start..].iter().position(|&b| b == b'\n') {
@@ -384,6 +403,22 @@ fn line_at(file: &mut File, pos: u64, buf: &mut Vec<u8>) -> io::Result<Line> {
         }
         want = MAX_HEADER_LINE + 1 - buf.len();
     }
+}
+
+/// `read_full` at `pos` of `file` (its position unchanged).
+#[cfg(unix)]
+fn read_full_at(file: &File, pos: u64, buf: &mut [u8]) -> io::Result<usize> {
+    use std::os::unix::fs::FileExt;
+    let mut got = 0;
+    while got < buf.len() {
+        match file.read_at(&mut buf[got..], pos + got as u64) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(got)
 }
 
 impl Y4mReader<BufReader<io::Stdin>> {
@@ -1011,6 +1046,36 @@ mod tests {
             .expect_err("truncated");
         assert!(matches!(e, VideoError::Truncated { frame: 2, .. }), "{e:?}");
         assert!(e.to_string().starts_with(&path.display().to_string()));
+    }
+
+    /// Large mono frames from a file go past the small buffer `open`
+    /// gives them: the same pixels and times, and a cut last frame still
+    /// named; small frames keep the large buffer.
+    #[test]
+    fn large_frames_from_a_file_read_past_the_small_buffer() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("large.y4m");
+        // 33127 bytes a frame: more than 32 KiB, not a multiple of the buffer.
+        let (bytes, frames) = sample_u8(4, 211, 157, true);
+        std::fs::write(&path, &bytes[..bytes.len() - 5]).expect("write");
+        let mut r = Y4mReader::open(&path).expect("open");
+        assert_eq!(r.src.capacity(), HEADER_CHUNK);
+        assert_eq!(r.info().frame_count, Some(3));
+        let mut buf = vec![0u8; 211 * 157];
+        for (i, want) in frames.iter().take(3).enumerate() {
+            let got = r.read_frame(FrameDest::U8(&mut buf)).expect("frame");
+            assert_eq!(got.map(|f| f.timestamp_ns), Some(Some(i as i64 * 454_545)));
+            assert!(&buf == want, "frame {i}");
+        }
+        let e = r
+            .read_frame(FrameDest::U8(&mut buf))
+            .expect_err("truncated");
+        assert!(matches!(e, VideoError::Truncated { frame: 3, .. }), "{e:?}");
+
+        let small = dir.path().join("small.y4m");
+        std::fs::write(&small, sample_u8(2, 64, 64, true).0).expect("write");
+        let r = Y4mReader::open(&small).expect("open");
+        assert_eq!(r.src.capacity(), CHUNK);
     }
 
     #[test]

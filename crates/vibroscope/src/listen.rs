@@ -263,8 +263,11 @@ pub fn listen(o: &ListenOptions) -> Result<ListenReport> {
     };
     // The signal's rate, when known before the run: bands must lie below
     // its Nyquist frequency (checked again by the stages once it is known).
+    // Asked of the file only when a filter or a calibration needs it:
+    // opening a Y4M reads every frame's header.
     let signal_rate = match &o.rolling_shutter {
         Some(rs) => rs.line_delay_us.filter(|d| *d > 0.0).map(|d| 1e6 / d),
+        None if corrections.is_none() && o.filters.is_empty() => None,
         None => o.fps.or_else(|| {
             crate::io::open(&o.video, crate::io::format_by_extension(&o.video))
                 .ok()
