@@ -317,9 +317,19 @@ pub(crate) fn check_dest(
 
 /// Reads until `buf` is full or the source ends; returns the bytes read.
 pub(crate) fn read_full<R: Read + ?Sized>(src: &mut R, buf: &mut [u8]) -> io::Result<usize> {
+    fill_with(buf, |rest, _| src.read(rest))
+}
+
+/// Fills `buf` through `read(rest, got)` (`rest` the unfilled part, `got`
+/// the bytes already read) until it is full or `read` gives 0, retrying
+/// an interrupted read; returns the bytes read.
+pub(crate) fn fill_with(
+    buf: &mut [u8],
+    mut read: impl FnMut(&mut [u8], usize) -> io::Result<usize>,
+) -> io::Result<usize> {
     let mut got = 0;
     while got < buf.len() {
-        match src.read(&mut buf[got..]) {
+        match read(&mut buf[got..], got) {
             Ok(0) => break,
             Ok(n) => got += n,
             Err(e) if e.kind() == io::ErrorKind::Interrupted => {}

@@ -379,7 +379,13 @@ fn line_at(file: &mut File, pos: u64, buf: &mut Vec<u8>) -> io::Result<Line> {
         // One positioned read where the system has it (a seek and a read
         // otherwise): the count reads every frame's header.
         #[cfg(unix)]
-        let got = read_full_at(file, pos + start as u64, &mut buf[start..])?;
+        let got = {
+            use std::os::unix::fs::FileExt;
+            let at = pos + start as u64;
+            super::fill_with(&mut buf[start..], |rest, got| {
+                file.read_at(rest, at + got as u64)
+            })?
+        };
         #[cfg(not(unix))]
         let got = read_full(file, &mut buf[start..])?;
         buf.truncate(start + got);
@@ -403,22 +409,6 @@ fn line_at(file: &mut File, pos: u64, buf: &mut Vec<u8>) -> io::Result<Line> {
         }
         want = MAX_HEADER_LINE + 1 - buf.len();
     }
-}
-
-/// `read_full` at `pos` of `file` (its position unchanged).
-#[cfg(unix)]
-fn read_full_at(file: &File, pos: u64, buf: &mut [u8]) -> io::Result<usize> {
-    use std::os::unix::fs::FileExt;
-    let mut got = 0;
-    while got < buf.len() {
-        match file.read_at(&mut buf[got..], pos + got as u64) {
-            Ok(0) => break,
-            Ok(n) => got += n,
-            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(got)
 }
 
 impl Y4mReader<BufReader<io::Stdin>> {
