@@ -79,7 +79,22 @@ fn pyramid_allocations(frames: u64, pyramid: &str) -> u64 {
          [[stage]]\nid = \"ph\"\nkind = \"phase\"\ninput = \"p\"\nblock = 4096\nreference_interval_s = 0\n\n\
          [[stage]]\nid = \"n\"\nkind = \"null\"\ninput = \"ph\"\n"
     );
-    let decl = parse("alloc.toml", &text).unwrap();
+    graph_allocations(&text)
+}
+
+/// `phase` on frames with two workers streams them to its helper thread
+/// (renewing its reference every 500 frames, with a handover of 32).
+fn streamed_phase_allocations(frames: u64, pyramid: &str) -> u64 {
+    let text = format!(
+        "[[stage]]\nid = \"s\"\nkind = \"pattern\"\nwidth = 64\nheight = 64\nframes = {frames}\nfps = 1000.0\n\n\
+         [[stage]]\nid = \"ph\"\nkind = \"phase\"\ninput = \"s\"\npyramid = \"{pyramid}\"\nthreads = 2\nblock = 4096\nreference_interval_s = 0.5\n\n\
+         [[stage]]\nid = \"n\"\nkind = \"null\"\ninput = \"ph\"\n"
+    );
+    graph_allocations(&text)
+}
+
+fn graph_allocations(text: &str) -> u64 {
+    let decl = parse("alloc.toml", text).unwrap();
     let graph = validate(&decl, KINDS).unwrap();
     let before = ALLOCS.load(Ordering::SeqCst);
     let report = run(graph, Control::new(), &RunOptions::default()).unwrap();
@@ -103,6 +118,27 @@ fn pyramid_and_phase_allocate_nothing_per_frame() {
         pyramid_allocations(100, pyramid);
         let small = pyramid_allocations(10_000, pyramid);
         let large = pyramid_allocations(30_000, pyramid);
+        let per_frame = (large as f64 - small as f64) / 20_000.0;
+        eprintln!(
+            "{pyramid}: allocations: {small} for 10,000 frames, {large} for 30,000 ({per_frame:.4} per extra frame)"
+        );
+        assert!(
+            per_frame < 0.05,
+            "{pyramid}: {small} allocations for 10,000 frames, {large} for 30,000"
+        );
+    }
+}
+
+/// The same for `phase` reading frames with two workers, which streams
+/// them to a helper thread one by one (no batches), its references shared
+/// with each frame in flight: nothing per frame either.
+#[test]
+fn streamed_phase_allocates_nothing_per_frame() {
+    let _turn = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    for pyramid in ["csp", "riesz"] {
+        streamed_phase_allocations(100, pyramid);
+        let small = streamed_phase_allocations(10_000, pyramid);
+        let large = streamed_phase_allocations(30_000, pyramid);
         let per_frame = (large as f64 - small as f64) / 20_000.0;
         eprintln!(
             "{pyramid}: allocations: {small} for 10,000 frames, {large} for 30,000 ({per_frame:.4} per extra frame)"

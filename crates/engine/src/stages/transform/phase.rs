@@ -54,6 +54,10 @@ use vibroscope_math::kernels::MAX_ORIENT;
 use vibroscope_math::pyramid::{PhaseBands, PyramidError};
 use vibroscope_math::riesz::RieszPyramid;
 
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
 params! {
     /// `phase`'s parameters.
     pub struct PhaseParams for "phase" {
@@ -68,10 +72,13 @@ params! {
             .unit("frames")
             .doc("frames per emitted block"),
         /// (The reference is fixed, so frames are independent: each is
-        /// computed whole by one worker, the workers taking the frames of
-        /// a batch as each is free. A batch is `threads` frames live, so a
-        /// frame waits for at most `threads - 1` later ones; on a replay
-        /// [`REPLAY_DEPTH`] times that, so that a worker held up by
+        /// computed whole by one worker. Two workers on frames take them
+        /// as they come, the second on a helper thread ([`Stream`]; at
+        /// most `threads` frames in flight live, [`REPLAY_DEPTH`] times
+        /// that on a replay). Otherwise the workers take the frames of a
+        /// batch as each is free: a batch is `threads` frames live, so a
+        /// frame waits for at most `threads - 1` later ones, and on a
+        /// replay [`REPLAY_DEPTH`] times that, so that a worker held up by
         /// another thread on its core costs the others less.)
         threads: usize = FRAME_THREADS,
         reference_interval_s: f64 = REFERENCE_INTERVAL,
@@ -134,8 +141,8 @@ struct PhasePlan {
 }
 
 /// Frames a worker takes in a batch on a replay (live: one, so that no
-/// frame waits for more than the other workers' frames). The output is
-/// the same bits either way.
+/// frame waits for more than the other workers' frames), and a stream's
+/// frames in flight a worker. The output is the same bits either way.
 const REPLAY_DEPTH: usize = 4;
 
 impl Plan for PhasePlan {
@@ -163,6 +170,7 @@ impl Plan for PhasePlan {
             engine: None,
             pending: Vec::with_capacity(batch_frames),
             batch: None,
+            streaming: false,
         })))
     }
 
@@ -206,7 +214,7 @@ struct Reference<C> {
 
 /// The next reference while both run side by side.
 struct Handover<C> {
-    next: Reference<C>,
+    next: Arc<Reference<C>>,
     /// Overlap frames still to compute.
     left: usize,
     /// Frames summed into the engine's `acc`.
@@ -234,7 +242,9 @@ struct Engine<A: Analyzer> {
     workers: Vec<Worker<A>>,
     /// One a frame of a batch (the most frames a batch takes).
     slots: Vec<std::sync::Mutex<Slot>>,
-    reference: Option<Reference<A::C>>,
+    /// Shared with the helper of a [`Stream`] by each frame in flight;
+    /// changed only when none is.
+    reference: Option<Arc<Reference<A::C>>>,
     handover: Option<Handover<A::C>>,
     /// A retired reference, recycled for the next renewal.
     spare: Option<Reference<A::C>>,
@@ -242,7 +252,7 @@ struct Engine<A: Analyzer> {
     interval_ns: Option<i64>,
     overlap: usize,
     normalise: Normalise,
-    bands: Vec<BandState>,
+    bands: Arc<Vec<BandState>>,
     /// Tiles per side of the region.
     tiles: usize,
     scales: usize,
@@ -253,6 +263,8 @@ struct Engine<A: Analyzer> {
     acc: Vec<f64>,
     width: usize,
     height: usize,
+    /// The frames streamed to a helper thread, when the engine streams.
+    stream: Option<Stream<A>>,
 }
 
 /// How `phase` renews its reference, and what each channel is divided by.
@@ -275,6 +287,22 @@ trait FrameSignals: Send {
         &mut self,
         frames: &[Item],
         crew: &Crew,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError>;
+    /// Moves the second worker onto a helper thread of its own and
+    /// computes frames as they come ([`Stream`]), at most `depth` in
+    /// flight. False (nothing changed) with fewer than two workers.
+    fn start_stream(&mut self, depth: usize) -> Result<bool, StageError>;
+    /// Streams one frame (after [`FrameSignals::start_stream`]): frames
+    /// done are emitted in order.
+    fn push(
+        &mut self,
+        f: Item,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError>;
+    /// Computes and emits every frame in flight.
+    fn drain(
+        &mut self,
         emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError>;
 }
@@ -364,7 +392,7 @@ impl<A: Analyzer> Engine<A> {
             interval_ns,
             overlap: renewal.overlap,
             normalise: renewal.normalise,
-            bands,
+            bands: Arc::new(bands),
             tiles,
             scales,
             orientations,
@@ -372,6 +400,7 @@ impl<A: Analyzer> Engine<A> {
             acc: vec![0.0; nb],
             width,
             height,
+            stream: None,
         })
     }
 
@@ -454,7 +483,7 @@ impl<A: Analyzer> Engine<A> {
         let r = self.make_reference(0, f.t_ns())?.ok_or_else(|| {
             StageError::dsp("the region has no texture (zero local contrast in every band)")
         })?;
-        self.reference = Some(r);
+        self.reference = Some(Arc::new(r));
         Ok(())
     }
 
@@ -466,15 +495,21 @@ impl<A: Analyzer> Engine<A> {
         }
     }
 
-    /// Ends a handover: the next reference takes over.
-    fn take_over(&mut self) {
+    /// Ends a handover: the next reference takes over. No frame may be in
+    /// flight (nothing else holds the references).
+    fn take_over(&mut self) -> Result<(), StageError> {
         if let Some(mut h) = self.handover.take() {
             let n = h.n.max(1) as f64;
-            for (o, a) in h.next.offset.iter_mut().zip(&self.acc) {
+            let next = Arc::get_mut(&mut h.next).ok_or_else(shared_reference)?;
+            for (o, a) in next.offset.iter_mut().zip(&self.acc) {
                 *o = a / n;
             }
-            self.spare = self.reference.replace(h.next);
+            self.spare = self
+                .reference
+                .replace(h.next)
+                .and_then(|r| Arc::try_unwrap(r).ok());
         }
+        Ok(())
     }
 
     /// Computes `batch` (its frames shared among the workers; during a
@@ -485,10 +520,10 @@ impl<A: Analyzer> Engine<A> {
         crew: &Crew,
         emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
     ) -> Result<(), StageError> {
-        let Some(reference) = self.reference.as_ref() else {
+        let Some(reference) = self.reference.as_deref() else {
             return Ok(());
         };
-        let next = self.handover.as_ref().map(|h| &h.next);
+        let next = self.handover.as_ref().map(|h| &*h.next);
         let (bands, scales, k) = (&self.bands[..], self.scales, self.orientations);
         let tiles = self.tiles;
         let slots = &self.slots[..batch.len()];
@@ -507,19 +542,8 @@ impl<A: Analyzer> Engine<A> {
         for (slot, f) in self.slots.iter_mut().zip(batch) {
             let w = slot.get_mut().unwrap_or_else(|e| e.into_inner());
             std::mem::replace(&mut w.result, Ok(()))?;
-            let now = self.vals.iter_mut().zip(&w.sums).zip(&reference.offset);
-            for (((v, s), o), d) in now.zip(&reference.divisor) {
-                *v = (o + s / d) as f32;
-            }
-            if let Some(h) = self.handover.as_mut() {
-                let next = self.acc.iter_mut().zip(&self.vals).zip(&w.next_sums);
-                for (((a, v), s), d) in next.zip(&h.next.divisor) {
-                    *a += *v as f64 - s / d;
-                }
-                h.n += 1;
-                h.left = h.left.saturating_sub(1);
-            }
-            emit(f, &mut self.vals.iter().copied());
+            let out = (&mut self.vals[..], &mut self.acc[..]);
+            emit_frame(out, reference, self.handover.as_mut(), w, f, emit);
         }
         Ok(())
     }
@@ -535,6 +559,7 @@ impl<A: Analyzer> Engine<A> {
         let t_ns = f.t_ns();
         match self.make_reference(0, t_ns)? {
             Some(next) => {
+                let next = Arc::new(next);
                 // On its own frame the next reference reads zero.
                 for (a, &v) in self.acc.iter_mut().zip(&self.vals) {
                     *a = v as f64;
@@ -545,18 +570,49 @@ impl<A: Analyzer> Engine<A> {
                     n: 1,
                 });
                 if self.overlap == 0 {
-                    self.take_over();
+                    self.take_over()?;
                 }
             }
             // No contrast to renew from: try again an interval later.
             None => {
                 if let Some(r) = self.reference.as_mut() {
-                    r.t_ns = t_ns;
+                    Arc::get_mut(r).ok_or_else(shared_reference)?.t_ns = t_ns;
                 }
             }
         }
         Ok(())
     }
+}
+
+/// A frame's output values from its sums (and, during a handover, its
+/// part of the next reference's offset), emitted.
+fn emit_frame<C>(
+    (vals, acc): (&mut [f32], &mut [f64]),
+    reference: &Reference<C>,
+    handover: Option<&mut Handover<C>>,
+    w: &Slot,
+    f: &Item,
+    emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+) {
+    let now = vals.iter_mut().zip(&w.sums).zip(&reference.offset);
+    for (((v, s), o), d) in now.zip(&reference.divisor) {
+        *v = (o + s / d) as f32;
+    }
+    if let Some(h) = handover {
+        let next = acc.iter_mut().zip(vals.iter()).zip(&w.next_sums);
+        for (((a, v), s), d) in next.zip(&h.next.divisor) {
+            *a += *v as f64 - s / d;
+        }
+        h.n += 1;
+        h.left = h.left.saturating_sub(1);
+    }
+    emit(f, &mut vals.iter().copied());
+}
+
+/// The error for a reference still held by a frame in flight when it is
+/// to change (a broken invariant of [`Stream`], never expected).
+fn shared_reference() -> StageError {
+    StageError::dsp("the phase reference changed while a frame in flight still used it")
 }
 
 /// Eq. 3.2-3.4 for one frame: Σ A(t_ref)² (φ(t) - φ(t_ref)) per band
@@ -632,7 +688,7 @@ fn compute<A: Analyzer>(
     result
 }
 
-impl<A: Analyzer> FrameSignals for Engine<A> {
+impl<A: Analyzer + 'static> FrameSignals for Engine<A> {
     fn channels(&self) -> usize {
         self.vals.len()
     }
@@ -673,11 +729,353 @@ impl<A: Analyzer> FrameSignals for Engine<A> {
             }
             self.batch(&rest[..n], crew, emit)?;
             if self.handover.as_ref().is_some_and(|h| h.left == 0) {
-                self.take_over();
+                self.take_over()?;
             }
             rest = &rest[n..];
         }
         Ok(())
+    }
+
+    fn start_stream(&mut self, depth: usize) -> Result<bool, StageError> {
+        if self.stream.is_some() {
+            return Ok(true);
+        }
+        if self.workers.len() < 2 {
+            return Ok(false);
+        }
+        let Some(helper) = self.workers.pop() else {
+            return Ok(false);
+        };
+        let nb = self.vals.len();
+        let depth = depth.max(2);
+        let shared = Arc::new(StreamShared {
+            flights: (0..depth)
+                .map(|_| {
+                    Mutex::new(Flight {
+                        item: None,
+                        refs: None,
+                        out: Slot {
+                            sums: vec![0.0; nb],
+                            next_sums: vec![0.0; nb],
+                            result: Ok(()),
+                        },
+                    })
+                })
+                .collect(),
+            done: (0..depth).map(|_| AtomicBool::new(false)).collect(),
+            published: AtomicUsize::new(0),
+            claimed: AtomicUsize::new(0),
+            sleeping: AtomicBool::new(false),
+            exit: AtomicBool::new(false),
+            bands: Arc::clone(&self.bands),
+            dims: (self.scales, self.orientations, self.tiles),
+        });
+        let s = Arc::clone(&shared);
+        let thread = std::thread::Builder::new()
+            .name("phase-worker".into())
+            .spawn(move || stream_helper(&s, helper, STREAM_SPIN))
+            .map_err(|e| StageError::thread("the phase-worker helper", e))?;
+        self.stream = Some(Stream {
+            shared,
+            thread: Some(thread),
+            published: 0,
+            emitted: 0,
+        });
+        Ok(true)
+    }
+
+    fn push(
+        &mut self,
+        f: Item,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError> {
+        if self.stream.is_none() {
+            return self.run(std::slice::from_ref(&f), &Crew::Alone, emit);
+        }
+        if self.reference.is_none() {
+            self.set_reference(&f)?;
+            emit(&f, &mut std::iter::repeat_n(0.0, self.vals.len()));
+            return Ok(());
+        }
+        if self.due(f.t_ns()) {
+            // The references change: nothing may be in flight.
+            self.drain(emit)?;
+            return self.renew(&f, emit);
+        }
+        // During a handover only its last `left` frames are computed
+        // against the pair; the frames after wait until it ends.
+        if let Some(h) = &self.handover {
+            if self.in_flight() >= h.left {
+                self.drain(emit)?;
+            }
+        }
+        while self.in_flight() >= self.depth() {
+            self.step(emit)?;
+        }
+        self.publish(f)?;
+        // Compute here while the helper has another frame waiting, so it
+        // never waits for this thread to hand it one.
+        while self.untaken() >= 2 {
+            self.step(emit)?;
+        }
+        self.collect(emit)
+    }
+
+    fn drain(
+        &mut self,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError> {
+        while self.in_flight() > 0 {
+            self.step(emit)?;
+        }
+        Ok(())
+    }
+}
+
+/// How long a [`Stream`]'s helper spins for the next frame before it
+/// parks (as the pair's helper does: [`Crew`]).
+const STREAM_SPIN: Duration = Duration::from_micros(500);
+
+/// The references a frame is computed against (the next one's during a
+/// handover), held by the frame while it is in flight.
+type Refs<C> = (Arc<Reference<C>>, Option<Arc<Reference<C>>>);
+
+/// A frame in flight on a [`Stream`]: published, maybe computed, not yet
+/// emitted.
+struct Flight<C> {
+    item: Option<Item>,
+    /// Taken (and dropped) by whichever worker computes the frame.
+    refs: Option<Refs<C>>,
+    out: Slot,
+}
+
+/// Frames spread over the stage's thread and one helper thread as they
+/// come, without batches: the stage's thread publishes each frame, and
+/// each worker takes the oldest frame nobody has taken whenever it is
+/// free. The stage's thread computes a frame only while another one waits
+/// for the helper, so neither thread waits for the other at a batch's end
+/// (with batches of 8 frames the stage's thread spent about 8% of its
+/// time waiting for the helper's last frame, and the source's reading,
+/// which takes a core now and then, fell in those waits). Frames are
+/// emitted in order; each is computed whole by one worker, as in a batch,
+/// so the output is the same bits.
+struct Stream<A: Analyzer> {
+    shared: Arc<StreamShared<A>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+    /// Frames published and emitted (numbered from 0).
+    published: usize,
+    emitted: usize,
+}
+
+impl<A: Analyzer> Drop for Stream<A> {
+    fn drop(&mut self) {
+        self.shared.exit.store(true, Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            t.thread().unpark();
+            let _ = t.join();
+        }
+    }
+}
+
+/// What the stage's thread and the helper of a [`Stream`] share.
+struct StreamShared<A: Analyzer> {
+    /// Frame `n` sits in `flights[n % depth]`.
+    flights: Box<[Mutex<Flight<A::C>>]>,
+    /// Whether the frame in each flight is computed.
+    done: Box<[AtomicBool]>,
+    /// Frames published, and taken by a worker.
+    published: AtomicUsize,
+    claimed: AtomicUsize,
+    sleeping: AtomicBool,
+    exit: AtomicBool,
+    bands: Arc<Vec<BandState>>,
+    /// Scales, orientations, tiles.
+    dims: (usize, usize, usize),
+}
+
+impl<A: Analyzer> StreamShared<A> {
+    /// Takes the oldest published frame nobody has taken: its number.
+    fn claim(&self) -> Option<usize> {
+        let mut c = self.claimed.load(Ordering::Acquire);
+        loop {
+            if c >= self.published.load(Ordering::Acquire) {
+                return None;
+            }
+            match self
+                .claimed
+                .compare_exchange_weak(c, c + 1, Ordering::AcqRel, Ordering::Acquire)
+            {
+                Ok(_) => return Some(c),
+                Err(now) => c = now,
+            }
+        }
+    }
+
+    /// Computes frame `n` (taken by [`StreamShared::claim`]) with `w`, and
+    /// marks it done. A panic becomes the frame's error.
+    fn compute(&self, w: &mut Worker<A>, n: usize) {
+        let i = n % self.flights.len();
+        {
+            let mut g = self.flights[i].lock().unwrap_or_else(|e| e.into_inner());
+            let Flight { item, refs, out } = &mut *g;
+            out.result = match (item.as_ref(), refs.take()) {
+                (Some(f), Some((r, next))) => {
+                    let run = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                        compute(w, out, f, (&r, next.as_deref()), &self.bands, self.dims)
+                    }));
+                    run.unwrap_or_else(|_| Err(StageError::dsp("a phase worker panicked")))
+                }
+                _ => Err(StageError::dsp("a phase frame in flight had no frame")),
+            };
+        }
+        self.done[i].store(true, Ordering::Release);
+    }
+}
+
+/// The helper of a [`Stream`]: takes frames as they are published,
+/// spinning between them for `spin`, then parking until the next.
+fn stream_helper<A: Analyzer>(s: &StreamShared<A>, mut w: Worker<A>, spin: Duration) {
+    let mut last = Instant::now();
+    let mut idle = 0u32;
+    loop {
+        if s.exit.load(Ordering::Acquire) {
+            return;
+        }
+        if let Some(n) = s.claim() {
+            s.compute(&mut w, n);
+            last = Instant::now();
+            idle = 0;
+            continue;
+        }
+        std::hint::spin_loop();
+        idle = idle.wrapping_add(1);
+        if idle.is_multiple_of(256) && last.elapsed() >= spin {
+            // A publisher that stores after this sees `sleeping` and
+            // unparks (both SeqCst: one of the two sees the other's write).
+            s.sleeping.store(true, Ordering::SeqCst);
+            let waiting = s.published.load(Ordering::SeqCst) > s.claimed.load(Ordering::SeqCst);
+            if !waiting && !s.exit.load(Ordering::SeqCst) {
+                std::thread::park();
+            }
+            s.sleeping.store(false, Ordering::SeqCst);
+            last = Instant::now();
+        }
+    }
+}
+
+impl<A: Analyzer> Engine<A> {
+    fn depth(&self) -> usize {
+        self.stream.as_ref().map_or(1, |s| s.shared.flights.len())
+    }
+
+    /// Frames published and not yet emitted.
+    fn in_flight(&self) -> usize {
+        self.stream.as_ref().map_or(0, |s| s.published - s.emitted)
+    }
+
+    /// Frames published that no worker has taken.
+    fn untaken(&self) -> usize {
+        self.stream.as_ref().map_or(0, |s| {
+            s.published
+                .saturating_sub(s.shared.claimed.load(Ordering::Acquire))
+        })
+    }
+
+    /// Publishes `f` with the references of its time, and wakes the
+    /// helper if it sleeps.
+    fn publish(&mut self, f: Item) -> Result<(), StageError> {
+        let Some(reference) = self.reference.as_ref() else {
+            return Err(StageError::dsp(
+                "a phase frame published before the reference",
+            ));
+        };
+        let refs = (
+            Arc::clone(reference),
+            self.handover.as_ref().map(|h| Arc::clone(&h.next)),
+        );
+        let Some(st) = self.stream.as_mut() else {
+            return Ok(());
+        };
+        let i = st.published % st.shared.flights.len();
+        {
+            let mut g = st.shared.flights[i]
+                .lock()
+                .unwrap_or_else(|e| e.into_inner());
+            g.item = Some(f);
+            g.refs = Some(refs);
+        }
+        st.published += 1;
+        st.shared.published.store(st.published, Ordering::SeqCst);
+        if st.shared.sleeping.load(Ordering::SeqCst) {
+            if let Some(t) = &st.thread {
+                t.thread().unpark();
+            }
+        }
+        Ok(())
+    }
+
+    /// Computes here the oldest frame nobody has taken or, when the helper
+    /// has taken them all, waits for the oldest in flight; then emits what
+    /// is done. Only with frames in flight.
+    fn step(
+        &mut self,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError> {
+        let (Some(st), Some(w)) = (self.stream.as_ref(), self.workers.first_mut()) else {
+            return Ok(());
+        };
+        if let Some(n) = st.shared.claim() {
+            st.shared.compute(w, n);
+        } else {
+            let done = &st.shared.done[st.emitted % st.shared.flights.len()];
+            let mut spins = 0u32;
+            while !done.load(Ordering::Acquire) {
+                spins = spins.wrapping_add(1);
+                if spins.is_multiple_of(1024) {
+                    // The helper's core was given to something else.
+                    std::thread::yield_now();
+                } else {
+                    std::hint::spin_loop();
+                }
+            }
+        }
+        self.collect(emit)
+    }
+
+    /// Emits, in order, the frames in flight that are done; ends a
+    /// handover whose last frame was emitted.
+    fn collect(
+        &mut self,
+        emit: &mut dyn FnMut(&Item, &mut dyn Iterator<Item = f32>),
+    ) -> Result<(), StageError> {
+        loop {
+            let Some(st) = self.stream.as_mut() else {
+                return Ok(());
+            };
+            if st.emitted == st.published {
+                return Ok(());
+            }
+            let i = st.emitted % st.shared.flights.len();
+            if !st.shared.done[i].load(Ordering::Acquire) {
+                return Ok(());
+            }
+            st.shared.done[i].store(false, Ordering::Relaxed);
+            st.emitted += 1;
+            let mut g = st.shared.flights[i]
+                .lock()
+                .unwrap_or_else(|e| e.into_inner());
+            let item = g.item.take();
+            std::mem::replace(&mut g.out.result, Ok(()))?;
+            let (Some(reference), Some(f)) = (self.reference.as_deref(), item.as_ref()) else {
+                return Err(StageError::dsp("a phase frame in flight had no frame"));
+            };
+            let out = (&mut self.vals[..], &mut self.acc[..]);
+            emit_frame(out, reference, self.handover.as_mut(), &g.out, f, emit);
+            drop(g);
+            if self.handover.as_ref().is_some_and(|h| h.left == 0) {
+                self.take_over()?;
+            }
+        }
     }
 }
 
@@ -700,6 +1098,9 @@ struct Phase {
     pending: Vec<Item>,
     /// Band signals into sample blocks (set up with the engine).
     batch: Option<Batcher>,
+    /// Frames go to the engine one by one, two workers taking them as
+    /// they come ([`Stream`]; frames in, two threads), not in batches.
+    streaming: bool,
 }
 
 /// Size of the frame behind an item (frames or pyramid coefficients).
@@ -810,6 +1211,17 @@ impl Phase {
             }
         };
         self.batch = Some(Batcher::samples(self.block, engine.channels()));
+        let mut engine = engine;
+        // Two workers on frames stream them (the pair's helper, idle
+        // then, is let go); pyramids from upstream come in batches, in
+        // buffers recycled once the batch lets them go.
+        if self.threads == 2
+            && matches!(f, Item::Frame(_))
+            && engine.start_stream(self.batch_frames)?
+        {
+            self.streaming = true;
+            self.crew = Crew::Alone;
+        }
         self.engine = Some(engine);
         Ok(())
     }
@@ -837,6 +1249,14 @@ impl Stage for Phase {
                 return Err(StageError::format("the frame size changed mid-stream"));
             }
         }
+        if self.streaming {
+            let (Some(engine), Some(batch)) = (self.engine.as_mut(), self.batch.as_mut()) else {
+                return Ok(());
+            };
+            return engine.push(item, &mut |f, vals| {
+                batch.push(f.t_ns(), item_fps(f), vals, out)
+            });
+        }
         self.pending.push(item);
         if self.pending.len() >= self.batch_frames {
             self.run_pending(out)?;
@@ -845,7 +1265,13 @@ impl Stage for Phase {
     }
 
     fn finish(&mut self, out: &mut Emitter) -> Result<(), StageError> {
-        let r = self.run_pending(out);
+        let mut r = self.run_pending(out);
+        if let (true, Some(engine), Some(batch)) =
+            (self.streaming, self.engine.as_mut(), self.batch.as_mut())
+        {
+            let drained = engine.drain(&mut |f, vals| batch.push(f.t_ns(), item_fps(f), vals, out));
+            r = r.and(drained);
+        }
         if let Some(b) = self.batch.as_mut() {
             b.flush(out);
         }
