@@ -238,6 +238,47 @@ fn phase_stage_is_bit_identical_for_any_thread_count() {
     }
 }
 
+/// `--stats` counts the work `phase` does on its helper thread. With two
+/// workers on frames it streams them to the helper, which on a live source
+/// (frames a period apart) computes nearly all of them, while the stage's
+/// own thread only hands them over: its time alone read 5 µs a frame on
+/// 256x256 where a frame takes about 190. So the stage's time per frame
+/// live must be at least half of its time per frame on a replay of the same
+/// file (both workers busy there); with the helper counted it was 1.6
+/// times, without it 0.07.
+#[test]
+fn phase_stats_count_its_helper_on_a_live_source() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = SCENE.to_vec();
+    scene.extend(["--set", "cam.width=256", "--set", "cam.height=256"]);
+    render_y4m(dir.path(), "scene.y4m", &scene);
+    let us_per_frame = |realtime: bool| -> f64 {
+        let toml = format!(
+            "[[stage]]\nid = \"src\"\nkind = \"file\"\npath = \"scene.y4m\"\nrealtime = {realtime}\n\n\
+             [[stage]]\nid = \"phase\"\nkind = \"phase\"\ninput = \"src\"\npyramid = \"riesz\"\nthreads = 2\n\n\
+             [[stage]]\nid = \"out\"\nkind = \"null\"\ninput = \"phase\"\n"
+        );
+        std::fs::write(dir.path().join("p.toml"), toml).unwrap();
+        let o = run_in(dir.path(), &["run", "p.toml", "--stats", "--quiet"]);
+        assert_eq!(code(&o), 0, "{}", stderr(&o));
+        let table = stderr(&o);
+        let row = table
+            .lines()
+            .find(|l| l.starts_with("phase "))
+            .unwrap_or_else(|| panic!("no phase row: {table}"));
+        let cols: Vec<&str> = row.split_whitespace().collect();
+        assert_eq!(cols[2], "440", "{row}");
+        cols[6].parse().unwrap_or_else(|_| panic!("{row}"))
+    };
+    let replay = us_per_frame(false);
+    let live = us_per_frame(true);
+    eprintln!("phase: {replay:.1} us a frame on a replay, {live:.1} live");
+    assert!(
+        live >= 0.5 * replay,
+        "phase's time a frame live ({live:.1} us) leaves out its helper (replay: {replay:.1} us)"
+    );
+}
+
 /// Frame times survive a gap (frames lost before the file was written): the
 /// phase stage's sample blocks start afresh at the gap, so every sample
 /// carries its frame's capture time, not one extrapolated from the rate.

@@ -180,6 +180,8 @@ struct Counters {
     items_in: AtomicU64,
     items_out: Arc<AtomicU64>,
     busy_ns: AtomicU64,
+    /// The stage's own threads' working time ([`BuildCtx::worker_busy_ns`]).
+    worker_busy_ns: Arc<AtomicU64>,
     /// Frames a source reports lost upstream of it (camera sequence gaps).
     source_dropped: AtomicU64,
     inputs: Vec<Arc<EdgeStats>>,
@@ -209,8 +211,17 @@ impl Counted for Counters {
             dropped: evicted + self.source_dropped.load(Ordering::Relaxed),
             queued: pushed.saturating_sub(popped + evicted),
             queue_capacity: self.capacity,
-            busy_s: self.busy_ns.load(Ordering::Relaxed) as f64 * 1e-9,
+            busy_s: self.busy().as_secs_f64(),
         }
+    }
+}
+
+impl Counters {
+    /// The stage thread's time inside `process`/`next`, or its own
+    /// workers' working time when larger.
+    fn busy(&self) -> Duration {
+        let own = self.busy_ns.load(Ordering::Relaxed);
+        Duration::from_nanos(own.max(self.worker_busy_ns.load(Ordering::Relaxed)))
     }
 }
 
@@ -277,6 +288,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
             items_in: AtomicU64::new(0),
             items_out: Arc::new(AtomicU64::new(0)),
             busy_ns: AtomicU64::new(0),
+            worker_busy_ns: Arc::default(),
             source_dropped: AtomicU64::new(0),
             inputs: stats,
             capacity: cap,
@@ -297,6 +309,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
             input_types: node.inputs.iter().map(|inp| inp.port_type).collect(),
             live,
             observer: opts.observer.clone(),
+            worker_busy_ns: Arc::clone(&counters[i].worker_busy_ns),
         };
         let built_node = node.plan.build(&ctx).map_err(|e| RunError {
             stage: node.id.clone(),
@@ -399,7 +412,7 @@ pub fn run(graph: Graph, control: Arc<Control>, opts: &RunOptions) -> Result<Run
                 .max()
                 .unwrap_or(0),
             queue_capacity: c.capacity,
-            busy: Duration::from_nanos(c.busy_ns.load(Ordering::Relaxed)),
+            busy: c.busy(),
             latency: c
                 .latency
                 .as_ref()

@@ -1014,6 +1014,10 @@ pub struct BuildCtx {
     /// Who watches the run (the `tap` stages publish to it); none for a
     /// plain run.
     pub observer: Option<std::sync::Arc<crate::observe::Observer>>,
+    /// Where a stage that works on threads of its own adds the time they
+    /// spend working (ns): its busy time (`--stats`' `us/item`, the
+    /// studio's `busy`) is the larger of this and its own thread's.
+    pub worker_busy_ns: std::sync::Arc<std::sync::atomic::AtomicU64>,
 }
 
 /// A stage whose parameters are valid; `build` opens files and devices.

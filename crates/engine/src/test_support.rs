@@ -24,6 +24,7 @@ pub(crate) fn run_audio_stage(
         input_types: vec![PortType::Audio],
         live,
         observer: None,
+        worker_busy_ns: Default::default(),
     };
     let Ok(Node::Stage(mut st)) = plan.build(&ctx) else {
         panic!("not a stage");

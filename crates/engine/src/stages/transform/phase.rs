@@ -54,7 +54,7 @@ use vibroscope_math::kernels::MAX_ORIENT;
 use vibroscope_math::pyramid::{PhaseBands, PyramidError};
 use vibroscope_math::riesz::RieszPyramid;
 
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -171,6 +171,7 @@ impl Plan for PhasePlan {
             pending: Vec::with_capacity(batch_frames),
             batch: None,
             streaming: false,
+            worker_busy_ns: Arc::clone(&ctx.worker_busy_ns),
         })))
     }
 
@@ -292,7 +293,8 @@ trait FrameSignals: Send {
     /// Moves the second worker onto a helper thread of its own and
     /// computes frames as they come ([`Stream`]), at most `depth` in
     /// flight. False (nothing changed) with fewer than two workers.
-    fn start_stream(&mut self, depth: usize) -> Result<bool, StageError>;
+    /// The helper adds its working time to `busy_ns`.
+    fn start_stream(&mut self, depth: usize, busy_ns: Arc<AtomicU64>) -> Result<bool, StageError>;
     /// Streams one frame (after [`FrameSignals::start_stream`]): frames
     /// done are emitted in order.
     fn push(
@@ -736,7 +738,7 @@ impl<A: Analyzer + 'static> FrameSignals for Engine<A> {
         Ok(())
     }
 
-    fn start_stream(&mut self, depth: usize) -> Result<bool, StageError> {
+    fn start_stream(&mut self, depth: usize, busy_ns: Arc<AtomicU64>) -> Result<bool, StageError> {
         if self.stream.is_some() {
             return Ok(true);
         }
@@ -773,7 +775,7 @@ impl<A: Analyzer + 'static> FrameSignals for Engine<A> {
         let s = Arc::clone(&shared);
         let thread = std::thread::Builder::new()
             .name("phase-worker".into())
-            .spawn(move || stream_helper(&s, helper, STREAM_SPIN))
+            .spawn(move || stream_helper(&s, helper, STREAM_SPIN, &busy_ns))
             .map_err(|e| StageError::thread("the phase-worker helper", e))?;
         self.stream = Some(Stream {
             shared,
@@ -933,8 +935,15 @@ impl<A: Analyzer> StreamShared<A> {
 }
 
 /// The helper of a [`Stream`]: takes frames as they are published,
-/// spinning between them for `spin`, then parking until the next.
-fn stream_helper<A: Analyzer>(s: &StreamShared<A>, mut w: Worker<A>, spin: Duration) {
+/// spinning between them for `spin`, then parking until the next. Its
+/// time computing goes to `busy_ns` (the stage's busy time when larger
+/// than its own thread's: a live stream's frames may all come here).
+fn stream_helper<A: Analyzer>(
+    s: &StreamShared<A>,
+    mut w: Worker<A>,
+    spin: Duration,
+    busy_ns: &AtomicU64,
+) {
     let mut last = Instant::now();
     let mut idle = 0u32;
     loop {
@@ -942,8 +951,10 @@ fn stream_helper<A: Analyzer>(s: &StreamShared<A>, mut w: Worker<A>, spin: Durat
             return;
         }
         if let Some(n) = s.claim() {
+            let t = Instant::now();
             s.compute(&mut w, n);
             last = Instant::now();
+            busy_ns.fetch_add((last - t).as_nanos() as u64, Ordering::Relaxed);
             idle = 0;
             continue;
         }
@@ -1101,6 +1112,8 @@ struct Phase {
     /// Frames go to the engine one by one, two workers taking them as
     /// they come ([`Stream`]; frames in, two threads), not in batches.
     streaming: bool,
+    /// Where a stream's helper adds its working time ([`BuildCtx`]).
+    worker_busy_ns: Arc<AtomicU64>,
 }
 
 /// Size of the frame behind an item (frames or pyramid coefficients).
@@ -1217,7 +1230,7 @@ impl Phase {
         // buffers recycled once the batch lets them go.
         if self.threads == 2
             && matches!(f, Item::Frame(_))
-            && engine.start_stream(self.batch_frames)?
+            && engine.start_stream(self.batch_frames, Arc::clone(&self.worker_busy_ns))?
         {
             self.streaming = true;
             self.crew = Crew::Alone;

@@ -313,6 +313,7 @@ mod tests {
             input_types: vec![PortType::Audio],
             live: true,
             observer: None,
+            worker_busy_ns: Default::default(),
         };
         let Ok(Node::Stage(st)) = Box::new(PitchPlan(YinParams::default())).build(&ctx) else {
             panic!("pitch builds a stage");
