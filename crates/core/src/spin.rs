@@ -101,9 +101,66 @@ impl SpinJoin {
     }
 }
 
+/// A helper thread's wait between jobs: it spins for `spin` after its
+/// last job, so a job that comes soon starts within a fraction of a
+/// microsecond, then parks until a publisher that sees `sleeping` unparks
+/// it (no CPU burnt between the frames of a slow camera).
+pub struct Idle {
+    spin: Duration,
+    last: Instant,
+    spins: u32,
+}
+
+impl Idle {
+    pub fn new(spin: Duration) -> Self {
+        Self {
+            spin,
+            last: Instant::now(),
+            spins: 0,
+        }
+    }
+
+    /// A job has just ended: the spin starts again.
+    pub fn worked(&mut self) {
+        self.last = Instant::now();
+        self.spins = 0;
+    }
+
+    /// One turn of the wait: a spin, or, once `spin` has passed, a park
+    /// unless `ready()` (a job or an exit) already holds. A publisher
+    /// makes its job visible, then reads `sleeping` (both SeqCst), and
+    /// unparks this thread if it is set: one of the two sees the other's
+    /// write, so no job is left waiting for a sleeper.
+    pub fn wait(&mut self, sleeping: &AtomicBool, ready: impl Fn() -> bool) {
+        std::hint::spin_loop();
+        self.spins = self.spins.wrapping_add(1);
+        if self.spins.is_multiple_of(256) && self.last.elapsed() >= self.spin {
+            sleeping.store(true, SeqCst);
+            if !ready() {
+                thread::park();
+            }
+            sleeping.store(false, SeqCst);
+            self.last = Instant::now();
+        }
+    }
+}
+
+/// Spins until `done()`, yielding the core every 1024 turns (the thread
+/// being waited for may have lost its core to something else).
+pub fn spin_until(done: impl Fn() -> bool) {
+    let mut spins = 0u32;
+    while !done() {
+        spins = spins.wrapping_add(1);
+        if spins.is_multiple_of(1024) {
+            thread::yield_now();
+        } else {
+            std::hint::spin_loop();
+        }
+    }
+}
+
 fn helper(s: &Shared) {
-    let mut last = Instant::now();
-    let mut idle_spins = 0u32;
+    let mut idle = Idle::new(s.spin);
     loop {
         match s.state.load(Acquire) {
             JOB => {
@@ -128,26 +185,10 @@ fn helper(s: &Shared) {
                     }
                 }
                 s.state.store(DONE, Release);
-                last = Instant::now();
-                idle_spins = 0;
+                idle.worked();
             }
             EXIT => return,
-            _ => {
-                std::hint::spin_loop();
-                idle_spins = idle_spins.wrapping_add(1);
-                if idle_spins.is_multiple_of(256) && last.elapsed() >= s.spin {
-                    // Park; a caller that publishes a job after this store
-                    // sees `sleeping` and unparks (both SeqCst, so one of
-                    // the two sees the other's write).
-                    s.sleeping.store(true, SeqCst);
-                    let st = s.state.load(SeqCst);
-                    if st != JOB && st != EXIT {
-                        thread::park();
-                    }
-                    s.sleeping.store(false, SeqCst);
-                    last = Instant::now();
-                }
-            }
+            _ => idle.wait(&s.sleeping, || matches!(s.state.load(SeqCst), JOB | EXIT)),
         }
     }
 }
@@ -187,16 +228,7 @@ impl Join for SpinJoin {
                 second = catch_unwind(AssertUnwindSafe(&mut *b));
             }
         } else {
-            let mut spins = 0u32;
-            while s.state.load(Acquire) != DONE {
-                spins = spins.wrapping_add(1);
-                if spins.is_multiple_of(1024) {
-                    // The helper's core was given to something else.
-                    thread::yield_now();
-                } else {
-                    std::hint::spin_loop();
-                }
-            }
+            spin_until(|| s.state.load(Acquire) == DONE);
             if let Some(p) = s.panic.lock().ok().and_then(|mut p| p.take()) {
                 second = Err(p);
             }

@@ -54,6 +54,7 @@ use vibroscope_math::kernels::MAX_ORIENT;
 use vibroscope_math::pyramid::{PhaseBands, PyramidError};
 use vibroscope_math::riesz::RieszPyramid;
 
+use crate::spin::{spin_until, Idle};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -150,8 +151,15 @@ impl Plan for PhasePlan {
         let PhasePlan { p: v, mask } = *self;
         let threads = resolve_threads(v.threads);
         let batch_frames = threads * if ctx.live { 1 } else { REPLAY_DEPTH };
+        // Two workers on frames stream them, the second on a helper of the
+        // stream's own: no pair's helper is started for them.
+        let streams = threads == 2 && ctx.input_types.first() == Some(&PortType::Frames);
         Ok(Node::Stage(Box::new(Phase {
-            crew: Crew::new(threads, "phase-worker")?,
+            crew: if streams {
+                Crew::Alone
+            } else {
+                Crew::new(threads, "phase-worker")?
+            },
             threads,
             batch_frames,
             kind: v.pyramid,
@@ -170,7 +178,7 @@ impl Plan for PhasePlan {
             engine: None,
             pending: Vec::with_capacity(batch_frames),
             batch: None,
-            streaming: false,
+            streaming: streams,
             worker_busy_ns: Arc::clone(&ctx.worker_busy_ns),
         })))
     }
@@ -944,8 +952,7 @@ fn stream_helper<A: Analyzer>(
     spin: Duration,
     busy_ns: &AtomicU64,
 ) {
-    let mut last = Instant::now();
-    let mut idle = 0u32;
+    let mut idle = Idle::new(spin);
     loop {
         if s.exit.load(Ordering::Acquire) {
             return;
@@ -953,24 +960,14 @@ fn stream_helper<A: Analyzer>(
         if let Some(n) = s.claim() {
             let t = Instant::now();
             s.compute(&mut w, n);
-            last = Instant::now();
-            busy_ns.fetch_add((last - t).as_nanos() as u64, Ordering::Relaxed);
-            idle = 0;
+            busy_ns.fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
+            idle.worked();
             continue;
         }
-        std::hint::spin_loop();
-        idle = idle.wrapping_add(1);
-        if idle.is_multiple_of(256) && last.elapsed() >= spin {
-            // A publisher that stores after this sees `sleeping` and
-            // unparks (both SeqCst: one of the two sees the other's write).
-            s.sleeping.store(true, Ordering::SeqCst);
-            let waiting = s.published.load(Ordering::SeqCst) > s.claimed.load(Ordering::SeqCst);
-            if !waiting && !s.exit.load(Ordering::SeqCst) {
-                std::thread::park();
-            }
-            s.sleeping.store(false, Ordering::SeqCst);
-            last = Instant::now();
-        }
+        idle.wait(&s.sleeping, || {
+            s.published.load(Ordering::SeqCst) > s.claimed.load(Ordering::SeqCst)
+                || s.exit.load(Ordering::SeqCst)
+        });
     }
 }
 
@@ -1039,16 +1036,7 @@ impl<A: Analyzer> Engine<A> {
             st.shared.compute(w, n);
         } else {
             let done = &st.shared.done[st.emitted % st.shared.flights.len()];
-            let mut spins = 0u32;
-            while !done.load(Ordering::Acquire) {
-                spins = spins.wrapping_add(1);
-                if spins.is_multiple_of(1024) {
-                    // The helper's core was given to something else.
-                    std::thread::yield_now();
-                } else {
-                    std::hint::spin_loop();
-                }
-            }
+            spin_until(|| done.load(Ordering::Acquire));
         }
         self.collect(emit)
     }
@@ -1110,7 +1098,8 @@ struct Phase {
     /// Band signals into sample blocks (set up with the engine).
     batch: Option<Batcher>,
     /// Frames go to the engine one by one, two workers taking them as
-    /// they come ([`Stream`]; frames in, two threads), not in batches.
+    /// they come ([`Stream`]; frames in, two threads), not in batches
+    /// (then `crew` is alone).
     streaming: bool,
     /// Where a stream's helper adds its working time ([`BuildCtx`]).
     worker_busy_ns: Arc<AtomicU64>,
@@ -1225,15 +1214,11 @@ impl Phase {
         };
         self.batch = Some(Batcher::samples(self.block, engine.channels()));
         let mut engine = engine;
-        // Two workers on frames stream them (the pair's helper, idle
-        // then, is let go); pyramids from upstream come in batches, in
-        // buffers recycled once the batch lets them go.
-        if self.threads == 2
-            && matches!(f, Item::Frame(_))
-            && engine.start_stream(self.batch_frames, Arc::clone(&self.worker_busy_ns))?
-        {
-            self.streaming = true;
-            self.crew = Crew::Alone;
+        // Pyramids from upstream come in batches, in buffers recycled once
+        // the batch lets them go.
+        if self.streaming {
+            self.streaming = matches!(f, Item::Frame(_))
+                && engine.start_stream(self.batch_frames, Arc::clone(&self.worker_busy_ns))?;
         }
         self.engine = Some(engine);
         Ok(())
